@@ -1,0 +1,137 @@
+"""The in-process fleet: every vehicle's own code, stepped together, over an in-memory link.
+
+It is the fast path for tests and sweeps and the reference the multi-process lockstep
+mode reproduces: the schedule below is exactly the lockstep protocol.
+
+At control tick n (t_n = n T), for every vehicle:
+  1. deliver the ω messages due by tick n (sent at a tick m < n, usable at the first tick
+     at or after t_m + delay), then ``control`` with its neighbour table's consensus
+     over the period [t_{n-1}, t_n];
+  2. record telemetry (metrics are sampled after the controller's update);
+  3. on broadcast ticks, send ω: encoded and decoded exactly as on the wire, with the
+     link model deciding per (src, dst, seq) whether and when it arrives;
+  4. ``advance`` the plant to t_{n+1}.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+import time
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from vehicle_agent.link import IdealLink, LinkCounters, LinkModel
+from vehicle_agent.messages import OmegaMsg, decode_omega, encode_omega
+from vehicle_agent.neighbours import NeighbourLink, NeighbourTable
+from vehicle_agent.vehicle import Vehicle
+from world_sim.metrics import Recorder, metric_edges, percentile_ms
+
+
+def broadcast_every(rates: Any) -> int:
+    """Control ticks per ω broadcast (the broadcast rate rounded to a divisor of the control rate)."""
+    return max(1, round(rates.control / rates.broadcast))
+
+
+def delivery_tick(send_tick: int, delay: float, period: float) -> int:
+    """The first control tick at which a message sent at ``send_tick`` with ``delay`` is usable."""
+    return max(send_tick + 1, math.ceil(send_tick + delay / period - 1e-9))
+
+
+def neighbour_links(scenario: Any, vid: str) -> tuple[NeighbourLink, ...]:
+    index = {v.id: v.index for v in scenario.vehicles}
+    return tuple(NeighbourLink(index[e.k], e.weight, e.delta) for e in scenario.neighbours(vid))
+
+
+@dataclass
+class RunResult:
+    metrics: dict
+    recorder: Recorder
+    vehicles: list[Vehicle]
+
+
+class InProcessFleet:
+    def __init__(self, scenario: Any, link: LinkModel | None = None, policy: str = "hold",
+                 timeout: float = 1.5):
+        self.scenario = scenario
+        self.link = link or IdealLink()
+        self.vehicles = [Vehicle.from_spec(v, scenario.rates, scenario.seed) for v in scenario.vehicles]
+        self.tables = [NeighbourTable(neighbour_links(scenario, v.id), policy, timeout) for v in scenario.vehicles]
+        self.listeners: list[list[int]] = [[] for _ in self.vehicles]
+        for dst, table in enumerate(self.tables):
+            for ln in table.links:
+                self.listeners[ln.k].append(dst)
+        self.period = 1.0 / scenario.rates.control
+        self.every = broadcast_every(scenario.rates)
+        self.recorder = Recorder([v.id for v in self.vehicles], [v.dim for v in self.vehicles],
+                                 metric_edges(scenario))
+        self.counters = LinkCounters()
+        self._queue: list[tuple[int, int, int, bytes, float]] = []  # (tick, order, dst, payload, latency)
+        self._order = 0
+        self._seq = [0] * len(self.vehicles)
+        self.tick = 0
+
+    def step(self) -> None:
+        n = self.tick
+        T = self.period
+        t_prev = (n - 1) * T
+        q = self._queue
+        while q and q[0][0] <= n:
+            _, _, dst, payload, latency = heapq.heappop(q)
+            msg = decode_omega(payload, n_vehicles=len(self.vehicles))
+            if isinstance(msg, str) or not self.tables[dst].offer(msg, n * T):
+                self.counters.rejected += 1
+                continue
+            self.counters.delivered += 1
+            self.counters.latencies.append(latency)
+        for v, table in zip(self.vehicles, self.tables):
+            v.control(table.consensus(t_prev))
+        self.recorder.record(n * T, [v.telemetry() for v in self.vehicles])
+        if n % self.every == 0:
+            for src, v in enumerate(self.vehicles):
+                self._send(src, v, n)
+        for v in self.vehicles:
+            v.advance()
+        self.tick += 1
+
+    def _send(self, src: int, v: Vehicle, n: int) -> None:
+        seq = self._seq[src]
+        self._seq[src] += 1
+        payload = encode_omega(OmegaMsg(src, seq, v.t, v.omega, v.omega_rate))
+        for dst in self.listeners[src]:
+            self.counters.sent += 1
+            delays = self.link.decide(src, dst, seq, v.t)
+            if not delays:
+                self.counters.dropped += 1
+            self.counters.duplicated += max(0, len(delays) - 1)
+            for d in delays:
+                self._order += 1
+                heapq.heappush(self._queue, (delivery_tick(n, d, self.period), self._order, dst, payload, d))
+
+    def run(self, duration: float | None = None, progress: Callable[[float, float], None] | None = None,
+            mode: str = "inproc") -> RunResult:
+        sc = self.scenario
+        duration = sc.duration if duration is None else duration
+        ticks = int(round(duration / self.period))
+        start = time.perf_counter()
+        last_report = start
+        while self.tick <= ticks:
+            self.step()
+            if progress is not None and self.tick % 50 == 0:
+                now = time.perf_counter()
+                if now - last_report > 1.0:
+                    last_report = now
+                    progress(self.tick * self.period, duration)
+        wall = time.perf_counter() - start
+        metrics = self.recorder.summary(
+            scenario=sc.name, mode=mode, seed=sc.seed, path_tol=sc.path_tol, coord_tol=sc.coord_tol,
+            link=link_summary(self.counters), wall_s=wall)
+        return RunResult(metrics, self.recorder, self.vehicles)
+
+
+def link_summary(c: LinkCounters) -> dict:
+    return {
+        "sent": c.sent, "delivered": c.delivered, "dropped": c.dropped, "duplicated": c.duplicated,
+        "rejected": c.rejected,
+        "latency_ms_p50": percentile_ms(c.latencies, 50), "latency_ms_p99": percentile_ms(c.latencies, 99),
+    }
