@@ -1,0 +1,239 @@
+"""What is the communication graph? Who listens to whom, and whether the offsets can close.
+
+Pure functions over vehicle ids, no I/O. A *listening pair* ``(i, k)`` means vehicle i
+listens to vehicle k: k is in N_i, the neighbour set of the paper's sum
+``Σ_k a_ik (ω_i - ω_k - Δ_ik)`` (dgvf.md §2). Information therefore flows k -> i.
+
+Two facts the controller needs from the graph:
+- a directed spanning tree (the paper's Assumption 1): some root reaches every vehicle
+  following the information flow (:func:`unreachable`);
+- consistent offsets: the Δs come from per-vehicle phases, Δ_ik = θ_i - θ_k, i.e. they
+  sum to zero around every cycle ("Formation offsets must be consistent",
+  :func:`inconsistent_cycle`).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from typing import Any, Iterable, Sequence
+
+TOPOLOGIES = ("ring", "chain", "complete", "star", "explicit")
+
+Pair = tuple[str, str]
+
+
+def build_pairs(topology: str, ids: Sequence[str], directed: bool, hub: str | None = None,
+                explicit: Iterable[Pair] = ()) -> list[Pair]:
+    """The listening pairs ``(i, k)`` (i listens to k) of a named topology.
+
+    - ring: vehicle j listens to j-1 and, undirected, to j+1 (cyclic); needs >= 2 vehicles.
+    - chain: directed, j listens to j-1 (the first vehicle is the leader and listens to
+      nobody); undirected, both ways.
+    - complete: every vehicle listens to every other.
+    - star: directed, every vehicle listens to the hub (default: the first vehicle);
+      undirected, the hub also listens to every vehicle.
+    - explicit: the given pairs; undirected adds each reverse pair.
+
+    Pairs are unique and sorted by (index of i, index of k). Raises ``ValueError`` for an
+    unknown topology, a ring of fewer than 2 vehicles, or a hub/pair naming an unknown id.
+    """
+    ids = list(ids)
+    n = len(ids)
+    pos = {v: j for j, v in enumerate(ids)}
+    pairs: list[Pair] = []
+    if topology == "ring":
+        if n < 2:
+            raise ValueError(f"a ring needs at least 2 vehicles, got {n}")
+        for j in range(n):
+            pairs.append((ids[j], ids[j - 1]))
+            if not directed:
+                pairs.append((ids[j], ids[(j + 1) % n]))
+    elif topology == "chain":
+        for j in range(1, n):
+            pairs.append((ids[j], ids[j - 1]))
+            if not directed:
+                pairs.append((ids[j - 1], ids[j]))
+    elif topology == "complete":
+        pairs = [(i, k) for i in ids for k in ids if i != k]
+    elif topology == "star":
+        hub = ids[0] if hub is None and ids else hub
+        if n and hub not in pos:
+            raise ValueError(f"hub {hub!r} is not one of the vehicles {ids}")
+        for v in ids:
+            if v != hub:
+                pairs.append((v, hub))
+                if not directed:
+                    pairs.append((hub, v))
+    elif topology == "explicit":
+        for i, k in explicit:
+            if i not in pos or k not in pos:
+                raise ValueError(f"pair {[i, k]} names a vehicle not in {ids}")
+            if i == k:
+                raise ValueError(f"pair {[i, k]} is a self-loop")
+            pairs.append((i, k))
+            if not directed:
+                pairs.append((k, i))
+    else:
+        raise ValueError(f"unknown topology {topology!r}; choose one of {', '.join(TOPOLOGIES)}")
+    unique = set(pairs)
+    return sorted(unique, key=lambda p: (pos[p[0]], pos[p[1]]))
+
+
+def reachable_from(root: str, pairs: Iterable[Pair]) -> set[str]:
+    """The vehicles that hear from ``root``, directly or not (information flows k -> i)."""
+    listeners: dict[str, list[str]] = {}
+    for i, k in pairs:
+        listeners.setdefault(k, []).append(i)
+    seen = {root}
+    queue = deque([root])
+    while queue:
+        v = queue.popleft()
+        for w in listeners.get(v, ()):
+            if w not in seen:
+                seen.add(w)
+                queue.append(w)
+    return seen
+
+
+def spanning_root(ids: Sequence[str], pairs: Iterable[Pair]) -> str | None:
+    """The root that reaches the most vehicles (ties: the first id); None without vehicles."""
+    pairs = list(pairs)
+    best, best_n = None, -1
+    for root in ids:
+        n = len(reachable_from(root, pairs))
+        if n > best_n:
+            best, best_n = root, n
+    return best
+
+
+def unreachable(ids: Sequence[str], pairs: Iterable[Pair]) -> list[str]:
+    """[] if the graph has a directed spanning tree, else the vehicles the best root misses.
+
+    The best root is the one reaching the most vehicles (ties: the first id). For an
+    undirected graph (both directions of every pair) this is "not connected to the
+    largest component".
+    """
+    pairs = list(pairs)
+    root = spanning_root(ids, pairs)
+    if root is None:
+        return []
+    seen = reachable_from(root, pairs)
+    return [v for v in ids if v not in seen]
+
+
+# --------------------------------------------------------------------------- offsets
+
+
+def _triples(edges: Iterable[Any]) -> list[tuple[str, str, float]]:
+    """Accept ``(i, k, delta)`` tuples or objects with ``.i``, ``.k``, ``.delta``."""
+    out = []
+    for e in edges:
+        if hasattr(e, "delta"):
+            out.append((e.i, e.k, float(e.delta)))
+        else:
+            i, k, d = e
+            out.append((i, k, float(d)))
+    return out
+
+
+def _potentials(ids: Sequence[str], triples: list[tuple[str, str, float]]):
+    """BFS over the undirected constraint graph: θ with θ_i = θ_k + Δ_ik on tree edges.
+
+    Returns (theta, parent) with parent[v] = (u, constraint index) for the tree edge
+    that reached v, None for a root. Each component is rooted at its first id (θ = 0).
+    """
+    adj: dict[str, list[tuple[str, float, int]]] = {v: [] for v in ids}
+    for idx, (i, k, d) in enumerate(triples):
+        adj.setdefault(i, []).append((k, -d, idx))  # θ_k = θ_i - Δ_ik
+        adj.setdefault(k, []).append((i, d, idx))  # θ_i = θ_k + Δ_ik
+    theta: dict[str, float] = {}
+    parent: dict[str, tuple[str, int] | None] = {}
+    for root in list(ids) + [v for v in adj if v not in ids]:
+        if root in theta:
+            continue
+        theta[root], parent[root] = 0.0, None
+        queue = deque([root])
+        while queue:
+            v = queue.popleft()
+            for w, step, idx in adj[v]:
+                if w not in theta:
+                    theta[w] = theta[v] + step
+                    parent[w] = (v, idx)
+                    queue.append(w)
+    return theta, parent
+
+
+def _step(a: str, b: str, triple: tuple[str, str, float]) -> float:
+    """Δ along the step a -> b of a constraint: Δ_ab, or -Δ_ba for a reversed pair."""
+    i, k, d = triple
+    return d if (i, k) == (a, b) else -d
+
+
+def inconsistent_cycle(ids: Sequence[str], edges_with_deltas: Iterable[Any]) -> tuple[list[str], float] | None:
+    """A cycle whose Δs do not sum to zero, or None if Δ_ik = θ_i - θ_k is solvable.
+
+    ``edges_with_deltas`` holds ``(i, k, Δ_ik)`` (or Edge objects); each is one
+    constraint θ_i - θ_k = Δ_ik. Returns ``(cycle, total)``: the cycle as vehicle ids
+    closing back to the first (started at its lowest-index vehicle) and the sum of Δ
+    along it, each step a -> b adding Δ_ab (= -Δ_ba for a pair given the other way).
+    Tolerance: 1e-9 · max(1, |values|).
+    """
+    ids = list(ids)
+    triples = _triples(edges_with_deltas)
+    theta, parent = _potentials(ids, triples)
+    for idx, (i, k, d) in enumerate(triples):
+        residual = theta[i] - theta[k] - d
+        if abs(residual) <= 1e-9 * max(1.0, abs(theta[i]), abs(theta[k]), abs(d)):
+            continue
+        # tree paths i -> root and k -> root, joined at their lowest common ancestor
+        up_i = _path_to_root(i, parent)
+        up_k = _path_to_root(k, parent)
+        on_k = {v for v, _ in up_k}
+        cut_i = next(j for j, (v, _) in enumerate(up_i) if v in on_k)
+        lca = up_i[cut_i][0]
+        cut_k = next(j for j, (v, _) in enumerate(up_k) if v == lca)
+        # cycle: i -> ... -> lca -> ... -> k -> i; steps[j] = constraint from nodes[j] to nodes[j+1]
+        nodes = [v for v, _ in up_i[:cut_i + 1]] + [v for v, _ in reversed(up_k[:cut_k])]
+        steps = [c for _, c in up_i[:cut_i]] + [c for _, c in reversed(up_k[:cut_k])] + [idx]
+        nodes, steps = _canonical(nodes, steps, ids)
+        if len(nodes) == 2 and triples[steps[0]][:2] != (nodes[0], nodes[1]):
+            steps = steps[::-1]  # two pairs on one link: read each as written, Δ_ab + Δ_ba
+        total = sum(_step(nodes[j], nodes[(j + 1) % len(nodes)], triples[steps[j]]) for j in range(len(nodes)))
+        return nodes + [nodes[0]], total
+    return None
+
+
+def _path_to_root(v: str, parent) -> list[tuple[str, int | None]]:
+    """[(v, constraint to its parent), (parent, ...), ..., (root, None)]."""
+    out = []
+    while True:
+        p = parent[v]
+        out.append((v, None if p is None else p[1]))
+        if p is None:
+            return out
+        v = p[0]
+
+
+def _canonical(nodes: list[str], steps: list[int], ids: list[str]) -> tuple[list[str], list[int]]:
+    """Rotate the cycle to start at its lowest-index vehicle, heading to the lower-index side."""
+    pos = {v: j for j, v in enumerate(ids)}
+    rank = lambda v: pos.get(v, len(ids))  # noqa: E731
+    m = len(nodes)
+    start = min(range(m), key=lambda j: rank(nodes[j]))
+    nodes = nodes[start:] + nodes[:start]
+    steps = steps[start:] + steps[:start]
+    if m > 2 and rank(nodes[-1]) < rank(nodes[1]):
+        # reverse: node order 0, m-1, ..., 1; step between nodes[j] and nodes[j-1] is steps[j-1]
+        nodes = [nodes[0]] + nodes[:0:-1]
+        steps = steps[::-1]
+    return nodes, steps
+
+
+def suggest_phases(ids: Sequence[str], edges_with_deltas: Iterable[Any]) -> dict[str, float]:
+    """Per-vehicle phases propagated along a BFS tree from the first vehicle.
+
+    θ_first = 0 and θ_i = θ_k + Δ_ik over the tree edges; a vehicle in another
+    component roots its own tree at θ = 0. Consistent Δs are reproduced exactly.
+    """
+    theta, _ = _potentials(list(ids), _triples(edges_with_deltas))
+    return {v: theta[v] for v in ids}
