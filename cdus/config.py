@@ -12,6 +12,7 @@ reading the file.
 from __future__ import annotations
 
 import copy
+import json
 import difflib
 import math
 import os
@@ -23,6 +24,7 @@ from typing import Any, Iterable, Mapping
 
 from cdus import graph as graphs
 from vehicle_agent.paths import FAMILIES, PathError, for_dimension, make_path
+from vehicle_agent.plants import USV_PRESETS
 
 # --------------------------------------------------------------------------- schema
 
@@ -33,9 +35,7 @@ PLANTS: dict[str, tuple[str, ...]] = {  # plant -> kinds it models
     "uav_double_integrator": ("uav",),
 }
 #: usv_3dof parameter presets ε1..ε7 (dgvf.md §3; a CyberShip II-like 3-DOF model).
-PRESETS: dict[str, tuple[float, ...]] = {
-    "cybership2": (-0.465, 1.310, 0.0388, -0.181, 0.362, -0.503, -0.763),
-}
+PRESETS: dict[str, tuple[float, ...]] = USV_PRESETS
 DEFAULT_PRESET = "cybership2"
 #: plant -> regulator -> allowed regulator_gains keys; the first regulator is the default.
 REGULATORS: dict[str, dict[str, tuple[str, ...]]] = {
@@ -166,7 +166,10 @@ def load_scenario(path: str | os.PathLike, overrides: Mapping[str, Any] | None =
     source = os.fspath(path)
     try:
         with open(source, "rb") as fh:
-            data = tomllib.load(fh)
+            if source.endswith(".json"):  # a resolved scenario (Scenario.raw) handed to a subprocess
+                data = json.load(fh)
+            else:
+                data = tomllib.load(fh)
     except FileNotFoundError:
         raise ConfigError(source, [("file", "not found; give the path of a scenario .toml file "
                                             "(see configs/ for examples)")]) from None
@@ -174,6 +177,8 @@ def load_scenario(path: str | os.PathLike, overrides: Mapping[str, Any] | None =
         raise ConfigError(source, [("file", f"cannot be read: {e.strerror or e}")]) from None
     except UnicodeDecodeError:
         raise ConfigError(source, [("file", "is not UTF-8 text; a scenario is a TOML file")]) from None
+    except json.JSONDecodeError as e:
+        raise ConfigError(source, [(f"line {e.lineno}, column {e.colno}", f"JSON syntax error: {e.msg}")]) from None
     except tomllib.TOMLDecodeError as e:
         text = str(e)
         m = re.search(r"\(at line (\d+), column (\d+)\)", text)
