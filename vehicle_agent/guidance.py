@@ -87,17 +87,26 @@ def integrate_omega(path: Path, q: Vec, w: float, k: Vec, c: float, cons: Consen
     n = max(1, math.ceil(period / MAX_SUBSTEP - 1e-9))
     h = period / n
     s = path.direction
-    cW = c * cons.W
+    c_w = c * cons.W
+    b0, b1 = cons.B0, cons.B1
     ev = path.eval
+    planar = len(q) == 2
+    if planar:
+        qx, qy = q
+        kx, ky = k
+    else:
+        qx, qy, qz = q
+        kx, ky, kz = k
     for j in range(n):
-        f, f1, f2 = ev(w)
-        g = s
-        dg = -cW
-        for kk, qq, ff, d, dd in zip(k, q, f, f1, f2):
-            e = qq - ff
-            g += kk * e * d
-            dg += kk * (e * dd - d * d)
-        g -= c * (cons.W * w - (cons.B0 + cons.B1 * (j * h)))
+        f, d, dd = ev(w)
+        ex, ey = qx - f[0], qy - f[1]
+        g = s + kx * ex * d[0] + ky * ey * d[1]
+        dg = kx * (ex * dd[0] - d[0] * d[0]) + ky * (ey * dd[1] - d[1] * d[1]) - c_w
+        if not planar:
+            ez = qz - f[2]
+            g += kz * ez * d[2]
+            dg += kz * (ez * dd[2] - d[2] * d[2])
+        g -= c_w * w - c * (b0 + b1 * (j * h))
         if dg < 0.0:
             w += h * g / (1.0 - h * dg)
         else:

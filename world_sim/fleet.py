@@ -15,9 +15,9 @@ At control tick n (t_n = n T), for every vehicle:
 
 from __future__ import annotations
 
-import heapq
 import math
 import time
+from collections import defaultdict
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -52,8 +52,9 @@ class RunResult:
 
 class InProcessFleet:
     def __init__(self, scenario: Any, link: LinkModel | None = None, policy: str = "hold",
-                 timeout: float = 1.5):
+                 timeout: float = 1.5, mode: str = "inproc"):
         self.scenario = scenario
+        self.mode = mode
         self.link = link or IdealLink()
         self.vehicles = [Vehicle.from_spec(v, scenario.rates, scenario.seed) for v in scenario.vehicles]
         self.tables = [NeighbourTable(neighbour_links(scenario, v.id), policy, timeout) for v in scenario.vehicles]
@@ -66,8 +67,8 @@ class InProcessFleet:
         self.recorder = Recorder([v.id for v in self.vehicles], [v.dim for v in self.vehicles],
                                  metric_edges(scenario))
         self.counters = LinkCounters()
-        self._queue: list[tuple[int, int, int, bytes, float]] = []  # (tick, order, dst, payload, latency)
-        self._order = 0
+        # deliveries by the tick they become usable at, in send order: (dst, message, latency)
+        self._due: dict[int, list[tuple[int, OmegaMsg, float]]] = defaultdict(list)
         self._seq = [0] * len(self.vehicles)
         self.tick = 0
 
@@ -75,15 +76,13 @@ class InProcessFleet:
         n = self.tick
         T = self.period
         t_prev = (n - 1) * T
-        q = self._queue
-        while q and q[0][0] <= n:
-            _, _, dst, payload, latency = heapq.heappop(q)
-            msg = decode_omega(payload, n_vehicles=len(self.vehicles))
-            if isinstance(msg, str) or not self.tables[dst].offer(msg, n * T):
-                self.counters.rejected += 1
+        tables, counters = self.tables, self.counters
+        for dst, msg, latency in self._due.pop(n, ()):
+            if not tables[dst].offer(msg, n * T):
+                counters.rejected += 1
                 continue
-            self.counters.delivered += 1
-            self.counters.latencies.append(latency)
+            counters.delivered += 1
+            counters.record_latency(latency)
         for v, table in zip(self.vehicles, self.tables):
             v.control(table.consensus(t_prev))
         self.recorder.record(n * T, [v.telemetry() for v in self.vehicles])
@@ -97,7 +96,12 @@ class InProcessFleet:
     def _send(self, src: int, v: Vehicle, n: int) -> None:
         seq = self._seq[src]
         self._seq[src] += 1
-        payload = encode_omega(OmegaMsg(src, seq, v.t, v.omega, v.omega_rate))
+        # Through the wire format once, so every listener sees exactly what a remote one would.
+        msg = decode_omega(encode_omega(OmegaMsg(src, seq, v.t, v.omega, v.omega_rate)))
+        if isinstance(msg, str):  # a diverged vehicle (non-finite ω): receivers would reject it
+            self.counters.sent += len(self.listeners[src])
+            self.counters.rejected += len(self.listeners[src])
+            return
         for dst in self.listeners[src]:
             self.counters.sent += 1
             delays = self.link.decide(src, dst, seq, v.t)
@@ -105,28 +109,31 @@ class InProcessFleet:
                 self.counters.dropped += 1
             self.counters.duplicated += max(0, len(delays) - 1)
             for d in delays:
-                self._order += 1
-                heapq.heappush(self._queue, (delivery_tick(n, d, self.period), self._order, dst, payload, d))
+                self._due[delivery_tick(n, d, self.period)].append((dst, msg, d))
 
-    def run(self, duration: float | None = None, progress: Callable[[float, float], None] | None = None,
-            mode: str = "inproc") -> RunResult:
-        sc = self.scenario
-        duration = sc.duration if duration is None else duration
+    def run(self, duration: float | None = None, progress: Callable[[float, float], None] | None = None
+            ) -> RunResult:
+        """Step to ``duration`` (default: the scenario's), inclusive of the last instant."""
+        duration = self.scenario.duration if duration is None else duration
         ticks = int(round(duration / self.period))
-        start = time.perf_counter()
-        last_report = start
+        self._t0 = time.perf_counter()
+        last_report = self._t0
         while self.tick <= ticks:
             self.step()
             if progress is not None and self.tick % 50 == 0:
                 now = time.perf_counter()
-                if now - last_report > 1.0:
+                if now - last_report > 0.5:
                     last_report = now
                     progress(self.tick * self.period, duration)
-        wall = time.perf_counter() - start
-        metrics = self.recorder.summary(
-            scenario=sc.name, mode=mode, seed=sc.seed, path_tol=sc.path_tol, coord_tol=sc.coord_tol,
+        return RunResult(self.partial_metrics(), self.recorder, self.vehicles)
+
+    def partial_metrics(self) -> dict:
+        """The metrics JSON of what has run so far (also after an interruption)."""
+        sc = self.scenario
+        wall = time.perf_counter() - getattr(self, "_t0", time.perf_counter())
+        return self.recorder.summary(
+            scenario=sc.name, mode=self.mode, seed=sc.seed, path_tol=sc.path_tol, coord_tol=sc.coord_tol,
             link=link_summary(self.counters), wall_s=wall)
-        return RunResult(metrics, self.recorder, self.vehicles)
 
 
 def link_summary(c: LinkCounters) -> dict:
