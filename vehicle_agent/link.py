@@ -36,6 +36,19 @@ class LinkCounters:
     rejected: int = 0
     latencies: list[float] = field(default_factory=list, repr=False)
 
+    MAX_SAMPLES = 100_000
+
+    def record_latency(self, seconds: float) -> None:
+        """Keep a bounded, evenly thinned sample of latencies for the percentiles."""
+        self._seen = getattr(self, "_seen", 0) + 1
+        stride = getattr(self, "_stride", 1)
+        if self._seen % stride:
+            return
+        self.latencies.append(seconds)
+        if len(self.latencies) >= self.MAX_SAMPLES:
+            self.latencies = self.latencies[::2]
+            self._stride = stride * 2
+
     def add(self, other: "LinkCounters") -> None:
         self.sent += other.sent
         self.delivered += other.delivered
