@@ -35,11 +35,14 @@ class OmegaMsg:
 def encode_omega(m: OmegaMsg) -> bytes:
     """The payload of ``m``: a 6-element msgpack array, ω̇ packed as float32 (a rate
     near -1 that is only used to extrapolate), everything else exact."""
+    wd = float(m.omega_rate)
+    if math.isfinite(wd):  # a non-finite rate must stay so, for the receiver to reject it
+        wd = max(-F32_MAX, min(F32_MAX, wd))
     return b"".join((
         b"\x96",
         _pack(OMEGA_VERSION), _pack(m.sender), _pack(m.seq),
         _pack(float(m.t_send)), _pack(float(m.omega)),
-        msgpack.packb(max(-F32_MAX, min(F32_MAX, float(m.omega_rate))), use_single_float=True),
+        msgpack.packb(wd, use_single_float=True),
     ))
 
 
@@ -72,3 +75,118 @@ def decode_omega(payload: bytes, expected_sender: int | None = None, n_vehicles:
     if expected_sender is not None and sender != expected_sender:
         return "unknown_sender"
     return OmegaMsg(sender, seq, t, w, wd)
+
+
+# --------------------------------------------------------------------------- telemetry
+
+STATE_VERSION = 1
+
+
+@dataclass(frozen=True)
+class StateMsg:
+    """A vehicle's telemetry at control tick ``tick`` (after the controller's update).
+
+    In lockstep it doubles as the acknowledgement of that tick.
+    """
+
+    sender: int
+    tick: int
+    t: float
+    q: tuple[float, ...]
+    heading: float
+    speed: float
+    omega: float
+    omega_rate: float
+    path_error: float
+
+
+def encode_state(m: StateMsg) -> bytes:
+    return _pack([STATE_VERSION, m.sender, m.tick, m.t, list(m.q), m.heading, m.speed, m.omega,
+                  m.omega_rate, m.path_error])
+
+
+def decode_state(payload: bytes, n_vehicles: int | None = None) -> StateMsg | str:
+    if len(payload) > 256:
+        return "oversized"
+    try:
+        obj = msgpack.unpackb(payload, raw=True, max_array_len=16, max_map_len=0, max_str_len=0,
+                              max_bin_len=0, max_ext_len=0)
+    except Exception:
+        return "malformed"
+    if not isinstance(obj, list) or len(obj) != 10:
+        return "malformed"
+    v, sender, tick, t, q, heading, speed, w, wd, pe = obj
+    if type(v) is not int or v != STATE_VERSION:
+        return "version"
+    if type(sender) is not int or type(tick) is not int or not isinstance(q, list) or len(q) not in (2, 3):
+        return "type"
+    floats = [t, heading, speed, w, wd, pe, *q]
+    if not all(type(x) is float for x in floats):
+        return "type"
+    if not all(math.isfinite(x) for x in floats):
+        return "non_finite"
+    if sender < 0 or tick < 0 or (n_vehicles is not None and sender >= n_vehicles):
+        return "unknown_sender"
+    return StateMsg(sender, tick, t, tuple(q), heading, speed, w, wd, pe)
+
+
+# --------------------------------------------------------------------------- control maps
+
+CONTROL_VERSION = 1
+MAX_CONTROL_PAYLOAD = 4096
+
+#: clock ops and the fields each carries (name -> type)
+CLOCK_OPS: dict[str, dict[str, type]] = {
+    "start": {"t0": float},  # realtime: tick 0 is at wall time t0 (time.time())
+    "grant": {"until": int},  # lockstep: agents may step every tick <= until
+    "stop": {},  # end of run: finish, report, exit
+}
+
+#: command ops and their fields; ``link`` and ``gains`` carry tables checked by their owners
+COMMAND_OPS: dict[str, dict[str, type]] = {
+    "pause": {},
+    "resume": {},
+    "stop": {},
+    "set_phase": {"phase": float},
+    "set_gains": {"gains": dict},
+    "link": {"link": dict},
+}
+
+
+@dataclass(frozen=True)
+class Control:
+    """A clock tick or a command: an op and its checked fields."""
+
+    op: str
+    fields: dict
+
+
+def encode_control(op: str, **fields) -> bytes:
+    return msgpack.packb({"v": CONTROL_VERSION, "op": op, **fields}, use_bin_type=True)
+
+
+def decode_control(payload: bytes, ops: dict[str, dict[str, type]]) -> Control | str:
+    """Decode a clock or command map against ``ops`` (CLOCK_OPS or COMMAND_OPS)."""
+    if len(payload) > MAX_CONTROL_PAYLOAD:
+        return "oversized"
+    try:
+        obj = msgpack.unpackb(payload, raw=False, max_array_len=64, max_map_len=64, max_str_len=256,
+                              max_bin_len=0, max_ext_len=0)
+    except Exception:
+        return "malformed"
+    if not isinstance(obj, dict) or obj.get("v") != CONTROL_VERSION or type(obj.get("v")) is not int:
+        return "version" if isinstance(obj, dict) else "malformed"
+    op = obj.get("op")
+    if not isinstance(op, str) or op not in ops:
+        return "unknown_op"
+    out = {}
+    for name, typ in ops[op].items():
+        val = obj.get(name)
+        if typ is float and type(val) is int:
+            val = float(val)
+        if type(val) is not typ:
+            return "type"
+        if typ is float and not math.isfinite(val):
+            return "non_finite"
+        out[name] = val
+    return Control(op, out)
