@@ -100,34 +100,47 @@ class StateMsg:
     path_error: float
 
 
-def encode_state(m: StateMsg) -> bytes:
-    return _pack([STATE_VERSION, m.sender, m.tick, m.t, list(m.q), m.heading, m.speed, m.omega,
-                  m.omega_rate, m.path_error])
+MAX_STATE_ROWS = 64
 
 
-def decode_state(payload: bytes, n_vehicles: int | None = None) -> StateMsg | str:
-    if len(payload) > 256:
+def encode_states(rows: list[StateMsg]) -> bytes:
+    """A batch of one sender's telemetry rows: [version, sender, [[tick, t, q, ψ, |v|, ω, ω̇, |Φ|], ...]]."""
+    return _pack([STATE_VERSION, rows[0].sender,
+                  [[m.tick, m.t, list(m.q), m.heading, m.speed, m.omega, m.omega_rate, m.path_error] for m in rows]])
+
+
+def decode_states(payload: bytes, n_vehicles: int | None = None) -> list[StateMsg] | str:
+    """The rows of a telemetry batch, or the reason it was rejected (the whole batch is)."""
+    if len(payload) > 96 * MAX_STATE_ROWS:
         return "oversized"
     try:
-        obj = msgpack.unpackb(payload, raw=True, max_array_len=16, max_map_len=0, max_str_len=0,
+        obj = msgpack.unpackb(payload, raw=True, max_array_len=MAX_STATE_ROWS, max_map_len=0, max_str_len=0,
                               max_bin_len=0, max_ext_len=0)
     except Exception:
         return "malformed"
-    if not isinstance(obj, list) or len(obj) != 10:
+    if not isinstance(obj, list) or len(obj) != 3:
         return "malformed"
-    v, sender, tick, t, q, heading, speed, w, wd, pe = obj
+    v, sender, rows = obj
     if type(v) is not int or v != STATE_VERSION:
         return "version"
-    if type(sender) is not int or type(tick) is not int or not isinstance(q, list) or len(q) not in (2, 3):
+    if type(sender) is not int or not isinstance(rows, list) or not rows:
         return "type"
-    floats = [t, heading, speed, w, wd, pe, *q]
-    if not all(type(x) is float for x in floats):
-        return "type"
-    if not all(math.isfinite(x) for x in floats):
-        return "non_finite"
-    if sender < 0 or tick < 0 or (n_vehicles is not None and sender >= n_vehicles):
+    if sender < 0 or (n_vehicles is not None and sender >= n_vehicles):
         return "unknown_sender"
-    return StateMsg(sender, tick, t, tuple(q), heading, speed, w, wd, pe)
+    out = []
+    for row in rows:
+        if not isinstance(row, list) or len(row) != 8:
+            return "malformed"
+        tick, t, q, heading, speed, w, wd, pe = row
+        if type(tick) is not int or tick < 0 or not isinstance(q, list) or len(q) not in (2, 3):
+            return "type"
+        floats = (t, heading, speed, w, wd, pe, *q)
+        if not all(type(x) is float for x in floats):
+            return "type"
+        if not all(math.isfinite(x) for x in floats):
+            return "non_finite"
+        out.append(StateMsg(sender, tick, t, tuple(q), heading, speed, w, wd, pe))
+    return out
 
 
 # --------------------------------------------------------------------------- control maps

@@ -14,6 +14,7 @@ guidance with a stale-neighbour policy (system.md "Link fault model"):
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 from vehicle_agent.guidance import Consensus
 from vehicle_agent.messages import OmegaMsg
@@ -28,6 +29,12 @@ class NeighbourLink:
     k: int
     weight: float
     delta: float
+
+
+def links_of(scenario: Any, vid: str) -> tuple[NeighbourLink, ...]:
+    """Vehicle ``vid``'s terms from a ``cdus.config.Scenario``: whom it listens to, a_ik, Δ_ik."""
+    index = {v.id: v.index for v in scenario.vehicles}
+    return tuple(NeighbourLink(index[e.k], e.weight, e.delta) for e in scenario.neighbours(vid))
 
 
 @dataclass

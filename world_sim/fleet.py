@@ -15,7 +15,6 @@ At control tick n (t_n = n T), for every vehicle:
 
 from __future__ import annotations
 
-import math
 import time
 from collections import defaultdict
 from dataclasses import dataclass
@@ -23,24 +22,10 @@ from typing import Any, Callable
 
 from vehicle_agent.link import IdealLink, LinkCounters, LinkModel
 from vehicle_agent.messages import OmegaMsg, decode_omega, encode_omega
-from vehicle_agent.neighbours import NeighbourLink, NeighbourTable
+from vehicle_agent.neighbours import NeighbourTable, links_of
+from vehicle_agent.schedule import broadcast_every, delivery_tick, total_ticks
 from vehicle_agent.vehicle import Vehicle
 from world_sim.metrics import Recorder, metric_edges, percentile_ms
-
-
-def broadcast_every(rates: Any) -> int:
-    """Control ticks per ω broadcast (the broadcast rate rounded to a divisor of the control rate)."""
-    return max(1, round(rates.control / rates.broadcast))
-
-
-def delivery_tick(send_tick: int, delay: float, period: float) -> int:
-    """The first control tick at which a message sent at ``send_tick`` with ``delay`` is usable."""
-    return max(send_tick + 1, math.ceil(send_tick + delay / period - 1e-9))
-
-
-def neighbour_links(scenario: Any, vid: str) -> tuple[NeighbourLink, ...]:
-    index = {v.id: v.index for v in scenario.vehicles}
-    return tuple(NeighbourLink(index[e.k], e.weight, e.delta) for e in scenario.neighbours(vid))
 
 
 @dataclass
@@ -57,7 +42,7 @@ class InProcessFleet:
         self.mode = mode
         self.link = link or IdealLink()
         self.vehicles = [Vehicle.from_spec(v, scenario.rates, scenario.seed) for v in scenario.vehicles]
-        self.tables = [NeighbourTable(neighbour_links(scenario, v.id), policy, timeout) for v in scenario.vehicles]
+        self.tables = [NeighbourTable(links_of(scenario, v.id), policy, timeout) for v in scenario.vehicles]
         self.listeners: list[list[int]] = [[] for _ in self.vehicles]
         for dst, table in enumerate(self.tables):
             for ln in table.links:
@@ -115,7 +100,7 @@ class InProcessFleet:
             ) -> RunResult:
         """Step to ``duration`` (default: the scenario's), inclusive of the last instant."""
         duration = self.scenario.duration if duration is None else duration
-        ticks = int(round(duration / self.period))
+        ticks = total_ticks(duration, self.period)
         self._t0 = time.perf_counter()
         last_report = self._t0
         while self.tick <= ticks:

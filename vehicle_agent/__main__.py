@@ -1,0 +1,62 @@
+"""python -m vehicle_agent --config FILE --id ID [...]: one vehicle as its own process.
+
+Usually started by `cdus launch`; start it by hand to put a vehicle on another host:
+
+    python -m vehicle_agent --config configs/lake_circle.toml --id usv1 --fleet lake \\
+        --connect tcp/192.168.1.10:7447
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from cdus.config import ConfigError, load_scenario, parse_value
+from cdus.transport import add_transport_args, transport_from_args
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m vehicle_agent", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--config", required=True, help="scenario file (.toml, or the .json a launcher resolved)")
+    p.add_argument("--id", required=True, help="this vehicle's id in the scenario")
+    p.add_argument("--fleet", default="default", help="fleet name: the key-space prefix cdus/<fleet>/")
+    p.add_argument("--clock", choices=("realtime", "lockstep"), default="realtime")
+    p.add_argument("--duration", type=float, help="simulated seconds (default: the scenario's)")
+    p.add_argument("--policy", choices=("hold", "timeout", "extrapolate"), help="stale-neighbour policy")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a config key")
+    add_transport_args(p, default_mode="client")
+    return p
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        overrides = {}
+        for item in args.set:
+            key, _, value = item.partition("=")
+            overrides[key] = parse_value(value)
+        scenario = load_scenario(args.config, overrides)
+        if args.id not in scenario.ids:
+            print(f"error: {args.config}: no vehicle with id {args.id!r}; ids are {', '.join(scenario.ids)}",
+                  file=sys.stderr)
+            return 2
+    except ConfigError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    from vehicle_agent.agent import Agent, run_agent
+    from vehicle_agent.link_model import link_model_for
+
+    transport = transport_from_args(args)
+    if not transport.connect and not transport.listen and not transport.config_file:
+        transport = transport.__class__(mode=transport.mode, connect=("tcp/127.0.0.1:7447",),
+                                        lease_ms=transport.lease_ms)
+    link = scenario.link
+    agent = Agent(scenario, args.id, args.fleet, transport, clock=args.clock,
+                  policy=args.policy or link.get("policy", "hold"), timeout=float(link.get("timeout", 1.5)),
+                  link=link_model_for(scenario), duration=args.duration)
+    return run_agent(agent)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,55 @@
+"""python -m world_sim --config FILE [...]: the world process.
+
+Usually started by `cdus launch`. By hand, e.g. as the router of a multi-host fleet:
+
+    python -m world_sim --config configs/lake_circle.toml --fleet lake --listen tcp/0.0.0.0:7447
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from cdus.config import ConfigError, load_scenario, parse_value
+from cdus.transport import Transport, add_transport_args, transport_from_args
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m world_sim", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--config", required=True, help="scenario file (.toml, or the .json a launcher resolved)")
+    p.add_argument("--fleet", default="default", help="fleet name: the key-space prefix cdus/<fleet>/")
+    p.add_argument("--clock", choices=("realtime", "lockstep"), default="lockstep")
+    p.add_argument("--duration", type=float, help="simulated seconds (default: the scenario's)")
+    p.add_argument("--metrics-out", metavar="PATH", default="metrics.json")
+    p.add_argument("--trace-out", metavar="PATH")
+    p.add_argument("--start-timeout", type=float, default=60.0, metavar="S",
+                   help="how long to wait for every vehicle to come up")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a config key")
+    add_transport_args(p, default_mode="router")
+    return p
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        overrides = {}
+        for item in args.set:
+            key, _, value = item.partition("=")
+            overrides[key] = parse_value(value)
+        scenario = load_scenario(args.config, overrides)
+    except ConfigError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    from world_sim.world import World, run_world
+
+    transport = transport_from_args(args)
+    if transport.mode == "router" and not transport.listen and not transport.config_file:
+        transport = Transport(mode="router", listen=("tcp/127.0.0.1:7447",), lease_ms=transport.lease_ms)
+    world = World(scenario, args.fleet, transport, clock=args.clock, duration=args.duration,
+                  metrics_out=args.metrics_out, trace_out=args.trace_out, start_timeout=args.start_timeout)
+    return run_world(world)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
