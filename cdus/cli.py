@@ -55,6 +55,25 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--policy", choices=("hold", "timeout", "extrapolate"), default=None,
                    help="stale-neighbour policy (default: the scenario's link.policy, else hold)")
     p.set_defaults(func=cmd_sim)
+
+    p = sub.add_parser("launch", help="run a scenario as one OS process per vehicle over Zenoh",
+                       description="Start world_sim and one vehicle_agent per vehicle, run, stop them all.")
+    _add_run_args(p)
+    p.add_argument("--fleet", metavar="NAME", help="fleet name, the key prefix cdus/<NAME>/ (default: the scenario name)")
+    p.add_argument("--clock", choices=("realtime", "lockstep"), default="lockstep",
+                   help="lockstep: deterministic, as fast as the machine allows (default); realtime: wall clock")
+    p.add_argument("--restart", choices=("never", "on-failure", "always"), default="never",
+                   help="restart policy for vehicle processes that exit during the run")
+    p.add_argument("--logs", metavar="DIR", help="run directory for logs, metrics, trace (default: runs/<name>-<time>)")
+    p.add_argument("--policy", choices=("hold", "timeout", "extrapolate"), default=None,
+                   help="stale-neighbour policy (default: the scenario's link.policy, else hold)")
+    p.add_argument("--ready-timeout", type=float, default=30.0, metavar="S",
+                   help="how long each process may take to come up")
+    p.add_argument("-l", "--listen", action="append", default=[], metavar="ENDPOINT",
+                   help="router endpoint(s) (default: tcp/127.0.0.1:<free port>); e.g. tcp/0.0.0.0:7447 "
+                        "for agents on other hosts")
+    p.add_argument("--zenoh-config", metavar="FILE", help="zenoh json5 config for the router (multicast forced off)")
+    p.set_defaults(func=cmd_launch)
     return parser
 
 
@@ -84,6 +103,35 @@ def cmd_sim(args: argparse.Namespace) -> int:
         fleet.recorder.save_trace(args.trace_out)
     print(summary_table(metrics, fleet.vehicles))
     print(f"  metrics: {metrics_out}" + (f"\n  trace: {args.trace_out}" if args.trace_out else ""))
+    return status
+
+
+def cmd_launch(args: argparse.Namespace) -> int:
+    import json
+
+    from cdus.launcher import LaunchOptions, launch
+    from cdus.transport import Transport, local_router
+
+    scenario = load_scenario(args.config, _overrides(args))
+    run = Path(args.logs) if args.logs else run_dir(args.runs_dir, scenario.name)
+    run.mkdir(parents=True, exist_ok=True)
+    router = (Transport(mode="router", listen=tuple(args.listen), config_file=args.zenoh_config)
+              if args.listen or args.zenoh_config else local_router())
+    opts = LaunchOptions(
+        fleet=args.fleet or scenario.name.replace(".", "_"), clock=args.clock, duration=args.duration,
+        restart=args.restart, metrics_out=Path(args.metrics_out) if args.metrics_out else None,
+        trace_out=Path(args.trace_out) if args.trace_out else None, policy=args.policy,
+        ready_timeout=args.ready_timeout, quiet=args.quiet)
+    print(f"{scenario.name}: launching {len(scenario.vehicles)} vehicle processes + world "
+          f"({args.clock} clock), router {', '.join(router.listen) or args.zenoh_config}")
+    status, la = launch(scenario, run, router, opts)
+    if la.metrics_out.exists():
+        metrics = json.loads(la.metrics_out.read_text())
+        print(summary_table(metrics, scenario.vehicles))
+        print(f"  metrics: {la.metrics_out}\n  logs: {la.logs}")
+    else:
+        print(f"no metrics were written; logs: {la.logs}", file=sys.stderr)
+        status = status or EXIT_FAIL
     return status
 
 

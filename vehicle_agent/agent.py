@@ -86,7 +86,7 @@ class Agent:
         self.counters = LinkCounters()
         self.missed_deadlines = 0
         self.ticks_done = 0
-        self._due: dict[int, list[OmegaMsg]] = defaultdict(list)  # lockstep: deliveries by tick
+        self._due: dict[int, list[tuple[OmegaMsg, float]]] = defaultdict(list)  # lockstep: (msg, delay) by tick
         self._pending: list[tuple[float, int, int, OmegaMsg]] = []  # realtime: (usable sim time, order, -, msg)
         self._order = 0
         # Telemetry goes to the world in batches (rows per message): fewer messages, less
@@ -255,9 +255,10 @@ class Agent:
             self._apply_commands(cmds)
             for _, msg in msgs:
                 self._route(msg, send_tick(msg.t_send, T))
-            for msg in self._due.pop(n, ()):
+            for msg, d in self._due.pop(n, ()):
                 if self.table.offer(msg, n * T):
                     self.counters.delivered += 1
+                    self.counters.record_latency(d)  # the emulated delay, in simulated time
                 else:
                     self.counters.rejected += 1
             self._step(n)
@@ -310,7 +311,7 @@ class Agent:
         delays = self.link.decide(msg.sender, self.index, msg.seq, msg.t_send)
         self._count_decision(delays)
         for d in delays:
-            self._due[delivery_tick(m, d, self.period)].append(msg)
+            self._due[delivery_tick(m, d, self.period)].append((msg, d))
 
     def _route_realtime(self, msg: OmegaMsg, arrival: float) -> None:
         delays = self.link.decide(msg.sender, self.index, msg.seq, msg.t_send)
