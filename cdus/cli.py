@@ -44,6 +44,9 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--trace-out", metavar="PATH", help="write the time series as .npz (numpy.load reads it)")
     p.add_argument("--runs-dir", default="runs", metavar="DIR", help="where run directories go (default: runs)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    p.add_argument("--rerun", default="off", metavar="SINK",
+                   help="where the Rerun stream goes: off | spawn | save:PATH | connect:URL (comma-separated "
+                        "for several)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -87,7 +90,10 @@ def cmd_sim(args: argparse.Namespace) -> int:
         out_dir = run_dir(args.runs_dir, scenario.name)
         metrics_out = out_dir / "metrics.json"
     policy = args.policy or scenario.link.get("policy", "hold")
-    fleet = InProcessFleet(scenario, policy=policy, timeout=float(scenario.link.get("timeout", 1.5)))
+    from world_sim.recording import make_sink
+
+    sink = make_sink(args.rerun, Path(metrics_out).parent)
+    fleet = InProcessFleet(scenario, policy=policy, timeout=float(scenario.link.get("timeout", 1.5)), sink=sink)
     progress = Progress(f"{scenario.name}", quiet=args.quiet)
     status = EXIT_OK
     try:
@@ -97,6 +103,8 @@ def cmd_sim(args: argparse.Namespace) -> int:
         status = EXIT_INTERRUPTED
         metrics = fleet.partial_metrics()
         metrics["interrupted"] = True
+    finally:
+        sink.close()
     progress.done()
     write_json(metrics_out, metrics)
     if args.trace_out:
@@ -121,7 +129,7 @@ def cmd_launch(args: argparse.Namespace) -> int:
         fleet=args.fleet or scenario.name.replace(".", "_"), clock=args.clock, duration=args.duration,
         restart=args.restart, metrics_out=Path(args.metrics_out) if args.metrics_out else None,
         trace_out=Path(args.trace_out) if args.trace_out else None, policy=args.policy,
-        ready_timeout=args.ready_timeout, quiet=args.quiet)
+        ready_timeout=args.ready_timeout, quiet=args.quiet, rerun=args.rerun)
     print(f"{scenario.name}: launching {len(scenario.vehicles)} vehicle processes + world "
           f"({args.clock} clock), router {', '.join(router.listen) or args.zenoh_config}")
     status, la = launch(scenario, run, router, opts)

@@ -98,6 +98,7 @@ class LaunchOptions:
     grace: float = GRACE_S
     quiet: bool = False
     lease_ms: int | None = 1000
+    rerun: str = "off"
 
 
 @dataclass
@@ -140,6 +141,7 @@ class Launcher:
                 "--start-timeout", str(self.opts.ready_timeout + 5)]
         if self.opts.trace_out:
             argv += ["--trace-out", str(self.opts.trace_out)]
+        argv += ["--rerun", self.opts.rerun, "--run-dir", str(self.run_dir)]
         return Child("world", argv, self.logs / "world.log")
 
     def _agent(self, vid: str) -> Child:

@@ -25,6 +25,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--trace-out", metavar="PATH")
     p.add_argument("--start-timeout", type=float, default=60.0, metavar="S",
                    help="how long to wait for every vehicle to come up")
+    p.add_argument("--rerun", default="off", metavar="SINK",
+                   help="off | spawn | save:PATH | connect:URL (comma-separated for several)")
+    p.add_argument("--run-dir", metavar="DIR", help="where a default recording goes")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a config key")
     add_transport_args(p, default_mode="router")
     return p
@@ -41,13 +44,17 @@ def main(argv=None) -> int:
     except ConfigError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    from pathlib import Path
+
+    from world_sim.recording import make_sink
     from world_sim.world import World, run_world
 
     transport = transport_from_args(args)
     if transport.mode == "router" and not transport.listen and not transport.config_file:
         transport = Transport(mode="router", listen=("tcp/127.0.0.1:7447",), lease_ms=transport.lease_ms)
     world = World(scenario, args.fleet, transport, clock=args.clock, duration=args.duration,
-                  metrics_out=args.metrics_out, trace_out=args.trace_out, start_timeout=args.start_timeout)
+                  metrics_out=args.metrics_out, trace_out=args.trace_out, start_timeout=args.start_timeout,
+                  sink=make_sink(args.rerun, Path(args.run_dir) if args.run_dir else None))
     return run_world(world)
 
 

@@ -26,6 +26,7 @@ from vehicle_agent.neighbours import NeighbourTable, links_of
 from vehicle_agent.schedule import broadcast_every, delivery_tick, total_ticks
 from vehicle_agent.vehicle import Vehicle
 from world_sim.metrics import Recorder, metric_edges, percentile_ms
+from world_sim.recording import UPDATE_EVERY, NullSink, Sink
 
 
 @dataclass
@@ -37,9 +38,10 @@ class RunResult:
 
 class InProcessFleet:
     def __init__(self, scenario: Any, link: LinkModel | None = None, policy: str = "hold",
-                 timeout: float = 1.5, mode: str = "inproc"):
+                 timeout: float = 1.5, mode: str = "inproc", sink: Sink | None = None):
         self.scenario = scenario
         self.mode = mode
+        self.sink = sink or NullSink()
         self.link = link or IdealLink()
         self.vehicles = [Vehicle.from_spec(v, scenario.rates, scenario.seed) for v in scenario.vehicles]
         self.tables = [NeighbourTable(links_of(scenario, v.id), policy, timeout) for v in scenario.vehicles]
@@ -71,6 +73,8 @@ class InProcessFleet:
         for v, table in zip(self.vehicles, self.tables):
             v.control(table.consensus(t_prev))
         self.recorder.record(n * T, [v.telemetry() for v in self.vehicles])
+        if n % UPDATE_EVERY == 0:
+            self.sink.update(self.recorder)
         if n % self.every == 0:
             for src, v in enumerate(self.vehicles):
                 self._send(src, v, n)
@@ -103,6 +107,8 @@ class InProcessFleet:
         ticks = total_ticks(duration, self.period)
         self._t0 = time.perf_counter()
         last_report = self._t0
+        if self.tick == 0:
+            self.sink.start(self.scenario)
         while self.tick <= ticks:
             self.step()
             if progress is not None and self.tick % 50 == 0:
@@ -110,6 +116,7 @@ class InProcessFleet:
                 if now - last_report > 0.5:
                     last_report = now
                     progress(self.tick * self.period, duration)
+        self.sink.update(self.recorder)
         return RunResult(self.partial_metrics(), self.recorder, self.vehicles)
 
     def partial_metrics(self) -> dict:

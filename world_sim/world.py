@@ -36,6 +36,7 @@ from vehicle_agent.messages import (
 from vehicle_agent.schedule import total_ticks
 from world_sim.fleet import link_summary
 from world_sim.metrics import Recorder, metric_edges
+from world_sim.recording import UPDATE_EVERY, NullSink, Sink
 
 GRANT_WINDOW = 50  # ticks the fastest vehicle may run ahead of the slowest (lockstep)
 REALTIME_LAG = 8  # ticks the world waits before recording a realtime tick (> the telemetry batch)
@@ -58,7 +59,7 @@ class Shared:
 class World:
     def __init__(self, scenario: Any, fleet: str, transport: Transport, clock: str = "lockstep",
                  duration: float | None = None, metrics_out: str | None = None, trace_out: str | None = None,
-                 start_timeout: float = 60.0, log: Callable[[str], None] | None = None):
+                 start_timeout: float = 60.0, log: Callable[[str], None] | None = None, sink: Sink | None = None):
         self.scenario = scenario
         self.fleet = keys.check_fleet(fleet)
         self.transport = transport
@@ -71,6 +72,7 @@ class World:
         self.metrics_out = metrics_out
         self.trace_out = trace_out
         self.start_timeout = start_timeout
+        self.sink = sink or NullSink()
         self.recorder = Recorder(self.ids, [v.dim for v in scenario.vehicles], metric_edges(scenario))
         self.sh = Shared()
         self.pairs = [(e.i, e.k) for e in scenario.edges]
@@ -173,6 +175,7 @@ class World:
         t = self.next_tick * self.period
         line = f"t = {t:.2f} s: {text}"
         self.sh.events.append(line)
+        self.sink.event(t, text, "warn" if "lost" in text or "no spanning" in text else "info")
         self.log(line)
         if self.session is not None:
             try:
@@ -201,6 +204,7 @@ class World:
                 sh.cond.wait(timeout=0.5)
         self.started = True
         self._t_start = time.perf_counter()
+        self.sink.start(self.scenario)
         if self.clock == "lockstep":
             self._run_lockstep()
         else:
@@ -250,6 +254,8 @@ class World:
             states.append(m)
         self.recorder.record(n * self.period, states)
         self.next_tick = n + 1
+        if n % UPDATE_EVERY == 0:
+            self.sink.update(self.recorder)
 
     def _run_realtime(self) -> None:
         sh = self.sh
@@ -353,6 +359,8 @@ class World:
             self.log(f"metrics written to {self.metrics_out}")
         if self.trace_out and len(self.recorder):
             self.recorder.save_trace(self.trace_out)
+        self.sink.update(self.recorder)
+        self.sink.close()
         return metrics
 
 
