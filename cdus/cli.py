@@ -77,6 +77,21 @@ def build_parser() -> argparse.ArgumentParser:
                         "for agents on other hosts")
     p.add_argument("--zenoh-config", metavar="FILE", help="zenoh json5 config for the router (multicast forced off)")
     p.set_defaults(func=cmd_launch)
+
+    p = sub.add_parser("sweep", help="run a grid of config values x seeds; a table, a summary and a plot",
+                       description="Run a grid of overrides x seeds in parallel; write results.csv, "
+                                   "summary.md and sweep.png to --out.")
+    p.add_argument("config", help="scenario file (TOML)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=V1,V2,...",
+                   help="a grid axis: a dotted config key and its values, e.g. --set link.loss=0,0.2,0.4")
+    p.add_argument("--seeds", type=int, default=3, metavar="N", help="seeds per cell: the scenario's seed and the next N-1")
+    p.add_argument("--clock", choices=("inproc", "lockstep"), default="inproc",
+                   help="inproc: one process per run (fast, parallel); lockstep: a launched fleet per run")
+    p.add_argument("--duration", type=float, metavar="S", help="simulated seconds per run")
+    p.add_argument("--jobs", type=int, metavar="J", help="runs in parallel (default: the number of cores for inproc)")
+    p.add_argument("--out", required=True, metavar="DIR", help="where results.csv, summary.md and sweep.png go")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(func=cmd_sweep)
     return parser
 
 
@@ -141,6 +156,24 @@ def cmd_launch(args: argparse.Namespace) -> int:
         print(f"no metrics were written; logs: {la.logs}", file=sys.stderr)
         status = status or EXIT_FAIL
     return status
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from cdus.sweep import parse_grid, sweep
+
+    grid = parse_grid(args.set)
+    base = load_scenario(args.config, {"scenario.duration": args.duration} if args.duration else None)
+    for key, values in grid:  # check every value before any run: a typo should not cost a sweep
+        for v in values:
+            load_scenario(args.config, {key: v})
+    seeds = list(range(base.seed, base.seed + args.seeds))
+    rows = sweep(args.config, grid, seeds, Path(args.out), clock=args.clock, jobs=args.jobs,
+                 duration=args.duration, quiet=args.quiet)
+    failed = sum(1 for r in rows if r["status"] != "ok")
+    print(Path(args.out, "summary.md").read_text())
+    print(f"results: {Path(args.out, 'results.csv')}\nplot: {Path(args.out, 'sweep.png')}"
+          + (f"\n{failed} of {len(rows)} runs failed (see summary.md)" if failed else ""))
+    return EXIT_OK
 
 
 def main(argv: Sequence[str] | None = None) -> int:
