@@ -10,6 +10,7 @@ Everything lives under ``cdus/<fleet>/`` so two fleets on one router never cross
     cdus/<fleet>/cmd/<target>     commands; <target> is a vehicle id, ``all`` or ``world``
     cdus/<fleet>/world/status     the world's status, about once a second
     cdus/<fleet>/world/events     human-readable events (vehicle lost, link changed, ...)
+    cdus/<fleet>/world/last/<id>  queryable: a vehicle's newest telemetry (for a restarted agent)
 """
 
 from __future__ import annotations
@@ -61,6 +62,10 @@ def world_status(fleet: str) -> str:
 
 def world_events(fleet: str) -> str:
     return f"cdus/{fleet}/world/events"
+
+
+def world_last(fleet: str, vid: str) -> str:
+    return f"cdus/{fleet}/world/last/{vid}"
 
 
 def any_vehicle(fleet: str, leaf: str) -> str:

@@ -18,6 +18,7 @@ The link model decides drops and delays at this receiver, per (src, dst, seq).
 from __future__ import annotations
 
 import heapq
+import math
 import signal
 import sys
 import threading
@@ -32,7 +33,7 @@ from cdus import keys
 from cdus.transport import Transport, open_session
 from vehicle_agent.link import IdealLink, LinkCounters, LinkModel
 from vehicle_agent.messages import (
-    CLOCK_OPS, COMMAND_OPS, OmegaMsg, StateMsg, decode_control, decode_omega, encode_omega, encode_states,
+    CLOCK_OPS, COMMAND_OPS, OmegaMsg, StateMsg, decode_control, decode_omega, decode_states, encode_omega, encode_states,
 )
 from vehicle_agent.neighbours import NeighbourTable, links_of
 from vehicle_agent.schedule import broadcast_every, delivery_tick, last_broadcast_seq, send_tick, total_ticks
@@ -52,6 +53,7 @@ class Inbox:
     omega: list[tuple[float, OmegaMsg]] = field(default_factory=list)  # (receive wall time, message)
     seen_seq: dict[int, int] = field(default_factory=dict)  # newest seq physically received per sender
     granted: int = -1
+    front: int = -1  # the world's front tick at the first grant we saw (> 0: we join late)
     t0: float | None = None
     stop: bool = False
     paused: bool = False
@@ -86,6 +88,7 @@ class Agent:
         self.counters = LinkCounters()
         self.missed_deadlines = 0
         self.ticks_done = 0
+        self.joined_at = 0
         self._due: dict[int, list[tuple[OmegaMsg, float]]] = defaultdict(list)  # lockstep: (msg, delay) by tick
         self._pending: list[tuple[float, int, int, OmegaMsg]] = []  # realtime: (usable sim time, order, -, msg)
         self._order = 0
@@ -164,6 +167,8 @@ class Agent:
         with ib.cond:
             if c.op == "grant":
                 ib.granted = max(ib.granted, c.fields["until"])
+                if ib.front < 0:
+                    ib.front = c.fields["front"]
             elif c.op == "start":
                 ib.t0 = c.fields["t0"]
             elif c.op == "stop":
@@ -231,11 +236,40 @@ class Agent:
                 self.log(f"command set_phase {c.fields['phase']}: not applied (formation changes "
                          f"need every vehicle's Δ; use the world's formation command)")
 
+    def _rejoin(self, tick: int) -> None:
+        """Join a run already under way at ``tick``: where the world last saw this vehicle."""
+        last = None
+        try:
+            for reply in self.session.get(keys.world_last(self.fleet, self.id), timeout=2.0):
+                if reply.ok is not None:
+                    rows = decode_states(reply.ok.payload.to_bytes(), len(self.ids))
+                    if not isinstance(rows, str) and rows[0].sender == self.index:
+                        last = rows[-1]
+        except Exception as e:
+            self.log(f"could not ask the world where this vehicle was: {e}")
+        if last is not None:
+            self.vehicle.rejoin(tick, last.q, last.heading, last.omega)
+            self.log(f"rejoining at tick {tick} (t = {tick * self.period:.2f} s) from the last known state: "
+                     f"q = {tuple(round(x, 2) for x in last.q)}, ω = {self.vehicle.omega:.3f}")
+        else:
+            self.vehicle.rejoin(tick)
+            self.log(f"rejoining at tick {tick} from the configured start (no last state known)")
+        self.joined_at = tick
+
     def _run_lockstep(self) -> None:
         ib = self.inbox
         T = self.period
-        for n in range(self.last_tick + 1):
-            need = last_broadcast_seq(n - 1, self.every)
+        with ib.cond:
+            while ib.granted < 0 and not ib.stop:
+                ib.cond.wait(timeout=1.0)
+            front = ib.front
+        first = 0
+        if front > 0:  # the run is under way: a restarted process
+            first = front
+            self._rejoin(first)
+        for n in range(first, self.last_tick + 1):
+            # after a rejoin, messages sent before it were never heard: do not wait for them
+            need = last_broadcast_seq(n - 1, self.every) if n > first or first == 0 else -1
             waited_since = time.monotonic()
             with ib.cond:
                 while not ib.stop:
@@ -270,7 +304,11 @@ class Agent:
             while ib.t0 is None and not ib.stop:
                 ib.cond.wait(timeout=1.0)
             t0 = ib.t0
-        n = 0
+        if t0 is None:
+            return
+        n = max(0, math.ceil((time.time() - t0) / T))
+        if n > 0:  # the run is under way: a restarted process
+            self._rejoin(n)
         while n <= self.last_tick:
             target = t0 + n * T
             with ib.cond:

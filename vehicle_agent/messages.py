@@ -151,7 +151,7 @@ MAX_CONTROL_PAYLOAD = 4096
 #: clock ops and the fields each carries (name -> type)
 CLOCK_OPS: dict[str, dict[str, type]] = {
     "start": {"t0": float},  # realtime: tick 0 is at wall time t0 (time.time())
-    "grant": {"until": int},  # lockstep: agents may step every tick <= until
+    "grant": {"until": int, "front": int},  # lockstep: step ticks <= until; a late joiner starts at front
     "stop": {},  # end of run: finish, report, exit
 }
 

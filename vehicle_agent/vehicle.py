@@ -114,6 +114,31 @@ class Vehicle:
                    physics_steps=steps, state=state, omega=float(w0), eps=eps, reg_gains=reg_gains,
                    limits=limits, disturbance=dist)
 
+    def rejoin(self, tick: int, q: Vec | None = None, heading: float | None = None,
+               omega_hint: float | None = None) -> None:
+        """Resume at control tick ``tick`` (a restarted process), at rest at ``q``.
+
+        ω becomes the nearest point of the path to ``q`` within half a period of
+        ``omega_hint`` (the vehicle's last known ω), so the unwrapped ω carries on where it
+        was instead of jumping by a lap, which the consensus would have to undo.
+        """
+        self.tick = tick
+        self.t = tick * self.control_period
+        self.started = False
+        if q is not None:
+            q = tuple(q)[: self.dim]
+            zero = (0.0,) * self.dim
+            st = self.state
+            if isinstance(st, USVState):
+                self.state = USVState(q[0], q[1], st.psi if heading is None else heading, 0.0, 0.0, 0.0)
+            elif isinstance(st, UAVState):
+                self.state = UAVState(q, zero)
+            else:
+                self.state = PointState(q, zero)
+        hint = self.omega if omega_hint is None else omega_hint
+        half = self.path.period / 2.0 if self.path.period else 0.0
+        self.omega = nearest_omega(self.path, self.q, hint - half)
+
     # ------------------------------------------------------------------ observation
     @property
     def q(self) -> Vec:

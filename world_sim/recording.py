@@ -1,18 +1,30 @@
-"""Where the world's picture goes: the sink interface the fleet runners feed.
+"""Where the world's picture goes: the sink interface the fleet runners feed, and ``--rerun``.
 
 The in-process fleet and the world process call a sink as they record:
 ``start(scenario)`` once, ``update(recorder)`` every few ticks with the Recorder (the
 sink logs whatever rows are new since its last call, batched), ``event(t, text)`` for
 things a person should read, ``link_state(t, src, dst, state)`` for link changes, and
 ``close()`` at the end, also after Ctrl-C, so a recording is always complete.
+
+``make_sink(spec, run_dir)`` turns a ``--rerun`` value into a sink. The spec is parsed
+here, without importing Rerun (``parse_spec``); the Rerun stream itself lives in
+:mod:`world_sim.rerun_sink`, imported only when something is to be recorded.
 """
 
 from __future__ import annotations
 
+import os
+import sys
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any, Mapping, Protocol
 
 UPDATE_EVERY = 25  # ticks between sink updates (0.5 s of simulated time at 50 Hz)
+
+DEFAULT_URL = "rerun+http://127.0.0.1:9876/proxy"  # where `rerun` listens by default
+RECORDING_NAME = "recording.rrd"  # the file `auto` writes into the run directory
+SPEC_FORMS = ("off", "auto", "spawn", "save:PATH", "connect[:URL]")
+LINK_STATES = ("up", "lossy", "down")
 
 
 class Sink(Protocol):
@@ -42,8 +54,81 @@ class NullSink:
         pass
 
 
+@dataclass(frozen=True)
+class Target:
+    """One place the stream goes: ``spawn`` (a new viewer), ``save`` (an .rrd file at
+    ``where``) or ``connect`` (a running viewer at the URL ``where``)."""
+
+    kind: str
+    where: str = ""
+
+
+def has_display(env: Mapping[str, str] | None = None) -> bool:
+    """Can a viewer window open here? Linux needs X11 or Wayland; macOS and Windows always can."""
+    env = os.environ if env is None else env
+    if sys.platform in ("darwin", "win32"):
+        return True
+    return bool(env.get("DISPLAY") or env.get("WAYLAND_DISPLAY"))
+
+
+def parse_spec(spec: str | None, run_dir: Path | None = None,
+               env: Mapping[str, str] | None = None) -> tuple[Target, ...]:
+    """The targets of a ``--rerun`` value; ``()`` for ``off``. Raises ValueError naming the valid forms.
+
+    ``auto`` is ``spawn`` when there is a display, else ``save:<run_dir>/recording.rrd``
+    (the current directory without a run directory). Items combine with commas
+    (``spawn,save:run.rrd``: a viewer and a file at once).
+    """
+    if spec is None or spec.strip() in ("", "off"):
+        return ()
+    targets: list[Target] = []
+    for raw in spec.split(","):
+        item = raw.strip()
+        name, sep, arg = item.partition(":")
+        name = name.strip().lower()
+        if name == "off":
+            _bad(spec, "off cannot be combined with other sinks")
+        elif name == "auto" and not sep:
+            if has_display(env):
+                targets.append(Target("spawn"))
+            else:
+                targets.append(Target("save", str((run_dir or Path(".")) / RECORDING_NAME)))
+        elif name == "spawn" and not sep:
+            if not has_display(env):
+                _bad(spec, "spawn needs a display (DISPLAY or WAYLAND_DISPLAY is unset); use save:PATH "
+                           "and open the file with `rerun PATH`, or auto")
+            targets.append(Target("spawn"))
+        elif name == "save":
+            path = arg.strip()
+            if not path:
+                _bad(spec, "save needs a file, e.g. save:runs/lake.rrd")
+            targets.append(Target("save", path))
+        elif name == "connect":
+            url = arg.strip() or DEFAULT_URL
+            if not url.startswith(("rerun+http://", "rerun+https://", "rerun://")):
+                _bad(spec, f"connect needs a Rerun URL such as {DEFAULT_URL}, got {url!r}")
+            targets.append(Target("connect", url))
+        else:
+            _bad(spec, f"unknown sink {item!r}")
+    unique: list[Target] = []
+    for t in targets:
+        if t not in unique:
+            unique.append(t)
+    return tuple(unique)
+
+
+def _bad(spec: str, why: str) -> None:
+    raise ValueError(f"--rerun {spec!r}: {why}; valid forms: {' | '.join(SPEC_FORMS)}, "
+                     f"comma-separated to combine (e.g. spawn,save:run.rrd)")
+
+
 def make_sink(spec: str | None, run_dir: Path | None = None) -> Sink:
-    """A sink for ``--rerun SPEC``: ``off`` (for now the only one)."""
-    if spec in (None, "off"):
+    """A sink for ``--rerun SPEC``: ``off`` | ``auto`` | ``spawn`` | ``save:PATH`` | ``connect[:URL]``,
+    comma-separated to combine. ``off`` (or None) gives a :class:`NullSink`; anything else a
+    Rerun sink (see :mod:`world_sim.rerun_sink`). A bad spec raises ValueError."""
+    targets = parse_spec(spec, run_dir)
+    if not targets:
         return NullSink()
-    raise ValueError(f"--rerun {spec!r}: not available yet")
+    from world_sim.rerun_sink import RerunSink
+
+    return RerunSink(targets)

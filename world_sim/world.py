@@ -31,7 +31,7 @@ from cdus.report import write_json
 from cdus.transport import Transport, open_session
 from vehicle_agent.link import LinkCounters
 from vehicle_agent.messages import (
-    COMMAND_OPS, StateMsg, decode_control, decode_states, encode_control,
+    COMMAND_OPS, StateMsg, decode_control, decode_states, encode_control, encode_states,
 )
 from vehicle_agent.schedule import total_ticks
 from world_sim.fleet import link_summary
@@ -52,6 +52,7 @@ class Shared:
     alive: set[str] = field(default_factory=set)
     stats: dict[str, dict] = field(default_factory=dict)
     events: list[str] = field(default_factory=list)
+    first_tick: dict[int, int] = field(default_factory=dict)  # sender -> first tick since it (re)joined
     stop: bool = False
     rejected: int = 0
 
@@ -92,6 +93,7 @@ class World:
             s.declare_subscriber(keys.any_vehicle(f, "stats"), self._on_stats),
             s.declare_subscriber(keys.cmd(f, keys.WORLD), self._on_command),
             s.liveliness().declare_subscriber(keys.any_alive(f), self._on_liveliness, history=True),
+            s.declare_queryable(keys.world_last(f, "*"), self._on_last_query),
         ]
         self.pub_clock = s.declare_publisher(keys.clock(f), congestion_control=zenoh.CongestionControl.BLOCK)
         self.pub_status = s.declare_publisher(keys.world_status(f))
@@ -118,6 +120,7 @@ class World:
             if isinstance(rows, str) or vid not in self.index or self.index[vid] != rows[0].sender:
                 sh.rejected += 1
                 return
+            sh.first_tick.setdefault(rows[0].sender, rows[0].tick)
             for m in rows:
                 if m.tick >= self.next_tick:
                     sh.rows.setdefault(m.tick, {})[m.sender] = m
@@ -126,6 +129,14 @@ class World:
                     sh.latest[m.sender] = m
                 sh.acked[m.sender] = max(sh.acked.get(m.sender, -1), m.tick)
             sh.cond.notify_all()
+
+    def _on_last_query(self, query: Any) -> None:
+        """A restarted agent asks where its vehicle was: reply with its newest telemetry."""
+        vid = str(query.key_expr).rsplit("/", 1)[-1]
+        with self.sh.cond:
+            m = self.sh.latest.get(self.index[vid]) if vid in self.index else None
+        if m is not None:
+            query.reply(str(query.key_expr), encode_states([m]))
 
     def _on_stats(self, sample: Any) -> None:
         vid = keys.vehicle_of(str(sample.key_expr))
@@ -162,6 +173,8 @@ class World:
                 return
             if gone and vid in sh.alive:
                 sh.alive.discard(vid)
+                sh.first_tick.pop(self.index[vid], None)
+                sh.acked.pop(self.index[vid], None)
                 self._event(f"vehicle {vid} lost")
                 self._check_graph()
             elif not gone and vid not in sh.alive:
@@ -214,21 +227,24 @@ class World:
     def _run_lockstep(self) -> None:
         sh = self.sh
         granted = -1
-        last_status = 0.0
+        last_status = last_grant = 0.0
         while self.next_tick <= self.last_tick:
             with sh.cond:
                 if sh.stop:
                     return
-                slowest = min((sh.acked.get(self.index[v], -1) for v in sh.alive), default=self.next_tick - 1)
+                # vehicles that have not reported since they (re)joined do not hold the grant back
+                slowest = min((sh.acked[self.index[v]] for v in sh.alive if self.index[v] in sh.first_tick),
+                              default=self.next_tick - 1)
                 want = min(self.last_tick, max(slowest, self.next_tick - 1) + GRANT_WINDOW)
-            if want > granted:
-                granted = want
-                self.pub_clock.put(encode_control("grant", until=granted))
+                front = max(sh.acked.values(), default=-1) + 1  # where a late joiner starts
+            now = time.monotonic()
+            if want > granted or now - last_grant > 0.5:  # re-sent now and then for late joiners
+                granted, last_grant = max(granted, want), now
+                self.pub_clock.put(encode_control("grant", until=granted, front=front))
             with sh.cond:
                 self._record_complete()
                 if self.next_tick <= self.last_tick and not sh.stop:
                     sh.cond.wait(timeout=0.5)
-            now = time.monotonic()
             if now - last_status > STATUS_PERIOD:
                 last_status = now
                 self._publish_status()
@@ -236,22 +252,27 @@ class World:
     def _record_complete(self) -> None:
         """Record every tick all live vehicles have reported (caller holds the lock)."""
         sh = self.sh
-        live = {self.index[v] for v in sh.alive}
+        live = [self.index[v] for v in sh.alive]
         while self.next_tick <= self.last_tick:
-            row = sh.rows.get(self.next_tick, {})
-            if not live.issubset(row):
+            n = self.next_tick
+            row = sh.rows.get(n, {})
+            # a vehicle that (re)joined later than n, or has not reported since, is not waited for
+            if any(j not in row and sh.first_tick.get(j, n + 1) <= n for j in live):
                 return
-            self._record(self.next_tick)
+            self._record(n)
+            if self.next_tick == n:
+                return
 
     def _record(self, n: int) -> None:
         sh = self.sh
-        row = sh.rows.pop(n, {})
+        row = sh.rows.get(n, {})
         states = []
         for j in range(len(self.ids)):
             m = row.get(j) or sh.latest.get(j)
             if m is None:
                 return  # a vehicle never reported: nothing to record yet
             states.append(m)
+        sh.rows.pop(n, None)
         self.recorder.record(n * self.period, states)
         self.next_tick = n + 1
         if n % UPDATE_EVERY == 0:
@@ -282,6 +303,7 @@ class World:
             if now - last_status > STATUS_PERIOD:
                 last_status = now
                 self._publish_status()
+                self.pub_clock.put(encode_control("start", t0=t0))  # again, for late joiners
         # give the final tick's telemetry a moment, then record what is left with the newest states
         end = time.monotonic() + 2.0
         with sh.cond:

@@ -1,0 +1,406 @@
+"""The world in Rerun: a sink that streams a run to a viewer and/or an .rrd file.
+
+What goes where (system.md, "Rerun"; timeline ``sim_time``, a duration):
+
+- ``world/paths/<id>``: the prescribed path, static (one period; a window around the run
+  for an open path); USV paths at z = 0. Blue-ish for USVs, orange-ish for UAVs.
+- ``world/vehicles/<id>``: a Transform3D per control tick (position, yaw from the
+  heading). Static children draw the vehicle in its own frame: a USV is a flat hull
+  elongated along its heading with a bow arrow; a UAV a quadrotor cross with rotors.
+  A UAV also carries, per tick, a vertical line down to the water (its altitude).
+- ``world/trails/<id>``: the last ``TRAIL_SECONDS`` of positions, every ``UPDATE_EVERY`` ticks.
+- ``metrics/path_error/<id>``, ``metrics/omega_rate/<id>``, ``metrics/coord_error/<i>__<k>``:
+  Scalars, one sample per control tick (the Recorder's rows); SeriesLines styling static.
+- ``comms/links/<src>__<dst>``: StateChange ``up | lossy | down`` when a link changes
+  (a scenario with no ``[link]`` section runs an ideal link: every link starts ``up``).
+- ``comms/events``: TextLog of events (vehicles lost and back, link changes, faults).
+
+Cost: one ``rr.log`` costs ~70 µs and one chunk ~70 µs of CPU whatever its length, so the
+per-tick rows are never logged one by one: every entity's new rows go out together in one
+Arrow record batch (``rr.send_record_batch``, one chunk per entity), and updates are
+coalesced so a batch goes out every ``flush_every`` simulated seconds (bench/rerun_cost.py
+measures the share of the world's CPU). ``close()`` sends whatever is left.
+"""
+
+from __future__ import annotations
+
+import math
+import shlex
+import socket
+import sys
+import threading
+import uuid
+from pathlib import Path
+from typing import Any, Iterable, Sequence
+from urllib.parse import urlparse
+
+import numpy as np
+import pyarrow as pa
+import rerun as rr
+
+from vehicle_agent.paths import for_dimension, make_path, nearest_omega
+from world_sim import blueprint as bp
+from world_sim.metrics import edge_errors
+from world_sim.recording import LINK_STATES, UPDATE_EVERY, Target
+
+APP_ID = "cdus"
+FLUSH_EVERY = 2.0  # simulated seconds between batches sent to Rerun
+TRAIL_SECONDS = 10.0  # length of a trail
+TRAIL_POINTS_EVERY = 5  # ticks between trail points (10 Hz at 50 Hz control)
+PATH_POINTS = 400  # samples of a closed path's period
+
+USV_COLOURS = ((31, 119, 180), (0, 170, 220), (70, 90, 220), (40, 150, 170), (110, 150, 255), (20, 80, 150))
+UAV_COLOURS = ((255, 127, 14), (230, 85, 13), (250, 175, 40), (215, 110, 60), (255, 150, 90), (190, 95, 0))
+EDGE_COLOURS = ((44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75), (227, 119, 194),
+                (127, 127, 127), (188, 189, 34), (23, 190, 207), (100, 60, 160), (60, 120, 60))
+STATE_COLOURS = {"up": (76, 175, 80), "lossy": (255, 193, 7), "down": (239, 83, 80)}
+LEVELS = {"info": rr.TextLogLevel.INFO, "warn": rr.TextLogLevel.WARN, "warning": rr.TextLogLevel.WARN,
+          "error": rr.TextLogLevel.ERROR, "debug": rr.TextLogLevel.DEBUG, "critical": rr.TextLogLevel.CRITICAL}
+
+
+# --------------------------------------------------------------------------- geometry (pure)
+
+
+def colour(kind: str, rank: int) -> tuple[int, int, int]:
+    """The colour of the ``rank``-th vehicle of its kind."""
+    palette = USV_COLOURS if kind == "usv" else UAV_COLOURS
+    return palette[rank % len(palette)]
+
+
+def path_polyline(vehicle: Any, duration: float) -> np.ndarray:
+    """The path vehicle ``vehicle`` (a VehicleSpec) follows, as [M, 3] points (z = 0 on water).
+
+    A closed path: one period. An open one: ω over the run, ω0 + s·[-10, duration + 10] s
+    (steady state has ω̇ = s, the path's direction).
+    """
+    path = for_dimension(make_path(dict(vehicle.path)), vehicle.dim)
+    if path.period is not None:
+        ws = np.linspace(0.0, path.period, PATH_POINTS + 1)
+    else:
+        if vehicle.omega0 is not None:
+            w0 = vehicle.omega0
+        elif vehicle.start_position is not None:
+            w0 = nearest_omega(path, tuple(vehicle.start_position))
+        else:
+            w0 = 0.0
+        s = path.direction
+        n = int(min(5000, max(PATH_POINTS, 20 * (duration + 20.0))))
+        ws = w0 + s * np.linspace(-10.0, duration + 10.0, n)
+    return _pad3(np.array([path.eval(float(w))[0] for w in ws]))
+
+
+def _pad3(points: np.ndarray) -> np.ndarray:
+    out = np.zeros((len(points), 3))
+    out[:, : points.shape[1]] = points
+    return out
+
+
+def marker_size(lines: Sequence[np.ndarray]) -> float:
+    """A length for the vehicle markers: 1 for the lake's 20 m circle, more for bigger scenes."""
+    if not lines:
+        return 1.0
+    pts = np.concatenate(lines)
+    extent = float(max(np.ptp(pts[:, 0]), np.ptp(pts[:, 1]), 1.0))
+    return min(25.0, max(0.5, extent / 20.0))
+
+
+def yaw_quaternions(heading: np.ndarray) -> np.ndarray:
+    """[n] yaw angles -> [n, 4] quaternions (x, y, z, w) about +z."""
+    half = 0.5 * np.asarray(heading, dtype=float)
+    q = np.zeros((len(half), 4))
+    q[:, 2] = np.sin(half)
+    q[:, 3] = np.cos(half)
+    return q
+
+
+def trail_indices(i: int, window: int, stride: int) -> np.ndarray:
+    """Rows of the trail ending at row ``i``: every ``stride``-th row back to ``i - window``,
+    aligned on ``i`` so consecutive trails share their points."""
+    return np.arange(i, max(-1, i - window - 1), -stride)[::-1]
+
+
+# --------------------------------------------------------------------------- Arrow columns
+
+
+def _template(columns: Iterable[Any]) -> tuple[Any, pa.DataType]:
+    col = next(iter(columns))
+    return col.component_descriptor(), col.as_arrow_array().type
+
+
+_SCALAR = _template(rr.Scalars.columns(scalars=[0.0]))
+_TRANSLATION, _QUATERNION = (_template([c]) for c in rr.Transform3D.columns(translation=[[0.0, 0.0, 0.0]],
+                                                                            quaternion=[[0.0, 0.0, 0.0, 1.0]]))
+_STRIPS = _template(rr.LineStrips3D.columns(strips=[[[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]]]))
+
+
+class _Batch:
+    """Columns of one Arrow record batch: a ``sim_time`` index and one column per
+    (entity, component); ``send`` makes one chunk per entity in a single call."""
+
+    def __init__(self, t: np.ndarray):
+        self.n = len(t)
+        ns = np.round(np.asarray(t, dtype=float) * 1e9).astype(np.int64)  # exact ticks, not truncated
+        self.fields = [pa.field(bp.TIMELINE, pa.duration("ns"))]
+        self.arrays = [pa.array(ns.astype("timedelta64[ns]"), pa.duration("ns"))]
+        self.rows = pa.array(np.arange(self.n + 1, dtype=np.int32))  # one component batch per row
+
+    def _add(self, entity: str, template: tuple[Any, pa.DataType], values: pa.Array,
+             offsets: pa.Array | None = None) -> None:
+        desc, typ = template
+        meta = {b"rerun:entity_path": entity, b"rerun:component": desc.component}
+        if desc.archetype:
+            meta[b"rerun:archetype"] = desc.archetype
+        if desc.component_type:
+            meta[b"rerun:component_type"] = desc.component_type
+        self.fields.append(pa.field(f"/{entity}:{desc.component}", typ, metadata=meta))
+        self.arrays.append(pa.ListArray.from_arrays(self.rows if offsets is None else offsets, values, type=typ))
+
+    def scalars(self, entity: str, values: np.ndarray) -> None:
+        self._add(entity, _SCALAR, pa.array(np.asarray(values, dtype=np.float64)))
+
+    def vectors(self, entity: str, template: tuple[Any, pa.DataType], values: np.ndarray) -> None:
+        inner = template[1].value_type
+        flat = pa.array(np.ascontiguousarray(values, dtype=np.float32).ravel())
+        self._add(entity, template, pa.FixedSizeListArray.from_arrays(flat, type=inner))
+
+    def strips(self, entity: str, strips: Sequence[np.ndarray]) -> None:
+        """One line strip per row."""
+        inner = _STRIPS[1].value_type  # list<fixed_size_list<float32, 3>>
+        lengths = np.array([len(s) for s in strips], dtype=np.int32)
+        offsets = pa.array(np.concatenate(([0], np.cumsum(lengths))).astype(np.int32))
+        flat = pa.array(np.ascontiguousarray(np.concatenate(strips), dtype=np.float32).ravel())
+        points = pa.FixedSizeListArray.from_arrays(flat, type=inner.value_type)
+        self._add(entity, _STRIPS, pa.ListArray.from_arrays(offsets, points, type=inner))
+
+    def send(self, rec: rr.RecordingStream) -> None:
+        if self.n and len(self.arrays) > 1:
+            batch = pa.RecordBatch.from_arrays(self.arrays, schema=pa.schema(self.fields))
+            rr.send_record_batch(batch, recording=rec, index=bp.TIMELINE)
+
+
+# --------------------------------------------------------------------------- the sink
+
+
+class RerunSink:
+    """Streams a run to Rerun (see the module docstring for the entity layout).
+
+    ``targets`` come from :func:`world_sim.recording.parse_spec`. Thread-safe: the world
+    calls ``event`` from its transport threads.
+    """
+
+    def __init__(self, targets: Sequence[Target], *, recording_id: str | None = None,
+                 flush_every: float = FLUSH_EVERY, out: Any = None):
+        self.flush_every = flush_every
+        self.out = out if out is not None else sys.stdout
+        self.files = [Path(t.where) for t in targets if t.kind == "save"]
+        self.rec = rr.RecordingStream(APP_ID, recording_id=recording_id or f"cdus-{uuid.uuid4().hex[:12]}")
+        self._lock = threading.RLock()
+        self._closed = False
+        self._recorder: Any = None
+        self._sent = 0  # recorder rows already sent
+        self._t_sent = -math.inf  # time of the last row sent
+        self._kinds: dict[str, str] = {}
+        self._rate = 50.0  # control rate, from the scenario
+        self._link_states: dict[tuple[str, str], str] = {}
+        self.rec.set_sinks(*self._sinks(targets))
+
+    def _sinks(self, targets: Sequence[Target]) -> list[Any]:
+        sinks: list[Any] = []
+        for t in targets:
+            if t.kind == "save":
+                path = Path(t.where)
+                path.parent.mkdir(parents=True, exist_ok=True)
+                sinks.append(rr.FileSink(str(path)))
+            elif t.kind == "connect":
+                if _reachable(t.where):
+                    sinks.append(rr.GrpcSink(t.where))
+                else:
+                    _warn(f"no Rerun viewer listens at {t.where}; not streaming there (start one with `rerun`)")
+            elif t.kind == "spawn":
+                try:
+                    self.rec.spawn(connect=False, hide_welcome_screen=True)
+                    sinks.append(rr.GrpcSink())
+                except Exception as e:  # no viewer binary, no window system...
+                    _warn(f"could not start a Rerun viewer ({e}); use --rerun save:PATH instead")
+        return sinks
+
+    # ------------------------------------------------------------------ Sink
+    def start(self, scenario: Any) -> None:
+        with self._lock:
+            if self._closed:
+                return
+            self._rate = float(scenario.rates.control)
+            self.rec.send_recording_name(scenario.name)
+            self.rec.log(bp.WORLD, rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+            rank = {"usv": 0, "uav": 0}
+            lines = [path_polyline(v, scenario.duration) for v in scenario.vehicles]
+            size = marker_size(lines)
+            scene = list(lines)
+            for v, line in zip(scenario.vehicles, lines):
+                rgb = colour(v.kind, rank[v.kind])
+                rank[v.kind] += 1
+                self._kinds[v.id] = v.kind
+                if v.start_position is not None:
+                    scene.append(_pad3(np.array([v.start_position])))
+                self.rec.log(f"{bp.PATHS}/{v.id}", rr.LineStrips3D([line], colors=[_fade(rgb)],
+                                                                   radii=rr.components.Radius.ui_points(1.5)),
+                             static=True)
+                self._log_marker(v.id, v.kind, rgb, size)
+                self.rec.log(f"{bp.TRAILS}/{v.id}", rr.LineStrips3D.from_fields(
+                    colors=[rgb], radii=rr.components.Radius.ui_points(1.0)), static=True)
+                for family in (bp.PATH_ERROR, bp.OMEGA_RATE):
+                    self.rec.log(f"{family}/{v.id}", rr.SeriesLines(colors=[rgb], names=[v.id], widths=[1.5]),
+                                 static=True)
+            for j, e in enumerate(scenario.metric_edges()):
+                self.rec.log(f"{bp.COORD_ERROR}/{e.i}__{e.k}",
+                             rr.SeriesLines(colors=[EDGE_COLOURS[j % len(EDGE_COLOURS)]], names=[f"{e.i}–{e.k}"],
+                                            widths=[1.5]), static=True)
+            config = rr.StateConfiguration(values=list(LINK_STATES), labels=list(LINK_STATES),
+                                           colors=[STATE_COLOURS[s] for s in LINK_STATES])
+            links = sorted({(e.k, e.i) for e in scenario.edges})  # i listens to k: ω flows k -> i
+            for src, dst in links:
+                self.rec.log(f"{bp.LINKS}/{src}__{dst}", config, static=True)
+            if not scenario.link:  # no [link] section: the ideal link, every link up
+                for src, dst in links:
+                    self._link_change(0.0, src, dst, "up", announce=False)
+            self.rec.send_blueprint(bp.blueprint(np.concatenate(scene) if scene else None))
+
+    def update(self, recorder: Any) -> None:
+        with self._lock:
+            if self._closed:
+                return
+            self._recorder = recorder
+            n = len(recorder)
+            if n > self._sent and (self._sent == 0 or recorder.t[n - 1] - self._t_sent >= self.flush_every - 1e-9):
+                self._send(recorder, n)
+
+    def event(self, t: float, text: str, level: str = "info") -> None:
+        with self._lock:
+            if self._closed:
+                return
+            self._set_time(t)
+            self.rec.log(bp.EVENTS, rr.TextLog(text, level=LEVELS.get(level.lower(), level.upper())))
+
+    def link_state(self, t: float, src: str, dst: str, state: str) -> None:
+        if state not in LINK_STATES:
+            raise ValueError(f"link state {state!r}: valid states are {', '.join(LINK_STATES)}")
+        with self._lock:
+            if self._closed or self._link_states.get((src, dst)) == state:
+                return
+            self._link_change(t, src, dst, state, announce=True)
+
+    def close(self) -> None:
+        """Send what is left, flush, close the sinks (the .rrd gets its footer). Idempotent."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            try:
+                rec = self._recorder
+                if rec is not None and len(rec) > self._sent:
+                    self._send(rec, len(rec))
+                if rec is not None and len(rec) and (len(rec) - 1) % UPDATE_EVERY:
+                    self._send_trails(rec, [len(rec) - 1])  # the trail as the run ended
+            finally:
+                try:
+                    self.rec.flush(timeout_sec=10.0)
+                except Exception as e:  # a viewer that went away
+                    _warn(f"Rerun flush: {e}")
+                self.rec.disconnect()
+        for path in self.files:
+            print(f"  recording: {path}  (open it with: rerun {shlex.quote(str(path))})", file=self.out)
+
+    # ------------------------------------------------------------------ internals
+    def _send(self, recorder: Any, hi: int) -> None:
+        """Rows [sent, hi) of every per-tick entity in one batch, and the trails due in them."""
+        lo = self._sent
+        t = recorder.t[lo:hi]
+        q = recorder.q[lo:hi]
+        heading = recorder.heading[lo:hi]
+        batch = _Batch(t)
+        for j, vid in enumerate(recorder.ids):
+            entity = f"{bp.VEHICLES}/{vid}"
+            batch.vectors(entity, _TRANSLATION, q[:, j])
+            batch.vectors(entity, _QUATERNION, yaw_quaternions(heading[:, j]))
+            if self._kind(recorder, j) == "uav":  # the drop line to the water, in the drone's frame
+                ends = np.zeros((len(t), 2, 3))
+                ends[:, 1, 2] = -q[:, j, 2]
+                batch.strips(entity, list(ends))
+            batch.scalars(f"{bp.PATH_ERROR}/{vid}", recorder.path_error[lo:hi, j])
+            batch.scalars(f"{bp.OMEGA_RATE}/{vid}", recorder.omega_rate[lo:hi, j])
+        coord = edge_errors(recorder.omega[lo:hi], recorder.edges)
+        for m, edge in enumerate(recorder.edges):
+            batch.scalars(f"{bp.COORD_ERROR}/{edge.name}", coord[:, m])
+        batch.send(self.rec)
+        first = -(-lo // UPDATE_EVERY) * UPDATE_EVERY
+        self._send_trails(recorder, list(range(first, hi, UPDATE_EVERY)))
+        self._sent = hi
+        self._t_sent = float(recorder.t[hi - 1])
+
+    def _send_trails(self, recorder: Any, rows: list[int]) -> None:
+        if not rows:
+            return
+        window = int(round(TRAIL_SECONDS * self._rate))
+        batch = _Batch(recorder.t[rows])
+        picks = [trail_indices(i, window, TRAIL_POINTS_EVERY) for i in rows]
+        for j, vid in enumerate(recorder.ids):
+            batch.strips(f"{bp.TRAILS}/{vid}", [recorder.q[idx, j] for idx in picks])
+        batch.send(self.rec)
+
+    def _kind(self, recorder: Any, j: int) -> str:
+        return self._kinds.get(recorder.ids[j]) or ("uav" if recorder.dims[j] == 3 else "usv")
+
+    def _link_change(self, t: float, src: str, dst: str, state: str, announce: bool) -> None:
+        self._link_states[(src, dst)] = state
+        self._set_time(t)
+        self.rec.log(f"{bp.LINKS}/{src}__{dst}", rr.StateChange(state=state))
+        if announce:
+            level = rr.TextLogLevel.INFO if state == "up" else rr.TextLogLevel.WARN
+            self.rec.log(bp.EVENTS, rr.TextLog(f"link {src} → {dst} {state}", level=level))
+
+    def _set_time(self, t: float) -> None:
+        # set_time is per thread: set it on the calling thread before every non-column log
+        self.rec.set_time(bp.TIMELINE, duration=np.timedelta64(int(round(t * 1e9)), "ns"))
+
+    def _log_marker(self, vid: str, kind: str, rgb: tuple[int, int, int], s: float) -> None:
+        base = f"{bp.VEHICLES}/{vid}"
+        if kind == "usv":  # a flat hull along +x (the heading) and a bow arrow
+            self.rec.log(f"{base}/hull", rr.Boxes3D(half_sizes=[[1.6 * s, 0.6 * s, 0.3 * s]], centers=[[0, 0, 0.3 * s]],
+                                                     colors=[rgb], fill_mode="solid", labels=[vid],
+                                                     show_labels=True), static=True)
+            self.rec.log(f"{base}/bow", rr.Arrows3D(origins=[[0, 0, 0.65 * s]], vectors=[[2.4 * s, 0, 0]],
+                                                     colors=[(255, 255, 255)], radii=[0.12 * s]), static=True)
+        else:  # a quadrotor: two crossed arms, four rotors, a nose; the drop line is per tick
+            c, d = math.cos(math.pi / 8), math.sin(math.pi / 8)  # ±45° arms
+            self.rec.log(f"{base}/body", rr.Boxes3D(half_sizes=[[1.4 * s, 0.1 * s, 0.08 * s]] * 2,
+                                                     quaternions=[[0, 0, d, c], [0, 0, -d, c]],
+                                                     colors=[rgb], fill_mode="solid", labels=[vid, ""],
+                                                     show_labels=True), static=True)
+            r = 1.4 * s / math.sqrt(2.0)
+            self.rec.log(f"{base}/rotors", rr.Points3D([[r, r, 0.1 * s], [r, -r, 0.1 * s], [-r, r, 0.1 * s],
+                                                        [-r, -r, 0.1 * s]], radii=[0.45 * s], colors=[_fade(rgb)]),
+                         static=True)
+            self.rec.log(f"{base}/nose", rr.Arrows3D(origins=[[0, 0, 0.2 * s]], vectors=[[1.6 * s, 0, 0]],
+                                                      colors=[(255, 255, 255)], radii=[0.1 * s]), static=True)
+            self.rec.log(base, rr.LineStrips3D.from_fields(colors=[(150, 150, 150)],
+                                                           radii=rr.components.Radius.ui_points(1.0)), static=True)
+
+
+def _fade(rgb: tuple[int, int, int], amount: float = 0.45) -> tuple[int, int, int]:
+    """``rgb`` mixed towards white (path lines and rotors, lighter than the vehicle)."""
+    return tuple(int(round(c + (255 - c) * amount)) for c in rgb)  # type: ignore[return-value]
+
+
+def _reachable(url: str, timeout: float = 0.5) -> bool:
+    """Is something listening at the URL's host:port? (A gRPC sink with no server blocks 5 s.)"""
+    parsed = urlparse(url.replace("rerun+", "", 1))
+    port = parsed.port or (443 if parsed.scheme == "https" else 9876)
+    try:
+        with socket.create_connection((parsed.hostname or "127.0.0.1", port), timeout=timeout):
+            return True
+    except OSError:
+        return False
+
+
+def _warn(text: str) -> None:
+    print(f"warning: {text}", file=sys.stderr)
