@@ -104,11 +104,10 @@ def cmd_sim(args: argparse.Namespace) -> int:
     if metrics_out is None:
         out_dir = run_dir(args.runs_dir, scenario.name)
         metrics_out = out_dir / "metrics.json"
-    policy = args.policy or scenario.link.get("policy", "hold")
     from world_sim.recording import make_sink
 
     sink = make_sink(args.rerun, Path(metrics_out).parent)
-    fleet = InProcessFleet(scenario, policy=policy, timeout=float(scenario.link.get("timeout", 1.5)), sink=sink)
+    fleet = InProcessFleet(scenario, policy=args.policy, sink=sink)
     progress = Progress(f"{scenario.name}", quiet=args.quiet)
     status = EXIT_OK
     try:

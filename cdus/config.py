@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from typing import Any, Iterable, Mapping
 
 from cdus import graph as graphs
+from cdus.events import validate_events
 from vehicle_agent.paths import FAMILIES, PathError, for_dimension, make_path
 from vehicle_agent.plants import USV_PRESETS
 
@@ -470,7 +471,7 @@ def _resolve(data: dict, source: str, check: _Check) -> Scenario | None:
     defaults = {k: v for k, v in defaults.items()
                 if k in VEHICLE_KEYS and k != "id" and (k not in TABLE_KEYS or isinstance(v, dict))}
 
-    # [link], [[event]]: reserved, passed through
+    # [link], [[event]]: checked below, once the vehicle ids are known
     link = _table(check, data, "link", "link")
     events_raw = data.get("event", [])
     events: tuple[dict, ...] = ()
@@ -502,6 +503,19 @@ def _resolve(data: dict, source: str, check: _Check) -> Scenario | None:
     # [graph]
     gr = _table(check, data, "graph", "graph")
     topology, directed, edges = _graph(check, gr, ids, vehicles, paths)
+
+    # [link] (the fault model) and [[event]] (scheduled vehicle faults) need the ids
+    if link is not None and all(isinstance(i, str) for i in ids) and ids:
+        from vehicle_agent.faults import validate_link
+
+        try:
+            validate_link(link, ids, source)
+        except ConfigError as e:
+            for field_, message in e.problems:
+                check.add(field_, message)
+        _, event_problems = validate_events(events, [i for i in ids if i])
+        for field_, message in event_problems:
+            check.add(field_, message)
 
     if check.problems:
         return None

@@ -26,9 +26,10 @@ from typing import Any, Callable
 from cdus import keys
 from cdus.report import Progress, write_json
 from cdus.transport import Transport, client_of, open_session
-from vehicle_agent.messages import CLOCK_OPS, decode_control, encode_control
+from vehicle_agent.messages import CLOCK_OPS, COMMAND_OPS, decode_control, encode_control
 
 RESTART = ("never", "on-failure", "always")
+FAULT_OPS = ("kill", "pause_vehicle", "resume_vehicle", "restart")
 GRACE_S = 5.0
 LOG_TAIL = 15
 # Fewer Zenoh runtime threads per process: on a small machine running many processes the
@@ -50,12 +51,14 @@ class Child:
     restarts: int = 0
     exit_code: int | None = None
     log_file: Any = None
+    intended_exit: bool = False  # killed on purpose (a scheduled fault): not a failure to restart
 
     def start(self, env: dict[str, str]) -> None:
         self.log_file = open(self.log_path, "ab")
         self.proc = subprocess.Popen(self.argv, stdout=self.log_file, stderr=subprocess.STDOUT,
                                      stdin=subprocess.DEVNULL, start_new_session=True, env=env)
         self.exit_code = None
+        self.intended_exit = False
 
     def poll(self) -> int | None:
         if self.proc is None:
@@ -123,6 +126,7 @@ class Launcher:
         self.session = None
         self.stopping = False
         self.finished = False
+        self.requests: list[tuple[str, str]] = []  # scheduled faults asked for by the world
         self.env = dict(os.environ)
         self.env.setdefault("ZENOH_RUNTIME", ZENOH_RUNTIME)
         self.env["PYTHONUNBUFFERED"] = "1"
@@ -159,7 +163,40 @@ class Launcher:
             s.declare_subscriber(keys.world_status(f), self._on_status),
             s.declare_subscriber(keys.world_events(f), self._on_event),
             s.declare_subscriber(keys.clock(f), self._on_clock),
+            s.declare_subscriber(keys.cmd(f, "launcher"), self._on_fault_request),
         ]
+
+    def _on_fault_request(self, sample: Any) -> None:
+        """The world asks for a scheduled vehicle fault; the supervise loop carries it out."""
+        c = decode_control(sample.payload.to_bytes(), COMMAND_OPS)
+        if isinstance(c, str) or c.op not in FAULT_OPS or c.fields.get("vehicle") not in self.children:
+            return
+        with self.cond:
+            self.requests.append((c.op, c.fields["vehicle"]))
+            self.cond.notify_all()
+
+    def _carry_out(self, op: str, vid: str) -> None:
+        c = self.children[vid]
+        if op == "kill":
+            c.intended_exit = True
+            c.signal_group(signal.SIGKILL)
+        elif op == "pause_vehicle":
+            c.signal_group(signal.SIGSTOP)
+        elif op == "resume_vehicle":
+            c.signal_group(signal.SIGCONT)
+        elif op == "restart":
+            if c.running():
+                c.intended_exit = True
+                c.signal_group(signal.SIGKILL)
+                c.proc.wait()
+            c.poll()
+            c.restarts += 1
+            c.start(self.env)
+        self.log(f"  fault: {op.replace('_vehicle', '')} {vid}")
+        try:
+            self.session.put(keys.cmd(self.fleet, keys.WORLD), encode_control("fault_done", vehicle=vid))
+        except Exception:
+            pass
 
     def _on_clock(self, sample: Any) -> None:
         c = decode_control(sample.payload.to_bytes(), CLOCK_OPS)
@@ -239,17 +276,24 @@ class Launcher:
             if code is not None:
                 progress.done()
                 return code
+            with self.cond:
+                requests, self.requests = self.requests, []
+            for op, vid in requests:
+                self._carry_out(op, vid)
             for name, c in self.children.items():
                 if (name != "world" and c.exit_code is None and c.poll() is not None
                         and not self.stopping and not self.finished):
                     self._on_agent_exit(c, c.exit_code)
             with self.cond:
-                self.cond.wait(timeout=0.2)
+                if not self.requests:
+                    self.cond.wait(timeout=0.2)
                 st = self.status
             if st and float(st.get("t", 0.0)) > 0:
                 progress(float(st.get("t", 0.0)), duration)
 
     def _on_agent_exit(self, c: Child, rc: int) -> None:
+        if c.intended_exit:  # a scheduled kill: the experiment, not a failure
+            return
         how = f"exited with status {rc}" if rc >= 0 else f"was killed by signal {-rc}"
         policy = self.opts.restart
         again = policy == "always" or (policy == "on-failure" and rc != 0)

@@ -98,13 +98,9 @@ def run_one(config: str, run: Run, clock: str, duration: float | None) -> dict:
         overrides["scenario.duration"] = duration
     try:
         if clock == "inproc":
-            from vehicle_agent.link_model import link_model_for
             from world_sim.fleet import InProcessFleet
 
-            sc = load_scenario(config, overrides)
-            fleet = InProcessFleet(sc, link=link_model_for(sc), policy=sc.link.get("policy", "hold"),
-                                   timeout=float(sc.link.get("timeout", 1.5)))
-            metrics = fleet.run().metrics
+            metrics = InProcessFleet(load_scenario(config, overrides)).run().metrics
         else:
             metrics = _run_lockstep(config, overrides)
         status, reason = "ok", ""

@@ -45,16 +45,16 @@ def main(argv=None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     from vehicle_agent.agent import Agent, run_agent
-    from vehicle_agent.link_model import link_model_for
+    from vehicle_agent.link_model import link_emulator_for, link_spec_for
 
     transport = transport_from_args(args)
     if not transport.connect and not transport.listen and not transport.config_file:
         transport = transport.__class__(mode=transport.mode, connect=("tcp/127.0.0.1:7447",),
                                         lease_ms=transport.lease_ms)
-    link = scenario.link
+    spec = link_spec_for(scenario)
     agent = Agent(scenario, args.id, args.fleet, transport, clock=args.clock,
-                  policy=args.policy or link.get("policy", "hold"), timeout=float(link.get("timeout", 1.5)),
-                  link=link_model_for(scenario), duration=args.duration)
+                  policy=args.policy or spec.policy, timeout=spec.timeout,
+                  link=link_emulator_for(scenario), duration=args.duration)
     return run_agent(agent)
 
 

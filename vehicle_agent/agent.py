@@ -35,13 +35,14 @@ from vehicle_agent.link import IdealLink, LinkCounters, LinkModel
 from vehicle_agent.messages import (
     CLOCK_OPS, COMMAND_OPS, OmegaMsg, StateMsg, decode_control, decode_omega, decode_states, encode_omega, encode_states,
 )
-from vehicle_agent.neighbours import NeighbourTable, links_of
+from vehicle_agent.neighbours import NeighbourTable, consensus_target, links_of
 from vehicle_agent.schedule import broadcast_every, delivery_tick, last_broadcast_seq, send_tick, total_ticks
 from vehicle_agent.vehicle import Vehicle
 
 CLOCKS = ("realtime", "lockstep")
 STATE_BATCH = {"lockstep": 10, "realtime": 5}  # telemetry rows per message
-STATS_PERIOD = 1.0  # s of wall time between counter reports
+STATS_PERIOD = 1.0
+STALL_TICKS = 10  # realtime: this many periods late means the process was frozen, not just slow  # s of wall time between counter reports
 END_WAIT = 10.0  # s to wait for the world's stop after the last tick
 
 
@@ -81,6 +82,7 @@ class Agent:
         self.table = NeighbourTable(links_of(scenario, vid), policy, timeout)
         self.neighbours = sorted({ln.k for ln in self.table.links})
         self.link = link or IdealLink()
+        self.link_table: dict = dict(scenario.link or {})
         self.period = 1.0 / scenario.rates.control
         self.every = broadcast_every(scenario.rates)
         self.last_tick = total_ticks(scenario.duration if duration is None else duration, self.period)
@@ -232,28 +234,67 @@ class Agent:
 
     def _apply_commands(self, cmds: list[Any]) -> None:
         for c in cmds:
-            if c.op == "set_phase":
-                self.log(f"command set_phase {c.fields['phase']}: not applied (formation changes "
-                         f"need every vehicle's Δ; use the world's formation command)")
+            if c.op == "link":
+                self._update_link(c.fields["link"], c.fields["at"])
+            elif c.op == "set_gains":
+                self._set_gains(c.fields["gains"])
+
+    def _update_link(self, table: dict, at: float) -> None:
+        """Merge ``table`` over the current [link] table; it applies to messages sent from ``at`` on."""
+        from cdus.config import ConfigError
+        from vehicle_agent.faults import validate_link
+
+        merged = {**self.link_table, **table}
+        try:
+            spec = validate_link(merged, self.ids, "link command")
+            at = max(at, self.link.epochs[-1][0]) if getattr(self.link, "epochs", None) else at
+            self.link.update(spec, at)
+        except (ConfigError, ValueError) as e:
+            self.inbox.rejected["bad_link_command"] += 1
+            self.log(f"link command rejected: {e}")
+            return
+        self.link_table = merged
+        self.log(f"link faults changed from t = {at:.2f} s: {table}")
+
+    def _set_gains(self, gains: dict) -> None:
+        v = self.vehicle
+        k, c = gains.get("k", v.k), gains.get("c", v.c)
+        if isinstance(k, (int, float)) and not isinstance(k, bool):
+            k = (float(k),) * v.dim
+        ok = (isinstance(k, (list, tuple)) and len(k) == v.dim and all(
+              isinstance(x, (int, float)) and not isinstance(x, bool) and x > 0 for x in k)
+              and isinstance(c, (int, float)) and not isinstance(c, bool) and c > 0)
+        if not ok:
+            self.inbox.rejected["bad_gains_command"] += 1
+            self.log(f"set_gains rejected: k must be > 0 (one value or {v.dim}), c > 0; got {gains}")
+            return
+        v.k, v.c = tuple(float(x) for x in k), float(c)
+        self.log(f"gains now k = {v.k}, c = {v.c}")
 
     def _rejoin(self, tick: int) -> None:
-        """Join a run already under way at ``tick``: where the world last saw this vehicle."""
-        last = None
-        try:
-            for reply in self.session.get(keys.world_last(self.fleet, self.id), timeout=2.0):
-                if reply.ok is not None:
-                    rows = decode_states(reply.ok.payload.to_bytes(), len(self.ids))
-                    if not isinstance(rows, str) and rows[0].sender == self.index:
-                        last = rows[-1]
-        except Exception as e:
-            self.log(f"could not ask the world where this vehicle was: {e}")
-        if last is not None:
-            self.vehicle.rejoin(tick, last.q, last.heading, last.omega)
-            self.log(f"rejoining at tick {tick} (t = {tick * self.period:.2f} s) from the last known state: "
-                     f"q = {tuple(round(x, 2) for x in last.q)}, ω = {self.vehicle.omega:.3f}")
+        """Join a run already under way at ``tick``: where the world last saw this vehicle,
+        with ω near what its neighbours' consensus asks (not laps away)."""
+        last: dict[int, StateMsg] = {}
+        for j in [self.index, *self.neighbours]:
+            try:
+                for reply in self.session.get(keys.world_last(self.fleet, self.ids[j]), timeout=2.0):
+                    if reply.ok is not None:
+                        rows = decode_states(reply.ok.payload.to_bytes(), len(self.ids))
+                        if not isinstance(rows, str) and rows[0].sender == j:
+                            last[j] = rows[-1]
+            except Exception as e:
+                self.log(f"could not ask the world for {self.ids[j]}'s last state: {e}")
+        target = consensus_target(self.table.links, {k: m.omega for k, m in last.items() if k != self.index})
+        mine = last.get(self.index)
+        hint = target if target is not None else (mine.omega if mine else None)
+        if mine is not None:
+            self.vehicle.rejoin(tick, mine.q, mine.heading, hint)
+            where = f"its last known state q = {tuple(round(x, 2) for x in mine.q)}"
         else:
-            self.vehicle.rejoin(tick)
-            self.log(f"rejoining at tick {tick} from the configured start (no last state known)")
+            self.vehicle.rejoin(tick, None, None, hint)
+            where = "the configured start (no last state known)"
+        self.log(f"rejoining at tick {tick} (t = {tick * self.period:.2f} s) from {where}, "
+                 f"ω = {self.vehicle.omega:.3f}" + (" (near its neighbours' consensus)" if target is not None else ""))
         self.joined_at = tick
 
     def _run_lockstep(self) -> None:
@@ -328,6 +369,14 @@ class Agent:
                     return
                 msgs, cmds = self._take_inbox()
             self._apply_commands(cmds)
+            late = time.time() - target
+            if late > STALL_TICKS * T:  # frozen (SIGSTOP) or starved: skip to now, where we were
+                n = math.ceil((time.time() - t0) / T)
+                v = self.vehicle
+                v.rejoin(n, v.q, v.heading, v.omega)
+                self.log(f"stalled for {late:.2f} s: resuming at tick {n} from where the vehicle was")
+                if n > self.last_tick:
+                    break
             now_sim = time.time() - t0
             for recv, msg in msgs:
                 self.counters.record_latency(max(0.0, (recv - t0) - msg.t_send))
@@ -392,8 +441,18 @@ class Agent:
             "v": 1, "id": self.id, "tick": self.ticks_done, "sent_to_me": c.sent, "delivered": c.delivered,
             "dropped": c.dropped, "duplicated": c.duplicated, "rejected": c.rejected + sum(self.inbox.rejected.values()),
             "rejected_by_reason": dict(self.inbox.rejected), "missed_deadlines": self.missed_deadlines,
+            "joined_at": self.joined_at,
             "latencies_ms": [x * 1000.0 for x in c.latencies[-200:]],
+            "faults": self._faults_summary(),
         }
+
+    def _faults_summary(self) -> dict | None:
+        summary = getattr(self.link, "counters_summary", None)
+        if summary is None:
+            return None
+        out = summary()
+        out["state_changes"] = out["state_changes"][-50:]  # the newest; the world keeps the history
+        return out
 
     def publish_stats(self) -> None:
         import msgpack

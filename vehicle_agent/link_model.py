@@ -25,3 +25,9 @@ def link_model_for(scenario: Any) -> LinkModel:
     if spec.is_ideal:
         return IdealLink()
     return LinkEmulator(spec, scenario.ids, link_seed(spec, scenario))
+
+
+def link_emulator_for(scenario: Any) -> LinkEmulator:
+    """Always an emulator (ideal links take its fast path), so faults can change at run time."""
+    spec = link_spec_for(scenario)
+    return LinkEmulator(spec, scenario.ids, link_seed(spec, scenario))

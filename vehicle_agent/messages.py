@@ -160,9 +160,14 @@ COMMAND_OPS: dict[str, dict[str, type]] = {
     "pause": {},
     "resume": {},
     "stop": {},
-    "set_phase": {"phase": float},
     "set_gains": {"gains": dict},
-    "link": {"link": dict},
+    "link": {"link": dict, "at": float},  # a [link] table merged over the current one, from sim time `at`
+    # scheduled vehicle faults: world -> launcher, and the launcher's acknowledgement
+    "kill": {"vehicle": str},
+    "pause_vehicle": {"vehicle": str},
+    "resume_vehicle": {"vehicle": str},
+    "restart": {"vehicle": str},
+    "fault_done": {"vehicle": str},
 }
 
 

@@ -37,6 +37,19 @@ def links_of(scenario: Any, vid: str) -> tuple[NeighbourLink, ...]:
     return tuple(NeighbourLink(index[e.k], e.weight, e.delta) for e in scenario.neighbours(vid))
 
 
+def consensus_target(links: tuple[NeighbourLink, ...], omegas: dict[int, float]) -> float | None:
+    """The ω the consensus term pulls towards, Σ a_ik (ω_k + Δ_ik) / Σ a_ik, over the
+    neighbours whose ω is known; None if none is. A vehicle rejoining a run starts from the
+    point of its path nearest to its position within half a lap of this value, so it does
+    not have to make up laps of unwrapped ω."""
+    num = den = 0.0
+    for ln in links:
+        if ln.k in omegas:
+            num += ln.weight * (omegas[ln.k] + ln.delta)
+            den += ln.weight
+    return num / den if den > 0 else None
+
+
 @dataclass
 class NeighbourTable:
     links: tuple[NeighbourLink, ...]

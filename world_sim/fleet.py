@@ -11,6 +11,12 @@ At control tick n (t_n = n T), for every vehicle:
   3. on broadcast ticks, send ω: encoded and decoded exactly as on the wire, with the
      link model deciding per (src, dst, seq) whether and when it arrives;
   4. ``advance`` the plant to t_{n+1}.
+
+Scheduled vehicle faults (the scenario's ``[[event]]``, cdus.events) are emulated with
+the effects they have on the multi-process fleet: a killed vehicle stops and its
+neighbours drop it from their sums (its liveliness token is gone); a paused one freezes
+and is dropped after the liveliness lease; a resumed or restarted one rejoins at the
+current tick where it was, with ω continued from its last value.
 """
 
 from __future__ import annotations
@@ -20,13 +26,18 @@ from collections import defaultdict
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from vehicle_agent.link import IdealLink, LinkCounters, LinkModel
+from cdus.events import parse_events
+from vehicle_agent.link import LinkCounters, LinkEmulator, LinkModel
+from vehicle_agent.link_model import link_model_for, link_spec_for
 from vehicle_agent.messages import OmegaMsg, decode_omega, encode_omega
-from vehicle_agent.neighbours import NeighbourTable, links_of
+from vehicle_agent.neighbours import NeighbourTable, consensus_target, links_of
 from vehicle_agent.schedule import broadcast_every, delivery_tick, total_ticks
 from vehicle_agent.vehicle import Vehicle
 from world_sim.metrics import Recorder, metric_edges, percentile_ms
 from world_sim.recording import UPDATE_EVERY, NullSink, Sink
+
+
+LEASE_S = 1.0  # the liveliness lease the launcher sets: a frozen vehicle is gone after this
 
 
 @dataclass
@@ -37,14 +48,17 @@ class RunResult:
 
 
 class InProcessFleet:
-    def __init__(self, scenario: Any, link: LinkModel | None = None, policy: str = "hold",
-                 timeout: float = 1.5, mode: str = "inproc", sink: Sink | None = None):
+    def __init__(self, scenario: Any, link: LinkModel | None = None, policy: str | None = None,
+                 timeout: float | None = None, mode: str = "inproc", sink: Sink | None = None):
         self.scenario = scenario
         self.mode = mode
         self.sink = sink or NullSink()
-        self.link = link or IdealLink()
+        spec = link_spec_for(scenario)
+        self.link = link or link_model_for(scenario)
+        self.policy = policy or spec.policy
+        self.timeout = spec.timeout if timeout is None else timeout
         self.vehicles = [Vehicle.from_spec(v, scenario.rates, scenario.seed) for v in scenario.vehicles]
-        self.tables = [NeighbourTable(links_of(scenario, v.id), policy, timeout) for v in scenario.vehicles]
+        self.tables = [self._table(v.id) for v in scenario.vehicles]
         self.listeners: list[list[int]] = [[] for _ in self.vehicles]
         for dst, table in enumerate(self.tables):
             for ln in table.links:
@@ -56,35 +70,103 @@ class InProcessFleet:
         self.counters = LinkCounters()
         # deliveries by the tick they become usable at, in send order: (dst, message, latency)
         self._due: dict[int, list[tuple[int, OmegaMsg, float]]] = defaultdict(list)
-        self._seq = [0] * len(self.vehicles)
+        self.events = list(parse_events(scenario.events, [v.id for v in scenario.vehicles]))
+        self.dead: set[int] = set()  # killed: not stepping, gone for the neighbours
+        self.frozen: dict[int, float] = {}  # paused: since when (simulated s)
+        self._lease_out: dict[int, float] = {}  # paused vehicles already dropped, by pause start
+        self.event_log: list[str] = []
+        self._last_tel: list[Any] = [None] * len(self.vehicles)
+        self._changes_seen = 0
         self.tick = 0
+
+    def _table(self, vid: str) -> NeighbourTable:
+        return NeighbourTable(links_of(self.scenario, vid), self.policy, self.timeout)
+
+    def _note(self, t: float, text: str, level: str = "info") -> None:
+        self.event_log.append(f"t = {t:.2f} s: {text}")
+        self.sink.event(t, text, level)
+
+    def _apply_events(self, n: int) -> None:
+        t = n * self.period
+        ids = [v.id for v in self.vehicles]
+        while self.events and self.events[0].at <= t + 1e-9:
+            ev = self.events.pop(0)
+            j = ids.index(ev.vehicle)
+            v = self.vehicles[j]
+            if ev.action == "kill" and j not in self.dead:
+                self.dead.add(j)
+                self.frozen.pop(j, None)
+                self._gone(j)
+                self._note(t, f"vehicle {ev.vehicle} killed", "warn")
+            elif ev.action == "pause" and j not in self.dead and j not in self.frozen:
+                self.frozen[j] = t
+                self._note(t, f"vehicle {ev.vehicle} paused", "warn")
+            elif ev.action == "resume" and j in self.frozen:
+                del self.frozen[j]
+                v.rejoin(n, v.q, v.heading, v.omega)
+                self._note(t, f"vehicle {ev.vehicle} resumed")
+            elif ev.action == "restart":
+                self.dead.discard(j)
+                self.frozen.pop(j, None)
+                self.tables[j] = self._table(ev.vehicle)  # a new process knows nothing yet
+                live = {k: self.vehicles[k].omega for k in range(len(self.vehicles))
+                        if k not in self.dead and k not in self.frozen and k != j}
+                target = consensus_target(self.tables[j].links, live)
+                v.rejoin(n, v.q, v.heading, v.omega if target is None else target)
+                self._note(t, f"vehicle {ev.vehicle} restarted where it was, ω = {v.omega:.2f}")
+        for j, since in self.frozen.items():
+            if t - since >= LEASE_S and self._lease_out.get(j) != since:  # the lease ran out
+                self._lease_out[j] = since
+                self._gone(j)
+
+    def _gone(self, j: int) -> None:
+        """j's liveliness token is gone: every neighbour drops it from its sum."""
+        for dst in self.listeners[j]:
+            self.tables[dst].mark_absent(j)
 
     def step(self) -> None:
         n = self.tick
         T = self.period
         t_prev = (n - 1) * T
+        if self.events or self.frozen:
+            self._apply_events(n)
+        stopped = self.dead.union(self.frozen) if (self.dead or self.frozen) else ()
         tables, counters = self.tables, self.counters
         for dst, msg, latency in self._due.pop(n, ()):
-            if not tables[dst].offer(msg, n * T):
-                counters.rejected += 1
+            if dst in stopped or not tables[dst].offer(msg, n * T):
+                counters.rejected += dst not in stopped
                 continue
             counters.delivered += 1
             counters.record_latency(latency)
-        for v, table in zip(self.vehicles, self.tables):
-            v.control(table.consensus(t_prev))
-        self.recorder.record(n * T, [v.telemetry() for v in self.vehicles])
+        rows = self._last_tel
+        for j, (v, table) in enumerate(zip(self.vehicles, self.tables)):
+            if j not in stopped:
+                v.control(table.consensus(t_prev))
+                rows[j] = v.telemetry()
+        self.recorder.record(n * T, rows)
         if n % UPDATE_EVERY == 0:
+            self._report_link_changes()
             self.sink.update(self.recorder)
         if n % self.every == 0:
             for src, v in enumerate(self.vehicles):
-                self._send(src, v, n)
-        for v in self.vehicles:
-            v.advance()
+                if src not in stopped:
+                    self._send(src, v, n)
+        for j, v in enumerate(self.vehicles):
+            if j not in stopped:
+                v.advance()
         self.tick += 1
 
+    def _report_link_changes(self) -> None:
+        changes = getattr(self.link, "state_changes", None)
+        if not changes or len(changes) == self._changes_seen:
+            return
+        ids = [v.id for v in self.vehicles]
+        for t, s, d, state in changes[self._changes_seen:]:
+            self.sink.link_state(t, ids[s], ids[d], state)
+        self._changes_seen = len(changes)
+
     def _send(self, src: int, v: Vehicle, n: int) -> None:
-        seq = self._seq[src]
-        self._seq[src] += 1
+        seq = n // self.every  # as the agents number them, restarts included
         # Through the wire format once, so every listener sees exactly what a remote one would.
         msg = decode_omega(encode_omega(OmegaMsg(src, seq, v.t, v.omega, v.omega_rate)))
         if isinstance(msg, str):  # a diverged vehicle (non-finite ω): receivers would reject it
@@ -116,6 +198,7 @@ class InProcessFleet:
                 if now - last_report > 0.5:
                     last_report = now
                     progress(self.tick * self.period, duration)
+        self._report_link_changes()
         self.sink.update(self.recorder)
         return RunResult(self.partial_metrics(), self.recorder, self.vehicles)
 
@@ -123,9 +206,16 @@ class InProcessFleet:
         """The metrics JSON of what has run so far (also after an interruption)."""
         sc = self.scenario
         wall = time.perf_counter() - getattr(self, "_t0", time.perf_counter())
-        return self.recorder.summary(
+        link = link_summary(self.counters)
+        if isinstance(self.link, LinkEmulator):
+            link["faults"] = self.link.counters_summary()
+        metrics = self.recorder.summary(
             scenario=sc.name, mode=self.mode, seed=sc.seed, path_tol=sc.path_tol, coord_tol=sc.coord_tol,
-            link=link_summary(self.counters), wall_s=wall)
+            link=link, wall_s=wall)
+        metrics["policy"] = self.policy
+        if self.event_log:
+            metrics["events"] = list(self.event_log)
+        return metrics
 
 
 def link_summary(c: LinkCounters) -> dict:

@@ -133,49 +133,70 @@ _TRANSLATION, _QUATERNION = (_template([c]) for c in rr.Transform3D.columns(tran
 _STRIPS = _template(rr.LineStrips3D.columns(strips=[[[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]]]))
 
 
-class _Batch:
-    """Columns of one Arrow record batch: a ``sim_time`` index and one column per
-    (entity, component); ``send`` makes one chunk per entity in a single call."""
+def _field(entity: str, template: tuple[Any, pa.DataType]) -> pa.Field:
+    """A component column of ``entity``, tagged so Rerun files it under that entity."""
+    desc, typ = template
+    meta = {b"rerun:entity_path": entity, b"rerun:component": desc.component}
+    if desc.archetype:
+        meta[b"rerun:archetype"] = desc.archetype
+    if desc.component_type:
+        meta[b"rerun:component_type"] = desc.component_type
+    return pa.field(f"/{entity}:{desc.component}", typ, metadata=meta)
 
-    def __init__(self, t: np.ndarray):
-        self.n = len(t)
-        ns = np.round(np.asarray(t, dtype=float) * 1e9).astype(np.int64)  # exact ticks, not truncated
-        self.fields = [pa.field(bp.TIMELINE, pa.duration("ns"))]
-        self.arrays = [pa.array(ns.astype("timedelta64[ns]"), pa.duration("ns"))]
-        self.rows = pa.array(np.arange(self.n + 1, dtype=np.int32))  # one component batch per row
 
-    def _add(self, entity: str, template: tuple[Any, pa.DataType], values: pa.Array,
-             offsets: pa.Array | None = None) -> None:
-        desc, typ = template
-        meta = {b"rerun:entity_path": entity, b"rerun:component": desc.component}
-        if desc.archetype:
-            meta[b"rerun:archetype"] = desc.archetype
-        if desc.component_type:
-            meta[b"rerun:component_type"] = desc.component_type
-        self.fields.append(pa.field(f"/{entity}:{desc.component}", typ, metadata=meta))
-        self.arrays.append(pa.ListArray.from_arrays(self.rows if offsets is None else offsets, values, type=typ))
+def _rows(n: int) -> pa.Array:
+    return pa.array(np.arange(n + 1, dtype=np.int32))
 
-    def scalars(self, entity: str, values: np.ndarray) -> None:
-        self._add(entity, _SCALAR, pa.array(np.asarray(values, dtype=np.float64)))
 
-    def vectors(self, entity: str, template: tuple[Any, pa.DataType], values: np.ndarray) -> None:
-        inner = template[1].value_type
-        flat = pa.array(np.ascontiguousarray(values, dtype=np.float32).ravel())
-        self._add(entity, template, pa.FixedSizeListArray.from_arrays(flat, type=inner))
+def _lists(template: tuple[Any, pa.DataType], values: pa.Array, offsets: pa.Array, parts: int) -> list[pa.Array]:
+    """One list column holding ``parts`` entities' rows back to back, cut into one column each
+    (one Arrow call per family instead of one per entity)."""
+    big = pa.ListArray.from_arrays(offsets, values, type=template[1])
+    n = len(big) // parts
+    return [big.slice(j * n, n) for j in range(parts)]
 
-    def strips(self, entity: str, strips: Sequence[np.ndarray]) -> None:
-        """One line strip per row."""
-        inner = _STRIPS[1].value_type  # list<fixed_size_list<float32, 3>>
-        lengths = np.array([len(s) for s in strips], dtype=np.int32)
-        offsets = pa.array(np.concatenate(([0], np.cumsum(lengths))).astype(np.int32))
-        flat = pa.array(np.ascontiguousarray(np.concatenate(strips), dtype=np.float32).ravel())
-        points = pa.FixedSizeListArray.from_arrays(flat, type=inner.value_type)
-        self._add(entity, _STRIPS, pa.ListArray.from_arrays(offsets, points, type=inner))
 
-    def send(self, rec: rr.RecordingStream) -> None:
-        if self.n and len(self.arrays) > 1:
-            batch = pa.RecordBatch.from_arrays(self.arrays, schema=pa.schema(self.fields))
-            rr.send_record_batch(batch, recording=rec, index=bp.TIMELINE)
+def _vec_lists(template: tuple[Any, pa.DataType], values: np.ndarray) -> list[pa.Array]:
+    """[parts, n, k] vectors -> one column per part, one k-vector per row."""
+    parts, n, _ = values.shape
+    flat = pa.array(np.ascontiguousarray(values, dtype=np.float32).ravel())
+    inner = pa.FixedSizeListArray.from_arrays(flat, type=template[1].value_type)
+    return _lists(template, inner, _rows(parts * n), parts)
+
+
+def _strip_lists(points: np.ndarray, lengths: np.ndarray) -> list[pa.Array]:
+    """[parts, P, 3] points, cut into strips of ``lengths`` (the same for every part), one
+    strip per row -> one LineStrips3D column per part."""
+    parts, total, _ = points.shape
+    strip_type = _STRIPS[1].value_type  # list<fixed_size_list<float32, 3>>
+    flat = pa.array(np.ascontiguousarray(points, dtype=np.float32).ravel())
+    xyz = pa.FixedSizeListArray.from_arrays(flat, type=strip_type.value_type)
+    starts = np.concatenate(([0], np.cumsum(lengths)[:-1]))
+    offsets = np.concatenate([starts + j * total for j in range(parts)] + [[parts * total]]).astype(np.int32)
+    strips = pa.ListArray.from_arrays(pa.array(offsets), xyz, type=strip_type)
+    return _lists(_STRIPS, strips, _rows(parts * len(lengths)), parts)
+
+
+def _time(t: np.ndarray) -> pa.Array:
+    ns = np.round(np.asarray(t, dtype=float) * 1e9).astype(np.int64)  # exact ticks (a float cast truncates)
+    return pa.array(ns.astype("timedelta64[ns]"), pa.duration("ns"))
+
+
+class _Layout:
+    """The columns of the per-tick batch and of the trail batch, fixed for a run: built
+    once from the Recorder's vehicles and edges."""
+
+    def __init__(self, ids: Sequence[str], uav: Sequence[bool], edges: Sequence[Any]):
+        self.uav = np.nonzero(np.asarray(uav, dtype=bool))[0]
+        t = pa.field(bp.TIMELINE, pa.duration("ns"))
+        vehicles = [f"{bp.VEHICLES}/{v}" for v in ids]
+        scalars = ([f"{bp.PATH_ERROR}/{v}" for v in ids] + [f"{bp.OMEGA_RATE}/{v}" for v in ids]
+                   + [f"{bp.COORD_ERROR}/{e.name}" for e in edges])
+        self.ticks = pa.schema([t] + [_field(e, _TRANSLATION) for e in vehicles]
+                               + [_field(e, _QUATERNION) for e in vehicles]
+                               + [_field(vehicles[j], _STRIPS) for j in self.uav]
+                               + [_field(e, _SCALAR) for e in scalars])
+        self.trails = pa.schema([t] + [_field(f"{bp.TRAILS}/{v}", _STRIPS) for v in ids])
 
 
 # --------------------------------------------------------------------------- the sink
@@ -202,6 +223,7 @@ class RerunSink:
         self._kinds: dict[str, str] = {}
         self._rate = 50.0  # control rate, from the scenario
         self._link_states: dict[tuple[str, str], str] = {}
+        self._layout: _Layout | None = None
         self.rec.set_sinks(*self._sinks(targets))
 
     def _sinks(self, targets: Sequence[Target]) -> list[Any]:
@@ -312,40 +334,45 @@ class RerunSink:
 
     # ------------------------------------------------------------------ internals
     def _send(self, recorder: Any, hi: int) -> None:
-        """Rows [sent, hi) of every per-tick entity in one batch, and the trails due in them."""
+        """Rows [sent, hi) of every per-tick entity in one record batch, then the trails due in them."""
         lo = self._sent
-        t = recorder.t[lo:hi]
-        q = recorder.q[lo:hi]
-        heading = recorder.heading[lo:hi]
-        batch = _Batch(t)
-        for j, vid in enumerate(recorder.ids):
-            entity = f"{bp.VEHICLES}/{vid}"
-            batch.vectors(entity, _TRANSLATION, q[:, j])
-            batch.vectors(entity, _QUATERNION, yaw_quaternions(heading[:, j]))
-            if self._kind(recorder, j) == "uav":  # the drop line to the water, in the drone's frame
-                ends = np.zeros((len(t), 2, 3))
-                ends[:, 1, 2] = -q[:, j, 2]
-                batch.strips(entity, list(ends))
-            batch.scalars(f"{bp.PATH_ERROR}/{vid}", recorder.path_error[lo:hi, j])
-            batch.scalars(f"{bp.OMEGA_RATE}/{vid}", recorder.omega_rate[lo:hi, j])
-        coord = edge_errors(recorder.omega[lo:hi], recorder.edges)
-        for m, edge in enumerate(recorder.edges):
-            batch.scalars(f"{bp.COORD_ERROR}/{edge.name}", coord[:, m])
-        batch.send(self.rec)
+        layout = self._layout_for(recorder)
+        q = recorder.q[lo:hi].transpose(1, 0, 2)  # [N, n, 3]
+        n = hi - lo
+        columns = [_time(recorder.t[lo:hi])]
+        columns += _vec_lists(_TRANSLATION, q)
+        columns += _vec_lists(_QUATERNION, yaw_quaternions(recorder.heading[lo:hi].T.ravel()).reshape(len(q), n, 4))
+        if len(layout.uav):  # a drone's line down to the water, in its own frame: (0, 0, 0) -> (0, 0, -z)
+            ends = np.zeros((len(layout.uav), n, 2, 3))
+            ends[:, :, 1, 2] = -q[layout.uav, :, 2]
+            columns += _strip_lists(ends.reshape(len(layout.uav), 2 * n, 3), np.full(n, 2))
+        scalars = np.concatenate([recorder.path_error[lo:hi].T, recorder.omega_rate[lo:hi].T,
+                                  edge_errors(recorder.omega[lo:hi], recorder.edges).T])
+        columns += _lists(_SCALAR, pa.array(scalars.ravel()), _rows(scalars.size), len(scalars))
+        rr.send_record_batch(pa.RecordBatch.from_arrays(columns, schema=layout.ticks), recording=self.rec,
+                             index=bp.TIMELINE)
         first = -(-lo // UPDATE_EVERY) * UPDATE_EVERY
         self._send_trails(recorder, list(range(first, hi, UPDATE_EVERY)))
         self._sent = hi
         self._t_sent = float(recorder.t[hi - 1])
 
     def _send_trails(self, recorder: Any, rows: list[int]) -> None:
+        """The trail of every vehicle at each of ``rows``, in one record batch."""
         if not rows:
             return
+        layout = self._layout_for(recorder)
         window = int(round(TRAIL_SECONDS * self._rate))
-        batch = _Batch(recorder.t[rows])
         picks = [trail_indices(i, window, TRAIL_POINTS_EVERY) for i in rows]
-        for j, vid in enumerate(recorder.ids):
-            batch.strips(f"{bp.TRAILS}/{vid}", [recorder.q[idx, j] for idx in picks])
-        batch.send(self.rec)
+        points = recorder.q[np.concatenate(picks)].transpose(1, 0, 2)  # [N, points, 3]
+        columns = [_time(recorder.t[rows])] + _strip_lists(points, np.array([len(p) for p in picks]))
+        rr.send_record_batch(pa.RecordBatch.from_arrays(columns, schema=layout.trails), recording=self.rec,
+                             index=bp.TIMELINE)
+
+    def _layout_for(self, recorder: Any) -> _Layout:
+        if self._layout is None:
+            self._layout = _Layout(recorder.ids, [self._kind(recorder, j) == "uav" for j in range(len(recorder.ids))],
+                                   recorder.edges)
+        return self._layout
 
     def _kind(self, recorder: Any, j: int) -> str:
         return self._kinds.get(recorder.ids[j]) or ("uav" if recorder.dims[j] == 3 else "usv")

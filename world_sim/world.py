@@ -16,6 +16,7 @@ tick n a little after it is due, with each vehicle's newest telemetry at or befo
 from __future__ import annotations
 
 import json
+import math
 import signal
 import threading
 import time
@@ -26,10 +27,11 @@ import msgpack
 import zenoh
 
 from cdus import graph as graphs
+from cdus.events import parse_events
 from cdus import keys
 from cdus.report import write_json
 from cdus.transport import Transport, open_session
-from vehicle_agent.link import LinkCounters
+from vehicle_agent.link import LinkCounters, merge_link_summaries
 from vehicle_agent.messages import (
     COMMAND_OPS, StateMsg, decode_control, decode_states, encode_control, encode_states,
 )
@@ -53,6 +55,8 @@ class Shared:
     stats: dict[str, dict] = field(default_factory=dict)
     events: list[str] = field(default_factory=list)
     first_tick: dict[int, int] = field(default_factory=dict)  # sender -> first tick since it (re)joined
+    fault_done: set[str] = field(default_factory=set)  # vehicles the launcher has acted on
+    came_back: set[str] = field(default_factory=set)  # vehicles whose token (re)appeared
     stop: bool = False
     rejected: int = 0
 
@@ -81,6 +85,8 @@ class World:
         self.next_tick = 0  # next tick to record
         self.started = False
         self.finished = False
+        self.events = list(parse_events(scenario.events, self.ids))  # scheduled vehicle faults
+        self._link_changes_seen: set[tuple] = set()
         self.session = None
         self._t_start = time.perf_counter()
 
@@ -94,7 +100,9 @@ class World:
             s.declare_subscriber(keys.cmd(f, keys.WORLD), self._on_command),
             s.liveliness().declare_subscriber(keys.any_alive(f), self._on_liveliness, history=True),
             s.declare_queryable(keys.world_last(f, "*"), self._on_last_query),
+            s.declare_subscriber(keys.cmd(f, keys.ALL), self._on_fleet_command),
         ]
+        self.pub_launcher = s.declare_publisher(keys.cmd(f, "launcher"))
         self.pub_clock = s.declare_publisher(keys.clock(f), congestion_control=zenoh.CongestionControl.BLOCK)
         self.pub_status = s.declare_publisher(keys.world_status(f))
         self.pub_events = s.declare_publisher(keys.world_events(f))
@@ -148,8 +156,26 @@ class World:
         with self.sh.cond:
             if vid in self.index and isinstance(st, dict):
                 self.sh.stats[vid] = st
+                self._forward_link_changes(st.get("faults"))
             else:
                 self.sh.rejected += 1
+
+    def _forward_link_changes(self, faults: Any) -> None:
+        """New link state changes an agent reports: to the event log and the recording."""
+        if not isinstance(faults, dict):
+            return
+        for ch in faults.get("state_changes") or []:
+            try:
+                key = (float(ch["t"]), str(ch["link"]), str(ch["state"]))
+            except (KeyError, TypeError, ValueError):
+                continue
+            if key in self._link_changes_seen:
+                continue
+            self._link_changes_seen.add(key)
+            src, _, dst = key[1].partition("->")
+            self.sink.link_state(key[0], src, dst, key[2])
+            if self.started:
+                self._event(f"link {key[1]} {key[2]} (from t = {key[0]:.2f} s)")
 
     def _on_command(self, sample: Any) -> None:
         c = decode_control(sample.payload.to_bytes(), COMMAND_OPS)
@@ -159,7 +185,20 @@ class World:
                 return
             if c.op == "stop":
                 self.sh.stop = True
-                self.sh.cond.notify_all()
+            elif c.op == "fault_done":
+                self.sh.fault_done.add(c.fields["vehicle"])
+            self.sh.cond.notify_all()
+
+    def _on_fleet_command(self, sample: Any) -> None:
+        """Commands to every vehicle: note the ones that change the experiment."""
+        c = decode_control(sample.payload.to_bytes(), COMMAND_OPS)
+        if isinstance(c, str):
+            return
+        with self.sh.cond:
+            if c.op == "link":
+                self._event(f"link faults changed from t = {c.fields['at']:.2f} s: {c.fields['link']}")
+            elif c.op in ("pause", "resume", "set_gains"):
+                self._event(f"fleet command {c.op} {c.fields or ''}".strip())
 
     def _on_liveliness(self, sample: Any) -> None:
         vid = keys.vehicle_of(str(sample.key_expr))
@@ -179,6 +218,7 @@ class World:
                 self._check_graph()
             elif not gone and vid not in sh.alive:
                 sh.alive.add(vid)
+                sh.came_back.add(vid)
                 if self.started:
                     self._event(f"vehicle {vid} back")
                     self._check_graph()
@@ -236,6 +276,12 @@ class World:
                 slowest = min((sh.acked[self.index[v]] for v in sh.alive if self.index[v] in sh.first_tick),
                               default=self.next_tick - 1)
                 want = min(self.last_tick, max(slowest, self.next_tick - 1) + GRANT_WINDOW)
+                if self.events:  # hold the fleet at a scheduled fault until it is carried out
+                    ev_tick = math.ceil(self.events[0].at / self.period - 1e-9)
+                    want = min(want, ev_tick - 1)
+                    if self.next_tick >= ev_tick:
+                        self._carry_out(self.events.pop(0), wait=True)
+                        continue
                 front = max(sh.acked.values(), default=-1) + 1  # where a late joiner starts
             now = time.monotonic()
             if want > granted or now - last_grant > 0.5:  # re-sent now and then for late joiners
@@ -286,6 +332,9 @@ class World:
         self.pub_clock.put(encode_control("start", t0=t0))
         last_status = 0.0
         while self.next_tick <= self.last_tick:
+            while self.events and time.time() - t0 >= self.events[0].at:
+                with sh.cond:
+                    self._carry_out(self.events.pop(0), wait=False)
             due_tick = int((time.time() - t0) / T) - REALTIME_LAG
             with sh.cond:
                 if sh.stop:
@@ -316,6 +365,30 @@ class World:
                 self._record(n)
                 if self.next_tick == n:
                     break
+
+    def _carry_out(self, ev: Any, wait: bool) -> None:
+        """Ask the launcher to kill/pause/resume/restart a vehicle (caller holds the lock).
+
+        In lockstep the fleet waits for the launcher's acknowledgement, so the fault lands
+        at its tick; in realtime it lands as soon as the launcher acts.
+        """
+        op = {"pause": "pause_vehicle", "resume": "resume_vehicle"}.get(ev.action, ev.action)
+        self._event(f"scheduled {ev.action} of {ev.vehicle} (at {ev.at:g} s)")
+        self.sh.fault_done.discard(ev.vehicle)
+        self.sh.came_back.discard(ev.vehicle)
+        self.pub_launcher.put(encode_control(op, vehicle=ev.vehicle))
+        if not wait:
+            return
+        deadline = time.monotonic() + 10.0
+        while ev.vehicle not in self.sh.fault_done and not self.sh.stop:
+            if time.monotonic() > deadline:
+                self._event(f"no launcher carried out the {ev.action} of {ev.vehicle} within 10 s; going on")
+                return
+            self.sh.cond.wait(timeout=0.2)
+        if ev.action == "restart":  # hold the fleet until the new process is up, so it rejoins on time
+            deadline = time.monotonic() + 30.0
+            while ev.vehicle not in self.sh.came_back and not self.sh.stop and time.monotonic() < deadline:
+                self.sh.cond.wait(timeout=0.2)
 
     def _publish_status(self) -> None:
         sh = self.sh
@@ -352,6 +425,16 @@ class World:
         total.rejected = rejected
         out = link_summary(total)
         out["missed_deadlines"] = missed
+        faults = [st["faults"] for st in self.sh.stats.values() if isinstance(st.get("faults"), dict)]
+        if faults:
+            try:
+                merged = merge_link_summaries(faults)
+                # every change seen during the run, not just each agent's newest
+                merged["state_changes"] = [{"t": t, "link": link, "state": state}
+                                           for t, link, state in sorted(self._link_changes_seen)]
+                out["faults"] = merged
+            except (KeyError, TypeError):
+                pass
         return out
 
     def finish(self) -> dict:

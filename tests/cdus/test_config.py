@@ -89,8 +89,8 @@ def test_raw_round_trips_to_the_same_scenario():
 def test_full_vehicle_resolves_every_field():
     data = base()
     data["rates"] = {"physics": 400, "control": 100, "broadcast": 20}
-    data["link"] = {"loss": 0.1, "anything": {"goes": True}}
-    data["event"] = [{"t": 10, "kill": "usv1"}]
+    data["link"] = {"loss": 0.1, "delay": {"base": 0.05}}
+    data["event"] = [{"at": 10.0, "action": "kill", "vehicle": "usv1"}]
     data["vehicle"][0].update({
         "plant": "usv_3dof", "regulator": "paper", "regulator_gains": {"b3": 2, "b1": 1.0},
         "start": {"position": [1, 2], "heading": 0.5}, "omega0": 3, "gains": {"k": [1, 2], "c": 4},
@@ -109,7 +109,8 @@ def test_full_vehicle_resolves_every_field():
     assert (a.dim, a.regulator, a.k, a.start_position, a.start_heading) == (3, "pd", (1.5,) * 3, (0, 0, 5), None)
     assert s.vehicle("usv2").start_heading is None
     assert s.rates == Rates(400.0, 100.0, 20.0)
-    assert s.link == {"loss": 0.1, "anything": {"goes": True}} and s.events == ({"t": 10, "kill": "usv1"},)
+    assert s.link == {"loss": 0.1, "delay": {"base": 0.05}}
+    assert s.events == ({"at": 10.0, "action": "kill", "vehicle": "usv1"},)
 
 
 def test_epsilon_replaces_the_preset():
@@ -503,3 +504,19 @@ def test_config_error_survives_pickling():
         assert str(again) == str(e) and again.problems == e.problems
     else:
         pytest.fail("no ConfigError")
+
+
+@pytest.mark.parametrize("link,events,fragment", [
+    ({"loss": 2.0}, [], "link.loss: must be a probability"),
+    ({"partition": [{"from": 5.0, "to": 1.0, "groups": [["usv1"], ["usv2"]]}]}, [], "link.partition[0]"),
+    ({}, [{"at": 10.0, "action": "explode", "vehicle": "usv1"}], "event[0].action: must be one of kill"),
+    ({}, [{"at": 10.0, "action": "kill", "vehicle": "nobody"}], "event[0].vehicle: no vehicle 'nobody'"),
+    ({}, [{"at": 10.0, "action": "kill", "vehicle": "usv1", "duration": 3.0}], "only a pause takes a duration"),
+])
+def test_link_and_event_tables_are_checked_with_the_vehicle_ids(link, events, fragment):
+    data = tomllib.loads(MINIMAL)
+    data["link"] = link
+    data["event"] = events
+    with pytest.raises(ConfigError) as e:
+        parse_scenario(data)
+    assert fragment in str(e.value)

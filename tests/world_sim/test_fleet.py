@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from cdus.config import load_scenario
-from world_sim.fleet import InProcessFleet, delivery_tick
+from vehicle_agent.schedule import delivery_tick
+from world_sim.fleet import InProcessFleet
 
 
 def run(name: str, **overrides):
