@@ -94,6 +94,7 @@ class Agent:
         self._due: dict[int, list[tuple[OmegaMsg, float]]] = defaultdict(list)  # lockstep: (msg, delay) by tick
         self._pending: list[tuple[float, int, int, OmegaMsg]] = []  # realtime: (usable sim time, order, -, msg)
         self._order = 0
+        self._early: list[tuple[float, OmegaMsg]] = []  # lockstep: arrived before we reached their tick
         # Telemetry goes to the world in batches (rows per message): fewer messages, less
         # CPU on a loaded machine; the world records a tick once every row for it is in.
         self.state_batch = STATE_BATCH[clock]
@@ -328,8 +329,14 @@ class Agent:
                     return
                 msgs, cmds = self._take_inbox()
             self._apply_commands(cmds)
-            for _, msg in msgs:
-                self._route(msg, send_tick(msg.t_send, T))
+            early = []
+            for item in self._early + msgs:
+                m = send_tick(item[1].t_send, T)
+                if m >= n:  # from a neighbour already past us: decide it when it can matter
+                    early.append(item)
+                else:
+                    self._route(item[1], m)
+            self._early = early
             for msg, d in self._due.pop(n, ()):
                 if self.table.offer(msg, n * T):
                     self.counters.delivered += 1

@@ -78,6 +78,7 @@ class InProcessFleet:
         self._last_tel: list[Any] = [None] * len(self.vehicles)
         self._changes_seen = 0
         self.tick = 0
+        self.end_tick = total_ticks(scenario.duration, self.period)
 
     def _table(self, vid: str) -> NeighbourTable:
         return NeighbourTable(links_of(self.scenario, vid), self.policy, self.timeout)
@@ -147,7 +148,7 @@ class InProcessFleet:
         if n % UPDATE_EVERY == 0:
             self._report_link_changes()
             self.sink.update(self.recorder)
-        if n % self.every == 0:
+        if n % self.every == 0 and n < self.end_tick:  # a last-tick broadcast would never be used
             for src, v in enumerate(self.vehicles):
                 if src not in stopped:
                     self._send(src, v, n)
@@ -186,7 +187,7 @@ class InProcessFleet:
             ) -> RunResult:
         """Step to ``duration`` (default: the scenario's), inclusive of the last instant."""
         duration = self.scenario.duration if duration is None else duration
-        ticks = total_ticks(duration, self.period)
+        ticks = self.end_tick = total_ticks(duration, self.period)
         self._t0 = time.perf_counter()
         last_report = self._t0
         if self.tick == 0:

@@ -1,0 +1,197 @@
+"""End to end: link faults, vehicle faults and hostile payloads on a running fleet."""
+
+from __future__ import annotations
+
+import json
+import math
+import random
+import struct
+
+import msgpack
+import numpy as np
+import zenoh
+
+from cdus import keys
+from cdus.config import load_scenario
+from cdus.transport import Transport, free_tcp_port, open_session
+from vehicle_agent.messages import encode_control
+from world_sim.fleet import InProcessFleet
+
+from .conftest import fleet_processes, unique_fleet
+
+
+def test_lake_circle_settles_with_30_percent_loss_and_100_ms_delay_in_lockstep(tmp_path, launches):
+    fleet = unique_fleet()
+    run = tmp_path / "run"
+    la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--set", "link.loss=0.3",
+                   "--set", "link.delay.base=0.1", "--logs", str(run), "-q"], fleet)
+    assert la.wait(timeout=300) == 0, la.output()
+    m = json.loads((run / "metrics.json").read_text())
+    assert m["coord_settle_s"] is not None and m["final_coord_error_max"] < 0.05, m
+    faults = m["link"]["faults"]["total"]
+    assert 0.27 < faults["dropped_by"]["loss"] / faults["sent"] < 0.33
+    # the same decisions as the in-process run: the emulator decides from (seed, src, dst, seq)
+    ref = InProcessFleet(load_scenario("configs/lake_circle.toml",
+                                       {"link.loss": 0.3, "link.delay.base": 0.1})).run().metrics
+    assert m["coord_settle_s"] == ref["coord_settle_s"]
+    assert faults["dropped"] == ref["link"]["faults"]["total"]["dropped"]
+    assert not fleet_processes(fleet)
+
+
+def partition_scenario(tmp_path):
+    text = open("configs/lake_circle.toml").read()
+    text += """
+[[link.partition]]
+from = 150.0
+to = 200.0
+groups = [["usv1", "usv2", "usv3"], ["uav1", "uav2", "uav3"]]
+"""
+    path = tmp_path / "partition.toml"
+    path.write_text(text.replace("duration = 250.0", "duration = 400.0"))
+    return path
+
+
+def test_a_partition_that_splits_the_ring_and_heals_reconverges(tmp_path, launches):
+    cfg = partition_scenario(tmp_path)
+    # during the split each half is a chain that still coordinates inside itself; after
+    # healing the halves' offsets close again
+    ref = InProcessFleet(load_scenario(cfg)).run()
+    t = ref.recorder.view("t")
+    err = ref.recorder.edge_error().max(axis=1)
+    assert err[(t > 140) & (t < 150)].max() < 0.05  # settled before the split
+    assert ref.metrics["coord_settle_s"] > 200.0  # disturbed by the split...
+    assert ref.metrics["final_coord_error_max"] < 0.05  # ...and back after healing
+    fleet = unique_fleet()
+    run = tmp_path / "run"
+    la = launches([str(cfg), "--clock", "lockstep", "--logs", str(run), "-q"], fleet)
+    assert la.wait(timeout=300) == 0, la.output()
+    m = json.loads((run / "metrics.json").read_text())
+    assert m["coord_settle_s"] == ref.metrics["coord_settle_s"]
+    assert m["final_coord_error_max"] < 0.05
+    changes = m["link"]["faults"]["state_changes"]
+    assert any(c["state"] == "down" and abs(c["t"] - 150.0) < 0.1 for c in changes)
+    assert any(c["state"] == "up" and abs(c["t"] - 200.0) < 0.1 for c in changes)
+
+
+def test_a_killed_and_restarted_vehicle_rejoins_and_the_fleet_reconverges(tmp_path, launches):
+    text = open("configs/lake_circle.toml").read().replace("duration = 250.0", "duration = 320.0")
+    text += """
+[[event]]
+at = 150.0
+action = "kill"
+vehicle = "usv2"
+
+[[event]]
+at = 170.0
+action = "restart"
+vehicle = "usv2"
+"""
+    cfg = tmp_path / "kill.toml"
+    cfg.write_text(text)
+    fleet = unique_fleet()
+    run = tmp_path / "run"
+    la = launches([str(cfg), "--clock", "lockstep", "--logs", str(run), "-q"], fleet)
+    assert la.wait(timeout=300) == 0, la.output()
+    m = json.loads((run / "metrics.json").read_text())
+    events = " | ".join(m["events"])
+    assert "vehicle usv2 lost" in events and "vehicle usv2 back" in events, events
+    log = (run / "logs" / "usv2.log").read_text()
+    assert "rejoining at tick 8500" in log, log[-2000:]  # t = 170 s exactly: the fleet waited for it
+    assert m["coord_settle_s"] is not None and m["coord_settle_s"] > 170.0, m
+    assert m["final_coord_error_max"] < 0.05
+    assert not fleet_processes(fleet)
+
+
+def hostile_omega_payloads(rng: random.Random, n: int) -> list[bytes]:
+    """Payloads no receiver may accept: every kind of wrong, none accidentally valid."""
+    good = [1, 0, 5, 1.0, -3.0, -1.0]
+    out = []
+    for j in range(n):
+        kind = j % 8
+        if kind == 0:  # random bytes that do not start like a 6-element array
+            b = bytes(rng.randrange(256) for _ in range(rng.randrange(0, 40)))
+            out.append(b if not b.startswith(b"\x96") else b"\xc1" + b[1:])
+        elif kind == 1:  # truncated valid message
+            full = msgpack.packb(good)
+            out.append(full[: rng.randrange(0, len(full))])
+        elif kind == 2:  # oversized
+            out.append(msgpack.packb([1, 0, 5, 1.0, -3.0, -1.0, "x" * rng.randrange(40, 400)]))
+        elif kind == 3:  # wrong version
+            out.append(msgpack.packb([rng.choice([0, 2, 7, 255]), 0, 5, 1.0, -3.0, -1.0]))
+        elif kind == 4:  # NaN / inf in a float
+            bad = list(good)
+            bad[rng.choice([3, 4, 5])] = rng.choice([math.nan, math.inf, -math.inf])
+            out.append(msgpack.packb(bad))
+        elif kind == 5:  # wrong types
+            bad = list(good)
+            bad[rng.randrange(6)] = rng.choice(["s", None, True, [1], {"a": 1}, 1 << 40])
+            if bad[0] == 1 and all(type(x) is type(y) for x, y in zip(bad, good)):
+                bad[0] = "v"
+            out.append(msgpack.packb(bad))
+        elif kind == 6:  # a map instead of an array
+            out.append(msgpack.packb({"v": 1, "omega": 1.0}))
+        else:  # wrong sender index for the key
+            out.append(msgpack.packb([1, 99, 5, 1.0, -3.0, -1.0]))
+    return out
+
+
+def hostile_commands(rng: random.Random, n: int) -> list[bytes]:
+    out = []
+    for j in range(n):
+        kind = j % 5
+        if kind == 0:
+            b = bytes(rng.randrange(256) for _ in range(rng.randrange(0, 60)))
+            out.append(b"\xc1" + b)  # 0xc1 is never valid msgpack
+        elif kind == 1:
+            out.append(msgpack.packb({"v": 9, "op": "stop"}))
+        elif kind == 2:
+            out.append(msgpack.packb({"v": 1, "op": "self_destruct"}))
+        elif kind == 3:
+            out.append(msgpack.packb({"v": 1, "op": "link", "link": "not a table", "at": 0.0}))
+        else:
+            out.append(encode_control("set_gains", gains={"k": -1.0}).replace(b"\xa9set_gains", b"\xa9set_gainz"))
+    return out
+
+
+def test_fuzzed_payloads_are_counted_and_never_reach_a_controller(tmp_path, launches):
+    fleet = unique_fleet()
+    port = free_tcp_port()
+    run = tmp_path / "run"
+    la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", "150",
+                   "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run),
+                   "--trace-out", str(tmp_path / "trace.npz"), "-q"], fleet)
+    la.wait_for(f"fleet '{fleet}' up")
+    sc = load_scenario("configs/lake_circle.toml", {"scenario.duration": 150.0})
+    listeners = {v.id: sum(1 for e in sc.edges if e.k == v.id) for v in sc.vehicles}
+    rng = random.Random(1234)
+    omega_payloads = hostile_omega_payloads(rng, 8000)
+    command_payloads = hostile_commands(rng, 2000)
+    expected = 0
+    session = open_session(Transport(mode="client", connect=(f"tcp/127.0.0.1:{port}",)))
+    try:
+        pubs = {vid: session.declare_publisher(keys.omega(fleet, vid),
+                                               congestion_control=zenoh.CongestionControl.BLOCK)
+                for vid in sc.ids}
+        cmd = session.declare_publisher(keys.cmd(fleet, keys.ALL), congestion_control=zenoh.CongestionControl.BLOCK)
+        for j, p in enumerate(omega_payloads):
+            vid = sc.ids[j % len(sc.ids)]
+            pubs[vid].put(p)
+            expected += listeners[vid]
+        for p in command_payloads:
+            cmd.put(p)
+            expected += len(sc.vehicles)
+    finally:
+        session.close()
+    assert la.wait(timeout=300) == 0, la.output()
+    m = json.loads((run / "metrics.json").read_text())
+    assert m["completed"] is True
+    # no agent died: every one reported to the end, and all the fuzz was counted as rejected
+    assert m["link"]["rejected"] == expected, (m["link"], expected)
+    # nothing reached a controller: the run equals the clean in-process one, bit for bit
+    ref = InProcessFleet(sc).run()
+    trace = np.load(tmp_path / "trace.npz")
+    assert np.array_equal(trace["omega"], ref.recorder.view("omega"))
+    assert np.array_equal(trace["q"], ref.recorder.view("q"))
+    logs = "".join(p.read_text() for p in (run / "logs").glob("*.log"))
+    assert "Traceback" not in logs
+    assert not fleet_processes(fleet)
