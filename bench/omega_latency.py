@@ -1,0 +1,287 @@
+"""ω one-way latency through the agents' link layer, beside raw Zenoh pub/sub, in one run.
+
+    python bench/omega_latency.py                 # 2000 messages of each kind at 200 Hz
+    python bench/omega_latency.py -n 5000 --hz 100
+
+Topology as in `cdus launch`: this process is the router (tcp/127.0.0.1:<free port>, as the
+launcher opens it); a sender and a receiver process connect to it as clients, with the
+launcher's ZENOH_RUNTIME. Every 1/hz s the sender puts
+
+  raw:  a payload of the ω message's size on cdus/<fleet>/bench/raw, its first 8 bytes the
+        send time (time.time_ns); the receiver's plain callback stamps the arrival;
+  ours: encode_omega(OmegaMsg(..., t_send=time.time(), ...)) on the ω key of vehicle 0,
+        from a publisher declared as the agent declares it (congestion control BLOCK),
+
+half a period apart (the raw payload also carries its index, for the warm-up). The
+receiver is a real vehicle_agent Agent (vehicle 1 of a 2-vehicle ring) opened on the
+router: its own `_on_omega` decodes, validates and appends to the inbox; the bench stamps
+the moment of the inbox append, and a thread waiting on the inbox's condition as the
+agent's main loop does stamps when it wakes. Clocks: time.time in both processes (one
+machine, one clock). For the breakdown the sender also records stamp -> put() of each
+kind, and the receiver the time from entering the agent's callback (through a one-line
+wrapper, counted in "ours") to the inbox append.
+Figures are printed, never asserted: they depend on what else the machine runs.
+Target (issue "One process per vehicle over Zenoh"): our layer adds < 50 µs at p50.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import struct
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+BENCH = Path(__file__).resolve().parent
+sys.path.insert(0, str(BENCH.parent))
+
+from cdus import keys  # noqa: E402
+from cdus.transport import Transport, client_of, local_router, open_session  # noqa: E402
+
+WARMUP = 50  # messages of each kind not counted (declarations settling, caches warming)
+
+
+def raw_key(fleet: str) -> str:
+    return f"{keys.prefix(fleet)}/bench/raw"
+
+
+def done_key(fleet: str) -> str:
+    return f"{keys.prefix(fleet)}/bench/done"
+
+
+def ready_key(fleet: str) -> str:
+    return f"{keys.prefix(fleet)}/bench/ready"
+
+
+def scenario():
+    from sim_speed import ring
+
+    return ring(2, 60.0)
+
+
+# --------------------------------------------------------------------------- sender
+def run_sender(args) -> int:
+    import zenoh
+
+    from vehicle_agent.messages import OmegaMsg, encode_omega
+
+    sc = scenario()
+    sender = sc.vehicles[0]
+    s = open_session(Transport(mode="client", connect=(args.connect,), lease_ms=1000))
+    try:
+        # readiness: a token the receiver declares once the agent and the raw subscriber are up
+        ready = threading.Event()
+        ls = s.liveliness().declare_subscriber(ready_key(args.fleet), lambda smp: ready.set(), history=True)
+        if not ready.wait(30):
+            print("sender: the receiving agent never came up", file=sys.stderr)
+            return 1
+        raw_cc = zenoh.CongestionControl.BLOCK if args.raw_block else zenoh.CongestionControl.DEFAULT
+        raw_pub = s.declare_publisher(raw_key(args.fleet), congestion_control=raw_cc)
+        block = zenoh.CongestionControl.BLOCK  # as Agent.open declares its ω publisher
+        our_pub = s.declare_publisher(keys.omega(args.fleet, sender.id), congestion_control=block)
+        size = len(encode_omega(OmegaMsg(sender.index, args.n + WARMUP, time.time(), 1.0, -1.0)))
+        pad = b"\0" * (size - 12)
+        period = 1.0 / args.hz
+        t_next = time.perf_counter() + 0.1
+        omega = 0.0
+        prep_raw, prep_ours = [], []  # stamp -> put(): what the sender does before Zenoh has the message
+        for i in range(args.n + WARMUP):
+            _sleep_until(t_next)
+            t = time.time_ns()
+            payload = struct.pack("<qI", t, i) + pad
+            t_put = time.time_ns()
+            raw_pub.put(payload)
+            prep_raw.append(t_put - t)
+            _sleep_until(t_next + period / 2)
+            omega -= period
+            t = time.time()
+            payload = encode_omega(OmegaMsg(sender.index, i, t, omega, -1.0))
+            t_put = time.time_ns()
+            our_pub.put(payload)
+            prep_ours.append(t_put - round(t * 1e9))
+            t_next += period
+        time.sleep(0.05)
+        s.put(done_key(args.fleet), b"done")
+        ls.undeclare()
+    finally:
+        s.close()
+    json.dump({"prep_raw": prep_raw[WARMUP:], "prep_ours": prep_ours[WARMUP:]}, sys.stdout)
+    return 0
+
+
+def _sleep_until(t: float) -> None:
+    d = t - time.perf_counter()
+    if d > 0:
+        time.sleep(d)
+
+
+# --------------------------------------------------------------------------- receiver
+def run_receiver(args) -> int:
+    from vehicle_agent.agent import Agent
+
+    sc = scenario()
+    me = sc.vehicles[1].id
+    transport = Transport(mode="client", connect=(args.connect,), lease_ms=1000)
+    agent = Agent(sc, me, args.fleet, transport, clock="realtime", log=lambda s: None)
+    raw_lat: list[int] = []
+    inbox_lat: list[int] = []
+    inside: list[int] = []  # callback entry -> inbox append, ns (the receive path's own cost)
+    entered = [0]
+    wake_lat: list[int] = []
+    done = threading.Event()
+    stop = threading.Event()
+
+    class StampedList(list):
+        """The inbox's ω list, stamping each append (the agent appends under the lock)."""
+
+        def append(self, item):
+            t = time.time_ns()
+            if item[1].seq >= WARMUP:
+                inbox_lat.append(t - round(item[1].t_send * 1e9))
+                inside.append(t - entered[0])
+            super().append(item)
+
+    ib = agent.inbox
+    ib.omega = StampedList()
+
+    def main_loop() -> None:  # waits as Agent._run_realtime does: on the inbox condition
+        while not stop.is_set():
+            with ib.cond:
+                while not ib.omega and not stop.is_set():
+                    ib.cond.wait(timeout=0.5)
+                t = time.time_ns()
+                msgs, ib.omega = ib.omega, StampedList()
+            for _, m in msgs:
+                if m.seq >= WARMUP:
+                    wake_lat.append(t - round(m.t_send * 1e9))
+
+    def on_raw(sample) -> None:
+        t = time.time_ns()
+        t0, i = struct.unpack_from("<qI", sample.payload.to_bytes())
+        if i >= WARMUP:
+            raw_lat.append(t - t0)
+
+    on_omega = agent._on_omega
+
+    def timed_on_omega(sample) -> None:  # the subscriber calls this; it calls the agent's own
+        entered[0] = time.time_ns()
+        on_omega(sample)
+
+    agent._on_omega = timed_on_omega
+    agent.open()  # the agent's own subscribers, publishers and liveliness token
+    try:
+        subs = [agent.session.declare_subscriber(raw_key(args.fleet), on_raw),
+                agent.session.declare_subscriber(done_key(args.fleet), lambda s: done.set())]
+        token = agent.session.liveliness().declare_token(ready_key(args.fleet))
+        waiter = threading.Thread(target=main_loop, daemon=True)
+        waiter.start()
+        done.wait(args.n / args.hz + 60)
+        time.sleep(0.1)
+        stop.set()
+        with ib.cond:
+            ib.cond.notify_all()
+        waiter.join(2)
+        rejected = dict(ib.rejected)
+        token.undeclare()
+        del subs
+    finally:
+        agent.close()
+    json.dump({"raw": raw_lat, "inbox": inbox_lat, "wake": wake_lat, "inside": inside, "rejected": rejected},
+              sys.stdout)
+    return 0
+
+
+# --------------------------------------------------------------------------- the bench
+def pct(xs: list[float], q: float) -> float:
+    xs = sorted(xs)
+    return xs[min(len(xs) - 1, int(q * len(xs)))] if xs else float("nan")
+
+
+def run_bench(args) -> int:
+    from cdus.launcher import ZENOH_RUNTIME
+    from vehicle_agent.messages import OmegaMsg, encode_omega
+
+    from _fleet import load_line
+
+    print(load_line())
+    router = local_router()
+    session = open_session(router)
+    connect = client_of(router).connect[0]
+    fleet = f"bench_lat_{os.getpid()}"
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    if args.zenoh_runtime == "launcher":
+        env.setdefault("ZENOH_RUNTIME", ZENOH_RUNTIME)
+    common = ["--connect", connect, "--fleet", fleet, "-n", str(args.n), "--hz", str(args.hz)]
+    if args.raw_block:
+        common.append("--raw-block")
+    me = [sys.executable, str(Path(__file__).resolve())]
+    procs: list[subprocess.Popen] = []
+    try:
+        recv = subprocess.Popen(me + ["--role", "receiver", *common], stdout=subprocess.PIPE, env=env,
+                                start_new_session=True, text=True)
+        procs.append(recv)
+        send = subprocess.Popen(me + ["--role", "sender", *common], stdout=subprocess.PIPE, env=env,
+                                start_new_session=True, text=True)
+        procs.append(send)
+        budget = args.n / args.hz + 90
+        sent = threading.Thread(target=lambda: setattr(send, "out", send.communicate(timeout=budget)[0]))
+        sent.start()
+        out, _ = recv.communicate(timeout=budget)
+        sent.join(budget)
+        if recv.returncode or send.returncode:
+            print(f"receiver exited {recv.returncode}, sender {send.returncode}")
+            return 1
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                os.killpg(p.pid, signal.SIGKILL)
+                p.wait()
+        session.close()
+    res = json.loads(out)
+    res.update(json.loads(send.out))
+    size = len(encode_omega(OmegaMsg(0, args.n + WARMUP, time.time(), 1.0, -1.0)))
+    rows = [("raw zenoh: put -> plain callback", res["raw"]),
+            ("ours: encode -> Agent._on_omega -> inbox", res["inbox"]),
+            ("ours: ... -> main loop woken on the inbox", res["wake"])]
+    print(f"ω one-way latency, {args.hz:g} Hz, {size}-byte payloads, client -> router (this process) -> client, "
+          f"ZENOH_RUNTIME {'as the launcher sets it' if args.zenoh_runtime == 'launcher' else 'zenoh default'}")
+    print(f"{'path':<44} {'n':>5} {'p50 µs':>8} {'p90 µs':>8} {'p99 µs':>8} {'max µs':>8}")
+    for name, xs in rows:
+        us = [x / 1000 for x in xs]
+        print(f"{name:<44} {len(us):5d} {pct(us, .5):8.1f} {pct(us, .9):8.1f} {pct(us, .99):8.1f} "
+              f"{max(us, default=float('nan')):8.1f}")
+    r50, o50, w50 = (pct([x / 1000 for x in res[k]], .5) for k in ("raw", "inbox", "wake"))
+    r99, o99 = (pct([x / 1000 for x in res[k]], .99) for k in ("raw", "inbox"))
+    print(f"ours / raw at p50: {o50 / r50:.2f}x, added at p50: {o50 - r50:+.1f} µs (target < 50 µs); "
+          f"at p99: {o99 - r99:+.1f} µs; main-loop wake-up adds {w50 - o50:+.1f} µs more at p50")
+    pr, po, inside = ([x / 1000 for x in res[k]] for k in ("prep_raw", "prep_ours", "inside"))
+    print(f"where: sender stamp -> put(), raw p50 {pct(pr, .5):.1f} µs, ours (OmegaMsg + encode_omega) "
+          f"p50 {pct(po, .5):.1f} µs; receiver Agent._on_omega entry -> inbox append p50 {pct(inside, .5):.1f} µs, "
+          f"p99 {pct(inside, .99):.1f} µs")
+    if res["rejected"]:
+        print(f"rejected by the agent: {res['rejected']}")
+    return 0
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("-n", type=int, default=2000, help="messages of each kind (after %d warm-up)" % WARMUP)
+    ap.add_argument("--hz", type=float, default=200.0, help="messages of each kind per second")
+    ap.add_argument("--zenoh-runtime", choices=("launcher", "default"), default="launcher",
+                    help="the children's ZENOH_RUNTIME: the launcher's (as agents run) or zenoh's default")
+    ap.add_argument("--raw-block", action="store_true",
+                    help="raw publisher with congestion control BLOCK too (default: zenoh's default, DROP)")
+    ap.add_argument("--role", choices=("bench", "sender", "receiver"), default="bench", help=argparse.SUPPRESS)
+    ap.add_argument("--connect", help=argparse.SUPPRESS)
+    ap.add_argument("--fleet", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    return {"bench": run_bench, "sender": run_sender, "receiver": run_receiver}[args.role](args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
