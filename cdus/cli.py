@@ -92,6 +92,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, metavar="DIR", help="where results.csv, summary.md and sweep.png go")
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(func=cmd_sweep)
+
+    # `cdus gs ...` is handed to ground_station whole (see main); listed here for --help
+    sub.add_parser("gs", help="ground station: watch and command a running fleet (cdus gs --help)", add_help=False)
     return parser
 
 
@@ -146,6 +149,8 @@ def cmd_launch(args: argparse.Namespace) -> int:
         ready_timeout=args.ready_timeout, quiet=args.quiet, rerun=args.rerun)
     print(f"{scenario.name}: launching {len(scenario.vehicles)} vehicle processes + world "
           f"({args.clock} clock), router {', '.join(router.listen) or args.zenoh_config}")
+    print(f"  attach a ground station: cdus gs --fleet {opts.fleet} -e "
+          f"{(router.listen[0] if router.listen else 'ENDPOINT').replace('0.0.0.0', '127.0.0.1')} status")
     status, la = launch(scenario, run, router, opts)
     if la.metrics_out.exists():
         metrics = json.loads(la.metrics_out.read_text())
@@ -176,6 +181,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] == "gs":
+        from ground_station.__main__ import main as gs_main
+
+        return gs_main(argv[1:], "cdus gs")
     parser = build_parser()
     args = parser.parse_args(argv)
     try:

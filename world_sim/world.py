@@ -56,6 +56,8 @@ class Shared:
     events: list[str] = field(default_factory=list)
     first_tick: dict[int, int] = field(default_factory=dict)  # sender -> first tick since it (re)joined
     fault_done: set[str] = field(default_factory=set)  # vehicles the launcher has acted on
+    paused_at: float | None = None  # wall time of a fleet pause, while paused
+    paused_for: float = 0.0  # wall seconds the fleet has been paused in all
     came_back: set[str] = field(default_factory=set)  # vehicles whose token (re)appeared
     stop: bool = False
     rejected: int = 0
@@ -198,7 +200,13 @@ class World:
             if c.op == "link":
                 self._event(f"link faults changed from t = {c.fields['at']:.2f} s: {c.fields['link']}")
             elif c.op in ("pause", "resume", "set_gains"):
+                if c.op == "pause" and self.sh.paused_at is None:
+                    self.sh.paused_at = time.time()
+                elif c.op == "resume" and self.sh.paused_at is not None:
+                    self.sh.paused_for += time.time() - self.sh.paused_at  # the realtime clock stood still
+                    self.sh.paused_at = None
                 self._event(f"fleet command {c.op} {c.fields or ''}".strip())
+            self.sh.cond.notify_all()
 
     def _on_liveliness(self, sample: Any) -> None:
         vid = keys.vehicle_of(str(sample.key_expr))
@@ -284,6 +292,8 @@ class World:
                         continue
                 front = max(sh.acked.values(), default=-1) + 1  # where a late joiner starts
             now = time.monotonic()
+            if sh.paused_at is not None:  # a paused fleet gets no new ticks
+                want = granted
             if want > granted or now - last_grant > 0.5:  # re-sent now and then for late joiners
                 granted, last_grant = max(granted, want), now
                 self.pub_clock.put(encode_control("grant", until=granted, front=front))
@@ -335,6 +345,11 @@ class World:
             while self.events and time.time() - t0 >= self.events[0].at:
                 with sh.cond:
                     self._carry_out(self.events.pop(0), wait=False)
+            if sh.paused_at is not None:
+                with sh.cond:
+                    sh.cond.wait(timeout=0.2)
+                continue
+            t0 = self.t0 + sh.paused_for
             due_tick = int((time.time() - t0) / T) - REALTIME_LAG
             with sh.cond:
                 if sh.stop:
@@ -395,7 +410,8 @@ class World:
         n = len(self.recorder)
         status = {
             "v": 1, "t": (self.next_tick - 1) * self.period, "duration": self.duration, "clock": self.clock,
-            "alive": sorted(sh.alive), "vehicles": len(self.ids),
+            "alive": sorted(sh.alive), "vehicles": len(self.ids), "ids": self.ids,
+            "events": sh.events[-10:],
             "path_error_max": float(self.recorder.view("path_error")[-1].max()) if n else None,
             "coord_error_max": (float(self.recorder.edge_error()[-1].max())
                                 if n and self.recorder.edges else None),

@@ -1,0 +1,163 @@
+"""The ground station: the operator's console, as the paper's base station.
+
+It attaches to a running fleet at any time (a Zenoh client of the fleet's router),
+watches it (vehicle telemetry, liveliness, the world's status and events) and sends
+commands: pause/resume/stop the fleet, change link faults or gains at run time, and ask
+the launcher to kill, pause, resume or restart a vehicle.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+from cdus import keys
+from cdus.transport import Transport, open_session
+from vehicle_agent.messages import StateMsg, decode_states, encode_control
+
+
+@dataclass
+class FleetView:
+    """What the console knows, updated from Zenoh's threads under one lock."""
+
+    lock: threading.Lock = field(default_factory=threading.Lock)
+    states: dict[str, StateMsg] = field(default_factory=dict)
+    alive: set[str] = field(default_factory=set)
+    world: dict | None = None
+    events: list[str] = field(default_factory=list)
+    rejected: int = 0
+
+
+def status_table(view: FleetView, now: float | None = None) -> str:
+    """A plain-text table of the fleet: one row per vehicle seen, then the world's line."""
+    with view.lock:
+        known = (view.world or {}).get("ids") or []
+        ids = sorted(set(view.states) | (view.alive - {keys.WORLD}) | set(known))
+        rows = [f"{'vehicle':<10} {'alive':<5} {'t (s)':>8} {'|Φ| (m)':>9} {'ω':>11} {'ω̇':>8}  position"]
+        for vid in ids:
+            m = view.states.get(vid)
+            alive = "yes" if vid in view.alive else "NO"
+            if m is None:
+                rows.append(f"{vid:<10} {alive:<5} {'-':>8}")
+                continue
+            pos = ", ".join(f"{x:.1f}" for x in m.q)
+            rows.append(f"{vid:<10} {alive:<5} {m.t:8.2f} {m.path_error:9.3f} {m.omega:11.3f} "
+                        f"{m.omega_rate:8.3f}  ({pos})")
+        w = view.world
+        if w:
+            coord = w.get("coord_error_max")
+            path = w.get("path_error_max")
+            rows.append(f"world: t = {w.get('t', 0):.1f} / {w.get('duration', 0):.0f} s ({w.get('clock')}), "
+                        f"{len(w.get('alive', []))}/{w.get('vehicles')} vehicles alive, worst |Φ| "
+                        f"{'-' if path is None else f'{path:.3f}'} m, worst edge error "
+                        f"{'-' if coord is None else f'{coord:.4f}'} rad")
+        else:
+            rows.append("world: no status yet")
+        events = view.events or (w or {}).get("events") or []  # heard live, else the world's recent ones
+        if events:
+            rows.append("events:")
+            rows += [f"  {e}" for e in events[-8:]]
+        if view.rejected:
+            rows.append(f"({view.rejected} malformed telemetry messages ignored)")
+    return "\n".join(rows)
+
+
+class GroundStation:
+    def __init__(self, fleet: str, transport: Transport):
+        self.fleet = keys.check_fleet(fleet)
+        self.transport = transport
+        self.view = FleetView()
+        self.session = None
+
+    def open(self, watch: bool = True) -> None:
+        s = self.session = open_session(self.transport)
+        f = self.fleet
+        self._subs = []
+        if watch:
+            self._subs += [
+                s.declare_subscriber(keys.any_vehicle(f, "state"), self._on_state),
+                s.declare_subscriber(keys.world_status(f), self._on_status),
+                s.declare_subscriber(keys.world_events(f), self._on_event),
+                s.liveliness().declare_subscriber(keys.any_alive(f), self._on_alive, history=True),
+            ]
+
+    def close(self) -> None:
+        if self.session is not None:
+            self.session.close()
+            self.session = None
+
+    # ------------------------------------------------------------------ watching
+    def _on_state(self, sample: Any) -> None:
+        rows = decode_states(sample.payload.to_bytes())
+        vid = keys.vehicle_of(str(sample.key_expr))
+        with self.view.lock:
+            if isinstance(rows, str) or vid is None:
+                self.view.rejected += 1
+                return
+            self.view.states[vid] = rows[-1]
+
+    def _on_status(self, sample: Any) -> None:
+        try:
+            st = json.loads(sample.payload.to_bytes())
+        except ValueError:
+            return
+        with self.view.lock:
+            self.view.world = st
+
+    def _on_event(self, sample: Any) -> None:
+        with self.view.lock:
+            self.view.events.append(sample.payload.to_bytes().decode(errors="replace"))
+
+    def _on_alive(self, sample: Any) -> None:
+        who = str(sample.key_expr).rsplit("/", 1)[-1]
+        with self.view.lock:
+            if str(sample.kind).endswith("DELETE"):
+                self.view.alive.discard(who)
+            else:
+                self.view.alive.add(who)
+
+    def wait_for_status(self, timeout: float) -> bool:
+        """Wait until the world's status has been heard (it is published about once a second)."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            with self.view.lock:
+                if self.view.world is not None:
+                    return True
+            time.sleep(0.05)
+        return False
+
+    def sim_time(self) -> float | None:
+        with self.view.lock:
+            return None if self.view.world is None else float(self.view.world.get("t", 0.0))
+
+    # ------------------------------------------------------------------ commanding
+    def send(self, target: str, op: str, **fields: Any) -> None:
+        self.session.put(keys.cmd(self.fleet, target), encode_control(op, **fields))
+
+    def fleet_command(self, op: str) -> None:
+        """pause | resume | stop for every vehicle and the world."""
+        self.send(keys.ALL, op)
+        if op == "stop":
+            self.send(keys.WORLD, "stop")
+
+    def set_link(self, table: dict, at: float | None = None, lead: float = 0.5) -> float:
+        """Change the link faults from simulated time ``at`` (default: the world's now + ``lead``)."""
+        if at is None:
+            now = self.sim_time()
+            at = (now if now is not None else 0.0) + lead
+        if not math.isfinite(at):
+            raise ValueError("at must be a finite time")
+        self.send(keys.ALL, "link", link=table, at=float(at))
+        return at
+
+    def set_gains(self, gains: dict, vehicle: str | None = None) -> None:
+        self.send(vehicle or keys.ALL, "set_gains", gains=gains)
+
+    def vehicle_fault(self, action: str, vehicle: str) -> None:
+        """kill | pause | resume | restart one vehicle's process (the launcher carries it out)."""
+        op = {"pause": "pause_vehicle", "resume": "resume_vehicle"}.get(action, action)
+        self.send("launcher", op, vehicle=vehicle)

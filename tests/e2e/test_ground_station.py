@@ -1,0 +1,52 @@
+"""End to end: a ground station attaches to a running fleet, watches it and commands it."""
+
+from __future__ import annotations
+
+import json
+import time
+
+from cdus.transport import free_tcp_port
+
+from .conftest import fleet_processes, run_cli, unique_fleet
+
+
+def gs(fleet: str, port: int, *args: str):
+    return run_cli(["gs", "--fleet", fleet, "-e", f"tcp/127.0.0.1:{port}", *args], timeout=60)
+
+
+def test_ground_station_watches_and_commands_a_running_fleet(tmp_path, launches):
+    fleet = unique_fleet()
+    port = free_tcp_port()
+    run = tmp_path / "run"
+    la = launches(["configs/concentric_circles.toml", "--clock", "realtime", "--duration", "600",
+                   "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "-q"], fleet)
+    la.wait_for(f"fleet '{fleet}' up")
+    la.wait_for("attach a ground station")
+
+    res = gs(fleet, port, "status", "--once")
+    assert res.returncode == 0, res.stderr
+    for vid in ("usv1", "usv2", "uav1", "uav2"):
+        assert vid in res.stdout
+    assert "world: t =" in res.stdout
+
+    res = gs(fleet, port, "link", "loss=1.0")  # cut every link
+    assert res.returncode == 0, res.stderr
+    assert gs(fleet, port, "link", "loss=7").returncode == 2  # a bad value is refused locally
+
+    res = gs(fleet, port, "kill", "usv2")
+    assert res.returncode == 0, res.stderr
+    deadline = time.monotonic() + 15
+    while time.monotonic() < deadline:
+        out = gs(fleet, port, "status", "--once").stdout
+        if "usv2 lost" in out:
+            break
+    assert "usv2 lost" in out, out
+
+    assert gs(fleet, port, "stop").returncode == 0
+    assert la.wait(timeout=60) == 0, la.output()
+    m = json.loads((run / "metrics.json").read_text())
+    assert m["completed"] is False  # stopped early, by the operator
+    assert m["link"]["faults"]["total"]["dropped_by"]["loss"] > 0
+    assert any("usv2 lost" in e for e in m["events"])
+    assert any("link faults changed" in e for e in m["events"])
+    assert not fleet_processes(fleet)
