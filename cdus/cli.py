@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 from typing import Any, Sequence
 
-from cdus.config import ConfigError, load_scenario, parse_value
+from cdus.config import ConfigError, load_scenario, parse_overrides
 from cdus.report import Progress, run_dir, summary_table, write_json
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -21,12 +21,7 @@ EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 def _overrides(args: argparse.Namespace) -> dict[str, Any]:
     """--duration, --seed and every --set KEY=VALUE as dotted config keys."""
-    out: dict[str, Any] = {}
-    for item in getattr(args, "set", None) or []:
-        key, sep, value = item.partition("=")
-        if not sep or not key:
-            raise ConfigError("command line", [("--set", f"expected KEY=VALUE (e.g. rates.control=20), got {item!r}")])
-        out[key.strip()] = parse_value(value.strip())
+    out = parse_overrides(getattr(args, "set", None) or [])
     if getattr(args, "duration", None) is not None:
         out["scenario.duration"] = args.duration
     if getattr(args, "seed", None) is not None:

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from typing import Any, Iterable, Mapping
 
 from cdus import graph as graphs
+from cdus.show import quote as _q, show as _show
 from cdus.events import validate_events
 from vehicle_agent.paths import FAMILIES, PathError, for_dimension, make_path
 from vehicle_agent.plants import USV_PRESETS
@@ -245,6 +246,17 @@ def apply_override(data: dict, dotted_key: str, value: Any) -> None:
     node[parts[-1]] = value
 
 
+def parse_overrides(items: Iterable[str], source: str = "command line") -> dict[str, Any]:
+    """``["rates.control=20", "link.loss=0.3"]`` (the ``--set`` flags) -> {dotted key: value}."""
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise ConfigError(source, [("--set", f"expected KEY=VALUE (e.g. rates.control=20), got {item!r}")])
+        out[key.strip()] = parse_value(value.strip())
+    return out
+
+
 def parse_value(text: str) -> Any:
     """A ``--set key=value`` value: TOML scalar or inline value (int, float, bool, [1, 2],
     {a = 1}, "quoted"), else the text itself as a string."""
@@ -272,25 +284,6 @@ class _Check:
     def add(self, field: str, message: str) -> None:
         if (field, message) not in self.problems:
             self.problems.append((field, message))
-
-
-def _q(s: Any) -> str:
-    return '"' + str(s).replace('"', '\\"') + '"'
-
-
-def _show(v: Any) -> str:
-    """A value as the user wrote it in TOML."""
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, str):
-        return _q(v)
-    if isinstance(v, float):
-        return repr(v) if math.isfinite(v) else str(v)
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_show(x) for x in v) + "]"
-    if isinstance(v, dict):
-        return "{" + ", ".join(f"{k} = {_show(x)}" for k, x in v.items()) + "}"
-    return repr(v)
 
 
 def _describe(v: Any) -> str:

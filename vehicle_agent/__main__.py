@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from cdus.config import ConfigError, load_scenario, parse_value
+from cdus.config import ConfigError, load_scenario, parse_overrides
 from cdus.transport import add_transport_args, transport_from_args
 
 
@@ -32,11 +32,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        overrides = {}
-        for item in args.set:
-            key, _, value = item.partition("=")
-            overrides[key] = parse_value(value)
-        scenario = load_scenario(args.config, overrides)
+        scenario = load_scenario(args.config, parse_overrides(args.set))
         if args.id not in scenario.ids:
             print(f"error: {args.config}: no vehicle with id {args.id!r}; ids are {', '.join(scenario.ids)}",
                   file=sys.stderr)

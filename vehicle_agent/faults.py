@@ -17,6 +17,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, Iterable, Mapping, Sequence
 
+from cdus.show import quote as _q, show as _show
 from vehicle_agent.neighbours import POLICIES
 
 DISTRIBUTIONS = ("uniform", "normal", "pareto")
@@ -217,24 +218,6 @@ def validate_link(link: Mapping[str, Any], ids: Sequence[str], source: str) -> L
         raise ConfigError(source, problems)
     assert spec is not None
     return spec
-
-
-def _q(s: Any) -> str:
-    return '"' + str(s).replace('"', '\\"') + '"'
-
-
-def _show(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, str):
-        return _q(v)
-    if isinstance(v, float):
-        return repr(v) if math.isfinite(v) else str(v)
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_show(x) for x in v) + "]"
-    if isinstance(v, dict):
-        return "{" + ", ".join(f"{k} = {_show(x)}" for k, x in v.items()) + "}"
-    return repr(v)
 
 
 def _describe(v: Any) -> str:

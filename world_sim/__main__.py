@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from cdus.config import ConfigError, load_scenario, parse_value
+from cdus.config import ConfigError, load_scenario, parse_overrides
 from cdus.transport import Transport, add_transport_args, transport_from_args
 
 
@@ -36,11 +36,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        overrides = {}
-        for item in args.set:
-            key, _, value = item.partition("=")
-            overrides[key] = parse_value(value)
-        scenario = load_scenario(args.config, overrides)
+        scenario = load_scenario(args.config, parse_overrides(args.set))
     except ConfigError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
