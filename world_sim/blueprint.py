@@ -28,10 +28,10 @@ def camera(points: np.ndarray) -> tuple[Sequence[float], Sequence[float]]:
     """(eye position, look target) that frame ``points`` [M, 3] from the south-west, above."""
     lo, hi = points.min(axis=0), points.max(axis=0)
     target = (lo + hi) / 2.0
-    target[2] = lo[2] + 0.3 * (hi[2] - lo[2])
+    target[2] = lo[2] + 0.4 * (hi[2] - lo[2])
     size = float(max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1.0))
     direction = np.array([-0.55, -1.0, 0.75])
-    eye = target + 1.35 * size * direction / np.linalg.norm(direction)
+    eye = target + 1.05 * size * direction / np.linalg.norm(direction)
     return eye.tolist(), target.tolist()
 
 
@@ -42,12 +42,17 @@ def blueprint(scene_points: np.ndarray | None = None) -> rrb.Blueprint:
         position, target = camera(scene_points)
         eye = rrb.EyeControls3D(position=position, look_target=target, eye_up=[0.0, 0.0, 1.0])
     world = rrb.Spatial3DView(origin=WORLD, name="World", eye_controls=eye)
-    links = rrb.StateTimelineView(origin=LINKS, name="Links (src → dst)")
+    whole_run = rrb.TimeAxis(view_range=rrb.TimeRange(start=rrb.TimeRangeBoundary.infinite(),
+                                                      end=rrb.TimeRangeBoundary.infinite()))
+    links = rrb.StateTimelineView(origin=LINKS, name="Links (src → dst)", time_view=whole_run)
     events = rrb.TextLogView(origin=EVENTS, name="Events")
-    series = rrb.Vertical(
-        rrb.TimeSeriesView(origin=PATH_ERROR, name="Path error |Φ| (m)"),
-        rrb.TimeSeriesView(origin=COORD_ERROR, name="Coordination error |ω_i − ω_k − Δ_ik|"),
-        rrb.TimeSeriesView(origin=OMEGA_RATE, name="ω̇"),
+    top_right, bottom_right = rrb.PlotLegend(corner="RightTop"), rrb.PlotLegend(corner="RightBottom")
+    series = rrb.Vertical(  # the whole run; legends where the curves settle (errors -> 0, ω̇ -> ±1)
+        rrb.TimeSeriesView(origin=PATH_ERROR, name="Path error |Φ| (m)", plot_legend=top_right,
+                           axis_x=whole_run),
+        rrb.TimeSeriesView(origin=COORD_ERROR, name="Coordination error |ω_i − ω_k − Δ_ik|", plot_legend=top_right,
+                           axis_x=whole_run),
+        rrb.TimeSeriesView(origin=OMEGA_RATE, name="ω̇", plot_legend=bottom_right, axis_x=whole_run),
     )
     left = rrb.Vertical(world, rrb.Horizontal(links, events, column_shares=[3, 2]), row_shares=[3, 1])
     return rrb.Blueprint(

@@ -390,22 +390,22 @@ class RerunSink:
     def _log_marker(self, vid: str, kind: str, rgb: tuple[int, int, int], s: float) -> None:
         base = f"{bp.VEHICLES}/{vid}"
         if kind == "usv":  # a flat hull along +x (the heading) and a bow arrow
-            self.rec.log(f"{base}/hull", rr.Boxes3D(half_sizes=[[1.6 * s, 0.6 * s, 0.3 * s]], centers=[[0, 0, 0.3 * s]],
-                                                     colors=[rgb], fill_mode="solid", labels=[vid],
-                                                     show_labels=True), static=True)
-            self.rec.log(f"{base}/bow", rr.Arrows3D(origins=[[0, 0, 0.65 * s]], vectors=[[2.4 * s, 0, 0]],
+            self.rec.log(f"{base}/hull", rr.Boxes3D(half_sizes=[[2.0 * s, 0.75 * s, 0.35 * s]],
+                                                     centers=[[0, 0, 0.35 * s]], colors=[rgb], fill_mode="solid",
+                                                     labels=[vid], show_labels=True), static=True)
+            self.rec.log(f"{base}/bow", rr.Arrows3D(origins=[[0, 0, 0.75 * s]], vectors=[[3.0 * s, 0, 0]],
                                                      colors=[(255, 255, 255)], radii=[0.12 * s]), static=True)
         else:  # a quadrotor: two crossed arms, four rotors, a nose; the drop line is per tick
             c, d = math.cos(math.pi / 8), math.sin(math.pi / 8)  # ±45° arms
-            self.rec.log(f"{base}/body", rr.Boxes3D(half_sizes=[[1.4 * s, 0.1 * s, 0.08 * s]] * 2,
+            self.rec.log(f"{base}/body", rr.Boxes3D(half_sizes=[[1.8 * s, 0.12 * s, 0.1 * s]] * 2,
                                                      quaternions=[[0, 0, d, c], [0, 0, -d, c]],
                                                      colors=[rgb], fill_mode="solid", labels=[vid, ""],
                                                      show_labels=True), static=True)
-            r = 1.4 * s / math.sqrt(2.0)
+            r = 1.8 * s / math.sqrt(2.0)
             self.rec.log(f"{base}/rotors", rr.Points3D([[r, r, 0.1 * s], [r, -r, 0.1 * s], [-r, r, 0.1 * s],
-                                                        [-r, -r, 0.1 * s]], radii=[0.45 * s], colors=[_fade(rgb)]),
+                                                        [-r, -r, 0.1 * s]], radii=[0.55 * s], colors=[_fade(rgb)]),
                          static=True)
-            self.rec.log(f"{base}/nose", rr.Arrows3D(origins=[[0, 0, 0.2 * s]], vectors=[[1.6 * s, 0, 0]],
+            self.rec.log(f"{base}/nose", rr.Arrows3D(origins=[[0, 0, 0.2 * s]], vectors=[[2.0 * s, 0, 0]],
                                                       colors=[(255, 255, 255)], radii=[0.1 * s]), static=True)
             self.rec.log(base, rr.LineStrips3D.from_fields(colors=[(150, 150, 150)],
                                                            radii=rr.components.Radius.ui_points(1.0)), static=True)

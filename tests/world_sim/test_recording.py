@@ -1,0 +1,322 @@
+"""The world in Rerun: sink specs, and a recording read back with rerun.chunk.RrdReader.
+
+The recording is lake_circle for 10 simulated seconds at 50 Hz control: ticks 0..500, so
+every per-tick entity (poses, path error, ω̇, coordination error) holds exactly
+10 × 50 + 1 = 501 rows, one per control tick, at t = n / 50 s exactly.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pytest
+from rerun.chunk import RrdReader
+
+from cdus.config import load_scenario
+from cdus.transport import free_tcp_port
+from world_sim.fleet import InProcessFleet
+from world_sim.recording import DEFAULT_URL, UPDATE_EVERY, NullSink, Target, make_sink, parse_spec
+
+ROOT = Path(__file__).resolve().parents[2]
+CONFIG = ROOT / "configs" / "lake_circle.toml"
+DURATION = 10.0
+RATE = 50.0
+TICKS = int(DURATION * RATE) + 1  # ticks 0..500 inclusive
+
+
+def rerun_cli(*args: str, **kw) -> subprocess.CompletedProcess:
+    """The `rerun` command line of the installed rerun-sdk."""
+    return subprocess.run([sys.executable, "-m", "rerun_cli", *args], capture_output=True, text=True, **kw)
+
+
+class Recording:
+    """An .rrd read back: per entity, its static flag, timelines and temporal columns."""
+
+    def __init__(self, path: Path):
+        reader = RrdReader(str(path))
+        self.stores = reader.recordings()
+        self.blueprints = reader.blueprints()
+        self.static: set[str] = set()
+        self.temporal: dict[str, list[pa.RecordBatch]] = defaultdict(list)
+        self.timelines: dict[str, set[str]] = defaultdict(set)
+        for chunk in reader.stream(store=self.stores[0]):
+            entity = chunk.entity_path.lstrip("/")
+            if chunk.is_static:
+                self.static.add(entity)
+            else:
+                self.timelines[entity].update(chunk.timeline_names)
+                self.temporal[entity].append(chunk.to_record_batch())
+
+    def rows(self, entity: str) -> int:
+        return sum(b.num_rows for b in self.temporal.get(entity, []))
+
+    def column(self, entity: str, name: str) -> tuple[np.ndarray, list]:
+        """(sim_time in ns, values) of one component, in time order."""
+        times, values = [], []
+        for b in self.temporal[entity]:
+            times += [int(x.value) for x in b.column(b.schema.names.index("sim_time"))]
+            values += b.column(b.schema.names.index(name)).to_pylist()
+        order = np.argsort(times, kind="stable")
+        return np.array(times)[order], [values[i] for i in order]
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    """lake_circle, 10 s, in process, saved to an .rrd; plus an event from another thread
+    and a link going down and up, as the runners report them."""
+    path = tmp_path_factory.mktemp("rec") / "lake.rrd"
+    sc = load_scenario(CONFIG, {"scenario.duration": DURATION})
+    sink = make_sink(f"save:{path}")
+    fleet = InProcessFleet(sc, sink=sink)
+    result = fleet.run()
+    worker = threading.Thread(target=sink.event, args=(2.5, "vehicle usv2 lost", "warn"))
+    worker.start()
+    worker.join()
+    sink.link_state(2.5, "usv2", "usv1", "down")
+    sink.link_state(4.0, "usv2", "usv1", "up")
+    sink.close()
+    sink.close()  # twice is fine
+    return sc, result.recorder, path, Recording(path)
+
+
+def test_every_vehicle_edge_and_link_has_its_entities(recorded):
+    sc, _, _, rec = recorded
+    assert len(rec.stores) == 1 and rec.stores[0].application_id == "cdus"
+    assert len(rec.blueprints) == 1  # the layout is sent from code
+    for v in sc.vehicles:
+        assert f"world/paths/{v.id}" in rec.static
+        for family in ("world/vehicles", "world/trails", "metrics/path_error", "metrics/omega_rate"):
+            assert rec.rows(f"{family}/{v.id}") > 0, (family, v.id)
+        marker = ("hull", "bow") if v.kind == "usv" else ("body", "rotors", "nose")
+        assert {f"world/vehicles/{v.id}/{part}" for part in marker} <= rec.static
+    for e in sc.metric_edges():
+        assert rec.rows(f"metrics/coord_error/{e.i}__{e.k}") > 0
+    for e in sc.edges:  # i listens to k: ω goes k -> i
+        assert rec.rows(f"comms/links/{e.k}__{e.i}") >= 1
+    assert rec.rows("comms/events") == 1
+
+
+def test_one_sample_per_control_tick(recorded):
+    sc, recorder, _, rec = recorded
+    assert len(recorder) == TICKS
+    ticks_ns = np.arange(TICKS, dtype=np.int64) * 20_000_000  # t_n = n / 50 s, exact in ns
+    per_tick = [f"{family}/{v.id}" for v in sc.vehicles
+                for family in ("world/vehicles", "metrics/path_error", "metrics/omega_rate")]
+    per_tick += [f"metrics/coord_error/{e.i}__{e.k}" for e in sc.metric_edges()]
+    for entity in per_tick:
+        assert rec.rows(entity) == TICKS, entity
+    for j, v in enumerate(sc.vehicles):
+        t, pe = rec.column(f"metrics/path_error/{v.id}", "Scalars:scalars")
+        np.testing.assert_array_equal(t, ticks_ns)
+        np.testing.assert_array_equal([x[0] for x in pe], recorder.view("path_error")[:, j])
+        _, rate = rec.column(f"metrics/omega_rate/{v.id}", "Scalars:scalars")
+        np.testing.assert_array_equal([x[0] for x in rate], recorder.view("omega_rate")[:, j])
+        _, xyz = rec.column(f"world/vehicles/{v.id}", "Transform3D:translation")
+        np.testing.assert_allclose(np.array([x[0] for x in xyz]), recorder.view("q")[:, j], atol=1e-4)
+    for m, e in enumerate(recorder.edges):
+        _, ce = rec.column(f"metrics/coord_error/{e.name}", "Scalars:scalars")
+        np.testing.assert_allclose([x[0] for x in ce], recorder.edge_error()[:, m], rtol=0, atol=1e-12)
+
+
+def test_usv_heading_and_uav_altitude(recorded):
+    sc, recorder, _, rec = recorded
+    for j, v in enumerate(sc.vehicles):
+        _, quat = rec.column(f"world/vehicles/{v.id}", "Transform3D:quaternion")
+        yaw = np.array([2 * np.arctan2(x[0][2], x[0][3]) for x in quat])
+        np.testing.assert_allclose(np.angle(np.exp(1j * (yaw - recorder.view("heading")[:, j]))), 0, atol=1e-5)
+        if v.kind == "usv":
+            assert np.all(recorder.view("q")[:, j, 2] == 0.0)  # on the water
+        else:  # a line from the drone down to z = 0, in its own frame
+            _, strips = rec.column(f"world/vehicles/{v.id}", "LineStrips3D:strips")
+            drop = np.array([s[0][1][2] for s in strips])
+            np.testing.assert_allclose(drop, -recorder.view("q")[:, j, 2], rtol=1e-6)
+
+
+def test_the_timeline_is_sim_time_as_a_duration(recorded):
+    _, _, _, rec = recorded
+    assert rec.temporal
+    for entity, batches in rec.temporal.items():
+        assert "sim_time" in rec.timelines[entity], entity
+        for b in batches:
+            assert b.schema.field("sim_time").type == pa.duration("ns"), entity
+    # the batched columns carry sim_time only; rr.log'd events and link changes add log_time
+    assert rec.timelines["metrics/path_error/usv1"] == {"sim_time"}
+
+
+def test_paths_and_markers_are_static(recorded):
+    sc, _, _, rec = recorded
+    for v in sc.vehicles:
+        assert f"world/paths/{v.id}" in rec.static
+        assert f"world/paths/{v.id}" not in rec.temporal
+    assert "world" in rec.static  # z up
+
+
+def test_trails_every_update_and_at_the_end(recorded):
+    sc, recorder, _, rec = recorded
+    expected = len(range(0, TICKS, UPDATE_EVERY)) + (0 if (TICKS - 1) % UPDATE_EVERY == 0 else 1)
+    for j, v in enumerate(sc.vehicles):
+        assert rec.rows(f"world/trails/{v.id}") == expected
+        t, strips = rec.column(f"world/trails/{v.id}", "LineStrips3D:strips")
+        assert t[-1] == (TICKS - 1) * 20_000_000
+        np.testing.assert_allclose(strips[-1][0][-1], recorder.view("q")[-1, j], atol=1e-4)  # ends at the vehicle
+
+
+def test_events_and_link_changes_on_sim_time(recorded):
+    _, _, _, rec = recorded
+    t, text = rec.column("comms/events", "TextLog:text")
+    assert text == [["vehicle usv2 lost"]] and t.tolist() == [2_500_000_000]  # logged from another thread
+    _, level = rec.column("comms/events", "TextLog:level")
+    assert level == [["WARN"]]
+    t, state = rec.column("comms/links/usv2__usv1", "StateChange:state")
+    assert state == [["up"], ["down"], ["up"]]
+    assert t.tolist() == [0, 2_500_000_000, 4_000_000_000]
+    assert "comms/links/usv2__usv1" in rec.static  # the colours of up / lossy / down
+
+
+def test_rerun_rrd_verify_accepts_the_file(recorded):
+    path = recorded[2]
+    r = rerun_cli("rrd", "verify", str(path))
+    assert r.returncode == 0, r.stdout + r.stderr
+
+
+def test_close_after_ctrl_c_keeps_every_recorded_tick(tmp_path):
+    sc = load_scenario(CONFIG, {"scenario.duration": DURATION})
+    path = tmp_path / "interrupted.rrd"
+    sink = make_sink(f"save:{path}")
+    fleet = InProcessFleet(sc, sink=sink)
+    step = fleet.step
+
+    def interrupted_step():
+        if fleet.tick == 260:
+            raise KeyboardInterrupt
+        step()
+
+    fleet.step = interrupted_step
+    with pytest.raises(KeyboardInterrupt):
+        fleet.run()
+    sink.close()
+    assert rerun_cli("rrd", "verify", str(path)).returncode == 0
+    rec = Recording(path)
+    assert rec.rows("metrics/path_error/usv1") == 260  # ticks 0..259, the last ones sent by close()
+    assert rec.rows("world/vehicles/uav3") == 260
+
+
+# --------------------------------------------------------------------------- specs
+
+
+def test_off_gives_the_null_sink():
+    assert isinstance(make_sink("off"), NullSink)
+    assert isinstance(make_sink(None), NullSink)
+    assert parse_spec("") == ()
+
+
+@pytest.mark.parametrize("spec", ["bogus", "save:", "save", "off,save:x.rrd", "connect:http://host:9876",
+                                  "spawn:9876", "auto:x"])
+def test_a_bad_spec_names_the_valid_forms(spec):
+    with pytest.raises(ValueError) as e:
+        make_sink(spec)
+    assert "valid forms: off | auto | spawn | save:PATH | connect[:URL]" in str(e.value)
+
+
+def test_spec_forms(tmp_path):
+    no_display: dict[str, str] = {}
+    x11 = {"DISPLAY": ":0"}
+    assert parse_spec("save:a.rrd", env=no_display) == (Target("save", "a.rrd"),)
+    assert parse_spec("connect", env=no_display) == (Target("connect", DEFAULT_URL),)
+    assert parse_spec("connect:", env=no_display) == (Target("connect", DEFAULT_URL),)
+    assert parse_spec("connect:rerun+http://10.0.0.2:9000/proxy", env=no_display) == (
+        Target("connect", "rerun+http://10.0.0.2:9000/proxy"),)
+    assert parse_spec("spawn, save:a.rrd", env=x11) == (Target("spawn"), Target("save", "a.rrd"))
+    assert parse_spec("auto", tmp_path, env=x11) == (Target("spawn"),)
+    assert parse_spec("auto", tmp_path, env={"WAYLAND_DISPLAY": "wayland-0"}) == (Target("spawn"),)
+    assert parse_spec("auto", tmp_path, env=no_display) == (Target("save", str(tmp_path / "recording.rrd")),)
+    if sys.platform.startswith("linux"):
+        with pytest.raises(ValueError, match="spawn needs a display"):
+            parse_spec("spawn", env=no_display)
+
+
+def test_auto_without_a_display_saves_into_the_run_dir(tmp_path, monkeypatch, capsys):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    if sys.platform in ("darwin", "win32"):
+        pytest.skip("a desktop always has a display")
+    sink = make_sink("auto", tmp_path)
+    sink.close()
+    path = tmp_path / "recording.rrd"
+    assert path.exists()
+    assert f"rerun {path}" in capsys.readouterr().out  # the command that opens it
+
+
+def test_connect_to_nobody_warns_and_does_not_block(tmp_path, capsys):
+    port = free_tcp_port()
+    sink = make_sink(f"connect:rerun+http://127.0.0.1:{port}/proxy,save:{tmp_path / 'x.rrd'}")
+    sink.close()
+    assert "no Rerun viewer listens" in capsys.readouterr().err
+    assert rerun_cli("rrd", "verify", str(tmp_path / "x.rrd")).returncode == 0
+
+
+# --------------------------------------------------------------------------- processes
+
+
+@pytest.mark.filterwarnings("ignore:RRD file has no footer")  # `rerun --save` writes none
+def test_viewer_and_file_at_once(tmp_path):
+    """`connect:URL,save:PATH` tees the stream: a gRPC receiver (`rerun --save`, no window)
+    and the file both get every row."""
+    import rerun_cli
+
+    port = free_tcp_port()
+    received = tmp_path / "received.rrd"
+    server = subprocess.Popen([os.path.join(os.path.dirname(rerun_cli.__file__), "rerun"), "--save", str(received),
+                               "--bind", "127.0.0.1", "--port", str(port)],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        _wait_for_port(port, server)
+        sc = load_scenario(CONFIG, {"scenario.duration": 2.0})
+        sink = make_sink(f"connect:rerun+http://127.0.0.1:{port}/proxy,save:{tmp_path / 'file.rrd'}")
+        InProcessFleet(sc, sink=sink).run()
+        sink.close()  # flushes both sinks
+        server.send_signal(signal.SIGINT)  # `rerun --save` finishes its file
+        server.wait(timeout=20)
+    finally:
+        if server.poll() is None:
+            os.killpg(server.pid, signal.SIGKILL)
+            server.wait()
+    ticks = int(2.0 * RATE) + 1
+    assert Recording(tmp_path / "file.rrd").rows("metrics/path_error/usv1") == ticks
+    assert Recording(received).rows("metrics/path_error/usv1") == ticks
+
+
+def test_cdus_sim_writes_a_verifiable_recording(tmp_path):
+    rrd, metrics = tmp_path / "sim.rrd", tmp_path / "m.json"
+    proc = subprocess.run([sys.executable, "-m", "cdus.cli", "sim", str(CONFIG), "--duration", "5",
+                           "--rerun", f"save:{rrd}", "-q", "--metrics-out", str(metrics)],
+                          cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert metrics.exists()
+    assert rerun_cli("rrd", "verify", str(rrd)).returncode == 0
+    rec = Recording(rrd)
+    assert rec.rows("metrics/coord_error/usv1__usv2") == int(5 * RATE) + 1
+
+
+def _wait_for_port(port: int, proc: subprocess.Popen, timeout: float = 30.0) -> None:
+    """Until something accepts on 127.0.0.1:port (readiness by observation, not a sleep)."""
+    import time
+
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            socket.create_connection(("127.0.0.1", port), timeout=0.2).close()
+            return
+        except OSError:
+            if proc.poll() is not None or time.monotonic() > deadline:
+                raise AssertionError(f"nothing listens on {port} (rc {proc.poll()})")
+            time.sleep(0.05)
