@@ -55,6 +55,7 @@ class Inbox:
     seen_seq: dict[int, int] = field(default_factory=dict)  # newest seq physically received per sender
     granted: int = -1
     front: int = -1  # the world's front tick at the first grant we saw (> 0: we join late)
+    need_seq: int = -1  # lockstep: the broadcast the main loop is waiting for (-1: not waiting)
     t0: float | None = None
     stop: bool = False
     paused: bool = False
@@ -109,7 +110,9 @@ class Agent:
         f = self.fleet
         self._subs = []
         for k in self.neighbours:
-            self._subs.append(s.declare_subscriber(keys.omega(f, self.ids[k]), self._on_omega))
+            # the sender is known from the subscription: no key parsing on the receive path
+            self._subs.append(s.declare_subscriber(keys.omega(f, self.ids[k]),
+                                                   lambda sample, k=k: self._on_omega(sample, k)))
         self._subs.append(s.declare_subscriber(keys.clock(f), self._on_clock))
         self._subs.append(s.declare_subscriber(keys.cmd(f, self.id), self._on_command))
         self._subs.append(s.declare_subscriber(keys.cmd(f, keys.ALL), self._on_command))
@@ -143,24 +146,22 @@ class Agent:
             self._logged_rejects.add((sender, reason))
             self.log(f"rejected a message from {sender!r}: {reason} (counted; logged once)")
 
-    def _on_omega(self, sample: Any) -> None:
-        key = str(sample.key_expr)
-        sender_id = keys.vehicle_of(key)
-        expected = self.ids.index(sender_id) if sender_id in self.ids else None
-        if expected is None:
-            return self._reject(key, "unknown_sender")
-        msg = decode_omega(sample.payload.to_bytes(), expected_sender=expected, n_vehicles=len(self.ids))
+    def _on_omega(self, sample: Any, sender: int) -> None:
+        msg = decode_omega(sample.payload.to_bytes(), expected_sender=sender, n_vehicles=len(self.ids))
         if isinstance(msg, str):
-            return self._reject(sender_id, msg)
+            return self._reject(self.ids[sender], msg)
         now = time.time()
         ib = self.inbox
         with ib.cond:
-            if msg.seq <= ib.seen_seq.get(msg.sender, -1):
+            if msg.seq <= ib.seen_seq.get(sender, -1):
                 ib.rejected["stale"] += 1
                 return
-            ib.seen_seq[msg.sender] = msg.seq
+            ib.seen_seq[sender] = msg.seq
             ib.omega.append((now, msg))
-            ib.cond.notify_all()
+            # wake the main loop only when it waits for this message (lockstep); a realtime
+            # loop wakes at its tick anyway
+            if ib.need_seq >= 0 and msg.seq >= ib.need_seq:
+                ib.cond.notify_all()
 
     def _on_clock(self, sample: Any) -> None:
         c = decode_control(sample.payload.to_bytes(), CLOCK_OPS)
@@ -319,12 +320,14 @@ class Agent:
                                if k not in ib.gone and k not in self.table.absent and ib.seen_seq.get(k, -1) < need]
                     if ib.granted >= n and not ib.paused and not missing:
                         break
+                    ib.need_seq = need
                     ib.cond.wait(timeout=1.0)
                     if time.monotonic() - waited_since > 5.0:
                         waited_since = time.monotonic()
                         why = "the world's grant" if ib.granted < n else (
                             "resume" if ib.paused else f"ω from {[self.ids[k] for k in missing]}")
                         self.log(f"tick {n}: still waiting for {why}")
+                ib.need_seq = -1
                 if ib.stop:
                     return
                 msgs, cmds = self._take_inbox()
@@ -449,9 +452,18 @@ class Agent:
             "dropped": c.dropped, "duplicated": c.duplicated, "rejected": c.rejected + sum(self.inbox.rejected.values()),
             "rejected_by_reason": dict(self.inbox.rejected), "missed_deadlines": self.missed_deadlines,
             "joined_at": self.joined_at,
-            "latencies_ms": [x * 1000.0 for x in c.latencies[-200:]],
+            "latencies_ms": self._new_latencies_ms(),
             "faults": self._faults_summary(),
         }
+
+    def _new_latencies_ms(self, most: int = 100) -> list[float]:
+        """Latency samples taken since the last report (at most ``most``, evenly thinned)."""
+        lat = self.counters.latencies
+        start = min(getattr(self, "_lat_sent", 0), len(lat))  # the sample list may have been thinned
+        new = lat[start:]
+        self._lat_sent = len(lat)
+        step = max(1, len(new) // most)
+        return [x * 1000.0 for x in new[::step][:most]]
 
     def _faults_summary(self) -> dict | None:
         summary = getattr(self.link, "counters_summary", None)
