@@ -39,9 +39,10 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--trace-out", metavar="PATH", help="write the time series as .npz (numpy.load reads it)")
     p.add_argument("--runs-dir", default="runs", metavar="DIR", help="where run directories go (default: runs)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
-    p.add_argument("--rerun", default="off", metavar="SINK",
-                   help="where the Rerun stream goes: off | spawn | save:PATH | connect:URL (comma-separated "
-                        "for several)")
+    p.add_argument("--rerun", default="auto", metavar="SINK",
+                   help="where the Rerun stream goes: auto (default: a viewer if there is a display, else "
+                        "<run dir>/recording.rrd) | off | spawn | save:PATH | connect[:URL]; comma-separated "
+                        "for several, e.g. spawn,save:run.rrd")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -104,7 +105,10 @@ def cmd_sim(args: argparse.Namespace) -> int:
         metrics_out = out_dir / "metrics.json"
     from world_sim.recording import make_sink
 
-    sink = make_sink(args.rerun, Path(metrics_out).parent)
+    try:
+        sink = make_sink(args.rerun, Path(metrics_out).parent)
+    except ValueError as e:
+        raise ConfigError("command line", [("--rerun", str(e))]) from None
     fleet = InProcessFleet(scenario, policy=args.policy, sink=sink)
     progress = Progress(f"{scenario.name}", quiet=args.quiet)
     status = EXIT_OK
@@ -132,7 +136,13 @@ def cmd_launch(args: argparse.Namespace) -> int:
     from cdus.launcher import LaunchOptions, launch
     from cdus.transport import Transport, local_router
 
+    from world_sim.recording import parse_spec
+
     scenario = load_scenario(args.config, _overrides(args))
+    try:
+        parse_spec(args.rerun, Path(args.logs or "."))  # a bad --rerun starts nothing
+    except ValueError as e:
+        raise ConfigError("command line", [("--rerun", str(e))]) from None
     run = Path(args.logs) if args.logs else run_dir(args.runs_dir, scenario.name)
     run.mkdir(parents=True, exist_ok=True)
     router = (Transport(mode="router", listen=tuple(args.listen), config_file=args.zenoh_config)
@@ -151,6 +161,9 @@ def cmd_launch(args: argparse.Namespace) -> int:
         metrics = json.loads(la.metrics_out.read_text())
         print(summary_table(metrics, scenario.vehicles))
         print(f"  metrics: {la.metrics_out}\n  logs: {la.logs}")
+        for target in parse_spec(args.rerun, run):
+            if target.kind == "save":
+                print(f"  recording: {target.where} (open it with: rerun {target.where})")
     else:
         print(f"no metrics were written; logs: {la.logs}", file=sys.stderr)
         status = status or EXIT_FAIL

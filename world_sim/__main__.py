@@ -48,9 +48,14 @@ def main(argv=None) -> int:
     transport = transport_from_args(args)
     if transport.mode == "router" and not transport.listen and not transport.config_file:
         transport = Transport(mode="router", listen=("tcp/127.0.0.1:7447",), lease_ms=transport.lease_ms)
+    try:
+        sink = make_sink(args.rerun, Path(args.run_dir) if args.run_dir else None)
+    except ValueError as e:
+        print(f"error: --rerun: {e}", file=sys.stderr)
+        return 2
     world = World(scenario, args.fleet, transport, clock=args.clock, duration=args.duration,
                   metrics_out=args.metrics_out, trace_out=args.trace_out, start_timeout=args.start_timeout,
-                  sink=make_sink(args.rerun, Path(args.run_dir) if args.run_dir else None))
+                  sink=sink)
     return run_world(world)
 
 
