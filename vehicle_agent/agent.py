@@ -31,7 +31,7 @@ import zenoh
 
 from cdus import keys
 from cdus.transport import Transport, open_session
-from vehicle_agent.link import IdealLink, LinkCounters, LinkModel
+from vehicle_agent.link import DropBursts, IdealLink, LinkCounters, LinkModel, burst_text
 from vehicle_agent.messages import (
     CLOCK_OPS, COMMAND_OPS, OmegaMsg, StateMsg, decode_control, decode_omega, decode_states, encode_omega, encode_states,
 )
@@ -95,6 +95,8 @@ class Agent:
         self._due: dict[int, list[tuple[OmegaMsg, float]]] = defaultdict(list)  # lockstep: (msg, delay) by tick
         self._pending: list[tuple[float, int, int, OmegaMsg]] = []  # realtime: (usable sim time, order, -, msg)
         self._order = 0
+        self.bursts = DropBursts()  # runs of drops on our incoming links, for the event log
+        self._bursts_sent = 0
         self._early: list[tuple[float, OmegaMsg]] = []  # lockstep: arrived before we reached their tick
         # Telemetry goes to the world in batches (rows per message): fewer messages, less
         # CPU on a loaded machine; the world records a tick once every row for it is in.
@@ -406,18 +408,19 @@ class Agent:
     def _route(self, msg: OmegaMsg, m: int) -> None:
         """Lockstep: the link decides, in simulated time, when ``msg`` becomes usable."""
         delays = self.link.decide(msg.sender, self.index, msg.seq, msg.t_send)
-        self._count_decision(delays)
+        self._count_decision(delays, msg)
         for d in delays:
             self._due[delivery_tick(m, d, self.period)].append((msg, d))
 
     def _route_realtime(self, msg: OmegaMsg, arrival: float) -> None:
         delays = self.link.decide(msg.sender, self.index, msg.seq, msg.t_send)
-        self._count_decision(delays)
+        self._count_decision(delays, msg)
         for d in delays:
             self._order += 1
             heapq.heappush(self._pending, (arrival + d, self._order, 0, msg))
 
-    def _count_decision(self, delays: tuple[float, ...]) -> None:
+    def _count_decision(self, delays: tuple[float, ...], msg: OmegaMsg) -> None:
+        self.bursts.feed(msg.sender, self.index, not delays, msg.t_send)
         self.counters.sent += 1  # messages addressed to us (counted at the receiver)
         if not delays:
             self.counters.dropped += 1
@@ -454,7 +457,13 @@ class Agent:
             "joined_at": self.joined_at,
             "latencies_ms": self._new_latencies_ms(),
             "faults": self._faults_summary(),
+            "bursts": self._new_bursts(),
         }
+
+    def _new_bursts(self) -> list[str]:
+        new = self.bursts.done[self._bursts_sent:]
+        self._bursts_sent = len(self.bursts.done)
+        return [burst_text(b, self.ids) for b in new[-20:]]
 
     def _new_latencies_ms(self, most: int = 100) -> list[float]:
         """Latency samples taken since the last report (at most ``most``, evenly thinned)."""

@@ -385,3 +385,31 @@ def merge_link_summaries(summaries: Iterable[dict]) -> dict:
         changes.extend(s["state_changes"])
     changes.sort(key=lambda e: e["t"])
     return {"total": total.as_dict(), "links": dict(sorted(links.items())), "state_changes": changes}
+
+
+@dataclass
+class DropBursts:
+    """Runs of consecutive drops on each directed link; a run of ``min_len`` or more is news.
+
+    ``feed`` every decision in send order per link; a burst is reported when the run ends
+    (the next message gets through): ``done`` holds (t_first, t_next, src, dst, drops).
+    """
+
+    min_len: int = 10
+    runs: dict[tuple[int, int], tuple[float, int]] = field(default_factory=dict)
+    done: list[tuple[float, float, int, int, int]] = field(default_factory=list)
+
+    def feed(self, src: int, dst: int, dropped: bool, t: float) -> None:
+        key = (src, dst)
+        if dropped:
+            start, count = self.runs.get(key, (t, 0))
+            self.runs[key] = (start, count + 1)
+        elif key in self.runs:
+            start, count = self.runs.pop(key)
+            if count >= self.min_len:
+                self.done.append((start, t, src, dst, count))
+
+
+def burst_text(burst: tuple[float, float, int, int, int], ids: list[str]) -> str:
+    t0, t1, src, dst, count = burst
+    return f"link {ids[src]}->{ids[dst]}: {count} messages dropped in a row ({t0:.2f}-{t1:.2f} s)"

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from cdus.events import parse_events
-from vehicle_agent.link import LinkCounters, LinkEmulator, LinkModel
+from vehicle_agent.link import DropBursts, LinkCounters, LinkEmulator, LinkModel, burst_text
 from vehicle_agent.link_model import link_model_for, link_spec_for
 from vehicle_agent.messages import OmegaMsg, decode_omega, encode_omega
 from vehicle_agent.neighbours import NeighbourTable, consensus_target, links_of
@@ -77,6 +77,8 @@ class InProcessFleet:
         self.event_log: list[str] = []
         self._last_tel: list[Any] = [None] * len(self.vehicles)
         self._changes_seen = 0
+        self.bursts = DropBursts()
+        self._bursts_seen = 0
         self.tick = 0
         self.end_tick = total_ticks(scenario.duration, self.period)
 
@@ -158,10 +160,13 @@ class InProcessFleet:
         self.tick += 1
 
     def _report_link_changes(self) -> None:
+        ids = [v.id for v in self.vehicles]
+        for burst in self.bursts.done[self._bursts_seen:]:
+            self._note(burst[1], burst_text(burst, ids), "warn")
+        self._bursts_seen = len(self.bursts.done)
         changes = getattr(self.link, "state_changes", None)
         if not changes or len(changes) == self._changes_seen:
             return
-        ids = [v.id for v in self.vehicles]
         for t, s, d, state in changes[self._changes_seen:]:
             self.sink.link_state(t, ids[s], ids[d], state)
         self._changes_seen = len(changes)
@@ -177,6 +182,7 @@ class InProcessFleet:
         for dst in self.listeners[src]:
             self.counters.sent += 1
             delays = self.link.decide(src, dst, seq, v.t)
+            self.bursts.feed(src, dst, not delays, v.t)
             if not delays:
                 self.counters.dropped += 1
             self.counters.duplicated += max(0, len(delays) - 1)

@@ -159,6 +159,9 @@ class World:
             if vid in self.index and isinstance(st, dict):
                 self.sh.stats[vid] = st
                 self._forward_link_changes(st.get("faults"))
+                for text in st.get("bursts") or []:
+                    if isinstance(text, str) and self.started:
+                        self._event(text[:200])
             else:
                 self.sh.rejected += 1
 

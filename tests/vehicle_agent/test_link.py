@@ -547,3 +547,15 @@ def test_every_problem_is_reported_at_once():
 def test_a_non_table_link_is_an_error():
     with pytest.raises(ConfigError, match="link: must be a table"):
         validate_link([1, 2], IDS, "bad.toml")
+
+
+def test_drop_bursts_are_reported_when_a_run_of_drops_ends():
+    from vehicle_agent.link import DropBursts, burst_text
+
+    b = DropBursts(min_len=3)
+    pattern = [False, True, True, False, True, True, True, True, False, True]
+    for j, dropped in enumerate(pattern):
+        b.feed(0, 1, dropped, j * 0.1)
+        b.feed(1, 0, False, j * 0.1)  # another link, never dropping
+    assert b.done == [(0.4, 0.8, 0, 1, 4)]  # the run of 2 is too short; the last run is still open
+    assert burst_text(b.done[0], ["a", "b"]) == "link a->b: 4 messages dropped in a row (0.40-0.80 s)"
