@@ -116,3 +116,32 @@ def test_a_config_error_starts_nothing(tmp_path):
     assert "nothing was started" in res.stderr
     assert not run.exists()
     assert not fleet_processes(fleet)
+
+
+def test_an_agent_that_dies_at_start_is_named_with_its_log_and_nothing_is_left(tmp_path, monkeypatch):
+    import sys
+
+    from cdus.launcher import LaunchOptions, Launcher, launch
+    from cdus.transport import local_router
+
+    sc = load_scenario("configs/offset_circles.toml", {"scenario.duration": 30.0})
+    fleet = unique_fleet()
+    lines: list[str] = []
+
+    class Broken(Launcher):
+        def _agent(self, vid):
+            child = super()._agent(vid)
+            if vid == "uav1":  # this vehicle's program fails before it is ready
+                child.argv = [sys.executable, "-c", "import sys; print('boom: no radio'); sys.exit(3)"]
+            return child
+
+    import cdus.launcher as launcher_mod
+
+    monkeypatch.setattr(launcher_mod, "Launcher", Broken)
+    status, la = launch(sc, tmp_path / "run", local_router(),
+                        LaunchOptions(fleet=fleet, ready_timeout=20.0, quiet=True), log=lines.append)
+    text = "\n".join(lines)
+    assert status == 1
+    assert "uav1 exited with status 3 during start-up" in text, text
+    assert "boom: no radio" in text  # its log tail
+    assert not fleet_processes(fleet)
