@@ -125,24 +125,3 @@ def client_of(router: Transport, base: Transport | None = None) -> Transport:
     eps = tuple(ep.replace("tcp/0.0.0.0:", "tcp/127.0.0.1:") for ep in router.listen)
     return Transport(mode="client", connect=eps, config_file=base.config_file if base else None,
                      lease_ms=router.lease_ms)
-
-
-def describe(t: Transport) -> str:
-    parts = [t.mode]
-    if t.listen:
-        parts.append("listening on " + ", ".join(t.listen))
-    if t.connect:
-        parts.append("connecting to " + ", ".join(t.connect))
-    return " ".join(parts)
-
-
-def sample_bytes(sample: Any) -> bytes:
-    return sample.payload.to_bytes()
-
-
-def sample_key(sample: Any) -> str:
-    return str(sample.key_expr)
-
-
-def endpoints(values: Sequence[str]) -> tuple[str, ...]:
-    return tuple(v for v in values if v)
