@@ -721,13 +721,7 @@ def _vehicle(check: _Check, raw: Mapping, index: int, vid: str | None, defaults:
                 rg = {g: x for g, x in rg.items() if g in allowed or ("regulator_gains", g) not in origin}
             _unknown_keys(check, rg, allowed, field("regulator_gains"), what="regulator gain",
                           valid=f"the {regulator} regulator takes")
-            pairs = []
-            for g in sorted(rg):
-                if g in allowed:
-                    x = _number(check, rg[g], field("regulator_gains", g), gt=0, note=note("regulator_gains", g))
-                    if x is not None:
-                        pairs.append((g, x))
-            regulator_gains = tuple(pairs)
+            regulator_gains = _positive_pairs(check, rg, allowed, "regulator_gains", field, note)
 
     # phase
     phase = 0.0
@@ -790,12 +784,7 @@ def _vehicle(check: _Check, raw: Mapping, index: int, vid: str | None, defaults:
     # limits
     lt = _table(check, v, "limits", field("limits"), note("limits"))
     _unknown_keys(check, lt, LIMIT_KEYS, field("limits"))
-    limits = []
-    for key in sorted(lt):
-        if key in LIMIT_KEYS:
-            x = _number(check, lt[key], field("limits", key), gt=0, note=note("limits", key))
-            if x is not None:
-                limits.append((key, x))
+    limits = _positive_pairs(check, lt, LIMIT_KEYS, "limits", field, note)
 
     # disturbance
     dt = _table(check, v, "disturbance", field("disturbance"), note("disturbance"))
@@ -1094,3 +1083,15 @@ def _cycle_message(ids: list[str], edges: tuple[Edge, ...], found: tuple[list[st
 
 def _phase_lines(phases: Mapping[str, float]) -> str:
     return ", ".join(f"vehicle {_q(v)} phase = {round(t, 6)!r}" for v, t in phases.items())
+
+
+def _positive_pairs(check: "_Check", table: Mapping[str, Any], allowed: Iterable[str], name: str,
+                    field: Any, note: Any) -> tuple[tuple[str, float], ...]:
+    """The allowed keys of ``table`` whose values are numbers > 0, as sorted (key, value) pairs."""
+    pairs = []
+    for key in sorted(table):
+        if key in allowed:
+            x = _number(check, table[key], field(name, key), gt=0, note=note(name, key))
+            if x is not None:
+                pairs.append((key, x))
+    return tuple(pairs)
