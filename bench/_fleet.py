@@ -26,7 +26,7 @@ REPO = BENCH.parent
 def cdus_argv() -> list[str]:
     """The `cdus` command without the pyenv shim (whose bash start-up would be timed too)."""
     script = Path(sys.executable).with_name("cdus")
-    return [sys.executable, str(script)] if script.exists() else [sys.executable, "-m", "cdus.cli"]
+    return [sys.executable, str(script)] if script.exists() else [sys.executable, "-m", "cdus.app.cli"]
 
 
 def write_json(path: Path, data: dict) -> Path:

@@ -32,12 +32,12 @@ from pathlib import Path
 import msgpack
 from _fleet import REPO, Launch, load_line, role
 
-from cdus import keys
-from cdus.config import load_scenario
-from cdus.transport import Transport, free_tcp_port, open_session
+from cdus.wire import keys
+from cdus.scenario.config import load_scenario
+from cdus.wire.transport import Transport, free_tcp_port, open_session
 from vehicle_agent.agent import STATE_BATCH
-from vehicle_agent.messages import OmegaMsg, StateMsg, encode_omega, encode_states
-from vehicle_agent.schedule import broadcast_every, total_ticks
+from cdus.wire.messages import OmegaMsg, StateMsg, encode_omega, encode_states
+from cdus.core.schedule import broadcast_every, total_ticks
 
 
 def omega_bytes(sc, duration: float) -> float:

@@ -24,7 +24,7 @@ from pathlib import Path
 
 from _fleet import REPO, Launch, load_line
 
-from cdus.config import load_scenario
+from cdus.scenario.config import load_scenario
 
 
 def once(cmd: str, config: str, duration: float, work: Path, k: int) -> tuple[float, float, dict]:

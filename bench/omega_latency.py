@@ -40,8 +40,8 @@ from pathlib import Path
 BENCH = Path(__file__).resolve().parent
 sys.path.insert(0, str(BENCH.parent))
 
-from cdus import keys  # noqa: E402
-from cdus.transport import Transport, client_of, local_router, open_session  # noqa: E402
+from cdus.wire import keys  # noqa: E402
+from cdus.wire.transport import Transport, client_of, local_router, open_session  # noqa: E402
 
 WARMUP = 50  # messages of each kind not counted (declarations settling, caches warming)
 
@@ -68,7 +68,7 @@ def scenario():
 def run_sender(args) -> int:
     import zenoh
 
-    from vehicle_agent.messages import OmegaMsg, encode_omega
+    from cdus.wire.messages import OmegaMsg, encode_omega
 
     sc = scenario()
     sender = sc.vehicles[0]
@@ -203,8 +203,8 @@ def pct(xs: list[float], q: float) -> float:
 
 
 def run_bench(args) -> int:
-    from cdus.launcher import ZENOH_RUNTIME
-    from vehicle_agent.messages import OmegaMsg, encode_omega
+    from cdus.app.launcher import ZENOH_RUNTIME
+    from cdus.wire.messages import OmegaMsg, encode_omega
 
     from _fleet import load_line
 

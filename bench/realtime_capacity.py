@@ -28,7 +28,7 @@ from pathlib import Path
 from _fleet import Launch, cpu_seconds, ctx_switches, load_line, role, rss_mb, write_json
 from sim_speed import ring
 
-from vehicle_agent.schedule import total_ticks
+from cdus.core.schedule import total_ticks
 
 CPU_WINDOW = 4.0  # s of the run's middle over which CPU use is measured
 DONE_RE = re.compile(r"done after (\d+) ticks; missed deadlines (\d+)")

@@ -39,7 +39,7 @@ TARGET = 0.10
 
 def one(vehicles: int, duration: float, flush: float | None, path: str) -> dict:
     """CPU of one run (``flush`` None: no sink), split between the world and the sink."""
-    from world_sim.fleet import InProcessFleet
+    from cdus.sim.fleet import InProcessFleet
     from world_sim.recording import NullSink, Target
     from world_sim.rerun_sink import RerunSink
 

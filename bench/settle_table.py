@@ -14,8 +14,8 @@ import glob
 import os
 import statistics
 
-from cdus.config import load_scenario
-from world_sim.fleet import InProcessFleet
+from cdus.scenario.config import load_scenario
+from cdus.sim.fleet import InProcessFleet
 
 PAPER = {"lake_circle": ("87", "142"), "lissajous_5x5": ("30", "50")}
 

@@ -14,8 +14,8 @@ import argparse
 import math
 import time
 
-from cdus.config import load_scenario, parse_scenario
-from world_sim.fleet import InProcessFleet
+from cdus.scenario.config import load_scenario, parse_scenario
+from cdus.sim.fleet import InProcessFleet
 
 
 def speed(scenario, repeat: int) -> tuple[float, float]:

@@ -17,9 +17,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from cdus.config import load_scenario
-from cdus.sweep import parse_grid, sweep
-from world_sim.fleet import InProcessFleet
+from cdus.scenario.config import load_scenario
+from cdus.app.sweep import parse_grid, sweep
+from cdus.sim.fleet import InProcessFleet
 
 
 def steady_error(policy: str) -> float:

@@ -29,9 +29,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def record(path: Path, duration: float) -> None:
-    from cdus.config import load_scenario
-    from world_sim.fleet import InProcessFleet
-    from world_sim.recording import make_sink
+    from cdus.scenario.config import load_scenario
+    from cdus.sim.fleet import InProcessFleet
+    from world_sim.rerun_sink import make_sink
 
     sc = load_scenario(ROOT / "configs" / "lake_circle.toml", {"scenario.duration": duration})
     sink = make_sink(f"save:{path}")

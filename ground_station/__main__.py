@@ -16,8 +16,10 @@ import argparse
 import sys
 import time
 
-from cdus.config import ConfigError, parse_value
-from cdus.transport import add_transport_args, transport_from_args
+from cdus.scenario.config import ConfigError, parse_value
+from cdus.scenario.link import validate_link
+from cdus.wire.transport import add_transport_args, transport_from_args
+from ground_station.console import GroundStation, status_table
 
 VEHICLE_ACTIONS = {"kill": "kill", "restart": "restart", "pause-vehicle": "pause", "resume-vehicle": "resume"}
 
@@ -61,8 +63,6 @@ def nested(settings: list[str]) -> dict:
 
 def main(argv=None, prog: str = "python -m ground_station") -> int:
     args = build_parser(prog).parse_args(argv)
-    from ground_station.console import GroundStation, status_table
-
     transport = transport_from_args(args)
     if not transport.connect and not transport.config_file:
         transport = transport.__class__(mode=transport.mode, connect=("tcp/127.0.0.1:7447",))
@@ -82,8 +82,6 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
             print(f"{args.action} sent to fleet {args.fleet!r}")
         elif args.action == "link":
             table = nested(args.settings)
-            from vehicle_agent.faults import validate_link
-
             gs.wait_for_status(3.0)
             ids = sorted((gs.view.world or {}).get("alive", [])) or sorted(gs.view.alive - {"world"})
             validate_link(table, ids, "command line")

@@ -15,9 +15,9 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
-from cdus import keys
-from cdus.transport import Transport, open_session
-from vehicle_agent.messages import StateMsg, decode_states, encode_control
+from cdus.wire import keys
+from cdus.wire.transport import Transport, open_session
+from cdus.wire.messages import StateMsg, decode_states, encode_control
 
 
 @dataclass

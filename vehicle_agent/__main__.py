@@ -11,8 +11,10 @@ from __future__ import annotations
 import argparse
 import sys
 
-from cdus.config import ConfigError, load_scenario, parse_overrides
-from cdus.transport import add_transport_args, transport_from_args
+from cdus.scenario.config import ConfigError, load_scenario, parse_overrides
+from cdus.sim.build import link_emulator_for, link_spec_for
+from cdus.wire.transport import add_transport_args, transport_from_args
+from vehicle_agent.agent import Agent, run_agent
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -40,9 +42,6 @@ def main(argv=None) -> int:
     except ConfigError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    from vehicle_agent.agent import Agent, run_agent
-    from vehicle_agent.link_model import link_emulator_for, link_spec_for
-
     transport = transport_from_args(args)
     if not transport.connect and not transport.listen and not transport.config_file:
         transport = transport.__class__(mode=transport.mode, connect=("tcp/127.0.0.1:7447",),

@@ -10,7 +10,7 @@ its counters, declares a liveliness token once it is ready, and follows the worl
   t0 + n T, using whatever has arrived; a tick finishing after the next one was due is a
   missed deadline.
 
-Everything received is validated (vehicle_agent.messages) on Zenoh's thread and counted
+Everything received is validated (cdus.wire.messages) on Zenoh's thread and counted
 when rejected; only valid messages reach the main loop, through a lock-protected inbox.
 The link model decides drops and delays at this receiver, per (src, dst, seq).
 """
@@ -29,15 +29,18 @@ from typing import Any, Callable
 
 import zenoh
 
-from cdus import keys
-from cdus.transport import Transport, open_session
-from vehicle_agent.link import DropBursts, IdealLink, LinkCounters, LinkModel, burst_text
-from vehicle_agent.messages import (
+from cdus.scenario.config import ConfigError
+from cdus.scenario.link import validate_link
+from cdus.wire import keys
+from cdus.wire.transport import Transport, open_session
+from cdus.core.link import DropBursts, IdealLink, LinkCounters, LinkModel, burst_text
+from cdus.wire.messages import (
     CLOCK_OPS, COMMAND_OPS, OmegaMsg, StateMsg, decode_control, decode_omega, decode_states, encode_omega, encode_states,
 )
-from vehicle_agent.neighbours import NeighbourTable, consensus_target, links_of
-from vehicle_agent.schedule import broadcast_every, delivery_tick, last_broadcast_seq, send_tick, total_ticks
-from vehicle_agent.vehicle import Vehicle
+from cdus.core.neighbours import NeighbourTable, consensus_target
+from cdus.sim.build import build_vehicle, links_of
+from cdus.core.schedule import broadcast_every, delivery_tick, last_broadcast_seq, send_tick, total_ticks
+from cdus.core.vehicle import Vehicle
 
 CLOCKS = ("realtime", "lockstep")
 STATE_BATCH = {"lockstep": 10, "realtime": 5}  # telemetry rows per message
@@ -79,7 +82,7 @@ class Agent:
         self.transport = transport
         self.clock = clock
         self.ids = [v.id for v in scenario.vehicles]
-        self.vehicle = Vehicle.from_spec(self.spec, scenario.rates, scenario.seed)
+        self.vehicle = build_vehicle(self.spec, scenario.rates, scenario.seed)
         self.table = NeighbourTable(links_of(scenario, vid), policy, timeout)
         self.neighbours = sorted({ln.k for ln in self.table.links})
         self.link = link or IdealLink()
@@ -245,9 +248,6 @@ class Agent:
 
     def _update_link(self, table: dict, at: float) -> None:
         """Merge ``table`` over the current [link] table; it applies to messages sent from ``at`` on."""
-        from cdus.config import ConfigError
-        from vehicle_agent.faults import validate_link
-
         merged = {**self.link_table, **table}
         try:
             spec = validate_link(merged, self.ids, "link command")

@@ -9,9 +9,12 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
-from cdus.config import ConfigError, load_scenario, parse_overrides
-from cdus.transport import Transport, add_transport_args, transport_from_args
+from cdus.scenario.config import ConfigError, load_scenario, parse_overrides
+from cdus.wire.transport import Transport, add_transport_args, transport_from_args
+from world_sim.rerun_sink import make_sink
+from world_sim.world import World, run_world
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -40,11 +43,6 @@ def main(argv=None) -> int:
     except ConfigError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    from pathlib import Path
-
-    from world_sim.recording import make_sink
-    from world_sim.world import World, run_world
-
     transport = transport_from_args(args)
     if transport.mode == "router" and not transport.listen and not transport.config_file:
         transport = Transport(mode="router", listen=("tcp/127.0.0.1:7447",), lease_ms=transport.lease_ms)

@@ -1,14 +1,8 @@
-"""Where the world's picture goes: the sink interface the fleet runners feed, and ``--rerun``.
+"""Where the world's picture goes: ``--rerun`` targets and the sink they make.
 
-The in-process fleet and the world process call a sink as they record:
-``start(scenario)`` once, ``update(recorder)`` every few ticks with the Recorder (the
-sink logs whatever rows are new since its last call, batched), ``event(t, text)`` for
-things a person should read, ``link_state(t, src, dst, state)`` for link changes, and
-``close()`` at the end, also after Ctrl-C, so a recording is always complete.
-
-``make_sink(spec, run_dir)`` turns a ``--rerun`` value into a sink. The spec is parsed
-here, without importing Rerun (``parse_spec``); the Rerun stream itself lives in
-:mod:`world_sim.rerun_sink`, imported only when something is to be recorded.
+The sink interface the runners feed is :mod:`cdus.sim.sink`. A ``--rerun`` value is
+parsed here into targets, without importing Rerun (a bad value starts nothing);
+:func:`world_sim.rerun_sink.make_sink` turns it into a sink.
 """
 
 from __future__ import annotations
@@ -17,41 +11,12 @@ import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping, Protocol
+from typing import Mapping
 
-UPDATE_EVERY = 25  # ticks between sink updates (0.5 s of simulated time at 50 Hz)
 
 DEFAULT_URL = "rerun+http://127.0.0.1:9876/proxy"  # where `rerun` listens by default
 RECORDING_NAME = "recording.rrd"  # the file `auto` writes into the run directory
 SPEC_FORMS = ("off", "auto", "spawn", "save:PATH", "connect[:URL]")
-LINK_STATES = ("up", "lossy", "down")
-
-
-class Sink(Protocol):
-    def start(self, scenario: Any) -> None: ...
-    def update(self, recorder: Any) -> None: ...
-    def event(self, t: float, text: str, level: str = "info") -> None: ...
-    def link_state(self, t: float, src: str, dst: str, state: str) -> None: ...
-    def close(self) -> None: ...
-
-
-class NullSink:
-    """Logs nothing (``--rerun off``)."""
-
-    def start(self, scenario: Any) -> None:
-        pass
-
-    def update(self, recorder: Any) -> None:
-        pass
-
-    def event(self, t: float, text: str, level: str = "info") -> None:
-        pass
-
-    def link_state(self, t: float, src: str, dst: str, state: str) -> None:
-        pass
-
-    def close(self) -> None:
-        pass
 
 
 @dataclass(frozen=True)
@@ -120,15 +85,3 @@ def parse_spec(spec: str | None, run_dir: Path | None = None,
 def _bad(spec: str, why: str) -> None:
     raise ValueError(f"--rerun {spec!r}: {why}; valid forms: {' | '.join(SPEC_FORMS)}, "
                      f"comma-separated to combine (e.g. spawn,save:run.rrd)")
-
-
-def make_sink(spec: str | None, run_dir: Path | None = None) -> Sink:
-    """A sink for ``--rerun SPEC``: ``off`` | ``auto`` | ``spawn`` | ``save:PATH`` | ``connect[:URL]``,
-    comma-separated to combine. ``off`` (or None) gives a :class:`NullSink`; anything else a
-    Rerun sink (see :mod:`world_sim.rerun_sink`). A bad spec raises ValueError."""
-    targets = parse_spec(spec, run_dir)
-    if not targets:
-        return NullSink()
-    from world_sim.rerun_sink import RerunSink
-
-    return RerunSink(targets)

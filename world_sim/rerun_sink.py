@@ -41,10 +41,12 @@ import numpy as np
 import pyarrow as pa
 import rerun as rr
 
-from vehicle_agent.paths import for_dimension, make_path, nearest_omega
+from cdus.core.paths import for_dimension, make_path, nearest_omega
 from world_sim import blueprint as bp
-from world_sim.metrics import edge_errors
-from world_sim.recording import LINK_STATES, UPDATE_EVERY, Target
+from cdus.core.metrics import edge_errors
+from cdus.core.link import LINK_STATES
+from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
+from world_sim.recording import Target, parse_spec
 
 APP_ID = "cdus"
 FLUSH_EVERY = 5.0  # simulated seconds between batches sent to Rerun (bench/rerun_cost.py)
@@ -429,3 +431,13 @@ def _reachable(url: str, timeout: float = 0.5) -> bool:
 
 def _warn(text: str) -> None:
     print(f"warning: {text}", file=sys.stderr)
+
+
+def make_sink(spec: str | None, run_dir: Path | None = None) -> Sink:
+    """A sink for ``--rerun SPEC``: ``off`` | ``auto`` | ``spawn`` | ``save:PATH`` | ``connect[:URL]``,
+    comma-separated to combine. ``off`` (or None) gives a :class:`NullSink`; anything else a
+    Rerun sink. A bad spec raises ValueError."""
+    targets = parse_spec(spec, run_dir)
+    if not targets:
+        return NullSink()
+    return RerunSink(targets)

@@ -26,19 +26,20 @@ from typing import Any, Callable
 import msgpack
 import zenoh
 
-from cdus import graph as graphs
-from cdus.events import parse_events
-from cdus import keys
-from cdus.report import write_json
-from cdus.transport import Transport, open_session
-from vehicle_agent.link import LinkCounters, merge_link_summaries
-from vehicle_agent.messages import (
+from cdus.core import graph as graphs
+from cdus.scenario.events import parse_events
+from cdus.wire import keys
+from cdus.files import write_json
+from cdus.wire.transport import Transport, open_session
+from cdus.core.link import LinkCounters, merge_link_summaries
+from cdus.wire.messages import (
     COMMAND_OPS, StateMsg, decode_control, decode_states, encode_control, encode_states,
 )
-from vehicle_agent.schedule import total_ticks
-from world_sim.fleet import link_summary
-from world_sim.metrics import Recorder, metric_edges
-from world_sim.recording import UPDATE_EVERY, NullSink, Sink
+from cdus.core.schedule import total_ticks
+from cdus.sim.fleet import link_summary
+from cdus.core.metrics import Recorder
+from cdus.sim.build import metric_edges
+from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
 
 GRANT_WINDOW = 50  # ticks the fastest vehicle may run ahead of the slowest (lockstep)
 REALTIME_LAG = 8  # ticks the world waits before recording a realtime tick (> the telemetry batch)

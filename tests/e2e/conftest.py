@@ -34,7 +34,7 @@ class Launch:
     """`cdus launch ...` in the background, its stdout collected line by line."""
 
     def __init__(self, args: list[str]):
-        self.proc = subprocess.Popen([sys.executable, "-m", "cdus.cli", "launch", *args], cwd=ROOT,
+        self.proc = subprocess.Popen([sys.executable, "-m", "cdus.app.cli", "launch", *args], cwd=ROOT,
                                      stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                      start_new_session=True, env={**os.environ, "PYTHONUNBUFFERED": "1"})
         self.lines: list[str] = []
@@ -105,7 +105,7 @@ def launches():
 
 def run_cli(args: list[str], timeout: float = 300.0) -> subprocess.CompletedProcess:
     """`cdus ...` to completion in its own process group (killed on timeout)."""
-    proc = subprocess.Popen([sys.executable, "-m", "cdus.cli", *args], cwd=ROOT, stdout=subprocess.PIPE,
+    proc = subprocess.Popen([sys.executable, "-m", "cdus.app.cli", *args], cwd=ROOT, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
         out, err = proc.communicate(timeout=timeout)

@@ -11,11 +11,11 @@ import msgpack
 import numpy as np
 import zenoh
 
-from cdus import keys
-from cdus.config import load_scenario
-from cdus.transport import Transport, free_tcp_port, open_session
-from vehicle_agent.messages import encode_control
-from world_sim.fleet import InProcessFleet
+from cdus.wire import keys
+from cdus.scenario.config import load_scenario
+from cdus.wire.transport import Transport, free_tcp_port, open_session
+from cdus.wire.messages import encode_control
+from cdus.sim.fleet import InProcessFleet
 
 from .conftest import fleet_processes, unique_fleet
 

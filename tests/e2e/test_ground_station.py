@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import time
 
-from cdus.transport import free_tcp_port
+from cdus.wire.transport import free_tcp_port
 
 from .conftest import fleet_processes, run_cli, unique_fleet
 

@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 import zenoh
 
-from cdus import keys
-from cdus.config import load_scenario
-from cdus.transport import Transport, free_tcp_port, open_session
-from world_sim.fleet import InProcessFleet
-from world_sim.metrics import METRICS_FIELDS
+from cdus.wire import keys
+from cdus.scenario.config import load_scenario
+from cdus.wire.transport import Transport, free_tcp_port, open_session
+from cdus.sim.fleet import InProcessFleet
+from cdus.core.metrics import METRICS_FIELDS
 
 from .conftest import fleet_processes, run_cli, unique_fleet
 
@@ -121,8 +121,8 @@ def test_a_config_error_starts_nothing(tmp_path):
 def test_an_agent_that_dies_at_start_is_named_with_its_log_and_nothing_is_left(tmp_path, monkeypatch):
     import sys
 
-    from cdus.launcher import LaunchOptions, Launcher, launch
-    from cdus.transport import local_router
+    from cdus.app.launcher import LaunchOptions, Launcher, launch
+    from cdus.wire.transport import local_router
 
     sc = load_scenario("configs/offset_circles.toml", {"scenario.duration": 30.0})
     fleet = unique_fleet()
@@ -135,7 +135,7 @@ def test_an_agent_that_dies_at_start_is_named_with_its_log_and_nothing_is_left(t
                 child.argv = [sys.executable, "-c", "import sys; print('boom: no radio'); sys.exit(3)"]
             return child
 
-    import cdus.launcher as launcher_mod
+    import cdus.app.launcher as launcher_mod
 
     monkeypatch.setattr(launcher_mod, "Launcher", Broken)
     status, la = launch(sc, tmp_path / "run", local_router(),

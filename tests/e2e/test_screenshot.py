@@ -22,10 +22,10 @@ import subprocess
 import numpy as np
 import pytest
 
-from cdus.config import load_scenario
-from cdus.transport import free_tcp_port
-from world_sim.fleet import InProcessFleet
-from world_sim.recording import make_sink
+from cdus.scenario.config import load_scenario
+from cdus.wire.transport import free_tcp_port
+from cdus.sim.fleet import InProcessFleet
+from world_sim.rerun_sink import make_sink
 
 from .conftest import ROOT
 

@@ -1,9 +1,9 @@
 import pytest
 
-from cdus.config import ConfigError
+from cdus.scenario.config import ConfigError
 from ground_station.__main__ import nested
 from ground_station.console import FleetView, status_table
-from vehicle_agent.messages import StateMsg
+from cdus.wire.messages import StateMsg
 
 
 def test_settings_become_a_nested_link_table():

@@ -21,10 +21,12 @@ import pyarrow as pa
 import pytest
 from rerun.chunk import RrdReader
 
-from cdus.config import load_scenario
-from cdus.transport import free_tcp_port
-from world_sim.fleet import InProcessFleet
-from world_sim.recording import DEFAULT_URL, UPDATE_EVERY, NullSink, Target, make_sink, parse_spec
+from cdus.scenario.config import load_scenario
+from cdus.wire.transport import free_tcp_port
+from cdus.sim.fleet import InProcessFleet
+from cdus.sim.sink import UPDATE_EVERY, NullSink
+from world_sim.recording import DEFAULT_URL, Target, parse_spec
+from world_sim.rerun_sink import make_sink
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIG = ROOT / "configs" / "lake_circle.toml"
@@ -297,7 +299,7 @@ def test_viewer_and_file_at_once(tmp_path):
 
 def test_cdus_sim_writes_a_verifiable_recording(tmp_path):
     rrd, metrics = tmp_path / "sim.rrd", tmp_path / "m.json"
-    proc = subprocess.run([sys.executable, "-m", "cdus.cli", "sim", str(CONFIG), "--duration", "5",
+    proc = subprocess.run([sys.executable, "-m", "cdus.app.cli", "sim", str(CONFIG), "--duration", "5",
                            "--rerun", f"save:{rrd}", "-q", "--metrics-out", str(metrics)],
                           cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stdout + proc.stderr

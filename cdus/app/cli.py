@@ -1,0 +1,204 @@
+"""The ``cdus`` command: one entry point, a subcommand per job.
+
+    cdus sim CONFIG      the whole fleet in one process (fast, deterministic)
+
+Exit status: 0 done, 1 the run failed, 2 the configuration or the command line is
+wrong (nothing was started), 130 interrupted (partial results were still written).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any, Sequence
+
+from cdus.app.launcher import LaunchOptions, launch
+from cdus.app.sweep import parse_grid, sweep
+from cdus.scenario.config import ConfigError, load_scenario, parse_overrides
+from cdus.sim.fleet import InProcessFleet
+from cdus.wire.transport import Transport, local_router
+from ground_station.__main__ import main as gs_main
+from world_sim.recording import parse_spec
+from cdus.app.report import Progress, run_dir, summary_table
+from cdus.files import write_json
+
+EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+
+
+def _overrides(args: argparse.Namespace) -> dict[str, Any]:
+    """--duration, --seed and every --set KEY=VALUE as dotted config keys."""
+    out = parse_overrides(getattr(args, "set", None) or [])
+    if getattr(args, "duration", None) is not None:
+        out["scenario.duration"] = args.duration
+    if getattr(args, "seed", None) is not None:
+        out["scenario.seed"] = args.seed
+    return out
+
+
+def _add_run_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("config", help="scenario file (TOML), e.g. configs/lake_circle.toml")
+    p.add_argument("--duration", type=float, metavar="S", help="simulated seconds (overrides scenario.duration)")
+    p.add_argument("--seed", type=int, metavar="N", help="random seed (overrides scenario.seed)")
+    p.add_argument("--set", action="append", metavar="KEY=VALUE",
+                   help="override any config key, e.g. --set rates.control=20 --set vehicle.usv1.gains.k=2")
+    p.add_argument("--metrics-out", metavar="PATH", help="metrics JSON (default: <run dir>/metrics.json)")
+    p.add_argument("--trace-out", metavar="PATH", help="write the time series as .npz (numpy.load reads it)")
+    p.add_argument("--runs-dir", default="runs", metavar="DIR", help="where run directories go (default: runs)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    p.add_argument("--rerun", default="auto", metavar="SINK",
+                   help="where the Rerun stream goes: auto (default: a viewer if there is a display, else "
+                        "<run dir>/recording.rrd) | off | spawn | save:PATH | connect[:URL]; comma-separated "
+                        "for several, e.g. spawn,save:run.rrd")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="cdus", description="Cross-domain unmanned fleet emulator (DGVF over Zenoh)")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    p = sub.add_parser("sim", help="run a scenario with every vehicle in this one process",
+                       description="Run the whole fleet in one process over an in-memory link.")
+    _add_run_args(p)
+    p.add_argument("--policy", choices=("hold", "timeout", "extrapolate"), default=None,
+                   help="stale-neighbour policy (default: the scenario's link.policy, else hold)")
+    p.set_defaults(func=cmd_sim)
+
+    p = sub.add_parser("launch", help="run a scenario as one OS process per vehicle over Zenoh",
+                       description="Start world_sim and one vehicle_agent per vehicle, run, stop them all.")
+    _add_run_args(p)
+    p.add_argument("--fleet", metavar="NAME", help="fleet name, the key prefix cdus/<NAME>/ (default: the scenario name)")
+    p.add_argument("--clock", choices=("realtime", "lockstep"), default="lockstep",
+                   help="lockstep: deterministic, as fast as the machine allows (default); realtime: wall clock")
+    p.add_argument("--restart", choices=("never", "on-failure", "always"), default="never",
+                   help="restart policy for vehicle processes that exit during the run")
+    p.add_argument("--logs", metavar="DIR", help="run directory for logs, metrics, trace (default: runs/<name>-<time>)")
+    p.add_argument("--policy", choices=("hold", "timeout", "extrapolate"), default=None,
+                   help="stale-neighbour policy (default: the scenario's link.policy, else hold)")
+    p.add_argument("--ready-timeout", type=float, default=30.0, metavar="S",
+                   help="how long each process may take to come up")
+    p.add_argument("-l", "--listen", action="append", default=[], metavar="ENDPOINT",
+                   help="router endpoint(s) (default: tcp/127.0.0.1:<free port>); e.g. tcp/0.0.0.0:7447 "
+                        "for agents on other hosts")
+    p.add_argument("--zenoh-config", metavar="FILE", help="zenoh json5 config for the router (multicast forced off)")
+    p.set_defaults(func=cmd_launch)
+
+    p = sub.add_parser("sweep", help="run a grid of config values x seeds; a table, a summary and a plot",
+                       description="Run a grid of overrides x seeds in parallel; write results.csv, "
+                                   "summary.md and sweep.png to --out.")
+    p.add_argument("config", help="scenario file (TOML)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=V1,V2,...",
+                   help="a grid axis: a dotted config key and its values, e.g. --set link.loss=0,0.2,0.4")
+    p.add_argument("--seeds", type=int, default=3, metavar="N", help="seeds per cell: the scenario's seed and the next N-1")
+    p.add_argument("--clock", choices=("inproc", "lockstep"), default="inproc",
+                   help="inproc: one process per run (fast, parallel); lockstep: a launched fleet per run")
+    p.add_argument("--duration", type=float, metavar="S", help="simulated seconds per run")
+    p.add_argument("--jobs", type=int, metavar="J", help="runs in parallel (default: the number of cores for inproc)")
+    p.add_argument("--out", required=True, metavar="DIR", help="where results.csv, summary.md and sweep.png go")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(func=cmd_sweep)
+
+    # `cdus gs ...` is handed to ground_station whole (see main); listed here for --help
+    sub.add_parser("gs", help="ground station: watch and command a running fleet (cdus gs --help)", add_help=False)
+    return parser
+
+
+def cmd_sim(args: argparse.Namespace) -> int:
+    scenario = load_scenario(args.config, _overrides(args))
+    out_dir = None
+    metrics_out = args.metrics_out
+    if metrics_out is None:
+        out_dir = run_dir(args.runs_dir, scenario.name)
+        metrics_out = out_dir / "metrics.json"
+    from world_sim.rerun_sink import make_sink  # Rerun costs ~1 s and 55 MB to import: only `sim` pays it
+
+    try:
+        sink = make_sink(args.rerun, Path(metrics_out).parent)
+    except ValueError as e:
+        raise ConfigError("command line", [("--rerun", str(e))]) from None
+    fleet = InProcessFleet(scenario, policy=args.policy, sink=sink, clock=time.perf_counter)
+    progress = Progress(f"{scenario.name}", quiet=args.quiet)
+    status = EXIT_OK
+    try:
+        result = fleet.run(progress=progress)
+        metrics = result.metrics
+    except KeyboardInterrupt:
+        status = EXIT_INTERRUPTED
+        metrics = fleet.partial_metrics()
+        metrics["interrupted"] = True
+    finally:
+        sink.close()
+    progress.done()
+    write_json(metrics_out, metrics)
+    if args.trace_out:
+        fleet.recorder.save_trace(args.trace_out)
+    print(summary_table(metrics, fleet.vehicles))
+    print(f"  metrics: {metrics_out}" + (f"\n  trace: {args.trace_out}" if args.trace_out else ""))
+    return status
+
+
+def cmd_launch(args: argparse.Namespace) -> int:
+    scenario = load_scenario(args.config, _overrides(args))
+    try:
+        parse_spec(args.rerun, Path(args.logs or "."))  # a bad --rerun starts nothing
+    except ValueError as e:
+        raise ConfigError("command line", [("--rerun", str(e))]) from None
+    run = Path(args.logs) if args.logs else run_dir(args.runs_dir, scenario.name)
+    run.mkdir(parents=True, exist_ok=True)
+    router = (Transport(mode="router", listen=tuple(args.listen), config_file=args.zenoh_config)
+              if args.listen or args.zenoh_config else local_router())
+    opts = LaunchOptions(
+        fleet=args.fleet or scenario.name.replace(".", "_"), clock=args.clock, duration=args.duration,
+        restart=args.restart, metrics_out=Path(args.metrics_out) if args.metrics_out else None,
+        trace_out=Path(args.trace_out) if args.trace_out else None, policy=args.policy,
+        ready_timeout=args.ready_timeout, quiet=args.quiet, rerun=args.rerun)
+    print(f"{scenario.name}: launching {len(scenario.vehicles)} vehicle processes + world "
+          f"({args.clock} clock), router {', '.join(router.listen) or args.zenoh_config}")
+    print(f"  attach a ground station: cdus gs --fleet {opts.fleet} -e "
+          f"{(router.listen[0] if router.listen else 'ENDPOINT').replace('0.0.0.0', '127.0.0.1')} status")
+    status, la = launch(scenario, run, router, opts)
+    if la.metrics_out.exists():
+        metrics = json.loads(la.metrics_out.read_text())
+        print(summary_table(metrics, scenario.vehicles))
+        print(f"  metrics: {la.metrics_out}\n  logs: {la.logs}")
+        for target in parse_spec(args.rerun, run):
+            if target.kind == "save":
+                print(f"  recording: {target.where} (open it with: rerun {target.where})")
+    else:
+        print(f"no metrics were written; logs: {la.logs}", file=sys.stderr)
+        status = status or EXIT_FAIL
+    return status
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    grid = parse_grid(args.set)
+    base = load_scenario(args.config, {"scenario.duration": args.duration} if args.duration else None)
+    for key, values in grid:  # check every value before any run: a typo should not cost a sweep
+        for v in values:
+            load_scenario(args.config, {key: v})
+    seeds = list(range(base.seed, base.seed + args.seeds))
+    rows = sweep(args.config, grid, seeds, Path(args.out), clock=args.clock, jobs=args.jobs,
+                 duration=args.duration, quiet=args.quiet)
+    failed = sum(1 for r in rows if r["status"] != "ok")
+    print(Path(args.out, "summary.md").read_text())
+    print(f"results: {Path(args.out, 'results.csv')}\nplot: {Path(args.out, 'sweep.png')}"
+          + (f"\n{failed} of {len(rows)} runs failed (see summary.md)" if failed else ""))
+    return EXIT_OK
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] == "gs":
+        return gs_main(argv[1:], "cdus gs")
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except ConfigError as e:
+        print(f"error: {e}", file=sys.stderr)
+        print("nothing was started.", file=sys.stderr)
+        return EXIT_USAGE
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,379 @@
+"""The launcher: start the world and one process per vehicle, supervise them, stop them all.
+
+The launcher opens the fleet's Zenoh router itself (loopback TCP by default), so it sees
+every liveliness token without polling: it starts world_sim, waits for the world's token,
+starts the agents, waits for all of theirs (naming the ones that did not come up, with the
+tail of their logs), then watches: it shows the world's progress, restarts agents by the
+restart policy (never | on-failure | always), and at the end, on Ctrl-C, on SIGTERM or on
+a failure, walks the shutdown ladder: ask the world to stop (it writes the metrics), let
+everyone exit for a grace period, SIGTERM their process groups, then SIGKILL. Nothing it
+started outlives it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+from cdus.wire import keys
+from cdus.app.report import Progress
+from cdus.files import write_json
+from cdus.wire.transport import Transport, client_of, open_session
+from cdus.wire.messages import CLOCK_OPS, COMMAND_OPS, decode_control, encode_control
+
+RESTART = ("never", "on-failure", "always")
+FAULT_OPS = ("kill", "pause_vehicle", "resume_vehicle", "restart")
+GRACE_S = 5.0
+LOG_TAIL = 15
+# Fewer Zenoh runtime threads per process: on a small machine running many processes the
+# default thread pools cost more in context switches than they give (measured: lockstep
+# lake_circle 13x -> 17x real time on 2 cores). A user's own ZENOH_RUNTIME wins.
+ZENOH_RUNTIME = "(app: (worker_threads: 1), acc: (handover: app), rx: (handover: app), tx: (handover: app))"
+
+
+class LaunchError(Exception):
+    """The fleet could not be brought up; the message says who failed and why."""
+
+
+@dataclass
+class Child:
+    name: str
+    argv: list[str]
+    log_path: Path
+    proc: subprocess.Popen | None = None
+    restarts: int = 0
+    exit_code: int | None = None
+    log_file: Any = None
+    intended_exit: bool = False  # killed on purpose (a scheduled fault): not a failure to restart
+
+    def start(self, env: dict[str, str]) -> None:
+        self.log_file = open(self.log_path, "ab")
+        self.proc = subprocess.Popen(self.argv, stdout=self.log_file, stderr=subprocess.STDOUT,
+                                     stdin=subprocess.DEVNULL, start_new_session=True, env=env)
+        self.exit_code = None
+        self.intended_exit = False
+
+    def poll(self) -> int | None:
+        if self.proc is None:
+            return None
+        code = self.proc.poll()
+        if code is not None and self.exit_code is None:
+            self.exit_code = code
+            self.log_file.close()
+        return code
+
+    def running(self) -> bool:
+        return self.proc is not None and self.proc.poll() is None
+
+    def signal_group(self, sig: int) -> None:
+        if self.proc is None:
+            return
+        try:
+            os.killpg(self.proc.pid, sig)
+        except (ProcessLookupError, PermissionError):
+            pass
+
+    def tail(self, n: int = LOG_TAIL) -> str:
+        try:
+            lines = self.log_path.read_text(errors="replace").splitlines()
+        except OSError:
+            return "(no log)"
+        return "\n".join("    | " + ln for ln in lines[-n:]) or "    | (empty log)"
+
+
+@dataclass
+class LaunchOptions:
+    fleet: str
+    clock: str = "lockstep"
+    duration: float | None = None
+    restart: str = "never"
+    metrics_out: Path | None = None
+    trace_out: Path | None = None
+    policy: str | None = None
+    ready_timeout: float = 30.0
+    grace: float = GRACE_S
+    quiet: bool = False
+    lease_ms: int | None = 1000
+    rerun: str = "off"
+
+
+@dataclass
+class Launcher:
+    scenario: Any
+    run_dir: Path
+    router: Transport
+    opts: LaunchOptions
+    log: Callable[[str], None] = field(default=lambda s: print(s, flush=True))
+
+    def __post_init__(self) -> None:
+        self.fleet = keys.check_fleet(self.opts.fleet)
+        self.logs = self.run_dir / "logs"
+        self.logs.mkdir(parents=True, exist_ok=True)
+        self.config_path = self.run_dir / "scenario.json"
+        write_json(self.config_path, self.scenario.raw)
+        self.metrics_out = Path(self.opts.metrics_out or self.run_dir / "metrics.json")
+        self.cond = threading.Condition()
+        self.alive: set[str] = set()
+        self.status: dict | None = None
+        self.children: dict[str, Child] = {}
+        self.session = None
+        self.stopping = False
+        self.finished = False
+        self.requests: list[tuple[str, str]] = []  # scheduled faults asked for by the world
+        self.env = dict(os.environ)
+        self.env.setdefault("ZENOH_RUNTIME", ZENOH_RUNTIME)
+        self.env["PYTHONUNBUFFERED"] = "1"
+
+    # ------------------------------------------------------------------ processes
+    def _common(self) -> list[str]:
+        client = client_of(self.router)
+        t = Transport(mode="client", connect=client.connect, lease_ms=self.opts.lease_ms)
+        out = ["--config", str(self.config_path), "--fleet", self.fleet, "--clock", self.opts.clock, *t.args()]
+        if self.opts.duration is not None:
+            out += ["--duration", str(self.opts.duration)]
+        return out
+
+    def _world(self) -> Child:
+        argv = [sys.executable, "-m", "world_sim", *self._common(), "--metrics-out", str(self.metrics_out),
+                "--start-timeout", str(self.opts.ready_timeout + 5)]
+        if self.opts.trace_out:
+            argv += ["--trace-out", str(self.opts.trace_out)]
+        argv += ["--rerun", self.opts.rerun, "--run-dir", str(self.run_dir)]
+        return Child("world", argv, self.logs / "world.log")
+
+    def _agent(self, vid: str) -> Child:
+        argv = [sys.executable, "-m", "vehicle_agent", *self._common(), "--id", vid]
+        if self.opts.policy:
+            argv += ["--policy", self.opts.policy]
+        return Child(vid, argv, self.logs / f"{vid}.log")
+
+    # ------------------------------------------------------------------ zenoh
+    def _open(self) -> None:
+        s = self.session = open_session(self.router)
+        f = self.fleet
+        self._subs = [
+            s.liveliness().declare_subscriber(keys.any_alive(f), self._on_alive, history=True),
+            s.declare_subscriber(keys.world_status(f), self._on_status),
+            s.declare_subscriber(keys.world_events(f), self._on_event),
+            s.declare_subscriber(keys.clock(f), self._on_clock),
+            s.declare_subscriber(keys.cmd(f, "launcher"), self._on_fault_request),
+        ]
+
+    def _on_fault_request(self, sample: Any) -> None:
+        """The world asks for a scheduled vehicle fault; the supervise loop carries it out."""
+        c = decode_control(sample.payload.to_bytes(), COMMAND_OPS)
+        if isinstance(c, str) or c.op not in FAULT_OPS or c.fields.get("vehicle") not in self.children:
+            return
+        with self.cond:
+            self.requests.append((c.op, c.fields["vehicle"]))
+            self.cond.notify_all()
+
+    def _carry_out(self, op: str, vid: str) -> None:
+        c = self.children[vid]
+        if op == "kill":
+            c.intended_exit = True
+            c.signal_group(signal.SIGKILL)
+        elif op == "pause_vehicle":
+            c.signal_group(signal.SIGSTOP)
+        elif op == "resume_vehicle":
+            c.signal_group(signal.SIGCONT)
+        elif op == "restart":
+            if c.running():
+                c.intended_exit = True
+                c.signal_group(signal.SIGKILL)
+                c.proc.wait()
+            c.poll()
+            c.restarts += 1
+            c.start(self.env)
+        self.log(f"  fault: {op.replace('_vehicle', '')} {vid}")
+        try:
+            self.session.put(keys.cmd(self.fleet, keys.WORLD), encode_control("fault_done", vehicle=vid))
+        except Exception:
+            pass
+
+    def _on_clock(self, sample: Any) -> None:
+        c = decode_control(sample.payload.to_bytes(), CLOCK_OPS)
+        if not isinstance(c, str) and c.op == "stop":
+            with self.cond:
+                self.finished = True  # the world ended the run: agents exiting now is expected
+                self.cond.notify_all()
+
+    def _on_alive(self, sample: Any) -> None:
+        who = str(sample.key_expr).rsplit("/", 1)[-1]
+        with self.cond:
+            if str(sample.kind).endswith("DELETE"):
+                self.alive.discard(who)
+            else:
+                self.alive.add(who)
+            self.cond.notify_all()
+
+    def _on_status(self, sample: Any) -> None:
+        try:
+            st = json.loads(sample.payload.to_bytes())
+        except ValueError:
+            return
+        with self.cond:
+            self.status = st
+            self.cond.notify_all()
+
+    def _on_event(self, sample: Any) -> None:
+        if not self.opts.quiet:
+            self.log(f"  event: {sample.payload.to_bytes().decode(errors='replace')}")
+
+    def _wait_alive(self, names: list[str], timeout: float) -> list[str]:
+        """Wait for every name's liveliness token; returns the missing ones (early exits end the wait)."""
+        deadline = time.monotonic() + timeout
+        with self.cond:
+            while True:
+                missing = [n for n in names if n not in self.alive]
+                dead = [n for n in missing if self.children[n].poll() is not None]
+                if not missing or dead or time.monotonic() > deadline:
+                    return missing
+                self.cond.wait(timeout=0.2)
+
+    def _fail_start(self, missing: list[str], timeout: float) -> LaunchError:
+        parts = []
+        for n in missing:
+            c = self.children[n]
+            code = c.poll()
+            why = (f"exited with status {code} during start-up" if code is not None
+                   else f"did not come up within {timeout:g} s")
+            parts.append(f"{n} {why}; its log ({c.log_path}) ends with:\n{c.tail()}")
+        return LaunchError("\n".join(parts))
+
+    # ------------------------------------------------------------------ the run
+    def start(self) -> None:
+        self._open()
+        w = self.children["world"] = self._world()
+        w.start(self.env)
+        missing = self._wait_alive(["world"], self.opts.ready_timeout)
+        if missing:
+            raise self._fail_start(missing, self.opts.ready_timeout)
+        ids = [v.id for v in self.scenario.vehicles]
+        for vid in ids:
+            c = self.children[vid] = self._agent(vid)
+            c.start(self.env)
+        missing = self._wait_alive(ids, self.opts.ready_timeout)
+        if missing:
+            raise self._fail_start(missing, self.opts.ready_timeout)
+        self.log(f"fleet {self.fleet!r} up: world + {len(ids)} vehicles ({self.opts.clock} clock); "
+                 f"logs in {self.logs}")
+
+    def supervise(self) -> int:
+        """Until the world exits: progress, restarts. Returns the world's exit status."""
+        world = self.children["world"]
+        duration = self.opts.duration or self.scenario.duration
+        progress = Progress(self.scenario.name, quiet=self.opts.quiet)
+        while True:
+            code = world.poll()
+            if code is not None:
+                progress.done()
+                return code
+            with self.cond:
+                requests, self.requests = self.requests, []
+            for op, vid in requests:
+                self._carry_out(op, vid)
+            for name, c in self.children.items():
+                if (name != "world" and c.exit_code is None and c.poll() is not None
+                        and not self.stopping and not self.finished):
+                    self._on_agent_exit(c, c.exit_code)
+            with self.cond:
+                if not self.requests:
+                    self.cond.wait(timeout=0.2)
+                st = self.status
+            if st and float(st.get("t", 0.0)) > 0:
+                progress(float(st.get("t", 0.0)), duration)
+
+    def _on_agent_exit(self, c: Child, rc: int) -> None:
+        if c.intended_exit:  # a scheduled kill: the experiment, not a failure
+            return
+        how = f"exited with status {rc}" if rc >= 0 else f"was killed by signal {-rc}"
+        policy = self.opts.restart
+        again = policy == "always" or (policy == "on-failure" and rc != 0)
+        self.log(f"  vehicle {c.name} {how}" + ("; restarting it" if again else ""))
+        if again:
+            c.restarts += 1
+            c.start(self.env)
+
+    def stop(self) -> None:
+        """The shutdown ladder: ask, wait, SIGTERM, wait, SIGKILL. Idempotent."""
+        self.stopping = True
+        world = self.children.get("world")
+        if self.session is not None and world is not None and world.running():
+            try:
+                self.session.put(keys.cmd(self.fleet, keys.WORLD), encode_control("stop"))
+            except Exception:
+                pass
+        self._wait_exit(self.opts.grace)
+        for c in self.children.values():
+            if c.running():
+                c.signal_group(signal.SIGTERM)
+        self._wait_exit(self.opts.grace)
+        for c in self.children.values():
+            if c.running():
+                self.log(f"  {c.name} did not stop; killing it")
+                c.signal_group(signal.SIGKILL)
+                c.proc.wait()
+            c.poll()
+        if self.session is not None:
+            try:
+                self.session.close()
+            except Exception:
+                pass
+            self.session = None
+
+    def _wait_exit(self, seconds: float) -> None:
+        deadline = time.monotonic() + seconds
+        for c in self.children.values():
+            if c.proc is None:
+                continue
+            try:
+                c.proc.wait(timeout=max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                pass
+
+
+def launch(scenario: Any, run_dir: Path, router: Transport, opts: LaunchOptions,
+           log: Callable[[str], None] | None = None) -> tuple[int, Launcher]:
+    """Bring the fleet up, run it, bring it down. Returns (exit status, launcher).
+
+    Exit status: 0 the run completed, 1 it failed (the message names who), 130 interrupted.
+    """
+    la = Launcher(scenario, run_dir, router, opts, **({"log": log} if log else {}))
+    interrupted = False
+
+    def _term(signum, frame):
+        raise KeyboardInterrupt
+
+    old = signal.signal(signal.SIGTERM, _term)
+    try:
+        la.start()
+        code = la.supervise()
+        status = 0 if code == 0 else 1
+        if code != 0:
+            la.log(f"world exited with status {code}; its log ends with:\n{la.children['world'].tail()}")
+    except LaunchError as e:
+        la.log(f"error: the fleet did not come up:\n{e}")
+        status = 1
+    except KeyboardInterrupt:
+        interrupted = True
+        status = 130
+        la.log("\ninterrupted: stopping the fleet (the world writes what it has)")
+    finally:
+        try:
+            la.stop()
+        except KeyboardInterrupt:  # a second Ctrl-C: go straight to the kill
+            for c in la.children.values():
+                c.signal_group(signal.SIGKILL)
+        signal.signal(signal.SIGTERM, old)
+    if interrupted:
+        status = 130
+    return status, la

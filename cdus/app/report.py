@@ -1,0 +1,96 @@
+"""What a person sees: progress lines, the end-of-run summary table, the run directory."""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any, Sequence, TextIO
+
+
+def run_dir(base: str | os.PathLike, scenario: str) -> Path:
+    """A fresh ``runs/<scenario>-<YYYYmmdd-HHMMSS>[-n]`` directory."""
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    root = Path(base)
+    d = root / f"{scenario}-{stamp}"
+    n = 1
+    while d.exists():
+        n += 1
+        d = root / f"{scenario}-{stamp}-{n}"
+    d.mkdir(parents=True)
+    return d
+
+
+class Progress:
+    """One updating line on a terminal, a line per ~10% otherwise."""
+
+    def __init__(self, label: str, stream: TextIO = sys.stderr, quiet: bool = False):
+        self.label = label
+        self.stream = stream
+        self.quiet = quiet
+        self.tty = stream.isatty()
+        self.start = time.perf_counter()
+        self._last_decile = -1
+
+    def __call__(self, t: float, total: float) -> None:
+        if self.quiet or total <= 0:
+            return
+        wall = time.perf_counter() - self.start
+        frac = min(1.0, t / total)
+        rate = t / wall if wall > 0 else 0.0
+        line = f"{self.label}: t = {t:7.1f} / {total:.1f} s ({frac:4.0%}), {rate:6.1f}x real time"
+        if self.tty:
+            self.stream.write("\r" + line)
+            self.stream.flush()
+        else:
+            decile = int(frac * 10)
+            if decile > self._last_decile:
+                self._last_decile = decile
+                self.stream.write(line + "\n")
+                self.stream.flush()
+
+    def done(self) -> None:
+        if self.tty and not self.quiet:
+            self.stream.write("\r" + " " * 80 + "\r")
+            self.stream.flush()
+
+
+def _fmt(x: Any, spec: str = ".3f", none: str = "never") -> str:
+    if x is None:
+        return none
+    if isinstance(x, float) and not math.isfinite(x):
+        return str(x)
+    return format(x, spec)
+
+
+def _settle(x: float | None) -> str:
+    return "never (not within the tolerance at the end)" if x is None else f"{x:.2f} s"
+
+
+def summary_table(metrics: dict, vehicles: Sequence[Any]) -> str:
+    """The end-of-run table: per vehicle, then per run."""
+    m = metrics
+    lines = []
+    rf = m.get("realtime_factor")
+    lines.append(
+        f"{m['scenario']} ({m['mode']}, seed {m['seed']}): {m['duration_s']:.1f} s simulated in "
+        f"{m['wall_s']:.1f} s wall" + (f" ({rf:.0f}x real time)" if rf else ""))
+    head = f"  {'vehicle':<10} {'kind':<4} {'plant':<22} {'|Φ| final (m)':>14} {'ω̇ final':>10}"
+    lines.append(head)
+    lines.append("  " + "-" * (len(head) - 2))
+    pe = m.get("final_path_error", {})
+    for v in vehicles:
+        lines.append(
+            f"  {v.id:<10} {v.kind:<4} {v.plant:<22} {_fmt(pe.get(v.id), '.4f', 'n/a'):>14} "
+            f"{_fmt(m['omega_rate_final'].get(v.id), '.4f', 'n/a'):>10}")
+    lines.append(f"  path settle (worst |Φ| < {m['path_tol']} m):             {_settle(m['path_settle_s'])}")
+    lines.append(f"  coordination settle (worst edge < {m['coord_tol']} rad): {_settle(m['coord_settle_s'])}")
+    lines.append(f"  final worst |Φ| {_fmt(m['final_path_error_max'], '.4f', 'n/a')} m, "
+                 f"final worst coordination error {_fmt(m['final_coord_error_max'], '.4f', 'n/a')} rad")
+    link = m.get("link") or {}
+    if link:
+        lines.append(f"  link: {link.get('sent', 0)} sent, {link.get('delivered', 0)} delivered, "
+                     f"{link.get('dropped', 0)} dropped, {link.get('rejected', 0)} rejected")
+    return "\n".join(lines)

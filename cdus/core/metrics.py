@@ -1,0 +1,160 @@
+"""How well does the fleet do? The metric definitions, the same in every clock mode.
+
+(system.md "Metrics")
+- path error of vehicle i: |Φ_i| = |q_i - f_i(ω_i)|, sampled at control instants after the
+  controller's update;
+- coordination error of edge (i, k): |ω_i - ω_k - Δ_ik|;
+- settle time: the first sample time after which the worst value stays below a tolerance
+  for the rest of the run; None if it never does;
+- ω̇ final: the mean rate over the last second, (ω(T) - ω(T - 1 s)) / 1 s.
+
+Pure: arrays in, numbers out. The recorder grows NumPy arrays row by row.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Iterable, Sequence
+
+import numpy as np
+
+METRICS_FIELDS = (
+    "scenario", "mode", "seed", "duration_s", "path_tol", "coord_tol", "path_settle_s",
+    "coord_settle_s", "final_path_error_max", "final_coord_error_max", "omega_rate_final",
+    "link", "wall_s", "realtime_factor",
+)
+
+
+@dataclass(frozen=True)
+class MetricEdge:
+    i: int
+    k: int
+    delta: float
+    name: str  # "<id_i>__<id_k>", the Rerun entity name too
+
+
+def edge_errors(omega: np.ndarray, edges: Sequence[MetricEdge]) -> np.ndarray:
+    """|ω_i - ω_k - Δ_ik| for every edge; ``omega`` is (..., N)."""
+    if not edges:
+        return np.zeros(omega.shape[:-1] + (0,))
+    i = np.array([e.i for e in edges])
+    k = np.array([e.k for e in edges])
+    d = np.array([e.delta for e in edges])
+    return np.abs(omega[..., i] - omega[..., k] - d)
+
+
+def settle_time(t: np.ndarray, worst: np.ndarray, tol: float) -> float | None:
+    """First sample time after which ``worst`` stays below ``tol`` to the end; None if never."""
+    if len(t) == 0:
+        return None
+    above = np.nonzero(~(worst < tol))[0]  # NaN counts as not settled
+    if len(above) == 0:
+        return float(t[0])
+    last = above[-1]
+    return None if last + 1 >= len(t) else float(t[last + 1])
+
+
+def percentile_ms(samples: Iterable[float], q: float) -> float | None:
+    arr = np.asarray(list(samples), dtype=float)
+    return None if arr.size == 0 else float(np.percentile(arr, q) * 1000.0)
+
+
+class Recorder:
+    """Time series of a run, one row per control instant."""
+
+    def __init__(self, ids: Sequence[str], dims: Sequence[int], edges: Sequence[MetricEdge], capacity: int = 1024):
+        self.ids = tuple(ids)
+        self.dims = tuple(dims)
+        self.edges = tuple(edges)
+        n = len(ids)
+        self._n = 0
+        self._cap = max(16, capacity)
+        self.t = np.zeros(self._cap)
+        self.q = np.zeros((self._cap, n, 3))
+        self.heading = np.zeros((self._cap, n))
+        self.omega = np.zeros((self._cap, n))
+        self.omega_rate = np.zeros((self._cap, n))
+        self.path_error = np.zeros((self._cap, n))
+
+    def __len__(self) -> int:
+        return self._n
+
+    def _grow(self) -> None:
+        self._cap *= 2
+        for name in ("t", "q", "heading", "omega", "omega_rate", "path_error"):
+            old = getattr(self, name)
+            new = np.zeros((self._cap,) + old.shape[1:])
+            new[: self._n] = old[: self._n]
+            setattr(self, name, new)
+
+    def record(self, t: float, rows: Sequence[Any]) -> None:
+        """``rows``: one telemetry per vehicle, in scenario order (attrs q, heading, omega, omega_rate, path_error)."""
+        if self._n == self._cap:
+            self._grow()
+        n = self._n
+        self.t[n] = t
+        for j, tel in enumerate(rows):
+            q = tel.q
+            self.q[n, j, : len(q)] = q
+            self.heading[n, j] = tel.heading
+            self.omega[n, j] = tel.omega
+            self.omega_rate[n, j] = tel.omega_rate
+            self.path_error[n, j] = tel.path_error
+        self._n += 1
+
+    def view(self, name: str) -> np.ndarray:
+        return getattr(self, name)[: self._n]
+
+    def edge_error(self) -> np.ndarray:
+        return edge_errors(self.view("omega"), self.edges)
+
+    def omega_rate_final(self, window: float = 1.0) -> dict[str, float]:
+        t, w = self.view("t"), self.view("omega")
+        if len(t) < 2:
+            return {i: float("nan") for i in self.ids}
+        j = int(np.searchsorted(t, t[-1] - window - 1e-9))
+        j = min(j, len(t) - 2)
+        dt = t[-1] - t[j]
+        return {vid: float((w[-1, n] - w[j, n]) / dt) for n, vid in enumerate(self.ids)}
+
+    def summary(self, *, scenario: str, mode: str, seed: int, path_tol: float, coord_tol: float,
+                link: dict, wall_s: float) -> dict[str, Any]:
+        """The metrics JSON (system.md field names)."""
+        t = self.view("t")
+        pe = self.view("path_error")
+        ee = self.edge_error()
+        worst_path = pe.max(axis=1) if pe.size else np.zeros(len(t))
+        worst_coord = ee.max(axis=1) if ee.size else np.zeros(len(t))
+        duration = float(t[-1] - t[0]) if len(t) else 0.0
+        return {
+            "scenario": scenario,
+            "mode": mode,
+            "seed": seed,
+            "duration_s": duration,
+            "path_tol": path_tol,
+            "coord_tol": coord_tol,
+            "path_settle_s": settle_time(t, worst_path, path_tol),
+            "coord_settle_s": settle_time(t, worst_coord, coord_tol),
+            "final_path_error_max": _finite(worst_path[-1]) if len(t) else None,
+            "final_coord_error_max": _finite(worst_coord[-1]) if len(t) else None,
+            "omega_rate_final": self.omega_rate_final(),
+            "final_path_error": {vid: _finite(pe[-1, n]) for n, vid in enumerate(self.ids)} if len(t) else {},
+            "link": link,
+            "wall_s": wall_s,
+            "realtime_factor": (duration / wall_s) if wall_s > 0 else None,
+        }
+
+    def save_trace(self, path: str) -> None:
+        """All series as a compressed ``.npz`` (``numpy.load`` reads it back)."""
+        np.savez_compressed(
+            path, t=self.view("t"), ids=np.array(self.ids), q=self.view("q"),
+            heading=self.view("heading"), omega=self.view("omega"),
+            omega_rate=self.view("omega_rate"), path_error=self.view("path_error"),
+            edge_error=self.edge_error(), edge_names=np.array([e.name for e in self.edges]),
+        )
+
+
+def _finite(x: float) -> float | None:
+    x = float(x)
+    return x if math.isfinite(x) else None

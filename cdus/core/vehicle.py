@@ -1,0 +1,171 @@
+"""What is one vehicle? Its plant, its regulator, its DGVF guidance and its ω, stepped in time.
+
+The same object runs inside a vehicle_agent process and inside the in-process fleet
+runner; it does no I/O and reads no clock. One control period is:
+
+1. ``control(t, consensus)``: at a control instant, integrate ω over the period just
+   ended with the measured position held (guidance.integrate_omega); ω̇ is reported as
+   the mean over that period (dgvf.md §2: the instantaneous value means nothing).
+2. the caller samples metrics and publishes ω (after the controller's update);
+3. ``advance()``: move the plant to the next control instant at the physics rate, its
+   regulator tracking the guidance with ω extrapolated at the held ω̇.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from cdus.core import regulators as reg
+from cdus.core.disturbance import Disturbance, DisturbanceSpec
+from cdus.core.guidance import Consensus, desired_velocity, integrate_omega, omega_law
+from cdus.core.paths import Path, Vec, for_dimension, make_path, nearest_omega
+from cdus.core.plants import (
+    USV_PRESETS, PointState, UAVState, USVState, step_ideal, step_uav, step_usv,
+)
+
+
+@dataclass(frozen=True)
+class Telemetry:
+    """A vehicle's state at a control instant, after the controller's update."""
+
+    id: str
+    t: float
+    q: Vec
+    heading: float
+    speed: float
+    omega: float
+    omega_rate: float
+    path_error: float
+
+
+@dataclass
+class Vehicle:
+    id: str
+    kind: str
+    dim: int
+    path: Path
+    k: Vec
+    c: float
+    plant: str
+    regulator: str | None
+    control_period: float
+    physics_steps: int
+    state: Any
+    omega: float
+    eps: tuple[float, ...] | None = None
+    reg_gains: Any = None
+    limits: reg.Limits = reg.NO_LIMITS
+    disturbance: Disturbance | None = None
+    tick: int = 0
+    t: float = 0.0
+    omega_rate: float = 0.0
+    started: bool = False
+    _r_ref_prev: float | None = field(default=None, repr=False)
+
+    def rejoin(self, tick: int, q: Vec | None = None, heading: float | None = None,
+               omega_hint: float | None = None) -> None:
+        """Resume at control tick ``tick`` (a restarted process), at rest at ``q``.
+
+        ω becomes the nearest point of the path to ``q`` within half a period of
+        ``omega_hint`` (the vehicle's last known ω), so the unwrapped ω carries on where it
+        was instead of jumping by a lap, which the consensus would have to undo.
+        """
+        self.tick = tick
+        self.t = tick * self.control_period
+        self.started = False
+        if q is not None:
+            q = tuple(q)[: self.dim]
+            zero = (0.0,) * self.dim
+            st = self.state
+            if isinstance(st, USVState):
+                self.state = USVState(q[0], q[1], st.psi if heading is None else heading, 0.0, 0.0, 0.0)
+            elif isinstance(st, UAVState):
+                self.state = UAVState(q, zero)
+            else:
+                self.state = PointState(q, zero)
+        hint = self.omega if omega_hint is None else omega_hint
+        half = self.path.period / 2.0 if self.path.period else 0.0
+        self.omega = nearest_omega(self.path, self.q, hint - half)
+
+    # ------------------------------------------------------------------ observation
+    @property
+    def q(self) -> Vec:
+        return self.state.q
+
+    @property
+    def velocity(self) -> Vec:
+        st = self.state
+        if isinstance(st, USVState):
+            return st.world_velocity()
+        return st.v if isinstance(st, PointState) else st.p
+
+    @property
+    def heading(self) -> float:
+        st = self.state
+        if isinstance(st, USVState):
+            return st.psi
+        v = self.velocity
+        return math.atan2(v[1], v[0])
+
+    def path_error(self) -> float:
+        """|Φ| = |q - f(ω)|."""
+        f, _, _ = self.path.eval(self.omega)
+        return math.sqrt(sum((a - b) ** 2 for a, b in zip(self.q, f)))
+
+    def telemetry(self) -> Telemetry:
+        v = self.velocity
+        return Telemetry(self.id, self.t, self.q, self.heading, math.sqrt(sum(x * x for x in v)),
+                         self.omega, self.omega_rate, self.path_error())
+
+    # ------------------------------------------------------------------ stepping
+    def control(self, consensus: Consensus) -> None:
+        """The controller's update at the control instant ``self.t``.
+
+        ``consensus`` carries the neighbour values over the period that just ended. On
+        the very first call there is no such period: ω keeps its initial value and ω̇
+        reports the instantaneous law.
+        """
+        q = self.q
+        if not self.started:
+            self.started = True
+            coupling = consensus.W * self.omega - consensus.B0
+            self.omega_rate = omega_law(self.path, q, self.omega, self.k, self.c, coupling)
+            return
+        w_new = integrate_omega(self.path, q, self.omega, self.k, self.c, consensus, self.control_period)
+        self.omega_rate = (w_new - self.omega) / self.control_period
+        self.omega = w_new
+
+    def advance(self) -> None:
+        """Move the plant over one control period at the physics rate."""
+        T = self.control_period
+        n = self.physics_steps
+        h = T / n
+        dist = self.disturbance
+        zero = (0.0,) * self.dim
+        if self.plant == "ideal":
+            a = reg.clip_norm(desired_velocity(self.path, self.q, self.omega, self.k), self.limits.speed)
+            if dist is None:
+                self.state = step_ideal(self.state, a, zero, T)
+            else:
+                for _ in range(n):
+                    self.state = step_ideal(self.state, a, dist.step(h), h)
+        else:
+            w0, wd = self.omega, self.omega_rate
+            for j in range(n):
+                w = w0 + wd * j * h
+                d = dist.step(h) if dist is not None else zero
+                st = self.state
+                if self.plant == "uav_double_integrator":
+                    tau = reg.uav_pd(st, self.path, w, wd, self.k, self.reg_gains, self.limits)
+                    self.state = step_uav(st, tau, d, h)
+                elif self.regulator == "paper":
+                    tu, tr, self._r_ref_prev = reg.usv_paper(st, self.path, w, wd, self.k, self.eps,
+                                                             self.reg_gains, self._r_ref_prev, h, self.limits)
+                    self.state = step_usv(st, tu, tr, self.eps, d, h)
+                else:
+                    tu, tr = reg.usv_heading(st, self.path, w, wd, self.k, self.eps, self.reg_gains, self.limits)
+                    self.state = step_usv(st, tu, tr, self.eps, d, h)
+        self.tick += 1
+        self.t = self.tick * T

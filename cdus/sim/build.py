@@ -1,0 +1,107 @@
+"""Building a scenario's pieces: its vehicles, neighbour terms, metric edges and link model.
+
+The one place where the validated :class:`cdus.scenario.config.Scenario` is turned into
+the pure core's objects, used alike by the in-process fleet and the process shells.
+"""
+
+from __future__ import annotations
+
+import math
+
+from cdus.core import regulators as reg
+from cdus.core.disturbance import Disturbance, DisturbanceSpec
+from cdus.core.link import IdealLink, LinkEmulator, LinkModel
+from cdus.core.linkspec import LinkSpec
+from cdus.core.metrics import MetricEdge
+from cdus.core.neighbours import NeighbourLink
+from cdus.core.paths import for_dimension, make_path, nearest_omega
+from cdus.core.plants import USV_PRESETS, PointState, UAVState, USVState
+from cdus.core.vehicle import Vehicle
+from cdus.scenario.config import Rates, Scenario, VehicleSpec
+from cdus.scenario.link import validate_link
+
+
+def build_vehicle(spec: VehicleSpec, rates: Rates, seed: int) -> Vehicle:
+    """A vehicle's core object from its validated spec and the scenario's rates."""
+    path = for_dimension(make_path(dict(spec.path)), spec.dim)
+    dim = spec.dim
+    period = 1.0 / rates.control
+    steps = max(1, math.ceil(rates.physics / rates.control - 1e-9))
+    limits = reg.Limits(**dict(spec.limits))
+    gains = dict(spec.regulator_gains)
+    if spec.start_position is None:
+        w0 = spec.phase if spec.omega0 is None else spec.omega0
+        f, f1, _ = path.eval(w0)
+        q0 = f
+    else:
+        q0 = tuple(float(x) for x in spec.start_position)
+        if spec.omega0 is None:
+            hint = spec.phase - (path.period / 2.0 if path.period else 0.0)
+            w0 = nearest_omega(path, q0, hint)
+        else:
+            w0 = spec.omega0
+        _, f1, _ = path.eval(w0)
+    s = path.direction
+    heading = spec.start_heading if spec.start_heading is not None else math.atan2(s * f1[1], s * f1[0])
+    zero = (0.0,) * dim
+    eps = None
+    if spec.plant == "ideal":
+        state: Any = PointState(q0, zero)
+        reg_gains = None
+    elif spec.plant == "uav_double_integrator":
+        state = UAVState(q0, zero)
+        reg_gains = reg.UAVGains(**gains)
+    elif spec.plant == "usv_3dof":
+        eps = tuple(spec.epsilon) if spec.epsilon else USV_PRESETS[spec.preset or "cybership2"]
+        state = USVState(q0[0], q0[1], heading, 0.0, 0.0, 0.0)
+        reg_gains = reg.PaperGains(**gains) if spec.regulator == "paper" else reg.HeadingGains(**gains)
+    else:  # config validation makes this unreachable
+        raise ValueError(f"unknown plant {spec.plant!r}")
+    dist = None
+    if spec.disturbance:
+        d = dict(spec.disturbance)
+        dist = Disturbance(
+            DisturbanceSpec(tuple(d.get("constant", zero)), float(d.get("gust", 0.0)),
+                            float(d.get("gust_tau", 2.0))),
+            dim, seed, spec.id)
+    return Vehicle(id=spec.id, kind=spec.kind, dim=dim, path=path, k=tuple(spec.k), c=spec.c,
+                   plant=spec.plant, regulator=spec.regulator, control_period=period,
+                   physics_steps=steps, state=state, omega=float(w0), eps=eps, reg_gains=reg_gains,
+                   limits=limits, disturbance=dist)
+
+
+def links_of(scenario: Scenario, vid: str) -> tuple[NeighbourLink, ...]:
+    """Vehicle ``vid``'s terms: whom it listens to, a_ik, Δ_ik."""
+    index = {v.id: v.index for v in scenario.vehicles}
+    return tuple(NeighbourLink(index[e.k], e.weight, e.delta) for e in scenario.neighbours(vid))
+
+
+def metric_edges(scenario: Scenario) -> tuple[MetricEdge, ...]:
+    """The edges coordination is measured on, named ``<id_i>__<id_k>`` (also in Rerun)."""
+    index = {v.id: v.index for v in scenario.vehicles}
+    return tuple(MetricEdge(index[e.i], index[e.k], e.delta, f"{e.i}__{e.k}") for e in scenario.metric_edges())
+
+
+def link_spec_for(scenario: Scenario) -> LinkSpec:
+    """The validated ``[link]`` table of a ``cdus.config.Scenario`` (raises ``ConfigError``)."""
+    return validate_link(scenario.link or {}, list(scenario.ids), scenario.source)
+
+
+def link_seed(spec: LinkSpec, scenario: Scenario) -> int:
+    """``link.seed`` if given, else the scenario's seed."""
+    return spec.seed if spec.seed is not None else scenario.seed
+
+
+def link_model_for(scenario: Scenario) -> LinkModel:
+    """:class:`IdealLink` when the ``[link]`` table has no faults, else a :class:`LinkEmulator`
+    (seeded with ``link.seed``, else ``scenario.seed``). Raises ``ConfigError`` for a bad table."""
+    spec = link_spec_for(scenario)
+    if spec.is_ideal:
+        return IdealLink()
+    return LinkEmulator(spec, scenario.ids, link_seed(spec, scenario))
+
+
+def link_emulator_for(scenario: Scenario) -> LinkEmulator:
+    """Always an emulator (ideal links take its fast path), so faults can change at run time."""
+    spec = link_spec_for(scenario)
+    return LinkEmulator(spec, scenario.ids, link_seed(spec, scenario))

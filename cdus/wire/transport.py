@@ -1,0 +1,125 @@
+"""How a process reaches the others: Zenoh configuration and the flags every process shares.
+
+Every cdus process takes the same transport flags, named as in zenoh-python's examples:
+
+    --mode {peer,client,router}   --connect ENDPOINT ...   --listen ENDPOINT ...
+    --zenoh-config FILE           (a zenoh json5 config; flags given override it)
+
+Default topology (system.md "Zenoh"): the world opens a session in router mode listening
+on ``tcp/127.0.0.1:<port>`` (or a unix socket); everything else connects to it as a client.
+Multicast scouting is switched off in every config this module builds, including one read
+from a user's file: it would send packets off this machine. Connect to explicit endpoints.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import socket
+from dataclasses import dataclass, field
+from typing import Any, Sequence
+
+import zenoh
+
+MODES = ("peer", "client", "router")
+CONNECT_TIMEOUT_S = 30.0
+
+
+@dataclass(frozen=True)
+class Transport:
+    mode: str = "client"
+    connect: tuple[str, ...] = ()
+    listen: tuple[str, ...] = ()
+    config_file: str | None = None
+    lease_ms: int | None = None  # liveliness lease; None keeps Zenoh's default (10 s)
+    extra: tuple[tuple[str, str], ...] = field(default=())  # (json5 key, json5 value) pairs
+
+    def args(self) -> list[str]:
+        """The command-line flags that reproduce this transport in a child process."""
+        out = ["--mode", self.mode]
+        for ep in self.connect:
+            out += ["--connect", ep]
+        for ep in self.listen:
+            out += ["--listen", ep]
+        if self.config_file:
+            out += ["--zenoh-config", self.config_file]
+        if self.lease_ms:
+            out += ["--lease-ms", str(self.lease_ms)]
+        return out
+
+
+def add_transport_args(p: argparse.ArgumentParser, default_mode: str = "client") -> None:
+    g = p.add_argument_group("zenoh transport (same flags on every cdus process)")
+    g.add_argument("--mode", choices=MODES, default=None,
+                   help=f"zenoh session mode (default: {default_mode})")
+    g.add_argument("-e", "--connect", action="append", default=[], metavar="ENDPOINT",
+                   help="endpoint to connect to, e.g. tcp/127.0.0.1:7447 or unixsock-stream//tmp/cdus.sock")
+    g.add_argument("-l", "--listen", action="append", default=[], metavar="ENDPOINT",
+                   help="endpoint to listen on, e.g. tcp/127.0.0.1:7447")
+    g.add_argument("--zenoh-config", metavar="FILE",
+                   help="a zenoh json5 config file; --mode/--connect/--listen override it "
+                        "(multicast scouting is forced off)")
+    g.add_argument("--lease-ms", type=int, default=None, metavar="MS",
+                   help="liveliness lease: how soon a hung process is declared gone (zenoh default 10000)")
+    p.set_defaults(_default_mode=default_mode)
+
+
+def transport_from_args(args: argparse.Namespace) -> Transport:
+    return Transport(
+        mode=args.mode or getattr(args, "_default_mode", "client"),
+        connect=tuple(args.connect or ()),
+        listen=tuple(args.listen or ()),
+        config_file=args.zenoh_config,
+        lease_ms=args.lease_ms,
+    )
+
+
+def zenoh_config(t: Transport):
+    """A ``zenoh.Config`` for ``t``, multicast scouting off whatever the file says."""
+    conf = zenoh.Config.from_file(t.config_file) if t.config_file else zenoh.Config()
+    conf.insert_json5("mode", json.dumps(t.mode))
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    if t.connect or not t.config_file:
+        conf.insert_json5("connect/endpoints", json.dumps(list(t.connect)))
+    if t.listen or not t.config_file:
+        # a peer or router with no listen endpoint given would listen on every interface
+        conf.insert_json5("listen/endpoints", json.dumps(list(t.listen)))
+    if t.mode != "router" and not t.config_file:
+        conf.insert_json5("scouting/gossip/enabled", "false")
+    if t.connect:
+        # wait for the router instead of failing at once, so start order does not matter
+        conf.insert_json5("connect/timeout_ms", str(int(CONNECT_TIMEOUT_S * 1000)))
+        conf.insert_json5("connect/retry", "{period_init_ms: 100, period_max_ms: 500, period_increase_factor: 2}")
+    if t.lease_ms:
+        conf.insert_json5("transport/link/tx/lease", str(int(t.lease_ms)))
+    for key, value in t.extra:
+        conf.insert_json5(key, value)
+    return conf
+
+
+def open_session(t: Transport):
+    return zenoh.open(zenoh_config(t))
+
+
+def free_tcp_port() -> int:
+    """A TCP port on 127.0.0.1 that was free a moment ago (for a fresh router endpoint)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+# cdus carries its own send time in every payload; the router's per-message timestamps
+# would add 26 bytes to each delivered ω message (measured: 68 -> 42 bytes on the wire).
+NO_TIMESTAMPS = (("timestamping/enabled", "{router: false, peer: false, client: false}"),)
+
+
+def local_router(port: int | None = None) -> Transport:
+    """The default world transport: a router on loopback, without per-message timestamps."""
+    return Transport(mode="router", listen=(f"tcp/127.0.0.1:{port or free_tcp_port()}",), extra=NO_TIMESTAMPS)
+
+
+def client_of(router: Transport, base: Transport | None = None) -> Transport:
+    """A client connecting to ``router``'s listen endpoints (keeping ``base``'s config file)."""
+    eps = tuple(ep.replace("tcp/0.0.0.0:", "tcp/127.0.0.1:") for ep in router.listen)
+    return Transport(mode="client", connect=eps, config_file=base.config_file if base else None,
+                     lease_ms=router.lease_ms)

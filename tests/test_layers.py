@@ -1,0 +1,125 @@
+"""The code is layered by role, and the import graph says so.
+
+From the bottom: ``cdus.wire`` (what goes over Zenoh) and ``cdus.files``; ``cdus.core``
+(the pure math and decisions); ``cdus.scenario`` (the config schema and its checks);
+``cdus.sim`` (a scenario's pieces, the per-vehicle tick protocol, the in-process fleet);
+the process shells ``vehicle_agent``, ``world_sim`` and ``ground_station``; and the app
+(``cdus.app``: cli, launcher, sweep, report). A module imports only from its own layer
+or below, there are no import cycles, and no project module is imported inside a
+function (which is how cycles hide), but for the heavy optional ones listed in LAZY.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("cdus", "vehicle_agent", "world_sim", "ground_station")
+LAYERS = {  # module prefix -> layer rank (longest prefix wins)
+    "cdus.wire": 0, "cdus.files": 0,
+    "cdus.core": 1,
+    "cdus.scenario": 2,
+    "cdus.sim": 3,
+    "vehicle_agent": 4, "world_sim": 4, "ground_station": 4,
+    "cdus.app": 5, "cdus.__main__": 5,
+}
+PURE = ("cdus.core", "cdus.scenario", "cdus.sim")  # no Zenoh, no Rerun, no clocks or printing
+IMPURE_MODULES = {"zenoh", "rerun", "time", "threading", "subprocess", "socket", "signal"}
+# The only project imports allowed inside a function: heavy optional dependencies, with why.
+# They still count for the cycle check.
+LAZY = {
+    ("cdus.app.cli", "world_sim.rerun_sink"): "Rerun costs ~1 s and 55 MB to import; only `cdus sim` needs it here",
+}
+
+
+def modules() -> dict[str, Path]:
+    out = {}
+    for pkg in PACKAGES:
+        for path in (ROOT / pkg).rglob("*.py"):
+            rel = path.relative_to(ROOT).with_suffix("")
+            parts = rel.parts[:-1] if rel.name == "__init__" else rel.parts
+            out[".".join(parts)] = path
+    return out
+
+
+def layer(module: str) -> int:
+    best = max((p for p in LAYERS if module == p or module.startswith(p + ".")), key=len, default=None)
+    assert best is not None, f"{module} is in no layer; add it to LAYERS"
+    return LAYERS[best]
+
+
+def imports(path: Path, known: set[str]) -> tuple[set[str], list[tuple[int, str]], set[str]]:
+    """(project modules imported at module level, (line, module) imported inside a function,
+    every top-level name imported)."""
+    tree = ast.parse(path.read_text())
+    top: set[str] = set()
+    nested: list[tuple[int, str]] = []
+    names: set[str] = set()
+
+    def resolve(node: ast.AST) -> list[str]:
+        found = []
+        if isinstance(node, ast.Import):
+            for a in node.names:
+                names.add(a.name.split(".")[0])
+                found.append(a.name)
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names.add(node.module.split(".")[0])
+            for a in node.names:
+                full = f"{node.module}.{a.name}"
+                found.append(full if full in known else node.module)
+        return [m for m in found if m.split(".")[0] in PACKAGES]
+
+    for node in tree.body:
+        top.update(resolve(node))
+    for fn in ast.walk(tree):
+        if isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            for node in ast.walk(fn):
+                for m in resolve(node):
+                    nested.append((node.lineno, m))
+    return top, nested, names
+
+
+MODS = modules()
+GRAPH = {m: imports(p, set(MODS)) for m, p in MODS.items()}
+
+
+@pytest.mark.parametrize("module", sorted(MODS))
+def test_imports_go_down_the_layers(module):
+    up = [m for m in GRAPH[module][0] if layer(m) > layer(module)]
+    assert not up, f"{module} (layer {layer(module)}) imports from a higher layer: {up}"
+
+
+@pytest.mark.parametrize("module", sorted(MODS))
+def test_no_project_imports_inside_functions(module):
+    nested = [(line, m) for line, m in GRAPH[module][1] if (module, m) not in LAZY]
+    assert not nested, f"{module} imports inside a function: {nested}"
+
+
+@pytest.mark.parametrize("module", sorted(m for m in MODS if m.startswith(PURE)))
+def test_the_core_is_pure(module):
+    bad = GRAPH[module][2] & IMPURE_MODULES
+    assert not bad, f"{module} imports {sorted(bad)}; the core does no I/O and reads no clock"
+
+
+def test_no_import_cycles():
+    edges = {m: {d for d in GRAPH[m][0] | {n for _, n in GRAPH[m][1]} if d in MODS} for m in MODS}
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(m: str) -> None:
+        state[m] = 1
+        stack.append(m)
+        for d in sorted(edges[m]):
+            if state.get(d) == 1:
+                raise AssertionError("import cycle: " + " -> ".join(stack[stack.index(d):] + [d]))
+            if d not in state:
+                visit(d)
+        stack.pop()
+        state[m] = 2
+
+    for m in sorted(MODS):
+        if m not in state:
+            visit(m)

@@ -1,0 +1,190 @@
+"""The ω message: wire round trip, size bound, every rejection reason, a decode fuzz."""
+
+import math
+import random
+import struct
+
+import msgpack
+import pytest
+
+from cdus.wire.messages import (
+    MAX_OMEGA_PAYLOAD, OMEGA_VERSION, OmegaMsg, decode_omega, encode_omega,
+)
+
+
+def _f32(x):
+    return struct.unpack("<f", struct.pack("<f", x))[0]
+
+
+def _raw(*items):
+    """A payload with chosen element types; floats packed as float32 so that any
+    replacement still fits the size bound (these values are exact in float32)."""
+    return msgpack.packb(list(items), use_single_float=True)
+
+
+GOOD = (OMEGA_VERSION, 2, 17, 12.5, -3.25, -1.0)
+
+
+def test_raw_helper_builds_a_valid_message():
+    assert decode_omega(_raw(*GOOD)) == OmegaMsg(2, 17, 12.5, -3.25, -1.0)
+
+
+@pytest.mark.parametrize("omega", [-1234567.891011121314, 1e-300, 2.0**60 + 0.5, -math.pi * 1e6,
+                                   0.1 + 0.2])
+def test_round_trip_keeps_omega_exact(omega):
+    rate = -1.0049876543210987
+    m = OmegaMsg(sender=3, seq=99, t_send=1234.000001, omega=omega, omega_rate=rate)
+    got = decode_omega(encode_omega(m), expected_sender=3, n_vehicles=6)
+    assert isinstance(got, OmegaMsg)
+    assert got.omega == omega  # float64 on the wire, bit for bit
+    assert got.t_send == m.t_send
+    assert (got.sender, got.seq) == (3, 99)
+    assert got.omega_rate == _f32(rate)  # float32 on the wire
+    assert got.omega_rate != rate
+    assert abs(got.omega_rate - rate) < 1e-7
+
+
+def test_omega_rate_beyond_float32_is_clamped_not_lost():
+    got = decode_omega(encode_omega(OmegaMsg(0, 0, 0.0, 1.0, -1e300)))
+    assert isinstance(got, OmegaMsg)
+    assert got.omega_rate == _f32(-3.0e38)
+
+
+@pytest.mark.parametrize("sender, seq, t, w, wd", [
+    (127, 2**32 - 1, 1e300, -1e300, -1e300),
+    (127, 2**32 - 1, -1e308, 1.7e308, 3e38),
+    (255, 2**32 - 1, 1e300, -1e300, 1e-45),
+    (0, 0, 0.0, 0.0, 0.0),
+])
+def test_payload_fits_the_bound_for_extreme_values(sender, seq, t, w, wd):
+    payload = encode_omega(OmegaMsg(sender, seq, t, w, wd))
+    assert len(payload) <= MAX_OMEGA_PAYLOAD
+    assert isinstance(decode_omega(payload), OmegaMsg)
+
+
+def test_payload_is_31_bytes_at_the_documented_extremes():
+    assert len(encode_omega(OmegaMsg(127, 2**32 - 1, 1e300, -1e300, -1.0))) == 31
+
+
+def test_oversized():
+    assert decode_omega(b"\x96" + b"\x00" * 40) == "oversized"
+    assert decode_omega(bytes(MAX_OMEGA_PAYLOAD + 1)) == "oversized"
+    # a sequence number past 2**32 no longer fits the bound
+    assert decode_omega(encode_omega(OmegaMsg(0, 2**32, 0.0, 0.0, 0.0))) == "oversized"
+
+
+@pytest.mark.parametrize("payload", [
+    b"",
+    b"\xc1",  # never-used msgpack byte
+    b"\xff\xfe\xfd garbage",
+    encode_omega(OmegaMsg(1, 2, 3.0, 4.0, -1.0))[:-3],  # truncated
+    encode_omega(OmegaMsg(1, 2, 3.0, 4.0, -1.0)) + b"\x00",  # trailing bytes
+    msgpack.packb({"v": 1}),  # map instead of list
+    msgpack.packb({}),
+    _raw(*GOOD[:5]),  # wrong length
+    _raw(*GOOD, 0.0),
+    msgpack.packb([]),
+    msgpack.packb(3.5),
+    msgpack.packb(list(range(9))),  # beyond max_array_len
+    msgpack.packb([1, 2, 3, b"bin", 5.0, 6.0]),  # bin is not allowed
+    msgpack.packb([1, 2, 3, "str", 5.0, 6.0]),
+])
+def test_malformed(payload):
+    assert decode_omega(payload) == "malformed"
+
+
+@pytest.mark.parametrize("version", [0, 2, 1.0, True, None])
+def test_version(version):
+    assert decode_omega(_raw(version, *GOOD[1:])) == "version"
+
+
+@pytest.mark.parametrize("index, value", [
+    (1, 2.0),      # sender as float
+    (2, 17.0),     # seq as float
+    (1, None),
+    (3, 12),       # t_send as int
+    (4, -3),       # ω as int: the schema says float64
+    (5, None),
+])
+def test_type(index, value):
+    items = list(GOOD)
+    items[index] = value
+    assert decode_omega(_raw(*items)) == "type"
+
+
+@pytest.mark.parametrize("index, value", [(1, True), (2, False), (3, True), (4, False), (5, True)])
+def test_bools_are_not_numbers(index, value):
+    """msgpack decodes true/false as bool, a subclass of int; `type(x) is int` rejects it."""
+    items = list(GOOD)
+    items[index] = value
+    assert decode_omega(_raw(*items)) == "type"
+
+
+@pytest.mark.parametrize("index", [3, 4, 5])
+@pytest.mark.parametrize("value", [math.nan, math.inf, -math.inf])
+def test_non_finite(index, value):
+    items = list(GOOD)
+    items[index] = value
+    assert decode_omega(_raw(*items)) == "non_finite"
+
+
+@pytest.mark.parametrize("field", ["t_send", "omega", "omega_rate"])
+@pytest.mark.parametrize("value", [math.nan, math.inf, -math.inf])
+def test_encoded_non_finite_is_rejected(field, value):
+    """A diverged sender's message is dropped by every receiver; the float32 clamp of ω̇
+    must not turn a NaN or ±inf into a plausible-looking finite rate."""
+    m = OmegaMsg(**{"sender": 0, "seq": 1, "t_send": 2.0, "omega": 3.0, "omega_rate": -1.0,
+                    field: value})
+    assert decode_omega(encode_omega(m)) == "non_finite"
+
+
+@pytest.mark.parametrize("kwargs, items", [
+    ({"n_vehicles": 2}, GOOD),                     # index 2 of 2 vehicles
+    ({"n_vehicles": 6, "expected_sender": 1}, GOOD),  # the key says vehicle 1
+    ({}, (1, -1, 17, 12.5, -3.25, -1.0)),            # negative index
+    ({}, (1, 2, -5, 12.5, -3.25, -1.0)),             # negative seq
+])
+def test_unknown_sender(kwargs, items):
+    assert decode_omega(_raw(*items), **kwargs) == "unknown_sender"
+
+
+def test_expected_sender_and_range_accept_the_right_one():
+    got = decode_omega(_raw(*GOOD), expected_sender=2, n_vehicles=3)
+    assert isinstance(got, OmegaMsg) and got.sender == 2
+
+
+def test_float32_fields_are_accepted():
+    """Any msgpack float is a float: a sender packing single floats is understood."""
+    payload = msgpack.packb([1, 0, 0, 1.5, 2.5, -1.0], use_single_float=True)
+    assert decode_omega(payload) == OmegaMsg(0, 0, 1.5, 2.5, -1.0)
+
+
+REASONS = {"oversized", "malformed", "version", "type", "non_finite", "unknown_sender"}
+
+
+def test_fuzz_random_bytes_never_raise():
+    rng = random.Random(20240611)
+    outcomes = {}
+    for _ in range(5000):
+        n = rng.randrange(0, 40)
+        payload = bytes(rng.randrange(256) for _ in range(n))
+        got = decode_omega(payload, expected_sender=rng.randrange(4), n_vehicles=4)
+        assert isinstance(got, OmegaMsg) or got in REASONS
+        key = "ok" if isinstance(got, OmegaMsg) else got
+        outcomes[key] = outcomes.get(key, 0) + 1
+    assert outcomes["oversized"] > 0 and outcomes["malformed"] > 0
+
+
+def test_fuzz_mutated_messages_never_raise():
+    """Byte flips of a valid payload reach the deeper checks, not only "malformed"."""
+    rng = random.Random(7)
+    base = encode_omega(OmegaMsg(1, 42, 10.0, -7.5, -1.0))
+    seen = set()
+    for _ in range(5000):
+        b = bytearray(base)
+        for _ in range(rng.randrange(1, 3)):
+            b[rng.randrange(len(b))] = rng.randrange(256)
+        got = decode_omega(bytes(b), n_vehicles=4)
+        assert isinstance(got, OmegaMsg) or got in REASONS
+        seen.add("ok" if isinstance(got, OmegaMsg) else got)
+    assert {"ok", "malformed", "version", "type"} <= seen
