@@ -120,6 +120,6 @@ def local_router(port: int | None = None) -> Transport:
 
 def client_of(router: Transport, base: Transport | None = None) -> Transport:
     """A client connecting to ``router``'s listen endpoints (keeping ``base``'s config file)."""
-    eps = tuple(ep.replace("tcp/0.0.0.0:", "tcp/127.0.0.1:") for ep in router.listen)
+    eps = tuple(ep.replace("/0.0.0.0:", "/127.0.0.1:") for ep in router.listen)
     return Transport(mode="client", connect=eps, config_file=base.config_file if base else None,
                      lease_ms=router.lease_ms)

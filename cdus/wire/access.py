@@ -1,0 +1,86 @@
+"""Who may say what on a fleet's keys: the roles of a secured fleet and the Zenoh
+access-control list that enforces them on the router (docs/multihost.md, "A secured fleet").
+
+Every process of a secured fleet authenticates to the router as one role (a Zenoh
+user name, and with TLS the same name as its certificate's common name):
+
+    world               publishes the clock, the world's status and events, its fault
+                        requests to the launcher; answers world/last queries
+    vehicle-<id>        publishes only its own keys: v/<id>/omega, state, stats, and the
+                        liveliness token alive/<id>
+    ground              a ground station: publishes commands, cmd/<anything>
+
+Every role may subscribe to and query anything under ``cdus/<fleet>/``; nothing else may
+be published or declared there, or anywhere else (the list denies by default). The
+launcher is the router itself, so it needs no role: Zenoh checks what crosses the
+router's links, not what its own session does.
+"""
+
+from __future__ import annotations
+
+from cdus.wire import keys
+
+WORLD_ROLE = "world"
+GROUND_ROLE = "ground"
+
+#: every message kind Zenoh's access control knows (checked against eclipse-zenoh 1.10)
+MESSAGES = ("put", "delete", "declare_subscriber", "query", "reply", "declare_queryable",
+            "liveliness_token", "liveliness_query", "declare_liveliness_subscriber")
+#: what any member of the fleet may ask the router for: watching and querying
+READ = ("declare_subscriber", "declare_liveliness_subscriber", "liveliness_query", "query")
+
+
+def vehicle_role(vid: str) -> str:
+    return f"vehicle-{vid}"
+
+
+def roles(vehicle_ids: list[str] | tuple[str, ...]) -> list[str]:
+    """Every role of a fleet: the world, the ground station, one per vehicle."""
+    return [WORLD_ROLE, GROUND_ROLE, *(vehicle_role(v) for v in vehicle_ids)]
+
+
+def _rule(rule_id: str, messages: tuple[str, ...], key_exprs: list[str], flow: str = "ingress") -> dict:
+    return {"id": rule_id, "permission": "allow", "flows": [flow], "messages": list(messages),
+            "key_exprs": key_exprs}
+
+
+def fleet_acl(fleet: str, vehicle_ids: list[str] | tuple[str, ...], match_certificates: bool = False) -> dict:
+    """The ``access_control`` section of the router's Zenoh config for ``fleet``.
+
+    A subject is a user name; with ``match_certificates`` it must also present a TLS
+    certificate with that common name (Zenoh ANDs the two lists of a subject).
+    """
+    f = keys.check_fleet(fleet)
+    everything = f"{keys.prefix(f)}/**"
+    subjects, rules, policies = [], [], []
+
+    def subject(role: str) -> str:
+        s = {"id": role, "usernames": [role]}
+        if match_certificates:
+            s["cert_common_names"] = [role]
+        subjects.append(s)
+        return role
+
+    members = [subject(r) for r in roles(vehicle_ids)]
+    rules += [_rule("fleet-out", MESSAGES, [everything], flow="egress"),
+              _rule("fleet-read", READ, [everything])]
+    policies.append({"id": "members", "rules": ["fleet-out", "fleet-read"], "subjects": members})
+
+    rules += [
+        _rule("world-put", ("put",), [keys.clock(f), keys.world_status(f), keys.world_events(f),
+                                      keys.cmd(f, "launcher")]),
+        _rule("world-token", ("liveliness_token",), [keys.alive(f, keys.WORLD)]),
+        _rule("world-last", ("declare_queryable", "reply"), [keys.world_last(f, "**")]),
+    ]
+    policies.append({"id": "world", "rules": ["world-put", "world-token", "world-last"], "subjects": [WORLD_ROLE]})
+
+    rules.append(_rule("ground-commands", ("put",), [keys.cmd(f, "**")]))
+    policies.append({"id": "ground", "rules": ["ground-commands"], "subjects": [GROUND_ROLE]})
+
+    for vid in vehicle_ids:
+        role = vehicle_role(vid)
+        rules += [_rule(f"{role}-put", ("put",), [keys.omega(f, vid), keys.state(f, vid), keys.stats(f, vid)]),
+                  _rule(f"{role}-token", ("liveliness_token",), [keys.alive(f, vid)])]
+        policies.append({"id": role, "rules": [f"{role}-put", f"{role}-token"], "subjects": [role]})
+    return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects,
+            "policies": policies}

@@ -1,0 +1,163 @@
+"""A secured run's credentials, and what Zenoh lets each role do with them (loopback only)."""
+
+from __future__ import annotations
+
+import json
+import stat
+import threading
+import time
+
+import pytest
+import zenoh
+
+from cdus.app.credentials import CredentialsError, endpoint_host, make_credentials, secure_endpoints
+from cdus.wire import access, keys
+from cdus.wire.messages import OmegaMsg, encode_control, encode_omega
+from cdus.wire.transport import Transport, free_tcp_port, open_session
+
+IDS = ("usv1", "usv2", "uav1")
+
+
+def test_files_are_private_and_the_ca_key_is_never_written(tmp_path):
+    cred = make_credentials(tmp_path / "secure", "f1", IDS, ("tcp/127.0.0.1:7447",), "tls")
+    d = tmp_path / "secure"
+    assert stat.S_IMODE(d.stat().st_mode) == 0o700
+    files = sorted(p.name for p in d.iterdir())
+    for p in d.iterdir():
+        assert stat.S_IMODE(p.stat().st_mode) == 0o600, p
+    assert "ca.key" not in files and "ca.pem" in files
+    for role in access.roles(IDS):
+        assert f"{role}.json5" in files and f"{role}.pem" in files and f"{role}.key" in files
+    users = [ln.split(":")[0] for ln in (d / "passwords").read_text().splitlines()]
+    assert users == ["world", "ground", "vehicle-usv1", "vehicle-usv2", "vehicle-uav1"]
+    assert cred.listen == ("tls/127.0.0.1:7447",)
+    client = json.loads(cred.file("ground").read_text())
+    assert client["scouting"]["multicast"]["enabled"] is False
+    assert client["connect"]["endpoints"] == ["tls/127.0.0.1:7447"]
+    assert client["transport"]["auth"]["usrpwd"]["user"] == "ground"
+    assert "verify_name_on_connect" not in client["transport"]["link"]["tls"]  # the name is checked
+
+
+def test_endpoints_in_tls_mode():
+    assert secure_endpoints(("tcp/0.0.0.0:7447", "tls/10.0.0.1:1"), "tls") == ("tls/0.0.0.0:7447", "tls/10.0.0.1:1")
+    assert secure_endpoints(("unixsock-stream//tmp/x",), "password") == ("unixsock-stream//tmp/x",)
+    with pytest.raises(CredentialsError, match="cannot carry TLS"):
+        secure_endpoints(("unixsock-stream//tmp/x",), "tls")
+    with pytest.raises(CredentialsError, match="choose one of password, tls"):
+        secure_endpoints(("tcp/127.0.0.1:1",), "kerberos")
+    assert endpoint_host("tls/[::1]:7447#iface=lo") == "::1"
+    assert endpoint_host("tcp/example.org:7447") == "example.org"
+
+
+def test_a_wildcard_listener_turns_name_checks_off_for_clients(tmp_path):
+    cred = make_credentials(tmp_path, "f1", IDS, ("tcp/0.0.0.0:7447",), "tls")
+    client = json.loads(cred.file("vehicle-usv1").read_text())
+    assert client["connect"]["endpoints"] == ["tls/127.0.0.1:7447"]
+    assert client["transport"]["link"]["tls"]["verify_name_on_connect"] is False
+
+
+def test_the_acl_is_a_valid_zenoh_config_section():
+    conf = zenoh.Config()
+    conf.insert_json5("access_control", json.dumps(access.fleet_acl("f1", IDS, match_certificates=True)))
+    back = json.loads(conf.get_json("access_control"))
+    assert back["enabled"] is True and back["default_permission"] == "deny"
+    rules = {r["id"]: r for r in back["rules"]}
+    assert rules["vehicle-usv1-put"]["key_exprs"] == ["cdus/f1/v/usv1/omega", "cdus/f1/v/usv1/state",
+                                                      "cdus/f1/v/usv1/stats"]
+
+
+def raw_client(endpoint: str) -> zenoh.Config:
+    """An outsider: a plain Zenoh client, no credentials, no retries."""
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"client"')
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
+    return conf
+
+
+class Heard:
+    """Every put and every fleet liveliness token that reached the router."""
+
+    def __init__(self, router, fleet: str):
+        self.cond = threading.Condition()
+        self.puts: list[str] = []
+        self.tokens: set[str] = set()
+        self.subs = [router.declare_subscriber("**", lambda s: self._on(self.puts.append, s)),
+                     router.liveliness().declare_subscriber(keys.any_alive(fleet),
+                                                            lambda s: self._on(self.tokens.add, s))]
+
+    def _on(self, add, sample) -> None:
+        with self.cond:
+            add(str(sample.key_expr))
+            self.cond.notify_all()
+
+    def wait_for(self, key: str, timeout: float = 10.0) -> None:
+        deadline = time.monotonic() + timeout
+        with self.cond:
+            while key not in self.puts and key not in self.tokens:
+                assert time.monotonic() < deadline, f"{key} never arrived; heard {self.puts}, {self.tokens}"
+                self.cond.wait(timeout=0.1)
+
+
+@pytest.mark.parametrize("mode", ["password", "tls"])
+def test_each_role_may_publish_only_its_own_keys(tmp_path, mode):
+    fleet = "acl" + mode
+    port = free_tcp_port()
+    cred = make_credentials(tmp_path, fleet, IDS, (f"tcp/127.0.0.1:{port}",), mode)
+    ep = cred.listen[0]
+    router = open_session(Transport(mode="router", listen=cred.listen, extra=cred.router_extra()))
+    sessions = []
+    try:
+        heard = Heard(router, fleet)
+        for who, conf in [("no credentials", raw_client(ep)),
+                          ("plain tcp", raw_client(f"tcp/127.0.0.1:{port}"))][: 2 if mode == "tls" else 1]:
+            with pytest.raises(zenoh.ZError):
+                sessions.append(zenoh.open(conf))
+        wrong = json.loads(cred.file("ground").read_text())
+        wrong["transport"]["auth"]["usrpwd"]["password"] = "guess"
+        (tmp_path / "wrong.json5").write_text(json.dumps(wrong))
+        with pytest.raises(zenoh.ZError):
+            sessions.append(zenoh.open(zenoh.Config.from_file(str(tmp_path / "wrong.json5"))))
+
+        def member(role: str):
+            s = zenoh.open(zenoh.Config.from_file(str(cred.file(role))))
+            sessions.append(s)
+            return s
+
+        usv1, ground, world = member("vehicle-usv1"), member("ground"), member("world")
+        watched = []  # by another member (a session hears its own puts whatever the router says)
+        member("vehicle-uav1").declare_subscriber(keys.any_vehicle(fleet, "omega"), lambda s: watched.append(str(s.key_expr)))
+        omega = encode_omega(OmegaMsg(1, 0, 0.0, 123.0, -1.0))
+        # a vehicle: its own ω and token, nobody else's keys, no commands
+        usv1.put(keys.omega(fleet, "usv2"), omega)
+        usv1.put(keys.cmd(fleet, keys.WORLD), encode_control("stop"))
+        usv1.put(keys.cmd(fleet, keys.ALL), encode_control("set_gains", gains={"c": 0.1}))
+        usv1.put(keys.clock(fleet), encode_control("stop"))
+        usv1.liveliness().declare_token(keys.alive(fleet, "usv2"))
+        usv1.liveliness().declare_token(keys.alive(fleet, "usv1"))
+        usv1.put(keys.omega(fleet, "usv1"), omega)
+        # the ground station: commands, not ω
+        ground.put(keys.omega(fleet, "usv2"), omega)
+        ground.put(keys.cmd(fleet, keys.ALL), encode_control("pause"))
+        ground.put(keys.cmd(fleet, keys.WORLD), encode_control("stop"))
+        # the world: its clock, not ω or vehicle telemetry
+        world.put(keys.state(fleet, "usv1"), b"x")
+        world.put(keys.clock(fleet), encode_control("stop"))
+        # a key outside the fleet is nobody's
+        ground.put("cdus/otherfleet/cmd/all", encode_control("stop"))
+        ground.put("elsewhere", b"x")
+        for last in (keys.omega(fleet, "usv1"), keys.cmd(fleet, keys.WORLD), keys.clock(fleet)):
+            heard.wait_for(last)  # each session's puts arrive in order: what is missing was refused
+        heard.wait_for(keys.alive(fleet, "usv1"))
+        assert heard.tokens == {keys.alive(fleet, "usv1")}
+        assert sorted(heard.puts) == sorted([keys.omega(fleet, "usv1"), keys.cmd(fleet, keys.ALL),
+                                             keys.cmd(fleet, keys.WORLD), keys.clock(fleet)])
+        # members hear each other: usv1's ω reached the ground station through the router
+        deadline = time.monotonic() + 10
+        while keys.omega(fleet, "usv1") not in watched and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert watched == [keys.omega(fleet, "usv1")]
+    finally:
+        for s in sessions:
+            s.close()
+        router.close()
