@@ -12,14 +12,18 @@ import argparse
 import json
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Sequence
 
+from cdus.app.credentials import Credentials, CredentialsError, make_credentials
 from cdus.app.launcher import LaunchOptions, launch
 from cdus.app.sweep import parse_grid, sweep
 from cdus.scenario.config import ConfigError, load_scenario, parse_overrides
 from cdus.sim.fleet import InProcessFleet
-from cdus.wire.transport import Transport, local_router
+from cdus.wire import keys
+from cdus.wire.access import GROUND_ROLE, WORLD_ROLE, vehicle_role
+from cdus.wire.transport import Transport, client_of, local_router
 from ground_station.__main__ import main as gs_main
 from world_sim.recording import parse_spec
 from cdus.app.report import Progress, run_dir, summary_table
@@ -81,6 +85,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="router endpoint(s) (default: tcp/127.0.0.1:<free port>); e.g. tcp/0.0.0.0:7447 "
                         "for agents on other hosts")
     p.add_argument("--zenoh-config", metavar="FILE", help="zenoh json5 config for the router (multicast forced off)")
+    p.add_argument("--secure", action="store_true",
+                   help="generate credentials for this run in <run dir>/secure/ and require them: a Zenoh user "
+                        "and password per process, and an access-control list on the router that lets each "
+                        "process publish only its own keys (a ground station attaches with secure/ground.json5)")
+    p.add_argument("--tls", action="store_true",
+                   help="--secure, over TLS: a private CA for the run, a certificate per process (mutual TLS), "
+                        "the router's endpoints tls/...; the list also checks each certificate's name")
     p.set_defaults(func=cmd_launch)
 
     p = sub.add_parser("sweep", help="run a grid of config values x seeds; a table, a summary and a plot",
@@ -143,19 +154,34 @@ def cmd_launch(args: argparse.Namespace) -> int:
         parse_spec(args.rerun, Path(args.logs or "."))  # a bad --rerun starts nothing
     except ValueError as e:
         raise ConfigError("command line", [("--rerun", str(e))]) from None
+    fleet = args.fleet or scenario.name.replace(".", "_")
+    try:
+        keys.check_fleet(fleet)
+    except ValueError as e:
+        raise ConfigError("command line", [("--fleet", str(e))]) from None
+    if (args.secure or args.tls) and args.zenoh_config and not args.listen:
+        raise ConfigError("command line", [("--secure", "with --zenoh-config, give the router's endpoints with "
+                                                        "--listen too (the credentials name them)")])
     run = Path(args.logs) if args.logs else run_dir(args.runs_dir, scenario.name)
     run.mkdir(parents=True, exist_ok=True)
     router = (Transport(mode="router", listen=tuple(args.listen), config_file=args.zenoh_config)
               if args.listen or args.zenoh_config else local_router())
     opts = LaunchOptions(
-        fleet=args.fleet or scenario.name.replace(".", "_"), clock=args.clock, duration=args.duration,
+        fleet=fleet, clock=args.clock, duration=args.duration,
         restart=args.restart, metrics_out=Path(args.metrics_out) if args.metrics_out else None,
         trace_out=Path(args.trace_out) if args.trace_out else None, policy=args.policy,
         ready_timeout=args.ready_timeout, quiet=args.quiet, rerun=args.rerun)
+    cred = None
+    if args.secure or args.tls:
+        router, cred = secure_router(router, opts, scenario.ids, run / "secure", "tls" if args.tls else "password")
     print(f"{scenario.name}: launching {len(scenario.vehicles)} vehicle processes + world "
           f"({args.clock} clock), router {', '.join(router.listen) or args.zenoh_config}")
+    if cred is not None:
+        print(f"  secured ({cred.mode}): credentials in {cred.directory}; only the fleet's own processes and "
+              f"ground stations holding {cred.file(GROUND_ROLE).name} may publish under cdus/{opts.fleet}/")
+    gs_config = f" --zenoh-config {cred.file(GROUND_ROLE)}" if cred is not None else ""
     print(f"  attach a ground station: cdus gs --fleet {opts.fleet} -e "
-          f"{(router.listen[0] if router.listen else 'ENDPOINT').replace('0.0.0.0', '127.0.0.1')} status")
+          f"{(client_of(router).connect or ('ENDPOINT',))[0]}{gs_config} status")
     status, la = launch(scenario, run, router, opts)
     if la.metrics_out.exists():
         metrics = json.loads(la.metrics_out.read_text())
@@ -168,6 +194,17 @@ def cmd_launch(args: argparse.Namespace) -> int:
         print(f"no metrics were written; logs: {la.logs}", file=sys.stderr)
         status = status or EXIT_FAIL
     return status
+
+
+def secure_router(router: Transport, opts: LaunchOptions, ids: tuple[str, ...], directory: Path,
+                  mode: str) -> tuple[Transport, Credentials]:
+    """Credentials for this run; the router requires them, every child gets its own file."""
+    try:
+        cred = make_credentials(directory, opts.fleet, ids, router.listen, mode)
+    except CredentialsError as e:
+        raise ConfigError("command line", [("--secure", str(e))]) from None
+    opts.zenoh_configs = {"world": str(cred.file(WORLD_ROLE)), **{v: str(cred.file(vehicle_role(v))) for v in ids}}
+    return replace(router, listen=cred.listen, extra=router.extra + cred.router_extra()), cred
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:

@@ -103,6 +103,7 @@ class LaunchOptions:
     quiet: bool = False
     lease_ms: int | None = 1000
     rerun: str = "off"
+    zenoh_configs: dict[str, str] = field(default_factory=dict)  # child name -> its --zenoh-config (credentials)
 
 
 @dataclass
@@ -133,16 +134,17 @@ class Launcher:
         self.env["PYTHONUNBUFFERED"] = "1"
 
     # ------------------------------------------------------------------ processes
-    def _common(self) -> list[str]:
+    def _common(self, name: str) -> list[str]:
         client = client_of(self.router)
-        t = Transport(mode="client", connect=client.connect, lease_ms=self.opts.lease_ms)
+        t = Transport(mode="client", connect=client.connect, config_file=self.opts.zenoh_configs.get(name),
+                      lease_ms=self.opts.lease_ms)
         out = ["--config", str(self.config_path), "--fleet", self.fleet, "--clock", self.opts.clock, *t.args()]
         if self.opts.duration is not None:
             out += ["--duration", str(self.opts.duration)]
         return out
 
     def _world(self) -> Child:
-        argv = [sys.executable, "-m", "world_sim", *self._common(), "--metrics-out", str(self.metrics_out),
+        argv = [sys.executable, "-m", "world_sim", *self._common("world"), "--metrics-out", str(self.metrics_out),
                 "--start-timeout", str(self.opts.ready_timeout + 5)]
         if self.opts.trace_out:
             argv += ["--trace-out", str(self.opts.trace_out)]
@@ -150,7 +152,7 @@ class Launcher:
         return Child("world", argv, self.logs / "world.log")
 
     def _agent(self, vid: str) -> Child:
-        argv = [sys.executable, "-m", "vehicle_agent", *self._common(), "--id", vid]
+        argv = [sys.executable, "-m", "vehicle_agent", *self._common(vid), "--id", vid]
         if self.opts.policy:
             argv += ["--policy", self.opts.policy]
         return Child(vid, argv, self.logs / f"{vid}.log")
