@@ -1,0 +1,218 @@
+"""End to end: a secured fleet (cdus launch --secure / --tls) ignores everyone but its own.
+
+An outsider tries what would hurt a fleet: stop the world and the vehicles, change their
+gains, inject ω. Without credentials (or with a wrong password) it cannot even connect;
+with a stolen vehicle's credentials the router's access-control list lets it publish only
+that vehicle's own keys. The same commands from the credentialed ground station work, so
+each check could fail.
+"""
+
+from __future__ import annotations
+
+import json
+import random
+import re
+import shlex
+import threading
+import time
+
+import numpy as np
+import pytest
+import zenoh
+
+from cdus.scenario.config import load_scenario
+from cdus.sim.fleet import InProcessFleet
+from cdus.wire import keys
+from cdus.wire.messages import OmegaMsg, encode_control, encode_omega
+from cdus.wire.transport import free_tcp_port
+
+from .conftest import fleet_processes, run_cli, unique_fleet
+from .test_faults import hostile_omega_payloads
+
+
+def raw_client(endpoint: str) -> zenoh.Config:
+    """An outsider's Zenoh client: no credentials, no retries, multicast off."""
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"client"')
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
+    return conf
+
+
+def member(config_file) -> zenoh.Session:
+    return zenoh.open(zenoh.Config.from_file(str(config_file)))
+
+
+class Events:
+    """The world's events, as a member of the fleet hears them."""
+
+    def __init__(self, session: zenoh.Session, fleet: str):
+        self.cond = threading.Condition()
+        self.lines: list[str] = []
+        self.sub = session.declare_subscriber(keys.world_events(fleet), self._on)
+
+    def _on(self, sample) -> None:
+        with self.cond:
+            self.lines.append(sample.payload.to_bytes().decode())
+            self.cond.notify_all()
+
+    def wait_for(self, text: str, timeout: float = 30.0) -> None:
+        deadline = time.monotonic() + timeout
+        with self.cond:
+            while not any(text in ln for ln in self.lines):
+                assert time.monotonic() < deadline, f"no event {text!r}; heard {self.lines}"
+                self.cond.wait(timeout=0.2)
+
+
+class Status:
+    """The world's simulated time, from its status messages."""
+
+    def __init__(self, session: zenoh.Session, fleet: str):
+        self.cond = threading.Condition()
+        self.t = -1.0
+        self.sub = session.declare_subscriber(keys.world_status(fleet), self._on)
+
+    def _on(self, sample) -> None:
+        with self.cond:
+            self.t = float(json.loads(sample.payload.to_bytes())["t"])
+            self.cond.notify_all()
+
+    def wait_past(self, t: float, timeout: float = 30.0) -> float:
+        deadline = time.monotonic() + timeout
+        with self.cond:
+            while self.t < t:
+                assert time.monotonic() < deadline, f"the world's time stayed at {self.t}, not past {t}"
+                self.cond.wait(timeout=0.2)
+            return self.t
+
+
+def gs_command(launch_output_line: str) -> list[str]:
+    """The `cdus gs ...` arguments the launcher printed, without the trailing action."""
+    words = shlex.split(launch_output_line.split("attach a ground station:", 1)[1])
+    assert words[:2] == ["cdus", "gs"] and words[-1] == "status", words
+    return words[1:-1]
+
+
+def test_an_outsider_cannot_stop_retune_or_inject_into_a_secured_fleet(tmp_path, launches):
+    fleet = unique_fleet()
+    port = free_tcp_port()
+    run = tmp_path / "run"
+    duration = 150.0
+    la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", str(duration), "--secure",
+                   "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "--trace-out", str(tmp_path / "trace.npz"),
+                   "-q"], fleet)
+    la.wait_for(f"fleet '{fleet}' up")
+    gs = gs_command(la.wait_for("attach a ground station"))
+    secure = run / "secure"
+    assert f"--zenoh-config {secure / 'ground.json5'}" in " ".join(gs)
+    sc = load_scenario("configs/lake_circle.toml", {"scenario.duration": duration})
+    endpoint = f"tcp/127.0.0.1:{port}"
+    ground = member(secure / "ground.json5")
+    try:
+        events = Events(ground, fleet)
+        # the ground station holds the fleet, so all of the below happens mid-run
+        ground.put(keys.cmd(fleet, keys.ALL), encode_control("pause"))
+        events.wait_for("fleet command pause")
+
+        # 1. no credentials, or a wrong password: the router does not let it in
+        with pytest.raises(zenoh.ZError):
+            zenoh.open(raw_client(endpoint))
+        wrong = json.loads((secure / "ground.json5").read_text())
+        wrong["transport"]["auth"]["usrpwd"]["password"] = "letmein"
+        (tmp_path / "wrong.json5").write_text(json.dumps(wrong))
+        with pytest.raises(zenoh.ZError):
+            member(tmp_path / "wrong.json5")
+
+        # 2. a stolen vehicle's credentials: commands and other vehicles' ω are refused
+        usv1 = sc.ids.index("usv1")
+        mallory = member(secure / "vehicle-usv1.json5")
+        try:
+            for target in (keys.WORLD, keys.ALL, "usv2"):
+                mallory.put(keys.cmd(fleet, target), encode_control("stop"))
+                mallory.put(keys.cmd(fleet, target), encode_control("set_gains", gains={"k": 7.0, "c": 0.1}))
+            mallory.put(keys.cmd(fleet, keys.ALL), encode_control("resume"))
+            mallory.put(keys.clock(fleet), encode_control("stop"))
+            for vid in sc.ids:
+                if vid != "usv1":
+                    j = sc.ids.index(vid)
+                    for seq in range(10**6, 10**6 + 20):  # well-formed, newer than anything real
+                        mallory.put(keys.omega(fleet, vid), encode_omega(OmegaMsg(j, seq, 1.0, 1e3, -1.0)))
+            # ...but its own key is its own: malformed payloads there reach the listeners,
+            # which count and drop them (the positive control for the counts below)
+            own = hostile_omega_payloads(random.Random(7), 40)
+            for p in own:
+                mallory.put(keys.omega(fleet, "usv1"), p)
+        finally:
+            mallory.close()
+        assert la.proc.poll() is None, "the run ended before the outsider was done: the test proves nothing"
+
+        # 3. the credentialed ground station, with the command line the launcher printed
+        res = run_cli([*gs, "gains", "k=1.5", "c=2.0"], timeout=60)  # the configured gains: a visible no-op
+        assert res.returncode == 0, res.stderr
+        events.wait_for("fleet command set_gains")
+        ground.put(keys.cmd(fleet, keys.ALL), encode_control("resume"))
+        events.wait_for("fleet command resume")
+    finally:
+        ground.close()
+
+    assert la.wait(timeout=300) == 0, la.output()
+    m = json.loads((run / "metrics.json").read_text())
+    assert m["completed"] is True, m["events"]  # no stop got through
+    fleet_cmds = [e for e in m["events"] if "fleet command" in e]
+    assert len(fleet_cmds) == 3, fleet_cmds  # the ground station's pause, set_gains, resume; nothing else
+    listeners = sum(1 for e in sc.edges if e.k == "usv1")
+    assert m["link"]["rejected"] == len(own) * listeners, m["link"]  # no forged ω reached anyone
+    # the ground station's gains were applied once by every vehicle, the outsider's never
+    for v in sc.vehicles:
+        log = (run / "logs" / f"{v.id}.log").read_text()
+        applied = re.findall(r"gains now k = \(([^)]*)\), c = (\S+)", log)
+        assert applied == [(", ".join(["1.5"] * v.dim), "2.0")], (v.id, applied)
+        assert "Traceback" not in log
+    # and nothing reached a controller: the run is the clean in-process one, bit for bit
+    ref = InProcessFleet(sc).run()
+    trace = np.load(tmp_path / "trace.npz")
+    for name in ("q", "omega"):
+        assert np.array_equal(trace[name], ref.recorder.view(name)), name
+    assert not fleet_processes(fleet)
+
+
+def test_over_tls_only_a_certificate_of_the_run_gets_in_and_the_ground_station_can_stop_it(tmp_path, launches):
+    fleet = unique_fleet()
+    port = free_tcp_port()
+    run = tmp_path / "run"
+    la = launches(["configs/concentric_circles.toml", "--clock", "realtime", "--duration", "600", "--tls",
+                   "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "-q"], fleet)
+    la.wait_for(f"fleet '{fleet}' up")
+    gs = gs_command(la.wait_for("attach a ground station"))
+    assert f"tls/127.0.0.1:{port}" in gs
+    secure = run / "secure"
+    # plain TCP, or TLS without a client certificate: refused at the handshake
+    for endpoint in (f"tcp/127.0.0.1:{port}", f"tls/127.0.0.1:{port}"):
+        conf = raw_client(endpoint)
+        conf.insert_json5("transport/link/tls/root_ca_certificate", json.dumps(str(secure / "ca.pem")))
+        with pytest.raises(zenoh.ZError):
+            zenoh.open(conf)
+    # a vehicle's certificate and password: its stop is refused; the world runs on
+    ground = member(secure / "ground.json5")
+    try:
+        status = Status(ground, fleet)
+        mallory = member(secure / "vehicle-usv1.json5")
+        try:
+            for target in (keys.WORLD, keys.ALL):
+                mallory.put(keys.cmd(fleet, target), encode_control("stop"))
+        finally:
+            mallory.close()
+        status.wait_past(status.wait_past(0.0) + 2.0)  # two simulated (here: wall) seconds later
+        assert la.proc.poll() is None, la.output()
+    finally:
+        ground.close()
+    res = run_cli([*gs, "status", "--once"], timeout=60)
+    assert res.returncode == 0, res.stderr
+    assert "world: t =" in res.stdout and "usv1" in res.stdout
+    # the ground station's stop ends the run
+    res = run_cli([*gs, "stop"], timeout=60)
+    assert res.returncode == 0, res.stderr
+    assert la.wait(timeout=60) == 0, la.output()
+    m = json.loads((run / "metrics.json").read_text())
+    assert m["completed"] is False
+    assert not fleet_processes(fleet)
