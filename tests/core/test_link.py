@@ -16,7 +16,7 @@ import pytest
 from cdus.scenario.config import ConfigError
 from cdus.scenario.link import Burst, Delay, LinkSpec, validate_link
 from cdus.core.link import (
-    IdealLink, LinkEmulator, LinkFaultCounters, burst_bad, draw_delay, merge_link_summaries, stream_key, uniform,
+    DropBursts, IdealLink, LinkEmulator, LinkFaultCounters, burst_bad, burst_events, draw_delay, merge_link_summaries, stream_key, uniform,
 )
 from cdus.sim.build import link_model_for
 
@@ -550,12 +550,13 @@ def test_a_non_table_link_is_an_error():
 
 
 def test_drop_bursts_are_reported_when_a_run_of_drops_ends():
-    from cdus.core.link import DropBursts, burst_text
-
     b = DropBursts(min_len=3)
     pattern = [False, True, True, False, True, True, True, True, False, True]
     for j, dropped in enumerate(pattern):
         b.feed(0, 1, dropped, j * 0.1)
         b.feed(1, 0, False, j * 0.1)  # another link, never dropping
     assert b.done == [(0.4, 0.8, 0, 1, 4)]  # the run of 2 is too short; the last run is still open
-    assert burst_text(b.done[0], ["a", "b"]) == "link a->b: 4 messages dropped in a row (0.40-0.80 s)"
+    events = burst_events(b, ["a", "b"])
+    assert [(e.t, e.kind, e.severity, e.link) for e in events] == [(0.8, "link_burst", "warn", "a->b")]
+    assert events[0].text == "link a->b: 4 messages dropped in a row (0.40-0.80 s)"
+    assert burst_events(b, ["a", "b"]) == []  # each burst is news once
