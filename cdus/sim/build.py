@@ -14,6 +14,8 @@ from cdus.core.link import IdealLink, LinkEmulator, LinkModel
 from cdus.core.linkspec import LinkSpec
 from cdus.core.metrics import MetricEdge
 from cdus.core.neighbours import NeighbourLink
+from cdus.core.node import VehicleNode
+from cdus.core.schedule import broadcast_every, total_ticks
 from cdus.core.paths import for_dimension, make_path, nearest_omega
 from cdus.core.plants import USV_PRESETS, PointState, UAVState, USVState
 from cdus.core.vehicle import Vehicle
@@ -76,10 +78,31 @@ def links_of(scenario: Scenario, vid: str) -> tuple[NeighbourLink, ...]:
     return tuple(NeighbourLink(index[e.k], e.weight, e.delta) for e in scenario.neighbours(vid))
 
 
+def listeners_of(scenario: Scenario, vid: str) -> tuple[str, ...]:
+    """The vehicles that listen to ``vid`` (its ω goes to them), in scenario order."""
+    listening = {e.i for e in scenario.edges if e.k == vid}
+    return tuple(v for v in scenario.ids if v in listening)
+
+
 def metric_edges(scenario: Scenario) -> tuple[MetricEdge, ...]:
     """The edges coordination is measured on, named ``<id_i>__<id_k>`` (also in Rerun)."""
     index = {v.id: v.index for v in scenario.vehicles}
     return tuple(MetricEdge(index[e.i], index[e.k], e.delta, f"{e.i}__{e.k}") for e in scenario.metric_edges())
+
+
+def build_node(scenario: Scenario, vid: str, link: LinkModel, *, policy: str | None = None,
+               timeout: float | None = None, last_tick: int | None = None, joined_at: int = 0) -> VehicleNode:
+    """Vehicle ``vid``'s tick protocol: its vehicle, its neighbour terms and ``link`` (the model
+    deciding its incoming messages), at the scenario's rates; policy and timeout default to
+    the scenario's [link] table, the last tick to the scenario's duration."""
+    spec = scenario.vehicle(vid)
+    period = 1.0 / scenario.rates.control
+    link_spec = link_spec_for(scenario)
+    return VehicleNode(spec.index, build_vehicle(spec, scenario.rates, scenario.seed), links_of(scenario, vid), link,
+                       period=period, every=broadcast_every(scenario.rates),
+                       last_tick=total_ticks(scenario.duration, period) if last_tick is None else last_tick,
+                       policy=policy or link_spec.policy, timeout=link_spec.timeout if timeout is None else timeout,
+                       joined_at=joined_at)
 
 
 def link_spec_for(scenario: Scenario) -> LinkSpec:
