@@ -12,7 +12,7 @@ import argparse
 import sys
 
 from cdus.scenario.config import ConfigError, load_scenario, parse_overrides
-from cdus.sim.build import link_emulator_for, link_spec_for
+from cdus.sim.build import link_emulator_for
 from cdus.wire.transport import add_transport_args, transport_from_args
 from vehicle_agent.agent import Agent, run_agent
 
@@ -46,9 +46,8 @@ def main(argv=None) -> int:
     if not transport.connect and not transport.listen and not transport.config_file:
         transport = transport.__class__(mode=transport.mode, connect=("tcp/127.0.0.1:7447",),
                                         lease_ms=transport.lease_ms)
-    spec = link_spec_for(scenario)
     agent = Agent(scenario, args.id, args.fleet, transport, clock=args.clock,
-                  policy=args.policy or spec.policy, timeout=spec.timeout,
+                  policy=args.policy or scenario.link.policy, timeout=scenario.link.timeout,
                   link=link_emulator_for(scenario), duration=args.duration)
     return run_agent(agent)
 

@@ -86,7 +86,7 @@ class Agent:
         self.table = NeighbourTable(links_of(scenario, vid), policy, timeout)
         self.neighbours = sorted({ln.k for ln in self.table.links})
         self.link = link or IdealLink()
-        self.link_table: dict = dict(scenario.link or {})
+        self.link_table: dict = scenario.link_table
         self.period = 1.0 / scenario.rates.control
         self.every = broadcast_every(scenario.rates)
         self.last_tick = total_ticks(scenario.duration if duration is None else duration, self.period)

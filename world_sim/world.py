@@ -27,7 +27,6 @@ import msgpack
 import zenoh
 
 from cdus.core import graph as graphs
-from cdus.scenario.events import parse_events
 from cdus.wire import keys
 from cdus.files import write_json
 from cdus.wire.transport import Transport, open_session
@@ -88,7 +87,7 @@ class World:
         self.next_tick = 0  # next tick to record
         self.started = False
         self.finished = False
-        self.events = list(parse_events(scenario.events, self.ids))  # scheduled vehicle faults
+        self.events = list(scenario.events)  # scheduled vehicle faults
         self._link_changes_seen: set[tuple] = set()
         self.session = None
         self._t_start = time.perf_counter()

@@ -25,9 +25,8 @@ from collections import defaultdict
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from cdus.scenario.events import parse_events
 from cdus.core.link import DropBursts, LinkCounters, LinkEmulator, LinkModel, burst_text
-from cdus.sim.build import build_vehicle, link_model_for, link_spec_for, links_of, metric_edges
+from cdus.sim.build import build_vehicle, link_model_for, links_of, metric_edges
 from cdus.wire.messages import OmegaMsg, decode_omega, encode_omega
 from cdus.core.neighbours import NeighbourTable, consensus_target
 from cdus.core.schedule import broadcast_every, delivery_tick, total_ticks
@@ -55,7 +54,7 @@ class InProcessFleet:
         self.scenario = scenario
         self.mode = mode
         self.sink = sink or NullSink()
-        spec = link_spec_for(scenario)
+        spec = scenario.link
         self.link = link or link_model_for(scenario)
         self.policy = policy or spec.policy
         self.timeout = spec.timeout if timeout is None else timeout
@@ -72,7 +71,7 @@ class InProcessFleet:
         self.counters = LinkCounters()
         # deliveries by the tick they become usable at, in send order: (dst, message, latency)
         self._due: dict[int, list[tuple[int, OmegaMsg, float]]] = defaultdict(list)
-        self.events = list(parse_events(scenario.events, [v.id for v in scenario.vehicles]))
+        self.events = list(scenario.events)
         self.dead: set[int] = set()  # killed: not stepping, gone for the neighbours
         self.frozen: dict[int, float] = {}  # paused: since when (simulated s)
         self._lease_out: dict[int, float] = {}  # paused vehicles already dropped, by pause start
