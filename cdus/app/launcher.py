@@ -23,13 +23,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
+from cdus.scenario.model import DEFAULT_RESTART, Scenario
 from cdus.wire import keys
 from cdus.app.report import Progress
 from cdus.files import write_json
 from cdus.wire.transport import Transport, client_of, open_session
 from cdus.wire.messages import CLOCK_OPS, COMMAND_OPS, decode_control, encode_control
 
-RESTART = ("never", "on-failure", "always")
 FAULT_OPS = ("kill", "pause_vehicle", "resume_vehicle", "restart")
 GRACE_S = 5.0
 LOG_TAIL = 15
@@ -94,7 +94,7 @@ class LaunchOptions:
     fleet: str
     clock: str = "lockstep"
     duration: float | None = None
-    restart: str = "never"
+    restart: str = DEFAULT_RESTART  # one of RESTART_POLICIES (cdus.scenario.model)
     metrics_out: Path | None = None
     trace_out: Path | None = None
     policy: str | None = None
@@ -107,7 +107,7 @@ class LaunchOptions:
 
 @dataclass
 class Launcher:
-    scenario: Any
+    scenario: Scenario
     run_dir: Path
     router: Transport
     opts: LaunchOptions
@@ -341,7 +341,7 @@ class Launcher:
                 pass
 
 
-def launch(scenario: Any, run_dir: Path, router: Transport, opts: LaunchOptions,
+def launch(scenario: Scenario, run_dir: Path, router: Transport, opts: LaunchOptions,
            log: Callable[[str], None] | None = None) -> tuple[int, Launcher]:
     """Bring the fleet up, run it, bring it down. Returns (exit status, launcher).
 

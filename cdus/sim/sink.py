@@ -10,14 +10,17 @@ always complete. The Rerun sink lives in the world process (:mod:`world_sim.reru
 
 from __future__ import annotations
 
-from typing import Any, Protocol
+from typing import Protocol
+
+from cdus.core.metrics import Recorder
+from cdus.scenario.model import Scenario
 
 UPDATE_EVERY = 25  # ticks between sink updates (0.5 s of simulated time at 50 Hz)
 
 
 class Sink(Protocol):
-    def start(self, scenario: Any) -> None: ...
-    def update(self, recorder: Any) -> None: ...
+    def start(self, scenario: Scenario) -> None: ...
+    def update(self, recorder: Recorder) -> None: ...
     def event(self, t: float, text: str, level: str = "info") -> None: ...
     def link_state(self, t: float, src: str, dst: str, state: str) -> None: ...
     def close(self) -> None: ...
@@ -26,10 +29,10 @@ class Sink(Protocol):
 class NullSink:
     """Logs nothing (``--rerun off``)."""
 
-    def start(self, scenario: Any) -> None:
+    def start(self, scenario: Scenario) -> None:
         pass
 
-    def update(self, recorder: Any) -> None:
+    def update(self, recorder: Recorder) -> None:
         pass
 
     def event(self, t: float, text: str, level: str = "info") -> None:
