@@ -39,8 +39,8 @@ import zenoh
 from cdus.core.events import RosterChange, plan_roster
 from cdus.core.link import LinkEmulator, burst_events
 from cdus.core.node import VehicleNode
-from cdus.scenario.config import ConfigError, Scenario
-from cdus.scenario.events import parse_events
+from cdus.scenario.config import ConfigError
+from cdus.scenario.model import Scenario
 from cdus.scenario.link import validate_link
 from cdus.sim.build import build_node, link_emulator_for, listeners_of
 from cdus.core.schedule import CLOCKS, total_ticks
@@ -133,9 +133,9 @@ class Agent:
         self.node: VehicleNode = build_node(scenario, vid, link_emulator_for(scenario), policy=policy,
                                             last_tick=self.last_tick)
         if clock == "lockstep":  # scheduled faults land on their ticks; realtime hears of them by liveliness
-            for change in plan_roster(parse_events(scenario.events, self.ids), self.ids, self.period):
+            for change in plan_roster(scenario.events, self.ids, self.period):
                 self.node.on_roster(change)
-        self.link_table: dict = dict(scenario.raw.get("link") or {})
+        self.link_table: dict = scenario.link_table
         self.clock = Clock()
         self.state_batch = STATE_BATCH[clock]
         self.rejected: Counter = Counter()

@@ -32,9 +32,8 @@ from cdus.core.link import LinkCounters, merge_link_summaries
 from cdus.core.metrics import Recorder
 from cdus.core.schedule import total_ticks
 from cdus.files import write_json
-from cdus.scenario.config import Scenario
-from cdus.scenario.events import parse_events
-from cdus.sim.build import link_spec_for, metric_edges
+from cdus.scenario.model import Scenario
+from cdus.sim.build import metric_edges
 from cdus.sim.lockstep import Fault, Grant, Join, Lockstep, Roster
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
 from cdus.sim.summary import link_block, run_metrics
@@ -85,9 +84,9 @@ class World:
         self.trace_out = trace_out
         self.start_timeout = start_timeout
         self.sink = sink or NullSink()
-        self.policy = policy or link_spec_for(scenario).policy
+        self.policy = policy or scenario.link.policy
         self.recorder = Recorder(self.ids, [v.dim for v in scenario.vehicles], metric_edges(scenario))
-        self.events_scheduled = parse_events(scenario.events, self.ids)
+        self.events_scheduled = scenario.events
         self.lockstep = Lockstep(self.ids, self.period, self.last_tick, self.events_scheduled)
         self.st = WorldState()
         self.pairs = [(e.i, e.k) for e in scenario.edges]

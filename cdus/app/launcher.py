@@ -24,15 +24,14 @@ from typing import Any, Callable
 
 import zenoh
 
+from cdus.scenario.model import DEFAULT_RESTART, Scenario
 from cdus.app.report import Progress
 from cdus.files import write_json
-from cdus.scenario.config import Scenario
 from cdus.wire import keys
 from cdus.wire.messages import CTL_OPS, LAUNCHER_OPS, decode_control, encode_control
 from cdus.wire.schemas import decode_event, decode_status
 from cdus.wire.transport import DEFAULT_LEASE_MS, Transport, client_of, open_session
 
-RESTART = ("never", "on-failure", "always")
 GRACE_S = 5.0
 LOG_TAIL = 15
 # Fewer Zenoh runtime threads per process: on a small machine running many processes the
@@ -96,7 +95,7 @@ class LaunchOptions:
     fleet: str
     clock: str = "lockstep"
     duration: float | None = None
-    restart: str = "never"
+    restart: str = DEFAULT_RESTART  # one of RESTART_POLICIES (cdus.scenario.model)
     metrics_out: Path | None = None
     trace_out: Path | None = None
     policy: str | None = None

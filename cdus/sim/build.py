@@ -1,7 +1,8 @@
 """Building a scenario's pieces: its vehicles, neighbour terms, metric edges and link model.
 
-The one place where the validated :class:`cdus.scenario.config.Scenario` is turned into
-the pure core's objects, used alike by the in-process fleet and the process shells.
+The one place where the validated :class:`cdus.scenario.model.Scenario` is turned into
+the pure core's objects, used alike by the in-process fleet and the process shells. The
+scenario is taken as validated: nothing here checks it again.
 """
 
 from __future__ import annotations
@@ -11,7 +12,6 @@ import math
 from cdus.core import regulators as reg
 from cdus.core.disturbance import Disturbance, DisturbanceSpec
 from cdus.core.link import IdealLink, LinkEmulator, LinkModel
-from cdus.core.linkspec import LinkSpec
 from cdus.core.metrics import MetricEdge
 from cdus.core.neighbours import NeighbourLink
 from cdus.core.node import VehicleNode
@@ -19,8 +19,7 @@ from cdus.core.schedule import broadcast_every, total_ticks
 from cdus.core.paths import for_dimension, make_path, nearest_omega
 from cdus.core.plants import USV_PRESETS, PointState, UAVState, USVState
 from cdus.core.vehicle import Vehicle
-from cdus.scenario.config import Rates, Scenario, VehicleSpec
-from cdus.scenario.link import validate_link
+from cdus.scenario.model import Rates, Scenario, VehicleSpec
 
 
 def build_vehicle(spec: VehicleSpec, rates: Rates, seed: int) -> Vehicle:
@@ -48,7 +47,7 @@ def build_vehicle(spec: VehicleSpec, rates: Rates, seed: int) -> Vehicle:
     zero = (0.0,) * dim
     eps = None
     if spec.plant == "ideal":
-        state: Any = PointState(q0, zero)
+        state: PointState | UAVState | USVState = PointState(q0, zero)
         reg_gains = None
     elif spec.plant == "uav_double_integrator":
         state = UAVState(q0, zero)
@@ -97,7 +96,7 @@ def build_node(scenario: Scenario, vid: str, link: LinkModel, *, policy: str | N
     the scenario's [link] table, the last tick to the scenario's duration."""
     spec = scenario.vehicle(vid)
     period = 1.0 / scenario.rates.control
-    link_spec = link_spec_for(scenario)
+    link_spec = scenario.link
     return VehicleNode(spec.index, build_vehicle(spec, scenario.rates, scenario.seed), links_of(scenario, vid), link,
                        period=period, every=broadcast_every(scenario.rates),
                        last_tick=total_ticks(scenario.duration, period) if last_tick is None else last_tick,
@@ -105,26 +104,14 @@ def build_node(scenario: Scenario, vid: str, link: LinkModel, *, policy: str | N
                        joined_at=joined_at)
 
 
-def link_spec_for(scenario: Scenario) -> LinkSpec:
-    """The validated ``[link]`` table of a ``cdus.config.Scenario`` (raises ``ConfigError``)."""
-    return validate_link(scenario.link or {}, list(scenario.ids), scenario.source)
-
-
-def link_seed(spec: LinkSpec, scenario: Scenario) -> int:
-    """``link.seed`` if given, else the scenario's seed."""
-    return spec.seed if spec.seed is not None else scenario.seed
-
-
 def link_model_for(scenario: Scenario) -> LinkModel:
     """:class:`IdealLink` when the ``[link]`` table has no faults, else a :class:`LinkEmulator`
-    (seeded with ``link.seed``, else ``scenario.seed``). Raises ``ConfigError`` for a bad table."""
-    spec = link_spec_for(scenario)
-    if spec.is_ideal:
+    (seeded with ``link.seed``, else ``scenario.seed``)."""
+    if scenario.link.is_ideal:
         return IdealLink()
-    return LinkEmulator(spec, scenario.ids, link_seed(spec, scenario))
+    return link_emulator_for(scenario)
 
 
 def link_emulator_for(scenario: Scenario) -> LinkEmulator:
     """Always an emulator (ideal links take its fast path), so faults can change at run time."""
-    spec = link_spec_for(scenario)
-    return LinkEmulator(spec, scenario.ids, link_seed(spec, scenario))
+    return LinkEmulator(scenario.link, scenario.ids, scenario.link_seed)

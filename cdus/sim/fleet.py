@@ -29,9 +29,8 @@ from cdus.core.metrics import Recorder
 from cdus.core.node import VehicleNode
 from cdus.core.schedule import broadcast_every, total_ticks
 from cdus.core.vehicle import Telemetry, Vehicle
-from cdus.scenario.config import Scenario
-from cdus.scenario.events import parse_events
-from cdus.sim.build import build_node, link_model_for, link_spec_for, metric_edges
+from cdus.scenario.model import Scenario
+from cdus.sim.build import build_node, link_model_for, metric_edges
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
 from cdus.sim.summary import link_block, run_metrics, sum_counters
 from cdus.wire.messages import decode_omega, encode_omega
@@ -55,14 +54,14 @@ class InProcessFleet:
         self.mode = mode
         self.sink = sink or NullSink()
         self.link = link or link_model_for(scenario)
-        spec = link_spec_for(scenario)
+        spec = scenario.link
         self.policy = policy or spec.policy
         self.timeout = spec.timeout if timeout is None else timeout
         self.ids = list(scenario.ids)
         self.period = 1.0 / scenario.rates.control
         self.every = broadcast_every(scenario.rates)
         self.end_tick = total_ticks(scenario.duration, self.period)
-        self.roster = plan_roster(parse_events(scenario.events, self.ids), self.ids, self.period)
+        self.roster = plan_roster(scenario.events, self.ids, self.period)
         self.nodes = [self._node(j) for j in range(len(self.ids))]
         self.listeners: list[list[int]] = [[] for _ in self.ids]
         for dst, node in enumerate(self.nodes):

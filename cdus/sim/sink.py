@@ -10,7 +10,10 @@ always complete. The Rerun sink lives in the world process (:mod:`world_sim.reru
 
 from __future__ import annotations
 
-from typing import Any, Protocol
+from typing import Protocol
+
+from cdus.core.metrics import Recorder
+from cdus.scenario.model import Scenario
 
 from cdus.wire.schemas import FleetEvent
 
@@ -28,10 +31,10 @@ class Sink(Protocol):
 class NullSink:
     """Logs nothing (``--rerun off``)."""
 
-    def start(self, scenario: Any) -> None:
+    def start(self, scenario: Scenario) -> None:
         pass
 
-    def update(self, recorder: Any) -> None:
+    def update(self, recorder: Recorder) -> None:
         pass
 
     def event(self, event: FleetEvent) -> None:

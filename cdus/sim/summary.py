@@ -13,7 +13,7 @@ from typing import Any, Iterable, Sequence
 
 from cdus.core.link import LinkCounters
 from cdus.core.metrics import Recorder, percentile_ms
-from cdus.scenario.config import Scenario
+from cdus.scenario.model import Scenario
 from cdus.wire.schemas import FleetEvent
 
 
