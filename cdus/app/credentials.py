@@ -1,7 +1,7 @@
 """Credentials for one secured run: a password per role, and with TLS a private CA and a
 certificate per role, written to the run directory for the router and every process.
 
-``cdus launch --secure`` (user/password) or ``--secure tls`` (TLS with client
+``cdus launch --secure`` (user/password) or ``--tls`` (TLS with client
 certificates, plus the passwords) calls ``make_credentials``: it writes, in
 ``<run>/secure/`` (mode 0700, every file 0600),
 
@@ -26,7 +26,7 @@ import os
 import secrets
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping, Sequence
 
 from cdus.wire import access
 from cdus.wire.transport import client_of, Transport
@@ -101,19 +101,20 @@ def nest(settings: dict[str, Any]) -> dict:
     return out
 
 
-def make_credentials(directory: str | os.PathLike, fleet: str, vehicle_ids: list[str] | tuple[str, ...],
+def make_credentials(directory: str | os.PathLike, fleet: str, listeners: Mapping[str, Sequence[str]],
                      listen: tuple[str, ...], mode: str = "password") -> Credentials:
-    """Generate the run's credentials in ``directory`` (see the module's docstring)."""
+    """Generate the run's credentials in ``directory`` (see the module's docstring) for the
+    vehicles of ``listeners`` (vehicle id -> the ids its ω goes to, ``listeners_of``)."""
     listen = secure_endpoints(tuple(listen), mode)
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
     os.chmod(d, 0o700)
-    roles = access.roles(vehicle_ids)
+    roles = access.roles(list(listeners))
     passwords = {r: secrets.token_urlsafe(24) for r in roles}
     _write_private(d / "passwords", "".join(f"{r}:{pw}\n" for r, pw in passwords.items()))
     router = {
         "transport/auth/usrpwd/dictionary_file": str((d / "passwords").resolve()),
-        "access_control": access.fleet_acl(fleet, vehicle_ids, match_certificates=mode == "tls"),
+        "access_control": access.fleet_acl(fleet, listeners, match_certificates=mode == "tls"),
     }
     client_tls: dict[str, Any] = {}
     if mode == "tls":

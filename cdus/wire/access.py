@@ -4,19 +4,26 @@ access-control list that enforces them on the router (docs/multihost.md, "A secu
 Every process of a secured fleet authenticates to the router as one role (a Zenoh
 user name, and with TLS the same name as its certificate's common name):
 
-    world               publishes the clock, the world's status and events, its fault
-                        requests to the launcher; answers world/last queries
-    vehicle-<id>        publishes only its own keys: v/<id>/omega, state, stats, and the
-                        liveliness token alive/<id>
-    ground              a ground station: publishes commands, cmd/<anything>
+    world               publishes the clock, roster and relayed commands (to/<set>/ctl),
+                        fault requests to the launcher (to/+launcher+/cmd), its status
+                        and events (world/status, world/events), the liveliness token
+                        alive/world; answers world/last/<id> queries
+    vehicle-<id>        publishes only its own keys: its ω to its listeners
+                        (to/+<listeners>+/omega/<id>, the exact set of the scenario), its
+                        telemetry and counters (to/+world+/state/<id>, stats/<id>) and
+                        the liveliness token alive/<id>
+    ground              a ground station: commands to the world (to/+world+/cmd/gs)
 
 Every role may subscribe to and query anything under ``cdus/<fleet>/``; nothing else may
 be published or declared there, or anywhere else (the list denies by default). The
 launcher is the router itself, so it needs no role: Zenoh checks what crosses the
-router's links, not what its own session does.
+router's links, not what its own session does. Session-local keys (``to/+<id>+/wake``)
+never reach the router.
 """
 
 from __future__ import annotations
+
+from typing import Mapping, Sequence
 
 from cdus.wire import keys
 
@@ -44,8 +51,9 @@ def _rule(rule_id: str, messages: tuple[str, ...], key_exprs: list[str], flow: s
             "key_exprs": key_exprs}
 
 
-def fleet_acl(fleet: str, vehicle_ids: list[str] | tuple[str, ...], match_certificates: bool = False) -> dict:
-    """The ``access_control`` section of the router's Zenoh config for ``fleet``.
+def fleet_acl(fleet: str, listeners: Mapping[str, Sequence[str]], match_certificates: bool = False) -> dict:
+    """The ``access_control`` section of the router's Zenoh config for ``fleet``, whose
+    vehicles are the keys of ``listeners`` (vehicle id -> the ids its ω is addressed to).
 
     A subject is a user name; with ``match_certificates`` it must also present a TLS
     certificate with that common name (Zenoh ANDs the two lists of a subject).
@@ -61,25 +69,26 @@ def fleet_acl(fleet: str, vehicle_ids: list[str] | tuple[str, ...], match_certif
         subjects.append(s)
         return role
 
-    members = [subject(r) for r in roles(vehicle_ids)]
+    members = [subject(r) for r in roles(list(listeners))]
     rules += [_rule("fleet-out", MESSAGES, [everything], flow="egress"),
               _rule("fleet-read", READ, [everything])]
     policies.append({"id": "members", "rules": ["fleet-out", "fleet-read"], "subjects": members})
 
     rules += [
-        _rule("world-put", ("put",), [keys.clock(f), keys.world_status(f), keys.world_events(f),
-                                      keys.cmd(f, "launcher")]),
+        _rule("world-put", ("put",), [f"{keys.prefix(f)}/to/*/ctl", keys.launcher_cmd(f), keys.world_status(f),
+                                      keys.world_events(f)]),
         _rule("world-token", ("liveliness_token",), [keys.alive(f, keys.WORLD)]),
-        _rule("world-last", ("declare_queryable", "reply"), [keys.world_last(f, "**")]),
+        _rule("world-last", ("declare_queryable", "reply"), [keys.world_last(f, "*")]),
     ]
     policies.append({"id": "world", "rules": ["world-put", "world-token", "world-last"], "subjects": [WORLD_ROLE]})
 
-    rules.append(_rule("ground-commands", ("put",), [keys.cmd(f, "**")]))
+    rules.append(_rule("ground-commands", ("put",), [keys.world_cmd(f, keys.GROUND)]))
     policies.append({"id": "ground", "rules": ["ground-commands"], "subjects": [GROUND_ROLE]})
 
-    for vid in vehicle_ids:
+    for vid, heard_by in listeners.items():
         role = vehicle_role(vid)
-        rules += [_rule(f"{role}-put", ("put",), [keys.omega(f, vid), keys.state(f, vid), keys.stats(f, vid)]),
+        rules += [_rule(f"{role}-put", ("put",), [keys.omega(f, vid, heard_by), keys.state(f, vid),
+                                                  keys.stats(f, vid)]),
                   _rule(f"{role}-token", ("liveliness_token",), [keys.alive(f, vid)])]
         policies.append({"id": role, "rules": [f"{role}-put", f"{role}-token"], "subjects": [role]})
     return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects,

@@ -16,10 +16,11 @@ from cdus.wire.messages import OmegaMsg, encode_control, encode_omega
 from cdus.wire.transport import Transport, free_tcp_port, open_session
 
 IDS = ("usv1", "usv2", "uav1")
+LISTENERS = {"usv1": ("usv2", "uav1"), "usv2": ("usv1",), "uav1": ("usv1",)}  # vehicle -> who hears its ω
 
 
 def test_files_are_private_and_the_ca_key_is_never_written(tmp_path):
-    cred = make_credentials(tmp_path / "secure", "f1", IDS, ("tcp/127.0.0.1:7447",), "tls")
+    cred = make_credentials(tmp_path / "secure", "f1", LISTENERS, ("tcp/127.0.0.1:7447",), "tls")
     d = tmp_path / "secure"
     assert stat.S_IMODE(d.stat().st_mode) == 0o700
     files = sorted(p.name for p in d.iterdir())
@@ -50,7 +51,7 @@ def test_endpoints_in_tls_mode():
 
 
 def test_a_wildcard_listener_turns_name_checks_off_for_clients(tmp_path):
-    cred = make_credentials(tmp_path, "f1", IDS, ("tcp/0.0.0.0:7447",), "tls")
+    cred = make_credentials(tmp_path, "f1", LISTENERS, ("tcp/0.0.0.0:7447",), "tls")
     client = json.loads(cred.file("vehicle-usv1").read_text())
     assert client["connect"]["endpoints"] == ["tls/127.0.0.1:7447"]
     assert client["transport"]["link"]["tls"]["verify_name_on_connect"] is False
@@ -58,12 +59,12 @@ def test_a_wildcard_listener_turns_name_checks_off_for_clients(tmp_path):
 
 def test_the_acl_is_a_valid_zenoh_config_section():
     conf = zenoh.Config()
-    conf.insert_json5("access_control", json.dumps(access.fleet_acl("f1", IDS, match_certificates=True)))
+    conf.insert_json5("access_control", json.dumps(access.fleet_acl("f1", LISTENERS, match_certificates=True)))
     back = json.loads(conf.get_json("access_control"))
     assert back["enabled"] is True and back["default_permission"] == "deny"
     rules = {r["id"]: r for r in back["rules"]}
-    assert rules["vehicle-usv1-put"]["key_exprs"] == ["cdus/f1/v/usv1/omega", "cdus/f1/v/usv1/state",
-                                                      "cdus/f1/v/usv1/stats"]
+    assert rules["vehicle-usv1-put"]["key_exprs"] == ["cdus/f1/to/+usv2+uav1+/omega/usv1",
+                                                      "cdus/f1/to/+world+/state/usv1", "cdus/f1/to/+world+/stats/usv1"]
 
 
 def raw_client(endpoint: str) -> zenoh.Config:
@@ -103,7 +104,7 @@ class Heard:
 def test_each_role_may_publish_only_its_own_keys(tmp_path, mode):
     fleet = "acl" + mode
     port = free_tcp_port()
-    cred = make_credentials(tmp_path, fleet, IDS, (f"tcp/127.0.0.1:{port}",), mode)
+    cred = make_credentials(tmp_path, fleet, LISTENERS, (f"tcp/127.0.0.1:{port}",), mode)
     ep = cred.listen[0]
     router = open_session(Transport(mode="router", listen=cred.listen, extra=cred.router_extra()))
     sessions = []
@@ -126,37 +127,47 @@ def test_each_role_may_publish_only_its_own_keys(tmp_path, mode):
 
         usv1, ground, world = member("vehicle-usv1"), member("ground"), member("world")
         watched = []  # by another member (a session hears its own puts whatever the router says)
-        member("vehicle-uav1").declare_subscriber(keys.any_vehicle(fleet, "omega"), lambda s: watched.append(str(s.key_expr)))
+        member("vehicle-uav1").declare_subscriber(keys.any_omega(fleet), lambda s: watched.append(str(s.key_expr)))
         omega = encode_omega(OmegaMsg(1, 0, 0.0, 123.0, -1.0))
-        # a vehicle: its own ω and token, nobody else's keys, no commands
-        usv1.put(keys.omega(fleet, "usv2"), omega)
-        usv1.put(keys.cmd(fleet, keys.WORLD), encode_control("stop"))
-        usv1.put(keys.cmd(fleet, keys.ALL), encode_control("set_gains", gains={"c": 0.1}))
-        usv1.put(keys.clock(fleet), encode_control("stop"))
+        every = list(IDS)
+        mine = keys.omega(fleet, "usv1", LISTENERS["usv1"])
+        # a vehicle: its own ω to its own listeners, its telemetry and token; no one else's, no commands
+        usv1.put(keys.omega(fleet, "usv2", LISTENERS["usv2"]), omega)  # another vehicle's ω
+        usv1.put(keys.omega(fleet, "usv1", ["usv2"]), omega)  # its own, to a set it does not address
+        usv1.put(keys.world_cmd(fleet, keys.GROUND), encode_control("stop"))
+        usv1.put(keys.world_cmd(fleet, "usv1"), encode_control("set_gains", gains={"c": 0.1}, vehicle=""))
+        usv1.put(keys.ctl(fleet, every), encode_control("stop"))
+        usv1.put(keys.launcher_cmd(fleet), encode_control("kill", vehicle="usv2"))
+        usv1.put(keys.state(fleet, "usv2"), b"x")
         usv1.liveliness().declare_token(keys.alive(fleet, "usv2"))
         usv1.liveliness().declare_token(keys.alive(fleet, "usv1"))
-        usv1.put(keys.omega(fleet, "usv1"), omega)
-        # the ground station: commands, not ω
-        ground.put(keys.omega(fleet, "usv2"), omega)
-        ground.put(keys.cmd(fleet, keys.ALL), encode_control("pause"))
-        ground.put(keys.cmd(fleet, keys.WORLD), encode_control("stop"))
-        # the world: its clock, not ω or vehicle telemetry
+        usv1.put(keys.state(fleet, "usv1"), b"x")
+        usv1.put(mine, omega)
+        # the ground station: commands to the world, not ω, not the world's own keys
+        ground.put(keys.omega(fleet, "usv2", LISTENERS["usv2"]), omega)
+        ground.put(keys.ctl(fleet, every), encode_control("stop"))
+        ground.put(keys.world_cmd(fleet, keys.LAUNCHER), encode_control("stop"))
+        ground.put(keys.world_status(fleet), b"x")
+        ground.put(keys.world_cmd(fleet, keys.GROUND), encode_control("stop"))
+        # the world: the clock and relayed commands, its reports; not ω or vehicle telemetry
         world.put(keys.state(fleet, "usv1"), b"x")
-        world.put(keys.clock(fleet), encode_control("stop"))
+        world.put(keys.omega(fleet, "usv1", LISTENERS["usv1"]), omega)
+        world.put(keys.world_events(fleet), b"x")
+        world.put(keys.ctl(fleet, ["usv2"]), encode_control("stop"))
         # a key outside the fleet is nobody's
-        ground.put("cdus/otherfleet/cmd/all", encode_control("stop"))
+        ground.put(keys.world_cmd("otherfleet", keys.GROUND), encode_control("stop"))
         ground.put("elsewhere", b"x")
-        for last in (keys.omega(fleet, "usv1"), keys.cmd(fleet, keys.WORLD), keys.clock(fleet)):
+        for last in (mine, keys.world_cmd(fleet, keys.GROUND), keys.ctl(fleet, ["usv2"])):
             heard.wait_for(last)  # each session's puts arrive in order: what is missing was refused
         heard.wait_for(keys.alive(fleet, "usv1"))
         assert heard.tokens == {keys.alive(fleet, "usv1")}
-        assert sorted(heard.puts) == sorted([keys.omega(fleet, "usv1"), keys.cmd(fleet, keys.ALL),
-                                             keys.cmd(fleet, keys.WORLD), keys.clock(fleet)])
-        # members hear each other: usv1's ω reached the ground station through the router
+        assert sorted(heard.puts) == sorted([keys.state(fleet, "usv1"), mine, keys.world_cmd(fleet, keys.GROUND),
+                                             keys.world_events(fleet), keys.ctl(fleet, ["usv2"])])
+        # members hear each other: usv1's ω reached uav1 through the router
         deadline = time.monotonic() + 10
-        while keys.omega(fleet, "usv1") not in watched and time.monotonic() < deadline:
+        while mine not in watched and time.monotonic() < deadline:
             time.sleep(0.01)
-        assert watched == [keys.omega(fleet, "usv1")]
+        assert watched == [mine]
     finally:
         for s in sessions:
             s.close()
