@@ -1,7 +1,8 @@
 """End to end: a secured fleet (cdus launch --secure / --tls) ignores everyone but its own.
 
-An outsider tries what would hurt a fleet: stop the world and the vehicles, change their
-gains, inject ω. Without credentials (or with a wrong password) it cannot even connect;
+An outsider tries what would hurt a fleet: stop the world and the vehicles (through the
+world's command inbox, or the world's ctl to the vehicles directly), change their gains,
+have the launcher kill one, inject ω. Without credentials (or with a wrong password) it cannot even connect;
 with a stolen vehicle's credentials the router's access-control list lets it publish only
 that vehicle's own keys. The same commands from the credentialed ground station work, so
 each check could fail.
@@ -21,9 +22,11 @@ import pytest
 import zenoh
 
 from cdus.scenario.config import load_scenario
+from cdus.sim.build import listeners_of
 from cdus.sim.fleet import InProcessFleet
 from cdus.wire import keys
 from cdus.wire.messages import OmegaMsg, encode_control, encode_omega
+from cdus.wire.schemas import FleetEvent, decode_event, decode_status
 from cdus.wire.transport import free_tcp_port
 
 from .conftest import fleet_processes, run_cli, unique_fleet
@@ -48,19 +51,24 @@ class Events:
 
     def __init__(self, session: zenoh.Session, fleet: str):
         self.cond = threading.Condition()
-        self.lines: list[str] = []
+        self.events: list[FleetEvent] = []
         self.sub = session.declare_subscriber(keys.world_events(fleet), self._on)
 
     def _on(self, sample) -> None:
+        e = decode_event(sample.payload.to_bytes())
+        assert not isinstance(e, str), e
         with self.cond:
-            self.lines.append(sample.payload.to_bytes().decode())
+            self.events.append(e)
             self.cond.notify_all()
 
-    def wait_for(self, text: str, timeout: float = 30.0) -> None:
+    def wait_for(self, kind: str, text: str = "", timeout: float = 30.0) -> FleetEvent:
         deadline = time.monotonic() + timeout
         with self.cond:
-            while not any(text in ln for ln in self.lines):
-                assert time.monotonic() < deadline, f"no event {text!r}; heard {self.lines}"
+            while True:
+                for e in self.events:
+                    if e.kind == kind and text in e.text:
+                        return e
+                assert time.monotonic() < deadline, f"no {kind} event {text!r}; heard {self.events}"
                 self.cond.wait(timeout=0.2)
 
 
@@ -73,14 +81,16 @@ class Status:
         self.sub = session.declare_subscriber(keys.world_status(fleet), self._on)
 
     def _on(self, sample) -> None:
+        st = decode_status(sample.payload.to_bytes())
+        assert not isinstance(st, str), st
         with self.cond:
-            self.t = float(json.loads(sample.payload.to_bytes())["t"])
+            self.t = float(st["t"])
             self.cond.notify_all()
 
     def wait_past(self, t: float, timeout: float = 30.0) -> float:
         deadline = time.monotonic() + timeout
         with self.cond:
-            while self.t < t:
+            while self.t <= t:
                 assert time.monotonic() < deadline, f"the world's time stayed at {self.t}, not past {t}"
                 self.cond.wait(timeout=0.2)
             return self.t
@@ -108,11 +118,12 @@ def test_an_outsider_cannot_stop_retune_or_inject_into_a_secured_fleet(tmp_path,
     sc = load_scenario("configs/lake_circle.toml", {"scenario.duration": duration})
     endpoint = f"tcp/127.0.0.1:{port}"
     ground = member(secure / "ground.json5")
+    command = keys.world_cmd(fleet, keys.GROUND)
     try:
         events = Events(ground, fleet)
         # the ground station holds the fleet, so all of the below happens mid-run
-        ground.put(keys.cmd(fleet, keys.ALL), encode_control("pause"))
-        events.wait_for("fleet command pause")
+        ground.put(command, encode_control("pause"))
+        events.wait_for("fleet", "paused")
 
         # 1. no credentials, or a wrong password: the router does not let it in
         with pytest.raises(zenoh.ZError):
@@ -123,25 +134,29 @@ def test_an_outsider_cannot_stop_retune_or_inject_into_a_secured_fleet(tmp_path,
         with pytest.raises(zenoh.ZError):
             member(tmp_path / "wrong.json5")
 
-        # 2. a stolen vehicle's credentials: commands and other vehicles' ω are refused
-        usv1 = sc.ids.index("usv1")
+        # 2. a stolen vehicle's credentials: commands, the world's keys and other vehicles' ω are refused
         mallory = member(secure / "vehicle-usv1.json5")
         try:
-            for target in (keys.WORLD, keys.ALL, "usv2"):
-                mallory.put(keys.cmd(fleet, target), encode_control("stop"))
-                mallory.put(keys.cmd(fleet, target), encode_control("set_gains", gains={"k": 7.0, "c": 0.1}))
-            mallory.put(keys.cmd(fleet, keys.ALL), encode_control("resume"))
-            mallory.put(keys.clock(fleet), encode_control("stop"))
+            for key in (command, keys.world_cmd(fleet, "usv1"), keys.world_cmd(fleet, keys.LAUNCHER)):
+                mallory.put(key, encode_control("stop"))
+                mallory.put(key, encode_control("set_gains", gains={"k": 7.0, "c": 0.1}, vehicle=""))
+                mallory.put(key, encode_control("kill", vehicle="usv2"))
+            mallory.put(command, encode_control("resume"))
+            for targets in (sc.ids, ["usv2"]):
+                mallory.put(keys.ctl(fleet, targets), encode_control("stop"))
+                mallory.put(keys.ctl(fleet, targets), encode_control("gains", gains={"k": 7.0, "c": 0.1}, tick=1))
+            mallory.put(keys.launcher_cmd(fleet), encode_control("kill", vehicle="usv2"))
             for vid in sc.ids:
-                if vid != "usv1":
-                    j = sc.ids.index(vid)
+                j = sc.ids.index(vid)
+                to = [v for v in sc.ids if v != vid]  # to everyone, and to its real listeners
+                for dst in (to, listeners_of(sc, vid)) if vid != "usv1" else (to,):
                     for seq in range(10**6, 10**6 + 20):  # well-formed, newer than anything real
-                        mallory.put(keys.omega(fleet, vid), encode_omega(OmegaMsg(j, seq, 1.0, 1e3, -1.0)))
+                        mallory.put(keys.omega(fleet, vid, dst), encode_omega(OmegaMsg(j, seq, 1.0, 1e3, -1.0)))
             # ...but its own key is its own: malformed payloads there reach the listeners,
             # which count and drop them (the positive control for the counts below)
             own = hostile_omega_payloads(random.Random(7), 40)
             for p in own:
-                mallory.put(keys.omega(fleet, "usv1"), p)
+                mallory.put(keys.omega(fleet, "usv1", listeners_of(sc, "usv1")), p)
         finally:
             mallory.close()
         assert la.proc.poll() is None, "the run ended before the outsider was done: the test proves nothing"
@@ -149,23 +164,24 @@ def test_an_outsider_cannot_stop_retune_or_inject_into_a_secured_fleet(tmp_path,
         # 3. the credentialed ground station, with the command line the launcher printed
         res = run_cli([*gs, "gains", "k=1.5", "c=2.0"], timeout=60)  # the configured gains: a visible no-op
         assert res.returncode == 0, res.stderr
-        events.wait_for("fleet command set_gains")
-        ground.put(keys.cmd(fleet, keys.ALL), encode_control("resume"))
-        events.wait_for("fleet command resume")
+        events.wait_for("gains_changed")
+        ground.put(command, encode_control("resume"))
+        events.wait_for("fleet", "resumed")
     finally:
         ground.close()
 
     assert la.wait(timeout=300) == 0, la.output()
     m = json.loads((run / "metrics.json").read_text())
     assert m["completed"] is True, m["events"]  # no stop got through
-    fleet_cmds = [e for e in m["events"] if "fleet command" in e]
-    assert len(fleet_cmds) == 3, fleet_cmds  # the ground station's pause, set_gains, resume; nothing else
-    listeners = sum(1 for e in sc.edges if e.k == "usv1")
-    assert m["link"]["rejected"] == len(own) * listeners, m["link"]  # no forged ω reached anyone
+    kinds = [e["kind"] for e in m["events"]]
+    assert kinds.count("fleet") == 2 and kinds.count("gains_changed") == 1, m["events"]  # the ground station's
+    assert "fault" not in kinds and "vehicle_lost" not in kinds, m["events"]
+    listeners = len(listeners_of(sc, "usv1"))
+    assert m["link"]["rejected"] == len(own) * listeners, m["link"]  # no forged ω or command reached anyone
     # the ground station's gains were applied once by every vehicle, the outsider's never
     for v in sc.vehicles:
         log = (run / "logs" / f"{v.id}.log").read_text()
-        applied = re.findall(r"gains now k = \(([^)]*)\), c = (\S+)", log)
+        applied = re.findall(r"gains k = \(([^)]*)\), c = (\S+) from tick", log)
         assert applied == [(", ".join(["1.5"] * v.dim), "2.0")], (v.id, applied)
         assert "Traceback" not in log
     # and nothing reached a controller: the run is the clean in-process one, bit for bit
@@ -198,8 +214,8 @@ def test_over_tls_only_a_certificate_of_the_run_gets_in_and_the_ground_station_c
         status = Status(ground, fleet)
         mallory = member(secure / "vehicle-usv1.json5")
         try:
-            for target in (keys.WORLD, keys.ALL):
-                mallory.put(keys.cmd(fleet, target), encode_control("stop"))
+            mallory.put(keys.world_cmd(fleet, keys.GROUND), encode_control("stop"))
+            mallory.put(keys.ctl(fleet, ["usv1", "usv2", "uav1", "uav2"]), encode_control("stop"))
         finally:
             mallory.close()
         status.wait_past(status.wait_past(0.0) + 2.0)  # two simulated (here: wall) seconds later
