@@ -107,7 +107,7 @@ def test_an_outsider_cannot_stop_retune_or_inject_into_a_secured_fleet(tmp_path,
     fleet = unique_fleet()
     port = free_tcp_port()
     run = tmp_path / "run"
-    duration = 150.0
+    duration = 60.0
     la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", str(duration), "--secure",
                    "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "--trace-out", str(tmp_path / "trace.npz"),
                    "-q"], fleet)
