@@ -89,6 +89,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="router endpoint(s) (default: tcp/127.0.0.1:<free port>); e.g. tcp/0.0.0.0:7447 "
                         "for agents on other hosts")
     p.add_argument("--zenoh-config", metavar="FILE", help="zenoh json5 config for the router (multicast forced off)")
+    p.add_argument("--remote", action="append", default=[], metavar="ID",
+                   help="a vehicle started on another host (repeat, or ID,ID,...): not started here; the launcher "
+                        "prints its command line and waits for it (docs/multihost.md)")
     p.add_argument("--secure", action="store_true",
                    help="generate credentials for this run in <run dir>/secure/ and require them: a Zenoh user "
                         "and password per process, and an access-control list on the router that lets each "
@@ -160,7 +163,17 @@ def launch_options(args: argparse.Namespace, scenario: Scenario) -> LaunchOption
         restart=args.restart or scenario.supervision.restart,
         metrics_out=Path(args.metrics_out) if args.metrics_out else None,
         trace_out=Path(args.trace_out) if args.trace_out else None, policy=args.policy,
-        ready_timeout=args.ready_timeout, quiet=args.quiet, rerun=args.rerun)
+        ready_timeout=args.ready_timeout, quiet=args.quiet, rerun=args.rerun, remote=remote_ids(args.remote, scenario))
+
+
+def remote_ids(values: list[str], scenario: Scenario) -> tuple[str, ...]:
+    """--remote ID (repeated or comma-separated), checked against the scenario's ids."""
+    out = tuple(dict.fromkeys(v for value in values for v in value.split(",") if v))
+    unknown = [v for v in out if v not in scenario.ids]
+    if unknown:
+        raise ConfigError("command line", [("--remote", f"no vehicle {', '.join(map(repr, unknown))} in "
+                                                        f"{scenario.name}; ids are {', '.join(scenario.ids)}")])
+    return out
 
 
 def cmd_launch(args: argparse.Namespace) -> int:
@@ -184,7 +197,7 @@ def cmd_launch(args: argparse.Namespace) -> int:
     cred = None
     if args.secure or args.tls:
         router, cred = secure_router(router, opts, scenario, run / "secure", "tls" if args.tls else "password")
-    print(f"{scenario.name}: launching {len(scenario.vehicles)} vehicle processes + world "
+    print(f"{scenario.name}: launching {len(scenario.vehicles) - len(opts.remote)} vehicle processes + world "
           f"({args.clock} clock), router {', '.join(router.listen) or args.zenoh_config}")
     if cred is not None:
         print(f"  secured ({cred.mode}): credentials in {cred.directory}; only the fleet's own processes and "

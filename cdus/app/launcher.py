@@ -2,7 +2,8 @@
 
 The launcher opens the fleet's Zenoh router itself (loopback TCP by default), so it sees
 every liveliness token without polling: it starts world_sim, waits for the world's token,
-starts the agents, waits for all of theirs (naming the ones that did not come up, with the
+starts the agents (but those started elsewhere, ``remote``: it prints their command
+lines, docs/multihost.md), waits for all of theirs (naming the ones that did not come up, with the
 tail of their logs), then watches: it shows the world's progress, restarts agents by the
 restart policy (never | on-failure | always), and at the end, on Ctrl-C, on SIGTERM or on
 a failure, walks the shutdown ladder: ask the world to stop (it writes the metrics), let
@@ -13,6 +14,7 @@ started outlives it.
 from __future__ import annotations
 
 import os
+import shlex
 import signal
 import subprocess
 import sys
@@ -105,6 +107,7 @@ class LaunchOptions:
     lease_ms: int | None = DEFAULT_LEASE_MS
     rerun: str = "off"
     zenoh_configs: dict[str, str] = field(default_factory=dict)  # child name -> its --zenoh-config (credentials)
+    remote: tuple[str, ...] = ()  # vehicles started elsewhere (another host): waited for, not started or restarted
 
 
 @dataclass
@@ -159,6 +162,12 @@ class Launcher:
         if self.opts.policy:
             argv += ["--policy", self.opts.policy]
         return Child(vid, argv, self.logs / f"{vid}.log")
+
+    def remote_command(self, vid: str) -> str:
+        """How to start vehicle ``vid`` on another host (docs/multihost.md): the launcher's own
+        command line for it, ``python3`` for this interpreter."""
+        argv = ["python3", *self._agent(vid).argv[1:]]
+        return " ".join(shlex.quote(a) for a in argv)
 
     # ------------------------------------------------------------------ zenoh
     def _open(self) -> None:
@@ -239,7 +248,7 @@ class Launcher:
         with self.cond:
             while True:
                 missing = [n for n in names if n not in self.alive]
-                dead = [n for n in missing if self.children[n].poll() is not None]
+                dead = [n for n in missing if n in self.children and self.children[n].poll() is not None]
                 if not missing or dead or time.monotonic() > deadline:
                     return missing
                 self.cond.wait(timeout=0.2)
@@ -247,6 +256,10 @@ class Launcher:
     def _fail_start(self, missing: list[str], timeout: float) -> LaunchError:
         parts = []
         for n in missing:
+            if n not in self.children:
+                parts.append(f"{n} (started elsewhere) did not connect within {timeout:g} s; start it on its host "
+                             f"with:\n    {self.remote_command(n)}")
+                continue
             c = self.children[n]
             code = c.poll()
             why = (f"exited with status {code} during start-up" if code is not None
@@ -264,13 +277,21 @@ class Launcher:
             raise self._fail_start(missing, self.opts.ready_timeout)
         ids = [v.id for v in self.scenario.vehicles]
         for vid in ids:
-            c = self.children[vid] = self._agent(vid)
-            c.start(self.env)
+            if vid not in self.opts.remote:
+                c = self.children[vid] = self._agent(vid)
+                c.start(self.env)
+        if self.opts.remote:
+            self.log(f"waiting for {len(self.opts.remote)} vehicles started elsewhere "
+                     f"({', '.join(self.opts.remote)}); start each on its host, connecting to an endpoint of "
+                     f"this router it can reach ({', '.join(self.router.listen)}):")
+            for vid in self.opts.remote:
+                self.log(f"    {self.remote_command(vid)}")
         missing = self._wait_alive(ids, self.opts.ready_timeout)
         if missing:
             raise self._fail_start(missing, self.opts.ready_timeout)
-        self.log(f"fleet {self.fleet!r} up: world + {len(ids)} vehicles ({self.opts.clock} clock); "
-                 f"logs in {self.logs}")
+        here = f"{len(ids) - len(self.opts.remote)} here, {len(self.opts.remote)} elsewhere" if self.opts.remote else ""
+        self.log(f"fleet {self.fleet!r} up: world + {len(ids)} vehicles ({self.opts.clock} clock{', ' if here else ''}"
+                 f"{here}); logs in {self.logs}")
 
     def supervise(self) -> int:
         """Until the world exits: progress, restarts. Returns the world's exit status."""
