@@ -15,6 +15,7 @@ import threading
 import time
 import uuid
 from pathlib import Path
+from typing import Callable, Sequence
 
 import pytest
 
@@ -33,8 +34,9 @@ def fleet_processes(fleet: str) -> list[str]:
 class Launch:
     """`cdus launch ...` in the background, its stdout collected line by line."""
 
-    def __init__(self, args: list[str]):
-        self.proc = subprocess.Popen([sys.executable, "-m", "cdus.app.cli", "launch", *args], cwd=ROOT,
+    def __init__(self, args: list[str], prefix: Sequence[str] = ()):
+        """``prefix``: what to run it under, e.g. ``ip netns exec NS``."""
+        self.proc = subprocess.Popen([*prefix, sys.executable, "-m", "cdus.app.cli", "launch", *args], cwd=ROOT,
                                      stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                      start_new_session=True, env={**os.environ, "PYTHONUNBUFFERED": "1"})
         self.lines: list[str] = []
@@ -50,12 +52,13 @@ class Launch:
         with self.cond:
             self.cond.notify_all()
 
-    def wait_for(self, text: str, timeout: float = 60.0) -> str:
+    def wait_for(self, text: str | Callable[[str], bool], timeout: float = 60.0) -> str:
+        """The first line containing ``text`` (or for which ``text(line)`` holds)."""
         deadline = time.monotonic() + timeout
         with self.cond:
             while True:
                 for ln in self.lines:
-                    if text in ln:
+                    if (text(ln) if callable(text) else text in ln):
                         return ln
                 if self.proc.poll() is not None and not self.reader.is_alive():
                     raise AssertionError(f"launcher exited before {text!r}:\n" + "\n".join(self.lines))
@@ -86,8 +89,8 @@ class Launch:
 def launches():
     started: list[tuple[Launch, str]] = []
 
-    def start(args: list[str], fleet: str) -> Launch:
-        la = Launch([*args, "--fleet", fleet])
+    def start(args: list[str], fleet: str, prefix: Sequence[str] = ()) -> Launch:
+        la = Launch([*args, "--fleet", fleet], prefix)
         started.append((la, fleet))
         return la
 
