@@ -26,7 +26,7 @@ from cdus.sim.build import listeners_of
 from cdus.sim.fleet import InProcessFleet
 from cdus.wire import keys
 from cdus.wire.access import GROUND_ROLE, WORLD_ROLE, vehicle_role
-from cdus.wire.transport import Transport, client_of, local_router
+from cdus.wire.transport import Transport, client_of, router as fleet_router
 from ground_station.__main__ import main as gs_main
 from world_sim.recording import parse_spec
 from cdus.app.report import Progress, run_dir, summary_table
@@ -192,8 +192,7 @@ def cmd_launch(args: argparse.Namespace) -> int:
                                                         "--listen too (the credentials name them)")])
     run = Path(args.logs) if args.logs else run_dir(args.runs_dir, scenario.name)
     run.mkdir(parents=True, exist_ok=True)
-    router = (Transport(mode="router", listen=tuple(args.listen), config_file=args.zenoh_config)
-              if args.listen or args.zenoh_config else local_router())
+    router = fleet_router(args.listen, args.zenoh_config)
     cred = None
     if args.secure or args.tls:
         router, cred = secure_router(router, opts, scenario, run / "secure", "tls" if args.tls else "password")

@@ -123,11 +123,26 @@ def free_tcp_port() -> int:
 # cdus carries its own send time in every payload; the router's per-message timestamps
 # would add 26 bytes to each delivered ω message (measured: 68 -> 42 bytes on the wire).
 NO_TIMESTAMPS = (("timestamping/enabled", "{router: false, peer: false, client: false}"),)
+# A router holds a message for a link whose queue is full (ω, state and the world's ctl
+# are sent with congestion control BLOCK) at most this long before it closes that link.
+# Zenoh's default, 5 s, stalls every vehicle whose ω is also addressed to a vehicle cut
+# off by a partition, link after link (measured: 11 s for two cut-off UAVs); one lease
+# is how long a silent vehicle is given anyway (docs/multihost.md, "Partitions").
+BLOCK_BEFORE_CLOSE = (("transport/link/tx/queue/congestion_control/block/wait_before_close",
+                       str(DEFAULT_LEASE_MS * 1000)),)  # µs
+ROUTER_EXTRA = NO_TIMESTAMPS + BLOCK_BEFORE_CLOSE
+
+
+def router(listen: Sequence[str] = (), config_file: str | None = None) -> Transport:
+    """The fleet's router (the launcher's session): ``listen`` (default: a fresh port on
+    loopback), ROUTER_EXTRA's settings over ``config_file``'s."""
+    eps = tuple(listen) or (() if config_file else (f"tcp/127.0.0.1:{free_tcp_port()}",))
+    return Transport(mode="router", listen=eps, config_file=config_file, extra=ROUTER_EXTRA)
 
 
 def local_router(port: int | None = None) -> Transport:
-    """The default world transport: a router on loopback, without per-message timestamps."""
-    return Transport(mode="router", listen=(f"tcp/127.0.0.1:{port or free_tcp_port()}",), extra=NO_TIMESTAMPS)
+    """The default world transport: a router on loopback (ROUTER_EXTRA's settings)."""
+    return Transport(mode="router", listen=(f"tcp/127.0.0.1:{port or free_tcp_port()}",), extra=ROUTER_EXTRA)
 
 
 def client_of(router: Transport, base: Transport | None = None) -> Transport:
