@@ -40,7 +40,6 @@ class Launch:
                                      stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                      start_new_session=True, env={**os.environ, "PYTHONUNBUFFERED": "1"})
         self.lines: list[str] = []
-        self.times: list[float] = []  # time.monotonic() when each line arrived
         self.cond = threading.Condition()
         self.reader = threading.Thread(target=self._read, daemon=True)
         self.reader.start()
@@ -49,7 +48,6 @@ class Launch:
         for line in self.proc.stdout:
             with self.cond:
                 self.lines.append(line.rstrip("\n"))
-                self.times.append(time.monotonic())
                 self.cond.notify_all()
         with self.cond:
             self.cond.notify_all()
