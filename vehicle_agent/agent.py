@@ -149,6 +149,7 @@ class Agent:
         self.session: Any = None
         self.waker: Waker | None = None
         self.stop_requested = False  # by a signal
+        self.cpu_s = 0.0  # CPU time of the process over the run (start to last tick)
 
     # ------------------------------------------------------------------ zenoh wiring
     def open(self) -> None:
@@ -297,10 +298,12 @@ class Agent:
     # ------------------------------------------------------------------ the loop
     def run(self) -> int:
         """Step to the last tick (or a stop). Returns the number of ticks stepped."""
+        cpu0 = time.process_time()
         if self.clock_mode == "lockstep":
             self._run_lockstep()
         else:
             self._run_realtime()
+        self.cpu_s = time.process_time() - cpu0  # every thread of the process, Zenoh's included
         self._await_stop()
         return self.ticks_done
 
@@ -475,8 +478,9 @@ def run_agent(agent: Agent) -> int:
         assert agent.waker is not None
         signal.set_wakeup_fd(agent.waker.wfd)  # a signal wakes the waker, which wakes the main loop
         ticks = agent.run()
+        per_tick = f" ({agent.cpu_s / ticks * 1e6:.0f} µs per tick)" if ticks else ""
         agent.log(f"done after {ticks} ticks; missed deadlines {agent.missed_deadlines}; "
-                  f"rejected {dict(agent.rejected) or 0}")
+                  f"rejected {dict(agent.rejected) or 0}; CPU in the run {agent.cpu_s:.2f} s{per_tick}")
         return 0
     finally:
         signal.set_wakeup_fd(-1)
