@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 from typing import Any, Sequence
 
-from cdus.app.launcher import LaunchOptions, launch
+from cdus.app.launcher import LINKS, LaunchOptions, launch
 from cdus.app.sweep import parse_grid, sweep
 from cdus.scenario.config import ConfigError, load_scenario, parse_overrides
 from cdus.core.linkspec import POLICIES
@@ -84,6 +84,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="router endpoint(s) (default: tcp/127.0.0.1:<free port>); e.g. tcp/0.0.0.0:7447 "
                         "for agents on other hosts")
     p.add_argument("--zenoh-config", metavar="FILE", help="zenoh json5 config for the router (multicast forced off)")
+    p.add_argument("--links", choices=LINKS, default="direct",
+                   help="direct (default): neighbours exchange ω over their own unix-socket links, "
+                        "everything else goes through the router; router: everything through the router")
     p.set_defaults(func=cmd_launch)
 
     p = sub.add_parser("sweep", help="run a grid of config values x seeds; a table, a summary and a plot",
@@ -148,7 +151,7 @@ def launch_options(args: argparse.Namespace, scenario: Scenario) -> LaunchOption
         restart=args.restart or scenario.supervision.restart,
         metrics_out=Path(args.metrics_out) if args.metrics_out else None,
         trace_out=Path(args.trace_out) if args.trace_out else None, policy=args.policy,
-        ready_timeout=args.ready_timeout, quiet=args.quiet, rerun=args.rerun)
+        ready_timeout=args.ready_timeout, quiet=args.quiet, rerun=args.rerun, links=args.links)
 
 
 def cmd_launch(args: argparse.Namespace) -> int:

@@ -13,9 +13,11 @@ started outlives it.
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from dataclasses import dataclass, field
@@ -32,6 +34,7 @@ from cdus.wire.messages import CTL_OPS, LAUNCHER_OPS, decode_control, encode_con
 from cdus.wire.schemas import decode_event, decode_status
 from cdus.wire.transport import DEFAULT_LEASE_MS, Transport, client_of, open_session
 
+LINKS = ("direct", "router")  # how ω travels between neighbours (docs/architecture.md)
 GRACE_S = 5.0
 LOG_TAIL = 15
 # Fewer Zenoh runtime threads per process: on a small machine running many processes the
@@ -54,10 +57,12 @@ class Child:
     exit_code: int | None = None
     log_file: Any = None
     intended_exit: bool = False  # killed on purpose (a scheduled fault): not a failure to restart
+    restart_args: tuple[str, ...] = ()  # added when it is started again (an agent rejoins)
 
     def start(self, env: dict[str, str]) -> None:
         self.log_file = open(self.log_path, "ab")
-        self.proc = subprocess.Popen(self.argv, stdout=self.log_file, stderr=subprocess.STDOUT,
+        argv = self.argv + list(self.restart_args if self.restarts else ())
+        self.proc = subprocess.Popen(argv, stdout=self.log_file, stderr=subprocess.STDOUT,
                                      stdin=subprocess.DEVNULL, start_new_session=True, env=env)
         self.exit_code = None
         self.intended_exit = False
@@ -104,6 +109,7 @@ class LaunchOptions:
     quiet: bool = False
     lease_ms: int | None = DEFAULT_LEASE_MS
     rerun: str = "off"
+    links: str = "direct"  # one of LINKS: ω between neighbours directly, or through the router
 
 
 @dataclass
@@ -132,11 +138,14 @@ class Launcher:
         self.env = dict(os.environ)
         self.env.setdefault("ZENOH_RUNTIME", ZENOH_RUNTIME)
         self.env["PYTHONUNBUFFERED"] = "1"
+        self.sockets: Path | None = None  # direct links: each agent's unix socket, in a short temp dir
+        if self.opts.links == "direct":
+            self.sockets = Path(tempfile.mkdtemp(prefix="cdus-"))
 
     # ------------------------------------------------------------------ processes
-    def _common(self) -> list[str]:
-        client = client_of(self.router)
-        t = Transport(mode="client", connect=client.connect, lease_ms=self.opts.lease_ms)
+    def _common(self, t: Transport | None = None) -> list[str]:
+        if t is None:
+            t = Transport(mode="client", connect=client_of(self.router).connect, lease_ms=self.opts.lease_ms)
         out = ["--config", str(self.config_path), "--fleet", self.fleet, "--clock", self.opts.clock, *t.args()]
         if self.opts.duration is not None:
             out += ["--duration", str(self.opts.duration)]
@@ -153,10 +162,25 @@ class Launcher:
         return Child("world", argv, self.logs / "world.log")
 
     def _agent(self, vid: str) -> Child:
-        argv = [sys.executable, "-m", "vehicle_agent", *self._common(), "--id", vid]
+        argv = [sys.executable, "-m", "vehicle_agent", *self._common(self._agent_transport(vid)), "--id", vid]
         if self.opts.policy:
             argv += ["--policy", self.opts.policy]
-        return Child(vid, argv, self.logs / f"{vid}.log")
+        return Child(vid, argv, self.logs / f"{vid}.log", restart_args=("--rejoin",))
+
+    def _agent_transport(self, vid: str) -> Transport | None:
+        """Direct links: the agent is a peer listening on its own unix socket, connected to the
+        router and to the sockets of the vehicles it hears or that hear it (no gossip: exactly
+        these links). Its ω then goes straight to its neighbours; all else through the router."""
+        if self.sockets is None:
+            return None
+        sc = self.scenario
+        near = sorted({e.k for e in sc.edges if e.i == vid} | {e.i for e in sc.edges if e.k == vid})
+        return Transport(mode="peer", connect=(*client_of(self.router).connect, *(self._socket(k) for k in near)),
+                         listen=(self._socket(vid),), lease_ms=self.opts.lease_ms)
+
+    def _socket(self, vid: str) -> str:
+        assert self.sockets is not None
+        return f"unixsock-stream/{self.sockets / (vid + '.sock')}"
 
     # ------------------------------------------------------------------ zenoh
     def _open(self) -> None:
@@ -332,6 +356,8 @@ class Launcher:
             except zenoh.ZError as e:
                 self.log(f"  while closing the router: {e}")
             self.session = None
+        if self.sockets is not None:
+            shutil.rmtree(self.sockets, ignore_errors=True)
 
     def _wait_exit(self, seconds: float) -> None:
         deadline = time.monotonic() + seconds
