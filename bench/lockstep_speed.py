@@ -8,7 +8,10 @@ Each run is the real command in a child process (`cdus launch CONFIG --clock loc
 and `cdus sim CONFIG --duration D -q`). "run" is the metrics' wall_s: the world's clock
 from the moment every vehicle is up to the metrics (for `cdus sim`, the fleet's run);
 "total" is the whole command, start-up and shutdown included. Best of --repeat.
-Target (issue "One process per vehicle over Zenoh"): lockstep >= 20x real time.
+Both link topologies (`--links direct`, the default, and `--links router`) are run, so
+the figures sit side by side in one run; `python bench/raw_ring.py` gives the ceiling
+that raw Zenoh processes reach in the same exchange pattern.
+Target (issue "Faster distributed runs"): lockstep >= 50x real time.
 Figures are printed, never asserted: this machine is noisy.
 """
 
@@ -27,16 +30,16 @@ from _fleet import REPO, Launch, load_line
 from cdus.scenario.config import load_scenario
 
 
-def once(cmd: str, config: str, duration: float, work: Path, k: int) -> tuple[float, float, dict]:
+def once(cmd: str, config: str, duration: float, work: Path, k: int, links: str = "direct") -> tuple[float, float, dict]:
     """(run wall s from metrics.json, total wall s of the command, CPU s by role)."""
-    run = work / f"{cmd}{k}"
+    run = work / f"{cmd}{links}{k}"
     metrics = run / "metrics.json"
     run.mkdir()
     args = [cmd, config, "--duration", f"{duration:g}", "-q", "--metrics-out", str(metrics)]
     fleet = None
     if cmd == "launch":
-        fleet = f"bench_ls_{os.getpid()}_{k}"
-        args += ["--clock", "lockstep", "--fleet", fleet, "--logs", str(run)]
+        fleet = f"bench_ls_{os.getpid()}_{links}_{k}"
+        args += ["--clock", "lockstep", "--fleet", fleet, "--logs", str(run), "--links", links]
     with Launch(args, fleet=fleet, track_cpu=True) as la:
         rc = la.wait(timeout=600)
     m = json.loads(metrics.read_text()) if metrics.exists() else {}
@@ -61,9 +64,10 @@ def main() -> None:
     print(f"{'command':<34} {'run s':>7} {'x real time':>12} {'total s':>8} {'x incl. start-up':>17}  all runs (run s)")
     with tempfile.TemporaryDirectory(prefix="cdus-ls-") as tmp:
         work = Path(tmp)
-        for cmd, label, target in (("launch", "cdus launch --clock lockstep", 20),
-                                   ("sim", "cdus sim (one process)", None)):
-            runs = [once(cmd, config, args.duration, work, k) for k in range(args.repeat)]
+        for cmd, links, label, target in (("launch", "direct", "launch lockstep, direct links", 50),
+                                          ("launch", "router", "launch lockstep, via the router", 50),
+                                          ("sim", "-", "cdus sim (one process)", None)):
+            runs = [once(cmd, config, args.duration, work, k, links) for k in range(args.repeat)]
             best_run = min(r for r, _, _ in runs)
             best_total = min(t for _, t, _ in runs)
             print(f"{label:<34} {best_run:7.2f} {args.duration / best_run:11.1f}x {best_total:8.2f} "

@@ -9,8 +9,8 @@ run with `cdus launch FILE --clock realtime --duration D -q`. Halfway through th
 the bench samples every process's RSS and, over a few seconds, its CPU use; at the end it
 reads link.missed_deadlines (summed over the agents by the world) from metrics.json.
 Miss rate = missed / (N x ticks per agent). The sweep stops after a size above 5%.
-Targets (issue "One process per vehicle over Zenoh"): >= 32 vehicles under 1% missed
-control deadlines, <= 60 MB RSS per agent. Figures are printed, never asserted.
+Targets (issue "Faster distributed runs"): 64 vehicles under 1% missed control
+deadlines, <= 60 MB RSS per agent. --links router gives the figures without direct links. Figures are printed, never asserted.
 """
 
 from __future__ import annotations
@@ -34,13 +34,13 @@ CPU_WINDOW = 4.0  # s of the run's middle over which CPU use is measured
 DONE_RE = re.compile(r"done after (\d+) ticks; missed deadlines (\d+)")
 
 
-def run_size(n: int, duration: float, work: Path) -> dict:
+def run_size(n: int, duration: float, work: Path, links: str = "direct") -> dict:
     sc = ring(n, duration)
     path = write_json(work / f"ring{n}.json", sc.raw)
-    fleet = f"bench_rt_{os.getpid()}_{n}"
-    run = work / f"run{n}"
+    fleet = f"bench_rt_{os.getpid()}_{links}_{n}"
+    run = work / f"run{links}{n}"
     args = ["launch", str(path), "--clock", "realtime", "--duration", f"{duration:g}", "-q",
-            "--fleet", fleet, "--logs", str(run)]
+            "--fleet", fleet, "--logs", str(run), "--links", links]
     out = {"n": n}
     with Launch(args, fleet=fleet) as la:
         la.up.wait(timeout=120 + n)
@@ -94,7 +94,10 @@ def main() -> None:
     ap.add_argument("--sizes", default="8,16,24,32,48,64")
     ap.add_argument("--duration", type=float, default=20.0, help="simulated (= wall) seconds per run")
     ap.add_argument("--keep", action="store_true", help="keep the run directories (logs, metrics)")
+    ap.add_argument("--links", choices=("direct", "router"), default="direct",
+                    help="how ω travels between neighbours (cdus launch --links)")
     args = ap.parse_args()
+    print(f"links: {args.links}")
     print(f"{os.cpu_count()} CPUs; {load_line()}")
     print(f"{'N':>3} {'miss %':>7} {'missed':>7} {'(logs)':>7} {'RSS/agent MB':>13} {'world MB':>9} "
           f"{'CPU% agents':>12} {'(max one)':>10} {'world':>6} {'router':>7} {'ctx sw/s':>9} {'start s':>8} "
@@ -103,7 +106,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="cdus-rt-") as tmp:
         work = Path(tmp)
         for n in (int(s) for s in args.sizes.split(",")):
-            r = run_size(n, args.duration, work)
+            r = run_size(n, args.duration, work, args.links)
             results.append(r)
             print(f"{n:3d} {r['miss_pct']:7.2f} {r.get('missed', '-'):>7} {r['missed_logs']:>7} "
                   f"{r['rss_agent'] or float('nan'):13.1f} {r['rss_world'] or float('nan'):9.1f} "

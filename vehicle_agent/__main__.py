@@ -27,6 +27,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--clock", choices=CLOCKS, default="realtime")
     p.add_argument("--duration", type=float, help="simulated seconds (default: the scenario's)")
     p.add_argument("--policy", choices=POLICIES, help="stale-neighbour policy (default: the scenario's link.policy)")
+    p.add_argument("--rejoin", action="store_true",
+                   help="join a run under way (a restart): do not wait for listeners that are not alive")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a config key")
     add_transport_args(p, default_mode="client")
     return p
@@ -45,7 +47,7 @@ def main(argv=None) -> int:
         return 2
     transport = with_default_endpoint(transport_from_args(args))
     agent = Agent(scenario, args.id, args.fleet, transport, clock=args.clock, policy=args.policy,
-                  duration=args.duration)
+                  duration=args.duration, rejoin=args.rejoin)
     return run_agent(agent)
 
 

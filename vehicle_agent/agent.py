@@ -57,6 +57,8 @@ STALL_TICKS = 10  # realtime: this many periods late means the process was froze
 END_WAIT = 10.0  # s to wait for the world's stop after the last tick
 INBOX_CAPACITY = 4096
 LOG_WAIT = 5.0  # s of waiting before saying what for
+PING_TIMEOUT = 1.0  # s for a link check's reply (it is immediate when nobody answers)
+PING_RETRY = 0.02  # s between link checks
 
 
 @dataclass
@@ -118,7 +120,8 @@ class Waker(threading.Thread):
 
 class Agent:
     def __init__(self, scenario: Scenario, vid: str, fleet: str, transport: Transport, clock: str = "realtime",
-                 policy: str | None = None, duration: float | None = None, log: Callable[[str], None] | None = None):
+                 policy: str | None = None, duration: float | None = None, log: Callable[[str], None] | None = None,
+                 rejoin: bool = False):
         if clock not in CLOCKS:
             raise ValueError(f"clock must be one of {CLOCKS}, got {clock!r}")
         self.scenario = scenario
@@ -126,6 +129,8 @@ class Agent:
         self.fleet = keys.check_fleet(fleet)
         self.transport = transport
         self.clock_mode = clock
+        self.rejoin = rejoin  # a restart: listeners that are not alive are not waited for
+        self.listeners = listeners_of(scenario, vid)
         self.ids = list(scenario.ids)
         self.index = self.ids.index(vid)
         self.period = 1.0 / scenario.rates.control
@@ -147,14 +152,18 @@ class Agent:
         self._last_stats = 0.0
         self.log = log or (lambda s: print(f"[{vid}] {s}", flush=True))
         self.session: Any = None
+        self.token: Any = None
         self.waker: Waker | None = None
         self.stop_requested = False  # by a signal
+        self.cpu_s = 0.0  # CPU time of the process over the run (start to last tick)
 
     # ------------------------------------------------------------------ zenoh wiring
     def open(self) -> None:
         s = self.session = open_session(self.transport)
         f, me = self.fleet, self.id
         self.inbox = s.declare_subscriber(keys.inbox(f, me), zenoh.handlers.FifoChannel(INBOX_CAPACITY))
+        # declared after the subscription, on the same session: whoever gets a reply holds both
+        self.pinged = s.declare_queryable(keys.ping(f, me), lambda q: q.reply(keys.ping(f, me), b""))
         # the exact key each neighbour's ω arrives on (its listener set is known): no parsing
         self._omega_from = {keys.omega(f, self.ids[k], listeners_of(self.scenario, self.ids[k])): k
                             for k in self.node.neighbours}
@@ -168,11 +177,41 @@ class Agent:
         wake = s.declare_publisher(keys.wake(f, me), allowed_destination=zenoh.Locality.SESSION_LOCAL)
         self.waker = Waker(lambda: wake.put(b""), self.period)
         self.waker.start()
-        # Ready: the subscription is in place. The token tells the world and the launcher.
+        self._await_links()
+        # Ready: the subscription is in place and every listener can hear us. The token tells
+        # the world and the launcher.
         self.token = s.liveliness().declare_token(keys.alive(f, me))
         spec = self.scenario.vehicle(me)
         self.log(f"ready: {spec.kind} on a {dict(spec.path)['family']} path, "
                  f"neighbours {[self.ids[k] for k in self.node.neighbours]}, clock {self.clock_mode}")
+
+    def _await_links(self) -> None:
+        """Wait until every vehicle listening to this one can hear it.
+
+        With direct links between neighbours (peer sessions, ``cdus launch --links direct``) a
+        message only reaches a neighbour once the link is up and the neighbour's subscription
+        has crossed it; the router does not relay between peers. A ping reply from the
+        neighbour's queryable, declared after its subscription on the same session, proves
+        both. Through the router it costs one round trip. A restarted process (``--rejoin``)
+        does not wait for listeners that are not alive (their liveliness token is absent).
+        """
+        s, f = self.session, self.fleet
+        waiting = list(self.listeners)
+        since = time.monotonic()
+        while waiting and not self.stop_requested:
+            for vid in list(waiting):
+                if any(r.ok is not None for r in s.get(keys.ping(f, vid), timeout=PING_TIMEOUT)):
+                    waiting.remove(vid)
+                elif self.rejoin and not any(r.ok is not None for r in
+                                             s.liveliness().get(keys.alive(f, vid), timeout=PING_TIMEOUT)):
+                    self.log(f"listener {vid} is not alive: not waiting for it")
+                    waiting.remove(vid)
+            if waiting:
+                if time.monotonic() - since > LOG_WAIT:
+                    since = time.monotonic()
+                    self.log(f"waiting for the link to {', '.join(waiting)}"
+                             + ("" if self.rejoin else " (a process joining a run under way takes --rejoin)"))
+                time.sleep(PING_RETRY)
 
     def close(self) -> None:
         if self.waker is not None:
@@ -182,7 +221,8 @@ class Agent:
             return
         try:
             self.publish_stats()
-            self.token.undeclare()
+            if self.token is not None:
+                self.token.undeclare()
             self.session.close()
         except zenoh.ZError as e:  # closing must never hide the run's own outcome
             self.log(f"while closing the session: {e}")
@@ -297,10 +337,12 @@ class Agent:
     # ------------------------------------------------------------------ the loop
     def run(self) -> int:
         """Step to the last tick (or a stop). Returns the number of ticks stepped."""
+        cpu0 = time.process_time()
         if self.clock_mode == "lockstep":
             self._run_lockstep()
         else:
             self._run_realtime()
+        self.cpu_s = time.process_time() - cpu0  # every thread of the process, Zenoh's included
         self._await_stop()
         return self.ticks_done
 
@@ -475,8 +517,9 @@ def run_agent(agent: Agent) -> int:
         assert agent.waker is not None
         signal.set_wakeup_fd(agent.waker.wfd)  # a signal wakes the waker, which wakes the main loop
         ticks = agent.run()
+        per_tick = f" ({agent.cpu_s / ticks * 1e6:.0f} µs per tick)" if ticks else ""
         agent.log(f"done after {ticks} ticks; missed deadlines {agent.missed_deadlines}; "
-                  f"rejected {dict(agent.rejected) or 0}")
+                  f"rejected {dict(agent.rejected) or 0}; CPU in the run {agent.cpu_s:.2f} s{per_tick}")
         return 0
     finally:
         signal.set_wakeup_fd(-1)

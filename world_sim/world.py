@@ -94,6 +94,7 @@ class World:
         self.next_tick = 0  # next tick to record
         self.events: list[FleetEvent] = []
         self.started = False
+        self.cpu_s = 0.0  # CPU time of the process over the run
         self.finished = False
         self.stop_requested = False
         self.paused_at: float | None = None  # realtime: wall time of a fleet pause
@@ -357,9 +358,11 @@ class World:
             self._drain(block=True)
         self.started = True
         self._t_start = time.perf_counter()
+        cpu0 = time.process_time()
         self.sink.start(self.scenario)
         if not self.stop_requested:
             self._run_lockstep() if self.clock == "lockstep" else self._run_realtime()
+        self.cpu_s = time.process_time() - cpu0
         return self.finish()
 
     def _act(self, actions: list) -> None:
@@ -517,7 +520,9 @@ def run_world(world: World) -> int:
     try:
         world.open()
         m = world.run()
-        world.log(f"done: path settle {m['path_settle_s']}, coordination settle {m['coord_settle_s']}")
+        ticks = max(1, len(world.recorder))
+        world.log(f"done: path settle {m['path_settle_s']}, coordination settle {m['coord_settle_s']}; "
+                  f"CPU in the run {world.cpu_s:.2f} s ({world.cpu_s / ticks * 1e6:.0f} µs per tick)")
         return 0
     except TimeoutError as e:
         world.log(f"error: {e}")

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from cdus.app.credentials import Credentials, CredentialsError, make_credentials
-from cdus.app.launcher import LaunchOptions, launch
+from cdus.app.launcher import LINKS, LaunchOptions, launch
 from cdus.app.sweep import parse_grid, sweep
 from cdus.scenario.config import ConfigError, load_scenario, parse_overrides
 from cdus.core.linkspec import POLICIES
@@ -89,6 +89,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="router endpoint(s) (default: tcp/127.0.0.1:<free port>); e.g. tcp/0.0.0.0:7447 "
                         "for agents on other hosts")
     p.add_argument("--zenoh-config", metavar="FILE", help="zenoh json5 config for the router (multicast forced off)")
+    p.add_argument("--links", choices=LINKS, default=None,
+                   help="direct (default): neighbours exchange ω over their own unix-socket links, "
+                        "everything else goes through the router; router: everything through the router "
+                        "(the default and the only choice with --remote, --secure or --tls)")
     p.add_argument("--remote", action="append", default=[], metavar="ID",
                    help="a vehicle started on another host (repeat, or ID,ID,...): not started here; the launcher "
                         "prints its command line and waits for it (docs/multihost.md)")
@@ -163,7 +167,18 @@ def launch_options(args: argparse.Namespace, scenario: Scenario) -> LaunchOption
         restart=args.restart or scenario.supervision.restart,
         metrics_out=Path(args.metrics_out) if args.metrics_out else None,
         trace_out=Path(args.trace_out) if args.trace_out else None, policy=args.policy,
-        ready_timeout=args.ready_timeout, quiet=args.quiet, rerun=args.rerun, remote=remote_ids(args.remote, scenario))
+        ready_timeout=args.ready_timeout, quiet=args.quiet, rerun=args.rerun, links=links_of_run(args),
+        remote=remote_ids(args.remote, scenario))
+
+
+def links_of_run(args: argparse.Namespace) -> str:
+    """--links, by default direct; router with vehicles on other hosts (unix sockets do not
+    reach them) or a secured fleet (direct links would bypass the router's access control)."""
+    why = "--remote" if args.remote else "--secure" if args.secure or args.tls else None
+    if why and args.links == "direct":
+        raise ConfigError("command line", [("--links", f"direct links are unix sockets between the vehicles on this "
+                                                       f"host and skip the router; with {why} use --links router")])
+    return args.links or ("router" if why else "direct")
 
 
 def remote_ids(values: list[str], scenario: Scenario) -> tuple[str, ...]:

@@ -15,9 +15,11 @@ from __future__ import annotations
 
 import os
 import shlex
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from dataclasses import dataclass, field
@@ -34,6 +36,7 @@ from cdus.wire.messages import CTL_OPS, LAUNCHER_OPS, decode_control, encode_con
 from cdus.wire.schemas import decode_event, decode_status
 from cdus.wire.transport import DEFAULT_LEASE_MS, Transport, client_of, open_session
 
+LINKS = ("direct", "router")  # how ω travels between neighbours (docs/architecture.md)
 GRACE_S = 5.0
 LOG_TAIL = 15
 # Fewer Zenoh runtime threads per process: on a small machine running many processes the
@@ -56,10 +59,12 @@ class Child:
     exit_code: int | None = None
     log_file: Any = None
     intended_exit: bool = False  # killed on purpose (a scheduled fault): not a failure to restart
+    restart_args: tuple[str, ...] = ()  # added when it is started again (an agent rejoins)
 
     def start(self, env: dict[str, str]) -> None:
         self.log_file = open(self.log_path, "ab")
-        self.proc = subprocess.Popen(self.argv, stdout=self.log_file, stderr=subprocess.STDOUT,
+        argv = self.argv + list(self.restart_args if self.restarts else ())
+        self.proc = subprocess.Popen(argv, stdout=self.log_file, stderr=subprocess.STDOUT,
                                      stdin=subprocess.DEVNULL, start_new_session=True, env=env)
         self.exit_code = None
         self.intended_exit = False
@@ -108,6 +113,7 @@ class LaunchOptions:
     rerun: str = "off"
     zenoh_configs: dict[str, str] = field(default_factory=dict)  # child name -> its --zenoh-config (credentials)
     remote: tuple[str, ...] = ()  # vehicles started elsewhere (another host): waited for, not started or restarted
+    links: str = "direct"  # one of LINKS: ω between neighbours directly, or through the router
 
 
 @dataclass
@@ -136,12 +142,18 @@ class Launcher:
         self.env = dict(os.environ)
         self.env.setdefault("ZENOH_RUNTIME", ZENOH_RUNTIME)
         self.env["PYTHONUNBUFFERED"] = "1"
+        if self.opts.links == "direct" and (self.opts.remote or self.opts.zenoh_configs):
+            raise ValueError("direct links are unix sockets on this host that skip the router: "
+                             "vehicles on other hosts and a secured fleet need links='router'")
+        self.sockets: Path | None = None  # direct links: each agent's unix socket, in a short temp dir
+        if self.opts.links == "direct":
+            self.sockets = Path(tempfile.mkdtemp(prefix="cdus-"))
 
     # ------------------------------------------------------------------ processes
-    def _common(self, name: str) -> list[str]:
-        client = client_of(self.router)
-        t = Transport(mode="client", connect=client.connect, config_file=self.opts.zenoh_configs.get(name),
-                      lease_ms=self.opts.lease_ms)
+    def _common(self, name: str, t: Transport | None = None) -> list[str]:
+        if t is None:
+            t = Transport(mode="client", connect=client_of(self.router).connect,
+                          config_file=self.opts.zenoh_configs.get(name), lease_ms=self.opts.lease_ms)
         out = ["--config", str(self.config_path), "--fleet", self.fleet, "--clock", self.opts.clock, *t.args()]
         if self.opts.duration is not None:
             out += ["--duration", str(self.opts.duration)]
@@ -158,10 +170,25 @@ class Launcher:
         return Child("world", argv, self.logs / "world.log")
 
     def _agent(self, vid: str) -> Child:
-        argv = [sys.executable, "-m", "vehicle_agent", *self._common(vid), "--id", vid]
+        argv = [sys.executable, "-m", "vehicle_agent", *self._common(vid, self._agent_transport(vid)), "--id", vid]
         if self.opts.policy:
             argv += ["--policy", self.opts.policy]
-        return Child(vid, argv, self.logs / f"{vid}.log")
+        return Child(vid, argv, self.logs / f"{vid}.log", restart_args=("--rejoin",))
+
+    def _agent_transport(self, vid: str) -> Transport | None:
+        """Direct links: the agent is a peer listening on its own unix socket, connected to the
+        router and to the sockets of the vehicles it hears or that hear it (no gossip: exactly
+        these links). Its ω then goes straight to its neighbours; all else through the router."""
+        if self.sockets is None:
+            return None
+        sc = self.scenario
+        near = sorted({e.k for e in sc.edges if e.i == vid} | {e.i for e in sc.edges if e.k == vid})
+        return Transport(mode="peer", connect=(*client_of(self.router).connect, *(self._socket(k) for k in near)),
+                         listen=(self._socket(vid),), lease_ms=self.opts.lease_ms)
+
+    def _socket(self, vid: str) -> str:
+        assert self.sockets is not None
+        return f"unixsock-stream/{self.sockets / (vid + '.sock')}"
 
     def remote_command(self, vid: str) -> str:
         """How to start vehicle ``vid`` on another host (docs/multihost.md): the launcher's own
@@ -355,6 +382,8 @@ class Launcher:
             except zenoh.ZError as e:
                 self.log(f"  while closing the router: {e}")
             self.session = None
+        if self.sockets is not None:
+            shutil.rmtree(self.sockets, ignore_errors=True)
 
     def _wait_exit(self, seconds: float) -> None:
         deadline = time.monotonic() + seconds

@@ -12,6 +12,7 @@ through one subscription (``to/$*+<me>+$*/**``, :func:`inbox`) and waits in one 
     cdus/<fleet>/to/+world+/cmd/<from>  commands to the world (ground stations, the launcher)
     cdus/<fleet>/to/+launcher+/cmd      scheduled vehicle faults, the world to the launcher
     cdus/<fleet>/to/+<id>+/wake         a process waking itself (session-local, never sent)
+    cdus/<fleet>/to/+<id>+/ping         queryable: a vehicle answers once it can hear (link check)
     cdus/<fleet>/alive/<id>             liveliness token of a process (readiness and loss)
     cdus/<fleet>/world/status           the world's status, about once a second
     cdus/<fleet>/world/events           fleet events as they happen (cdus.wire.schemas)
@@ -79,6 +80,11 @@ def launcher_cmd(fleet: str) -> str:
 
 def wake(fleet: str, me: str) -> str:
     return f"cdus/{fleet}/to/+{me}+/wake"
+
+
+def ping(fleet: str, vid: str) -> str:
+    """A vehicle's link check: a reply proves the asker holds its subscription (see vehicle_agent)."""
+    return f"cdus/{fleet}/to/+{vid}+/ping"
 
 
 def alive(fleet: str, name: str) -> str:

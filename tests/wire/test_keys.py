@@ -1,0 +1,48 @@
+"""The addressed key space: a process's one subscription takes exactly what is addressed to it."""
+
+from __future__ import annotations
+
+import pytest
+import zenoh
+
+from cdus.wire import keys
+
+IDS = ["usv1", "usv2", "usv11", "uav1", "world"]
+
+
+def hears(me: str, key: str) -> bool:
+    return zenoh.KeyExpr(keys.inbox("f", me)).intersects(zenoh.KeyExpr(key))
+
+
+@pytest.mark.parametrize("me", IDS)
+def test_an_inbox_takes_every_message_addressed_to_it_and_nothing_else(me):
+    addressed = {
+        keys.omega("f", "uav1", ["usv1", "usv11"]): {"usv1", "usv11"},
+        keys.ctl("f", ["usv1", "usv2", "usv11", "uav1"]): {"usv1", "usv2", "usv11", "uav1"},
+        keys.ctl("f", ["usv2"]): {"usv2"},
+        keys.state("f", "usv1"): {"world"},
+        keys.stats("f", "usv2"): {"world"},
+        keys.world_cmd("f", "gs"): {"world"},
+        keys.wake("f", "usv11"): {"usv11"},
+        keys.ping("f", "usv1"): {"usv1"},
+    }
+    for key, receivers in addressed.items():
+        assert hears(me, key) == (me in receivers), (me, key)
+
+
+def test_other_fleets_and_the_worlds_own_keys_are_not_in_an_inbox():
+    assert not hears("usv1", keys.omega("g", "usv2", ["usv1"]))  # another fleet
+    assert not hears("world", keys.world_status("f")) and not hears("world", keys.alive("f", "usv1"))
+
+
+def test_fleet_names_are_checked():
+    assert keys.check_fleet("lake_1-a") == "lake_1-a"
+    for bad in ("", "a/b", "a+b", "a*", "x" * 65):
+        with pytest.raises(ValueError, match="fleet name"):
+            keys.check_fleet(bad)
+
+
+def test_leaf_and_alive_name_parse_what_the_builders_make():
+    assert keys.leaf(keys.state("f", "usv1")) == ("state", "usv1")
+    assert keys.leaf(keys.omega("f", "usv1", ["usv2"])) == ("omega", "usv1")
+    assert keys.alive_name(keys.alive("f", "uav3")) == "uav3"
