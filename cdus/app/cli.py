@@ -174,7 +174,7 @@ def launch_options(args: argparse.Namespace, scenario: Scenario) -> LaunchOption
 def links_of_run(args: argparse.Namespace) -> str:
     """--links, by default direct; router with vehicles on other hosts (unix sockets do not
     reach them) or a secured fleet (direct links would bypass the router's access control)."""
-    why = "--remote" if args.remote else "--secure" if args.secure or args.tls else None
+    why = "--remote" if args.remote else "--secure" if args.secure else "--tls" if args.tls else None
     if why and args.links == "direct":
         raise ConfigError("command line", [("--links", f"direct links are unix sockets between the vehicles on this "
                                                        f"host and skip the router; with {why} use --links router")])

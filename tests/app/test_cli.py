@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from cdus.app.cli import build_parser, launch_options
-from cdus.scenario.config import load_scenario
+from cdus.scenario.config import ConfigError, load_scenario
 from cdus.scenario.model import RESTART_POLICIES
 
 CONFIG = "configs/lake_circle.toml"
@@ -38,3 +38,20 @@ def test_other_launch_options_come_from_the_flags():
     assert (opts.fleet, opts.clock, opts.duration, opts.policy) == ("f1", "realtime", 5.0, "extrapolate")
     _, opts = options()
     assert opts.fleet == "lake_circle" and opts.metrics_out is None
+
+
+def test_remote_vehicles_are_checked_and_take_router_links():
+    _, opts = options()
+    assert opts.remote == () and opts.links == "direct"
+    _, opts = options("--remote", "usv1,usv2", "--remote", "uav3", "--remote", "usv1")
+    assert opts.remote == ("usv1", "usv2", "uav3") and opts.links == "router"
+    with pytest.raises(ConfigError, match=r"--remote: no vehicle 'usv9' in lake_circle; ids are usv1, "):
+        options("--remote", "usv1,usv9")
+
+
+@pytest.mark.parametrize("flag", [["--remote", "usv1"], ["--secure"], ["--tls"]])
+def test_direct_links_are_refused_where_they_would_skip_the_router(flag):
+    _, opts = options(*flag)
+    assert opts.links == "router"
+    with pytest.raises(ConfigError, match=f"--links: direct links .* with {flag[0]} use --links router"):
+        options(*flag, "--links", "direct")
