@@ -10,8 +10,9 @@ user name, and with TLS the same name as its certificate's common name):
                         alive/world; answers world/last/<id> queries
     vehicle-<id>        publishes only its own keys: its ω to its listeners
                         (to/+<listeners>+/omega/<id>, the exact set of the scenario), its
-                        telemetry and counters (to/+world+/state/<id>, stats/<id>) and
-                        the liveliness token alive/<id>
+                        telemetry and counters (to/+world+/state/<id>, stats/<id>), the
+                        liveliness token alive/<id>, and answers its link check
+                        (to/+<id>+/ping)
     ground              a ground station: commands to the world (to/+world+/cmd/gs)
 
 Every role may subscribe to and query anything under ``cdus/<fleet>/``; nothing else may
@@ -89,7 +90,8 @@ def fleet_acl(fleet: str, listeners: Mapping[str, Sequence[str]], match_certific
         role = vehicle_role(vid)
         rules += [_rule(f"{role}-put", ("put",), [keys.omega(f, vid, heard_by), keys.state(f, vid),
                                                   keys.stats(f, vid)]),
-                  _rule(f"{role}-token", ("liveliness_token",), [keys.alive(f, vid)])]
-        policies.append({"id": role, "rules": [f"{role}-put", f"{role}-token"], "subjects": [role]})
+                  _rule(f"{role}-token", ("liveliness_token",), [keys.alive(f, vid)]),
+                  _rule(f"{role}-ping", ("declare_queryable", "reply"), [keys.ping(f, vid)])]
+        policies.append({"id": role, "rules": [f"{role}-put", f"{role}-token", f"{role}-ping"], "subjects": [role]})
     return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects,
             "policies": policies}

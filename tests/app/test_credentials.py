@@ -168,6 +168,14 @@ def test_each_role_may_publish_only_its_own_keys(tmp_path, mode):
         while mine not in watched and time.monotonic() < deadline:
             time.sleep(0.01)
         assert watched == [mine]
+        # a vehicle answers its own link check, and cannot answer another's
+        usv1.declare_queryable(keys.ping(fleet, "usv1"), lambda q: q.reply(keys.ping(fleet, "usv1"), b""))
+        usv1.declare_queryable(keys.ping(fleet, "usv2"), lambda q: q.reply(keys.ping(fleet, "usv2"), b""))
+        asker = member("vehicle-uav1")
+        deadline = time.monotonic() + 10
+        while not any(r.ok is not None for r in asker.get(keys.ping(fleet, "usv1"), timeout=1.0)):
+            assert time.monotonic() < deadline, "usv1 never answered its own link check"
+        assert not any(r.ok is not None for r in asker.get(keys.ping(fleet, "usv2"), timeout=1.0))
     finally:
         for s in sessions:
             s.close()
