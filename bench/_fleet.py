@@ -24,9 +24,8 @@ REPO = BENCH.parent
 
 
 def cdus_argv() -> list[str]:
-    """The `cdus` command without the pyenv shim (whose bash start-up would be timed too)."""
-    script = Path(sys.executable).with_name("cdus")
-    return [sys.executable, str(script)] if script.exists() else [sys.executable, "-m", "cdus.app.cli"]
+    """The `cdus` command of this checkout (``python -m cdus``; no shell shim to time)."""
+    return [sys.executable, "-m", "cdus"]
 
 
 def write_json(path: Path, data: dict) -> Path:

@@ -2,13 +2,13 @@
 
 It attaches to a running fleet at any time (a Zenoh client of the fleet's router),
 watches it (vehicle telemetry, liveliness, the world's status and events) and sends
-commands: pause/resume/stop the fleet, change link faults or gains at run time, and ask
-the launcher to kill, pause, resume or restart a vehicle.
+commands to the world, which relays them to the vehicles with the tick (or simulated
+time) they apply from: pause/resume/stop the fleet, change link faults or gains at run
+time, kill, pause, resume or restart a vehicle (the launcher carries those out).
 """
 
 from __future__ import annotations
 
-import json
 import math
 import threading
 import time
@@ -17,7 +17,8 @@ from typing import Any
 
 from cdus.wire import keys
 from cdus.wire.transport import Transport, open_session
-from cdus.wire.messages import StateMsg, decode_states, encode_control
+from cdus.wire.messages import VEHICLE_FAULTS, StateMsg, decode_states, encode_control
+from cdus.wire.schemas import FleetEvent, decode_event, decode_status
 
 
 @dataclass
@@ -28,7 +29,7 @@ class FleetView:
     states: dict[str, StateMsg] = field(default_factory=dict)
     alive: set[str] = field(default_factory=set)
     world: dict | None = None
-    events: list[str] = field(default_factory=list)
+    events: list[FleetEvent] = field(default_factory=list)
     rejected: int = 0
 
 
@@ -52,7 +53,7 @@ def status_table(view: FleetView, now: float | None = None) -> str:
             coord = w.get("coord_error_max")
             path = w.get("path_error_max")
             rows.append(f"world: t = {w.get('t', 0):.1f} / {w.get('duration', 0):.0f} s ({w.get('clock')}), "
-                        f"{len(w.get('alive', []))}/{w.get('vehicles')} vehicles alive, worst |Φ| "
+                        f"{len(w.get('alive', []))}/{len(w.get('ids') or [])} vehicles alive, worst |Φ| "
                         f"{'-' if path is None else f'{path:.3f}'} m, worst edge error "
                         f"{'-' if coord is None else f'{coord:.4f}'} rad")
         else:
@@ -60,9 +61,10 @@ def status_table(view: FleetView, now: float | None = None) -> str:
         events = view.events or (w or {}).get("events") or []  # heard live, else the world's recent ones
         if events:
             rows.append("events:")
-            rows += [f"  {e}" for e in events[-8:]]
+            rows += [f"  {e.line()}" + ("  [" + e.severity.upper() + "]" if e.severity != "info" else "")
+                     for e in events[-8:]]
         if view.rejected:
-            rows.append(f"({view.rejected} malformed telemetry messages ignored)")
+            rows.append(f"({view.rejected} malformed messages ignored)")
     return "\n".join(rows)
 
 
@@ -79,7 +81,7 @@ class GroundStation:
         self._subs = []
         if watch:
             self._subs += [
-                s.declare_subscriber(keys.any_vehicle(f, "state"), self._on_state),
+                s.declare_subscriber(keys.any_state(f), self._on_state),
                 s.declare_subscriber(keys.world_status(f), self._on_status),
                 s.declare_subscriber(keys.world_events(f), self._on_event),
                 s.liveliness().declare_subscriber(keys.any_alive(f), self._on_alive, history=True),
@@ -93,7 +95,7 @@ class GroundStation:
     # ------------------------------------------------------------------ watching
     def _on_state(self, sample: Any) -> None:
         rows = decode_states(sample.payload.to_bytes())
-        vid = keys.vehicle_of(str(sample.key_expr))
+        _, vid = keys.leaf(str(sample.key_expr))
         with self.view.lock:
             if isinstance(rows, str) or vid is None:
                 self.view.rejected += 1
@@ -101,19 +103,23 @@ class GroundStation:
             self.view.states[vid] = rows[-1]
 
     def _on_status(self, sample: Any) -> None:
-        try:
-            st = json.loads(sample.payload.to_bytes())
-        except ValueError:
-            return
+        st = decode_status(sample.payload.to_bytes())
         with self.view.lock:
-            self.view.world = st
+            if isinstance(st, str):
+                self.view.rejected += 1
+            else:
+                self.view.world = st
 
     def _on_event(self, sample: Any) -> None:
+        e = decode_event(sample.payload.to_bytes())
         with self.view.lock:
-            self.view.events.append(sample.payload.to_bytes().decode(errors="replace"))
+            if isinstance(e, str):
+                self.view.rejected += 1
+            else:
+                self.view.events.append(e)
 
     def _on_alive(self, sample: Any) -> None:
-        who = str(sample.key_expr).rsplit("/", 1)[-1]
+        who = keys.alive_name(str(sample.key_expr))
         with self.view.lock:
             if str(sample.kind).endswith("DELETE"):
                 self.view.alive.discard(who)
@@ -135,29 +141,27 @@ class GroundStation:
             return None if self.view.world is None else float(self.view.world.get("t", 0.0))
 
     # ------------------------------------------------------------------ commanding
-    def send(self, target: str, op: str, **fields: Any) -> None:
-        self.session.put(keys.cmd(self.fleet, target), encode_control(op, **fields))
+    def send(self, op: str, **fields: Any) -> None:
+        """A command to the world (cdus.wire.messages.COMMAND_OPS)."""
+        self.session.put(keys.world_cmd(self.fleet, "gs"), encode_control(op, **fields))
 
     def fleet_command(self, op: str) -> None:
-        """pause | resume | stop for every vehicle and the world."""
-        self.send(keys.ALL, op)
-        if op == "stop":
-            self.send(keys.WORLD, "stop")
+        """pause | resume | stop the whole fleet."""
+        self.send(op)
 
-    def set_link(self, table: dict, at: float | None = None, lead: float = 0.5) -> float:
-        """Change the link faults from simulated time ``at`` (default: the world's now + ``lead``)."""
-        if at is None:
-            now = self.sim_time()
-            at = (now if now is not None else 0.0) + lead
-        if not math.isfinite(at):
-            raise ValueError("at must be a finite time")
-        self.send(keys.ALL, "link", link=table, at=float(at))
-        return at
+    def set_link(self, table: dict, at: float | None = None) -> None:
+        """Change the link faults from simulated time ``at`` (default: as soon as the world can,
+        a moment after its present)."""
+        if at is not None and not (math.isfinite(at) and at >= 0):
+            raise ValueError("at must be a finite time >= 0 s")
+        self.send("link", link=table, at=-1.0 if at is None else float(at))
 
     def set_gains(self, gains: dict, vehicle: str | None = None) -> None:
-        self.send(vehicle or keys.ALL, "set_gains", gains=gains)
+        self.send("set_gains", gains=gains, vehicle=vehicle or "")
 
     def vehicle_fault(self, action: str, vehicle: str) -> None:
         """kill | pause | resume | restart one vehicle's process (the launcher carries it out)."""
         op = {"pause": "pause_vehicle", "resume": "resume_vehicle"}.get(action, action)
-        self.send("launcher", op, vehicle=vehicle)
+        if op not in VEHICLE_FAULTS:
+            raise ValueError(f"unknown vehicle fault {action!r}")
+        self.send(op, vehicle=vehicle)

@@ -12,8 +12,9 @@ import argparse
 import sys
 
 from cdus.scenario.config import ConfigError, load_scenario, parse_overrides
-from cdus.sim.build import link_emulator_for, link_spec_for
-from cdus.wire.transport import add_transport_args, transport_from_args
+from cdus.core.linkspec import POLICIES
+from cdus.core.schedule import CLOCKS
+from cdus.wire.transport import add_transport_args, transport_from_args, with_default_endpoint
 from vehicle_agent.agent import Agent, run_agent
 
 
@@ -23,9 +24,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--config", required=True, help="scenario file (.toml, or the .json a launcher resolved)")
     p.add_argument("--id", required=True, help="this vehicle's id in the scenario")
     p.add_argument("--fleet", default="default", help="fleet name: the key-space prefix cdus/<fleet>/")
-    p.add_argument("--clock", choices=("realtime", "lockstep"), default="realtime")
+    p.add_argument("--clock", choices=CLOCKS, default="realtime")
     p.add_argument("--duration", type=float, help="simulated seconds (default: the scenario's)")
-    p.add_argument("--policy", choices=("hold", "timeout", "extrapolate"), help="stale-neighbour policy")
+    p.add_argument("--policy", choices=POLICIES, help="stale-neighbour policy (default: the scenario's link.policy)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a config key")
     add_transport_args(p, default_mode="client")
     return p
@@ -42,14 +43,9 @@ def main(argv=None) -> int:
     except ConfigError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    transport = transport_from_args(args)
-    if not transport.connect and not transport.listen and not transport.config_file:
-        transport = transport.__class__(mode=transport.mode, connect=("tcp/127.0.0.1:7447",),
-                                        lease_ms=transport.lease_ms)
-    spec = link_spec_for(scenario)
-    agent = Agent(scenario, args.id, args.fleet, transport, clock=args.clock,
-                  policy=args.policy or spec.policy, timeout=spec.timeout,
-                  link=link_emulator_for(scenario), duration=args.duration)
+    transport = with_default_endpoint(transport_from_args(args))
+    agent = Agent(scenario, args.id, args.fleet, transport, clock=args.clock, policy=args.policy,
+                  duration=args.duration)
     return run_agent(agent)
 
 

@@ -12,7 +12,9 @@ import sys
 from pathlib import Path
 
 from cdus.scenario.config import ConfigError, load_scenario, parse_overrides
-from cdus.wire.transport import Transport, add_transport_args, transport_from_args
+from cdus.core.linkspec import POLICIES
+from cdus.core.schedule import CLOCKS
+from cdus.wire.transport import add_transport_args, transport_from_args, with_default_endpoint
 from world_sim.rerun_sink import make_sink
 from world_sim.world import World, run_world
 
@@ -22,7 +24,7 @@ def build_parser() -> argparse.ArgumentParser:
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--config", required=True, help="scenario file (.toml, or the .json a launcher resolved)")
     p.add_argument("--fleet", default="default", help="fleet name: the key-space prefix cdus/<fleet>/")
-    p.add_argument("--clock", choices=("realtime", "lockstep"), default="lockstep")
+    p.add_argument("--clock", choices=CLOCKS, default="lockstep")
     p.add_argument("--duration", type=float, help="simulated seconds (default: the scenario's)")
     p.add_argument("--metrics-out", metavar="PATH", default="metrics.json")
     p.add_argument("--trace-out", metavar="PATH")
@@ -31,6 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rerun", default="off", metavar="SINK",
                    help="off | spawn | save:PATH | connect:URL (comma-separated for several)")
     p.add_argument("--run-dir", metavar="DIR", help="where a default recording goes")
+    p.add_argument("--policy", choices=POLICIES, help="the stale-neighbour policy the agents use (for the metrics)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a config key")
     add_transport_args(p, default_mode="router")
     return p
@@ -43,9 +46,7 @@ def main(argv=None) -> int:
     except ConfigError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    transport = transport_from_args(args)
-    if transport.mode == "router" and not transport.listen and not transport.config_file:
-        transport = Transport(mode="router", listen=("tcp/127.0.0.1:7447",), lease_ms=transport.lease_ms)
+    transport = with_default_endpoint(transport_from_args(args))
     try:
         sink = make_sink(args.rerun, Path(args.run_dir) if args.run_dir else None)
     except ValueError as e:
@@ -53,7 +54,7 @@ def main(argv=None) -> int:
         return 2
     world = World(scenario, args.fleet, transport, clock=args.clock, duration=args.duration,
                   metrics_out=args.metrics_out, trace_out=args.trace_out, start_timeout=args.start_timeout,
-                  sink=sink)
+                  sink=sink, policy=args.policy)
     return run_world(world)
 
 

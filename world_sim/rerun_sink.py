@@ -46,6 +46,7 @@ from world_sim import blueprint as bp
 from cdus.core.metrics import edge_errors
 from cdus.core.link import LINK_STATES
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
+from cdus.wire.schemas import FleetEvent
 from world_sim.recording import Target, parse_spec
 
 APP_ID = "cdus"
@@ -59,8 +60,7 @@ UAV_COLOURS = ((255, 127, 14), (230, 85, 13), (250, 175, 40), (215, 110, 60), (2
 EDGE_COLOURS = ((44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75), (227, 119, 194),
                 (127, 127, 127), (188, 189, 34), (23, 190, 207), (100, 60, 160), (60, 120, 60))
 STATE_COLOURS = {"up": (76, 175, 80), "lossy": (255, 193, 7), "down": (239, 83, 80)}
-LEVELS = {"info": rr.TextLogLevel.INFO, "warn": rr.TextLogLevel.WARN, "warning": rr.TextLogLevel.WARN,
-          "error": rr.TextLogLevel.ERROR, "debug": rr.TextLogLevel.DEBUG, "critical": rr.TextLogLevel.CRITICAL}
+LEVELS = {"info": rr.TextLogLevel.INFO, "warn": rr.TextLogLevel.WARN, "error": rr.TextLogLevel.ERROR}  # by severity
 
 
 # --------------------------------------------------------------------------- geometry (pure)
@@ -300,12 +300,12 @@ class RerunSink:
             if n > self._sent and (self._sent == 0 or recorder.t[n - 1] - self._t_sent >= self.flush_every - 1e-9):
                 self._send(recorder, n)
 
-    def event(self, t: float, text: str, level: str = "info") -> None:
+    def event(self, event: FleetEvent) -> None:
         with self._lock:
             if self._closed:
                 return
-            self._set_time(t)
-            self.rec.log(bp.EVENTS, rr.TextLog(text, level=LEVELS.get(level.lower(), level.upper())))
+            self._set_time(event.t)
+            self.rec.log(bp.EVENTS, rr.TextLog(event.text, level=LEVELS[event.severity]))
 
     def link_state(self, t: float, src: str, dst: str, state: str) -> None:
         """``state`` is up | lossy | down (anything else is drawn too, uncoloured: it may come off the wire)."""

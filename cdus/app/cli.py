@@ -18,6 +18,8 @@ from typing import Any, Sequence
 from cdus.app.launcher import LaunchOptions, launch
 from cdus.app.sweep import parse_grid, sweep
 from cdus.scenario.config import ConfigError, load_scenario, parse_overrides
+from cdus.core.linkspec import POLICIES
+from cdus.scenario.model import RESTART_POLICIES, Scenario
 from cdus.sim.fleet import InProcessFleet
 from cdus.wire.transport import Transport, local_router
 from ground_station.__main__ import main as gs_main
@@ -60,7 +62,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("sim", help="run a scenario with every vehicle in this one process",
                        description="Run the whole fleet in one process over an in-memory link.")
     _add_run_args(p)
-    p.add_argument("--policy", choices=("hold", "timeout", "extrapolate"), default=None,
+    p.add_argument("--policy", choices=POLICIES, default=None,
                    help="stale-neighbour policy (default: the scenario's link.policy, else hold)")
     p.set_defaults(func=cmd_sim)
 
@@ -70,10 +72,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--fleet", metavar="NAME", help="fleet name, the key prefix cdus/<NAME>/ (default: the scenario name)")
     p.add_argument("--clock", choices=("realtime", "lockstep"), default="lockstep",
                    help="lockstep: deterministic, as fast as the machine allows (default); realtime: wall clock")
-    p.add_argument("--restart", choices=("never", "on-failure", "always"), default="never",
-                   help="restart policy for vehicle processes that exit during the run")
+    p.add_argument("--restart", choices=RESTART_POLICIES, default=None,
+                   help="restart policy for vehicle processes that exit during the run "
+                        "(default: the scenario's supervision.restart, else never)")
     p.add_argument("--logs", metavar="DIR", help="run directory for logs, metrics, trace (default: runs/<name>-<time>)")
-    p.add_argument("--policy", choices=("hold", "timeout", "extrapolate"), default=None,
+    p.add_argument("--policy", choices=POLICIES, default=None,
                    help="stale-neighbour policy (default: the scenario's link.policy, else hold)")
     p.add_argument("--ready-timeout", type=float, default=30.0, metavar="S",
                    help="how long each process may take to come up")
@@ -132,9 +135,20 @@ def cmd_sim(args: argparse.Namespace) -> int:
     write_json(metrics_out, metrics)
     if args.trace_out:
         fleet.recorder.save_trace(args.trace_out)
-    print(summary_table(metrics, fleet.vehicles))
+    print(summary_table(metrics, scenario.vehicles))
     print(f"  metrics: {metrics_out}" + (f"\n  trace: {args.trace_out}" if args.trace_out else ""))
     return status
+
+
+def launch_options(args: argparse.Namespace, scenario: Scenario) -> LaunchOptions:
+    """The launcher's options: the flags, and where a flag is not given, the scenario's
+    (``--restart`` over ``[supervision] restart``)."""
+    return LaunchOptions(
+        fleet=args.fleet or scenario.name.replace(".", "_"), clock=args.clock, duration=args.duration,
+        restart=args.restart or scenario.supervision.restart,
+        metrics_out=Path(args.metrics_out) if args.metrics_out else None,
+        trace_out=Path(args.trace_out) if args.trace_out else None, policy=args.policy,
+        ready_timeout=args.ready_timeout, quiet=args.quiet, rerun=args.rerun)
 
 
 def cmd_launch(args: argparse.Namespace) -> int:
@@ -147,11 +161,7 @@ def cmd_launch(args: argparse.Namespace) -> int:
     run.mkdir(parents=True, exist_ok=True)
     router = (Transport(mode="router", listen=tuple(args.listen), config_file=args.zenoh_config)
               if args.listen or args.zenoh_config else local_router())
-    opts = LaunchOptions(
-        fleet=args.fleet or scenario.name.replace(".", "_"), clock=args.clock, duration=args.duration,
-        restart=args.restart, metrics_out=Path(args.metrics_out) if args.metrics_out else None,
-        trace_out=Path(args.trace_out) if args.trace_out else None, policy=args.policy,
-        ready_timeout=args.ready_timeout, quiet=args.quiet, rerun=args.rerun)
+    opts = launch_options(args, scenario)
     print(f"{scenario.name}: launching {len(scenario.vehicles)} vehicle processes + world "
           f"({args.clock} clock), router {', '.join(router.listen) or args.zenoh_config}")
     print(f"  attach a ground station: cdus gs --fleet {opts.fleet} -e "

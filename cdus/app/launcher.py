@@ -12,7 +12,6 @@ started outlives it.
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 import subprocess
@@ -23,14 +22,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-from cdus.wire import keys
+import zenoh
+
+from cdus.scenario.model import DEFAULT_RESTART, Scenario
 from cdus.app.report import Progress
 from cdus.files import write_json
-from cdus.wire.transport import Transport, client_of, open_session
-from cdus.wire.messages import CLOCK_OPS, COMMAND_OPS, decode_control, encode_control
+from cdus.wire import keys
+from cdus.wire.messages import CTL_OPS, LAUNCHER_OPS, decode_control, encode_control
+from cdus.wire.schemas import decode_event, decode_status
+from cdus.wire.transport import DEFAULT_LEASE_MS, Transport, client_of, open_session
 
-RESTART = ("never", "on-failure", "always")
-FAULT_OPS = ("kill", "pause_vehicle", "resume_vehicle", "restart")
 GRACE_S = 5.0
 LOG_TAIL = 15
 # Fewer Zenoh runtime threads per process: on a small machine running many processes the
@@ -94,20 +95,20 @@ class LaunchOptions:
     fleet: str
     clock: str = "lockstep"
     duration: float | None = None
-    restart: str = "never"
+    restart: str = DEFAULT_RESTART  # one of RESTART_POLICIES (cdus.scenario.model)
     metrics_out: Path | None = None
     trace_out: Path | None = None
     policy: str | None = None
     ready_timeout: float = 30.0
     grace: float = GRACE_S
     quiet: bool = False
-    lease_ms: int | None = 1000
+    lease_ms: int | None = DEFAULT_LEASE_MS
     rerun: str = "off"
 
 
 @dataclass
 class Launcher:
-    scenario: Any
+    scenario: Scenario
     run_dir: Path
     router: Transport
     opts: LaunchOptions
@@ -147,6 +148,8 @@ class Launcher:
         if self.opts.trace_out:
             argv += ["--trace-out", str(self.opts.trace_out)]
         argv += ["--rerun", self.opts.rerun, "--run-dir", str(self.run_dir)]
+        if self.opts.policy:
+            argv += ["--policy", self.opts.policy]
         return Child("world", argv, self.logs / "world.log")
 
     def _agent(self, vid: str) -> Child:
@@ -163,14 +166,14 @@ class Launcher:
             s.liveliness().declare_subscriber(keys.any_alive(f), self._on_alive, history=True),
             s.declare_subscriber(keys.world_status(f), self._on_status),
             s.declare_subscriber(keys.world_events(f), self._on_event),
-            s.declare_subscriber(keys.clock(f), self._on_clock),
-            s.declare_subscriber(keys.cmd(f, "launcher"), self._on_fault_request),
+            s.declare_subscriber(keys.ctl(f, [v.id for v in self.scenario.vehicles]), self._on_ctl),
+            s.declare_subscriber(keys.launcher_cmd(f), self._on_fault_request),
         ]
 
     def _on_fault_request(self, sample: Any) -> None:
         """The world asks for a scheduled vehicle fault; the supervise loop carries it out."""
-        c = decode_control(sample.payload.to_bytes(), COMMAND_OPS)
-        if isinstance(c, str) or c.op not in FAULT_OPS or c.fields.get("vehicle") not in self.children:
+        c = decode_control(sample.payload.to_bytes(), LAUNCHER_OPS)
+        if isinstance(c, str) or c.fields["vehicle"] not in self.children:
             return
         with self.cond:
             self.requests.append((c.op, c.fields["vehicle"]))
@@ -195,19 +198,19 @@ class Launcher:
             c.start(self.env)
         self.log(f"  fault: {op.replace('_vehicle', '')} {vid}")
         try:
-            self.session.put(keys.cmd(self.fleet, keys.WORLD), encode_control("fault_done", vehicle=vid))
-        except Exception:
-            pass
+            self.session.put(keys.world_cmd(self.fleet, keys.LAUNCHER), encode_control("fault_done", vehicle=vid))
+        except zenoh.ZError as e:
+            self.log(f"  could not tell the world the {op} of {vid} is done: {e}")
 
-    def _on_clock(self, sample: Any) -> None:
-        c = decode_control(sample.payload.to_bytes(), CLOCK_OPS)
+    def _on_ctl(self, sample: Any) -> None:
+        c = decode_control(sample.payload.to_bytes(), CTL_OPS)
         if not isinstance(c, str) and c.op == "stop":
             with self.cond:
                 self.finished = True  # the world ended the run: agents exiting now is expected
                 self.cond.notify_all()
 
     def _on_alive(self, sample: Any) -> None:
-        who = str(sample.key_expr).rsplit("/", 1)[-1]
+        who = keys.alive_name(str(sample.key_expr))
         with self.cond:
             if str(sample.kind).endswith("DELETE"):
                 self.alive.discard(who)
@@ -216,17 +219,17 @@ class Launcher:
             self.cond.notify_all()
 
     def _on_status(self, sample: Any) -> None:
-        try:
-            st = json.loads(sample.payload.to_bytes())
-        except ValueError:
+        st = decode_status(sample.payload.to_bytes())
+        if isinstance(st, str):
             return
         with self.cond:
             self.status = st
             self.cond.notify_all()
 
     def _on_event(self, sample: Any) -> None:
-        if not self.opts.quiet:
-            self.log(f"  event: {sample.payload.to_bytes().decode(errors='replace')}")
+        e = decode_event(sample.payload.to_bytes())
+        if not self.opts.quiet and not isinstance(e, str):
+            self.log(f"  event: {e.line()}")
 
     def _wait_alive(self, names: list[str], timeout: float) -> list[str]:
         """Wait for every name's liveliness token; returns the missing ones (early exits end the wait)."""
@@ -309,9 +312,9 @@ class Launcher:
         world = self.children.get("world")
         if self.session is not None and world is not None and world.running():
             try:
-                self.session.put(keys.cmd(self.fleet, keys.WORLD), encode_control("stop"))
-            except Exception:
-                pass
+                self.session.put(keys.world_cmd(self.fleet, keys.LAUNCHER), encode_control("stop"))
+            except zenoh.ZError as e:
+                self.log(f"  could not ask the world to stop ({e}); stopping the processes")
         self._wait_exit(self.opts.grace)
         for c in self.children.values():
             if c.running():
@@ -326,8 +329,8 @@ class Launcher:
         if self.session is not None:
             try:
                 self.session.close()
-            except Exception:
-                pass
+            except zenoh.ZError as e:
+                self.log(f"  while closing the router: {e}")
             self.session = None
 
     def _wait_exit(self, seconds: float) -> None:
@@ -341,7 +344,7 @@ class Launcher:
                 pass
 
 
-def launch(scenario: Any, run_dir: Path, router: Transport, opts: LaunchOptions,
+def launch(scenario: Scenario, run_dir: Path, router: Transport, opts: LaunchOptions,
            log: Callable[[str], None] | None = None) -> tuple[int, Launcher]:
     """Bring the fleet up, run it, bring it down. Returns (exit status, launcher).
 

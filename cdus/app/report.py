@@ -9,6 +9,8 @@ import time
 from pathlib import Path
 from typing import Any, Sequence, TextIO
 
+from cdus.scenario.model import VehicleSpec
+
 
 def run_dir(base: str | os.PathLike, scenario: str) -> Path:
     """A fresh ``runs/<scenario>-<YYYYmmdd-HHMMSS>[-n]`` directory."""
@@ -69,8 +71,8 @@ def _settle(x: float | None) -> str:
     return "never (not within the tolerance at the end)" if x is None else f"{x:.2f} s"
 
 
-def summary_table(metrics: dict, vehicles: Sequence[Any]) -> str:
-    """The end-of-run table: per vehicle, then per run."""
+def summary_table(metrics: dict, vehicles: Sequence[VehicleSpec]) -> str:
+    """The end-of-run table: per vehicle (the scenario's, in order), then per run."""
     m = metrics
     lines = []
     rf = m.get("realtime_factor")

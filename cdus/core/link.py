@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from typing import Iterable, Protocol, Sequence
 
 from cdus.core.linkspec import LinkSpec
+from cdus.wire.schemas import FleetEvent
 
 
 class LinkModel(Protocol):
@@ -398,6 +399,7 @@ class DropBursts:
     min_len: int = 10
     runs: dict[tuple[int, int], tuple[float, int]] = field(default_factory=dict)
     done: list[tuple[float, float, int, int, int]] = field(default_factory=list)
+    reported: int = 0  # how many of ``done`` have been taken as events
 
     def feed(self, src: int, dst: int, dropped: bool, t: float) -> None:
         key = (src, dst)
@@ -410,6 +412,10 @@ class DropBursts:
                 self.done.append((start, t, src, dst, count))
 
 
-def burst_text(burst: tuple[float, float, int, int, int], ids: list[str]) -> str:
-    t0, t1, src, dst, count = burst
-    return f"link {ids[src]}->{ids[dst]}: {count} messages dropped in a row ({t0:.2f}-{t1:.2f} s)"
+def burst_events(bursts: DropBursts, ids: Sequence[str]) -> list[FleetEvent]:
+    """The bursts ended since the last call, as ``link_burst`` events at the time each ended."""
+    new = bursts.done[bursts.reported:]
+    bursts.reported = len(bursts.done)
+    return [FleetEvent.of(t1, "link_burst", f"link {ids[src]}->{ids[dst]}: {count} messages dropped in a row "
+                                            f"({t0:.2f}-{t1:.2f} s)", link=f"{ids[src]}->{ids[dst]}")
+            for t0, t1, src, dst, count in new]

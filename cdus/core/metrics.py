@@ -109,14 +109,14 @@ class Recorder:
     def edge_error(self) -> np.ndarray:
         return edge_errors(self.view("omega"), self.edges)
 
-    def omega_rate_final(self, window: float = 1.0) -> dict[str, float]:
+    def omega_rate_final(self, window: float = 1.0) -> dict[str, float | None]:
         t, w = self.view("t"), self.view("omega")
         if len(t) < 2:
-            return {i: float("nan") for i in self.ids}
+            return {}
         j = int(np.searchsorted(t, t[-1] - window - 1e-9))
         j = min(j, len(t) - 2)
         dt = t[-1] - t[j]
-        return {vid: float((w[-1, n] - w[j, n]) / dt) for n, vid in enumerate(self.ids)}
+        return {vid: _finite((w[-1, n] - w[j, n]) / dt) for n, vid in enumerate(self.ids)}
 
     def summary(self, *, scenario: str, mode: str, seed: int, path_tol: float, coord_tol: float,
                 link: dict, wall_s: float) -> dict[str, Any]:

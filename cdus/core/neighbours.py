@@ -51,7 +51,6 @@ class NeighbourTable:
     timeout: float = 1.5
     latest: dict[int, OmegaMsg] = field(default_factory=dict)
     received_at: dict[int, float] = field(default_factory=dict)
-    absent: set[int] = field(default_factory=set)  # known dead (liveliness); dropped from the sum
     rejected_stale: int = 0
 
     def __post_init__(self) -> None:
@@ -70,12 +69,11 @@ class NeighbourTable:
             return False
         self.latest[msg.sender] = msg
         self.received_at[msg.sender] = now
-        self.absent.discard(msg.sender)
         return True
 
-    def mark_absent(self, k: int) -> None:
-        """Neighbour k is gone (its liveliness token was dropped): leave it out of the sum."""
-        self.absent.add(k)
+    def forget(self, k: int) -> None:
+        """Neighbour k is gone: leave it out of the sum until it sends again. (Whether what it
+        sends is taken is the tick protocol's business, cdus.core.node.)"""
         self.latest.pop(k, None)
         self.received_at.pop(k, None)
 

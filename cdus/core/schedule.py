@@ -12,6 +12,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
+CLOCKS = ("lockstep", "realtime")  # who drives time in a fleet of processes (docs/architecture.md)
+
 
 def broadcast_every(rates: Any) -> int:
     """Control ticks per ω broadcast (the broadcast rate rounded to a divisor of the control rate)."""

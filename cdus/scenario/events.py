@@ -1,4 +1,4 @@
-"""Scheduled vehicle faults: the scenario's ``[[event]]`` tables.
+"""Are the scheduled vehicle faults valid? The scenario's ``[[event]]`` tables.
 
     [[event]]
     at = 60.0            # simulated seconds
@@ -6,71 +6,53 @@
     vehicle = "usv2"
     duration = 10.0      # optional, pause only: resume after this many seconds
 
-- kill: the vehicle's process dies (SIGKILL); its neighbours drop it from their sums
-  when its liveliness token goes; the world reports whether the graph still has a
-  spanning tree.
-- pause: the process is frozen (SIGSTOP): it neither steps nor sends, but it is not
-  gone until the liveliness lease runs out (1 s under the launcher).
-- resume: SIGCONT.
-- restart: a new process for the vehicle, which rejoins where the world last saw it,
-  with ω at the nearest point of its path (continuing its old ω, not a lap away).
-
-The launcher carries them out against the world's simulated time; the in-process fleet
-emulates the same effects, so a sweep can use them too.
+:func:`event_section` checks them against the vehicle ids into the
+:class:`cdus.core.events.Event` tuple that ``Scenario.events`` carries (what each action
+does is described there; docs/config.md is the user reference).
 """
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
-from typing import Any, Iterable, Sequence
+from typing import Any, Sequence
 
-ACTIONS = ("kill", "pause", "resume", "restart")
+from cdus.core.events import ACTIONS, Event
+from cdus.scenario.checks import Problems, quote
+
 EVENT_KEYS = ("at", "action", "vehicle", "duration")
+REQUIRED = ("at", "action", "vehicle")
 
 
-@dataclass(frozen=True)
-class Event:
-    at: float
-    action: str
-    vehicle: str
-
-
-def validate_events(raw: Iterable[dict], ids: Sequence[str]) -> tuple[tuple[Event, ...], list[tuple[str, str]]]:
-    """The events sorted by time (a pause with ``duration`` adds its resume), and the problems."""
+def event_section(p: Problems, raw: Any, ids: Sequence[str] | None) -> tuple[Event, ...]:
+    """The events sorted by time (a pause with ``duration`` adds its resume)."""
     events: list[Event] = []
-    problems: list[tuple[str, str]] = []
-    for j, e in enumerate(raw):
-        f = f"event[{j}]"
-        unknown = sorted(set(e) - set(EVENT_KEYS))
-        if unknown:
-            problems.append((f"{f}.{unknown[0]}", f"not an event key; an event takes {', '.join(EVENT_KEYS)}"))
-        at, action, vid = e.get("at"), e.get("action"), e.get("vehicle")
-        ok = True
-        if isinstance(at, bool) or not isinstance(at, (int, float)) or not math.isfinite(at) or at < 0:
-            problems.append((f"{f}.at", f"must be a time in simulated seconds >= 0, got {at!r}"))
-            ok = False
-        if action not in ACTIONS:
-            problems.append((f"{f}.action", f"must be one of {', '.join(ACTIONS)}, got {action!r}"))
-            ok = False
-        if vid not in ids:
-            problems.append((f"{f}.vehicle", f"no vehicle {vid!r}; ids are {', '.join(ids)}"))
-            ok = False
-        dur = e.get("duration")
-        if dur is not None and (action != "pause" or isinstance(dur, bool) or not isinstance(dur, (int, float))
-                                or not dur > 0):
-            problems.append((f"{f}.duration", "only a pause takes a duration, a number of seconds > 0"))
-            ok = False
-        if ok:
-            events.append(Event(float(at), action, vid))
-            if dur is not None:
-                events.append(Event(float(at) + float(dur), "resume", vid))
-    events.sort(key=lambda ev: ev.at)
-    return tuple(events), problems
+    for j, e in enumerate(p.tables(raw, "event", "event")):
+        events += _event(p, e, f"event[{j}]", ids)
+    events.sort(key=lambda ev: ev.at)  # stable: events at the same time keep the file's order
+    return tuple(events)
 
 
-def parse_events(raw: Iterable[dict], ids: Sequence[str]) -> tuple[Event, ...]:
-    events, problems = validate_events(raw, ids)
-    if problems:
-        raise ValueError("; ".join(f"{f}: {m}" for f, m in problems))
+def _event(p: Problems, e: dict, field: str, ids: Sequence[str] | None) -> list[Event]:
+    """One [[event]]: its event, and the resume that ends a pause with a duration."""
+    mark = len(p)
+    p.unknown_keys(e, EVENT_KEYS, field)
+    missing = [key for key in REQUIRED if key not in e]
+    for key in missing:
+        p.missing(f"{field}.{key}", 'an event needs at, action and vehicle, e.g. at = 60.0, action = "kill", '
+                                    'vehicle = "usv2"')
+    if missing:
+        return []
+    at = p.number(e["at"], f"{field}.at", ge=0, unit=" (s of simulated time)")
+    action = p.choice(e["action"], f"{field}.action", ACTIONS, "action")
+    vehicle = p.vehicle(e["vehicle"], f"{field}.vehicle", ids)
+    duration = None
+    if "duration" in e:
+        if action is not None and action != "pause":
+            p.add(f"{field}.duration", f"only a pause takes a duration (this event is a {quote(action)}); remove it")
+        else:
+            duration = p.number(e["duration"], f"{field}.duration", gt=0, unit=" s (then the vehicle resumes)")
+    if p.since(mark) or at is None or action is None or vehicle is None:
+        return []
+    events = [Event(at, action, vehicle)]
+    if duration is not None:
+        events.append(Event(at + duration, "resume", vehicle))
     return events

@@ -1,7 +1,8 @@
 """Building a scenario's pieces: its vehicles, neighbour terms, metric edges and link model.
 
-The one place where the validated :class:`cdus.scenario.config.Scenario` is turned into
-the pure core's objects, used alike by the in-process fleet and the process shells.
+The one place where the validated :class:`cdus.scenario.model.Scenario` is turned into
+the pure core's objects, used alike by the in-process fleet and the process shells. The
+scenario is taken as validated: nothing here checks it again.
 """
 
 from __future__ import annotations
@@ -11,14 +12,14 @@ import math
 from cdus.core import regulators as reg
 from cdus.core.disturbance import Disturbance, DisturbanceSpec
 from cdus.core.link import IdealLink, LinkEmulator, LinkModel
-from cdus.core.linkspec import LinkSpec
 from cdus.core.metrics import MetricEdge
 from cdus.core.neighbours import NeighbourLink
+from cdus.core.node import VehicleNode
+from cdus.core.schedule import broadcast_every, total_ticks
 from cdus.core.paths import for_dimension, make_path, nearest_omega
 from cdus.core.plants import USV_PRESETS, PointState, UAVState, USVState
 from cdus.core.vehicle import Vehicle
-from cdus.scenario.config import Rates, Scenario, VehicleSpec
-from cdus.scenario.link import validate_link
+from cdus.scenario.model import Rates, Scenario, VehicleSpec
 
 
 def build_vehicle(spec: VehicleSpec, rates: Rates, seed: int) -> Vehicle:
@@ -46,7 +47,7 @@ def build_vehicle(spec: VehicleSpec, rates: Rates, seed: int) -> Vehicle:
     zero = (0.0,) * dim
     eps = None
     if spec.plant == "ideal":
-        state: Any = PointState(q0, zero)
+        state: PointState | UAVState | USVState = PointState(q0, zero)
         reg_gains = None
     elif spec.plant == "uav_double_integrator":
         state = UAVState(q0, zero)
@@ -76,32 +77,41 @@ def links_of(scenario: Scenario, vid: str) -> tuple[NeighbourLink, ...]:
     return tuple(NeighbourLink(index[e.k], e.weight, e.delta) for e in scenario.neighbours(vid))
 
 
+def listeners_of(scenario: Scenario, vid: str) -> tuple[str, ...]:
+    """The vehicles that listen to ``vid`` (its ω goes to them), in scenario order."""
+    listening = {e.i for e in scenario.edges if e.k == vid}
+    return tuple(v for v in scenario.ids if v in listening)
+
+
 def metric_edges(scenario: Scenario) -> tuple[MetricEdge, ...]:
     """The edges coordination is measured on, named ``<id_i>__<id_k>`` (also in Rerun)."""
     index = {v.id: v.index for v in scenario.vehicles}
     return tuple(MetricEdge(index[e.i], index[e.k], e.delta, f"{e.i}__{e.k}") for e in scenario.metric_edges())
 
 
-def link_spec_for(scenario: Scenario) -> LinkSpec:
-    """The validated ``[link]`` table of a ``cdus.config.Scenario`` (raises ``ConfigError``)."""
-    return validate_link(scenario.link or {}, list(scenario.ids), scenario.source)
-
-
-def link_seed(spec: LinkSpec, scenario: Scenario) -> int:
-    """``link.seed`` if given, else the scenario's seed."""
-    return spec.seed if spec.seed is not None else scenario.seed
+def build_node(scenario: Scenario, vid: str, link: LinkModel, *, policy: str | None = None,
+               timeout: float | None = None, last_tick: int | None = None, joined_at: int = 0) -> VehicleNode:
+    """Vehicle ``vid``'s tick protocol: its vehicle, its neighbour terms and ``link`` (the model
+    deciding its incoming messages), at the scenario's rates; policy and timeout default to
+    the scenario's [link] table, the last tick to the scenario's duration."""
+    spec = scenario.vehicle(vid)
+    period = 1.0 / scenario.rates.control
+    link_spec = scenario.link
+    return VehicleNode(spec.index, build_vehicle(spec, scenario.rates, scenario.seed), links_of(scenario, vid), link,
+                       period=period, every=broadcast_every(scenario.rates),
+                       last_tick=total_ticks(scenario.duration, period) if last_tick is None else last_tick,
+                       policy=policy or link_spec.policy, timeout=link_spec.timeout if timeout is None else timeout,
+                       joined_at=joined_at)
 
 
 def link_model_for(scenario: Scenario) -> LinkModel:
     """:class:`IdealLink` when the ``[link]`` table has no faults, else a :class:`LinkEmulator`
-    (seeded with ``link.seed``, else ``scenario.seed``). Raises ``ConfigError`` for a bad table."""
-    spec = link_spec_for(scenario)
-    if spec.is_ideal:
+    (seeded with ``link.seed``, else ``scenario.seed``)."""
+    if scenario.link.is_ideal:
         return IdealLink()
-    return LinkEmulator(spec, scenario.ids, link_seed(spec, scenario))
+    return link_emulator_for(scenario)
 
 
 def link_emulator_for(scenario: Scenario) -> LinkEmulator:
     """Always an emulator (ideal links take its fast path), so faults can change at run time."""
-    spec = link_spec_for(scenario)
-    return LinkEmulator(spec, scenario.ids, link_seed(spec, scenario))
+    return LinkEmulator(scenario.link, scenario.ids, scenario.link_seed)

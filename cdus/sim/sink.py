@@ -3,14 +3,19 @@
 The in-process fleet and the world process call a sink as they record:
 ``start(scenario)`` once, ``update(recorder)`` every ``UPDATE_EVERY`` ticks with the
 Recorder (the sink logs whatever rows are new since its last call, batched),
-``event(t, text)`` for things a person should read, ``link_state(t, src, dst, state)``
+``event(e)`` for things a person should read (a :class:`FleetEvent`), ``link_state(t, src, dst, state)``
 for link changes, and ``close()`` at the end, also after Ctrl-C, so a recording is
 always complete. The Rerun sink lives in the world process (:mod:`world_sim.rerun_sink`).
 """
 
 from __future__ import annotations
 
-from typing import Any, Protocol
+from typing import Protocol
+
+from cdus.core.metrics import Recorder
+from cdus.scenario.model import Scenario
+
+from cdus.wire.schemas import FleetEvent
 
 UPDATE_EVERY = 25  # ticks between sink updates (0.5 s of simulated time at 50 Hz)
 
@@ -18,7 +23,7 @@ UPDATE_EVERY = 25  # ticks between sink updates (0.5 s of simulated time at 50 H
 class Sink(Protocol):
     def start(self, scenario: Any) -> None: ...
     def update(self, recorder: Any) -> None: ...
-    def event(self, t: float, text: str, level: str = "info") -> None: ...
+    def event(self, event: FleetEvent) -> None: ...
     def link_state(self, t: float, src: str, dst: str, state: str) -> None: ...
     def close(self) -> None: ...
 
@@ -26,13 +31,13 @@ class Sink(Protocol):
 class NullSink:
     """Logs nothing (``--rerun off``)."""
 
-    def start(self, scenario: Any) -> None:
+    def start(self, scenario: Scenario) -> None:
         pass
 
-    def update(self, recorder: Any) -> None:
+    def update(self, recorder: Recorder) -> None:
         pass
 
-    def event(self, t: float, text: str, level: str = "info") -> None:
+    def event(self, event: FleetEvent) -> None:
         pass
 
     def link_state(self, t: float, src: str, dst: str, state: str) -> None:

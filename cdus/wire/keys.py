@@ -1,25 +1,34 @@
-"""Where things are on Zenoh: the key space of a fleet (system.md "Zenoh").
+"""Where things are on Zenoh: the key space of a fleet (docs/architecture.md, "Key space").
 
 Everything lives under ``cdus/<fleet>/`` so two fleets on one router never cross-talk.
+A message meant for particular processes is *addressed*: its key carries the set of
+its receivers as one chunk, ``+id1+id2+``, so every process takes all its input
+through one subscription (``to/$*+<me>+$*/**``, :func:`inbox`) and waits in one place:
 
-    cdus/<fleet>/v/<id>/omega     ω messages (vehicle_agent.messages.OmegaMsg)
-    cdus/<fleet>/v/<id>/state     telemetry at each control instant (StateMsg)
-    cdus/<fleet>/v/<id>/stats     the agent's counters, about once a second
-    cdus/<fleet>/alive/<id>       liveliness token of a vehicle agent (``world`` for the world)
-    cdus/<fleet>/clock            the world's clock: start / grant / stop
-    cdus/<fleet>/cmd/<target>     commands; <target> is a vehicle id, ``all`` or ``world``
-    cdus/<fleet>/world/status     the world's status, about once a second
-    cdus/<fleet>/world/events     human-readable events (vehicle lost, link changed, ...)
-    cdus/<fleet>/world/last/<id>  queryable: a vehicle's newest telemetry (for a restarted agent)
+    cdus/<fleet>/to/<set>/omega/<src>   ω of vehicle <src> to the vehicles listening to it
+    cdus/<fleet>/to/<set>/ctl           the world's clock, roster and relayed commands
+    cdus/<fleet>/to/+world+/state/<src> telemetry batches of vehicle <src>
+    cdus/<fleet>/to/+world+/stats/<src> its counters, about once a second
+    cdus/<fleet>/to/+world+/cmd/<from>  commands to the world (ground stations, the launcher)
+    cdus/<fleet>/to/+launcher+/cmd      scheduled vehicle faults, the world to the launcher
+    cdus/<fleet>/to/+<id>+/wake         a process waking itself (session-local, never sent)
+    cdus/<fleet>/alive/<id>             liveliness token of a process (readiness and loss)
+    cdus/<fleet>/world/status           the world's status, about once a second
+    cdus/<fleet>/world/events           fleet events as they happen (cdus.wire.schemas)
+    cdus/<fleet>/world/last/<id>        queryable: a vehicle's newest telemetry
+
+Anyone may listen: a ground station watches ``to/*/state/*`` and ``world/**``. Ids and
+fleet names are letters, digits, ``_`` and ``-``, so ``+`` only ever delimits a set.
 """
 
 from __future__ import annotations
 
 import re
+from typing import Iterable
 
 FLEET_RE = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
 WORLD = "world"
-ALL = "all"
+LAUNCHER = "launcher"
 
 
 def check_fleet(fleet: str) -> str:
@@ -32,28 +41,59 @@ def prefix(fleet: str) -> str:
     return f"cdus/{fleet}"
 
 
-def omega(fleet: str, vid: str) -> str:
-    return f"cdus/{fleet}/v/{vid}/omega"
+def recipients(ids: Iterable[str]) -> str:
+    """The chunk addressing ``ids``: ``+a+b+``."""
+    ids = list(ids)
+    return "+" + "+".join(ids) + "+" if ids else "+"
 
 
-def state(fleet: str, vid: str) -> str:
-    return f"cdus/{fleet}/v/{vid}/state"
+def inbox(fleet: str, me: str) -> str:
+    """Everything addressed to ``me``."""
+    return f"cdus/{fleet}/to/$*+{me}+$*/**"
 
 
-def stats(fleet: str, vid: str) -> str:
-    return f"cdus/{fleet}/v/{vid}/stats"
+def omega(fleet: str, src: str, listeners: Iterable[str]) -> str:
+    return f"cdus/{fleet}/to/{recipients(listeners)}/omega/{src}"
 
 
-def alive(fleet: str, vid: str) -> str:
-    return f"cdus/{fleet}/alive/{vid}"
+def ctl(fleet: str, ids: Iterable[str]) -> str:
+    return f"cdus/{fleet}/to/{recipients(ids)}/ctl"
 
 
-def clock(fleet: str) -> str:
-    return f"cdus/{fleet}/clock"
+def state(fleet: str, src: str) -> str:
+    return f"cdus/{fleet}/to/+{WORLD}+/state/{src}"
 
 
-def cmd(fleet: str, target: str) -> str:
-    return f"cdus/{fleet}/cmd/{target}"
+def stats(fleet: str, src: str) -> str:
+    return f"cdus/{fleet}/to/+{WORLD}+/stats/{src}"
+
+
+def world_cmd(fleet: str, sender: str) -> str:
+    return f"cdus/{fleet}/to/+{WORLD}+/cmd/{sender}"
+
+
+def launcher_cmd(fleet: str) -> str:
+    return f"cdus/{fleet}/to/+{LAUNCHER}+/cmd"
+
+
+def wake(fleet: str, me: str) -> str:
+    return f"cdus/{fleet}/to/+{me}+/wake"
+
+
+def alive(fleet: str, name: str) -> str:
+    return f"cdus/{fleet}/alive/{name}"
+
+
+def any_alive(fleet: str) -> str:
+    return f"cdus/{fleet}/alive/*"
+
+
+def any_state(fleet: str) -> str:
+    return f"cdus/{fleet}/to/*/state/*"
+
+
+def any_omega(fleet: str) -> str:
+    return f"cdus/{fleet}/to/*/omega/*"
 
 
 def world_status(fleet: str) -> str:
@@ -68,20 +108,16 @@ def world_last(fleet: str, vid: str) -> str:
     return f"cdus/{fleet}/world/last/{vid}"
 
 
-def any_vehicle(fleet: str, leaf: str) -> str:
-    """Wildcard over every vehicle's ``leaf`` (omega, state, stats)."""
-    return f"cdus/{fleet}/v/*/{leaf}"
-
-
-def any_alive(fleet: str) -> str:
-    return f"cdus/{fleet}/alive/*"
-
-
-def vehicle_of(key: str) -> str | None:
-    """The vehicle id in ``cdus/<fleet>/v/<id>/<leaf>`` or ``cdus/<fleet>/alive/<id>``."""
+def leaf(key: str) -> tuple[str, str]:
+    """(kind, source) of an addressed key: ``.../to/<set>/omega/usv1`` -> ("omega", "usv1"),
+    ``.../to/<set>/ctl`` -> ("ctl", ""); ("", "") if ``key`` is not addressed."""
     parts = key.split("/")
-    if len(parts) >= 5 and parts[2] == "v":
-        return parts[3]
-    if len(parts) == 4 and parts[2] == "alive":
-        return parts[3]
-    return None
+    if len(parts) >= 5 and parts[2] == "to":
+        return parts[4], parts[5] if len(parts) > 5 else ""
+    return "", ""
+
+
+def alive_name(key: str) -> str | None:
+    """The process name in ``cdus/<fleet>/alive/<name>``."""
+    parts = key.split("/")
+    return parts[3] if len(parts) == 4 and parts[2] == "alive" else None

@@ -1,63 +1,83 @@
-"""What goes over the radio: the ω message, its wire format and its validation.
+"""What goes over the radio and the fleet's wires: ω, telemetry and control messages.
 
-The one source of truth for the schema; every process imports it. Payload (msgpack):
+The one source of truth for these schemas; every process imports it.
+
+ω (msgpack, a 6-element array, at most 32 bytes for fleets of up to 256 vehicles):
 
     [version=1, sender index, seq, t_send (float64 s), ω (float64), ω̇ (float32)]
 
-at most 31 bytes. ω is float64 on the wire and everywhere else: it is unbounded (it
-decreases at 1/s forever) and a narrow type would ruin it (dgvf.md §4). The sender's
-id travels in the key (``cdus/<fleet>/v/<id>/omega``); the index inside the payload
-must agree with it. ``decode_omega`` never raises: it returns a message or the reason
-for rejecting it, so a receiver can count and drop without a try/except in its loop.
+written with fixed widths (sender uint8, or uint16 past 256 vehicles; seq uint32), so
+it is valid msgpack that the receive path reads with one ``struct`` call; any other
+msgpack spelling of the same array is read too, and checked alike. ω is float64 on the
+wire and everywhere else: it is unbounded (it decreases at 1/s forever) and a narrow
+type would ruin it (docs/control.md). The sender's id travels in the key
+(``.../omega/<id>``); the index inside the payload must agree with it. Decoders never
+raise: they return a message or the reason for rejecting it, so a receiver can count
+and drop without a try/except in its loop.
 """
 
 from __future__ import annotations
 
 import math
+import struct
 from dataclasses import dataclass
 
 import msgpack
 
 OMEGA_VERSION = 1
-MAX_OMEGA_PAYLOAD = 32
+MAX_OMEGA_PAYLOAD = 33  # 32 up to 256 vehicles (uint8 sender), 33 beyond (uint16)
 F32_MAX = 3.0e38  # ω̇ is clamped to the float32 range on the wire
+#: what msgpack raises on bytes that are not what we accept (malformed, too deep, too long, ...)
+MSGPACK_ERRORS = (ValueError, TypeError, msgpack.UnpackException)
+_OMEGA8 = struct.Struct(">BBBBBIBdBdBf")  # 0x96, 1, 0xcc, sender, 0xce, seq, 0xcb, t, 0xcb, ω, 0xca, ω̇
+_OMEGA16 = struct.Struct(">BBBHBIBdBdBf")  # the same with 0xcd and a uint16 sender
 
 
 @dataclass(frozen=True)
 class OmegaMsg:
     sender: int  # index of the sender in the scenario's vehicle list
-    seq: int  # per-sender sequence number, starts at 0, strictly increasing
-    t_send: float  # sender's clock: simulated s (lockstep/in-process) or wall s (realtime)
+    seq: int  # per-sender sequence number: tick // broadcast period, strictly increasing
+    t_send: float  # simulated seconds at the sender (every clock mode)
     omega: float
     omega_rate: float  # mean ω̇ over the sender's last control period
 
 
 def encode_omega(m: OmegaMsg) -> bytes:
-    """The payload of ``m``: a 6-element msgpack array, ω̇ packed as float32 (a rate
-    near -1 that is only used to extrapolate), everything else exact."""
+    """The payload of ``m`` (fixed widths; ω̇ packed as float32: a rate near -1 that is only
+    used to extrapolate; everything else exact)."""
     wd = float(m.omega_rate)
     if math.isfinite(wd):  # a non-finite rate must stay so, for the receiver to reject it
         wd = max(-F32_MAX, min(F32_MAX, wd))
-    return b"".join((
-        b"\x96",
-        _pack(OMEGA_VERSION), _pack(m.sender), _pack(m.seq),
-        _pack(float(m.t_send)), _pack(float(m.omega)),
-        msgpack.packb(wd, use_single_float=True),
-    ))
-
-
-_pack = msgpack.Packer(use_single_float=False, autoreset=True).pack
+    if not 0 <= m.seq < 2**32 or not 0 <= m.sender < 2**16:  # out of the fixed layout: plain msgpack
+        return _pack([OMEGA_VERSION, m.sender, m.seq, float(m.t_send), float(m.omega), wd])
+    if m.sender < 256:
+        return _OMEGA8.pack(0x96, OMEGA_VERSION, 0xcc, m.sender, 0xce, m.seq, 0xcb, m.t_send, 0xcb, m.omega, 0xca, wd)
+    return _OMEGA16.pack(0x96, OMEGA_VERSION, 0xcd, m.sender, 0xce, m.seq, 0xcb, m.t_send, 0xcb, m.omega, 0xca, wd)
 
 
 def decode_omega(payload: bytes, expected_sender: int | None = None, n_vehicles: int | None = None
                  ) -> OmegaMsg | str:
     """A valid message, or a short reason string (``"malformed"``, ``"version"``, ...)."""
+    size = len(payload)
+    if size == 32 and payload[2] == 0xcc and payload[4] == 0xce and payload[:2] == b"\x96\x01":
+        _, _, _, sender, _, seq, m1, t, m2, w, m3, wd = _OMEGA8.unpack(payload)
+    elif size == 33 and payload[2] == 0xcd and payload[5] == 0xce and payload[:2] == b"\x96\x01":
+        _, _, _, sender, _, seq, m1, t, m2, w, m3, wd = _OMEGA16.unpack(payload)
+    else:
+        return _decode_omega_any(payload, expected_sender, n_vehicles)
+    if m1 != 0xcb or m2 != 0xcb or m3 != 0xca:
+        return _decode_omega_any(payload, expected_sender, n_vehicles)
+    return _checked(sender, seq, t, w, wd, expected_sender, n_vehicles)
+
+
+def _decode_omega_any(payload: bytes, expected_sender: int | None, n_vehicles: int | None) -> OmegaMsg | str:
+    """Any msgpack spelling of the ω array (the slow path)."""
     if len(payload) > MAX_OMEGA_PAYLOAD:
         return "oversized"
     try:
         obj = msgpack.unpackb(payload, raw=True, strict_map_key=True, max_array_len=8,
                               max_map_len=0, max_str_len=0, max_bin_len=0, max_ext_len=0)
-    except Exception:
+    except MSGPACK_ERRORS:
         return "malformed"
     if not isinstance(obj, list) or len(obj) != 6:
         return "malformed"
@@ -68,6 +88,11 @@ def decode_omega(payload: bytes, expected_sender: int | None = None, n_vehicles:
         return "type"
     if not all(type(x) is float for x in (t, w, wd)):
         return "type"
+    return _checked(sender, seq, t, w, wd, expected_sender, n_vehicles)
+
+
+def _checked(sender: int, seq: int, t: float, w: float, wd: float, expected_sender: int | None,
+             n_vehicles: int | None) -> OmegaMsg | str:
     if not (math.isfinite(t) and math.isfinite(w) and math.isfinite(wd)):
         return "non_finite"
     if seq < 0 or sender < 0 or (n_vehicles is not None and sender >= n_vehicles):
@@ -75,6 +100,9 @@ def decode_omega(payload: bytes, expected_sender: int | None = None, n_vehicles:
     if expected_sender is not None and sender != expected_sender:
         return "unknown_sender"
     return OmegaMsg(sender, seq, t, w, wd)
+
+
+_pack = msgpack.Packer(use_single_float=False, autoreset=True).pack
 
 
 # --------------------------------------------------------------------------- telemetry
@@ -116,7 +144,7 @@ def decode_states(payload: bytes, n_vehicles: int | None = None) -> list[StateMs
     try:
         obj = msgpack.unpackb(payload, raw=True, max_array_len=MAX_STATE_ROWS, max_map_len=0, max_str_len=0,
                               max_bin_len=0, max_ext_len=0)
-    except Exception:
+    except MSGPACK_ERRORS:
         return "malformed"
     if not isinstance(obj, list) or len(obj) != 3:
         return "malformed"
@@ -148,27 +176,41 @@ def decode_states(payload: bytes, n_vehicles: int | None = None) -> list[StateMs
 CONTROL_VERSION = 1
 MAX_CONTROL_PAYLOAD = 4096
 
-#: clock ops and the fields each carries (name -> type)
-CLOCK_OPS: dict[str, dict[str, type]] = {
+#: world -> vehicles (``ctl``), per op the fields it carries (name -> type)
+CTL_OPS: dict[str, dict[str, type]] = {
     "start": {"t0": float},  # realtime: tick 0 is at wall time t0 (time.time())
-    "grant": {"until": int, "front": int},  # lockstep: step ticks <= until; a late joiner starts at front
+    "join": {"tick": int},  # lockstep: the run starts (tick 0) or a (re)started process joins at tick
+    "grant": {"until": int},  # lockstep: step ticks <= until
+    "roster": {"vehicle": str, "tick": int, "state": str, "fresh": bool},  # cdus.core.events.RosterChange
+    "pause": {},  # realtime: stop stepping until resume
+    "resume": {"t0": float},  # realtime: carry on, the clock's origin moved by the pause
+    "link": {"link": dict, "at": float},  # a [link] table merged over the current one, from sim time `at`
+    "gains": {"gains": dict, "tick": int},  # k and/or c from tick `tick`
     "stop": {},  # end of run: finish, report, exit
 }
 
-#: command ops and their fields; ``link`` and ``gains`` carry tables checked by their owners
+#: anyone -> the world (``to/+world+/cmd/<from>``); ``link`` and ``gains`` tables are checked by their owners
 COMMAND_OPS: dict[str, dict[str, type]] = {
     "pause": {},
     "resume": {},
     "stop": {},
-    "set_gains": {"gains": dict},
-    "link": {"link": dict, "at": float},  # a [link] table merged over the current one, from sim time `at`
-    # scheduled vehicle faults: world -> launcher, and the launcher's acknowledgement
+    "set_gains": {"gains": dict, "vehicle": str},  # vehicle "" = every vehicle
+    "link": {"link": dict, "at": float},  # at < 0: as soon as possible
     "kill": {"vehicle": str},
     "pause_vehicle": {"vehicle": str},
     "resume_vehicle": {"vehicle": str},
     "restart": {"vehicle": str},
-    "fault_done": {"vehicle": str},
+    "fault_done": {"vehicle": str},  # the launcher: a vehicle fault carried out
 }
+
+#: the world -> the launcher: carry out a vehicle fault
+LAUNCHER_OPS: dict[str, dict[str, type]] = {
+    "kill": {"vehicle": str},
+    "pause_vehicle": {"vehicle": str},
+    "resume_vehicle": {"vehicle": str},
+    "restart": {"vehicle": str},
+}
+VEHICLE_FAULTS = tuple(LAUNCHER_OPS)
 
 
 @dataclass(frozen=True)
@@ -184,13 +226,13 @@ def encode_control(op: str, **fields) -> bytes:
 
 
 def decode_control(payload: bytes, ops: dict[str, dict[str, type]]) -> Control | str:
-    """Decode a clock or command map against ``ops`` (CLOCK_OPS or COMMAND_OPS)."""
+    """Decode a control map against ``ops`` (CTL_OPS, COMMAND_OPS or LAUNCHER_OPS)."""
     if len(payload) > MAX_CONTROL_PAYLOAD:
         return "oversized"
     try:
         obj = msgpack.unpackb(payload, raw=False, max_array_len=64, max_map_len=64, max_str_len=256,
                               max_bin_len=0, max_ext_len=0)
-    except Exception:
+    except MSGPACK_ERRORS:
         return "malformed"
     if not isinstance(obj, dict) or obj.get("v") != CONTROL_VERSION or type(obj.get("v")) is not int:
         return "version" if isinstance(obj, dict) else "malformed"

@@ -22,6 +22,8 @@ from typing import Any, Sequence
 import zenoh
 
 MODES = ("peer", "client", "router")
+DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"  # where a process started by hand looks for (or opens) the router
+DEFAULT_LEASE_MS = 1000  # the launcher's liveliness lease: a hung process is gone after 1 s (zenoh's: 10 s)
 CONNECT_TIMEOUT_S = 30.0
 
 
@@ -99,6 +101,16 @@ def zenoh_config(t: Transport):
 
 def open_session(t: Transport):
     return zenoh.open(zenoh_config(t))
+
+
+def with_default_endpoint(t: Transport) -> Transport:
+    """``t``, connecting to (client, peer) or listening on (router) DEFAULT_ENDPOINT if it names no
+    endpoint and no config file."""
+    if t.connect or t.listen or t.config_file:
+        return t
+    if t.mode == "router":
+        return Transport(mode="router", listen=(DEFAULT_ENDPOINT,), lease_ms=t.lease_ms, extra=t.extra)
+    return Transport(mode=t.mode, connect=(DEFAULT_ENDPOINT,), lease_ms=t.lease_ms, extra=t.extra)
 
 
 def free_tcp_port() -> int:

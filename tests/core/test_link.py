@@ -1,4 +1,5 @@
-"""The link fault emulator and its [link] schema: statistics, exact windows, determinism, validation.
+"""The link fault emulator: statistics, exact windows, determinism (its [link] schema is
+tested in tests/scenario/test_link.py).
 
 Statistical bounds are 5 σ (or a DKW band at confidence 1 - 1e-6), over 10^5 seeded
 messages, so a correct emulator fails them with probability < 1e-6 per check, and since
@@ -8,17 +9,15 @@ everything is seeded the outcome is fixed anyway.
 import math
 import random
 from statistics import NormalDist
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from cdus.scenario.config import ConfigError
-from cdus.scenario.link import Burst, Delay, LinkSpec, validate_link
+from cdus.core.linkspec import Burst, Delay, LinkSpec
+from cdus.scenario.link import validate_link
 from cdus.core.link import (
-    IdealLink, LinkEmulator, LinkFaultCounters, burst_bad, draw_delay, merge_link_summaries, stream_key, uniform,
+    DropBursts, IdealLink, LinkEmulator, LinkFaultCounters, burst_bad, burst_events, draw_delay, merge_link_summaries, stream_key, uniform,
 )
-from cdus.sim.build import link_model_for
 
 IDS = ("usv1", "usv2", "usv3", "uav1", "uav2", "uav3")
 USV1, USV2, USV3, UAV1, UAV2, UAV3 = range(6)
@@ -373,8 +372,7 @@ def test_fifo_keeps_the_order_and_reorder_does_not():
 def test_fifo_without_delay_is_ideal_in_effect():
     e = emulator({"delay": {"reorder": False}})
     assert run(e, n=100) == [(0.0,)] * 100
-    assert link_model_for(SimpleNamespace(link={"delay": {"reorder": False}}, ids=IDS, seed=0,
-                                          source="t.toml")).__class__ is IdealLink
+    assert spec({"delay": {"reorder": False}}).is_ideal  # so the fleet takes IdealLink for it
 
 
 # --------------------------------------------------------------------------- runtime changes
@@ -439,123 +437,14 @@ def test_counters_summary_and_merge():
 # --------------------------------------------------------------------------- which model
 
 
-def _scenario(link, seed=11):
-    return SimpleNamespace(link=link, ids=IDS, seed=seed, source="scenario.toml")
-
-
-def test_link_model_for_picks_ideal_or_emulator_with_the_right_seed():
-    assert isinstance(link_model_for(_scenario({})), IdealLink)
-    assert isinstance(link_model_for(_scenario({"policy": "timeout", "timeout": 2.0, "seed": 4})), IdealLink)
-    assert isinstance(link_model_for(_scenario({"loss": 0.0, "override": [{"src": "usv1", "loss": 0.0}]})),
-                      IdealLink)
-    m = link_model_for(_scenario({"loss": 0.4}))
-    assert isinstance(m, LinkEmulator) and m.seed == 11
-    assert run(m, n=300) == run(emulator({"loss": 0.4}, seed=11), n=300)
-    m = link_model_for(_scenario({"loss": 0.4, "seed": 0}))
-    assert m.seed == 0
-    assert isinstance(link_model_for(_scenario({"partition": [{"groups": [["usv1"]]}]})), LinkEmulator)
-    with pytest.raises(ConfigError, match="scenario.toml: link.loss: must be a probability"):
-        link_model_for(_scenario({"loss": 2}))
-
-
-# --------------------------------------------------------------------------- validation
-
-
-def test_the_full_example_table_is_valid():
-    s = spec({
-        "policy": "timeout", "timeout": 1.5, "seed": 7,
-        "delay": {"base": 0.1, "jitter": 0.02, "distribution": "uniform", "reorder": True},
-        "loss": 0.3, "burst": {"p": 0.05, "r": 0.5, "bad_loss": 1.0, "good_loss": 0.0}, "duplicate": 0.0,
-        "override": [{"src": "usv1", "dst": "*", "loss": 0.5}],
-        "down": [{"src": "usv1", "dst": "usv2", "from": 30.0, "to": 40.0}],
-        "partition": [{"from": 60.0, "to": 90.0, "groups": [["usv1", "usv2", "usv3"], ["uav1", "uav2", "uav3"]]},
-                      {"from": 90.0, "to": 100.0, "drops": {"usv2": ["usv1"], "uav1": ["usv3", "uav3"]}}],
-    })
-    assert (s.policy, s.timeout, s.seed, s.loss) == ("timeout", 1.5, 7, 0.3)
-    assert s.burst == Burst(0.05, 0.5, 1.0, 0.0) and s.delay == Delay(0.1, 0.02, "uniform", True)
-    assert s.partitions[1].drops == (("usv2", ("usv1",)), ("uav1", ("usv3", "uav3")))
-    assert not s.is_ideal
-    assert spec({}) == LinkSpec() and LinkSpec().is_ideal
-
-
-BAD = [
-    ({"los": 0.3}, "link.los", 'unknown key; did you mean "loss"?'),
-    ({"loss": 1.5}, "link.loss", "must be a probability in [0, 1] (Bernoulli loss), got 1.5"),
-    ({"loss": True}, "link.loss", "must be a probability in [0, 1] (Bernoulli loss), got the boolean true"),
-    ({"policy": "hodl"}, "link.policy", 'unknown stale-neighbour policy "hodl" (did you mean "hold"?); '
-                                        "choose one of hold, timeout, extrapolate"),
-    ({"timeout": 0}, "link.timeout", "must be a number > 0"),
-    ({"seed": -1}, "link.seed", "must be an integer >= 0"),
-    ({"seed": 1.5}, "link.seed", "must be an integer >= 0"),
-    ({"delay": {"jitter": -0.01}}, "link.delay.jitter", "must be a number >= 0"),
-    ({"delay": {"base": "100ms"}}, "link.delay.base", 'got the string "100ms"'),
-    ({"delay": {"distribution": "gauss"}}, "link.delay.distribution", "choose one of uniform, normal, pareto"),
-    ({"delay": {"reorder": 1}}, "link.delay.reorder", "must be true"),
-    ({"delay": 0.1}, "link.delay", "must be a table like { base = 0.1"),
-    ({"delay": {"bsae": 0.1}}, "link.delay.bsae", 'did you mean "base"?'),
-    ({"burst": {"p": 0.1}}, "link.burst.r", "missing; a burst needs p"),
-    ({"burst": {"p": 0.1, "r": -0.2}}, "link.burst.r", "must be a probability in [0, 1] (P(bad -> good)"),
-    ({"burst": {"p": 0.1, "r": 0.2, "h": 0.5}}, "link.burst.h", "valid keys here: p, r, bad_loss, good_loss"),
-    ({"duplicate": float("nan")}, "link.duplicate", "must be a probability in [0, 1]"),
-    ({"override": [{"src": "usv11", "loss": 0.1}]}, "link.override[0].src",
-     '"usv11" is not a vehicle (did you mean "usv1"?); ids are usv1, usv2, usv3, uav1, uav2, uav3 or "*"'),
-    ({"override": [{"src": "usv1"}]}, "link.override[0]", "sets nothing"),
-    ({"override": {"src": "usv1", "loss": 0.1}}, "link.override", "must be an array of tables ([[link.override]]"),
-    ({"override": [{"dst": "uav1", "delay": {"base": -1}}]}, "link.override[0].delay.base", "must be a number >= 0"),
-    ({"down": [{"src": "usv1", "from": 40.0, "to": 30.0}]}, "link.down[0].to", "must be > from (40.0)"),
-    ({"down": [{"src": "usv1", "from": 30.0, "to": 30.0}]}, "link.down[0].to", "the window is [from, to)"),
-    ({"down": [{"dst": 3, "from": 1.0, "to": 2.0}]}, "link.down[0].dst", "must be a vehicle id or \"*\""),
-    ({"down": [{"from": -1.0, "to": 2.0}]}, "link.down[0].from", "must be a number >= 0"),
-    ({"down": [{"start": 1.0, "to": 2.0}]}, "link.down[0].start", "valid keys here: src, dst, from, to"),
-    ({"partition": [{"from": 1.0, "to": 2.0, "groups": [["usv1", "usv2"], ["usv2", "uav1"]]}]},
-     "link.partition[0].groups", 'vehicle "usv2" is in groups 0 and 1; a vehicle belongs to one group at most'),
-    ({"partition": [{"from": 1.0, "to": 2.0, "groups": [["usv1", "usv1"]]}]},
-     "link.partition[0].groups", 'vehicle "usv1" is twice in this group'),
-    ({"partition": [{"from": 1.0, "to": 2.0, "groups": ["usv1", "usv2"]}]},
-     "link.partition[0].groups", "must be a non-empty list of non-empty lists of vehicle ids"),
-    ({"partition": [{}, {"from": 1.0, "to": 2.0, "groups": [["uav7"]]}]}, "link.partition[1].groups[0]",
-     '"uav7" is not a vehicle'),
-    ({"partition": [{"from": 1.0, "to": 2.0}]}, "link.partition[0]", "missing; give groups"),
-    ({"partition": [{"groups": [["usv1"]], "drops": {"usv2": ["usv1"]}}]}, "link.partition[0]",
-     "give either groups or drops, not both"),
-    ({"partition": [{"drops": {"usv2": ["usv2"]}}]}, "link.partition[0].drops.usv2",
-     '"usv2" cannot drop its own messages'),
-    ({"partition": [{"drops": {"usv2": "usv1"}}]}, "link.partition[0].drops.usv2",
-     "must be a non-empty list of the vehicle ids"),
-    ({"partition": [{"drops": {"usb2": ["usv1"]}}]}, "link.partition[0].drops.usb2",
-     '"usb2" is not a vehicle (did you mean "usv2"?)'),
-]
-
-
-@pytest.mark.parametrize("table, field, fragment", BAD, ids=[b[1] + "-" + str(i) for i, b in enumerate(BAD)])
-def test_bad_link_tables_name_the_field_and_what_is_valid(table, field, fragment):
-    with pytest.raises(ConfigError) as err:
-        validate_link(table, IDS, "bad.toml")
-    assert err.value.source == "bad.toml"
-    matches = [m for f, m in err.value.problems if f == field]
-    assert matches, err.value.problems
-    assert any(fragment in m for m in matches), matches
-    assert f"bad.toml: {field}: " in str(err.value)
-
-
-def test_every_problem_is_reported_at_once():
-    with pytest.raises(ConfigError) as err:
-        validate_link({"loss": -1, "duplicate": 2, "delay": {"jitter": -1}, "policy": "x"}, IDS, "bad.toml")
-    assert [f for f, _ in err.value.problems] == ["link.policy", "link.delay.jitter", "link.loss", "link.duplicate"]
-
-
-def test_a_non_table_link_is_an_error():
-    with pytest.raises(ConfigError, match="link: must be a table"):
-        validate_link([1, 2], IDS, "bad.toml")
-
-
 def test_drop_bursts_are_reported_when_a_run_of_drops_ends():
-    from cdus.core.link import DropBursts, burst_text
-
     b = DropBursts(min_len=3)
     pattern = [False, True, True, False, True, True, True, True, False, True]
     for j, dropped in enumerate(pattern):
         b.feed(0, 1, dropped, j * 0.1)
         b.feed(1, 0, False, j * 0.1)  # another link, never dropping
     assert b.done == [(0.4, 0.8, 0, 1, 4)]  # the run of 2 is too short; the last run is still open
-    assert burst_text(b.done[0], ["a", "b"]) == "link a->b: 4 messages dropped in a row (0.40-0.80 s)"
+    events = burst_events(b, ["a", "b"])
+    assert [(e.t, e.kind, e.severity, e.link) for e in events] == [(0.8, "link_burst", "warn", "a->b")]
+    assert events[0].text == "link a->b: 4 messages dropped in a row (0.40-0.80 s)"
+    assert burst_events(b, ["a", "b"]) == []  # each burst is news once

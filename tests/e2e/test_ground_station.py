@@ -47,6 +47,6 @@ def test_ground_station_watches_and_commands_a_running_fleet(tmp_path, launches)
     m = json.loads((run / "metrics.json").read_text())
     assert m["completed"] is False  # stopped early, by the operator
     assert m["link"]["faults"]["total"]["dropped_by"]["loss"] > 0
-    assert any("usv2 lost" in e for e in m["events"])
-    assert any("link faults changed" in e for e in m["events"])
+    kinds = [(e["kind"], e.get("vehicle")) for e in m["events"]]
+    assert ("vehicle_lost", "usv2") in kinds and ("link_changed", None) in kinds, m["events"]
     assert not fleet_processes(fleet)

@@ -11,6 +11,7 @@ import pytest
 import zenoh
 
 from cdus.wire import keys
+from cdus.wire.schemas import decode_event
 from cdus.scenario.config import load_scenario
 from cdus.wire.transport import Transport, free_tcp_port, open_session
 from cdus.sim.fleet import InProcessFleet
@@ -53,7 +54,7 @@ def test_realtime_run_converges(tmp_path, launches):
     assert not fleet_processes(fleet)
 
 
-def test_a_killed_agent_is_reported_within_a_second(tmp_path, launches):
+def test_a_killed_agent_is_reported_with_the_graph_it_leaves(tmp_path, launches):
     fleet = unique_fleet()
     port = free_tcp_port()
     la = launches(["configs/lake_circle.toml", "--clock", "realtime", "--duration", "120",
@@ -75,16 +76,18 @@ def test_a_killed_agent_is_reported_within_a_second(tmp_path, launches):
             if sample is None:
                 time.sleep(0.005)
                 continue
-            text = sample.payload.to_bytes().decode()
-            events.append((time.monotonic() - t_kill, text))
-            if "usv2 lost" in text:
+            event = decode_event(sample.payload.to_bytes())
+            assert not isinstance(event, str), event
+            events.append((time.monotonic() - t_kill, event))
+            if event.kind == "graph":
                 break
     finally:
         session.close()
-    lost = [dt for dt, text in events if "usv2 lost" in text]
-    assert lost, events
-    assert lost[0] < 1.0, f"reported after {lost[0]:.3f} s"
-    assert any("spanning tree" in text for _, text in events) or True  # reported right after
+    lost = [dt for dt, e in events if e.kind == "vehicle_lost" and e.vehicle == "usv2"]
+    assert lost, events  # how soon is a figure for bench/failure_detection.py, not an assertion here
+    # right after: the ring without usv2 is a chain, which still has a spanning tree
+    graph = [e for _, e in events if e.kind == "graph"]
+    assert graph and "still has a spanning tree" in graph[0].text and graph[0].severity == "info", events
     la.proc.send_signal(signal.SIGINT)
     assert la.wait() == 130
     assert not fleet_processes(fleet)

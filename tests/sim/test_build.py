@@ -7,11 +7,12 @@ import math
 import pytest
 
 from cdus.core.link import IdealLink, LinkEmulator
+from cdus.core.linkspec import LinkSpec
 from cdus.core.metrics import MetricEdge
 from cdus.core.neighbours import NeighbourLink
 from cdus.core.plants import PointState, UAVState, USVState
 from cdus.scenario.config import load_scenario, parse_scenario
-from cdus.sim.build import build_vehicle, link_model_for, links_of, metric_edges
+from cdus.sim.build import build_vehicle, link_emulator_for, link_model_for, links_of, metric_edges
 
 TWO = {
     "scenario": {"name": "t"},
@@ -49,8 +50,25 @@ def test_vehicle_models_get_their_plant_state():
     assert kinds == {USVState, UAVState}
 
 
-def test_the_link_model_is_ideal_without_faults_and_an_emulator_with():
-    sc = parse_scenario(TWO)
-    assert isinstance(link_model_for(sc), IdealLink)
-    lossy = parse_scenario({**TWO, "link": {"loss": 0.1}})
-    assert isinstance(link_model_for(lossy), LinkEmulator)
+def with_link(link: dict, seed: int = 11):
+    return parse_scenario({**TWO, "scenario": {"name": "t", "seed": seed}, "link": link})
+
+
+def test_the_link_model_is_ideal_without_faults_and_an_emulator_with_the_right_seed():
+    assert isinstance(link_model_for(parse_scenario(TWO)), IdealLink)
+    assert isinstance(link_model_for(with_link({"policy": "timeout", "timeout": 2.0, "seed": 4})), IdealLink)
+    assert isinstance(link_model_for(with_link({"loss": 0.0, "override": [{"src": "usv0", "loss": 0.0}]})), IdealLink)
+    assert isinstance(link_model_for(with_link({"delay": {"reorder": False}})), IdealLink)
+    m = link_model_for(with_link({"loss": 0.4}))
+    assert isinstance(m, LinkEmulator) and m.seed == 11
+    twin = LinkEmulator(LinkSpec(loss=0.4), ("usv0", "uav0"), 11)
+    assert [m.decide(0, 1, s, s * 0.02) for s in range(300)] == [twin.decide(0, 1, s, s * 0.02) for s in range(300)]
+    assert link_model_for(with_link({"loss": 0.4, "seed": 0})).seed == 0
+    assert isinstance(link_model_for(with_link({"partition": [{"groups": [["usv0"]]}]})), LinkEmulator)
+
+
+def test_the_emulator_is_built_from_the_scenarios_validated_spec():
+    sc = with_link({"loss": 0.3, "down": [{"src": "usv0", "from": 1.0, "to": 2.0}]}, seed=5)
+    e = link_emulator_for(sc)
+    assert isinstance(e, LinkEmulator) and e.seed == 5
+    assert isinstance(link_emulator_for(parse_scenario(TWO)), LinkEmulator)  # ideal too: faults can come later

@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from cdus.scenario.config import load_scenario
+from cdus.scenario.config import load_scenario, parse_scenario
 from cdus.core.schedule import delivery_tick
 from cdus.sim.fleet import InProcessFleet
 
@@ -123,3 +123,42 @@ def test_broadcast_slower_than_control_still_converges_and_counts_messages():
     assert link["sent"] == 6 * 2 * (200 * 10)
     assert link["dropped"] == 0 and link["rejected"] == 0
     assert res.metrics["coord_settle_s"] is not None
+
+
+def kill_usv2(at: float = 20.0, restart: float | None = None, duration: float = 30.0):
+    sc = load_scenario("configs/lake_circle.toml", {"scenario.duration": duration})
+    events = [{"at": at, "action": "kill", "vehicle": "usv2"}]
+    if restart is not None:
+        events.append({"at": restart, "action": "restart", "vehicle": "usv2"})
+    return parse_scenario({**sc.raw, "event": events})
+
+
+def test_a_killed_vehicle_leaves_its_neighbours_sums_for_good():
+    """The bug of old: its last in-flight ω re-admitted it into usv1's and usv3's sums."""
+    sc = kill_usv2()
+    fleet = InProcessFleet(sc)
+    res = fleet.run()
+    j = sc.ids.index("usv2")
+    for vid in ("usv1", "usv3"):
+        node = fleet.nodes[sc.ids.index(vid)]
+        assert j in node.neighbours and j not in node.table.latest
+    lost = [e for e in res.metrics["events"] if e["kind"] == "vehicle_lost"]
+    assert [(e["vehicle"], e["t"]) for e in lost] == [("usv2", 20.0)]
+    omega = res.recorder.view("omega")[:, j]
+    t = res.recorder.view("t")
+    assert np.all(omega[t >= 20.0] == omega[t >= 20.0][0])  # frozen where it was last seen
+
+
+def test_a_restarted_vehicle_rejoins_near_its_neighbours_consensus():
+    sc = kill_usv2(at=20.0, restart=25.0, duration=60.0)
+    res = InProcessFleet(sc).run()
+    kinds = [(e["kind"], e.get("vehicle"), e["t"]) for e in res.metrics["events"]]
+    assert ("vehicle_lost", "usv2", 20.0) in kinds and ("fault", "usv2", 25.0) in kinds
+    j = sc.ids.index("usv2")
+    t = res.recorder.view("t")
+    w = res.recorder.view("omega")
+    # it carries on: its ω after the restart is within half a lap of its neighbours' pull
+    i1, i3 = sc.ids.index("usv1"), sc.ids.index("usv3")
+    after = np.searchsorted(t, 25.0)
+    assert abs(w[after, j] - (w[after, i1] + w[after, i3]) / 2) < np.pi
+    assert res.metrics["final_coord_error_max"] < 0.5

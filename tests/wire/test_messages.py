@@ -62,8 +62,19 @@ def test_payload_fits_the_bound_for_extreme_values(sender, seq, t, w, wd):
     assert isinstance(decode_omega(payload), OmegaMsg)
 
 
-def test_payload_is_31_bytes_at_the_documented_extremes():
-    assert len(encode_omega(OmegaMsg(127, 2**32 - 1, 1e300, -1e300, -1.0))) == 31
+def test_payload_is_32_bytes_up_to_256_vehicles_and_33_beyond():
+    assert len(encode_omega(OmegaMsg(255, 2**32 - 1, 1e300, -1e300, -1.0))) == 32
+    assert len(encode_omega(OmegaMsg(0, 0, 0.0, 0.0, 0.0))) == 32
+    big = OmegaMsg(600, 7, 1.5, -2.5, -1.0)
+    assert len(encode_omega(big)) == 33 and decode_omega(encode_omega(big)) == big
+
+
+def test_any_msgpack_spelling_of_the_array_is_read_and_checked_alike():
+    m = OmegaMsg(3, 12, 0.5, -7.25, -1.0)
+    minimal = msgpack.packb([1, 3, 12, 0.5, -7.25, -1.0])  # smallest ints, float64 rate
+    assert len(minimal) < 32 and decode_omega(minimal) == m
+    assert decode_omega(msgpack.packb([1, 3, 12, 0.5, float("nan"), -1.0])) == "non_finite"
+    assert decode_omega(encode_omega(m), expected_sender=4) == "unknown_sender"
 
 
 def test_oversized():

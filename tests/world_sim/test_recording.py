@@ -18,6 +18,8 @@ from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
+
+from cdus.wire.schemas import FleetEvent
 import pytest
 from rerun.chunk import RrdReader
 
@@ -80,7 +82,8 @@ def recorded(tmp_path_factory):
     sink = make_sink(f"save:{path}")
     fleet = InProcessFleet(sc, sink=sink)
     result = fleet.run()
-    worker = threading.Thread(target=sink.event, args=(2.5, "vehicle usv2 lost", "warn"))
+    worker = threading.Thread(target=sink.event,
+                              args=(FleetEvent.of(2.5, "vehicle_lost", "vehicle usv2 lost", vehicle="usv2"),))
     worker.start()
     worker.join()
     sink.link_state(2.5, "usv2", "usv1", "down")

@@ -1,0 +1,290 @@
+"""One vehicle's tick protocol: what it does with what it hears, and what one tick does.
+
+A :class:`VehicleNode` is everything a vehicle process decides, without the process: the
+in-process fleet drives one per vehicle in memory, the vehicle agent drives one from
+Zenoh, and both therefore step the same ticks with the same inputs (docs/architecture.md,
+"One tick protocol"). Its inputs:
+
+- ``on_message(msg, arrival)``: a validated ω message from a neighbour. The link model
+  decides, at this receiver, whether and when the message becomes usable, from
+  (seed, src, dst, seq) alone. Deterministic runners (in-process, lockstep) pass no
+  arrival time: the message is decided at the first tick after the one it was sent at,
+  in sequence order per link, and usable from its delivery tick (cdus.core.schedule).
+  The realtime runner passes the simulated arrival time: usable at arrival + delay.
+- ``on_roster(change)``: a neighbour (or this vehicle) is ``live``, ``paused`` or ``gone``
+  from a tick on (cdus.core.events). A gone neighbour leaves the consensus sum and
+  nothing it sent before is used any more, however late it arrives; only a ``live``
+  change (its liveliness back: a restart or a resume) admits it again, and then only
+  messages sent from that tick on.
+- ``set_link(spec, at)`` and ``set_gains(k, c, tick)``: run-time changes, applied in
+  simulated time so every runner applies them alike.
+- ``waiting_for(n)``: the neighbours whose broadcast tick ``n`` needs and has not
+  arrived (deterministic runners wait for them; a realtime one does not).
+- ``step(n)``: the tick: usable messages into the neighbour table, the controller's
+  update with the stale-neighbour policy, the telemetry row, the ω broadcast (on
+  broadcast ticks), then the plant to the next tick. Returns the :class:`Outbox`.
+
+Pure: no I/O, no clock; counters of what the link did are kept here.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+from collections import defaultdict
+from dataclasses import dataclass, field
+
+from cdus.core.events import RosterChange
+from cdus.core.link import DropBursts, LinkCounters, LinkModel
+from cdus.core.linkspec import LinkSpec
+from cdus.core.neighbours import NeighbourLink, NeighbourTable, consensus_target
+from cdus.core.paths import Vec
+from cdus.core.schedule import delivery_tick, last_broadcast_seq, send_tick
+from cdus.core.vehicle import Telemetry, Vehicle
+from cdus.wire.messages import OmegaMsg
+
+REJECT_REASONS = ("not_a_neighbour", "stale", "gone")
+
+
+@dataclass(frozen=True)
+class Outbox:
+    """What one tick produces: the telemetry row and, on broadcast ticks, the ω message."""
+
+    tick: int
+    telemetry: Telemetry
+    omega: OmegaMsg | None
+
+
+@dataclass
+class _Neighbour:
+    """What a receiver knows of one neighbour's liveness."""
+
+    state: str = "live"
+    since: int = 0  # tick of its newest (re)start: nothing it sent before is used
+    changes: list[RosterChange] = field(default_factory=list)  # not yet applied, by tick
+
+
+class VehicleNode:
+    """The tick protocol of vehicle ``index`` (see the module docstring).
+
+    ``period`` is the control period (s), ``every`` the control ticks per ω broadcast,
+    ``last_tick`` the run's last tick (its broadcast would never be used, so it is not sent).
+    """
+
+    def __init__(self, index: int, vehicle: Vehicle, links: tuple[NeighbourLink, ...], link: LinkModel,
+                 *, period: float, every: int, last_tick: int, policy: str = "hold", timeout: float = 1.5,
+                 joined_at: int = 0):
+        self.index = index
+        self.vehicle = vehicle
+        self.table = NeighbourTable(links, policy, timeout)
+        self.link = link
+        self.period = period
+        self.every = every
+        self.last_tick = last_tick
+        self.joined_at = joined_at  # broadcasts sent before this tick were never heard
+        self.neighbours = tuple(sorted({ln.k for ln in links}))
+        self._peers = {k: _Neighbour() for k in self.neighbours}
+        self.seen_seq: dict[int, int] = {}  # newest sequence number physically received, per sender
+        self.counters = LinkCounters()
+        self.rejected = {r: 0 for r in REJECT_REASONS}
+        self.bursts = DropBursts()
+        self._inbox: list[OmegaMsg] = []  # deterministic: received, not yet decided (send order)
+        self._due: dict[int, list[tuple[OmegaMsg, float]]] = defaultdict(list)  # by delivery tick
+        self._pending: list[tuple[float, int, OmegaMsg, float]] = []  # realtime: (usable at, order, msg, delay)
+        self._order = 0
+        self._self_changes: list[RosterChange] = []
+        self._gains: list[tuple[int, tuple[float, ...], float]] = []  # (tick, k, c), by tick
+        self.state = "live"  # this vehicle's own: live | paused | gone
+        self.tick = joined_at  # the next tick to step
+
+    # ------------------------------------------------------------------ inputs
+    def on_message(self, msg: OmegaMsg, arrival: float | None = None) -> str | None:
+        """Take a validated ω message from the wire; returns a reject reason or None."""
+        k = msg.sender
+        peer = self._peers.get(k)
+        if peer is None:
+            return self._reject("not_a_neighbour")
+        if msg.seq <= self.seen_seq.get(k, -1):
+            return self._reject("stale")
+        self.seen_seq[k] = msg.seq
+        if arrival is None:
+            self._inbox.append(msg)
+        else:
+            for d in self._decide(msg):
+                self._order += 1
+                heapq.heappush(self._pending, (arrival + d, self._order, msg, d))
+        return None
+
+    def on_roster(self, change: RosterChange) -> None:
+        """A liveness change of a neighbour or of this vehicle, effective at ``change.tick``
+        (or at the next tick stepped, if that has passed)."""
+        if change.vehicle == self.index:
+            _insert(self._self_changes, change)
+        elif change.vehicle in self._peers:
+            _insert(self._peers[change.vehicle].changes, change)
+
+    def set_link(self, spec: LinkSpec, at: float) -> float:
+        """New link faults for messages sent from simulated time ``at`` on (not before the
+        newest change). Returns the time they apply from."""
+        epochs = getattr(self.link, "epochs", None)
+        if epochs is None:
+            raise ValueError("this vehicle's link model cannot change at run time")
+        at = max(at, epochs[-1][0])
+        self.link.update(spec, at)
+        return at
+
+    def set_gains(self, k: tuple[float, ...], c: float, tick: int) -> None:
+        """New guidance gains from tick ``tick`` (or the next tick stepped)."""
+        if len(k) != self.vehicle.dim or not all(x > 0 for x in k) or not c > 0:
+            raise ValueError(f"gains need k > 0 ({self.vehicle.dim} values) and c > 0, got k = {k}, c = {c}")
+        self._gains.append((tick, tuple(float(x) for x in k), float(c)))
+        self._gains.sort(key=lambda g: g[0])
+
+    # ------------------------------------------------------------------ the schedule
+    def live_at(self, k: int, n: int) -> bool:
+        """Was (or will) neighbour ``k``, as far as this node has been told, step tick ``n``
+        in its current incarnation? Changes already applied are behind ``since``."""
+        peer = self._peers[k]
+        state, since = peer.state, peer.since
+        for ch in peer.changes:
+            if ch.tick > n:
+                break
+            state = ch.state
+            if ch.state == "live":
+                since = ch.tick
+        return state == "live" and n >= since
+
+    def waiting_for(self, n: int) -> list[int]:
+        """The neighbours whose newest broadcast before tick ``n`` has not arrived yet, though
+        they were live when they should have sent it (and after this vehicle joined)."""
+        seq = last_broadcast_seq(n - 1, self.every)
+        if seq < 0:
+            return []
+        sent = seq * self.every
+        if sent < self.joined_at:
+            return []
+        return [k for k in self.neighbours if self.seen_seq.get(k, -1) < seq and self.live_at(k, sent)]
+
+    def own_state_at(self, n: int) -> tuple[str, bool]:
+        """This vehicle's state at tick ``n`` from the changes it has been told of, and whether
+        it comes back fresh (a restart) at ``n``."""
+        state, fresh = self.state, False
+        for ch in self._self_changes:
+            if ch.tick > n:
+                break
+            state = ch.state
+            fresh = ch.state == "live" and ch.fresh and ch.tick == n
+        return state, fresh
+
+    def resume_tick(self, n: int) -> int | None:
+        """The first tick >= ``n`` at which this vehicle is live again (None if not known yet)."""
+        for ch in self._self_changes:
+            if ch.tick >= n and ch.state == "live":
+                return ch.tick
+        state, _ = self.own_state_at(n)
+        return n if state == "live" else None
+
+    # ------------------------------------------------------------------ the tick
+    def step(self, n: int) -> Outbox:
+        """Step tick ``n`` (>= the last one stepped + 1; ticks skipped while paused are fine)."""
+        self._apply_roster(n)
+        self._apply_self(n)
+        T = self.period
+        if self._inbox:
+            self._route(n)
+        delivered = self._due.pop(n, ())
+        for msg, d in delivered:
+            self._offer(msg, n * T, d)
+        pend = self._pending
+        while pend and pend[0][0] <= n * T + 1e-12:
+            _, _, msg, d = heapq.heappop(pend)
+            self._offer(msg, n * T, d)
+        while self._gains and self._gains[0][0] <= n:
+            _, k, c = self._gains.pop(0)
+            self.vehicle.k, self.vehicle.c = k, c
+        v = self.vehicle
+        v.control(self.table.consensus((n - 1) * T))
+        tel = v.telemetry()
+        out = None
+        if n % self.every == 0 and n < self.last_tick:
+            out = OmegaMsg(self.index, n // self.every, v.t, v.omega, v.omega_rate)
+        v.advance()
+        self.tick = n + 1
+        return Outbox(n, tel, out)
+
+    def rejoin(self, n: int, q: Vec | None, heading: float | None, omega_hint: float | None,
+               neighbour_omegas: dict[int, float] | None = None) -> None:
+        """Join a run under way at tick ``n`` (a restarted process, or a resumed one), at rest at
+        ``q``. ω is taken near what the neighbours' consensus asks (``neighbour_omegas``) if
+        any is known, else near ``omega_hint``, so it does not have to make up laps."""
+        target = consensus_target(self.table.links, neighbour_omegas or {})
+        self.vehicle.rejoin(n, q, heading, target if target is not None else omega_hint)
+        self.joined_at = n
+        self.tick = n
+        self.state = "live"
+
+    # ------------------------------------------------------------------ internals
+    def _reject(self, reason: str) -> str:
+        self.rejected[reason] += 1
+        return reason
+
+    def _apply_roster(self, n: int) -> None:
+        for k, peer in self._peers.items():
+            while peer.changes and peer.changes[0].tick <= n:
+                ch = peer.changes.pop(0)
+                peer.state = ch.state
+                if ch.state == "live":
+                    peer.since = ch.tick
+                elif ch.state == "gone":
+                    self.table.forget(k)
+
+    def _apply_self(self, n: int) -> None:
+        while self._self_changes and self._self_changes[0].tick <= n:
+            self.state = self._self_changes.pop(0).state
+
+    def _decide(self, msg: OmegaMsg) -> tuple[float, ...]:
+        """The link's decision on ``msg`` at this receiver (the delay of each copy), counted."""
+        delays = self.link.decide(msg.sender, self.index, msg.seq, msg.t_send)
+        c = self.counters
+        c.sent += 1
+        self.bursts.feed(msg.sender, self.index, not delays, msg.t_send)
+        if not delays:
+            c.dropped += 1
+        elif len(delays) > 1:
+            c.duplicated += len(delays) - 1
+        return delays
+
+    def _route(self, n: int) -> None:
+        """Decide the messages sent before tick ``n`` (in the order received, which is send
+        order per link); keep the others until their turn."""
+        T = self.period
+        early = []
+        for msg in self._inbox:
+            m = send_tick(msg.t_send, T)
+            if m >= n:  # from a neighbour already at or past us: decide it when it can matter
+                early.append(msg)
+            else:
+                for d in self._decide(msg):
+                    self._due[delivery_tick(m, d, T)].append((msg, d))
+        self._inbox = early
+
+    def _offer(self, msg: OmegaMsg, now: float, delay: float) -> None:
+        """A message becomes usable: into the table, unless its sender is gone or it was sent
+        before the sender's current incarnation."""
+        peer = self._peers[msg.sender]
+        if peer.state == "gone" or send_tick(msg.t_send, self.period) < peer.since:
+            self.counters.rejected += 1
+            self.rejected["gone"] += 1
+            return
+        if self.table.offer(msg, now):
+            self.counters.delivered += 1
+            self.counters.record_latency(delay)
+        else:
+            self.counters.rejected += 1
+
+
+def _insert(changes: list[RosterChange], change: RosterChange) -> None:
+    """Keep ``changes`` sorted by tick, a change given twice once."""
+    if change not in changes:
+        changes.append(change)
+        changes.sort(key=lambda c: c.tick)

@@ -1,0 +1,224 @@
+"""How is a value checked, and how is a problem worded? The one validation toolkit.
+
+Every section validator of the scenario file (and the run-time link commands) collects
+its problems in a :class:`Problems` and checks values with its methods, so one kind of
+mistake reads the same wherever it is made:
+
+    rates.control: must be a number > 0 Hz, got -1
+    rates.control: must be a number > 0 Hz, got the string "fast"
+    scenario.durration: unknown key; did you mean "duration"? valid keys here: name, description, ...
+    graph.topology: unknown topology "rign" (did you mean "ring"?); choose one of ring, chain, ...
+    link.down[0].src: "usv9" is not a vehicle (did you mean "usv1"?); ids are usv1, usv2 or "*" (any vehicle)
+
+The rule for "got": a value of the wrong type is described with its type ("the string
+"fast""), a value of the right type out of range is shown as written ("-1"); values are
+always shown in TOML spelling. A ``note`` (e.g. " (set in [defaults])") goes after the
+value. A check returns the checked value, or None after recording the problem.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+from typing import Any, Iterable, Iterator, Mapping, Sequence
+
+ANY_VEHICLE = "*"  # the wildcard of link.override/down src and dst
+
+
+# --------------------------------------------------------------------------- spelling
+
+
+def quote(s: Any) -> str:
+    """``usv1`` -> ``"usv1"``."""
+    return '"' + str(s).replace('"', '\\"') + '"'
+
+
+def show(v: Any) -> str:
+    """A value as the user wrote it in TOML."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return quote(v)
+    if isinstance(v, float):
+        return repr(v) if math.isfinite(v) else str(v)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(show(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{k} = {show(x)}" for k, x in v.items()) + "}"
+    return repr(v)
+
+
+def describe(v: Any) -> str:
+    """A value with its TOML type: ``the string "fast"``, ``the number 3``, ``the table {...}``."""
+    kind = ("boolean" if isinstance(v, bool) else "string" if isinstance(v, str)
+            else "number" if isinstance(v, (int, float)) else "list" if isinstance(v, (list, tuple))
+            else "table" if isinstance(v, dict) else None)
+    return f"the {kind} {show(v)}" if kind else repr(v)
+
+
+def num(x: float) -> str:
+    """A bound or a limit in a message: 50.0 -> 50."""
+    return f"{x:g}"
+
+
+def did_you_mean(word: Any, options: Iterable[str]) -> str:
+    """`` (did you mean "ring"?)`` when an option is close to ``word``, else ``""``."""
+    close = difflib.get_close_matches(str(word), list(options), n=1, cutoff=0.6)
+    return f" (did you mean {quote(close[0])}?)" if close else ""
+
+
+def is_number(v: Any) -> bool:
+    """An int or a float, never a boolean."""
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def join(prefix: str, key: Any) -> str:
+    """The dotted field name of ``key`` inside ``prefix`` (``""``: top level)."""
+    return f"{prefix}.{key}" if prefix else str(key)
+
+
+def _bounds(gt: float | None, ge: float | None, le: float | None) -> str:
+    parts = [f"{op} {num(x)}" for op, x in ((">", gt), (">=", ge), ("<=", le)) if x is not None]
+    return (" " + " and ".join(parts)) if parts else ""
+
+
+def _in_range(v: float, gt: float | None, ge: float | None, le: float | None) -> bool:
+    return ((gt is None or v > gt) and (ge is None or v >= ge) and (le is None or v <= le))
+
+
+# --------------------------------------------------------------------------- problems
+
+
+class Problems:
+    """Collects (field, message) problems, each once, in the order they were found."""
+
+    def __init__(self) -> None:
+        self.items: list[tuple[str, str]] = []
+
+    def add(self, field: str, message: str) -> None:
+        if (field, message) not in self.items:
+            self.items.append((field, message))
+
+    def __len__(self) -> int:
+        return len(self.items)
+
+    def __iter__(self) -> Iterator[tuple[str, str]]:
+        return iter(self.items)
+
+    def since(self, mark: int) -> bool:
+        """Were problems added after ``mark = len(problems)``?"""
+        return len(self.items) > mark
+
+    # ---- scalars
+
+    def number(self, v: Any, field: str, *, gt: float | None = None, ge: float | None = None,
+               le: float | None = None, unit: str = "", note: str = "", allow_inf: bool = False) -> float | None:
+        """A finite number (or ±inf with ``allow_inf``) within the bounds, as a float."""
+        want = f"a number{_bounds(gt, ge, le)}{unit}"
+        if not is_number(v):
+            self.add(field, f"must be {want}, got {describe(v)}{note}")
+            return None
+        if math.isnan(v) or (math.isinf(v) and not allow_inf):
+            self.add(field, f"must be a finite number{_bounds(gt, ge, le)}{unit}, got {show(v)}{note}")
+            return None
+        if not _in_range(v, gt, ge, le):
+            self.add(field, f"must be {want}, got {show(v)}{note}")
+            return None
+        return float(v)
+
+    def probability(self, v: Any, field: str, what: str, note: str = "") -> float | None:
+        """A number in [0, 1]; ``what`` says what it is the probability of."""
+        if not is_number(v) or math.isnan(v) or not 0.0 <= v <= 1.0:
+            got = show(v) if is_number(v) else describe(v)
+            self.add(field, f"must be a probability in [0, 1] ({what}), got {got}{note}")
+            return None
+        return float(v)
+
+    def integer(self, v: Any, field: str, *, ge: int | None = None, unit: str = "", note: str = "") -> int | None:
+        """An integer (not a float, not a boolean) >= ``ge``."""
+        want = f"an integer{_bounds(None, ge, None)}{unit}"
+        if not isinstance(v, int) or isinstance(v, bool):
+            self.add(field, f"must be {want}, got {describe(v)}{note}")
+            return None
+        if ge is not None and v < ge:
+            self.add(field, f"must be {want}, got {show(v)}{note}")
+            return None
+        return v
+
+    def boolean(self, v: Any, field: str, *, true: str = "", false: str = "", note: str = "") -> bool | None:
+        """true or false; ``true``/``false`` say what each means, e.g. " (per-link FIFO)"."""
+        if not isinstance(v, bool):
+            self.add(field, f"must be true{true} or false{false}, got {describe(v)}{note}")
+            return None
+        return v
+
+    def string(self, v: Any, field: str, *, nonempty: bool = False, note: str = "") -> str | None:
+        """A string (a non-empty one with ``nonempty``)."""
+        if not isinstance(v, str) or (nonempty and not v.strip()):
+            self.add(field, f"must be a {'non-empty ' if nonempty else ''}string, got {describe(v)}{note}")
+            return None
+        return v
+
+    def choice(self, v: Any, field: str, options: Iterable[str], what: str, *, note: str = "",
+               extra: str = "") -> str | None:
+        """One of ``options``: ``unknown <what> "x" (did you mean "y"?); choose one of a, b<extra>``."""
+        options = list(options)
+        if isinstance(v, str) and v in options:
+            return v
+        self.add(field, f"unknown {what} {show(v)}{note}{did_you_mean(v, options)}; "
+                        f"choose one of {', '.join(options)}{extra}")
+        return None
+
+    def vehicle(self, v: Any, field: str, ids: Sequence[str] | None, *, wildcard: bool = False) -> str | None:
+        """A vehicle id, or ``"*"`` where ``wildcard``. ``ids = None``: the ids are not known
+        yet (a vehicle's own id is bad), so only the type is checked."""
+        star = f" or {quote(ANY_VEHICLE)} (any vehicle)" if wildcard else ""
+        if not isinstance(v, str):
+            self.add(field, f"must be a vehicle id{star}, got {describe(v)}")
+            return None
+        if (wildcard and v == ANY_VEHICLE) or ids is None or v in ids:
+            return v
+        self.add(field, f"{quote(v)} is not a vehicle{did_you_mean(v, ids)}; ids are "
+                        f"{', '.join(ids) or '(none)'}{star}")
+        return None
+
+    # ---- compounds
+
+    def vector(self, v: Any, field: str, n: int, what: str, note: str = "") -> tuple[float, ...] | None:
+        """A list of ``n`` finite numbers (``what`` they are, e.g. "a usv position [x, y] in m")."""
+        if isinstance(v, list) and len(v) == n and all(is_number(x) and math.isfinite(x) for x in v):
+            return tuple(float(x) for x in v)
+        got = f"{len(v)} numbers {show(v)}" if isinstance(v, list) and all(map(is_number, v)) else describe(v)
+        self.add(field, f"must be a list of {n} numbers ({what}), got {got}{note}")
+        return None
+
+    def table(self, v: Any, field: str, example: str, note: str = "") -> dict | None:
+        """A table; ``example`` shows one (``{ base = 0.1 }`` or ``a [rates] section``)."""
+        if not isinstance(v, dict):
+            self.add(field, f"must be a table, e.g. {example}, got {describe(v)}{note}")
+            return None
+        return v
+
+    def tables(self, v: Any, field: str, section: str, hint: str = "") -> list[dict]:
+        """An array of tables (``[[section]]``), or [] after recording the problem."""
+        if not isinstance(v, list) or not all(isinstance(t, dict) for t in v):
+            self.add(field, f"must be an array of tables ([[{section}]] sections{hint}), got {describe(v)}")
+            return []
+        return v
+
+    def unknown_keys(self, table: Mapping, allowed: Iterable[str], prefix: str, *, what: str = "key",
+                     valid: str | None = None, skip: Iterable[str] = ()) -> None:
+        """Every key of ``table`` not in ``allowed``: ``unknown key; did you mean "x"? valid keys here: ...``."""
+        allowed = list(allowed)
+        skip = set(skip)
+        for key in table:
+            if key in allowed or key in skip:
+                continue
+            close = difflib.get_close_matches(str(key), allowed, n=1, cutoff=0.6)
+            hint = f"did you mean {quote(close[0])}? " if close else ""
+            self.add(join(prefix, key), f"unknown {what}; {hint}{valid or f'valid {what}s here'}: "
+                                        f"{', '.join(allowed)}")
+
+    def missing(self, field: str, hint: str) -> None:
+        """A required key is absent: ``missing; <hint>``."""
+        self.add(field, f"missing; {hint}")

@@ -1,0 +1,130 @@
+"""What is a validated scenario? The frozen, typed result of reading a scenario file.
+
+:func:`cdus.scenario.config.load_scenario` builds a :class:`Scenario` (docs/config.md is
+the user reference); every runner takes it as it is: the link spec and the events in it
+are already validated, so nothing downstream checks them again.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from cdus.core.events import Event
+from cdus.core.linkspec import LinkSpec
+
+#: What the launcher does when a vehicle's process exits during the run (docs/config.md, [supervision]).
+RESTART_POLICIES = ("never", "on-failure", "always")
+DEFAULT_RESTART = "never"
+DEFAULT_MAX_RESTARTS = 5
+DEFAULT_BACKOFF_S = 0.5
+MAX_BACKOFF_S = 30.0
+
+
+@dataclass(frozen=True)
+class Rates:
+    physics: float  # Hz
+    control: float
+    broadcast: float
+
+
+@dataclass(frozen=True)
+class Edge:
+    """i listens to k with weight a_ik; the coordination error of this edge is |ω_i - ω_k - delta|."""
+
+    i: str
+    k: str
+    weight: float
+    delta: float
+
+
+@dataclass(frozen=True)
+class VehicleSpec:
+    id: str
+    index: int  # position in Scenario.vehicles
+    kind: str  # usv | uav
+    dim: int  # 2 | 3
+    plant: str  # ideal | usv_3dof | uav_double_integrator
+    epsilon: tuple[float, ...] | None  # ε1..ε7 for usv_3dof, else None
+    preset: str | None  # the preset ε came from, None if given as epsilon or not usv_3dof
+    regulator: str | None  # None for the ideal plant
+    regulator_gains: tuple[tuple[str, float], ...]  # sorted; empty = the regulator's defaults
+    path: tuple[tuple[str, Any], ...]  # sorted pairs, lists as tuples: make_path(dict(v.path))
+    phase: float  # θ_i, ω units
+    start_position: tuple[float, ...] | None  # None = start on the path
+    start_heading: float | None  # None = along the path (always None for a UAV)
+    omega0: float | None  # None = the ω of the path point nearest the start
+    k: tuple[float, ...]  # per-axis path gain, length dim
+    c: float  # coordination gain
+    limits: tuple[tuple[str, float], ...]
+    disturbance: tuple[tuple[str, Any], ...]
+
+
+@dataclass(frozen=True)
+class Supervision:
+    """The ``[supervision]`` table: what the launcher does when a vehicle's process exits.
+
+    ``restart``: never | on-failure (a non-zero exit or a signal) | always. A vehicle is
+    restarted at most ``max_restarts`` times by this policy; the wait before its n-th
+    restart is ``backoff(n - 1)``: ``backoff_s``, doubling with each restart of that
+    vehicle, capped at ``MAX_BACKOFF_S``.
+    """
+
+    restart: str = DEFAULT_RESTART
+    max_restarts: int = DEFAULT_MAX_RESTARTS
+    backoff_s: float = DEFAULT_BACKOFF_S
+
+    def backoff(self, restarts_done: int) -> float:
+        """Seconds to wait before restarting a vehicle already restarted ``restarts_done`` times."""
+        return min(self.backoff_s * 2.0 ** max(0, restarts_done), MAX_BACKOFF_S)
+
+
+@dataclass(frozen=True)
+class Scenario:
+    name: str
+    description: str
+    source: str
+    duration: float
+    seed: int
+    rates: Rates
+    path_tol: float
+    coord_tol: float
+    topology: str
+    directed: bool
+    vehicles: tuple[VehicleSpec, ...]
+    edges: tuple[Edge, ...]  # every listening pair; undirected gives (i, k) and (k, i), Δ_ki = -Δ_ik
+    link: LinkSpec  # the validated [link] table; the table as written is raw.get("link", {})
+    events: tuple[Event, ...]  # sorted by time; a pause with a duration is followed by its resume
+    supervision: Supervision
+    raw: dict  # the overridden TOML data; parse_scenario(raw) rebuilds this scenario
+
+    def vehicle(self, vid: str) -> VehicleSpec:
+        for v in self.vehicles:
+            if v.id == vid:
+                return v
+        raise KeyError(f"no vehicle {vid!r} in scenario {self.name!r}; ids are {', '.join(self.ids)}")
+
+    @property
+    def ids(self) -> tuple[str, ...]:
+        return tuple(v.id for v in self.vehicles)
+
+    @property
+    def link_table(self) -> dict:
+        """The ``[link]`` table as written (run-time link commands merge over it)."""
+        return dict(self.raw.get("link") or {})
+
+    @property
+    def link_seed(self) -> int:
+        """``link.seed`` if given, else the scenario's seed."""
+        return self.link.seed if self.link.seed is not None else self.seed
+
+    def neighbours(self, vid: str) -> tuple[Edge, ...]:
+        """The edges vehicle ``vid`` listens on (e.i == vid)."""
+        return tuple(e for e in self.edges if e.i == vid)
+
+    def metric_edges(self) -> tuple[Edge, ...]:
+        """Edges to measure coordination on: undirected, each pair once as index(i) < index(k)."""
+        if self.directed:
+            return self.edges
+        index = {v.id: v.index for v in self.vehicles}
+        return tuple(e for e in self.edges if index[e.i] < index[e.k])

@@ -1,0 +1,129 @@
+"""The small sections of a scenario file: [scenario], [rates], [metrics], [gains], [supervision].
+
+Each validator takes the collected :class:`Problems` and the section's table and returns
+the section's values, with defaults filled in (docs/config.md lists them). A bad value is
+reported and replaced by its default, so the later sections can still be checked.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+from cdus.scenario.checks import Problems, is_number, num
+from cdus.scenario.model import (
+    DEFAULT_BACKOFF_S, DEFAULT_MAX_RESTARTS, DEFAULT_RESTART, RESTART_POLICIES, Rates, Supervision,
+)
+
+DEFAULT_DURATION = 60.0
+DEFAULT_SEED = 0
+DEFAULT_RATES = {"physics": 200.0, "control": 50.0, "broadcast": 50.0}
+DEFAULT_METRICS = {"path_tol": 0.1, "coord_tol": 0.05}
+DEFAULT_GAINS = {"k": 1.5, "c": 2.0}  # the paper's
+
+SCENARIO_KEYS = ("name", "description", "duration", "seed")
+METRIC_UNITS = {"path_tol": " m", "coord_tol": " rad"}
+SUPERVISION_KEYS = ("restart", "max_restarts", "backoff_s")
+
+
+def section(p: Problems, data: Mapping[str, Any], name: str) -> dict:
+    """The top-level table ``[name]`` ({} if absent or not a table)."""
+    return p.table(data.get(name, {}), name, f"a [{name}] section") or {}
+
+
+@dataclass(frozen=True)
+class Header:
+    """The [scenario] table."""
+
+    name: str
+    description: str
+    duration: float
+    seed: int
+
+
+def scenario_section(p: Problems, sc: Mapping[str, Any]) -> Header:
+    p.unknown_keys(sc, SCENARIO_KEYS, "scenario")
+    name = ""
+    if "name" not in sc:
+        p.missing("scenario.name", 'every scenario needs a name, e.g. [scenario] name = "lake_circle"')
+    else:
+        name = p.string(sc["name"], "scenario.name", nonempty=True) or ""
+    description = p.string(sc.get("description", ""), "scenario.description") or ""
+    duration = DEFAULT_DURATION
+    if "duration" in sc:
+        duration = p.number(sc["duration"], "scenario.duration", gt=0, unit=" s") or DEFAULT_DURATION
+    seed = p.integer(sc.get("seed", DEFAULT_SEED), "scenario.seed", ge=0)
+    return Header(name, description, duration, DEFAULT_SEED if seed is None else seed)
+
+
+def rates_section(p: Problems, rt: Mapping[str, Any]) -> Rates:
+    """[rates] in Hz; unset rates follow the control rate: broadcast once per control step,
+    physics at least that often."""
+    p.unknown_keys(rt, DEFAULT_RATES, "rates")
+    rates = dict(DEFAULT_RATES)
+    mark = len(p)
+    for key in DEFAULT_RATES:
+        if key in rt:
+            rates[key] = p.number(rt[key], f"rates.{key}", gt=0, unit=" Hz") or rates[key]
+    if "broadcast" not in rt:
+        rates["broadcast"] = rates["control"]
+    if "physics" not in rt:
+        rates["physics"] = max(rates["physics"], rates["control"])
+    if not p.since(mark):
+        control = num(rates["control"])
+        if rates["physics"] < rates["control"]:
+            p.add("rates.physics", f"must be >= rates.control ({control} Hz): the plant steps at least once "
+                                   f"per control period; got {num(rates['physics'])}")
+        if rates["broadcast"] > rates["control"]:
+            p.add("rates.broadcast", f"must be <= rates.control ({control} Hz): a vehicle has a new ω at most "
+                                     f"once per control step; got {num(rates['broadcast'])}")
+    return Rates(**rates)
+
+
+def metrics_section(p: Problems, mt: Mapping[str, Any]) -> tuple[float, float]:
+    """[metrics]: (path_tol, coord_tol)."""
+    p.unknown_keys(mt, DEFAULT_METRICS, "metrics")
+    tol = dict(DEFAULT_METRICS)
+    for key, unit in METRIC_UNITS.items():
+        if key in mt:
+            tol[key] = p.number(mt[key], f"metrics.{key}", gt=0, unit=unit) or tol[key]
+    return tol["path_tol"], tol["coord_tol"]
+
+
+def gains_section(p: Problems, gains: Mapping[str, Any]) -> dict:
+    """[gains], the fleet's default guidance gains; the per-axis length of k is checked per vehicle."""
+    p.unknown_keys(gains, DEFAULT_GAINS, "gains")
+    gain_values(p, gains, "gains")
+    return dict(gains)
+
+
+def gain_values(p: Problems, gains: Mapping[str, Any], prefix: str, note: str = "") -> None:
+    """k (a number > 0 or a list of per-axis numbers > 0) and c (> 0) of a gains table."""
+    if "k" in gains:
+        k = gains["k"]
+        if isinstance(k, list):
+            if not k:
+                p.add(f"{prefix}.k", f"must be a number > 0 or a list of per-axis numbers > 0, got []{note}")
+            for j, x in enumerate(k):
+                p.number(x, f"{prefix}.k[{j}]", gt=0, note=note)
+        else:
+            p.number(k, f"{prefix}.k", gt=0, unit=" (or a list of per-axis numbers)" if not is_number(k) else "",
+                     note=note)
+    if "c" in gains:
+        p.number(gains["c"], f"{prefix}.c", gt=0, note=note)
+
+
+def supervision_section(p: Problems, sv: Mapping[str, Any]) -> Supervision:
+    """[supervision]: the launcher's restart policy for vehicle processes."""
+    p.unknown_keys(sv, SUPERVISION_KEYS, "supervision")
+    restart = DEFAULT_RESTART
+    if "restart" in sv:
+        restart = p.choice(sv["restart"], "supervision.restart", RESTART_POLICIES, "restart policy") \
+            or DEFAULT_RESTART
+    max_restarts = p.integer(sv.get("max_restarts", DEFAULT_MAX_RESTARTS), "supervision.max_restarts", ge=0,
+                             unit=" (restarts of one vehicle's process)")
+    backoff = DEFAULT_BACKOFF_S
+    if "backoff_s" in sv:
+        backoff = p.number(sv["backoff_s"], "supervision.backoff_s", gt=0,
+                           unit=" s (the wait before a vehicle's first restart)") or DEFAULT_BACKOFF_S
+    return Supervision(restart, DEFAULT_MAX_RESTARTS if max_restarts is None else max_restarts, backoff)

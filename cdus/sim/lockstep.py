@@ -1,0 +1,279 @@
+"""The world's lockstep decisions: who may step which tick, who is live, when a tick is complete.
+
+Pure bookkeeping, driven by the world process (world_sim.world) and tested without one.
+Inputs: telemetry reports (``on_report``), liveliness (``on_alive``), the launcher's
+acknowledgements (``on_fault_done``) and operator commands (``pause``, ``resume``,
+``vehicle_fault``). :meth:`Lockstep.poll` returns the actions to carry out, in order:
+
+- :class:`Roster`: a liveness change, to every vehicle. Each change is sent before the
+  tick it takes effect at is granted, so every agent applies it on that very tick.
+  Scheduled faults give the changes of :func:`cdus.core.events.plan_roster` (the
+  in-process fleet's, hence lockstep == in-process); a crash or a ground station's fault
+  gives changes decided here.
+- :class:`Fault`: ask the launcher to kill, pause (SIGSTOP), resume or restart a
+  process. Grants stop at the tick before the fault until it is done, so it lands on
+  its tick.
+- :class:`Join`: tell a (re)started process the tick it joins at (0 at the start).
+- :class:`Grant`: vehicles may step up to ``until``: at most ``window`` ticks ahead of the
+  slowest vehicle that is due to report.
+- a :class:`FleetEvent` for the record.
+
+A tick is complete (:meth:`recordable`) once every vehicle live at it has reported it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Sequence
+
+from cdus.core.events import LEASE_S, Event, RosterChange, event_tick, plan_roster
+from cdus.wire.schemas import FleetEvent
+
+GRANT_WINDOW = 50  # ticks the fastest vehicle may run ahead of the slowest
+FAULT_OPS = {"kill": "kill", "pause": "pause_vehicle", "resume": "resume_vehicle", "restart": "restart"}
+
+
+@dataclass(frozen=True)
+class Grant:
+    until: int
+
+
+@dataclass(frozen=True)
+class Join:
+    vehicle: int
+    tick: int
+
+
+@dataclass(frozen=True)
+class Roster:
+    change: RosterChange
+    to: int | None = None  # one vehicle (a joiner catching up), None: every vehicle
+
+
+@dataclass(frozen=True)
+class Fault:
+    op: str  # kill | pause_vehicle | resume_vehicle | restart (cdus.wire.messages.LAUNCHER_OPS)
+    vehicle: int
+
+
+Action = Grant | Join | Roster | Fault | FleetEvent
+
+
+@dataclass
+class _Pending:
+    """A vehicle fault being carried out at ``tick``."""
+
+    tick: int
+    action: str  # kill | pause | resume | restart
+    vehicle: int
+    stage: str = "due"  # due -> asked (the launcher) -> waiting_token (restart, resume) -> done
+
+
+@dataclass
+class Lockstep:
+    ids: Sequence[str]
+    period: float
+    last_tick: int
+    events: Sequence[Event] = ()
+    window: int = GRANT_WINDOW
+    lease: float = LEASE_S
+    granted: int = -1
+    paused: bool = False
+    started: bool = False
+    acked: dict[int, int] = field(default_factory=dict)  # newest tick reported, per vehicle
+    alive: set[int] = field(default_factory=set)
+
+    def __post_init__(self) -> None:
+        self._plan = list(plan_roster(self.events, self.ids, self.period, self.lease))
+        self._decided: list[RosterChange] = []  # changes decided here (crashes, a ground station's faults)
+        self.changes: list[RosterChange] = []  # every change sent so far, in order
+        self._queue: list[_Pending] = sorted((_Pending(event_tick(e.at, self.period), e.action, self.ids.index(e.vehicle))
+                                              for e in self.events), key=lambda p: (p.tick, p.vehicle))
+        self._current: _Pending | None = None
+        self._expect: dict[int, set[str]] = {}  # liveliness changes a fault in progress explains
+        self._paused_by_hand: dict[int, int] = {}  # vehicle -> tick a ground station paused it at
+        self._out: list[Action] = []
+        self._lease_ticks = max(1, math.ceil(self.lease / self.period - 1e-9))
+
+    # ------------------------------------------------------------------ who is live
+    def state_at(self, j: int, n: int) -> str:
+        """Vehicle j's state at tick n, from the changes sent so far and the plan."""
+        state = "live"
+        for ch in sorted([*self._plan, *self._decided], key=lambda c: c.tick):  # stable: same tick, given order
+            if ch.vehicle == j and ch.tick <= n:
+                state = ch.state
+        return state
+
+    def _due(self, j: int) -> bool:
+        """Is vehicle j due to report its next tick?"""
+        n = self.acked.get(j, -1) + 1
+        return n <= self.last_tick and self.state_at(j, n) == "live"
+
+    def recordable(self, n: int) -> bool:
+        """Has every vehicle live at tick n reported it?"""
+        return all(self.acked.get(j, -1) >= n for j in range(len(self.ids)) if self.state_at(j, n) == "live")
+
+    # ------------------------------------------------------------------ inputs
+    def start(self) -> None:
+        self.started = True
+        for j in range(len(self.ids)):
+            self._out.append(Join(j, 0))
+
+    def on_report(self, j: int, tick: int) -> None:
+        if tick > self.acked.get(j, -1):
+            self.acked[j] = tick
+        if j in self._expect and self._current is None and tick >= self._last_change_tick(j):
+            del self._expect[j]  # it is back and stepping: liveliness news is news again
+
+    def on_alive(self, j: int, up: bool) -> None:
+        """A liveliness token appeared (``up``) or went away."""
+        was = j in self.alive
+        if up == was:
+            return
+        (self.alive.add if up else self.alive.discard)(j)
+        if not self.started:
+            return
+        t = self._frontier() * self.period
+        vid = self.ids[j]
+        kind = "up" if up else "down"
+        if kind in self._expect.get(j, ()):
+            self._expect[j].discard(kind)
+            if up:
+                self._out.append(FleetEvent.of(t, "vehicle_back", f"vehicle {vid} back", vehicle=vid))
+            return
+        if up:  # an unscheduled (re)start: it joins at the first tick nobody has been granted
+            b = self.granted + 1
+            self._send(RosterChange(b, j, "gone"))
+            self._send(RosterChange(b, j, "live", fresh=True))
+            self._catch_up(j)
+            self._out.append(Join(j, b))
+            self.acked[j] = b - 1
+            self._out.append(FleetEvent.of(t, "vehicle_back", f"vehicle {vid} back (joins at tick {b})",
+                                           vehicle=vid))
+        else:  # a crash, or a kill nobody scheduled: gone from the first tick it did not report
+            g = self.acked.get(j, -1) + 1
+            if self.state_at(j, g) != "gone":
+                self._send(RosterChange(g, j, "gone"))
+            self._out.append(FleetEvent.of(t, "vehicle_lost", f"vehicle {vid} lost", vehicle=vid))
+
+    def on_fault_done(self, j: int) -> None:
+        p = self._current
+        if p is None or p.vehicle != j or p.stage != "asked":
+            return
+        if p.action == "restart" or (p.action == "resume" and j not in self.alive):
+            p.stage = "waiting_token"
+        else:
+            p.stage = "done"
+
+    def pause(self) -> None:
+        self.paused = True
+
+    def resume(self) -> None:
+        self.paused = False
+
+    def vehicle_fault(self, action: str, j: int) -> None:
+        """A ground station's kill | pause | resume | restart: at the first tick not yet granted."""
+        self._queue.append(_Pending(self.granted + 1, action, j))
+        self._queue.sort(key=lambda p: (p.tick, p.vehicle))
+
+    def give_up(self, j: int) -> None:
+        """The launcher never acknowledged the fault in progress (or the new process never came):
+        go on without it."""
+        p = self._current
+        if p is not None and p.vehicle == j:
+            self._out.append(FleetEvent.of(p.tick * self.period, "fault_missed",
+                                           f"the {p.action} of {self.ids[j]} was not carried out; going on",
+                                           vehicle=self.ids[j]))
+            p.stage = "done"
+
+    # ------------------------------------------------------------------ decisions
+    def poll(self) -> list[Action]:
+        """The actions to carry out now, in order."""
+        if self.started:
+            self._faults()
+            self._grant()
+        out, self._out = self._out, []
+        return out
+
+    def _faults(self) -> None:
+        p = self._current
+        if p is not None:
+            if p.stage == "waiting_token" and p.vehicle in self.alive:
+                p.stage = "done"
+                if p.action == "restart":
+                    self._catch_up(p.vehicle)
+                    self._out.append(Join(p.vehicle, p.tick))
+                    self.acked[p.vehicle] = p.tick - 1
+            if p.stage != "done":
+                return
+            self._current = None
+        while self._queue and self._current is None:
+            p = self._queue[0]
+            if self.granted < p.tick - 1 or not self.recordable(p.tick - 1):
+                return  # not there yet: everyone steps up to the tick before, then it happens
+            self._queue.pop(0)
+            self._carry_out(p)
+
+    def _carry_out(self, p: _Pending) -> None:
+        j, vid, t = p.vehicle, self.ids[p.vehicle], p.tick * self.period
+        scheduled = any(c.vehicle == j and c.tick == p.tick for c in self._plan)
+        if not scheduled:  # a ground station's: decide its roster changes here
+            if p.action == "pause" and self.state_at(j, p.tick) == "live":
+                self._send(RosterChange(p.tick, j, "paused"))
+                self._paused_by_hand[j] = p.tick
+            elif p.action == "resume" and self.state_at(j, p.tick) != "live":
+                self._send(RosterChange(p.tick, j, "live"))
+                self._paused_by_hand.pop(j, None)
+            elif p.action == "kill" and self.state_at(j, p.tick) != "gone":
+                self._send(RosterChange(p.tick, j, "gone"))
+            elif p.action == "restart":
+                self._send(RosterChange(p.tick, j, "gone"))
+                self._send(RosterChange(p.tick, j, "live", fresh=True))
+        # the liveliness news this fault explains: a frozen process's token lapses with the lease
+        # (maybe only after the resume), a restarted one goes and comes back
+        self._expect[j] = {"kill": {"down"}, "pause": {"down", "up"}, "resume": {"down", "up"},
+                           "restart": {"down", "up"}}[p.action]
+        self._out.append(Fault(FAULT_OPS[p.action], j))
+        self._out.append(FleetEvent.of(t, "fault", f"scheduled {p.action} of {vid} (t = {t:g} s)", vehicle=vid))
+        p.stage = "asked"
+        self._current = p
+
+    def _grant(self) -> None:
+        if self.paused:
+            return
+        due = [self.acked.get(j, -1) for j in range(len(self.ids)) if self._due(j)]
+        want = min(self.last_tick, min(due) + self.window) if due else self.last_tick
+        if self._current is not None:
+            want = min(want, self._current.tick - 1)
+        if self._queue:
+            want = min(want, self._queue[0].tick - 1)
+        for j, since in list(self._paused_by_hand.items()):  # a ground station's pause lapses with the lease
+            if want >= since + self._lease_ticks and self.state_at(j, since + self._lease_ticks) == "paused":
+                self._send(RosterChange(since + self._lease_ticks, j, "gone"))
+                del self._paused_by_hand[j]
+        if want > self.granted:
+            for ch in self._plan:  # the scheduled changes up to the new grant, before it
+                if self.granted < ch.tick <= want:
+                    self._send(ch, planned=True)
+            self.granted = want
+            self._out.append(Grant(want))
+
+    # ------------------------------------------------------------------ helpers
+    def _send(self, change: RosterChange, planned: bool = False) -> None:
+        if not planned:
+            self._decided.append(change)
+        self.changes.append(change)
+        self._out.append(Roster(change))
+
+    def _catch_up(self, j: int) -> None:
+        """A joining process hears every change so far (its neighbours' liveness)."""
+        for ch in self.changes:
+            self._out.append(Roster(ch, to=j))
+
+    def _frontier(self) -> int:
+        return max(0, min(self.granted, self.last_tick))
+
+    def _last_change_tick(self, j: int) -> int:
+        ticks = [c.tick for c in [*self._plan, *self._decided] if c.vehicle == j and c.tick <= self.granted + 1]
+        return max(ticks, default=0)

@@ -1,0 +1,51 @@
+"""The metrics JSON of a run: one builder for the in-process fleet, the world, sweep and report.
+
+Field names and definitions are docs/metrics.md's: the Recorder's summary (path and
+coordination settle times, final errors, ω̇, wall time), the link block (messages sent
+to, delivered at, dropped and rejected by the receivers, latency percentiles, and the
+fault emulator's per-link counters), the stale-neighbour policy, the events and whether
+the run reached its end.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Iterable, Sequence
+
+from cdus.core.link import LinkCounters
+from cdus.core.metrics import Recorder, percentile_ms
+from cdus.scenario.model import Scenario
+from cdus.wire.schemas import FleetEvent
+
+
+def link_block(counters: LinkCounters, faults: dict | None = None, **extra: Any) -> dict[str, Any]:
+    """``link`` of the metrics JSON from summed counters (and the emulator's summary)."""
+    c = counters
+    out: dict[str, Any] = {
+        "sent": c.sent, "delivered": c.delivered, "dropped": c.dropped, "duplicated": c.duplicated,
+        "rejected": c.rejected,
+        "latency_ms_p50": percentile_ms(c.latencies, 50), "latency_ms_p99": percentile_ms(c.latencies, 99),
+        **extra,
+    }
+    if faults is not None:
+        out["faults"] = faults
+    return out
+
+
+def sum_counters(counters: Iterable[LinkCounters]) -> LinkCounters:
+    total = LinkCounters()
+    for c in counters:
+        total.add(c)
+    return total
+
+
+def run_metrics(scenario: Scenario, recorder: Recorder, *, mode: str, link: dict[str, Any], wall_s: float,
+                policy: str, events: Sequence[FleetEvent] = (), completed: bool = True,
+                **extra: Any) -> dict[str, Any]:
+    """The metrics JSON (also of an empty or interrupted run)."""
+    m = recorder.summary(scenario=scenario.name, mode=mode, seed=scenario.seed, path_tol=scenario.path_tol,
+                         coord_tol=scenario.coord_tol, link=link, wall_s=wall_s)
+    m["policy"] = policy
+    m["events"] = [e.as_dict() for e in events]
+    m["completed"] = completed
+    m.update(extra)
+    return m

@@ -1,0 +1,40 @@
+"""The command line: how flags and the scenario file combine (no process is started here)."""
+
+from __future__ import annotations
+
+import pytest
+
+from cdus.app.cli import build_parser, launch_options
+from cdus.scenario.config import load_scenario
+from cdus.scenario.model import RESTART_POLICIES
+
+CONFIG = "configs/lake_circle.toml"
+
+
+def options(*flags: str, **overrides):
+    args = build_parser().parse_args(["launch", CONFIG, *flags])
+    return args, launch_options(args, load_scenario(CONFIG, overrides))
+
+
+def test_the_restart_policy_comes_from_the_scenario_unless_the_flag_is_given():
+    args, opts = options()
+    assert args.restart is None and opts.restart == "never"
+    _, opts = options(**{"supervision.restart": "always"})
+    assert opts.restart == "always"
+    _, opts = options("--restart", "on-failure", **{"supervision.restart": "always"})
+    assert opts.restart == "on-failure"
+
+
+def test_the_restart_flag_takes_the_scenarios_vocabulary(capsys):
+    for policy in RESTART_POLICIES:
+        assert build_parser().parse_args(["launch", CONFIG, "--restart", policy]).restart == policy
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(["launch", CONFIG, "--restart", "sometimes"])
+    assert "invalid choice: 'sometimes'" in capsys.readouterr().err
+
+
+def test_other_launch_options_come_from_the_flags():
+    _, opts = options("--fleet", "f1", "--clock", "realtime", "--duration", "5", "--policy", "extrapolate")
+    assert (opts.fleet, opts.clock, opts.duration, opts.policy) == ("f1", "realtime", 5.0, "extrapolate")
+    _, opts = options()
+    assert opts.fleet == "lake_circle" and opts.metrics_out is None

@@ -1,0 +1,198 @@
+"""The per-vehicle tick protocol: deliveries, the roster, readiness, run-time changes."""
+
+from __future__ import annotations
+
+import pytest
+
+from cdus.core.events import RosterChange
+from cdus.core.link import IdealLink, LinkEmulator
+from cdus.core.linkspec import Delay, LinkSpec
+from cdus.core.node import VehicleNode
+from cdus.scenario.config import parse_scenario
+from cdus.sim.build import build_node
+from cdus.wire.messages import OmegaMsg
+
+T = 0.02
+RING = {
+    "scenario": {"name": "ring3", "duration": 10.0},
+    "vehicle": [
+        {"id": f"v{j}", "kind": "usv", "phase": 2.0 * j, "path": {"family": "circle", "center": [0, 0], "radius": 10}}
+        for j in range(3)
+    ],
+}
+
+
+def node(j: int = 0, link=None, **kw) -> VehicleNode:
+    sc = parse_scenario(RING)
+    return build_node(sc, f"v{j}", link or IdealLink(), **kw)
+
+
+def msg(sender: int, tick: int, omega: float = 1.0) -> OmegaMsg:
+    return OmegaMsg(sender, tick, tick * T, omega, -1.0)
+
+
+def held(n: VehicleNode) -> dict[int, int]:
+    """sender -> seq of the value the consensus uses."""
+    return {k: m.seq for k, m in n.table.latest.items()}
+
+
+def test_a_message_is_used_from_the_tick_after_it_was_sent():
+    a = node(0)
+    a.step(0)
+    a.on_message(msg(1, 0))
+    a.on_message(msg(2, 0))
+    assert held(a) == {}
+    a.step(1)
+    assert held(a) == {1: 0, 2: 0}
+    assert a.counters.sent == 2 and a.counters.delivered == 2
+
+
+def test_a_message_from_a_neighbour_already_ahead_waits_for_its_turn():
+    a = node(0)
+    a.step(0)
+    a.on_message(msg(1, 0))
+    a.on_message(msg(1, 1))  # sent at tick 1: not usable at tick 1
+    a.step(1)
+    assert held(a) == {1: 0}
+    a.step(2)
+    assert held(a) == {1: 1}
+
+
+def test_the_link_delays_in_simulated_time():
+    spec = LinkSpec(delay=Delay(base=0.1))
+    a = node(0, LinkEmulator(spec, ["v0", "v1", "v2"], seed=1))
+    a.step(0)
+    a.on_message(msg(1, 0))
+    for n in range(1, 5):
+        a.step(n)
+        assert held(a) == {}
+    a.step(5)  # sent at t = 0, delay 0.1 s = 5 ticks
+    assert held(a) == {1: 0}
+    assert a.counters.latencies == [pytest.approx(0.1)]
+
+
+def test_a_gone_sender_is_never_readmitted_by_a_late_message():
+    """The kill race: the last ω of a killed vehicle arrives after its neighbours were told
+    it is gone. It is not used, and nobody waits for that vehicle again."""
+    a = node(0)
+    for n in range(5):
+        a.step(n)
+        a.on_message(msg(1, n))
+        a.on_message(msg(2, n))
+    a.on_roster(RosterChange(5, 1, "gone"))  # v1 killed at tick 5 ...
+    a.on_message(msg(1, 4))  # (a duplicate of what arrived: stale)
+    a.step(5)
+    assert 1 not in held(a)
+    a.on_message(msg(2, 5))
+    late = OmegaMsg(1, 5, 5 * T, 42.0, -1.0)  # ... its last broadcast, in flight when it died
+    assert a.on_message(late) is None  # received, decided ...
+    a.step(6)
+    assert 1 not in held(a)  # ... and refused: v1 is not back
+    assert a.rejected["gone"] >= 1
+    assert a.waiting_for(7) == [2]  # waits for v2's tick-6 broadcast, never for v1's
+    a.on_message(msg(2, 6))
+    assert a.waiting_for(7) == []
+
+
+def test_in_flight_messages_of_a_gone_sender_are_dropped_at_delivery():
+    spec = LinkSpec(delay=Delay(base=0.1))
+    a = node(0, LinkEmulator(spec, ["v0", "v1", "v2"], seed=1))
+    a.step(0)
+    a.on_message(msg(1, 0))  # usable at tick 5
+    a.on_roster(RosterChange(3, 1, "gone"))
+    for n in range(1, 7):
+        a.step(n)
+    assert 1 not in held(a)
+    assert a.counters.sent == 1 and a.counters.delivered == 0 and a.rejected["gone"] == 1
+
+
+def test_only_liveliness_back_readmits_and_only_what_was_sent_since():
+    a = node(0)
+    a.step(0)
+    a.on_message(msg(1, 0))
+    a.step(1)
+    a.on_roster(RosterChange(2, 1, "gone"))
+    a.on_roster(RosterChange(4, 1, "live", fresh=True))  # restarted at tick 4
+    a.on_message(msg(1, 1))  # the old process's, still in flight
+    a.step(2)
+    a.step(3)
+    assert 1 not in held(a)
+    a.on_message(msg(1, 4, omega=7.0))  # the new process's first broadcast
+    a.step(4)
+    assert 1 not in held(a)  # sent at tick 4: usable at 5
+    a.step(5)
+    assert held(a) == {1: 4} and a.table.latest[1].omega == 7.0
+
+
+def test_a_paused_neighbour_is_held_not_awaited_and_dropped_after_the_lease():
+    a = node(0)
+    a.on_roster(RosterChange(3, 1, "paused"))
+    a.on_roster(RosterChange(53, 1, "gone"))
+    for n in range(3):
+        a.step(n)
+        a.on_message(msg(1, n))
+        a.on_message(msg(2, n))
+    assert a.waiting_for(3) == []  # v1 sent its tick-2 broadcast: arrived
+    for n in range(3, 53):
+        assert a.waiting_for(n + 1) == [2]  # v1 paused from tick 3: not awaited
+        a.step(n)
+        a.on_message(msg(2, n))
+        assert held(a)[1] == 2  # its last value is held
+    a.step(53)
+    assert 1 not in held(a)
+
+
+def test_readiness_waits_only_for_broadcasts_that_exist():
+    a = node(0)
+    assert a.waiting_for(0) == []  # nothing was sent before tick 0
+    assert a.waiting_for(1) == [1, 2]
+    a.on_message(msg(2, 0))
+    assert a.waiting_for(1) == [1]
+    late = node(0, joined_at=100)  # a restarted process hears nothing from before it joined
+    assert late.waiting_for(100) == []
+    assert late.waiting_for(101) == [1, 2]
+
+
+def test_own_pause_and_resume_from_the_roster():
+    a = node(0)
+    a.on_roster(RosterChange(10, 0, "paused"))
+    a.on_roster(RosterChange(30, 0, "live"))
+    assert a.own_state_at(9) == ("live", False)
+    assert a.own_state_at(10) == ("paused", False)
+    assert a.resume_tick(10) == 30
+    b = node(1)
+    b.on_roster(RosterChange(10, 1, "gone"))
+    b.on_roster(RosterChange(10, 1, "live", fresh=True))
+    assert b.own_state_at(10) == ("live", True)
+
+
+def test_gains_change_on_their_tick():
+    a = node(0)
+    a.set_gains((3.0, 3.0), 4.0, tick=2)
+    a.step(0)
+    a.step(1)
+    assert a.vehicle.c == 2.0
+    a.step(2)
+    assert a.vehicle.k == (3.0, 3.0) and a.vehicle.c == 4.0
+    with pytest.raises(ValueError):
+        a.set_gains((1.0,), 1.0, tick=3)
+
+
+def test_realtime_messages_are_usable_at_arrival_plus_delay():
+    spec = LinkSpec(delay=Delay(base=0.05))
+    a = node(0, LinkEmulator(spec, ["v0", "v1", "v2"], seed=1))
+    a.step(0)
+    a.on_message(msg(1, 0), arrival=0.013)
+    a.step(3)
+    assert held(a) == {}  # usable at 0.063 s
+    a.step(4)
+    assert held(a) == {1: 0}
+
+
+def test_not_a_neighbour_and_stale_are_counted():
+    sc = parse_scenario({**RING, "graph": {"topology": "chain", "directed": True}})
+    a = build_node(sc, "v1", IdealLink())
+    assert a.on_message(msg(2, 0)) == "not_a_neighbour"
+    assert a.on_message(msg(0, 3)) is None
+    assert a.on_message(msg(0, 3)) == "stale"
+    assert a.rejected == {"not_a_neighbour": 1, "stale": 1, "gone": 0}

@@ -1,0 +1,102 @@
+"""The [[event]] tables: scheduled vehicle faults, checked against the vehicle ids."""
+
+from __future__ import annotations
+
+import tomllib
+
+import pytest
+
+from cdus.core.events import Event
+from cdus.scenario.checks import Problems
+from cdus.scenario.config import ConfigError, parse_scenario
+from cdus.scenario.events import event_section
+from tests.scenario.common import MINIMAL
+
+IDS = ("usv1", "usv2")
+
+
+def events(raw, ids=IDS):
+    p = Problems()
+    out = event_section(p, raw, ids)
+    return out, p.items
+
+
+def test_events_are_sorted_and_a_pause_with_a_duration_brings_its_resume():
+    out, problems = events([
+        {"at": 30, "action": "restart", "vehicle": "usv2"},
+        {"at": 10.0, "action": "pause", "vehicle": "usv1", "duration": 25},
+        {"at": 20.0, "action": "kill", "vehicle": "usv2"},
+    ])
+    assert problems == []
+    assert out == (Event(10.0, "pause", "usv1"), Event(20.0, "kill", "usv2"), Event(30.0, "restart", "usv2"),
+                   Event(35.0, "resume", "usv1"))
+    assert all(isinstance(e.at, float) for e in out)
+
+
+def test_events_at_the_same_time_keep_the_files_order():
+    out, _ = events([{"at": 5, "action": "kill", "vehicle": "usv2"}, {"at": 5, "action": "kill", "vehicle": "usv1"}])
+    assert [e.vehicle for e in out] == ["usv2", "usv1"]
+
+
+def test_no_events():
+    assert events([]) == ((), [])
+
+
+@pytest.mark.parametrize("raw, field, text", [
+    ({"at": -1, "action": "kill", "vehicle": "usv1"}, "event[0].at",
+     "must be a number >= 0 (s of simulated time), got -1"),
+    ({"at": "soon", "action": "kill", "vehicle": "usv1"}, "event[0].at",
+     'must be a number >= 0 (s of simulated time), got the string "soon"'),
+    ({"at": 1, "action": "explode", "vehicle": "usv1"}, "event[0].action",
+     'unknown action "explode"; choose one of kill, pause, resume, restart'),
+    ({"at": 1, "action": "kil", "vehicle": "usv1"}, "event[0].action",
+     'unknown action "kil" (did you mean "kill"?); choose one of kill, pause, resume, restart'),
+    ({"at": 1, "action": "kill", "vehicle": "usb1"}, "event[0].vehicle",
+     '"usb1" is not a vehicle (did you mean "usv1"?); ids are usv1, usv2'),
+    ({"at": 1, "action": "kill", "vehicle": "usv1", "duration": 3}, "event[0].duration",
+     'only a pause takes a duration (this event is a "kill"); remove it'),
+    ({"at": 1, "action": "pause", "vehicle": "usv1", "duration": 0}, "event[0].duration",
+     "must be a number > 0 s (then the vehicle resumes), got 0"),
+    ({"at": 1, "action": "kill", "vehicle": "usv1", "when": 3}, "event[0].when",
+     "unknown key; valid keys here: at, action, vehicle, duration"),
+    ({"action": "kill", "vehicle": "usv1"}, "event[0].at",
+     'missing; an event needs at, action and vehicle, e.g. at = 60.0, action = "kill", vehicle = "usv2"'),
+])
+def test_bad_event_names_the_field_and_what_is_valid(raw, field, text):
+    out, problems = events([raw])
+    assert out == ()
+    assert (field, text) in problems, problems
+
+
+def test_not_an_array_of_tables():
+    assert events({"at": 1}) == ((), [("event", "must be an array of tables ([[event]] sections), got the table "
+                                                "{at = 1}")])
+
+
+def test_without_the_ids_the_vehicle_is_not_judged():
+    out, problems = events([{"at": 1, "action": "kill", "vehicle": "anyone"}], ids=None)
+    assert problems == [] and out == (Event(1.0, "kill", "anyone"),)
+
+
+def test_the_scenario_carries_the_validated_events():
+    data = tomllib.loads(MINIMAL)
+    data["event"] = [{"at": 10.0, "action": "pause", "vehicle": "usv1", "duration": 5.0}]
+    s = parse_scenario(data)
+    assert s.events == (Event(10.0, "pause", "usv1"), Event(15.0, "resume", "usv1"))
+    assert s.raw["event"] == data["event"]  # the file's tables stay in raw
+    assert parse_scenario(s.raw) == s
+
+
+@pytest.mark.parametrize("raw, fragment", [
+    ([{"at": 10.0, "action": "explode", "vehicle": "usv1"}], 'event[0].action: unknown action "explode"; choose one '
+                                                             "of kill"),
+    ([{"at": 10.0, "action": "kill", "vehicle": "nobody"}], 'event[0].vehicle: "nobody" is not a vehicle; ids are '
+                                                            "usv1, usv2"),
+    ({"t": 1}, "event: must be an array of tables"),
+])
+def test_a_scenario_with_bad_events_is_rejected(raw, fragment):
+    data = tomllib.loads(MINIMAL)
+    data["event"] = raw
+    with pytest.raises(ConfigError) as e:
+        parse_scenario(data, "x.toml")
+    assert f"x.toml: {fragment}" in str(e.value)
