@@ -108,7 +108,7 @@ class VehicleNode:
         self.sense_every = sense_every  # control ticks between proximity samples; None: no sensor
         self.sense_latency = sense_latency
         self._contacts: dict[int, tuple[Contact, ...]] = {}  # by sample tick, not yet superseded
-        self._contacts_newest = -1  # newest sample tick received
+        self._contacts_used = -1  # newest sample tick used (older ones are dropped)
 
     # ------------------------------------------------------------------ inputs
     def on_message(self, msg: OmegaMsg, arrival: float | None = None) -> str | None:
@@ -141,13 +141,12 @@ class VehicleNode:
         if tick < 0 or tick in self._contacts:
             return
         self._contacts[tick] = tuple(contacts)
-        self._contacts_newest = max(self._contacts_newest, tick)
 
     def contacts_missing(self, n: int) -> bool:
         """Does tick ``n`` need a proximity sample that has not arrived? (deterministic runners
         wait for it: the world sends the contacts of tick s before granting s + latency)"""
         s = self._sample_for(n)
-        return s is not None and s >= self.joined_at and self._contacts_newest < s
+        return s is not None and s >= self.joined_at and s > self._contacts_used and s not in self._contacts
 
     def _sample_for(self, n: int) -> int | None:
         """The sample tick whose contacts tick ``n`` uses on schedule: the newest ``s`` with
@@ -163,6 +162,7 @@ class VehicleNode:
         if not usable:
             return ()
         s = max(usable)
+        self._contacts_used = s
         for old in [k for k in self._contacts if k < s]:
             del self._contacts[old]
         return self._contacts[s]
