@@ -43,10 +43,12 @@ from cdus.scenario.config import ConfigError
 from cdus.scenario.model import Scenario
 from cdus.scenario.link import validate_link
 from cdus.sim.build import build_node, link_emulator_for, listeners_of
+from cdus.sim.sensing import contacts_of
 from cdus.core.schedule import CLOCKS, total_ticks
 from cdus.wire import keys
 from cdus.wire.messages import (
-    CTL_OPS, OmegaMsg, StateMsg, decode_control, decode_omega, decode_states, encode_omega, encode_states,
+    CTL_OPS, OmegaMsg, StateMsg, decode_contacts, decode_control, decode_omega, decode_states, encode_omega,
+    encode_states,
 )
 from cdus.wire.schemas import AgentStats, encode_stats
 from cdus.wire.transport import Transport, open_session
@@ -253,6 +255,8 @@ class Agent:
             return
         if key.endswith("/ctl"):
             return self._on_ctl(sample.payload.to_bytes())
+        if key.endswith("/contacts"):
+            return self._on_contacts(sample.payload.to_bytes())
         if key.endswith("/wake"):
             return
         kind, src = keys.leaf(key)
@@ -283,6 +287,14 @@ class Agent:
             self._set_gains(f["gains"], f["tick"])
         elif op == "stop":
             clock.stop = True
+
+    def _on_contacts(self, payload: bytes) -> None:
+        """The world's proximity sensor: this vehicle's contacts of a sample tick (counted and
+        dropped if malformed)."""
+        msg = decode_contacts(payload, len(self.ids))
+        if isinstance(msg, str):
+            return self._reject("world", f"contacts_{msg}")
+        self.node.on_contacts(msg.tick, contacts_of(msg, self.ids))
 
     def _on_roster(self, f: dict) -> None:
         if f["vehicle"] not in self.ids or f["state"] not in ("live", "paused", "gone") or f["tick"] < 0:
@@ -386,14 +398,17 @@ class Agent:
                 self.log(f"paused from tick {n}; resuming at tick {back} where the vehicle was")
                 n = back
                 continue
-            while clock.granted < n or node.waiting_for(n):
+            while clock.granted < n or node.waiting_for(n) or node.contacts_missing(n):
                 if self._stopping():
                     return
+                if self._states and clock.granted < n:  # the world may be waiting for these rows to grant
+                    self.flush_states()
                 self._recv(never)
                 if time.monotonic() - waited_since > LOG_WAIT:
                     waited_since = time.monotonic()
                     missing = node.waiting_for(n)
-                    why = "the world's grant" if clock.granted < n else f"ω from {[self.ids[k] for k in missing]}"
+                    why = ("the world's grant" if clock.granted < n else f"ω from {[self.ids[k] for k in missing]}"
+                           if missing else "the proximity sensor's contacts")
                     self.log(f"tick {n}: still waiting for {why}")
             if self._stopping():
                 return
@@ -482,7 +497,8 @@ class Agent:
             duplicated=c.duplicated, rejected=c.rejected + sum(self.rejected.values()),
             rejected_by_reason=by_reason, missed_deadlines=self.missed_deadlines, joined_at=node.joined_at,
             latencies_ms=tuple(x * 1000.0 for x in new[::step][:100]), faults=faults,
-            bursts=tuple(e.as_dict() for e in burst_events(node.bursts, self.ids)[-20:]))
+            bursts=tuple(e.as_dict() for e in burst_events(node.bursts, self.ids)[-20:]),
+            interventions=node.vehicle.interventions)
 
     def publish_stats(self) -> None:
         if self.session is not None:

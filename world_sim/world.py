@@ -9,6 +9,10 @@ operator's commands to the vehicles with the tick (or simulated time) they apply
 
 - lockstep: the decisions (grants, the roster, faults on their ticks, joins) are
   cdus.sim.lockstep.Lockstep's; this process carries them out.
+- the proximity sensor (with the safety filter on): it samples the positions at the
+  sensor ticks and sends each vehicle its contacts (cdus.sim.sensing); in lockstep on
+  Lockstep's Sense decisions, from the telemetry of exactly that tick; in realtime as
+  the wall clock passes a sample tick, from the newest telemetry it has.
 - realtime: it publishes a start time t0 once every vehicle is up, records tick n a
   little after it is due with each vehicle's newest telemetry at or before n, and turns
   liveliness changes into roster changes for the vehicles (a vehicle lost is out of its
@@ -33,13 +37,14 @@ from cdus.core.metrics import Recorder
 from cdus.core.schedule import total_ticks
 from cdus.files import write_json
 from cdus.scenario.model import Scenario
-from cdus.sim.build import metric_edges
-from cdus.sim.lockstep import Fault, Grant, Join, Lockstep, Roster
+from cdus.sim.build import metric_edges, sensor_schedule
+from cdus.sim.lockstep import Fault, Grant, Join, Lockstep, Roster, Sense
+from cdus.sim.sensing import sense_tick
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
 from cdus.sim.summary import link_block, run_metrics
 from cdus.wire import keys
 from cdus.wire.messages import (
-    COMMAND_OPS, StateMsg, decode_control, decode_states, encode_control, encode_states,
+    COMMAND_OPS, StateMsg, decode_control, decode_states, encode_contacts, encode_control, encode_states,
 )
 from cdus.wire.schemas import AgentStats, FleetEvent, decode_stats, encode_event, encode_status
 from cdus.wire.transport import Transport, open_session
@@ -87,7 +92,12 @@ class World:
         self.policy = policy or scenario.link.policy
         self.recorder = Recorder(self.ids, [v.dim for v in scenario.vehicles], metric_edges(scenario))
         self.events_scheduled = scenario.events
-        self.lockstep = Lockstep(self.ids, self.period, self.last_tick, self.events_scheduled)
+        self.sensing = sensor_schedule(scenario)  # (every, latency) ticks, None: no proximity sensor
+        self.lockstep = Lockstep(self.ids, self.period, self.last_tick, self.events_scheduled,
+                                 sense_every=self.sensing[0] if self.sensing else None,
+                                 sense_latency=self.sensing[1] if self.sensing else 1)
+        self._sample_rows: dict[int, dict[int, tuple]] = {}  # sample tick -> vehicle -> q (lockstep)
+        self._next_sample = 0  # realtime: the next sample tick
         self.st = WorldState()
         self.pairs = [(e.i, e.k) for e in scenario.edges]
         self.log = log or (lambda s: print(f"[world] {s}", flush=True))
@@ -195,6 +205,8 @@ class World:
         for m in rows:
             if m.tick >= self.next_tick:
                 st.rows.setdefault(m.tick, {})[j] = m
+            if self.sensing is not None and m.tick % self.sensing[0] == 0 and m.tick > self.lockstep.sensed:
+                self._sample_rows.setdefault(m.tick, {})[j] = m.q
             prev = st.latest.get(j)
             if prev is None or m.tick >= prev.tick:
                 with self._lock:
@@ -374,11 +386,35 @@ class World:
                 self.pub_ctl.put(encode_control("grant", until=a.until))
             elif isinstance(a, Join):
                 self.session.put(keys.ctl(self.fleet, [self.ids[a.vehicle]]), encode_control("join", tick=a.tick))
+            elif isinstance(a, Sense):
+                self._send_contacts(a.tick, self._sample_rows.pop(a.tick, {}))
             elif isinstance(a, Fault):
                 self._fault_since = time.monotonic()
                 self.pub_launcher.put(encode_control(a.op, vehicle=self.ids[a.vehicle]))
             elif isinstance(a, FleetEvent):
                 self._note(a)
+
+    def _send_contacts(self, tick: int, positions: dict[int, tuple]) -> None:
+        """The proximity sensor at ``tick``: each sampled vehicle its contacts (cdus.sim.sensing)."""
+        for old in [k for k in self._sample_rows if k < tick]:
+            del self._sample_rows[old]
+        for j, msg in sense_tick(self.scenario, tick, positions).items():
+            self.session.put(keys.contacts(self.fleet, self.ids[j]), encode_contacts(msg))
+
+    def _sense_realtime(self) -> None:
+        """Realtime: once the clock has passed a sample tick, sample the newest telemetry of the
+        vehicles alive and publish their contacts under the present tick."""
+        if self.sensing is None or self.t0 is None or self.paused_at is not None:
+            return
+        n = self._tick_now()
+        if n < self._next_sample:
+            return
+        every = self.sensing[0]
+        self._next_sample = (n // every + 1) * every
+        alive = {self.index[v] for v in self.st.alive}
+        with self._lock:
+            positions = {j: m.q for j, m in self.st.latest.items() if j in alive}
+        self._send_contacts(n, positions)
 
     def _run_lockstep(self) -> None:
         ls = self.lockstep
@@ -432,6 +468,7 @@ class World:
         last_status = last_start = time.monotonic()
         while self.next_tick <= self.last_tick and not self.stop_requested:
             self._drain(block=True)
+            self._sense_realtime()
             now = time.monotonic()
             if now - last_start > STATUS_PERIOD:  # again, for late joiners
                 last_start = now
@@ -500,6 +537,7 @@ class World:
         wall = time.perf_counter() - self._t_start if self.started else 0.0
         metrics = run_metrics(self.scenario, self.recorder, mode=self.clock, link=self.link_block(), wall_s=wall,
                               policy=self.policy, events=self.events,
+                              interventions=sum(s.interventions for s in self.st.stats.values()),
                               completed=self.next_tick > self.last_tick and not self.stop_requested)
         if self.metrics_out:
             write_json(self.metrics_out, metrics)

@@ -158,3 +158,22 @@ class Recorder:
 def _finite(x: float) -> float | None:
     x = float(x)
     return x if math.isfinite(x) else None
+
+
+def min_separation(q: np.ndarray, domains: Sequence[str]) -> float | None:
+    """The smallest distance between two vehicles of the same domain over a run (m).
+
+    ``q``: positions (ticks, vehicles, 3), a boat's z being 0; ``domains``: "usv" or "uav"
+    per vehicle. Boats are compared on the water (x, y), drones in 3-D. None without a pair.
+    """
+    best = math.inf
+    if q.shape[0] == 0:
+        return None
+    for j in range(len(domains)):
+        for k in range(j + 1, len(domains)):
+            if domains[j] != domains[k]:
+                continue
+            axes = 2 if domains[j] == "usv" else 3
+            d = q[:, j, :axes] - q[:, k, :axes]
+            best = min(best, float(np.sqrt(np.min(np.einsum("ij,ij->i", d, d)))))
+    return best if math.isfinite(best) else None

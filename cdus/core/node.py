@@ -16,13 +16,19 @@ Zenoh, and both therefore step the same ticks with the same inputs (docs/archite
   nothing it sent before is used any more, however late it arrives; only a ``live``
   change (its liveliness back: a restart or a resume) admits it again, and then only
   messages sent from that tick on.
+- ``on_contacts(tick, contacts)``: what the world's proximity sensor saw around this
+  vehicle at tick ``tick`` (cdus.core.proximity); usable from tick + ``sense_latency``.
+  At tick n the safety filter uses the newest sample taken at or before n - latency
+  (and not before this vehicle (re)joined); deterministic runners wait for it
+  (``contacts_missing``), a realtime one uses what has arrived.
 - ``set_link(spec, at)`` and ``set_gains(k, c, tick)``: run-time changes, applied in
   simulated time so every runner applies them alike.
 - ``waiting_for(n)``: the neighbours whose broadcast tick ``n`` needs and has not
   arrived (deterministic runners wait for them; a realtime one does not).
 - ``step(n)``: the tick: usable messages into the neighbour table, the controller's
   update with the stale-neighbour policy, the telemetry row, the ω broadcast (on
-  broadcast ticks), then the plant to the next tick. Returns the :class:`Outbox`.
+  broadcast ticks), the safety filter on the velocity reference (if on), then the plant
+  to the next tick. Returns the :class:`Outbox`.
 
 Pure: no I/O, no clock; counters of what the link did are kept here.
 """
@@ -39,6 +45,7 @@ from cdus.core.link import DropBursts, LinkCounters, LinkModel
 from cdus.core.linkspec import LinkSpec
 from cdus.core.neighbours import NeighbourLink, NeighbourTable, consensus_target
 from cdus.core.paths import Vec
+from cdus.core.safety import Contact
 from cdus.core.schedule import delivery_tick, last_broadcast_seq, send_tick
 from cdus.core.vehicle import Telemetry, Vehicle
 from cdus.wire.messages import OmegaMsg
@@ -73,7 +80,7 @@ class VehicleNode:
 
     def __init__(self, index: int, vehicle: Vehicle, links: tuple[NeighbourLink, ...], link: LinkModel,
                  *, period: float, every: int, last_tick: int, policy: str = "hold", timeout: float = 1.5,
-                 joined_at: int = 0):
+                 joined_at: int = 0, sense_every: int | None = None, sense_latency: int = 1):
         self.index = index
         self.vehicle = vehicle
         self.table = NeighbourTable(links, policy, timeout)
@@ -96,6 +103,12 @@ class VehicleNode:
         self._gains: list[tuple[int, tuple[float, ...], float]] = []  # (tick, k, c), by tick
         self.state = "live"  # this vehicle's own: live | paused | gone
         self.tick = joined_at  # the next tick to step
+        if sense_latency < 1:
+            raise ValueError(f"sense_latency must be >= 1 tick, got {sense_latency}")
+        self.sense_every = sense_every  # control ticks between proximity samples; None: no sensor
+        self.sense_latency = sense_latency
+        self._contacts: dict[int, tuple[Contact, ...]] = {}  # by sample tick, not yet superseded
+        self._contacts_used = -1  # newest sample tick used (older ones are dropped)
 
     # ------------------------------------------------------------------ inputs
     def on_message(self, msg: OmegaMsg, arrival: float | None = None) -> str | None:
@@ -122,6 +135,37 @@ class VehicleNode:
             _insert(self._self_changes, change)
         elif change.vehicle in self._peers:
             _insert(self._peers[change.vehicle].changes, change)
+
+    def on_contacts(self, tick: int, contacts: tuple[Contact, ...]) -> None:
+        """The proximity sensor's contacts of this vehicle sampled at ``tick``."""
+        if tick < 0 or tick in self._contacts:
+            return
+        self._contacts[tick] = tuple(contacts)
+
+    def contacts_missing(self, n: int) -> bool:
+        """Does tick ``n`` need a proximity sample that has not arrived? (deterministic runners
+        wait for it: the world sends the contacts of tick s before granting s + latency)"""
+        s = self._sample_for(n)
+        return s is not None and s >= self.joined_at and s > self._contacts_used and s not in self._contacts
+
+    def _sample_for(self, n: int) -> int | None:
+        """The sample tick whose contacts tick ``n`` uses on schedule: the newest ``s`` with
+        s % every == 0 and s <= n - latency."""
+        if self.sense_every is None or n - self.sense_latency < 0:
+            return None
+        return (n - self.sense_latency) // self.sense_every * self.sense_every
+
+    def contacts_at(self, n: int) -> tuple[Contact, ...]:
+        """The contacts the filter uses at tick ``n``: the newest sample received that was taken
+        at or before n - latency and not before this vehicle (re)joined; older ones are dropped."""
+        usable = [s for s in self._contacts if self.joined_at <= s <= n - self.sense_latency]
+        if not usable:
+            return ()
+        s = max(usable)
+        self._contacts_used = s
+        for old in [k for k in self._contacts if k < s]:
+            del self._contacts[old]
+        return self._contacts[s]
 
     def set_link(self, spec: LinkSpec, at: float) -> float:
         """New link faults for messages sent from simulated time ``at`` on (not before the
@@ -208,6 +252,8 @@ class VehicleNode:
         out = None
         if n % self.every == 0 and n < self.last_tick:
             out = OmegaMsg(self.index, n // self.every, v.t, v.omega, v.omega_rate)
+        if v.safety is not None:
+            v.guard(self.contacts_at(n))
         v.advance()
         self.tick = n + 1
         return Outbox(n, tel, out)

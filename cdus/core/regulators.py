@@ -12,6 +12,7 @@ import math
 from dataclasses import dataclass
 
 from cdus.core.guidance import desired_velocity, desired_velocity_rate
+from cdus.core.observer import compensate
 from cdus.core.paths import Path, Vec
 from cdus.core.plants import UAVState, USVState
 
@@ -28,6 +29,20 @@ class Limits:
 
 
 NO_LIMITS = Limits()
+
+
+def _compensate(a: Vec, d_hat: Vec | None, shift: Vec | None = None) -> Vec:
+    """a - d̂ + shift: the estimated disturbance cancelled, the safety filter's correction added."""
+    if d_hat is not None:
+        a = compensate(a, d_hat)
+    if shift is not None:
+        a = tuple(x + y for x, y in zip(a, shift))
+    return a
+
+
+def _ground(v: Vec, d_hat: Vec | None) -> Vec:
+    """q̇ = v + d: the velocity over ground, as well as the estimate d̂ knows it."""
+    return v if d_hat is None else tuple(x + y for x, y in zip(v, d_hat))
 
 
 def clip_norm(v: Vec, bound: float) -> Vec:
@@ -57,13 +72,16 @@ class UAVGains:
 
 
 def uav_pd(state: UAVState, path: Path, w: float, wdot: float, k: Vec, gains: UAVGains,
-           limits: Limits = NO_LIMITS) -> Vec:
+           limits: Limits = NO_LIMITS, d_hat: Vec | None = None, shift: Vec | None = None) -> Vec:
     """`regulated_law_UAV`: τ = -b (p - p^r) + ṗ^r, ṗ^r = s f''(ω) ω̇ - K (p - f'(ω) ω̇).
 
     With the speed limit, p^r is clipped (and its feed-forward dropped while clipped).
+    With an estimated disturbance ``d_hat`` (cdus.core.observer), p^r = a - d̂, so that
+    q̇ = p + d flies a, and ȧ is taken along q̇ = p + d̂. ``shift``: the safety filter's
+    correction u - u_ref (cdus.core.safety), held over the control period, added to p^r.
     """
-    pr = desired_velocity(path, state.q, w, k)
-    prdot = desired_velocity_rate(path, state.q, state.p, w, wdot, k)
+    pr = _compensate(desired_velocity(path, state.q, w, k), d_hat, shift)
+    prdot = desired_velocity_rate(path, state.q, _ground(state.p, d_hat), w, wdot, k)
     clipped = clip_norm(pr, limits.speed)
     if clipped is not pr:
         pr, prdot = clipped, tuple(0.0 for _ in pr)
@@ -82,7 +100,8 @@ class HeadingGains:
 
 
 def usv_heading(state: USVState, path: Path, w: float, wdot: float, k: Vec, eps: tuple[float, ...],
-                gains: HeadingGains, limits: Limits = NO_LIMITS) -> tuple[float, float]:
+                gains: HeadingGains, limits: Limits = NO_LIMITS,
+                d_hat: Vec | None = None, shift: Vec | None = None) -> tuple[float, float]:
     """Heading-mode USV regulator (dgvf.md §3, the recommended default).
 
     Tracks the heading ψ_d = atan2(a_y, a_x) and the surge speed u_d = |a| cos(ψ - ψ_d)
@@ -90,11 +109,13 @@ def usv_heading(state: USVState, path: Path, w: float, wdot: float, k: Vec, eps:
     -KΦ term corrects the crab angle. ψ̇_d and u̇_d come from ȧ in closed form:
         r_ref = ψ̇_d - k_ψ (ψ - ψ_d),          τ_r = (-ε4 r - b_r (r - r_ref)) / ε5
         τ_u = (u̇_d - ε1 u - ε2 v r - b_u (u - u_d)) / ε3
+    With an estimated current ``d_hat``, the hull is steered to fly a - d̂ through the water
+    (ȧ taken along the velocity over ground, R(ψ)(u, v) + d̂). ``shift``: as in :func:`uav_pd`.
     """
     e1, e2, e3, e4, e5, _, _ = eps
     q = (state.x, state.y)
-    a = desired_velocity(path, q, w, k)
-    adot = desired_velocity_rate(path, q, state.world_velocity(), w, wdot, k)
+    a = _compensate(desired_velocity(path, q, w, k), d_hat, shift)
+    adot = desired_velocity_rate(path, q, _ground(state.world_velocity(), d_hat), w, wdot, k)
     a = clip_norm(a, limits.speed)
     ax, ay = a
     n2 = ax * ax + ay * ay
@@ -133,7 +154,8 @@ PAPER_SINGULAR_GUARD = 0.05
 
 def usv_paper(state: USVState, path: Path, w: float, wdot: float, k: Vec, eps: tuple[float, ...],
               gains: PaperGains, r_ref_prev: float | None, h: float,
-              limits: Limits = NO_LIMITS) -> tuple[float, float, float]:
+              limits: Limits = NO_LIMITS, d_hat: Vec | None = None,
+              shift: Vec | None = None) -> tuple[float, float, float]:
     """`regulated_law_USV` / `regulated_law_USV2` as corrected in dgvf.md §3.
 
     Body-frame references u^r = a_x cos ψ + a_y sin ψ, v^r = -a_x sin ψ + a_y cos ψ.
@@ -144,11 +166,12 @@ def usv_paper(state: USVState, path: Path, w: float, wdot: float, k: Vec, eps: t
     It is singular where ε7 u + u^r = 0 and needs 1 + ε7 > 0 on the path; from many
     starts it ends up sailing stern-first. ṙ^r is a backward difference over the
     physics step (``r_ref_prev``, None on the first step). Returns (τ_u, τ_r, r^r).
+    ``d_hat``, ``shift``: as in :func:`usv_heading`.
     """
     e1, e2, e3, e4, e5, e6, e7 = eps
     q = (state.x, state.y)
-    a = clip_norm(desired_velocity(path, q, w, k), limits.speed)
-    adot = desired_velocity_rate(path, q, state.world_velocity(), w, wdot, k)
+    a = clip_norm(_compensate(desired_velocity(path, q, w, k), d_hat, shift), limits.speed)
+    adot = desired_velocity_rate(path, q, _ground(state.world_velocity(), d_hat), w, wdot, k)
     c, s = math.cos(state.psi), math.sin(state.psi)
     ur = a[0] * c + a[1] * s
     vr = -a[0] * s + a[1] * c

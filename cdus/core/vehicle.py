@@ -7,8 +7,15 @@ runner; it does no I/O and reads no clock. One control period is:
    ended with the measured position held (guidance.integrate_omega); ω̇ is reported as
    the mean over that period (dgvf.md §2: the instantaneous value means nothing).
 2. the caller samples metrics and publishes ω (after the controller's update);
-3. ``advance()``: move the plant to the next control instant at the physics rate, its
-   regulator tracking the guidance with ω extrapolated at the held ω̇.
+3. ``guard(contacts)`` (with a safety filter): the velocity reference at the control
+   instant through the CBF filter (cdus.core.safety); its correction u - u_ref is held
+   over the period and added to the reference the regulator tracks;
+4. ``advance()``: move the plant to the next control instant at the physics rate, its
+   regulator tracking the guidance with ω extrapolated at the held ω̇ (and, with an
+   observer, the estimated disturbance d̂ cancelled: cdus.core.observer).
+
+With a speed limit the guidance itself is scaled (guidance.integrate_omega's σ), so ω
+does not run ahead of a vehicle that cannot keep up (docs/safety.md).
 """
 
 from __future__ import annotations
@@ -20,6 +27,8 @@ from typing import Any
 from cdus.core import regulators as reg
 from cdus.core.disturbance import Disturbance, DisturbanceSpec
 from cdus.core.guidance import Consensus, desired_velocity, integrate_omega, omega_law
+from cdus.core.observer import ESO, known_velocity
+from cdus.core.safety import Contact, FilterInfo, SafetyParams, safety_filter
 from cdus.core.paths import Path, Vec, for_dimension, make_path, nearest_omega
 from cdus.core.plants import (
     USV_PRESETS, PointState, UAVState, USVState, step_ideal, step_uav, step_usv,
@@ -58,11 +67,26 @@ class Vehicle:
     reg_gains: Any = None
     limits: reg.Limits = reg.NO_LIMITS
     disturbance: Disturbance | None = None
+    safety: SafetyParams | None = None  # the collision-avoidance filter, None: off
+    observer: float | None = None  # the ESO's bandwidth (rad/s), None: no observer
     tick: int = 0
     t: float = 0.0
     omega_rate: float = 0.0
     started: bool = False
     _r_ref_prev: float | None = field(default=None, repr=False)
+    interventions: int = 0  # control steps at which the safety filter changed the reference
+    last_filter: FilterInfo | None = field(default=None, repr=False)
+    _shift: Vec | None = field(default=None, repr=False)  # the filter's u - u_ref, held over the period
+    _eso: ESO | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.observer is not None:
+            self._eso = ESO.start(self.q, self.observer)
+
+    @property
+    def d_hat(self) -> Vec | None:
+        """The observer's estimate of the velocity disturbance (None without an observer)."""
+        return self._eso.d_hat if self._eso is not None else None
 
     def rejoin(self, tick: int, q: Vec | None = None, heading: float | None = None,
                omega_hint: float | None = None) -> None:
@@ -88,6 +112,9 @@ class Vehicle:
         hint = self.omega if omega_hint is None else omega_hint
         half = self.path.period / 2.0 if self.path.period else 0.0
         self.omega = nearest_omega(self.path, self.q, hint - half)
+        self._shift = None
+        if self.observer is not None:
+            self._eso = ESO.start(self.q, self.observer)
 
     # ------------------------------------------------------------------ observation
     @property
@@ -128,14 +155,33 @@ class Vehicle:
         reports the instantaneous law.
         """
         q = self.q
+        vmax = self.limits.speed
         if not self.started:
             self.started = True
             coupling = consensus.W * self.omega - consensus.B0
-            self.omega_rate = omega_law(self.path, q, self.omega, self.k, self.c, coupling)
+            self.omega_rate = omega_law(self.path, q, self.omega, self.k, self.c, coupling, vmax)
             return
-        w_new = integrate_omega(self.path, q, self.omega, self.k, self.c, consensus, self.control_period)
+        w_new = integrate_omega(self.path, q, self.omega, self.k, self.c, consensus, self.control_period, vmax)
         self.omega_rate = (w_new - self.omega) / self.control_period
         self.omega = w_new
+
+    def guard(self, contacts: tuple[Contact, ...]) -> FilterInfo | None:
+        """Run the safety filter on the velocity reference at this control instant (after
+        :meth:`control`): its correction is what :meth:`advance` adds over the period.
+        Without a filter, nothing. Returns what the filter did."""
+        self._shift = None
+        if self.safety is None:
+            return None
+        if not contacts:
+            self.last_filter = None
+            return None
+        a = reg.clip_norm(desired_velocity(self.path, self.q, self.omega, self.k), self.limits.speed)
+        u, info = safety_filter(a, self.q, contacts, self.safety, self.id)
+        self.last_filter = info
+        if info.intervened:
+            self.interventions += 1
+            self._shift = tuple(x - y for x, y in zip(u, a))
+        return info
 
     def advance(self) -> None:
         """Move the plant over one control period at the physics rate."""
@@ -144,28 +190,43 @@ class Vehicle:
         h = T / n
         dist = self.disturbance
         zero = (0.0,) * self.dim
+        shift = self._shift
+        eso = self._eso
         if self.plant == "ideal":
             a = reg.clip_norm(desired_velocity(self.path, self.q, self.omega, self.k), self.limits.speed)
-            if dist is None:
+            if shift is not None:
+                a = tuple(x + y for x, y in zip(a, shift))
+            if dist is None and eso is None:
                 self.state = step_ideal(self.state, a, zero, T)
             else:
                 for _ in range(n):
-                    self.state = step_ideal(self.state, a, dist.step(h), h)
+                    cmd = a if eso is None else tuple(x - y for x, y in zip(a, eso.d_hat))
+                    before = self.state
+                    self.state = step_ideal(before, cmd, dist.step(h) if dist is not None else zero, h)
+                    if eso is not None:
+                        eso = eso.update(self.state.q, known_velocity(before, self.state, cmd), h)
         else:
             w0, wd = self.omega, self.omega_rate
             for j in range(n):
                 w = w0 + wd * j * h
                 d = dist.step(h) if dist is not None else zero
                 st = self.state
+                d_hat = eso.d_hat if eso is not None else None
                 if self.plant == "uav_double_integrator":
-                    tau = reg.uav_pd(st, self.path, w, wd, self.k, self.reg_gains, self.limits)
+                    tau = reg.uav_pd(st, self.path, w, wd, self.k, self.reg_gains, self.limits, d_hat, shift)
                     self.state = step_uav(st, tau, d, h)
                 elif self.regulator == "paper":
                     tu, tr, self._r_ref_prev = reg.usv_paper(st, self.path, w, wd, self.k, self.eps,
-                                                             self.reg_gains, self._r_ref_prev, h, self.limits)
+                                                             self.reg_gains, self._r_ref_prev, h, self.limits,
+                                                             d_hat, shift)
                     self.state = step_usv(st, tu, tr, self.eps, d, h)
                 else:
-                    tu, tr = reg.usv_heading(st, self.path, w, wd, self.k, self.eps, self.reg_gains, self.limits)
+                    tu, tr = reg.usv_heading(st, self.path, w, wd, self.k, self.eps, self.reg_gains, self.limits,
+                                             d_hat, shift)
                     self.state = step_usv(st, tu, tr, self.eps, d, h)
+                if eso is not None:
+                    eso = eso.update(self.state.q, known_velocity(st, self.state), h)
+        self._eso = eso
+        self._shift = None
         self.tick += 1
         self.t = self.tick * T

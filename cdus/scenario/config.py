@@ -9,7 +9,8 @@ starts anything; the only I/O is reading the file.
 
 One module per part of the file: :mod:`.sections` ([scenario], [rates], [metrics],
 [gains], [supervision]), :mod:`.vehicles` ([defaults], [[vehicle]]), :mod:`.graph`,
-:mod:`.link`, :mod:`.events`; all word their problems with :mod:`.checks`; the result
+:mod:`.link`, :mod:`.events`, :mod:`.safety` ([safety], [disturbance], [observer]);
+all word their problems with :mod:`.checks`; the result
 is the dataclasses of :mod:`.model`.
 """
 
@@ -27,7 +28,8 @@ from cdus.scenario.errors import ConfigError
 from cdus.scenario.events import event_section
 from cdus.scenario.graph import graph_section
 from cdus.scenario.link import link_section
-from cdus.scenario.model import Edge, Rates, Scenario, Supervision, VehicleSpec
+from cdus.scenario.model import Edge, Rates, Safety, Scenario, Supervision, VehicleSpec
+from cdus.scenario.safety import apply_fleet, disturbance_section, observer_section, safety_section
 from cdus.scenario.sections import (
     gains_section, metrics_section, rates_section, scenario_section, section, supervision_section,
 )
@@ -35,12 +37,12 @@ from cdus.scenario.vehicles import defaults_section, vehicles_section
 
 # The entry points, and for their callers the error and the result types (defined in errors.py, model.py).
 __all__ = [
-    "ConfigError", "Edge", "Rates", "Scenario", "Supervision", "VehicleSpec", "apply_override", "load_scenario",
+    "ConfigError", "Edge", "Rates", "Safety", "Scenario", "Supervision", "VehicleSpec", "apply_override", "load_scenario",
     "parse_overrides", "parse_scenario", "parse_value",
 ]
 
-SECTIONS = ("scenario", "rates", "metrics", "gains", "defaults", "supervision", "graph", "link", "event",
-            "vehicle")
+SECTIONS = ("scenario", "rates", "metrics", "gains", "defaults", "supervision", "safety", "disturbance",
+            "observer", "graph", "link", "event", "vehicle")
 
 
 # --------------------------------------------------------------------------- entry points
@@ -166,7 +168,11 @@ def _resolve(p: Problems, data: Mapping[str, Any], source: str) -> Scenario | No
     fleet_gains = gains_section(p, section(p, data, "gains"))
     defaults = defaults_section(p, section(p, data, "defaults"))
     supervision = supervision_section(p, section(p, data, "supervision"))
+    safety = safety_section(p, section(p, data, "safety"))
+    disturbance = disturbance_section(p, section(p, data, "disturbance"))
+    observer = observer_section(p, section(p, data, "observer"))
     fleet = vehicles_section(p, data.get("vehicle"), defaults, fleet_gains, header.seed)
+    fleet.specs = apply_fleet(fleet.specs, data.get("vehicle"), defaults, disturbance, observer)
     topology, directed, edges = graph_section(p, section(p, data, "graph"), fleet)
     ids = fleet.known if fleet.complete else None
     link = link_section(p, data.get("link", {}), ids)
@@ -177,5 +183,5 @@ def _resolve(p: Problems, data: Mapping[str, Any], source: str) -> Scenario | No
         name=header.name, description=header.description, source=source, duration=header.duration,
         seed=header.seed, rates=rates, path_tol=path_tol, coord_tol=coord_tol, topology=topology,
         directed=directed, vehicles=tuple(v for v in fleet.specs if v is not None), edges=edges, link=link,
-        events=events, supervision=supervision, raw=dict(data),
+        events=events, supervision=supervision, raw=dict(data), safety=safety,
     )

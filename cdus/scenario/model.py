@@ -7,11 +7,13 @@ are already validated, so nothing downstream checks them again.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
 from cdus.core.events import Event
 from cdus.core.linkspec import LinkSpec
+from cdus.core.proximity import sample_every
 
 #: What the launcher does when a vehicle's process exits during the run (docs/config.md, [supervision]).
 RESTART_POLICIES = ("never", "on-failure", "always")
@@ -58,6 +60,39 @@ class VehicleSpec:
     c: float  # coordination gain
     limits: tuple[tuple[str, float], ...]
     disturbance: tuple[tuple[str, Any], ...]
+    observer: float | None = None  # the disturbance observer's bandwidth (rad/s), None: no observer
+
+
+#: [safety] defaults (docs/config.md, docs/safety.md)
+DEFAULT_SAFETY = {"enabled": False, "radius": 2.0, "gamma": 1.0, "range": 20.0, "rate": 10.0, "latency": 0.0,
+                  "cross_domain": True, "sidestep": 0.3}
+
+
+@dataclass(frozen=True)
+class Safety:
+    """The ``[safety]`` table: the collision-avoidance filter and the proximity sensor.
+
+    ``radius`` R (m) and ``gamma`` γ (1/s) of ḣ ≥ -γ h, h = |q_i - q_k|² - R²; the sensor
+    sees ``range`` m at ``rate`` Hz and its contacts are used ``latency`` s later (at least
+    one control tick: :meth:`latency_ticks`); ``cross_domain``: a UAV also avoids boats.
+    """
+
+    enabled: bool = DEFAULT_SAFETY["enabled"]
+    radius: float = DEFAULT_SAFETY["radius"]
+    gamma: float = DEFAULT_SAFETY["gamma"]
+    range: float = DEFAULT_SAFETY["range"]
+    rate: float = DEFAULT_SAFETY["rate"]
+    latency: float = DEFAULT_SAFETY["latency"]
+    cross_domain: bool = DEFAULT_SAFETY["cross_domain"]
+    sidestep: float = DEFAULT_SAFETY["sidestep"]
+
+    def every(self, control_rate: float) -> int:
+        """Control ticks between two sensor samples: round(control / rate), at least 1."""
+        return sample_every(self.rate, control_rate)
+
+    def latency_ticks(self, control_rate: float) -> int:
+        """Control ticks from a sample to its first use: ceil(latency · control), at least 1."""
+        return max(1, math.ceil(self.latency * control_rate - 1e-9))
 
 
 @dataclass(frozen=True)
@@ -97,6 +132,7 @@ class Scenario:
     events: tuple[Event, ...]  # sorted by time; a pause with a duration is followed by its resume
     supervision: Supervision
     raw: dict  # the overridden TOML data; parse_scenario(raw) rebuilds this scenario
+    safety: Safety = Safety()  # the [safety] table
 
     def vehicle(self, vid: str) -> VehicleSpec:
         for v in self.vehicles:

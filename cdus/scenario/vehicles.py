@@ -15,6 +15,7 @@ import re
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
+from cdus.core.limits import default_limits
 from cdus.core.paths import FAMILIES, Path, PathError, for_dimension, make_path
 from cdus.core.plants import USV_PRESETS
 from cdus.scenario.checks import Problems, describe, is_number, quote, show
@@ -196,7 +197,7 @@ def vehicle(p: Problems, raw: Mapping, index: int, vid: str | None, defaults: Ma
     start_position, start_heading = _start(p, t, kind, seed, vid)
     omega0 = _omega0(p, t)
     k, c = _gains(p, t, kind, fleet_gains)
-    limits = _limits(p, t)
+    limits = _limits(p, t, plant, preset)
     disturbance = _disturbance(p, t, kind)
     if p.since(mark) or vid is None or kind is None or plant is None or dim is None:
         return None, path
@@ -432,10 +433,21 @@ def _gains(p: Problems, t: _Merged, kind: str | None, fleet_gains: Mapping) -> t
     return (), c
 
 
-def _limits(p: Problems, t: _Merged) -> tuple[tuple[str, float], ...]:
+def _limits(p: Problems, t: _Merged, plant: str | None, preset: str | None) -> tuple[tuple[str, float], ...]:
+    """The limits given, over the plant preset's defaults (cdus.core.limits) with preset = true."""
     lt = p.table(t.v.get("limits", {}), t.field("limits"), "limits = { speed = 2.0 }", t.note("limits")) or {}
-    p.unknown_keys(lt, LIMIT_KEYS, t.field("limits"))
-    return _positive_pairs(p, t, lt, LIMIT_KEYS, "limits")
+    p.unknown_keys(lt, (*LIMIT_KEYS, "preset"), t.field("limits"))
+    given = _positive_pairs(p, t, lt, LIMIT_KEYS, "limits")
+    if "preset" not in lt:
+        return given
+    use = p.boolean(lt["preset"], t.field("limits", "preset"), true=" (start from the plant preset's limits)",
+                    false=" (only the limits given)", note=t.note("limits", "preset"))
+    if not use or plant is None:
+        return given
+    base = default_limits(plant, preset)
+    pairs = {key: getattr(base, key) for key in LIMIT_KEYS if math.isfinite(getattr(base, key))}
+    pairs.update(dict(given))
+    return tuple(sorted(pairs.items()))
 
 
 def _disturbance(p: Problems, t: _Merged, kind: str | None) -> tuple[tuple[str, Any], ...]:

@@ -18,12 +18,21 @@ from cdus.core.node import VehicleNode
 from cdus.core.schedule import broadcast_every, total_ticks
 from cdus.core.paths import for_dimension, make_path, nearest_omega
 from cdus.core.plants import USV_PRESETS, PointState, UAVState, USVState
+from cdus.core.safety import SafetyParams
 from cdus.core.vehicle import Vehicle
-from cdus.scenario.model import Rates, Scenario, VehicleSpec
+from cdus.scenario.model import Rates, Safety, Scenario, VehicleSpec
 
 
-def build_vehicle(spec: VehicleSpec, rates: Rates, seed: int) -> Vehicle:
-    """A vehicle's core object from its validated spec and the scenario's rates."""
+def safety_params(safety: Safety, limits: reg.Limits) -> SafetyParams | None:
+    """The filter's parameters from the [safety] table (None when it is off); the vehicle's
+    speed limit bounds the filtered velocity too."""
+    if not safety.enabled:
+        return None
+    return SafetyParams(radius=safety.radius, gamma=safety.gamma, speed=limits.speed, sidestep=safety.sidestep)
+
+
+def build_vehicle(spec: VehicleSpec, rates: Rates, seed: int, safety: Safety | None = None) -> Vehicle:
+    """A vehicle's core object from its validated spec, the scenario's rates and [safety]."""
     path = for_dimension(make_path(dict(spec.path)), spec.dim)
     dim = spec.dim
     period = 1.0 / rates.control
@@ -68,7 +77,8 @@ def build_vehicle(spec: VehicleSpec, rates: Rates, seed: int) -> Vehicle:
     return Vehicle(id=spec.id, kind=spec.kind, dim=dim, path=path, k=tuple(spec.k), c=spec.c,
                    plant=spec.plant, regulator=spec.regulator, control_period=period,
                    physics_steps=steps, state=state, omega=float(w0), eps=eps, reg_gains=reg_gains,
-                   limits=limits, disturbance=dist)
+                   limits=limits, disturbance=dist, safety=safety_params(safety or Safety(), limits),
+                   observer=spec.observer)
 
 
 def links_of(scenario: Scenario, vid: str) -> tuple[NeighbourLink, ...]:
@@ -97,11 +107,24 @@ def build_node(scenario: Scenario, vid: str, link: LinkModel, *, policy: str | N
     spec = scenario.vehicle(vid)
     period = 1.0 / scenario.rates.control
     link_spec = scenario.link
-    return VehicleNode(spec.index, build_vehicle(spec, scenario.rates, scenario.seed), links_of(scenario, vid), link,
+    sensing = sensor_schedule(scenario)
+    return VehicleNode(spec.index, build_vehicle(spec, scenario.rates, scenario.seed, scenario.safety),
+                       links_of(scenario, vid), link,
                        period=period, every=broadcast_every(scenario.rates),
                        last_tick=total_ticks(scenario.duration, period) if last_tick is None else last_tick,
                        policy=policy or link_spec.policy, timeout=link_spec.timeout if timeout is None else timeout,
-                       joined_at=joined_at)
+                       joined_at=joined_at, sense_every=sensing[0] if sensing else None,
+                       sense_latency=sensing[1] if sensing else 1)
+
+
+def sensor_schedule(scenario: Scenario) -> tuple[int, int] | None:
+    """(ticks between proximity samples, ticks from a sample to its use) when the safety
+    filter is on, else None (no sensor: nothing is sampled, sent or waited for)."""
+    sf = scenario.safety
+    if not sf.enabled:
+        return None
+    control = scenario.rates.control
+    return sf.every(control), sf.latency_ticks(control)
 
 
 def link_model_for(scenario: Scenario) -> LinkModel:

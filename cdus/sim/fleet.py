@@ -9,6 +9,9 @@ at control tick n, for every vehicle that is live at n (in index order): ``step(
 telemetry and advances its plant); its ω broadcast goes through the wire format once and
 into each listener's ``on_message``, to be decided at the listener's next tick, exactly as
 a lockstep agent receives it. The row of tick n is recorded once every vehicle has stepped.
+With the safety filter on, the proximity sensor samples the positions of tick n on its
+ticks and hands each vehicle that stepped n its contacts, usable from n + latency, as the
+world does (cdus.sim.sensing).
 
 Scheduled vehicle faults (the scenario's events) become the roster of
 :func:`cdus.core.events.plan_roster`, which every node is given up front, as every
@@ -30,10 +33,11 @@ from cdus.core.node import VehicleNode
 from cdus.core.schedule import broadcast_every, total_ticks
 from cdus.core.vehicle import Telemetry, Vehicle
 from cdus.scenario.model import Scenario
-from cdus.sim.build import build_node, link_model_for, metric_edges
+from cdus.sim.build import build_node, link_model_for, metric_edges, sensor_schedule
+from cdus.sim.sensing import contacts_of, sense_tick
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
 from cdus.sim.summary import link_block, run_metrics, sum_counters
-from cdus.wire.messages import decode_omega, encode_omega
+from cdus.wire.messages import decode_contacts, decode_omega, encode_contacts, encode_omega
 from cdus.wire.schemas import FleetEvent
 
 
@@ -62,6 +66,7 @@ class InProcessFleet:
         self.every = broadcast_every(scenario.rates)
         self.end_tick = total_ticks(scenario.duration, self.period)
         self.roster = plan_roster(scenario.events, self.ids, self.period)
+        self.sensing = sensor_schedule(scenario)  # (every, latency) ticks, None: no proximity sensor
         self.nodes = [self._node(j) for j in range(len(self.ids))]
         self.listeners: list[list[int]] = [[] for _ in self.ids]
         for dst, node in enumerate(self.nodes):
@@ -126,11 +131,13 @@ class InProcessFleet:
         if self.roster:
             self._faults_at(n)
         rows = self._last
+        stepped = []
         for j, node in enumerate(self.nodes):
             state, _ = node.own_state_at(n)
             if state != "live":
                 self._was_live[j] = False
                 continue
+            stepped.append(j)
             if not self._was_live[j]:  # resumed: carry on where it was
                 v = node.vehicle
                 node.rejoin(n, v.q, v.heading, v.omega)
@@ -139,6 +146,8 @@ class InProcessFleet:
             rows[j] = out.telemetry
             if out.omega is not None:
                 self._send(j, out.omega)
+        if self.sensing is not None and n % self.sensing[0] == 0:
+            self._sense(n, {j: rows[j].q for j in stepped})
         self.recorder.record(n * self.period, rows)
         if n % UPDATE_EVERY == 0:
             self._report_link_changes()
@@ -154,6 +163,19 @@ class InProcessFleet:
                 self.nodes[dst].counters.rejected += 1
             else:
                 self.nodes[dst].on_message(wire)
+
+    def _sense(self, n: int, positions: dict) -> None:
+        """The proximity sensor at tick n, as the world runs it: contacts through the wire
+        format once, to every vehicle that stepped n (cdus.sim.sensing)."""
+        for j, msg in sense_tick(self.scenario, n, positions).items():
+            wire = decode_contacts(encode_contacts(msg), len(self.ids))
+            if not isinstance(wire, str):
+                self.nodes[j].on_contacts(n, contacts_of(wire, self.ids))
+
+    @property
+    def interventions(self) -> int:
+        """Control steps at which a safety filter changed a velocity reference, over the fleet."""
+        return sum(node.vehicle.interventions for node in [*self._retired, *self.nodes])
 
     def _report_link_changes(self) -> None:
         for node in self.nodes:
@@ -192,4 +214,4 @@ class InProcessFleet:
         faults = self.link.counters_summary() if isinstance(self.link, LinkEmulator) else None
         return run_metrics(self.scenario, self.recorder, mode=self.mode, link=link_block(counters, faults),
                            wall_s=self.clock() - self._t0, policy=self.policy, events=self.events,
-                           completed=self.tick > self.end_tick, **extra)
+                           completed=self.tick > self.end_tick, interventions=self.interventions, **extra)

@@ -14,8 +14,13 @@ acknowledgements (``on_fault_done``) and operator commands (``pause``, ``resume`
   process. Grants stop at the tick before the fault until it is done, so it lands on
   its tick.
 - :class:`Join`: tell a (re)started process the tick it joins at (0 at the start).
+- :class:`Sense`: sample the proximity sensor at tick ``tick`` (every vehicle live at it
+  has reported it) and send every vehicle its contacts (cdus.sim.sensing). Only with the
+  safety filter on (``sense_every``).
 - :class:`Grant`: vehicles may step up to ``until``: at most ``window`` ticks ahead of the
-  slowest vehicle that is due to report.
+  slowest vehicle that is due to report, and, with the sensor, not past s + latency - 1
+  for the next sample tick s whose contacts have not been sent (a vehicle uses the
+  contacts of s from s + latency on, so it must have them by then).
 - a :class:`FleetEvent` for the record.
 
 A tick is complete (:meth:`recordable`) once every vehicle live at it has reported it.
@@ -40,6 +45,11 @@ class Grant:
 
 
 @dataclass(frozen=True)
+class Sense:
+    tick: int
+
+
+@dataclass(frozen=True)
 class Join:
     vehicle: int
     tick: int
@@ -57,7 +67,7 @@ class Fault:
     vehicle: int
 
 
-Action = Grant | Join | Roster | Fault | FleetEvent
+Action = Grant | Join | Roster | Fault | Sense | FleetEvent
 
 
 @dataclass
@@ -83,6 +93,9 @@ class Lockstep:
     started: bool = False
     acked: dict[int, int] = field(default_factory=dict)  # newest tick reported, per vehicle
     alive: set[int] = field(default_factory=set)
+    sense_every: int | None = None  # ticks between proximity samples; None: no sensor
+    sense_latency: int = 1  # ticks from a sample to its first use (>= 1)
+    sensed: int = -1  # the newest sample tick whose contacts were sent
 
     def __post_init__(self) -> None:
         self._plan = list(plan_roster(self.events, self.ids, self.period, self.lease))
@@ -95,6 +108,9 @@ class Lockstep:
         self._paused_by_hand: dict[int, int] = {}  # vehicle -> tick a ground station paused it at
         self._out: list[Action] = []
         self._lease_ticks = max(1, math.ceil(self.lease / self.period - 1e-9))
+        if self.sense_every is not None and (self.sense_every < 1 or self.sense_latency < 1):
+            raise ValueError(f"sense_every and sense_latency must be >= 1 tick, got {self.sense_every}, "
+                             f"{self.sense_latency}")
 
     # ------------------------------------------------------------------ who is live
     def state_at(self, j: int, n: int) -> str:
@@ -192,6 +208,7 @@ class Lockstep:
         """The actions to carry out now, in order."""
         if self.started:
             self._faults()
+            self._sense()
             self._grant()
         out, self._out = self._out, []
         return out
@@ -239,11 +256,26 @@ class Lockstep:
         p.stage = "asked"
         self._current = p
 
+    def next_sample(self) -> int | None:
+        """The next sample tick whose contacts have not been sent (None: no sensor, or past the end)."""
+        if self.sense_every is None:
+            return None
+        s = 0 if self.sensed < 0 else self.sensed + self.sense_every
+        return s if s <= self.last_tick else None
+
+    def _sense(self) -> None:
+        while (s := self.next_sample()) is not None and s <= self.granted and self.recordable(s):
+            self.sensed = s
+            self._out.append(Sense(s))
+
     def _grant(self) -> None:
         if self.paused:
             return
         due = [self.acked.get(j, -1) for j in range(len(self.ids)) if self._due(j)]
         want = min(self.last_tick, min(due) + self.window) if due else self.last_tick
+        s = self.next_sample()
+        if s is not None:
+            want = min(want, s + self.sense_latency - 1)
         if self._current is not None:
             want = min(want, self._current.tick - 1)
         if self._queue:

@@ -3,8 +3,10 @@
 Field names and definitions are docs/metrics.md's: the Recorder's summary (path and
 coordination settle times, final errors, ω̇, wall time), the link block (messages sent
 to, delivered at, dropped and rejected by the receivers, latency percentiles, and the
-fault emulator's per-link counters), the stale-neighbour policy, the events and whether
-the run reached its end.
+fault emulator's per-link counters), the stale-neighbour policy, the events, whether
+the run reached its end, and the safety figures: ``min_separation_m`` (the smallest
+distance between two vehicles of the same domain) and ``interventions`` (control steps
+at which a safety filter changed a velocity reference, summed over the fleet).
 """
 
 from __future__ import annotations
@@ -12,7 +14,7 @@ from __future__ import annotations
 from typing import Any, Iterable, Sequence
 
 from cdus.core.link import LinkCounters
-from cdus.core.metrics import Recorder, percentile_ms
+from cdus.core.metrics import Recorder, min_separation, percentile_ms
 from cdus.scenario.model import Scenario
 from cdus.wire.schemas import FleetEvent
 
@@ -40,12 +42,16 @@ def sum_counters(counters: Iterable[LinkCounters]) -> LinkCounters:
 
 def run_metrics(scenario: Scenario, recorder: Recorder, *, mode: str, link: dict[str, Any], wall_s: float,
                 policy: str, events: Sequence[FleetEvent] = (), completed: bool = True,
-                **extra: Any) -> dict[str, Any]:
+                interventions: int = 0, **extra: Any) -> dict[str, Any]:
     """The metrics JSON (also of an empty or interrupted run)."""
     m = recorder.summary(scenario=scenario.name, mode=mode, seed=scenario.seed, path_tol=scenario.path_tol,
                          coord_tol=scenario.coord_tol, link=link, wall_s=wall_s)
     m["policy"] = policy
     m["events"] = [e.as_dict() for e in events]
     m["completed"] = completed
+    sep = min_separation(recorder.view("q"), [v.kind for v in scenario.vehicles])
+    m["min_separation_m"] = None if sep is None else round(sep, 6)
+    m["interventions"] = interventions
+    m["safety"] = {"enabled": scenario.safety.enabled, "radius_m": scenario.safety.radius}
     m.update(extra)
     return m

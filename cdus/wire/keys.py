@@ -7,6 +7,7 @@ through one subscription (``to/$*+<me>+$*/**``, :func:`inbox`) and waits in one 
 
     cdus/<fleet>/to/<set>/omega/<src>   ω of vehicle <src> to the vehicles listening to it
     cdus/<fleet>/to/<set>/ctl           the world's clock, roster and relayed commands
+    cdus/<fleet>/to/+<id>+/contacts     the world's proximity sensor: what vehicle <id> sees
     cdus/<fleet>/to/+world+/state/<src> telemetry batches of vehicle <src>
     cdus/<fleet>/to/+world+/stats/<src> its counters, about once a second
     cdus/<fleet>/to/+world+/cmd/<from>  commands to the world (ground stations, the launcher)
@@ -60,6 +61,10 @@ def omega(fleet: str, src: str, listeners: Iterable[str]) -> str:
 
 def ctl(fleet: str, ids: Iterable[str]) -> str:
     return f"cdus/{fleet}/to/{recipients(ids)}/ctl"
+
+
+def contacts(fleet: str, vid: str) -> str:
+    return f"cdus/{fleet}/to/+{vid}+/contacts"
 
 
 def state(fleet: str, src: str) -> str:

@@ -171,6 +171,62 @@ def decode_states(payload: bytes, n_vehicles: int | None = None) -> list[StateMs
     return out
 
 
+# --------------------------------------------------------------------------- proximity contacts
+
+CONTACTS_VERSION = 1
+MAX_CONTACTS = 256
+
+
+@dataclass(frozen=True)
+class ContactsMsg:
+    """What the world's proximity sensor saw around one vehicle at control tick ``tick``:
+    per contact the other vehicle's index, the share of the pair constraint this vehicle
+    takes (cdus.core.safety.Contact) and its position (2 or 3 coordinates)."""
+
+    tick: int
+    contacts: tuple[tuple[int, float, tuple[float, ...]], ...]
+
+
+def encode_contacts(m: ContactsMsg) -> bytes:
+    """[version, tick, [[index, share, [x, y(, z)]], ...]] in msgpack, every float as float64."""
+    return _pack([CONTACTS_VERSION, m.tick, [[k, float(w), [float(x) for x in q]] for k, w, q in m.contacts]])
+
+
+def decode_contacts(payload: bytes, n_vehicles: int | None = None) -> ContactsMsg | str:
+    """A valid contacts message, or the reason it is rejected (``malformed``, ``version``,
+    ``type``, ``non_finite``, ``share``, ``unknown_sender``, ``oversized``); never raises."""
+    if len(payload) > 48 * MAX_CONTACTS + 16:
+        return "oversized"
+    try:
+        obj = msgpack.unpackb(payload, raw=True, max_array_len=MAX_CONTACTS, max_map_len=0, max_str_len=0,
+                              max_bin_len=0, max_ext_len=0)
+    except MSGPACK_ERRORS:
+        return "malformed"
+    if not isinstance(obj, list) or len(obj) != 3:
+        return "malformed"
+    v, tick, rows = obj
+    if type(v) is not int or v != CONTACTS_VERSION:
+        return "version"
+    if type(tick) is not int or tick < 0 or not isinstance(rows, list):
+        return "type"
+    out = []
+    for row in rows:
+        if not isinstance(row, list) or len(row) != 3:
+            return "malformed"
+        k, w, q = row
+        if type(k) is not int or type(w) is not float or not isinstance(q, list) or len(q) not in (2, 3) \
+                or not all(type(x) is float for x in q):
+            return "type"
+        if not (math.isfinite(w) and all(math.isfinite(x) for x in q)):
+            return "non_finite"
+        if not 0.0 < w <= 1.0:
+            return "share"
+        if k < 0 or (n_vehicles is not None and k >= n_vehicles):
+            return "unknown_sender"
+        out.append((k, w, tuple(q)))
+    return ContactsMsg(tick, tuple(out))
+
+
 # --------------------------------------------------------------------------- control maps
 
 CONTROL_VERSION = 1

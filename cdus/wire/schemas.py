@@ -109,6 +109,7 @@ class AgentStats:
     latencies_ms: tuple[float, ...] = ()  # new samples since the last report
     faults: dict | None = None  # the link emulator's counters_summary(), newest state changes only
     bursts: tuple[dict, ...] = ()  # new link_burst events (FleetEvent.as_dict())
+    interventions: int = 0  # control steps at which the safety filter changed the velocity reference
 
     def as_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -117,7 +118,8 @@ class AgentStats:
         return d
 
 
-_STAT_INTS = ("tick", "sent_to_me", "delivered", "dropped", "duplicated", "rejected", "missed_deadlines", "joined_at")
+_STAT_INTS = ("tick", "sent_to_me", "delivered", "dropped", "duplicated", "rejected", "missed_deadlines", "joined_at",
+              "interventions")
 
 
 def encode_stats(s: AgentStats) -> bytes:

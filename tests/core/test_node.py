@@ -196,3 +196,38 @@ def test_not_a_neighbour_and_stale_are_counted():
     assert a.on_message(msg(0, 3)) is None
     assert a.on_message(msg(0, 3)) == "stale"
     assert a.rejected == {"not_a_neighbour": 1, "stale": 1, "gone": 0}
+
+
+# --------------------------------------------------------------------------- proximity contacts
+
+
+def test_contacts_are_used_from_the_sample_tick_plus_latency_and_awaited_until_then():
+    from cdus.core.safety import Contact
+    from cdus.scenario.config import load_scenario
+    sc = load_scenario("configs/crossing.toml", {"safety.latency": 0.06})  # 3 ticks at 50 Hz, sample every 5
+    nd = build_node(sc, "usv_a1", IdealLink())
+    assert (nd.sense_every, nd.sense_latency) == (5, 3)
+    assert not nd.contacts_missing(2) and nd.contacts_at(2) == ()  # nothing sampled before tick 0 + 3
+    assert nd.contacts_missing(3)
+    c0, c5 = (Contact((1.0, 8.0), "usv_b1"),), (Contact((1.5, 8.0), "usv_b1"),)
+    nd.on_contacts(5, c5)  # a newer sample early: not usable before tick 8, and tick 3 still needs tick 0's
+    assert nd.contacts_missing(3) and nd.contacts_at(7) == ()
+    nd.on_contacts(0, c0)
+    assert not nd.contacts_missing(3) and nd.contacts_at(3) == c0 and nd.contacts_at(7) == c0
+    assert nd.contacts_at(8) == c5 and not nd.contacts_missing(12)
+    assert nd.contacts_missing(13)  # tick 10's sample
+    nd.rejoin(20, None, None, None)  # a resumed vehicle: samples before it rejoined are not used
+    assert nd.contacts_at(23) == () and not nd.contacts_missing(22) and nd.contacts_missing(23)
+
+
+def test_the_filter_runs_in_the_step_and_counts_interventions():
+    from cdus.core.safety import Contact
+    from cdus.scenario.config import load_scenario
+    sc = load_scenario("configs/crossing.toml")
+    nd = build_node(sc, "usv_a1", IdealLink())
+    q = nd.vehicle.q
+    nd.on_contacts(0, (Contact((q[0] + 2.1, q[1] - 0.5), "usv_b1"),))  # just outside R, in its way
+    nd.step(0)
+    assert nd.vehicle.interventions == 0  # tick 0 has no contacts yet (latency 1)
+    nd.step(1)
+    assert nd.vehicle.interventions == 1 and nd.vehicle.last_filter.intervened

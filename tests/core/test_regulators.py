@@ -233,3 +233,40 @@ def test_usv_paper_guard_keeps_the_sign_and_only_acts_near_zero(den):
     numerator = -EPS[5] * 0.1 - k[1] * 0.1 - 1.0 * 0.1
     used = den if abs(den) >= reg.PAPER_SINGULAR_GUARD else math.copysign(reg.PAPER_SINGULAR_GUARD, den)
     assert r_ref == pytest.approx(numerator / used, rel=1e-9)
+
+
+# --------------------------------------------------------------------------- disturbance compensation
+
+
+def test_uav_pd_with_an_estimated_wind_flies_a_minus_d_hat():
+    """p^r = a - d̂, and ȧ is taken along the velocity over ground q̇ = p + d̂."""
+    from cdus.core.guidance import desired_velocity_rate
+    path = make_path({"family": "circle", "center": [0, 0, 20], "radius": 10, "beta": 0.1})
+    k = (1.5, 1.5, 1.5)
+    st = UAVState((9.0, 1.0, 19.5), (0.2, 0.8, 0.0))
+    d_hat = (0.5, -0.3, 0.1)
+    gains = reg.UAVGains(b=3.0)
+    a = desired_velocity(path, st.q, 0.2, k)
+    adot = desired_velocity_rate(path, st.q, tuple(p + d for p, d in zip(st.p, d_hat)), 0.2, -1.0, k)
+    want = tuple(-3.0 * (p - (x - d)) + r for p, x, d, r in zip(st.p, a, d_hat, adot))
+    assert reg.uav_pd(st, path, 0.2, -1.0, k, gains, d_hat=d_hat) == pytest.approx(want)
+    assert reg.uav_pd(st, path, 0.2, -1.0, k, gains, d_hat=(0.0, 0.0, 0.0)) == \
+        pytest.approx(reg.uav_pd(st, path, 0.2, -1.0, k, gains))
+
+
+def test_usv_heading_with_an_estimated_current_steers_for_a_minus_d_hat():
+    """A boat on the path heading along it: with a current from ahead, the heading stays
+    and the surge reference grows by the current (b_u 0.3 in τ_u ε3); its feed-forward
+    u̇_d grows by k 0.3 too, because ȧ is taken along the velocity over ground, which the
+    current slows by 0.3 m/s (ȧ = -f''ω̇ - K(q̇ - f'ω̇) changes by -K δq̇)."""
+    path = make_path({"family": "circle", "center": [0, 0], "radius": 10, "beta": 0.1})
+    k = (1.5, 1.5)
+    w = 0.0
+    f, f1, _ = path.eval(w)
+    psi = math.atan2(-f1[1], -f1[0])  # along s f' = -f'
+    st = USVState(f[0], f[1], psi, 1.0, 0.0, 0.0)
+    ahead = (math.cos(psi), math.sin(psi))
+    d_hat = (-0.3 * ahead[0], -0.3 * ahead[1])  # 0.3 m/s against the boat
+    tu0, _ = reg.usv_heading(st, path, w, -1.0, k, EPS, reg.HeadingGains())
+    tu1, _ = reg.usv_heading(st, path, w, -1.0, k, EPS, reg.HeadingGains(), d_hat=d_hat)
+    assert tu1 - tu0 == pytest.approx((reg.HeadingGains().b_u + k[0]) * 0.3 / EPS[2], rel=1e-6)

@@ -199,3 +199,24 @@ def test_fuzz_mutated_messages_never_raise():
         assert isinstance(got, OmegaMsg) or got in REASONS
         seen.add("ok" if isinstance(got, OmegaMsg) else got)
     assert {"ok", "malformed", "version", "type"} <= seen
+
+
+# --------------------------------------------------------------------------- contacts
+
+
+def test_contacts_round_trip_is_exact():
+    from cdus.wire.messages import ContactsMsg, decode_contacts, encode_contacts
+    m = ContactsMsg(1234, ((0, 0.5, (1.0000000000000002, -3.25)), (7, 1.0, (0.1, 0.2, 0.0))))
+    assert decode_contacts(encode_contacts(m), 8) == m
+    assert decode_contacts(encode_contacts(ContactsMsg(0, ())), 8) == ContactsMsg(0, ())
+
+
+@pytest.mark.parametrize("obj, reason", [
+    ([1, -1, []], "type"), ([1, 0, [[0, 0.5]]], "malformed"), ([1, 0, [[0, 1.5, [1.0, 2.0]]]], "share"),
+    ([1, 0, [[3, 0.5, [1.0, 2.0]]]], "unknown_sender"), ([1, 0, [[0, 0.5, [1.0, float("inf")]]]], "non_finite"),
+    ([1, 0, [[0, 0.5, [1.0]]]], "type"), ({"v": 1}, "malformed"),
+])
+def test_bad_contacts_are_rejected_with_a_reason(obj, reason):
+    from cdus.wire.messages import decode_contacts
+    assert decode_contacts(msgpack.packb(obj), 3) == reason
+    assert decode_contacts(b"\x00" * 20000) == "oversized"
