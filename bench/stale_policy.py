@@ -13,13 +13,16 @@
 
 from __future__ import annotations
 
+import sys
 import tempfile
 import time
 from pathlib import Path
 
-from cdus.scenario.config import load_scenario
-from cdus.app.sweep import parse_grid, sweep
-from cdus.sim.fleet import InProcessFleet
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this checkout's packages, not an installed copy
+
+from cdus.scenario.config import load_scenario  # noqa: E402
+from cdus.app.sweep import parse_grid, sweep  # noqa: E402
+from cdus.sim.fleet import InProcessFleet  # noqa: E402
 
 
 def steady_error(policy: str) -> float:
