@@ -87,6 +87,7 @@ class World:
         self.policy = policy or scenario.link.policy
         self.recorder = Recorder(self.ids, [v.dim for v in scenario.vehicles], metric_edges(scenario))
         self.events_scheduled = scenario.events
+        self._realtime_faults = list(scenario.events)  # realtime: carried out when their time comes
         self.lockstep = Lockstep(self.ids, self.period, self.last_tick, self.events_scheduled)
         self.st = WorldState()
         self.pairs = [(e.i, e.k) for e in scenario.edges]
@@ -438,6 +439,7 @@ class World:
                 self._publish_status()
             if self.paused_at is not None:
                 continue
+            self._realtime_faults_due(self._tick_now() * T)
             due = min(self._tick_now() - REALTIME_LAG, self.last_tick)
             while self.next_tick <= due and self._record(self.next_tick):
                 pass
@@ -453,6 +455,16 @@ class World:
             self._drain(block=True)
         while self.next_tick <= self.last_tick and self._record(self.next_tick):
             pass
+
+    def _realtime_faults_due(self, now: float) -> None:
+        """Realtime: ask the launcher for the scheduled vehicle faults whose time has come (the
+        world does not wait for them; their liveliness news makes the roster changes)."""
+        while self._realtime_faults and self._realtime_faults[0].at <= now:
+            ev = self._realtime_faults.pop(0)
+            op = {"pause": "pause_vehicle", "resume": "resume_vehicle"}.get(ev.action, ev.action)
+            self.pub_launcher.put(encode_control(op, vehicle=ev.vehicle))
+            self._note(FleetEvent.of(now, "fault", f"scheduled {ev.action} of {ev.vehicle} (t = {ev.at:g} s)",
+                                     vehicle=ev.vehicle))
 
     def _publish_status(self) -> None:
         n = len(self.recorder)
