@@ -6,7 +6,7 @@
    link: the steady coordination error (worst edge, mean over the last 50 s of a 400 s run)
    with each stale-neighbour policy. A value τ s old is off by about τ|ω̇| = τ rad; on an
    irregular graph that leaves a steady error, which extrapolating with the sender's
-   timestamp and ω̇ removes (dgvf.md §6). Target: extrapolate >= 10x smaller than hold.
+   timestamp and ω̇ removes (docs/control.md §6). Target: extrapolate >= 10x smaller than hold.
 2. `cdus sweep` runs per minute on this machine (a 3 x 2 grid x 2 seeds of lake_circle,
    250 s each, in-process, all cores).
 """

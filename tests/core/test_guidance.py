@@ -10,7 +10,7 @@ from cdus.core.guidance import (
 )
 from cdus.core.paths import make_path
 
-LAKE = {"family": "circle", "center": [-40, 50], "radius": 10}  # dgvf.md §7
+LAKE = {"family": "circle", "center": [-40, 50], "radius": 10}  # docs/control.md §7
 K_LAKE = (1.5, 1.5)
 C = 2.0
 
