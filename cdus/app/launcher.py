@@ -5,10 +5,10 @@ every liveliness token without polling: it starts world_sim, waits for the world
 starts the agents, waits for all of theirs (naming the ones that did not come up, with the
 tail of their logs), then watches: it shows the world's progress, restarts agents by the
 scenario's ``[supervision]`` (restart never | on-failure | always, at most ``max_restarts``
-times per vehicle, after a doubling back-off; docs/config.md), and at the end, on Ctrl-C, on SIGTERM or on
-a failure, walks the shutdown ladder: ask the world to stop (it writes the metrics), let
-everyone exit for a grace period, SIGTERM their process groups, then SIGKILL. Nothing it
-started outlives it.
+times per vehicle, after a doubling back-off; docs/config.md), and at the end, on Ctrl-C,
+on SIGTERM or on a failure, walks the shutdown ladder: ask the world to stop (it writes the
+metrics), let everyone exit for a grace period, SIGTERM their process groups, then SIGKILL.
+Nothing it started outlives it.
 """
 
 from __future__ import annotations
