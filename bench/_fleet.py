@@ -21,6 +21,7 @@ import psutil
 
 BENCH = Path(__file__).resolve().parent
 REPO = BENCH.parent
+sys.path.insert(0, str(REPO))  # the benches import this checkout's packages, not an installed copy
 
 
 def cdus_argv() -> list[str]:

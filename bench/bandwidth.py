@@ -3,15 +3,15 @@
     python bench/bandwidth.py                            # lake_circle, 12 s realtime run
     python bench/bandwidth.py --config configs/lissajous_5x5.toml --duration 20
 
-Computed: the ω payload (vehicle_agent.messages.encode_omega, over the run's sequence
+Computed: the ω payload (cdus.wire.messages.encode_omega, over the run's sequence
 numbers) x the broadcast rate, once into the router and once per listener out of it; the
 same for what a position-based coordination would exchange at the same rate, a msgpack
 array [version, id, seq, t, x, y, z, vx, vy, vz] with float64 values; and the telemetry
 (state) batches each vehicle sends the world (encode_states, the agent's batch size).
 
 Measured: a `cdus launch CONFIG --clock realtime` run on a router this bench chooses the
-port of; a client session of the bench subscribes to cdus/<fleet>/v/*/{omega,state,stats}
-and counts payload bytes per vehicle over the middle of the run, and `ss` reads each
+port of; a client session of the bench subscribes to the fleet's ω, telemetry and counter
+keys (cdus.wire.keys any_omega, any_state, any_stats) and counts payload bytes per vehicle over the middle of the run, and `ss` reads each
 agent's TCP byte counters (everything it sends and receives, Zenoh framing and
 keep-alives included). Figures are printed, never asserted.
 """
@@ -107,7 +107,7 @@ def measure(config: str, sc, duration: float, work: Path) -> dict:
             t = time.monotonic()
             n = len(sample.payload.to_bytes())
             with lock:
-                seen[leaf].append((t, keys.vehicle_of(str(sample.key_expr)), n))
+                seen[leaf].append((t, keys.leaf(str(sample.key_expr))[1], n))
         return cb
 
     args = ["launch", config, "--clock", "realtime", "--duration", f"{duration:g}", "-q", "--fleet", fleet,
@@ -116,8 +116,8 @@ def measure(config: str, sc, duration: float, work: Path) -> dict:
     with Launch(args, fleet=fleet) as la:
         try:
             session = open_session(Transport(mode="client", connect=(ep,)))
-            subs = [session.declare_subscriber(keys.any_vehicle(fleet, leaf), counter(leaf))
-                    for leaf in ("omega", "state", "stats")]
+            subs = [session.declare_subscriber(key(fleet), counter(leaf))
+                    for leaf, key in (("omega", keys.any_omega), ("state", keys.any_state), ("stats", keys.any_stats))]
             la.up.wait(timeout=120)
             time.sleep(0.5 + 2.0)  # the world starts the clock 0.5 s after everyone is up
             agents = {p.pid: role(p)[6:] for p in la.processes() if role(p).startswith("agent:")}

@@ -40,7 +40,8 @@ TARGET = 0.10
 def one(vehicles: int, duration: float, flush: float | None, path: str) -> dict:
     """CPU of one run (``flush`` None: no sink), split between the world and the sink."""
     from cdus.sim.fleet import InProcessFleet
-    from world_sim.recording import NullSink, Target
+    from cdus.sim.sink import NullSink
+    from world_sim.recording import Target
     from world_sim.rerun_sink import RerunSink
 
     sc = ring(vehicles, duration)

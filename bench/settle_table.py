@@ -13,9 +13,13 @@ import argparse
 import glob
 import os
 import statistics
+import sys
+from pathlib import Path
 
-from cdus.scenario.config import load_scenario
-from cdus.sim.fleet import InProcessFleet
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this checkout's packages, not an installed copy
+
+from cdus.scenario.config import load_scenario  # noqa: E402
+from cdus.sim.fleet import InProcessFleet  # noqa: E402
 
 PAPER = {"lake_circle": ("87", "142"), "lissajous_5x5": ("30", "50")}
 

@@ -12,10 +12,14 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
+from pathlib import Path
 
-from cdus.scenario.config import load_scenario, parse_scenario
-from cdus.sim.fleet import InProcessFleet
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this checkout's packages, not an installed copy
+
+from cdus.scenario.config import load_scenario, parse_scenario  # noqa: E402
+from cdus.sim.fleet import InProcessFleet  # noqa: E402
 
 
 def speed(scenario, repeat: int) -> tuple[float, float]:

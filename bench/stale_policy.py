@@ -6,20 +6,23 @@
    link: the steady coordination error (worst edge, mean over the last 50 s of a 400 s run)
    with each stale-neighbour policy. A value τ s old is off by about τ|ω̇| = τ rad; on an
    irregular graph that leaves a steady error, which extrapolating with the sender's
-   timestamp and ω̇ removes (dgvf.md §6). Target: extrapolate >= 10x smaller than hold.
+   timestamp and ω̇ removes (docs/control.md §6). Target: extrapolate >= 10x smaller than hold.
 2. `cdus sweep` runs per minute on this machine (a 3 x 2 grid x 2 seeds of lake_circle,
    250 s each, in-process, all cores).
 """
 
 from __future__ import annotations
 
+import sys
 import tempfile
 import time
 from pathlib import Path
 
-from cdus.scenario.config import load_scenario
-from cdus.app.sweep import parse_grid, sweep
-from cdus.sim.fleet import InProcessFleet
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this checkout's packages, not an installed copy
+
+from cdus.scenario.config import load_scenario  # noqa: E402
+from cdus.app.sweep import parse_grid, sweep  # noqa: E402
+from cdus.sim.fleet import InProcessFleet  # noqa: E402
 
 
 def steady_error(policy: str) -> float:

@@ -2,7 +2,7 @@
 
 Left: the 3-D world (paths, vehicles, trails) over the link timeline and the event log.
 Right: the time series (path error, coordination error, ω̇). The time panel runs on
-``sim_time`` and follows the newest data. The entity paths are system.md's ("Rerun").
+``sim_time`` and follows the newest data. The entity paths are docs/rerun.md's.
 """
 
 from __future__ import annotations

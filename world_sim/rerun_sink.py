@@ -1,6 +1,6 @@
 """The world in Rerun: a sink that streams a run to a viewer and/or an .rrd file.
 
-What goes where (system.md, "Rerun"; timeline ``sim_time``, a duration):
+What goes where (docs/rerun.md; timeline ``sim_time``, a duration):
 
 - ``world/paths/<id>``: the prescribed path, static (one period; a window around the run
   for an open path); USV paths at z = 0. Blue-ish for USVs, orange-ish for UAVs.

@@ -98,6 +98,7 @@ class World:
                                  sense_latency=self.sensing[1] if self.sensing else 1)
         self._sample_rows: dict[int, dict[int, tuple]] = {}  # sample tick -> vehicle -> q (lockstep)
         self._next_sample = 0  # realtime: the next sample tick
+        self._realtime_faults = list(scenario.events)  # realtime: carried out when their time comes
         self.st = WorldState()
         self.pairs = [(e.i, e.k) for e in scenario.edges]
         self.log = log or (lambda s: print(f"[world] {s}", flush=True))
@@ -478,6 +479,7 @@ class World:
                 self._publish_status()
             if self.paused_at is not None:
                 continue
+            self._realtime_faults_due(self._tick_now() * T)
             due = min(self._tick_now() - REALTIME_LAG, self.last_tick)
             while self.next_tick <= due and self._record(self.next_tick):
                 pass
@@ -493,6 +495,16 @@ class World:
             self._drain(block=True)
         while self.next_tick <= self.last_tick and self._record(self.next_tick):
             pass
+
+    def _realtime_faults_due(self, now: float) -> None:
+        """Realtime: ask the launcher for the scheduled vehicle faults whose time has come (the
+        world does not wait for them; their liveliness news makes the roster changes)."""
+        while self._realtime_faults and self._realtime_faults[0].at <= now:
+            ev = self._realtime_faults.pop(0)
+            op = {"pause": "pause_vehicle", "resume": "resume_vehicle"}.get(ev.action, ev.action)
+            self.pub_launcher.put(encode_control(op, vehicle=ev.vehicle))
+            self._note(FleetEvent.of(now, "fault", f"scheduled {ev.action} of {ev.vehicle} (t = {ev.at:g} s)",
+                                     vehicle=ev.vehicle))
 
     def _publish_status(self) -> None:
         n = len(self.recorder)

@@ -5,10 +5,11 @@ every liveliness token without polling: it starts world_sim, waits for the world
 starts the agents (but those started elsewhere, ``remote``: it prints their command
 lines, docs/multihost.md), waits for all of theirs (naming the ones that did not come up, with the
 tail of their logs), then watches: it shows the world's progress, restarts agents by the
-restart policy (never | on-failure | always), and at the end, on Ctrl-C, on SIGTERM or on
-a failure, walks the shutdown ladder: ask the world to stop (it writes the metrics), let
-everyone exit for a grace period, SIGTERM their process groups, then SIGKILL. Nothing it
-started outlives it.
+scenario's ``[supervision]`` (restart never | on-failure | always, at most ``max_restarts``
+times per vehicle, after a doubling back-off; docs/config.md), and at the end, on Ctrl-C,
+on SIGTERM or on a failure, walks the shutdown ladder: ask the world to stop (it writes the
+metrics), let everyone exit for a grace period, SIGTERM their process groups, then SIGKILL.
+Nothing it started outlives it.
 """
 
 from __future__ import annotations
@@ -28,12 +29,12 @@ from typing import Any, Callable
 
 import zenoh
 
-from cdus.scenario.model import DEFAULT_RESTART, Scenario
+from cdus.scenario.model import DEFAULT_RESTART, Scenario, Supervision
 from cdus.app.report import Progress
 from cdus.files import write_json
 from cdus.wire import keys
 from cdus.wire.messages import CTL_OPS, LAUNCHER_OPS, decode_control, encode_control
-from cdus.wire.schemas import decode_event, decode_status
+from cdus.wire.schemas import FleetEvent, decode_event, decode_status, encode_event
 from cdus.wire.transport import DEFAULT_LEASE_MS, Transport, client_of, open_session
 
 LINKS = ("direct", "router")  # how ω travels between neighbours (docs/architecture.md)
@@ -55,7 +56,10 @@ class Child:
     argv: list[str]
     log_path: Path
     proc: subprocess.Popen | None = None
-    restarts: int = 0
+    restarts: int = 0  # every restart: scheduled faults and supervision
+    supervised_restarts: int = 0  # restarts by the restart policy (bounded by max_restarts)
+    restart_at: float | None = None  # when the policy restarts it (the launcher's clock), None: not due
+    given_up: bool = False  # the policy's restarts are used up: it stays down
     exit_code: int | None = None
     log_file: Any = None
     intended_exit: bool = False  # killed on purpose (a scheduled fault): not a failure to restart
@@ -123,6 +127,7 @@ class Launcher:
     router: Transport
     opts: LaunchOptions
     log: Callable[[str], None] = field(default=lambda s: print(s, flush=True))
+    clock: Callable[[], float] = time.monotonic  # for restart back-offs (a test's own clock)
 
     def __post_init__(self) -> None:
         self.fleet = keys.check_fleet(self.opts.fleet)
@@ -148,6 +153,8 @@ class Launcher:
         self.sockets: Path | None = None  # direct links: each agent's unix socket, in a short temp dir
         if self.opts.links == "direct":
             self.sockets = Path(tempfile.mkdtemp(prefix="cdus-"))
+        sv = self.scenario.supervision  # the policy from the command line, the limits from the scenario
+        self.supervision = Supervision(self.opts.restart, sv.max_restarts, sv.backoff_s)
 
     # ------------------------------------------------------------------ processes
     def _common(self, name: str, t: Transport | None = None) -> list[str]:
@@ -219,6 +226,8 @@ class Launcher:
 
     def _carry_out(self, op: str, vid: str) -> None:
         c = self.children[vid]
+        if op in ("kill", "restart"):
+            c.restart_at = None  # the fault decides, not a pending restart by the policy
         if op == "kill":
             c.intended_exit = True
             c.signal_group(signal.SIGKILL)
@@ -334,27 +343,68 @@ class Launcher:
                 requests, self.requests = self.requests, []
             for op, vid in requests:
                 self._carry_out(op, vid)
-            for name, c in self.children.items():
-                if (name != "world" and c.exit_code is None and c.poll() is not None
-                        and not self.stopping and not self.finished):
-                    self._on_agent_exit(c, c.exit_code)
+            self._watch_agents()
             with self.cond:
                 if not self.requests:
-                    self.cond.wait(timeout=0.2)
+                    self.cond.wait(timeout=self._wait_s())
                 st = self.status
             if st and float(st.get("t", 0.0)) > 0:
                 progress(float(st.get("t", 0.0)), duration)
 
+    def _watch_agents(self) -> None:
+        """Notice agents that exited and restart those whose back-off is over (never blocks)."""
+        if self.stopping or self.finished:
+            return
+        for name, c in self.children.items():
+            if name != "world" and c.exit_code is None and c.poll() is not None:
+                self._on_agent_exit(c, c.exit_code)
+        now = self.clock()
+        for c in self.children.values():
+            if c.restart_at is not None and now >= c.restart_at:
+                c.restart_at = None
+                c.restarts += 1
+                c.supervised_restarts += 1
+                self.log(f"  restarting vehicle {c.name} (restart {c.supervised_restarts} of at most "
+                         f"{self.supervision.max_restarts})")
+                c.start(self.env)
+
+    def _wait_s(self) -> float:
+        """How long the watch loop may sleep: until the next restart is due, at most 0.2 s."""
+        due = [c.restart_at for c in self.children.values() if c.restart_at is not None]
+        return max(0.0, min([0.2, *(t - self.clock() for t in due)]))
+
     def _on_agent_exit(self, c: Child, rc: int) -> None:
+        """An agent exited during the run: by the restart policy, restart it after its back-off,
+        or give up on it once its restarts are used up."""
         if c.intended_exit:  # a scheduled kill: the experiment, not a failure
             return
         how = f"exited with status {rc}" if rc >= 0 else f"was killed by signal {-rc}"
-        policy = self.opts.restart
-        again = policy == "always" or (policy == "on-failure" and rc != 0)
-        self.log(f"  vehicle {c.name} {how}" + ("; restarting it" if again else ""))
-        if again:
-            c.restarts += 1
-            c.start(self.env)
+        sv = self.supervision
+        if not (sv.restart == "always" or (sv.restart == "on-failure" and rc != 0)):
+            self.log(f"  vehicle {c.name} {how} (restart policy {sv.restart}: it stays down)")
+            return
+        if c.supervised_restarts >= sv.max_restarts:
+            c.given_up = True
+            self._give_up(c, how)
+            return
+        wait = sv.backoff(c.supervised_restarts)
+        c.restart_at = self.clock() + wait
+        self.log(f"  vehicle {c.name} {how}; restarting it in {wait:g} s")
+
+    def _give_up(self, c: Child, how: str) -> None:
+        sv = self.supervision
+        st = self.status or {}
+        t = float(st.get("t", 0.0)) if isinstance(st.get("t"), (int, float)) else 0.0
+        event = FleetEvent.of(t, "gave_up", f"vehicle {c.name} {how} after {c.supervised_restarts} restarts; "
+                              f"the launcher gives up on it (supervision.max_restarts = {sv.max_restarts}); "
+                              f"its log: {c.log_path}", vehicle=c.name)
+        self.log(f"  {event.text}")
+        if self.session is not None:
+            try:
+                self.session.put(keys.world_events(self.fleet), encode_event(event),  # not to our own _on_event
+                                 allowed_destination=zenoh.Locality.REMOTE)
+            except zenoh.ZError as e:
+                self.log(f"  could not publish that: {e}")
 
     def stop(self) -> None:
         """The shutdown ladder: ask, wait, SIGTERM, wait, SIGKILL. Idempotent."""

@@ -2,7 +2,7 @@
 
 Pure functions over vehicle ids, no I/O. A *listening pair* ``(i, k)`` means vehicle i
 listens to vehicle k: k is in N_i, the neighbour set of the paper's sum
-``Σ_k a_ik (ω_i - ω_k - Δ_ik)`` (dgvf.md §2). Information therefore flows k -> i.
+``Σ_k a_ik (ω_i - ω_k - Δ_ik)`` (docs/control.md §2). Information therefore flows k -> i.
 
 Two facts the controller needs from the graph:
 - a directed spanning tree (the paper's Assumption 1): some root reaches every vehicle

@@ -1,4 +1,4 @@
-"""The upper level: DGVF guidance (`control_law_USV`, `control_law_UAV`, dgvf.md §2).
+"""The upper level: DGVF guidance (`control_law_USV`, `control_law_UAV`, docs/control.md §2).
 
     a_i   = s f_i'(ω_i) - K_i Φ_i                       desired world-frame velocity
     u_i^ω = s + Φ_iᵀ K_i f_i'(ω_i) - c_i Σ_k a_ik (ω_i - ω_k - Δ_ik)
@@ -9,7 +9,7 @@ dimensions; the USV's body-frame split of ``a`` lives in the regulators.
 
 The ω dynamics are stiff (tangential rate k(1 + |f'|²), 151.5/s on the lake circle), so
 ω is integrated here with internal substeps of a linearly implicit (Rosenbrock-Euler)
-scheme, holding the measured position over the control period (dgvf.md §2, "integrate ω
+scheme, holding the measured position over the control period (docs/control.md §2, "integrate ω
 inside the controller"). The scheme is A-stable along the path direction, so it is
 stable at every control rate; its fixed point is the exact equilibrium of u^ω.
 

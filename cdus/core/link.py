@@ -212,7 +212,7 @@ class _Link:
 
 
 class LinkEmulator:
-    """The link fault emulator (system.md "Link fault model"): a :class:`LinkModel`.
+    """The link fault emulator (docs/link.md): a :class:`LinkModel`.
 
     ``decide(src, dst, seq, t_send)`` depends on (seed, src, dst, seq, t_send) and the spec
     in force at ``t_send`` only (see the note above on determinism). Order of the checks,

@@ -21,7 +21,7 @@ ANY = "*"
 
 POLICIES = ("hold", "timeout", "extrapolate")  # stale-neighbour policies (cdus.core.neighbours)
 DEFAULT_POLICY = "hold"
-DEFAULT_TIMEOUT = 1.5  # s, the public Paparazzi relative's (dgvf.md §6)
+DEFAULT_TIMEOUT = 1.5  # s, the public Paparazzi relative's (docs/control.md §6)
 
 
 # --------------------------------------------------------------------------- the spec

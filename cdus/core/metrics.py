@@ -1,6 +1,6 @@
 """How well does the fleet do? The metric definitions, the same in every clock mode.
 
-(system.md "Metrics")
+(docs/metrics.md)
 - path error of vehicle i: |Φ_i| = |q_i - f_i(ω_i)|, sampled at control instants after the
   controller's update;
 - coordination error of edge (i, k): |ω_i - ω_k - Δ_ik|;
@@ -120,7 +120,7 @@ class Recorder:
 
     def summary(self, *, scenario: str, mode: str, seed: int, path_tol: float, coord_tol: float,
                 link: dict, wall_s: float) -> dict[str, Any]:
-        """The metrics JSON (system.md field names)."""
+        """The metrics JSON (docs/metrics.md field names)."""
         t = self.view("t")
         pe = self.view("path_error")
         ee = self.edge_error()

@@ -2,13 +2,13 @@
 
 A receiver keeps, per neighbour, the newest accepted message (older sequence numbers
 are rejected as stale or duplicates) and turns the table into the consensus term of the
-guidance with a stale-neighbour policy (system.md "Link fault model"):
+guidance with a stale-neighbour policy (docs/link.md):
 
 - ``hold``: use the last value as it is;
 - ``timeout``: like hold, but a neighbour silent for longer than ``timeout`` s drops out of
   the sum (the public Paparazzi relative uses 1.5 s);
 - ``extrapolate``: ω_k + ω̇_k (t - t_send), which removes most of the τ·|ω̇| bias a
-  delay τ causes (dgvf.md §6).
+  delay τ causes (docs/control.md §6).
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ several times faster than NumPy and keeps the agent's control loop cheap.
 
 Every family takes ``beta`` (speed scaling, f(ω) -> f(βω): the on-path speed becomes
 β|f0'| at |ω̇| = 1) and ``direction`` s = ±1 (the paper's (-1)^3 = -1 is the default;
-the guidance uses s as the travel direction, dgvf.md §2).
+the guidance uses s as the travel direction, docs/control.md §2).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""What moves: the vehicle models (dgvf.md §3), as pure step functions.
+"""What moves: the vehicle models (docs/control.md §3), as pure step functions.
 
 - ``ideal``: the lower level tracks perfectly (Problem 1 solved): q̇ = a, held over the
   control period.
@@ -19,7 +19,7 @@ from cdus.core.paths import Vec
 
 # ε1..ε7 of a standard 3-DOF surface-vessel model with CyberShip II-like masses
 # (25.8, 33.8, 2.76) and damping (12, 17, 0.5): ε1 = -d11/m11, ε2 = m22/m11,
-# ε3 = 1/m11, ε4 = -d33/m33, ε5 = 1/m33, ε6 = -d22/m22, ε7 = -m11/m22 (dgvf.md §3).
+# ε3 = 1/m11, ε4 = -d33/m33, ε5 = 1/m33, ε6 = -d22/m22, ε7 = -m11/m22 (docs/control.md §3).
 # The paper's HUSTER-12C/16 values are not public; this preset is not them.
 USV_PRESETS: dict[str, tuple[float, ...]] = {
     "cybership2": (-0.465, 1.310, 0.0388, -0.181, 0.362, -0.503, -0.763),

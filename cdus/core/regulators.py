@@ -1,4 +1,4 @@
-"""The lower level: regulators that make a plant track the guidance (Problem 1, dgvf.md §3).
+"""The lower level: regulators that make a plant track the guidance (Problem 1, docs/control.md §3).
 
 Each regulator is a pure function of the plant state and the guidance reference: the
 path, the vehicle's ω and ω̇ (held from the last control instant and extrapolated
@@ -102,7 +102,7 @@ class HeadingGains:
 def usv_heading(state: USVState, path: Path, w: float, wdot: float, k: Vec, eps: tuple[float, ...],
                 gains: HeadingGains, limits: Limits = NO_LIMITS,
                 d_hat: Vec | None = None, shift: Vec | None = None) -> tuple[float, float]:
-    """Heading-mode USV regulator (dgvf.md §3, the recommended default).
+    """Heading-mode USV regulator (docs/control.md §3, the recommended default).
 
     Tracks the heading ψ_d = atan2(a_y, a_x) and the surge speed u_d = |a| cos(ψ - ψ_d)
     (|a| projected on the heading, not below 0); sway is left to damping and the GVF's
@@ -156,7 +156,7 @@ def usv_paper(state: USVState, path: Path, w: float, wdot: float, k: Vec, eps: t
               gains: PaperGains, r_ref_prev: float | None, h: float,
               limits: Limits = NO_LIMITS, d_hat: Vec | None = None,
               shift: Vec | None = None) -> tuple[float, float, float]:
-    """`regulated_law_USV` / `regulated_law_USV2` as corrected in dgvf.md §3.
+    """`regulated_law_USV` / `regulated_law_USV2` as corrected in docs/control.md §3.
 
     Body-frame references u^r = a_x cos ψ + a_y sin ψ, v^r = -a_x sin ψ + a_y cos ψ.
     Corrections to the paper: the surge law is τ_u = (u̇^r - ε1 u - ε2 v r - b1 ũ)/ε3

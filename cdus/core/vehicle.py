@@ -5,7 +5,7 @@ runner; it does no I/O and reads no clock. One control period is:
 
 1. ``control(t, consensus)``: at a control instant, integrate ω over the period just
    ended with the measured position held (guidance.integrate_omega); ω̇ is reported as
-   the mean over that period (dgvf.md §2: the instantaneous value means nothing).
+   the mean over that period (docs/control.md §2: the instantaneous value means nothing).
 2. the caller samples metrics and publishes ω (after the controller's update);
 3. ``guard(contacts)`` (with a safety filter): the velocity reference at the control
    instant through the CBF filter (cdus.core.safety); its correction u - u_ref is held

@@ -108,6 +108,10 @@ def any_omega(fleet: str) -> str:
     return f"cdus/{fleet}/to/*/omega/*"
 
 
+def any_stats(fleet: str) -> str:
+    return f"cdus/{fleet}/to/*/stats/*"
+
+
 def world_status(fleet: str) -> str:
     return f"cdus/{fleet}/world/status"
 

@@ -31,6 +31,7 @@ EVENT_KINDS: dict[str, str] = {
     "graph": "info",  # whether the live graph still has a spanning tree (severity warn if not)
     "fault": "warn",  # a scheduled vehicle fault carried out (kill, pause, resume, restart)
     "fault_missed": "error",  # a scheduled fault nobody carried out
+    "gave_up": "error",  # the launcher used up a vehicle's restarts ([supervision] max_restarts)
     "link_state": "info",  # a directed link became up, lossy or down (warn for down)
     "link_burst": "warn",  # a run of consecutive drops on a link
     "link_changed": "info",  # link faults changed at run time

@@ -5,8 +5,9 @@ Every cdus process takes the same transport flags, named as in zenoh-python's ex
     --mode {peer,client,router}   --connect ENDPOINT ...   --listen ENDPOINT ...
     --zenoh-config FILE           (a zenoh json5 config; flags given override it)
 
-Default topology (system.md "Zenoh"): the world opens a session in router mode listening
-on ``tcp/127.0.0.1:<port>`` (or a unix socket); everything else connects to it as a client.
+Default topology (docs/architecture.md, "Processes"): one process opens a session in router
+mode listening on ``tcp/127.0.0.1:<port>`` (or a unix socket), the launcher in ``cdus
+launch`` (a world started by hand otherwise); everything else connects to it as a client.
 Multicast scouting is switched off in every config this module builds, including one read
 from a user's file: it would send packets off this machine. Connect to explicit endpoints.
 """

@@ -11,7 +11,7 @@ from cdus.core.guidance import (
 )
 from cdus.core.paths import make_path, nearest_omega
 
-LAKE = {"family": "circle", "center": [-40, 50], "radius": 10}  # dgvf.md §7
+LAKE = {"family": "circle", "center": [-40, 50], "radius": 10}  # docs/control.md §7
 K_LAKE = (1.5, 1.5)
 C = 2.0
 

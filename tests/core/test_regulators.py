@@ -135,7 +135,7 @@ def test_usv_heading_converges_to_a_line(k, limits, psi0):
 
 @pytest.mark.parametrize("psi0, u_final", [(-math.pi / 2, 1.0), (math.pi / 2, -1.0)])
 def test_usv_paper_on_a_line_tracks_but_may_sail_stern_first(psi0, u_final):
-    """Where the paper's regulator fails (dgvf.md §3): from 5 m off the line it tracks the
+    """Where the paper's regulator fails (docs/control.md §3): from 5 m off the line it tracks the
     path either way, but from the start pointing away it ends sailing stern-first."""
     st, phi, rate = _run_usv_on_line((1.5, 1.5), psi0, reg.Limits(speed=2.0), regulator="paper")
     assert phi < 0.2
@@ -174,7 +174,7 @@ def test_usv_heading_limits_clip_the_inputs():
 
 def test_usv_paper_runs_from_a_benign_start():
     """On the path, heading along it, u = 1: 20 s without NaN, finite torques, still on the
-    path and sailing bow-first (from other starts it ends stern-first: dgvf.md §3)."""
+    path and sailing bow-first (from other starts it ends stern-first: docs/control.md §3)."""
     path = make_path({"family": "circle", "center": [0, 0], "radius": 10, "speed": 1.0})
     k = (1.5, 1.5)
     w = 0.3

@@ -1,4 +1,4 @@
-"""The in-process fleet against the paper's behaviour (dgvf.md §2, §7).
+"""The in-process fleet against the paper's behaviour (docs/control.md §2, §7).
 
 Every scenario here is a shipped config run for its full duration with its own seed, so
 the numbers in the README come from the same runs.
@@ -32,7 +32,7 @@ def test_lake_circle_ideal_reaches_the_papers_objectives():
     # Objective 2: ω̇ -> -1 (mean over the last second)
     for vid, rate in m["omega_rate_final"].items():
         assert abs(rate + 1.0) < 0.01, (vid, rate)
-    # dgvf.md §2: at 50 Hz, ideal tracking holds |Φ| ≈ 0.063 m (the tangential offset
+    # docs/control.md §2: at 50 Hz, ideal tracking holds |Φ| ≈ 0.063 m (the tangential offset
     # 1/(k|f'|) = 0.067 m that balances the -1 drift, less the chord effect)
     assert 0.03 < m["final_path_error_max"] < 0.08
     # The 120° formation holds on the water: USVs 2π/3 apart along the circle
@@ -61,7 +61,7 @@ def test_lake_circle_with_vehicle_models_converges():
 
 
 @pytest.mark.parametrize("rate,max_path_error,max_rate_error", [
-    (10.0, 0.35, 0.03),   # chord error of a 10 m/s circle at 10 Hz ≈ 0.3 m (dgvf.md §2)
+    (10.0, 0.35, 0.03),   # chord error of a 10 m/s circle at 10 Hz ≈ 0.3 m (docs/control.md §2)
     (20.0, 0.2, 0.01),
     (50.0, 0.08, 0.01),
 ])

@@ -1,36 +1,280 @@
-"""The agent's receive path for the proximity sensor, without a Zenoh session."""
+"""The vehicle agent's shell logic without a network: a fake Zenoh session whose inbox is a
+scripted list of samples (the agent's one subscription), publishers that record puts."""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
 
 import msgpack
 import pytest
 
 from cdus.scenario.config import load_scenario
-from cdus.wire.messages import ContactsMsg, encode_contacts
+from cdus.sim.build import listeners_of
+from cdus.wire import keys
+from cdus.wire.messages import (
+    OmegaMsg, decode_omega, decode_states, encode_control, encode_omega,
+)
+from cdus.wire.schemas import decode_stats, encode_stats
 from cdus.wire.transport import Transport
+from vehicle_agent import agent as agent_module
 from vehicle_agent.agent import Agent
+
+FLEET = "tfake"
+ME = "usv1"  # listens to usv2 and uav3 on the lake ring
+
+
+class Payload:
+    def __init__(self, data: bytes):
+        self.data = data
+
+    def to_bytes(self) -> bytes:
+        return self.data
+
+
+@dataclass
+class Sample:
+    key_expr: str
+    payload: Payload
+
+
+class Inbox:
+    """The agent's subscription: samples in the order a test scripts them; ``then``: samples
+    that arrive only once the agent blocks on an empty inbox (e.g. the world's stop)."""
+
+    def __init__(self) -> None:
+        self.q: deque[Sample] = deque()
+        self.then: deque[Sample] = deque()
+
+    def recv(self) -> Sample:
+        if not self.q and self.then:
+            self.q.append(self.then.popleft())
+        if not self.q:
+            raise AssertionError("the agent waited on an empty inbox (it would block for ever)")
+        return self.q.popleft()
+
+    def try_recv(self) -> Sample | None:
+        return self.q.popleft() if self.q else None
+
+
+class Pub:
+    def __init__(self, key: str):
+        self.key = key
+        self.puts: list[bytes] = []
+
+    def put(self, payload) -> None:
+        self.puts.append(bytes(payload))
+
+
+class Reply:
+    ok = b""
+
+
+class Token:
+    def undeclare(self) -> None:
+        pass
+
+
+class Liveliness:
+    def declare_token(self, key: str) -> Token:
+        return Token()
+
+
+class Session:
+    def __init__(self) -> None:
+        self.inbox = Inbox()
+        self.pubs: dict[str, Pub] = {}
+        self.puts: list[tuple[str, bytes]] = []
+        self.closed = False
+
+    def declare_subscriber(self, key, handler=None):
+        return self.inbox
+
+    def declare_publisher(self, key, **kw) -> Pub:
+        return self.pubs.setdefault(key, Pub(key))
+
+    def liveliness(self) -> Liveliness:
+        return Liveliness()
+
+    def put(self, key, payload, **kw) -> None:
+        self.puts.append((key, bytes(payload)))
+
+    def declare_queryable(self, key, handler):
+        return Token()
+
+    def get(self, key, **kw):
+        if str(key).endswith("/ping"):  # every listener answers a link check
+            return [Reply()]
+        return []  # nobody knows where the vehicle was
+
+    def close(self) -> None:
+        self.closed = True
 
 
 @pytest.fixture
-def agent():
-    sc = load_scenario("configs/crossing.toml")
-    return Agent(sc, "usv_a1", "tunit", Transport(), clock="lockstep", log=lambda s: None)
+def fake(monkeypatch):
+    sessions: list[Session] = []
+    agents: list[Agent] = []
+
+    def open_session(transport):
+        s = Session()
+        sessions.append(s)
+        return s
+
+    monkeypatch.setattr(agent_module, "open_session", open_session)
+
+    def make(clock: str = "lockstep", duration: float = 0.1, **over) -> tuple[Agent, Session, list[str]]:
+        sc = load_scenario("configs/lake_circle.toml", over)
+        lines: list[str] = []
+        a = Agent(sc, ME, FLEET, Transport(), clock=clock, duration=duration, log=lines.append)
+        a.open()
+        agents.append(a)
+        return a, sessions[-1], lines
+
+    yield make
+    for a in agents:
+        a.close()
 
 
-@pytest.mark.parametrize("payload, reason", [
-    (b"\xc1", "contacts_malformed"),
-    (msgpack.packb([2, 0, []]), "contacts_version"),
-    (msgpack.packb([1, 0, [[1, 0.5, [1.0, 2]]]]), "contacts_type"),
-    (msgpack.packb([1, 0, [[1, 0.5, [1.0, "x"]]]]), "contacts_malformed"),  # no strings at all
-    (msgpack.packb([1, 0, [[1, 0.5, [1.0, float("nan")]]]]), "contacts_non_finite"),
-    (msgpack.packb([1, 0, [[9, 0.5, [1.0, 2.0]]]]), "contacts_unknown_sender"),
-    (msgpack.packb([1, 0, [[1, 0.0, [1.0, 2.0]]]]), "contacts_share"),
-])
-def test_a_malformed_contacts_message_is_counted_and_dropped(agent, payload, reason):
-    agent._on_contacts(payload)
-    assert agent.rejected == {reason: 1}
-    assert agent.stats().rejected == 1
-    assert agent.node.contacts_missing(1)  # nothing was taken: tick 1 still waits for tick 0's sample
-    agent._on_contacts(encode_contacts(ContactsMsg(0, ((1, 0.5, (1.0, 2.0)),))))
-    assert not agent.node.contacts_missing(1)
-    (c,) = agent.node.contacts_at(1)
-    assert (c.id, c.share, c.q) == ("usv_b1", 0.5, (1.0, 2.0))
-    assert agent.rejected == {reason: 1}
+def ctl(session: Session, op: str, **fields) -> None:
+    session.inbox.q.append(Sample(keys.ctl(FLEET, [ME]), Payload(encode_control(op, **fields))))
+
+
+def stop_when_idle(session: Session) -> None:
+    session.inbox.then.append(Sample(keys.ctl(FLEET, [ME]), Payload(encode_control("stop"))))
+
+
+def omega_from(session: Session, a: Agent, vid: str, seq: int, payload: bytes | None = None) -> None:
+    j = a.ids.index(vid)
+    msg = OmegaMsg(j, seq, seq * a.period, 1.0 - seq * a.period, -1.0)
+    key = keys.omega(FLEET, vid, listeners_of(a.scenario, vid))
+    session.inbox.q.append(Sample(key, Payload(encode_omega(msg) if payload is None else payload)))
+
+
+def test_a_lockstep_run_steps_each_granted_tick_once_its_neighbours_broadcasts_are_in(fake):
+    a, s, lines = fake(duration=0.1)  # ticks 0..5 at 50 Hz
+    assert a.last_tick == 5
+    ctl(s, "join", tick=0)
+    ctl(s, "grant", until=5)
+    for seq in range(5):  # tick n needs each neighbour's broadcast of tick n - 1
+        omega_from(s, a, "usv2", seq)
+        omega_from(s, a, "uav3", seq)
+    stop_when_idle(s)
+    assert a.run() == 6
+    sent = [decode_omega(p) for p in s.pubs[keys.omega(FLEET, ME, listeners_of(a.scenario, ME))].puts]
+    assert [m.seq for m in sent] == list(range(5))  # none at the last tick: nobody would use it
+    assert all(m.sender == 0 for m in sent)
+    rows = [r for p in s.pubs[keys.state(FLEET, ME)].puts for r in decode_states(p)]
+    assert [r.tick for r in rows] == list(range(6))
+    assert a.node.counters.delivered == 10 and not a.rejected
+    stats = decode_stats(s.pubs[keys.stats(FLEET, ME)].puts[-1])
+    assert stats.id == ME and stats.tick == 6 and stats.delivered == 10
+
+
+def test_a_lockstep_agent_does_not_step_past_its_grant(fake):
+    a, s, lines = fake(duration=0.1)
+    ctl(s, "join", tick=0)
+    ctl(s, "grant", until=2)
+    for seq in range(5):
+        omega_from(s, a, "usv2", seq)
+        omega_from(s, a, "uav3", seq)
+    with pytest.raises(AssertionError, match="empty inbox"):
+        a.run()  # it waits for a grant beyond tick 2 that never comes
+    assert a.ticks_done == 3
+
+
+def test_a_lockstep_agent_waits_for_a_missing_neighbour(fake):
+    a, s, lines = fake(duration=0.1)
+    ctl(s, "join", tick=0)
+    ctl(s, "grant", until=5)
+    omega_from(s, a, "usv2", 0)  # uav3's tick-0 broadcast never comes
+    with pytest.raises(AssertionError, match="empty inbox"):
+        a.run()
+    assert a.ticks_done == 1  # tick 0 needs nothing; tick 1 needs uav3's seq 0
+
+
+def test_a_neighbour_gone_by_the_roster_is_not_awaited(fake):
+    a, s, lines = fake(duration=0.1)
+    ctl(s, "join", tick=0)
+    ctl(s, "roster", vehicle="uav3", tick=1, state="gone", fresh=False)
+    ctl(s, "grant", until=5)
+    omega_from(s, a, "uav3", 0)  # sent at tick 0, while live: tick 1 needs it
+    for seq in range(5):
+        omega_from(s, a, "usv2", seq)
+    stop_when_idle(s)
+    assert a.run() == 6
+    assert any("neighbour uav3 gone from tick 1" in ln for ln in lines)
+
+
+def test_malformed_omega_is_counted_and_logged_once_per_sender_and_reason(fake):
+    a, s, lines = fake()
+    for _ in range(3):
+        omega_from(s, a, "usv2", 0, payload=b"\xc1garbage")
+    omega_from(s, a, "uav3", 0, payload=msgpack.packb([1, 1, 0, 0.0, 1.0, -1.0]))  # usv2's index on uav3's key
+    a._drain(lambda: None)
+    assert sum(a.rejected.values()) == 4
+    assert len([ln for ln in lines if "rejected a message from 'usv2'" in ln]) == 1
+    assert len([ln for ln in lines if "rejected a message from 'uav3'" in ln]) == 1
+    assert a.node.counters.delivered == 0 and a.node.counters.sent == 0
+
+
+def test_unexpected_keys_and_bad_commands_are_rejected_not_raised(fake):
+    a, s, lines = fake()
+    s.inbox.q.append(Sample(f"cdus/{FLEET}/to/+{ME}+/state/usv2", Payload(b"x")))
+    ctl(s, "roster", vehicle="nobody", tick=3, state="gone", fresh=False)
+    ctl(s, "roster", vehicle="usv2", tick=3, state="asleep", fresh=False)
+    ctl(s, "gains", gains={"k": "big"}, tick=3)
+    ctl(s, "link", link={"loss": 2.0}, at=1.0)
+    s.inbox.q.append(Sample(keys.ctl(FLEET, [ME]), Payload(b"\x93\x01")))  # not a control map
+    a._drain(lambda: None)
+    assert a.rejected["unexpected state"] == 1
+    assert a.rejected["bad_roster"] == 2
+    assert a.rejected["bad_gains_command"] == 1
+    assert a.rejected["bad_link_command"] == 1
+    assert sum(a.rejected.values()) == 6
+    assert any("link command rejected" in ln and "loss" in ln for ln in lines)
+
+
+def test_gains_and_link_commands_apply(fake):
+    a, s, lines = fake()
+    ctl(s, "gains", gains={"k": 2.0, "c": 3.0}, tick=4)
+    ctl(s, "link", link={"loss": 0.5}, at=1.0)
+    a._drain(lambda: None)
+    assert not a.rejected
+    assert a.link_table["loss"] == 0.5
+    assert any("gains k = (2.0, 2.0), c = 3.0 from tick 4" in ln for ln in lines)
+
+
+def test_clock_messages_set_the_agents_clock(fake):
+    a, s, lines = fake(clock="realtime")
+    ctl(s, "start", t0=1000.0)
+    ctl(s, "pause")
+    a._drain(lambda: None)
+    assert a.clock.t0 == 1000.0 and a.clock.paused
+    ctl(s, "resume", t0=1005.0)
+    ctl(s, "stop")
+    a._drain(lambda: None)
+    assert a.clock.t0 == 1005.0 and not a.clock.paused and a.clock.stop
+
+
+def test_stats_round_trip_and_send_only_new_latency_samples(fake):
+    a, s, lines = fake(duration=0.1)
+    ctl(s, "join", tick=0)
+    ctl(s, "grant", until=5)
+    for seq in range(5):
+        omega_from(s, a, "usv2", seq)
+        omega_from(s, a, "uav3", seq)
+    stop_when_idle(s)
+    a.run()
+    first = a.stats()
+    assert decode_stats(encode_stats(first)) == first
+    assert a.stats().latencies_ms == ()  # already reported
+
+
+def test_the_waker_deadline_is_the_next_tick_or_the_alarm():
+    w = agent_module.Waker(lambda: None, 0.02)
+    assert w._deadline(5.0) is None
+    w.t0 = 1.0
+    assert w._deadline(1.03) == pytest.approx(1.04)
+    w.alarm = 1.035
+    assert w._deadline(1.03) == 1.035

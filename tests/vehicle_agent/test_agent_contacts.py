@@ -1,0 +1,36 @@
+"""The agent's receive path for the proximity sensor, without a Zenoh session."""
+
+import msgpack
+import pytest
+
+from cdus.scenario.config import load_scenario
+from cdus.wire.messages import ContactsMsg, encode_contacts
+from cdus.wire.transport import Transport
+from vehicle_agent.agent import Agent
+
+
+@pytest.fixture
+def agent():
+    sc = load_scenario("configs/crossing.toml")
+    return Agent(sc, "usv_a1", "tunit", Transport(), clock="lockstep", log=lambda s: None)
+
+
+@pytest.mark.parametrize("payload, reason", [
+    (b"\xc1", "contacts_malformed"),
+    (msgpack.packb([2, 0, []]), "contacts_version"),
+    (msgpack.packb([1, 0, [[1, 0.5, [1.0, 2]]]]), "contacts_type"),
+    (msgpack.packb([1, 0, [[1, 0.5, [1.0, "x"]]]]), "contacts_malformed"),  # no strings at all
+    (msgpack.packb([1, 0, [[1, 0.5, [1.0, float("nan")]]]]), "contacts_non_finite"),
+    (msgpack.packb([1, 0, [[9, 0.5, [1.0, 2.0]]]]), "contacts_unknown_sender"),
+    (msgpack.packb([1, 0, [[1, 0.0, [1.0, 2.0]]]]), "contacts_share"),
+])
+def test_a_malformed_contacts_message_is_counted_and_dropped(agent, payload, reason):
+    agent._on_contacts(payload)
+    assert agent.rejected == {reason: 1}
+    assert agent.stats().rejected == 1
+    assert agent.node.contacts_missing(1)  # nothing was taken: tick 1 still waits for tick 0's sample
+    agent._on_contacts(encode_contacts(ContactsMsg(0, ((1, 0.5, (1.0, 2.0)),))))
+    assert not agent.node.contacts_missing(1)
+    (c,) = agent.node.contacts_at(1)
+    assert (c.id, c.share, c.q) == ("usv_b1", 0.5, (1.0, 2.0))
+    assert agent.rejected == {reason: 1}

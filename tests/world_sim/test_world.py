@@ -1,0 +1,227 @@
+"""The world process's shell logic without a network: publishers and a session that record
+what the world sends, samples handed to it as its inbox would."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+
+from cdus.core.events import RosterChange
+from cdus.scenario.config import load_scenario
+from cdus.sim.lockstep import Grant, Join, Roster
+from cdus.wire import keys
+from cdus.wire.messages import (
+    CTL_OPS, LAUNCHER_OPS, StateMsg, decode_control, encode_control, encode_states,
+)
+from cdus.wire.schemas import AgentStats, FleetEvent, decode_event, encode_stats
+from cdus.wire.transport import Transport
+from world_sim.world import LINK_LEAD, World
+
+FLEET = "tfake"
+EVENTS = """
+[[event]]
+at = 1.0
+action = "kill"
+vehicle = "usv2"
+
+[[event]]
+at = 2.0
+action = "pause"
+vehicle = "uav1"
+"""
+
+
+class Payload:
+    def __init__(self, data: bytes):
+        self.data = data
+
+    def to_bytes(self) -> bytes:
+        return self.data
+
+
+@dataclass
+class Sample:
+    key_expr: str
+    payload: Payload
+
+
+class Pub:
+    def __init__(self) -> None:
+        self.puts: list[bytes] = []
+
+    def put(self, payload) -> None:
+        self.puts.append(bytes(payload))
+
+
+class Session:
+    def __init__(self) -> None:
+        self.puts: list[tuple[str, bytes]] = []
+
+    def put(self, key, payload, **kw) -> None:
+        self.puts.append((key, bytes(payload)))
+
+
+def world(tmp_path=None, clock: str = "lockstep", events: str = "", **kw) -> World:
+    path = "configs/lake_circle.toml"
+    if events and tmp_path is not None:
+        cfg = tmp_path / "ev.toml"
+        cfg.write_text(open(path).read() + events)
+        path = str(cfg)
+    w = World(load_scenario(path), FLEET, Transport(), clock=clock, log=lambda s: None, **kw)
+    w.session = Session()
+    w.pub_ctl, w.pub_launcher, w.pub_status, w.pub_events = Pub(), Pub(), Pub(), Pub()
+    w._wake = lambda payload=b"": None
+    return w
+
+
+def ctl_ops(w: World) -> list:
+    return [decode_control(p, CTL_OPS) for p in w.pub_ctl.puts]
+
+
+def row(j: int, n: int, T: float = 0.02) -> StateMsg:
+    return StateMsg(j, n, n * T, (0.0, 0.0) if j < 3 else (0.0, 0.0, 20.0), 0.0, 1.0, -n * T, -1.0, 0.5)
+
+
+def test_telemetry_reports_ticks_and_a_complete_tick_is_recorded():
+    w = world()
+    for j, vid in enumerate(w.ids):
+        w._handle(Sample(keys.state(FLEET, vid), Payload(encode_states([row(j, 0), row(j, 1)]))))
+        if j < 5:
+            assert not w.lockstep.recordable(0)
+    assert w.lockstep.acked == {j: 1 for j in range(6)}
+    w._record_complete()
+    assert w.next_tick == 2 and len(w.recorder) == 2
+
+
+def test_telemetry_from_the_wrong_key_or_malformed_is_rejected():
+    w = world()
+    w._handle(Sample(keys.state(FLEET, "usv2"), Payload(encode_states([row(0, 0)]))))  # usv1's rows on usv2's key
+    w._handle(Sample(keys.state(FLEET, "usv1"), Payload(b"\x00")))
+    w._handle(Sample(keys.stats(FLEET, "usv1"), Payload(encode_stats(AgentStats(id="usv3", tick=1)))))
+    w._handle(Sample(f"cdus/{FLEET}/to/+world+/telepathy/usv1", Payload(b"")))
+    assert w.st.rejected == 4 and w.lockstep.acked == {}
+
+
+def test_stats_feed_the_link_block_and_bursts_become_events():
+    w = world()
+    burst = FleetEvent.of(3.0, "link_burst", "12 drops in a row", link="usv2->usv1").as_dict()
+    s = AgentStats(id="usv1", tick=100, sent_to_me=200, delivered=190, dropped=10, rejected=2,
+                   latencies_ms=(1.0, 3.0), missed_deadlines=1, bursts=(burst,))
+    w._handle(Sample(keys.stats(FLEET, "usv1"), Payload(encode_stats(s))))
+    block = w.link_block()
+    assert (block["sent"], block["delivered"], block["dropped"], block["rejected"]) == (200, 190, 10, 2)
+    assert block["missed_deadlines"] == 1 and block["latency_ms_p50"] == 2.0
+    assert [(e.kind, e.link) for e in w.events] == [("link_burst", "usv2->usv1")]
+    assert decode_event(w.pub_events.puts[-1]).kind == "link_burst"
+
+
+def test_a_ground_stations_kill_waits_for_its_tick_in_lockstep_and_goes_straight_to_the_launcher_in_realtime():
+    w = world()
+    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("kill", vehicle="usv3"))))
+    assert w.pub_launcher.puts == [] and w.lockstep._queue[0].vehicle == 2
+    rt = world(clock="realtime")
+    rt._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("kill", vehicle="usv3"))))
+    c = decode_control(rt.pub_launcher.puts[0], LAUNCHER_OPS)
+    assert (c.op, c.fields["vehicle"]) == ("kill", "usv3")
+    assert [(e.kind, e.vehicle) for e in rt.events] == [("fault", "usv3")]
+
+
+def test_commands_are_relayed_with_the_tick_or_time_they_apply_from():
+    w = world()
+    w.lockstep.granted = 40
+    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("set_gains", gains={"c": 3.0}, vehicle=""))))
+    key, payload = w.session.puts[-1]
+    assert key == keys.ctl(FLEET, w.ids)
+    c = decode_control(payload, CTL_OPS)
+    assert c.op == "gains" and c.fields["tick"] == 41
+    w.next_tick = 101
+    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("link", link={"loss": 0.1}, at=-1.0))))
+    c = ctl_ops(w)[-1]
+    assert c.op == "link" and c.fields["at"] == 100 * w.period + LINK_LEAD
+    assert [e.kind for e in w.events] == ["gains_changed", "link_changed"]
+
+
+def test_bad_commands_are_counted_not_raised():
+    w = world()
+    for payload in (b"\xc1", encode_control("explode"), encode_control("kill", vehicle="nobody"),
+                    encode_control("set_gains", gains={"c": 1.0}, vehicle="nobody")):
+        w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(payload)))
+    assert w.st.rejected == 4 and w.session.puts == [] and w.pub_launcher.puts == []
+
+
+def test_a_fleet_pause_in_lockstep_holds_the_grants():
+    w = world()
+    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("pause"))))
+    assert w.lockstep.paused and w.events[-1].kind == "fleet"
+    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("resume"))))
+    assert not w.lockstep.paused
+
+
+def test_lockstep_actions_go_out_on_their_keys():
+    w = world()
+    w._act([Roster(RosterChange(5, 1, "gone")), Roster(RosterChange(5, 0, "live"), to=2), Grant(9), Join(3, 0)])
+    (k1, p1), (k2, p2), (k3, p3) = w.session.puts
+    assert k1 == keys.ctl(FLEET, w.ids) and decode_control(p1, CTL_OPS).fields == {
+        "vehicle": "usv2", "tick": 5, "state": "gone", "fresh": False}
+    assert k2 == keys.ctl(FLEET, ["usv3"]) and decode_control(p2, CTL_OPS).fields["vehicle"] == "usv1"
+    assert k3 == keys.ctl(FLEET, ["uav1"]) and decode_control(p3, CTL_OPS).op == "join"
+    assert [(c.op, c.fields) for c in ctl_ops(w)] == [("grant", {"until": 9})]
+
+
+def test_realtime_liveliness_changes_become_roster_changes_and_events():
+    w = world(clock="realtime")
+    for vid in w.ids:
+        w._on_alive(vid, True)
+    w.started = True
+    w.t0 = 0.0
+    w.paused_at = 2.0  # a fixed "now": tick 100
+    w._on_alive("usv2", False)
+    key, payload = w.session.puts[-1]
+    assert decode_control(payload, CTL_OPS).fields == {"vehicle": "usv2", "tick": 100, "state": "gone",
+                                                       "fresh": False}
+    assert [(e.kind, e.vehicle) for e in w.events][:1] == [("vehicle_lost", "usv2")]
+    assert w.events[-1].kind == "graph"
+    w._on_alive("usv2", True)
+    assert decode_control(w.session.puts[-1][1], CTL_OPS).fields["fresh"] is True
+    assert ("vehicle_back", "usv2") in [(e.kind, e.vehicle) for e in w.events]
+
+
+def test_realtime_scheduled_faults_go_to_the_launcher_when_their_time_comes(tmp_path):
+    w = world(tmp_path, clock="realtime", events=EVENTS)
+    w._realtime_faults_due(0.98)
+    assert w.pub_launcher.puts == []
+    w._realtime_faults_due(1.0)
+    w._realtime_faults_due(1.5)
+    assert [decode_control(p, LAUNCHER_OPS).op for p in w.pub_launcher.puts] == ["kill"]
+    w._realtime_faults_due(10.0)
+    ops = [decode_control(p, LAUNCHER_OPS) for p in w.pub_launcher.puts]
+    assert [(c.op, c.fields["vehicle"]) for c in ops] == [("kill", "usv2"), ("pause_vehicle", "uav1")]
+    assert [(e.kind, e.vehicle) for e in w.events] == [("fault", "usv2"), ("fault", "uav1")]
+
+
+def test_an_empty_run_still_writes_its_metrics(tmp_path):
+    out = tmp_path / "metrics.json"
+    w = world(metrics_out=str(out))
+    w.session = None
+    m = w.finish()
+    assert json.loads(out.read_text()) == m
+    assert m["completed"] is False and m["path_settle_s"] is None and m["events"] == []
+    assert m["mode"] == "lockstep" and m["link"]["sent"] == 0
+
+
+def test_the_launchers_acknowledgement_reaches_the_lockstep_decisions():
+    w = world()
+    for j in range(6):
+        w.lockstep.on_alive(j, True)
+    w.lockstep.start()
+    w._act(w.lockstep.poll())  # joins and the first grant
+    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("kill", vehicle="usv2"))))
+    for j in range(6):
+        for n in range(w.lockstep.granted + 1):
+            w.lockstep.on_report(j, n)
+    w._act(w.lockstep.poll())
+    c = decode_control(w.pub_launcher.puts[-1], LAUNCHER_OPS)
+    assert (c.op, c.fields["vehicle"]) == ("kill", "usv2")
+    assert w.lockstep._current.stage == "asked"
+    w._handle(Sample(keys.world_cmd(FLEET, keys.LAUNCHER), Payload(encode_control("fault_done", vehicle="usv2"))))
+    assert w.lockstep._current.stage == "done"
