@@ -59,6 +59,7 @@ STALL_TICKS = 10  # realtime: this many periods late means the process was froze
 END_WAIT = 10.0  # s to wait for the world's stop after the last tick
 INBOX_CAPACITY = 4096
 LOG_WAIT = 5.0  # s of waiting before saying what for
+MAX_NAP = 0.05  # s: realtime sleeps at most this long between checks for a stop or a pause
 PING_TIMEOUT = 1.0  # s for a link check's reply (it is immediate when nobody answers)
 PING_RETRY = 0.02  # s between link checks
 
@@ -425,8 +426,6 @@ class Agent:
         if self._stopping():
             return
         arrival = lambda: time.time() - clock.t0  # noqa: E731 (simulated time of arrival)
-        self.waker.t0 = clock.t0
-        self.waker.interrupt()
         n = max(0, math.ceil((time.time() - clock.t0) / T))
         if n > 0:  # the run is under way: a restarted process
             self._rejoin(n)
@@ -434,12 +433,13 @@ class Agent:
             if clock.paused:
                 while clock.paused and not self._stopping():
                     self._recv(arrival)
-                self.waker.t0 = clock.t0  # the world's resume moved t0
-                self.waker.interrupt()
                 continue
             target = clock.t0 + n * T
-            while time.time() < target and not self._stopping() and not clock.paused:
-                self._recv(arrival)
+            # Sleep to the tick, then take what arrived: one wake-up per tick, not one per
+            # message (arrivals are stamped when taken, so within one period of the truth).
+            while (rest := target - time.time()) > 0 and not self._stopping() and not clock.paused:
+                time.sleep(min(rest, MAX_NAP))
+                self._drain(arrival)
             if self._stopping():
                 return
             if clock.paused:

@@ -90,9 +90,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "for agents on other hosts")
     p.add_argument("--zenoh-config", metavar="FILE", help="zenoh json5 config for the router (multicast forced off)")
     p.add_argument("--links", choices=LINKS, default=None,
-                   help="direct (default): neighbours exchange ω over their own unix-socket links, "
-                        "everything else goes through the router; router: everything through the router "
-                        "(the default and the only choice with --remote, --secure or --tls)")
+                   help="router (default, and the only choice with --remote, --secure or --tls): everything "
+                        "through the router; direct: neighbours exchange ω over their own unix-socket links, "
+                        "the rest through the router (measured slower on 2 cores; docs/architecture.md)")
     p.add_argument("--remote", action="append", default=[], metavar="ID",
                    help="a vehicle started on another host (repeat, or ID,ID,...): not started here; the launcher "
                         "prints its command line and waits for it (docs/multihost.md)")
@@ -172,13 +172,13 @@ def launch_options(args: argparse.Namespace, scenario: Scenario) -> LaunchOption
 
 
 def links_of_run(args: argparse.Namespace) -> str:
-    """--links, by default direct; router with vehicles on other hosts (unix sockets do not
+    """--links, by default router (measured faster on 2 cores, docs/architecture.md); router with vehicles on other hosts (unix sockets do not
     reach them) or a secured fleet (direct links would bypass the router's access control)."""
     why = "--remote" if args.remote else "--secure" if args.secure else "--tls" if args.tls else None
     if why and args.links == "direct":
         raise ConfigError("command line", [("--links", f"direct links are unix sockets between the vehicles on this "
                                                        f"host and skip the router; with {why} use --links router")])
-    return args.links or ("router" if why else "direct")
+    return args.links or "router"
 
 
 def remote_ids(values: list[str], scenario: Scenario) -> tuple[str, ...]:

@@ -117,7 +117,7 @@ class LaunchOptions:
     rerun: str = "off"
     zenoh_configs: dict[str, str] = field(default_factory=dict)  # child name -> its --zenoh-config (credentials)
     remote: tuple[str, ...] = ()  # vehicles started elsewhere (another host): waited for, not started or restarted
-    links: str = "direct"  # one of LINKS: ω between neighbours directly, or through the router
+    links: str = "router"  # one of LINKS: ω between neighbours directly, or through the router
 
 
 @dataclass

@@ -42,7 +42,7 @@ def test_other_launch_options_come_from_the_flags():
 
 def test_remote_vehicles_are_checked_and_take_router_links():
     _, opts = options()
-    assert opts.remote == () and opts.links == "direct"
+    assert opts.remote == () and opts.links == "router"  # the default
     _, opts = options("--remote", "usv1,usv2", "--remote", "uav3", "--remote", "usv1")
     assert opts.remote == ("usv1", "usv2", "uav3") and opts.links == "router"
     with pytest.raises(ConfigError, match=r"--remote: no vehicle 'usv9' in lake_circle; ids are usv1, "):

@@ -66,7 +66,8 @@ def test_a_partition_that_splits_the_ring_and_heals_reconverges(tmp_path, launch
     assert ref.metrics["final_coord_error_max"] < 0.05  # ...and back after healing
     fleet = unique_fleet()
     run = tmp_path / "run"
-    la = launches([str(cfg), "--clock", "lockstep", "--logs", str(run), "-q"], fleet)
+    # over direct links: the restarted process (--rejoin) re-links to its neighbours' sockets
+    la = launches([str(cfg), "--clock", "lockstep", "--logs", str(run), "-q", "--links", "direct"], fleet)
     assert la.wait(timeout=300) == 0, la.output()
     m = json.loads((run / "metrics.json").read_text())
     assert m["coord_settle_s"] == ref.metrics["coord_settle_s"]

@@ -20,11 +20,12 @@ from cdus.core.metrics import METRICS_FIELDS
 from .conftest import fleet_processes, run_cli, unique_fleet
 
 
-def test_lockstep_reproduces_the_in_process_run(tmp_path, launches):
+@pytest.mark.parametrize("links", ["router", "direct"])
+def test_lockstep_reproduces_the_in_process_run(tmp_path, launches, links):
     fleet = unique_fleet()
     run = tmp_path / "run"
     la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", "10", "--seed", "3",
-                   "--logs", str(run), "--trace-out", str(tmp_path / "trace.npz"), "-q"], fleet)
+                   "--logs", str(run), "--trace-out", str(tmp_path / "trace.npz"), "-q", "--links", links], fleet)
     assert la.wait() == 0, la.output()
     sc = load_scenario("configs/lake_circle.toml", {"scenario.duration": 10.0, "scenario.seed": 3})
     ref = InProcessFleet(sc).run()
