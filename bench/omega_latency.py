@@ -143,6 +143,7 @@ def run_receiver(args) -> int:
         if i >= WARMUP:
             raw_lat.append(t - t0)
 
+    agent.listeners = []  # the sender is a bare session, not an agent: nobody answers the link check
     agent.open()  # the agent's own inbox subscription, publishers and liveliness token
     on_message = agent.node.on_message
 
