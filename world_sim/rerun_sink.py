@@ -45,6 +45,7 @@ from cdus.core.paths import for_dimension, make_path, nearest_omega
 from world_sim import blueprint as bp
 from cdus.core.metrics import edge_errors
 from cdus.core.link import LINK_STATES
+from cdus.scenario.model import Scenario
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
 from cdus.wire.schemas import FleetEvent
 from world_sim.recording import Target, parse_spec
@@ -252,7 +253,7 @@ class RerunSink:
         return sinks
 
     # ------------------------------------------------------------------ Sink
-    def start(self, scenario: Any) -> None:
+    def start(self, scenario: Scenario) -> None:
         with self._lock:
             if self._closed:
                 return
