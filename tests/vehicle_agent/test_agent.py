@@ -4,7 +4,6 @@ scripted list of samples (the agent's one subscription), publishers that record 
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass
 
 import msgpack
 import pytest
@@ -17,25 +16,12 @@ from cdus.wire.messages import (
 )
 from cdus.wire.schemas import decode_stats, encode_stats
 from cdus.wire.transport import Transport
+from tests.fakes import Payload, Sample
 from vehicle_agent import agent as agent_module
 from vehicle_agent.agent import Agent
 
 FLEET = "tfake"
 ME = "usv1"  # listens to usv2 and uav3 on the lake ring
-
-
-class Payload:
-    def __init__(self, data: bytes):
-        self.data = data
-
-    def to_bytes(self) -> bytes:
-        return self.data
-
-
-@dataclass
-class Sample:
-    key_expr: str
-    payload: Payload
 
 
 class Inbox:

@@ -4,7 +4,6 @@ what the world sends, samples handed to it as its inbox would."""
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
 
 from cdus.core.events import RosterChange
 from cdus.scenario.config import load_scenario
@@ -15,6 +14,7 @@ from cdus.wire.messages import (
 )
 from cdus.wire.schemas import AgentStats, FleetEvent, decode_event, encode_stats
 from cdus.wire.transport import Transport
+from tests.fakes import Payload, Sample
 from world_sim.world import LINK_LEAD, World
 
 FLEET = "tfake"
@@ -29,20 +29,6 @@ at = 2.0
 action = "pause"
 vehicle = "uav1"
 """
-
-
-class Payload:
-    def __init__(self, data: bytes):
-        self.data = data
-
-    def to_bytes(self) -> bytes:
-        return self.data
-
-
-@dataclass
-class Sample:
-    key_expr: str
-    payload: Payload
 
 
 class Pub:
