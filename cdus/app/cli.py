@@ -19,6 +19,7 @@ from typing import Any, Sequence
 from cdus.app.credentials import Credentials, CredentialsError, make_credentials
 from cdus.app.launcher import LINKS, LaunchOptions, launch
 from cdus.app.sweep import parse_grid, sweep
+from cdus.core.vehicle import DivergedError
 from cdus.scenario.config import ConfigError, load_scenario, parse_overrides
 from cdus.core.linkspec import POLICIES
 from cdus.scenario.model import RESTART_POLICIES, Scenario
@@ -274,6 +275,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"error: {e}", file=sys.stderr)
         print("nothing was started.", file=sys.stderr)
         return EXIT_USAGE
+    except DivergedError as e:  # the simulation itself cannot go on: say who and when, not a traceback
+        print(f"error: {e}", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

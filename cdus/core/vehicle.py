@@ -69,6 +69,10 @@ class Vehicle:
     disturbance: Disturbance | None = None
     safety: SafetyParams | None = None  # the collision-avoidance filter, None: off
     observer: float | None = None  # the ESO's bandwidth (rad/s), None: no observer
+    # [guidance] scale_omega (docs/config.md): σ = min(1, v_max/|a|) scales ω's
+    # path-following part too. Off by default: right for vehicles that fly σa, but in the
+    # mixed fleet of lake_circle_dynamic it let seed 4's boats run away.
+    scale_omega: bool = False
     tick: int = 0
     t: float = 0.0
     omega_rate: float = 0.0
@@ -155,7 +159,7 @@ class Vehicle:
         reports the instantaneous law.
         """
         q = self.q
-        vmax = self.limits.speed
+        vmax = self.limits.speed if self.scale_omega else math.inf
         if not self.started:
             self.started = True
             coupling = consensus.W * self.omega - consensus.B0
@@ -224,9 +228,24 @@ class Vehicle:
                     tu, tr = reg.usv_heading(st, self.path, w, wd, self.k, self.eps, self.reg_gains, self.limits,
                                              d_hat, shift)
                     self.state = step_usv(st, tu, tr, self.eps, d, h)
+                if not math.isfinite(_state_sum(self.state)):
+                    raise DivergedError(f"vehicle {self.id}: its state is no longer finite at t = "
+                                        f"{self.t + j * h:.2f} s (the vehicle diverged): {st}")
                 if eso is not None:
                     eso = eso.update(self.state.q, known_velocity(st, self.state), h)
         self._eso = eso
         self._shift = None
         self.tick += 1
         self.t = self.tick * T
+
+
+class DivergedError(ArithmeticError):
+    """A vehicle's simulated state became non-finite: the run cannot go on; the message says
+    which vehicle, when and from what state."""
+
+
+def _state_sum(state: Any) -> float:
+    """A sum that is non-finite as soon as any component of a plant state is."""
+    if isinstance(state, USVState):
+        return state.x + state.y + state.psi + state.u + state.v + state.r
+    return sum(state.q) + sum(state.p)

@@ -23,6 +23,8 @@ import re
 import tomllib
 from typing import Any, Iterable, Mapping
 
+from dataclasses import replace
+
 from cdus.scenario.checks import Problems, describe, quote
 from cdus.scenario.errors import ConfigError
 from cdus.scenario.events import event_section
@@ -31,7 +33,8 @@ from cdus.scenario.link import link_section
 from cdus.scenario.model import Edge, Rates, Safety, Scenario, Supervision, VehicleSpec
 from cdus.scenario.safety import apply_fleet, disturbance_section, observer_section, safety_section
 from cdus.scenario.sections import (
-    gains_section, metrics_section, rates_section, scenario_section, section, supervision_section,
+    gains_section, guidance_section, metrics_section, rates_section, scenario_section, section,
+    supervision_section,
 )
 from cdus.scenario.vehicles import defaults_section, vehicles_section
 
@@ -41,7 +44,7 @@ __all__ = [
     "parse_overrides", "parse_scenario", "parse_value",
 ]
 
-SECTIONS = ("scenario", "rates", "metrics", "gains", "defaults", "supervision", "safety", "disturbance",
+SECTIONS = ("scenario", "rates", "metrics", "gains", "guidance", "defaults", "supervision", "safety", "disturbance",
             "observer", "graph", "link", "event", "vehicle")
 
 
@@ -166,6 +169,7 @@ def _resolve(p: Problems, data: Mapping[str, Any], source: str) -> Scenario | No
     rates = rates_section(p, section(p, data, "rates"))
     path_tol, coord_tol = metrics_section(p, section(p, data, "metrics"))
     fleet_gains = gains_section(p, section(p, data, "gains"))
+    scale_omega = guidance_section(p, section(p, data, "guidance"))
     defaults = defaults_section(p, section(p, data, "defaults"))
     supervision = supervision_section(p, section(p, data, "supervision"))
     safety = safety_section(p, section(p, data, "safety"))
@@ -173,6 +177,8 @@ def _resolve(p: Problems, data: Mapping[str, Any], source: str) -> Scenario | No
     observer = observer_section(p, section(p, data, "observer"))
     fleet = vehicles_section(p, data.get("vehicle"), defaults, fleet_gains, header.seed)
     fleet.specs = apply_fleet(fleet.specs, data.get("vehicle"), defaults, disturbance, observer)
+    if scale_omega:
+        fleet.specs = [None if s is None else replace(s, scale_omega=True) for s in fleet.specs]
     topology, directed, edges = graph_section(p, section(p, data, "graph"), fleet)
     ids = fleet.known if fleet.complete else None
     link = link_section(p, data.get("link", {}), ids)

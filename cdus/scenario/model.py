@@ -61,6 +61,7 @@ class VehicleSpec:
     limits: tuple[tuple[str, float], ...]
     disturbance: tuple[tuple[str, Any], ...]
     observer: float | None = None  # the disturbance observer's bandwidth (rad/s), None: no observer
+    scale_omega: bool = False  # [guidance] scale_omega: σ also scales ω's path-following part
 
 
 #: [safety] defaults (docs/config.md, docs/safety.md)

@@ -90,6 +90,17 @@ def metrics_section(p: Problems, mt: Mapping[str, Any]) -> tuple[float, float]:
     return tol["path_tol"], tol["coord_tol"]
 
 
+GUIDANCE_KEYS = ("scale_omega",)
+
+
+def guidance_section(p: Problems, g: Mapping[str, Any]) -> bool:
+    """[guidance]: whether a vehicle's speed limit also scales ω's path-following part."""
+    p.unknown_keys(g, GUIDANCE_KEYS, "guidance")
+    return bool(p.boolean(g.get("scale_omega", False), "guidance.scale_omega",
+                          true=" (σ = min(1, v_max/|a|) scales ω's path-following part too)",
+                          false=" (only the velocity reference is limited)"))
+
+
 def gains_section(p: Problems, gains: Mapping[str, Any]) -> dict:
     """[gains], the fleet's default guidance gains; the per-axis length of k is checked per vehicle."""
     p.unknown_keys(gains, DEFAULT_GAINS, "gains")

@@ -78,7 +78,7 @@ def build_vehicle(spec: VehicleSpec, rates: Rates, seed: int, safety: Safety | N
                    plant=spec.plant, regulator=spec.regulator, control_period=period,
                    physics_steps=steps, state=state, omega=float(w0), eps=eps, reg_gains=reg_gains,
                    limits=limits, disturbance=dist, safety=safety_params(safety or Safety(), limits),
-                   observer=spec.observer)
+                   observer=spec.observer, scale_omega=spec.scale_omega)
 
 
 def links_of(scenario: Scenario, vid: str) -> tuple[NeighbourLink, ...]:

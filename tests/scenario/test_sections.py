@@ -107,3 +107,22 @@ def test_backoff_doubles_per_restart_and_is_capped():
     assert [sv.backoff(n) for n in range(5)] == [0.5, 1.0, 2.0, 4.0, 8.0]
     assert sv.backoff(6) == 30.0 == MAX_BACKOFF_S and sv.backoff(100) == 30.0
     assert Supervision(backoff_s=45.0).backoff(0) == 30.0
+
+
+# --------------------------------------------------------------------------- [guidance]
+
+
+def test_guidance_scaling_of_omega_is_off_unless_asked_for():
+    assert not any(v.scale_omega for v in parse_scenario(base()).vehicles)
+    data = base()
+    data["guidance"] = {"scale_omega": True}
+    s = parse_scenario(data)
+    assert all(v.scale_omega for v in s.vehicles) and parse_scenario(s.raw) == s
+
+
+@pytest.mark.parametrize("table, fragment", [
+    ({"scale_omega": 1}, "guidance.scale_omega"),
+    ({"scale_omga": True}, 'did you mean "scale_omega"?'),
+])
+def test_a_bad_guidance_table_names_the_field(table, fragment):
+    check_bad(lambda d: d.__setitem__("guidance", table), fragment)

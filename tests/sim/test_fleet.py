@@ -162,3 +162,12 @@ def test_a_restarted_vehicle_rejoins_near_its_neighbours_consensus():
     after = np.searchsorted(t, 25.0)
     assert abs(w[after, j] - (w[after, i1] + w[after, i3]) / 2) < np.pi
     assert res.metrics["final_coord_error_max"] < 0.5
+
+
+def test_lake_circle_dynamic_settles_from_every_shipped_seed_start():
+    """Seed 4 of lake_circle_dynamic (boats and drones with a 2 m/s limit): with ω's
+    path-following part scaled by the speed limit its boats ran away (|Φ| 3.1 km at 200 s);
+    the scaling is off unless [guidance] scale_omega asks for it, and the run settles."""
+    sc = load_scenario("configs/lake_circle_dynamic.toml", {"scenario.seed": 4})
+    m = InProcessFleet(sc).run().metrics
+    assert m["path_settle_s"] is not None and m["final_path_error_max"] < 0.15
