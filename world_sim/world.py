@@ -30,7 +30,6 @@ from typing import Any, Callable
 
 import zenoh
 
-from cdus.core import graph as graphs
 from cdus.core.events import RosterChange
 from cdus.core.link import LinkCounters, merge_link_summaries
 from cdus.core.metrics import Recorder
@@ -39,6 +38,7 @@ from cdus.files import write_json
 from cdus.scenario.model import Scenario
 from cdus.sim.build import metric_edges, sensor_schedule
 from cdus.sim.lockstep import Fault, Grant, Join, Lockstep, Roster, Sense
+from cdus.sim.reports import graph_event, vehicle_back, vehicle_lost
 from cdus.sim.sensing import sense_tick
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
 from cdus.sim.summary import link_block, run_metrics
@@ -317,10 +317,10 @@ class World:
             if up:
                 self._send_roster(RosterChange(n, j, "live", fresh=True))
                 self.pub_ctl.put(encode_control("start", t0=self.t0))
-                self._note(FleetEvent.of(n * self.period, "vehicle_back", f"vehicle {name} back", vehicle=name))
+                self._note(vehicle_back(n * self.period, name))
             else:
                 self._send_roster(RosterChange(n, j, "gone"))
-                self._note(FleetEvent.of(n * self.period, "vehicle_lost", f"vehicle {name} lost", vehicle=name))
+                self._note(vehicle_lost(n * self.period, name))
         if self.started:
             self._check_graph()
 
@@ -338,15 +338,7 @@ class World:
             self.pub_events.put(encode_event(event))
 
     def _check_graph(self) -> None:
-        alive = [v for v in self.ids if v in self.st.alive]
-        pairs = [(i, k) for i, k in self.pairs if i in self.st.alive and k in self.st.alive]
-        cut = graphs.unreachable(alive, pairs) if alive else []
-        t = self._sim_now()
-        if cut:
-            self._note(FleetEvent.of(t, "graph", f"the live graph has no spanning tree: {', '.join(cut)} cut off",
-                                     severity="warn"))
-        else:
-            self._note(FleetEvent.of(t, "graph", f"the live graph ({len(alive)} vehicles) still has a spanning tree"))
+        self._note(graph_event(self._sim_now(), self.ids, self.pairs, self.st.alive))
 
     def _sim_now(self) -> float:
         """The fleet's present in simulated seconds: the newest tick recorded (lockstep), the wall

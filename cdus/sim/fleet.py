@@ -26,7 +26,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable
 
-from cdus.core.events import RosterChange, plan_roster
+from cdus.core.events import RosterChange, event_tick, plan_roster
 from cdus.core.link import LinkEmulator, LinkModel, burst_events
 from cdus.core.metrics import Recorder
 from cdus.core.node import VehicleNode
@@ -35,6 +35,7 @@ from cdus.core.vehicle import Telemetry, Vehicle
 from cdus.scenario.model import Scenario
 from cdus.sim.build import build_node, link_model_for, metric_edges, sensor_schedule
 from cdus.sim.sensing import contacts_of, sense_tick
+from cdus.sim.reports import graph_event, scheduled_fault, vehicle_back
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
 from cdus.sim.summary import link_block, run_metrics, sum_counters
 from cdus.wire.messages import decode_contacts, decode_omega, encode_contacts, encode_omega
@@ -66,6 +67,10 @@ class InProcessFleet:
         self.every = broadcast_every(scenario.rates)
         self.end_tick = total_ticks(scenario.duration, self.period)
         self.roster = plan_roster(scenario.events, self.ids, self.period)
+        self._scheduled = sorted((event_tick(e.at, self.period), self.ids.index(e.vehicle), e.action)
+                                 for e in scenario.events)
+        self._pairs = [(e.i, e.k) for e in scenario.edges]
+        self._alive = set(self.ids)  # whose process would hold a liveliness token (a lapsed pause does not)
         self.sensing = sensor_schedule(scenario)  # (every, latency) ticks, None: no proximity sensor
         self.nodes = [self._node(j) for j in range(len(self.ids))]
         self.listeners: list[list[int]] = [[] for _ in self.ids]
@@ -98,24 +103,31 @@ class InProcessFleet:
         self.sink.event(event)
 
     def _faults_at(self, n: int) -> None:
-        """Carry out the roster changes of tick n that concern the vehicles themselves."""
+        """Carry out tick n's scheduled faults and report them as the world does in lockstep
+        (cdus.sim.reports): ``fault`` for each, ``vehicle_back`` when a vehicle's process is
+        back (a restart, or a resume after its lease lapsed), and ``graph`` when the set of
+        live processes changed."""
         t = n * self.period
+        for tick, j, action in self._scheduled:
+            if tick == n:
+                self._note(scheduled_fault(n, self.period, action, self.ids[j]))
+        before = set(self._alive)
+        back: list[str] = []
         for ch in self.roster:
             if ch.tick != n:
                 continue
             vid = self.ids[ch.vehicle]
-            if ch.state == "live" and ch.fresh:
-                self._restart(ch, n)
-                self._note(FleetEvent.of(t, "fault", f"vehicle {vid} restarted where it was last seen, "
-                                                     f"ω = {self.nodes[ch.vehicle].vehicle.omega:.2f}",
-                                         severity="info", vehicle=vid))
-            elif ch.state == "gone" and not any(c.tick == n and c.vehicle == ch.vehicle and c.fresh
-                                                for c in self.roster):
-                self._note(FleetEvent.of(t, "vehicle_lost", f"vehicle {vid} lost", vehicle=vid))
-            elif ch.state == "paused":
-                self._note(FleetEvent.of(t, "fault", f"vehicle {vid} paused", vehicle=vid))
-            elif ch.state == "live":
-                self._note(FleetEvent.of(t, "fault", f"vehicle {vid} resumed", severity="info", vehicle=vid))
+            if ch.state == "gone":
+                self._alive.discard(vid)
+            elif ch.state == "live" and (ch.fresh or vid not in self._alive):
+                if ch.fresh:
+                    self._restart(ch, n)
+                self._alive.add(vid)
+                back.append(vid)
+        for vid in back:
+            self._note(vehicle_back(t, vid))
+        if back or self._alive != before:
+            self._note(graph_event(t, self.ids, self._pairs, self._alive))
 
     def _restart(self, ch: RosterChange, n: int) -> None:
         """A new process for vehicle j: a fresh node at the last telemetry seen of it."""

@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 from typing import Sequence
 
 from cdus.core.events import LEASE_S, Event, RosterChange, event_tick, plan_roster
+from cdus.sim.reports import scheduled_fault, vehicle_back, vehicle_lost
 from cdus.wire.schemas import FleetEvent
 
 GRANT_WINDOW = 50  # ticks the fastest vehicle may run ahead of the slowest
@@ -156,7 +157,7 @@ class Lockstep:
         if kind in self._expect.get(j, ()):
             self._expect[j].discard(kind)
             if up:
-                self._out.append(FleetEvent.of(t, "vehicle_back", f"vehicle {vid} back", vehicle=vid))
+                self._out.append(vehicle_back(t, vid))
             return
         if up:  # an unscheduled (re)start: it joins at the first tick nobody has been granted
             b = self.granted + 1
@@ -165,13 +166,12 @@ class Lockstep:
             self._catch_up(j)
             self._out.append(Join(j, b))
             self.acked[j] = b - 1
-            self._out.append(FleetEvent.of(t, "vehicle_back", f"vehicle {vid} back (joins at tick {b})",
-                                           vehicle=vid))
+            self._out.append(vehicle_back(t, vid, joins_at=b))
         else:  # a crash, or a kill nobody scheduled: gone from the first tick it did not report
             g = self.acked.get(j, -1) + 1
             if self.state_at(j, g) != "gone":
                 self._send(RosterChange(g, j, "gone"))
-            self._out.append(FleetEvent.of(t, "vehicle_lost", f"vehicle {vid} lost", vehicle=vid))
+            self._out.append(vehicle_lost(t, vid))
 
     def on_fault_done(self, j: int) -> None:
         p = self._current
@@ -233,7 +233,7 @@ class Lockstep:
             self._carry_out(p)
 
     def _carry_out(self, p: _Pending) -> None:
-        j, vid, t = p.vehicle, self.ids[p.vehicle], p.tick * self.period
+        j, vid = p.vehicle, self.ids[p.vehicle]
         scheduled = any(c.vehicle == j and c.tick == p.tick for c in self._plan)
         if not scheduled:  # a ground station's: decide its roster changes here
             if p.action == "pause" and self.state_at(j, p.tick) == "live":
@@ -252,7 +252,7 @@ class Lockstep:
         self._expect[j] = {"kill": {"down"}, "pause": {"down", "up"}, "resume": {"down", "up"},
                            "restart": {"down", "up"}}[p.action]
         self._out.append(Fault(FAULT_OPS[p.action], j))
-        self._out.append(FleetEvent.of(t, "fault", f"scheduled {p.action} of {vid} (t = {t:g} s)", vehicle=vid))
+        self._out.append(scheduled_fault(p.tick, self.period, p.action, vid))
         p.stage = "asked"
         self._current = p
 

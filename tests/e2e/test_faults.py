@@ -99,6 +99,11 @@ vehicle = "usv2"
     m = json.loads((run / "metrics.json").read_text())
     seen = [(e["kind"], e.get("vehicle")) for e in m["events"]]
     assert ("fault", "usv2") in seen and ("vehicle_back", "usv2") in seen, m["events"]
+    # the same vehicle events as `cdus sim` reports for the scenario (cdus.sim.reports)
+    ref = InProcessFleet(load_scenario(cfg)).run().metrics
+    news = ("fault", "vehicle_lost", "vehicle_back")
+    assert [e for e in seen if e[0] in news] == [(e["kind"], e.get("vehicle")) for e in ref["events"]
+                                                 if e["kind"] in news]
     log = (run / "logs" / "usv2.log").read_text()
     assert "rejoining at tick 8500" in log, log[-2000:]  # t = 170 s exactly: the fleet waited for it
     assert m["coord_settle_s"] is not None and m["coord_settle_s"] > 170.0, m
