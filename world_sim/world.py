@@ -66,7 +66,10 @@ class WorldState:
     latest: dict[int, StateMsg] = field(default_factory=dict)
     acked: dict[int, int] = field(default_factory=dict)  # realtime: newest tick per sender
     alive: set[str] = field(default_factory=set)
-    stats: dict[str, AgentStats] = field(default_factory=dict)
+    stats: dict[str, AgentStats] = field(default_factory=dict)  # the newest of each vehicle's process
+    retired: list[AgentStats] = field(default_factory=list)  # the last of each process a restart replaced
+    latencies: LinkCounters = field(default_factory=LinkCounters)  # every sample the agents sent, thinned
+    link_commanded: bool = False  # a ground station changed the link faults during the run
     link_changes: set[tuple[float, str, str]] = field(default_factory=set)
     rejected: int = 0
 
@@ -220,7 +223,12 @@ class World:
         if isinstance(s, str) or s.id != vid or vid not in self.index:
             self.st.rejected += 1
             return
+        old = self.st.stats.get(vid)
+        if old is not None and old.joined_at != s.joined_at:  # a restarted process: its counters start anew
+            self.st.retired.append(old)
         self.st.stats[vid] = s
+        for x in s.latencies_ms:  # each message carries the samples since the previous one
+            self.st.latencies.record_latency(x / 1000.0)
         if isinstance(s.faults, dict):
             self._forward_link_changes(s.faults)
         for b in s.bursts:
@@ -263,6 +271,7 @@ class World:
         elif op == "link":
             at = f["at"] if f["at"] >= 0 else self._sim_now() + LINK_LEAD
             self.pub_ctl.put(encode_control("link", link=f["link"], at=float(at)))
+            self.st.link_commanded = True
             self._note(FleetEvent.of(self._sim_now(), "link_changed",
                                      f"link faults changed from t = {at:.2f} s by {sender}: {f['link']}"))
         elif f.get("vehicle") in self.index:  # kill | pause_vehicle | resume_vehicle | restart
@@ -507,19 +516,26 @@ class World:
         self.pub_status.put(encode_status(t, self.duration, self.clock, sorted(self.st.alive), self.ids, path, coord,
                                           self.events[-10:], paused))
 
+    def _processes(self) -> list[AgentStats]:
+        """The last stats of every agent process of the run, restarted ones' included."""
+        return [*self.st.retired, *self.st.stats.values()]
+
     def link_block(self) -> dict:
-        total = LinkCounters()
+        """``link`` of the metrics JSON, as the in-process fleet builds it (cdus.sim.summary):
+        every process's counters, every latency sample, and ``faults`` only when the
+        scenario's link has faults or a ground station set some."""
+        total = LinkCounters(latencies=list(self.st.latencies.latencies))
         missed = 0
         rejected = self.st.rejected
-        for s in self.st.stats.values():
+        for s in self._processes():
             total.add(LinkCounters(sent=s.sent_to_me, delivered=s.delivered, dropped=s.dropped,
-                                   duplicated=s.duplicated, latencies=[x / 1000.0 for x in s.latencies_ms]))
+                                   duplicated=s.duplicated))
             rejected += s.rejected
             missed += s.missed_deadlines
         total.rejected = rejected
-        faults = [s.faults for s in self.st.stats.values() if isinstance(s.faults, dict)]
+        faults = [s.faults for s in self._processes() if isinstance(s.faults, dict)]
         merged = None
-        if faults:
+        if faults and (not self.scenario.link.is_ideal or self.st.link_commanded):
             try:
                 merged = merge_link_summaries(faults)
             except (KeyError, TypeError) as e:  # an agent's summary that does not parse
@@ -541,7 +557,7 @@ class World:
         wall = time.perf_counter() - self._t_start if self.started else 0.0
         metrics = run_metrics(self.scenario, self.recorder, mode=self.clock, link=self.link_block(), wall_s=wall,
                               policy=self.policy, events=self.events,
-                              interventions=sum(s.interventions for s in self.st.stats.values()),
+                              interventions=sum(s.interventions for s in self._processes()),
                               completed=self.next_tick > self.last_tick and not self.stop_requested)
         if self.metrics_out:
             write_json(self.metrics_out, metrics)

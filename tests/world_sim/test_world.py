@@ -101,6 +101,24 @@ def test_stats_feed_the_link_block_and_bursts_become_events():
     assert decode_event(w.pub_events.puts[-1]).kind == "link_burst"
 
 
+def test_every_stats_messages_latencies_count_and_a_restarted_process_adds_to_the_last_ones():
+    """Each stats message carries the latency samples since the previous one; a restart's new
+    process starts its counters at zero: the run's totals are the sum over processes."""
+    w = world()
+    send = lambda s: w._handle(Sample(keys.stats(FLEET, s.id), Payload(encode_stats(s))))  # noqa: E731
+    send(AgentStats(id="usv1", tick=50, sent_to_me=100, delivered=100, latencies_ms=(1.0, 1.0), interventions=2))
+    send(AgentStats(id="usv1", tick=100, sent_to_me=200, delivered=200, latencies_ms=(5.0, 5.0, 5.0),
+                    interventions=3))
+    send(AgentStats(id="usv1", tick=150, sent_to_me=20, delivered=20, joined_at=120, latencies_ms=(), interventions=1))
+    block = w.link_block()
+    assert (block["sent"], block["delivered"]) == (220, 220)
+    assert block["latency_ms_p50"] == 5.0 and block["latency_ms_p99"] == 5.0
+    assert sorted(w.st.latencies.latencies) == [0.001, 0.001, 0.005, 0.005, 0.005]
+    assert "faults" not in block  # lake_circle's link is ideal and nobody changed it
+    w.session = None  # nothing left to hear
+    assert w.finish()["interventions"] == 4
+
+
 def test_a_ground_stations_kill_waits_for_its_tick_in_lockstep_and_goes_straight_to_the_launcher_in_realtime():
     w = world()
     w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("kill", vehicle="usv3"))))
