@@ -27,7 +27,7 @@ VEHICLE_ACTIONS = {"kill": "kill", "restart": "restart", "pause-vehicle": "pause
 
 
 def build_parser(prog: str = "cdus gs") -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(prog=prog, allow_abbrev=False, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--fleet", required=True, help="the fleet's name (cdus launch prints it)")
     add_transport_args(p, default_mode="client")
     sub = p.add_subparsers(dest="action", required=True, metavar="ACTION")

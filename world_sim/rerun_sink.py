@@ -21,7 +21,7 @@ simulated second in ~16 ms. So the per-tick rows are never logged one by one: ev
 entity's new rows go out together in one Arrow record batch (``rr.send_record_batch``,
 one chunk per entity, one call), and updates are coalesced so a batch goes out every
 ``flush_every`` simulated seconds: at the default 5 s, logging stays under 10% of the
-world's CPU (bench/rerun_cost.py; every update, 0.5 s, would cost ~55%). A live viewer
+world's CPU (bench/rerun_cost.py; every update, 0.5 s, would cost ~42%). A live viewer
 therefore sees data in 5 s steps. ``close()`` sends whatever is left.
 """
 

@@ -63,16 +63,17 @@ def _add_run_args(p: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="cdus", description="Cross-domain unmanned fleet emulator (DGVF over Zenoh)")
+    parser = argparse.ArgumentParser(prog="cdus", allow_abbrev=False,  # --seed must not pass for sweep's --seeds
+                                     description="Cross-domain unmanned fleet emulator (DGVF over Zenoh)")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    p = sub.add_parser("sim", help="run a scenario with every vehicle in this one process",
+    p = sub.add_parser("sim", allow_abbrev=False, help="run a scenario with every vehicle in this one process",
                        description="Run the whole fleet in one process over an in-memory link.")
     _add_run_args(p)
     p.add_argument("--policy", choices=POLICIES, default=None,
                    help="stale-neighbour policy (default: the scenario's link.policy, else hold)")
     p.set_defaults(func=cmd_sim)
 
-    p = sub.add_parser("launch", help="run a scenario as one OS process per vehicle over Zenoh",
+    p = sub.add_parser("launch", allow_abbrev=False, help="run a scenario as one OS process per vehicle over Zenoh",
                        description="Start world_sim and one vehicle_agent per vehicle, run, stop them all.")
     _add_run_args(p)
     p.add_argument("--fleet", metavar="NAME", help="fleet name, the key prefix cdus/<NAME>/ (default: the scenario name)")
@@ -106,7 +107,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "the router's endpoints tls/...; the list also checks each certificate's name")
     p.set_defaults(func=cmd_launch)
 
-    p = sub.add_parser("sweep", help="run a grid of config values x seeds; a table, a summary and a plot",
+    p = sub.add_parser("sweep", allow_abbrev=False,
+                       help="run a grid of config values x seeds; a table, a summary and a plot",
                        description="Run a grid of overrides x seeds in parallel; write results.csv, "
                                    "summary.md and sweep.png to --out.")
     p.add_argument("config", help="scenario file (TOML)")

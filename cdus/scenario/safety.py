@@ -42,9 +42,10 @@ def safety_section(p: Problems, sf: Mapping[str, Any]) -> Safety:
             p.add("safety.sidestep", f"must be below 1 (a fraction of |u_ref|; 0 turns the sidestep off), got {got:g}")
             got = None
         out["sidestep"] = DEFAULT_SAFETY["sidestep"] if got is None else got
-    if out["range"] <= out["radius"] and "range" in sf:
+    if out["range"] <= out["radius"]:
+        default = "" if "range" in sf else " (the default; set safety.range above the radius)"
         p.add("safety.range", f"must be above safety.radius ({out['radius']:g} m): the sensor has to see a "
-                              f"vehicle before it is too close; got {out['range']:g}")
+                              f"vehicle before it is too close; got {out['range']:g}{default}")
     return Safety(**out)
 
 
