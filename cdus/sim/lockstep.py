@@ -222,6 +222,9 @@ class Lockstep:
                     self._catch_up(p.vehicle)
                     self._out.append(Join(p.vehicle, p.tick))
                     self.acked[p.vehicle] = p.tick - 1
+                else:  # resumed after its session lapsed: what was sent meanwhile never reached it
+                    self._catch_up(p.vehicle)
+                    self._out.append(Grant(self.granted))
             if p.stage != "done":
                 return
             self._current = None

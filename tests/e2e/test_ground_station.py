@@ -50,3 +50,42 @@ def test_ground_station_watches_and_commands_a_running_fleet(tmp_path, launches)
     kinds = [(e["kind"], e.get("vehicle")) for e in m["events"]]
     assert ("vehicle_lost", "usv2") in kinds and ("link_changed", None) in kinds, m["events"]
     assert not fleet_processes(fleet)
+
+
+def _world_t(out: str) -> float | None:
+    for line in out.splitlines():
+        if "world: t =" in line:
+            return float(line.split("world: t =")[1].split()[0])
+    return None
+
+
+def test_a_vehicle_paused_past_its_lease_and_resumed_from_the_ground_station_rejoins_in_lockstep(tmp_path, launches):
+    """SIGSTOPped longer than the 1 s lease, the agent's session is closed and what the world
+    sent meanwhile is lost; the world sends it again when its token is back. This hung the
+    fleet for good before."""
+    fleet = unique_fleet()
+    port = free_tcp_port()
+    run = tmp_path / "run"
+    la = launches(["configs/concentric_circles.toml", "--clock", "lockstep", "--duration", "3000",
+                   "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "-q"], fleet)
+    la.wait_for(f"fleet '{fleet}' up")
+    assert gs(fleet, port, "pause-vehicle", "uav1").returncode == 0
+    time.sleep(3.0)  # well past the lease: the router closes its session
+    assert gs(fleet, port, "resume-vehicle", "uav1").returncode == 0
+    resumed = t = None
+    deadline = time.monotonic() + 90
+    while time.monotonic() < deadline:
+        if resumed is None and "resuming at tick" in (run / "logs" / "uav1.log").read_text():
+            resumed = _world_t(gs(fleet, port, "status", "--once").stdout)
+        elif resumed is not None:
+            t = _world_t(gs(fleet, port, "status", "--once").stdout)
+            if t is not None and t > resumed + 50.0:  # the fleet moves on with uav1
+                break
+        time.sleep(0.5)
+    assert resumed is not None and t is not None and t > resumed + 50.0, (run / "logs" / "uav2.log").read_text()[-1500:]
+    assert gs(fleet, port, "stop").returncode == 0
+    assert la.wait(timeout=60) == 0, la.output()
+    m = json.loads((run / "metrics.json").read_text())
+    kinds = [(e["kind"], e.get("vehicle")) for e in m["events"]]
+    assert ("vehicle_back", "uav1") in kinds, m["events"]
+    assert not fleet_processes(fleet)

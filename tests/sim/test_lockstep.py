@@ -343,6 +343,33 @@ def test_a_ground_stations_pause_and_resume():
     assert max(grants(acts)) == 100 and ls.acked[1] == 100
 
 
+def test_a_vehicle_resumed_after_its_session_lapsed_hears_again_what_it_missed():
+    """SIGSTOPped past the lease, its session was closed: the roster changes and grants sent
+    meanwhile never reached it. When its token is back it gets them again (the hang of a
+    ground station's pause and resume in lockstep)."""
+    ls = started(window=5)
+    ls.poll()
+    ls.vehicle_fault("pause", 1)
+    step(ls)
+    ls.on_fault_done(1)
+    ls.on_alive(1, False)  # the lease ran out
+    step(ls, who=[0, 2], rounds=5)
+    assert 15 < ls.granted < 50
+    assert any(c.vehicle == 1 and c.state == "gone" for c in ls.changes)
+    ls.vehicle_fault("resume", 1)
+    step(ls, who=[0, 2], rounds=2)
+    ls.on_fault_done(1)  # SIGCONT sent; the token is not back yet
+    assert not [a for a in ls.poll() if isinstance(a, Roster) and a.to == 1]
+    before = ls.granted
+    ls.on_alive(1, True)
+    acts = ls.poll()
+    caught_up = [a.change for a in acts if isinstance(a, Roster) and a.to == 1]
+    assert caught_up == ls.changes[:len(caught_up)] and caught_up[-1].state == "live" and caught_up[-1].vehicle == 1
+    assert grants(acts)[0] == before  # the grant it missed, again
+    step(ls)
+    assert ls.granted == 100 and ls.acked[1] == 100
+
+
 def test_a_ground_stations_restart_sends_gone_and_fresh_live_on_one_tick():
     ls = started(window=5)
     ls.poll()
