@@ -36,12 +36,12 @@ from typing import Any, Callable
 
 import zenoh
 
-from cdus.core.events import RosterChange, plan_roster
+from cdus.core.events import RosterChange, event_tick, plan_roster
 from cdus.core.link import LinkEmulator, burst_events
 from cdus.core.node import VehicleNode
 from cdus.scenario.config import ConfigError
 from cdus.scenario.model import Scenario
-from cdus.scenario.link import validate_link
+from cdus.scenario.link import merge_link_tables, validate_link
 from cdus.sim.build import build_node, link_emulator_for, listeners_of
 from cdus.sim.sensing import contacts_of
 from cdus.core.schedule import CLOCKS, total_ticks
@@ -306,11 +306,15 @@ class Agent:
             self.log(f"neighbour {f['vehicle']} {f['state']} from tick {f['tick']}")
 
     def _update_link(self, table: dict, at: float) -> None:
-        """Merge ``table`` over the current [link] table; it applies to messages sent from ``at`` on."""
-        merged = {**self.link_table, **table}
+        """Merge ``table`` over the current [link] table (sub-tables key by key: ``delay.jitter``
+        keeps ``delay.base``); it applies to messages sent from ``at`` on. A ``policy`` or
+        ``timeout`` in it changes the stale-neighbour policy from the first tick at or after ``at``."""
+        merged = merge_link_tables(self.link_table, table)
         try:
             spec = validate_link(merged, self.ids, "link command")
             at = self.node.set_link(spec, at)
+            if "policy" in table or "timeout" in table:
+                self.node.set_policy(spec.policy, spec.timeout, event_tick(at, self.period))
         except (ConfigError, ValueError) as e:
             self.rejected["bad_link_command"] += 1
             self.log(f"link command rejected: {e}")

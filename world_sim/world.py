@@ -37,7 +37,7 @@ from cdus.core.schedule import total_ticks
 from cdus.files import write_json
 from cdus.scenario.model import Scenario
 from cdus.sim.build import metric_edges, sensor_schedule
-from cdus.sim.lockstep import Fault, Grant, Join, Lockstep, Roster, Sense
+from cdus.sim.lockstep import CatchUp, Fault, Grant, Join, Lockstep, Roster, Sense
 from cdus.sim.reports import graph_event, vehicle_back, vehicle_lost
 from cdus.sim.sensing import sense_tick
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
@@ -104,6 +104,7 @@ class World:
         self._realtime_faults = list(scenario.events)  # realtime: carried out when their time comes
         self.st = WorldState()
         self.pairs = [(e.i, e.k) for e in scenario.edges]
+        self._commands: list[tuple[str | None, bytes]] = []  # run-time link and gains commands, for (re)joiners
         self.log = log or (lambda s: print(f"[world] {s}", flush=True))
         self.next_tick = 0  # next tick to record
         self.events: list[FleetEvent] = []
@@ -270,7 +271,9 @@ class World:
             self._relay_gains(f["gains"], f["vehicle"], sender)
         elif op == "link":
             at = f["at"] if f["at"] >= 0 else self._sim_now() + LINK_LEAD
-            self.pub_ctl.put(encode_control("link", link=f["link"], at=float(at)))
+            payload = encode_control("link", link=f["link"], at=float(at))
+            self.pub_ctl.put(payload)
+            self._commands.append((None, payload))
             self.st.link_commanded = True
             self._note(FleetEvent.of(self._sim_now(), "link_changed",
                                      f"link faults changed from t = {at:.2f} s by {sender}: {f['link']}"))
@@ -291,7 +294,9 @@ class World:
             self.st.rejected += 1
             return
         tick = self.lockstep.granted + 1 if self.clock == "lockstep" else self._tick_now() + 1
-        self.session.put(keys.ctl(self.fleet, targets), encode_control("gains", gains=gains, tick=tick))
+        payload = encode_control("gains", gains=gains, tick=tick)
+        self.session.put(keys.ctl(self.fleet, targets), payload)
+        self._commands.append((vehicle or None, payload))
         self._note(FleetEvent.of(tick * self.period, "gains_changed",
                                  f"gains {gains} for {vehicle or 'every vehicle'} from tick {tick} by {sender}"))
 
@@ -326,12 +331,22 @@ class World:
             if up:
                 self._send_roster(RosterChange(n, j, "live", fresh=True))
                 self.pub_ctl.put(encode_control("start", t0=self.t0))
+                self._replay_commands(name)
                 self._note(vehicle_back(n * self.period, name))
             else:
                 self._send_roster(RosterChange(n, j, "gone"))
                 self._note(vehicle_lost(n * self.period, name))
         if self.started:
             self._check_graph()
+
+    def _replay_commands(self, vid: str) -> None:
+        """A (re)started or resumed process missed the ground stations' link and gains commands
+        (a new one starts from the scenario file): send it each again, in order. Each applies
+        from the time or tick it did (link changes at once if that is past), so it ends where
+        the rest of the fleet is."""
+        for target, payload in self._commands:
+            if target is None or target == vid:
+                self.session.put(keys.ctl(self.fleet, [vid]), payload)
 
     def _send_roster(self, ch: RosterChange, to: int | None = None) -> None:
         targets = self.ids if to is None else [self.ids[to]]
@@ -388,6 +403,8 @@ class World:
                 self.pub_ctl.put(encode_control("grant", until=a.until))
             elif isinstance(a, Join):
                 self.session.put(keys.ctl(self.fleet, [self.ids[a.vehicle]]), encode_control("join", tick=a.tick))
+            elif isinstance(a, CatchUp):
+                self._replay_commands(self.ids[a.vehicle])
             elif isinstance(a, Sense):
                 self._send_contacts(a.tick, self._sample_rows.pop(a.tick, {}))
             elif isinstance(a, Fault):

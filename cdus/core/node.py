@@ -21,8 +21,8 @@ Zenoh, and both therefore step the same ticks with the same inputs (docs/archite
   At tick n the safety filter uses the newest sample taken at or before n - latency
   (and not before this vehicle (re)joined); deterministic runners wait for it
   (``contacts_missing``), a realtime one uses what has arrived.
-- ``set_link(spec, at)`` and ``set_gains(k, c, tick)``: run-time changes, applied in
-  simulated time so every runner applies them alike.
+- ``set_link(spec, at)``, ``set_policy(policy, timeout, tick)`` and ``set_gains(k, c,
+  tick)``: run-time changes, applied in simulated time so every runner applies them alike.
 - ``waiting_for(n)``: the neighbours whose broadcast tick ``n`` needs and has not
   arrived (deterministic runners wait for them; a realtime one does not).
 - ``step(n)``: the tick: usable messages into the neighbour table, the controller's
@@ -43,7 +43,7 @@ from dataclasses import dataclass, field
 from cdus.core.events import RosterChange
 from cdus.core.link import DropBursts, LinkCounters, LinkModel
 from cdus.core.linkspec import LinkSpec
-from cdus.core.neighbours import NeighbourLink, NeighbourTable, consensus_target
+from cdus.core.neighbours import POLICIES, NeighbourLink, NeighbourTable, consensus_target
 from cdus.core.paths import Vec
 from cdus.core.safety import Contact
 from cdus.core.schedule import delivery_tick, last_broadcast_seq, send_tick
@@ -101,6 +101,7 @@ class VehicleNode:
         self._order = 0
         self._self_changes: list[RosterChange] = []
         self._gains: list[tuple[int, tuple[float, ...], float]] = []  # (tick, k, c), by tick
+        self._policies: list[tuple[int, str, float]] = []  # (tick, policy, timeout), by tick
         self.state = "live"  # this vehicle's own: live | paused | gone
         self.tick = joined_at  # the next tick to step
         if sense_latency < 1:
@@ -177,6 +178,15 @@ class VehicleNode:
         self.link.update(spec, at)
         return at
 
+    def set_policy(self, policy: str, timeout: float, tick: int) -> None:
+        """A new stale-neighbour policy (and its timeout, s) from tick ``tick`` on."""
+        if policy not in POLICIES:
+            raise ValueError(f"unknown stale-neighbour policy {policy!r}; choose one of {', '.join(POLICIES)}")
+        if not timeout > 0:
+            raise ValueError(f"the policy's timeout must be > 0 s, got {timeout}")
+        self._policies.append((tick, policy, float(timeout)))
+        self._policies.sort(key=lambda g: g[0])
+
     def set_gains(self, k: tuple[float, ...], c: float, tick: int) -> None:
         """New guidance gains from tick ``tick`` (or the next tick stepped)."""
         if len(k) != self.vehicle.dim or not all(x > 0 for x in k) or not c > 0:
@@ -246,6 +256,8 @@ class VehicleNode:
         while self._gains and self._gains[0][0] <= n:
             _, k, c = self._gains.pop(0)
             self.vehicle.k, self.vehicle.c = k, c
+        while self._policies and self._policies[0][0] <= n:
+            _, self.table.policy, self.table.timeout = self._policies.pop(0)
         v = self.vehicle
         v.control(self.table.consensus((n - 1) * T))
         tel = v.telemetry()

@@ -36,6 +36,16 @@ T = TypeVar("T")
 Ids = Sequence[str] | None  # None: the vehicle ids are not known (references are not checked)
 
 
+def merge_link_tables(base: dict, change: dict) -> dict:
+    """``change`` over ``base``, sub-tables key by key (``delay = {jitter = ...}`` keeps the
+    base's ``delay.base``); lists (``down``, ``partition``, ``override``) are replaced whole."""
+    out = dict(base)
+    for key, value in change.items():
+        old = out.get(key)
+        out[key] = {**old, **value} if isinstance(old, dict) and isinstance(value, dict) else value
+    return out
+
+
 def validate_link(link: Any, ids: Sequence[str], source: str) -> LinkSpec:
     """Check a raw ``[link]`` table and build its :class:`LinkSpec`.
 

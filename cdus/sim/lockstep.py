@@ -14,6 +14,8 @@ acknowledgements (``on_fault_done``) and operator commands (``pause``, ``resume`
   process. Grants stop at the tick before the fault until it is done, so it lands on
   its tick.
 - :class:`Join`: tell a (re)started process the tick it joins at (0 at the start).
+- :class:`CatchUp`: send a (re)started or resumed process the run-time commands (link
+  faults, gains) it missed, after the roster changes it missed.
 - :class:`Sense`: sample the proximity sensor at tick ``tick`` (every vehicle live at it
   has reported it) and send every vehicle its contacts (cdus.sim.sensing). Only with the
   safety filter on (``sense_every``).
@@ -63,12 +65,20 @@ class Roster:
 
 
 @dataclass(frozen=True)
+class CatchUp:
+    """A (re)joining or resumed process: send it the run-time commands it missed (link
+    faults, gains), after the roster changes."""
+
+    vehicle: int
+
+
+@dataclass(frozen=True)
 class Fault:
     op: str  # kill | pause_vehicle | resume_vehicle | restart (cdus.wire.messages.LAUNCHER_OPS)
     vehicle: int
 
 
-Action = Grant | Join | Roster | Fault | Sense | FleetEvent
+Action = Grant | Join | Roster | CatchUp | Fault | Sense | FleetEvent
 
 
 @dataclass
@@ -305,6 +315,7 @@ class Lockstep:
         """A joining process hears every change so far (its neighbours' liveness)."""
         for ch in self.changes:
             self._out.append(Roster(ch, to=j))
+        self._out.append(CatchUp(j))
 
     def _frontier(self) -> int:
         return max(0, min(self.granted, self.last_tick))

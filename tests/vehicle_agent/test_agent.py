@@ -231,6 +231,31 @@ def test_gains_and_link_commands_apply(fake):
     assert any("gains k = (2.0, 2.0), c = 3.0 from tick 4" in ln for ln in lines)
 
 
+def test_a_link_command_merges_sub_tables_and_switches_the_stale_policy_at_its_tick(fake):
+    a, s, lines = fake()
+    ctl(s, "link", link={"delay": {"base": 0.2}}, at=1.0)
+    ctl(s, "link", link={"delay": {"jitter": 0.001}}, at=1.0)  # delay.base stays
+    ctl(s, "link", link={"policy": "extrapolate"}, at=1.0)
+    a._drain(lambda: None)
+    assert not a.rejected
+    assert a.link_table["delay"] == {"base": 0.2, "jitter": 0.001}
+    assert a.node.link.epochs[-1][1].delay.base == 0.2
+    table = a.node.table
+    assert table.policy == "hold"  # from tick 50 (t = 1.0 s at 50 Hz) on
+    for n in range(51):
+        a.node.step(n)
+    assert table.policy == "extrapolate"
+
+
+def test_a_link_command_without_a_policy_keeps_the_one_the_agent_runs(fake):
+    a, s, lines = fake()
+    a.node.table.policy = "timeout"  # as `--policy timeout` sets it
+    ctl(s, "link", link={"loss": 0.1}, at=0.0)
+    a._drain(lambda: None)
+    a.node.step(0)
+    assert a.node.table.policy == "timeout"
+
+
 def test_clock_messages_set_the_agents_clock(fake):
     a, s, lines = fake(clock="realtime")
     ctl(s, "start", t0=1000.0)

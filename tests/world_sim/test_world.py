@@ -7,7 +7,7 @@ import json
 
 from cdus.core.events import RosterChange
 from cdus.scenario.config import load_scenario
-from cdus.sim.lockstep import Grant, Join, Roster
+from cdus.sim.lockstep import CatchUp, Grant, Join, Roster
 from cdus.wire import keys
 from cdus.wire.messages import (
     CTL_OPS, LAUNCHER_OPS, StateMsg, decode_control, encode_control, encode_states,
@@ -143,6 +143,30 @@ def test_commands_are_relayed_with_the_tick_or_time_they_apply_from():
     c = ctl_ops(w)[-1]
     assert c.op == "link" and c.fields["at"] == 100 * w.period + LINK_LEAD
     assert [e.kind for e in w.events] == ["gains_changed", "link_changed"]
+
+
+def test_a_rejoining_process_is_sent_the_link_and_gains_commands_it_missed():
+    """A restarted process starts from the scenario file; a resumed one missed what was sent
+    while its session was closed. The world sends it every run-time command again, in order."""
+    w = world()
+    w.lockstep.granted = 40
+    cmd = lambda op, **f: w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control(op, **f))))  # noqa: E731
+    cmd("link", link={"loss": 0.3}, at=-1.0)
+    cmd("set_gains", gains={"c": 3.0}, vehicle="uav1")
+    cmd("set_gains", gains={"k": 2.0}, vehicle="")
+    cmd("link", link={"delay": {"base": 0.1}}, at=-1.0)
+    before = len(w.session.puts)
+    w._act([CatchUp(w.ids.index("usv2"))])
+    sent = w.session.puts[before:]
+    assert {key for key, _ in sent} == {keys.ctl(FLEET, ["usv2"])}
+    ops = [decode_control(p, CTL_OPS) for _, p in sent]
+    assert [(c.op, c.fields.get("link") or c.fields.get("gains")) for c in ops] == [
+        ("link", {"loss": 0.3}), ("gains", {"k": 2.0}), ("link", {"delay": {"base": 0.1}})]  # not uav1's gains
+    w.clock, w.started, w.t0, w.paused_at = "realtime", True, 0.0, 2.0
+    before = len(w.session.puts)
+    w._on_alive("uav1", True)  # realtime: a (re)started process's token
+    replayed = [decode_control(p, CTL_OPS).op for key, p in w.session.puts[before:] if key == keys.ctl(FLEET, ["uav1"])]
+    assert replayed == ["link", "gains", "gains", "link"]
 
 
 def test_bad_commands_are_counted_not_raised():
