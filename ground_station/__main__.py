@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from dataclasses import replace
 
 import zenoh
 
@@ -26,19 +27,39 @@ from ground_station.console import GroundStation, status_table
 VEHICLE_ACTIONS = {"kill": "kill", "restart": "restart", "pause-vehicle": "pause", "resume-vehicle": "resume"}
 
 
+GS_CONNECT_TIMEOUT_MS = 5000  # a ground station is interactive: say soon that nobody is there
+STATUS_WAIT_S = 3.0  # the world publishes its status every second
+
+
+def _positive(text: str) -> float:
+    x = float(text)
+    if not x > 0 or x == float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a number of seconds > 0, got {text}")
+    return x
+
+
+def _sim_time(text: str) -> float:
+    x = float(text)
+    if not 0 <= x < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a simulated time >= 0 s, got {text}")
+    return x
+
+
 def build_parser(prog: str = "cdus gs") -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog=prog, allow_abbrev=False, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(prog=prog, allow_abbrev=False, description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--fleet", required=True, help="the fleet's name (cdus launch prints it)")
     add_transport_args(p, default_mode="client")
     sub = p.add_subparsers(dest="action", required=True, metavar="ACTION")
     st = sub.add_parser("status", help="a live table of the fleet")
     st.add_argument("--once", action="store_true", help="print one table and exit")
-    st.add_argument("--interval", type=float, default=1.0, help="seconds between refreshes")
+    st.add_argument("--interval", type=_positive, default=1.0, help="seconds between refreshes")
     for op in ("pause", "resume", "stop"):
         sub.add_parser(op, help=f"{op} the whole fleet")
     ln = sub.add_parser("link", help="change link faults at run time: KEY=VALUE of the [link] table")
     ln.add_argument("settings", nargs="+", metavar="KEY=VALUE", help="e.g. loss=0.3 delay.base=0.1 policy=extrapolate")
-    ln.add_argument("--at", type=float, help="simulated time from which they apply (default: now + 0.5 s)")
+    ln.add_argument("--at", type=_sim_time,
+                    help="simulated time from which they apply (default: now + 0.5 s; a past time means now)")
     gn = sub.add_parser("gains", help="change guidance gains: k=... c=...")
     gn.add_argument("settings", nargs="+", metavar="KEY=VALUE")
     gn.add_argument("--vehicle", help="one vehicle (default: all)")
@@ -63,14 +84,62 @@ def nested(settings: list[str]) -> dict:
     return out
 
 
+def _positive_number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and 0 < x < float("inf")
+
+
+def check_gains(gains: dict, vehicle: str | None) -> None:
+    """k: a number > 0 (every axis) or, for one vehicle (--vehicle), one per axis; c: a number > 0."""
+    bad = sorted(set(gains) - {"k", "c"})
+    if bad:
+        raise ConfigError("command line", [(bad[0], "gains are k (a number or, with --vehicle, one per axis) and c")])
+    if not gains:
+        raise ConfigError("command line", [("gains", "give k=... and/or c=...")])
+    k = gains.get("k", 1.0)
+    if isinstance(k, list):
+        if vehicle is None:
+            raise ConfigError("command line", [("k", "one value per axis needs --vehicle (boats have 2 axes, "
+                                                     "drones 3); a single number sets every axis")])
+        if not k or not all(_positive_number(x) for x in k):
+            raise ConfigError("command line", [("k", f"must be numbers > 0, got {k}")])
+    elif not _positive_number(k):
+        raise ConfigError("command line", [("k", f"must be a number > 0, got {k!r}")])
+    if "c" in gains and not _positive_number(gains["c"]):
+        raise ConfigError("command line", [("c", f"must be a number > 0, got {gains['c']!r}")])
+
+
+def _check_vehicle(vid: str, ids: list) -> None:
+    if ids and vid not in ids:
+        raise ConfigError("command line", [("vehicle", f"no vehicle {vid!r} in this fleet; its vehicles are "
+                                                       f"{', '.join(ids)}")])
+
+
 def main(argv=None, prog: str = "python -m ground_station") -> int:
     args = build_parser(prog).parse_args(argv)
     transport = with_default_endpoint(transport_from_args(args))
-    gs = GroundStation(args.fleet, transport)
+    if transport.connect and not transport.config_file:
+        transport = replace(transport, extra=(*transport.extra, ("connect/timeout_ms", str(GS_CONNECT_TIMEOUT_MS))))
     try:
+        gs = GroundStation(args.fleet, transport)
+    except ValueError as e:  # the fleet name
+        print(f"error: --fleet: {e}", file=sys.stderr)
+        return 2
+    try:
+        # what can be checked before connecting
+        if args.action == "gains":
+            gains = nested(args.settings)
+            check_gains(gains, args.vehicle)
+        elif args.action == "link":
+            table = nested(args.settings)
+            validate_link(table, None, "command line")
         gs.open(watch=True)
+        if not gs.wait_for_status(STATUS_WAIT_S):
+            print(f"error: no status from fleet {args.fleet!r} within {STATUS_WAIT_S:g} s at "
+                  f"{', '.join(transport.connect) or 'the configured endpoint'}: is it running? "
+                  "(cdus launch prints the fleet name and the endpoint to attach to)", file=sys.stderr)
+            return 1
+        ids = list((gs.view.world or {}).get("ids") or [])
         if args.action == "status":
-            gs.wait_for_status(3.0)
             if args.once:
                 print(status_table(gs.view))
                 return 0
@@ -81,22 +150,17 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
             gs.fleet_command(args.action)
             print(f"{args.action} sent to fleet {args.fleet!r}")
         elif args.action == "link":
-            table = nested(args.settings)
-            if not gs.wait_for_status(3.0):
-                print(f"error: no status from fleet {args.fleet!r} within 3 s: is it running?", file=sys.stderr)
-                return 1
-            validate_link(table, (gs.view.world or {}).get("ids") or [], "command line")
+            validate_link(table, ids, "command line")
             gs.set_link(table, args.at)
             when = "as soon as the world can" if args.at is None else f"from t = {args.at:.2f} s"
             print(f"link faults {table} {when}: sent to fleet {args.fleet!r}")
         elif args.action == "gains":
-            gains = nested(args.settings)
-            bad = sorted(set(gains) - {"k", "c"})
-            if bad:
-                raise ConfigError("command line", [(bad[0], "gains are k (a number or per-axis list) and c")])
+            if args.vehicle is not None:
+                _check_vehicle(args.vehicle, ids)
             gs.set_gains(gains, args.vehicle)
             print(f"gains {gains} sent to {args.vehicle or 'every vehicle'}")
         else:
+            _check_vehicle(args.vehicle, ids)
             gs.vehicle_fault(VEHICLE_ACTIONS[args.action], args.vehicle)
             print(f"{args.action} {args.vehicle} sent to fleet {args.fleet!r}")
         time.sleep(0.2)  # let the put leave before the session closes
@@ -105,7 +169,9 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     except zenoh.ZError as e:  # no router at the endpoint
-        print(f"error: could not reach the fleet's router at {', '.join(transport.connect)}: {e}", file=sys.stderr)
+        why = str(e).split(" at /")[0]  # not the Rust source path
+        print(f"error: could not reach the fleet's router at {', '.join(transport.connect)} within "
+              f"{GS_CONNECT_TIMEOUT_MS / 1000:g} s: {why}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         return 0

@@ -32,6 +32,7 @@ import zenoh
 
 from cdus.core.events import RosterChange
 from cdus.core.link import LinkCounters, merge_link_summaries
+from cdus.core.node import gains_problem
 from cdus.core.metrics import Recorder
 from cdus.core.schedule import total_ticks
 from cdus.files import write_json
@@ -290,8 +291,11 @@ class World:
 
     def _relay_gains(self, gains: dict, vehicle: str, sender: str) -> None:
         targets = self.ids if vehicle == "" else [vehicle] if vehicle in self.index else []
-        if not targets:
+        problems = {gains_problem(gains, self.scenario.vehicle(v).dim) for v in targets} - {None}
+        if not targets or problems:  # all or nothing: no fleet with gains half changed
             self.st.rejected += 1
+            why = f"no vehicle {vehicle!r}" if not targets else "; ".join(sorted(problems))
+            self._note(FleetEvent.of(self._sim_now(), "rejected", f"gains {gains} from {sender}: {why}"))
             return
         tick = self.lockstep.granted + 1 if self.clock == "lockstep" else self._tick_now() + 1
         payload = encode_control("gains", gains=gains, tick=tick)

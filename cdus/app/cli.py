@@ -27,7 +27,8 @@ from cdus.sim.build import listeners_of
 from cdus.sim.fleet import InProcessFleet
 from cdus.wire import keys
 from cdus.wire.access import GROUND_ROLE, WORLD_ROLE, vehicle_role
-from cdus.wire.transport import Transport, client_of, router as fleet_router
+from cdus.wire.transport import Transport, client_of, endpoint
+from cdus.wire.transport import router as fleet_router
 from ground_station.__main__ import main as gs_main
 from world_sim.recording import parse_spec
 from cdus.app.report import Progress, run_dir, summary_table
@@ -87,7 +88,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="stale-neighbour policy (default: the scenario's link.policy, else hold)")
     p.add_argument("--ready-timeout", type=float, default=30.0, metavar="S",
                    help="how long each process may take to come up")
-    p.add_argument("-l", "--listen", action="append", default=[], metavar="ENDPOINT",
+    p.add_argument("-l", "--listen", action="append", default=[], metavar="ENDPOINT", type=endpoint,
                    help="router endpoint(s) (default: tcp/127.0.0.1:<free port>); e.g. tcp/0.0.0.0:7447 "
                         "for agents on other hosts")
     p.add_argument("--zenoh-config", metavar="FILE", help="zenoh json5 config for the router (multicast forced off)")

@@ -53,6 +53,26 @@ from cdus.wire.messages import OmegaMsg
 REJECT_REASONS = ("not_a_neighbour", "stale", "gone")
 
 
+def gains_problem(gains: dict, dim: int) -> str | None:
+    """What is wrong with a run-time gains command ``{"k": number | [per axis], "c": number}``
+    for a vehicle of ``dim`` axes (None: nothing). Numbers must be finite and > 0."""
+    def ok(x) -> bool:
+        return isinstance(x, (int, float)) and not isinstance(x, bool) and 0 < x < math.inf
+
+    extra = sorted(set(gains) - {"k", "c"})
+    if extra or not gains:
+        return f"gains are k and c, got {sorted(gains)}"
+    k = gains.get("k", 1.0)
+    if isinstance(k, (list, tuple)):
+        if len(k) != dim or not all(ok(x) for x in k):
+            return f"k must be {dim} numbers > 0 for this vehicle, got {list(k)}"
+    elif not ok(k):
+        return f"k must be a number > 0, got {k!r}"
+    if "c" in gains and not ok(gains["c"]):
+        return f"c must be a number > 0, got {gains['c']!r}"
+    return None
+
+
 @dataclass(frozen=True)
 class Outbox:
     """What one tick produces: the telemetry row and, on broadcast ticks, the ω message."""

@@ -46,13 +46,14 @@ def merge_link_tables(base: dict, change: dict) -> dict:
     return out
 
 
-def validate_link(link: Any, ids: Sequence[str], source: str) -> LinkSpec:
-    """Check a raw ``[link]`` table and build its :class:`LinkSpec`.
+def validate_link(link: Any, ids: Ids, source: str) -> LinkSpec:
+    """Check a raw ``[link]`` table and build its :class:`LinkSpec` (``ids`` None: vehicle
+    references are not checked).
 
     Raises ``ConfigError(source, [(field, message), ...])`` with every problem.
     """
     p = Problems()
-    spec = link_section(p, link, [str(i) for i in ids])
+    spec = link_section(p, link, None if ids is None else [str(i) for i in ids])
     if p:
         raise ConfigError(source, p.items)
     assert spec is not None

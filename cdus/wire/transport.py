@@ -51,13 +51,33 @@ class Transport:
         return out
 
 
+ENDPOINT_PROTOCOLS = ("tcp", "udp", "tls", "quic", "ws", "unixsock-stream", "unixpipe", "vsock")
+_IP_PROTOCOLS = ("tcp", "udp", "tls", "quic", "ws")
+
+
+def endpoint(text: str) -> str:
+    """An endpoint as argparse takes it: ``<protocol>/<address>``, ``host:port`` for IP
+    protocols (a port 0-65535). Anything else is a usage error naming the form."""
+    proto, sep, address = text.partition("/")
+    if not sep or proto not in ENDPOINT_PROTOCOLS or not address:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not an endpoint: expected <protocol>/<address> with a protocol of "
+            f"{', '.join(ENDPOINT_PROTOCOLS)}, e.g. tcp/127.0.0.1:7447 or unixsock-stream//tmp/cdus.sock")
+    if proto in _IP_PROTOCOLS:
+        host, colon, port = address.split("#")[0].rpartition(":")
+        if not colon or not host or not port.isdigit() or not 0 <= int(port) <= 65535:
+            raise argparse.ArgumentTypeError(f"{text!r}: expected {proto}/<host>:<port> with a port 0-65535, "
+                                             f"e.g. {proto}/127.0.0.1:7447")
+    return text
+
+
 def add_transport_args(p: argparse.ArgumentParser, default_mode: str = "client") -> None:
     g = p.add_argument_group("zenoh transport (same flags on every cdus process)")
     g.add_argument("--mode", choices=MODES, default=None,
                    help=f"zenoh session mode (default: {default_mode})")
-    g.add_argument("-e", "--connect", action="append", default=[], metavar="ENDPOINT",
+    g.add_argument("-e", "--connect", action="append", default=[], metavar="ENDPOINT", type=endpoint,
                    help="endpoint to connect to, e.g. tcp/127.0.0.1:7447 or unixsock-stream//tmp/cdus.sock")
-    g.add_argument("-l", "--listen", action="append", default=[], metavar="ENDPOINT",
+    g.add_argument("-l", "--listen", action="append", default=[], metavar="ENDPOINT", type=endpoint,
                    help="endpoint to listen on, e.g. tcp/127.0.0.1:7447")
     g.add_argument("--zenoh-config", metavar="FILE",
                    help="a zenoh json5 config file; --mode/--connect/--listen override it "

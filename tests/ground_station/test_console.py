@@ -5,6 +5,8 @@ from ground_station.__main__ import nested
 from ground_station.console import FleetView, status_table
 from cdus.wire.messages import StateMsg
 from cdus.wire.schemas import FleetEvent
+from cdus.core.node import gains_problem
+from ground_station.__main__ import main as gs_main
 
 
 def test_settings_become_a_nested_link_table():
@@ -31,3 +33,33 @@ def test_status_table_shows_every_known_vehicle_the_world_and_its_events():
 
 def test_status_table_before_anything_is_heard():
     assert "world: no status yet" in status_table(FleetView())
+
+
+@pytest.mark.parametrize("argv, says", [
+    (["--fleet", "bad/name", "stop"], "--fleet"),
+    (["--fleet", "f", "gains", "c=abc"], "c: must be a number > 0"),
+    (["--fleet", "f", "gains", "k=-3"], "k: must be a number > 0"),
+    (["--fleet", "f", "gains", "k=[1,2]"], "needs --vehicle"),
+    (["--fleet", "f", "gains", "x=1"], "gains are k"),
+    (["--fleet", "f", "link", "loss=3"], "link.loss"),
+])
+def test_bad_commands_are_refused_before_connecting(argv, says, capsys):
+    assert gs_main(["-e", "tcp/127.0.0.1:1", *argv]) == 2  # nothing listens there: it never got that far
+    assert says in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv", [["--fleet", "f", "link", "--at", "-5", "loss=0.1"],
+                                  ["--fleet", "f", "status", "--interval", "0"],
+                                  ["--fleet", "f", "-e", "nonsense", "stop"],
+                                  ["--fleet", "f", "-e", "tcp/127.0.0.1:port", "stop"]])
+def test_bad_arguments_are_usage_errors(argv):
+    with pytest.raises(SystemExit) as e:
+        gs_main(argv)
+    assert e.value.code == 2
+
+
+def test_gains_problem_names_what_does_not_fit_a_vehicle():
+    assert gains_problem({"k": [1.0, 2.0]}, 3) == "k must be 3 numbers > 0 for this vehicle, got [1.0, 2.0]"
+    assert gains_problem({"k": 2.0, "c": 0}, 2) == "c must be a number > 0, got 0"
+    assert gains_problem({"k": True}, 2) is not None and gains_problem({}, 2) is not None
+    assert gains_problem({"k": [1.0, 2.0], "c": 3}, 2) is None

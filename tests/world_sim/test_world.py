@@ -169,6 +169,20 @@ def test_a_rejoining_process_is_sent_the_link_and_gains_commands_it_missed():
     assert replayed == ["link", "gains", "gains", "link"]
 
 
+def test_a_gains_command_that_does_not_fit_every_target_is_refused_whole():
+    """k = [1, 2] fits the boats (2 axes), not the drones: no vehicle gets it."""
+    w = world()
+    before = len(w.session.puts)
+    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("set_gains", gains={"k": [1.0, 2.0]},
+                                                                           vehicle=""))))
+    assert len(w.session.puts) == before and w.st.rejected == 1
+    assert [(e.kind, e.severity) for e in w.events] == [("rejected", "warn")]
+    assert "k must be 3 numbers" in w.events[0].text
+    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("set_gains", gains={"k": [1.0, 2.0]},
+                                                                           vehicle="usv1"))))
+    assert w.session.puts[-1][0] == keys.ctl(FLEET, ["usv1"]) and w.events[-1].kind == "gains_changed"
+
+
 def test_bad_commands_are_counted_not_raised():
     w = world()
     for payload in (b"\xc1", encode_control("explode"), encode_control("kill", vehicle="nobody"),
