@@ -18,7 +18,7 @@ from typing import Any, Sequence
 
 from cdus.app.credentials import Credentials, CredentialsError, make_credentials
 from cdus.app.launcher import LINKS, LaunchOptions, launch
-from cdus.app.sweep import parse_grid, sweep
+from cdus.app.sweep import check_grid, parse_grid, sweep
 from cdus.core.vehicle import DivergedError
 from cdus.scenario.config import ConfigError, load_scenario, parse_overrides
 from cdus.core.linkspec import POLICIES
@@ -252,10 +252,9 @@ def secure_router(router: Transport, opts: LaunchOptions, scenario: Scenario, di
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     grid = parse_grid(args.set)
-    base = load_scenario(args.config, {"scenario.duration": args.duration} if args.duration else None)
-    for key, values in grid:  # check every value before any run: a typo should not cost a sweep
-        for v in values:
-            load_scenario(args.config, {key: v})
+    over = {"scenario.duration": args.duration} if args.duration else None
+    base = load_scenario(args.config, over)
+    check_grid(args.config, grid, over)
     seeds = list(range(base.seed, base.seed + args.seeds))
     rows = sweep(args.config, grid, seeds, Path(args.out), clock=args.clock, jobs=args.jobs,
                  duration=args.duration, quiet=args.quiet)

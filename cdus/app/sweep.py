@@ -74,6 +74,19 @@ def parse_grid(items: Sequence[str]) -> list[tuple[str, list[Any]]]:
     return grid
 
 
+def cell_label(value: Any) -> Any:
+    """A grid value as the table, the CSV and the plot show it: tables and lists as compact
+    JSON (``{"p":0.01,"r":0.25}``), so they can label a cell."""
+    return json.dumps(value, separators=(",", ":"), sort_keys=True) if isinstance(value, (dict, list)) else value
+
+
+def check_grid(config: str, grid: list[tuple[str, list[Any]]], base: dict[str, Any] | None = None) -> None:
+    """Validate every cell of the grid, values together (``link.burst.p`` needs
+    ``link.burst.r``), before any run: a typo should not cost a sweep. Raises ConfigError."""
+    for run in plan(grid, [0]):
+        load_scenario(config, {**(base or {}), **dict(run.cell)})
+
+
 def plan(grid: list[tuple[str, list[Any]]], seeds: Sequence[int]) -> list[Run]:
     keys = [k for k, _ in grid]
     cells = itertools.product(*[vals for _, vals in grid]) if grid else [()]
@@ -216,7 +229,7 @@ def sweep(config: str, grid: list[tuple[str, list[Any]]], seeds: Sequence[int], 
 
     def report(j: int, res: dict) -> None:
         run = runs[j]
-        row = {**dict(run.cell), "seed": run.seed, **res, "_order": j}
+        row = {**{k: cell_label(v) for k, v in run.cell}, "seed": run.seed, **res, "_order": j}
         rows.append(row)
         if not quiet:
             cell = ", ".join(f"{k}={v}" for k, v in run.cell) or "(base)"

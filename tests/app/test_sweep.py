@@ -3,7 +3,7 @@ import csv
 import pytest
 
 from cdus.scenario.config import ConfigError
-from cdus.app.sweep import parse_grid, plan, sweep
+from cdus.app.sweep import check_grid, parse_grid, plan, summarize, sweep
 
 
 def test_grid_values_are_parsed_as_config_values():
@@ -38,3 +38,21 @@ def test_a_sweep_writes_results_summary_and_plot_and_records_failures(tmp_path):
     summary = (tmp_path / "summary.md").read_text()
     assert "| 0.3 | 2/2 |" in summary and "Failed runs:" in summary
     assert (tmp_path / "sweep.png").stat().st_size > 10_000
+
+
+def test_the_grid_is_checked_cell_by_cell_with_its_values_together():
+    grid = parse_grid(["link.burst.p=0.01,0.05", "link.burst.r=0.25"])
+    check_grid("configs/lake_circle.toml", grid)  # p and r together make a burst
+    with pytest.raises(ConfigError, match="link.burst.r: missing"):
+        check_grid("configs/lake_circle.toml", parse_grid(["link.burst.p=0.01,0.05"]))
+    with pytest.raises(ConfigError, match="link.loss"):
+        check_grid("configs/lake_circle.toml", parse_grid(["link.loss=0.1,2"]))
+
+
+def test_table_values_label_their_cells(tmp_path):
+    grid = parse_grid(["link.burst={p=0.01,r=0.5},{p=0.05,r=0.5}"])
+    rows = sweep("configs/lake_circle.toml", grid, [1], tmp_path, jobs=1, duration=2.0, quiet=True)
+    assert [r["link.burst"] for r in rows] == ['{"p":0.01,"r":0.5}', '{"p":0.05,"r":0.5}']
+    assert all(r["status"] == "ok" for r in rows)
+    assert '{"p":0.05,"r":0.5}' in summarize(["link.burst"], rows)
+    assert (tmp_path / "sweep.png").exists()
