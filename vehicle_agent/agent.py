@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 import os
+import random
 import select
 import signal
 import sys
@@ -159,6 +160,7 @@ class Agent:
         self.waker: Waker | None = None
         self.stop_requested = False  # by a signal
         self.cpu_s = 0.0  # CPU time of the process over the run (start to last tick)
+        self.incarnation = random.SystemRandom().getrandbits(31)  # tells the world a restart's counters apart
 
     # ------------------------------------------------------------------ zenoh wiring
     def open(self) -> None:
@@ -502,7 +504,7 @@ class Agent:
             rejected_by_reason=by_reason, missed_deadlines=self.missed_deadlines, joined_at=node.joined_at,
             latencies_ms=tuple(x * 1000.0 for x in new[::step][:100]), faults=faults,
             bursts=tuple(e.as_dict() for e in burst_events(node.bursts, self.ids)[-20:]),
-            interventions=node.vehicle.interventions)
+            interventions=node.vehicle.interventions, incarnation=self.incarnation)
 
     def publish_stats(self) -> None:
         if self.session is not None:

@@ -226,7 +226,7 @@ class World:
             self.st.rejected += 1
             return
         old = self.st.stats.get(vid)
-        if old is not None and old.joined_at != s.joined_at:  # a restarted process: its counters start anew
+        if old is not None and old.incarnation != s.incarnation:  # a restarted process: its counters start anew
             self.st.retired.append(old)
         self.st.stats[vid] = s
         for x in s.latencies_ms:  # each message carries the samples since the previous one
@@ -478,11 +478,18 @@ class World:
             if m is None:
                 return False  # a vehicle never reported: nothing to record yet
             states.append(m)
-        self.recorder.record(n * self.period, states)
+        self.recorder.record(n * self.period, states, self._live_at(n))
         self.next_tick = n + 1
         if n % UPDATE_EVERY == 0:
             self.sink.update(self.recorder)
         return True
+
+    def _live_at(self, n: int) -> list[bool]:
+        """Which vehicles step tick n: the lockstep roster's word, or (realtime) whose liveliness
+        token is up (a frozen process's lapses with the lease)."""
+        if self.clock == "lockstep":
+            return [self.lockstep.state_at(j, n) == "live" for j in range(len(self.ids))]
+        return [vid in self.st.alive for vid in self.ids]
 
     def _run_realtime(self) -> None:
         st, T = self.st, self.period

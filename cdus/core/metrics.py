@@ -76,24 +76,28 @@ class Recorder:
         self.omega = np.zeros((self._cap, n))
         self.omega_rate = np.zeros((self._cap, n))
         self.path_error = np.zeros((self._cap, n))
+        self.live = np.ones((self._cap, n), dtype=bool)  # stepping at that instant (not killed, not paused)
 
     def __len__(self) -> int:
         return self._n
 
     def _grow(self) -> None:
         self._cap *= 2
-        for name in ("t", "q", "heading", "omega", "omega_rate", "path_error"):
+        for name in ("t", "q", "heading", "omega", "omega_rate", "path_error", "live"):
             old = getattr(self, name)
-            new = np.zeros((self._cap,) + old.shape[1:])
+            new = np.zeros((self._cap,) + old.shape[1:], dtype=old.dtype)
             new[: self._n] = old[: self._n]
             setattr(self, name, new)
 
-    def record(self, t: float, rows: Sequence[Any]) -> None:
-        """``rows``: one telemetry per vehicle, in scenario order (attrs q, heading, omega, omega_rate, path_error)."""
+    def record(self, t: float, rows: Sequence[Any], live: Sequence[bool] | None = None) -> None:
+        """``rows``: one telemetry per vehicle, in scenario order (attrs q, heading, omega, omega_rate,
+        path_error); a vehicle not stepping (killed, paused) repeats its last row. ``live``: which
+        vehicles step at this instant (default: all)."""
         if self._n == self._cap:
             self._grow()
         n = self._n
         self.t[n] = t
+        self.live[n] = True if live is None else live
         for j, tel in enumerate(rows):
             q = tel.q
             self.q[n, j, : len(q)] = q
@@ -109,6 +113,19 @@ class Recorder:
     def edge_error(self) -> np.ndarray:
         return edge_errors(self.view("omega"), self.edges)
 
+    def worst_errors(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per instant, the worst |Φ| over the live vehicles and the worst edge error over the
+        edges whose two ends are live (0 where there is none): a killed or paused vehicle's
+        frozen ω and position are not the formation's error (docs/metrics.md)."""
+        live = self.view("live")
+        pe = np.where(live, self.view("path_error"), 0.0)
+        worst_path = pe.max(axis=1) if pe.size else np.zeros(len(self))
+        ee = self.edge_error()
+        if not ee.size:
+            return worst_path, np.zeros(len(self))
+        both = np.stack([live[:, e.i] & live[:, e.k] for e in self.edges], axis=1)
+        return worst_path, np.where(both, ee, 0.0).max(axis=1)
+
     def omega_rate_final(self, window: float = 1.0) -> dict[str, float | None]:
         t, w = self.view("t"), self.view("omega")
         if len(t) < 2:
@@ -123,9 +140,7 @@ class Recorder:
         """The metrics JSON (docs/metrics.md field names)."""
         t = self.view("t")
         pe = self.view("path_error")
-        ee = self.edge_error()
-        worst_path = pe.max(axis=1) if pe.size else np.zeros(len(t))
-        worst_coord = ee.max(axis=1) if ee.size else np.zeros(len(t))
+        worst_path, worst_coord = self.worst_errors()
         duration = float(t[-1] - t[0]) if len(t) else 0.0
         return {
             "scenario": scenario,
@@ -140,6 +155,7 @@ class Recorder:
             "final_coord_error_max": _finite(worst_coord[-1]) if len(t) else None,
             "omega_rate_final": self.omega_rate_final(),
             "final_path_error": {vid: _finite(pe[-1, n]) for n, vid in enumerate(self.ids)} if len(t) else {},
+            "live_final": [vid for n, vid in enumerate(self.ids) if self.live[len(t) - 1, n]] if len(t) else [],
             "link": link,
             "wall_s": wall_s,
             "realtime_factor": (duration / wall_s) if wall_s > 0 else None,
@@ -151,7 +167,7 @@ class Recorder:
             path, t=self.view("t"), ids=np.array(self.ids), q=self.view("q"),
             heading=self.view("heading"), omega=self.view("omega"),
             omega_rate=self.view("omega_rate"), path_error=self.view("path_error"),
-            edge_error=self.edge_error(), edge_names=np.array([e.name for e in self.edges]),
+            edge_error=self.edge_error(), edge_names=np.array([e.name for e in self.edges]), live=self.view("live"),
         )
 
 

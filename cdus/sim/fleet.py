@@ -157,19 +157,26 @@ class InProcessFleet:
             out = node.step(n)
             rows[j] = out.telemetry
             if out.omega is not None:
-                self._send(j, out.omega)
+                self._send(j, out.omega, n)
         if self.sensing is not None and n % self.sensing[0] == 0:
             self._sense(n, {j: rows[j].q for j in stepped})
-        self.recorder.record(n * self.period, rows)
+        live = [False] * len(self.nodes)
+        for j in stepped:
+            live[j] = True
+        self.recorder.record(n * self.period, rows, live)
         if n % UPDATE_EVERY == 0:
             self._report_link_changes()
             self.sink.update(self.recorder)
         self.tick += 1
 
-    def _send(self, src: int, msg) -> None:
+    def _send(self, src: int, msg, n: int) -> None:
         # Through the wire format once, so every listener sees exactly what a remote one would.
+        # A listener whose process is gone at tick n (killed, or paused past its lease) hears
+        # nothing, as in a fleet of processes: its counters do not count it.
         wire = decode_omega(encode_omega(msg))
         for dst in self.listeners[src]:
+            if self.ids[dst] not in self._alive:
+                continue
             if isinstance(wire, str):  # a diverged vehicle (non-finite ω): receivers reject it
                 self.nodes[dst].counters.sent += 1
                 self.nodes[dst].counters.rejected += 1

@@ -111,6 +111,7 @@ class AgentStats:
     faults: dict | None = None  # the link emulator's counters_summary(), newest state changes only
     bursts: tuple[dict, ...] = ()  # new link_burst events (FleetEvent.as_dict())
     interventions: int = 0  # control steps at which the safety filter changed the velocity reference
+    incarnation: int = 0  # drawn at random when the process starts: a new value is a new process (a restart)
 
     def as_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -120,7 +121,7 @@ class AgentStats:
 
 
 _STAT_INTS = ("tick", "sent_to_me", "delivered", "dropped", "duplicated", "rejected", "missed_deadlines", "joined_at",
-              "interventions")
+              "interventions", "incarnation")
 
 
 def encode_stats(s: AgentStats) -> bytes:

@@ -150,6 +150,29 @@ def test_a_killed_vehicle_leaves_its_neighbours_sums_for_good():
     assert np.all(omega[t >= 20.0] == omega[t >= 20.0][0])  # frozen where it was last seen
 
 
+def test_the_formation_errors_leave_out_a_killed_vehicle_and_nobody_counts_messages_to_it():
+    """Killed at 200 s after the fleet settled: the frozen ω of usv2 is not the formation's
+    error (it would be tens of rad), the rest still settles; its neighbours' messages to it
+    are not counted as sent (a dead process hears nothing)."""
+    sc = kill_usv2(at=200.0, duration=250.0)
+    res = InProcessFleet(sc).run()
+    m = res.metrics
+    assert m["live_final"] == [v for v in sc.ids if v != "usv2"]
+    assert m["coord_settle_s"] is not None and m["coord_settle_s"] < 200.0
+    assert m["final_coord_error_max"] < 0.05
+    raw = res.recorder.edge_error()[-1].max()
+    assert raw > 1.0  # the edges to usv2 are far off; they are just not the formation's
+    live = res.recorder.view("live")
+    t = res.recorder.view("t")
+    j = sc.ids.index("usv2")
+    assert live[t < 200.0, j].all() and not live[t >= 200.0, j].any()
+    # a message counts as sent when its receiver decides it, at the receiver's next tick: from
+    # tick 10000 on usv2 neither sends to its 2 neighbours nor hears them (2 x 2 x 2500), and
+    # the two ω its neighbours sent it at 9999 are never decided (+2), as in a lockstep run
+    whole = InProcessFleet(load_scenario("configs/lake_circle.toml", {"scenario.duration": 250.0})).run().metrics
+    assert whole["link"]["sent"] - m["link"]["sent"] == 2 * 2 * 2500 + 2
+
+
 def test_a_restarted_vehicle_rejoins_near_its_neighbours_consensus():
     sc = kill_usv2(at=20.0, restart=25.0, duration=60.0)
     res = InProcessFleet(sc).run()

@@ -109,7 +109,8 @@ def test_every_stats_messages_latencies_count_and_a_restarted_process_adds_to_th
     send(AgentStats(id="usv1", tick=50, sent_to_me=100, delivered=100, latencies_ms=(1.0, 1.0), interventions=2))
     send(AgentStats(id="usv1", tick=100, sent_to_me=200, delivered=200, latencies_ms=(5.0, 5.0, 5.0),
                     interventions=3))
-    send(AgentStats(id="usv1", tick=150, sent_to_me=20, delivered=20, joined_at=120, latencies_ms=(), interventions=1))
+    send(AgentStats(id="usv1", tick=150, sent_to_me=20, delivered=20, joined_at=120, latencies_ms=(), interventions=1,
+                    incarnation=7))
     block = w.link_block()
     assert (block["sent"], block["delivered"]) == (220, 220)
     assert block["latency_ms_p50"] == 5.0 and block["latency_ms_p99"] == 5.0
