@@ -459,6 +459,9 @@ def launch(scenario: Scenario, run_dir: Path, router: Transport, opts: LaunchOpt
         raise KeyboardInterrupt
 
     old = signal.signal(signal.SIGTERM, _term)
+    # A shell starting us in the background (`cdus launch ... &` in a script) ignores SIGINT
+    # for us, and Python keeps it ignored: Ctrl-C / kill -INT must still stop the fleet cleanly.
+    old_int = signal.signal(signal.SIGINT, _term)
     try:
         la.start()
         code = la.supervise()
@@ -479,6 +482,7 @@ def launch(scenario: Scenario, run_dir: Path, router: Transport, opts: LaunchOpt
             for c in la.children.values():
                 c.signal_group(signal.SIGKILL)
         signal.signal(signal.SIGTERM, old)
+        signal.signal(signal.SIGINT, old_int)
     if interrupted:
         status = 130
     return status, la

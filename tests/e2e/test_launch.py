@@ -95,10 +95,12 @@ def test_a_killed_agent_is_reported_with_the_graph_it_leaves(tmp_path, launches)
 
 
 def test_ctrl_c_leaves_no_process_and_a_complete_metrics_file(tmp_path, launches):
+    """Started as a script's `cdus launch ... &` starts it, with SIGINT ignored (the shell does
+    that for background jobs, and Python keeps it): SIGINT still stops the fleet cleanly."""
     fleet = unique_fleet()
     run = tmp_path / "run"
     la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", "3000",
-                   "--logs", str(run)], fleet)
+                   "--logs", str(run)], fleet, prefix=["sh", "-c", 'trap "" INT; exec "$@"', "sh"])
     la.wait_for(f"fleet '{fleet}' up")
     la.proc.send_signal(signal.SIGINT)
     assert la.wait(timeout=60) == 130, la.output()
