@@ -52,7 +52,8 @@ def status_table(view: FleetView, now: float | None = None) -> str:
         if w:
             coord = w.get("coord_error_max")
             path = w.get("path_error_max")
-            rows.append(f"world: t = {w.get('t', 0):.1f} / {w.get('duration', 0):.0f} s ({w.get('clock')}), "
+            paused = ", PAUSED" if w.get("paused") else ""
+            rows.append(f"world: t = {w.get('t', 0):.1f} / {w.get('duration', 0):.0f} s ({w.get('clock')}{paused}), "
                         f"{len(w.get('alive', []))}/{len(w.get('ids') or [])} vehicles alive, worst |Φ| "
                         f"{'-' if path is None else f'{path:.3f}'} m, worst edge error "
                         f"{'-' if coord is None else f'{coord:.4f}'} rad")

@@ -262,6 +262,8 @@ class World:
             return
         op, f = c.op, c.fields
         if op == "stop":
+            if not self.stop_requested:
+                self._note(FleetEvent.of(self._sim_now(), "fleet", f"fleet stopped by {sender}"))
             self.stop_requested = True
         elif op == "fault_done":
             if f["vehicle"] in self.index:
@@ -271,7 +273,11 @@ class World:
         elif op == "set_gains":
             self._relay_gains(f["gains"], f["vehicle"], sender)
         elif op == "link":
-            at = f["at"] if f["at"] >= 0 else self._sim_now() + LINK_LEAD
+            # Never before what a vehicle may already have sent (lockstep: past the grant), so
+            # every receiver applies it from the same message on; a past --at means "now".
+            earliest = ((self.lockstep.granted + 1) * self.period if self.clock == "lockstep"
+                        else self._sim_now() + self.period)
+            at = max(f["at"], earliest) if f["at"] >= 0 else max(self._sim_now() + LINK_LEAD, earliest)
             payload = encode_control("link", link=f["link"], at=float(at))
             self.pub_ctl.put(payload)
             self._commands.append((None, payload))
@@ -281,7 +287,7 @@ class World:
         elif f.get("vehicle") in self.index:  # kill | pause_vehicle | resume_vehicle | restart
             action = {"pause_vehicle": "pause", "resume_vehicle": "resume"}.get(op, op)
             if self.clock == "lockstep":
-                self.lockstep.vehicle_fault(action, self.index[f["vehicle"]])
+                self.lockstep.vehicle_fault(action, self.index[f["vehicle"]], by=sender)
             else:
                 self.pub_launcher.put(encode_control(op, vehicle=f["vehicle"]))
                 self._note(FleetEvent.of(self._sim_now(), "fault", f"{action} of {f['vehicle']} by {sender}",
@@ -305,6 +311,8 @@ class World:
                                  f"gains {gains} for {vehicle or 'every vehicle'} from tick {tick} by {sender}"))
 
     def _fleet_pause(self, pause: bool) -> None:
+        if pause == (self.lockstep.paused if self.clock == "lockstep" else self.paused_at is not None):
+            return  # already so: not news
         if self.clock == "lockstep":
             (self.lockstep.pause if pause else self.lockstep.resume)()
         elif pause and self.paused_at is None:

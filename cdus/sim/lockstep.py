@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 from typing import Sequence
 
 from cdus.core.events import LEASE_S, Event, RosterChange, event_tick, plan_roster
-from cdus.sim.reports import scheduled_fault, vehicle_back, vehicle_lost
+from cdus.sim.reports import commanded_fault, scheduled_fault, vehicle_back, vehicle_lost
 from cdus.wire.schemas import FleetEvent
 
 GRANT_WINDOW = 50  # ticks the fastest vehicle may run ahead of the slowest
@@ -89,6 +89,7 @@ class _Pending:
     action: str  # kill | pause | resume | restart
     vehicle: int
     stage: str = "due"  # due -> asked (the launcher) -> waiting_token (restart, resume) -> done
+    by: str | None = None  # who commanded it (a ground station); None: the scenario's schedule
 
 
 @dataclass
@@ -198,9 +199,9 @@ class Lockstep:
     def resume(self) -> None:
         self.paused = False
 
-    def vehicle_fault(self, action: str, j: int) -> None:
+    def vehicle_fault(self, action: str, j: int, by: str = "a ground station") -> None:
         """A ground station's kill | pause | resume | restart: at the first tick not yet granted."""
-        self._queue.append(_Pending(self.granted + 1, action, j))
+        self._queue.append(_Pending(self.granted + 1, action, j, by=by))
         self._queue.sort(key=lambda p: (p.tick, p.vehicle))
 
     def give_up(self, j: int) -> None:
@@ -265,7 +266,8 @@ class Lockstep:
         self._expect[j] = {"kill": {"down"}, "pause": {"down", "up"}, "resume": {"down", "up"},
                            "restart": {"down", "up"}}[p.action]
         self._out.append(Fault(FAULT_OPS[p.action], j))
-        self._out.append(scheduled_fault(p.tick, self.period, p.action, vid))
+        self._out.append(scheduled_fault(p.tick, self.period, p.action, vid) if p.by is None
+                         else commanded_fault(p.tick, self.period, p.action, vid, p.by))
         p.stage = "asked"
         self._current = p
 

@@ -15,9 +15,15 @@ Pair = tuple[str, str]
 
 
 def scheduled_fault(tick: int, period: float, action: str, vid: str) -> FleetEvent:
-    """A scheduled (or commanded) kill | pause | resume | restart, carried out at ``tick``."""
+    """A scheduled kill | pause | resume | restart, carried out at ``tick``."""
     t = tick * period
     return FleetEvent.of(t, "fault", f"scheduled {action} of {vid} (t = {t:g} s)", vehicle=vid)
+
+
+def commanded_fault(tick: int, period: float, action: str, vid: str, by: str) -> FleetEvent:
+    """A ground station's kill | pause | resume | restart, carried out at ``tick`` (lockstep)."""
+    t = tick * period
+    return FleetEvent.of(t, "fault", f"{action} of {vid} by {by} (t = {t:g} s)", vehicle=vid)
 
 
 def vehicle_lost(t: float, vid: str) -> FleetEvent:

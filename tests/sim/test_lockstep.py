@@ -332,9 +332,11 @@ def test_a_ground_stations_pause_and_resume():
     step(ls, who=[0, 2], rounds=1)
     at = ls.granted + 1
     assert ls.state_at(1, at) == "paused"
-    ls.vehicle_fault("resume", 1)
+    ls.vehicle_fault("resume", 1, by="gs1")
     acts = step(ls)
     assert faults(acts) == [Fault("resume_vehicle", 1)]
+    said = [a.text for a in acts if isinstance(a, FleetEvent) and a.kind == "fault"]
+    assert said == [f"resume of b by gs1 (t = {at * T:g} s)"]  # not "scheduled"
     assert RosterChange(at, 1, "live") in rosters(acts)  # decided here, before tick `at` is granted
     assert ls.granted == at - 1
     ls.on_fault_done(1)

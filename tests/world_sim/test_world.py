@@ -144,6 +144,14 @@ def test_commands_are_relayed_with_the_tick_or_time_they_apply_from():
     c = ctl_ops(w)[-1]
     assert c.op == "link" and c.fields["at"] == 100 * w.period + LINK_LEAD
     assert [e.kind for e in w.events] == ["gains_changed", "link_changed"]
+    # a time in the past applies from the first tick nobody has been granted: every receiver alike
+    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("link", link={"loss": 0.2}, at=0.1))))
+    assert ctl_ops(w)[-1].fields["at"] == 41 * w.period
+    assert "from t = 0.82 s by gs1" in w.events[-1].text
+    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("stop"))))
+    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("pause"))))
+    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("pause"))))
+    assert [e.text for e in w.events[-2:]] == ["fleet stopped by gs1", "fleet paused"]
 
 
 def test_a_rejoining_process_is_sent_the_link_and_gains_commands_it_missed():
