@@ -23,12 +23,37 @@ REQUIRED = ("at", "action", "vehicle")
 
 
 def event_section(p: Problems, raw: Any, ids: Sequence[str] | None) -> tuple[Event, ...]:
-    """The events sorted by time (a pause with ``duration`` adds its resume)."""
-    events: list[Event] = []
+    """The events sorted by time (a pause with ``duration`` adds its resume), checked in
+    sequence per vehicle (:func:`_check_sequence`)."""
+    fielded: list[tuple[Event, str]] = []
     for j, e in enumerate(p.tables(raw, "event", "event")):
-        events += _event(p, e, f"event[{j}]", ids)
-    events.sort(key=lambda ev: ev.at)  # stable: events at the same time keep the file's order
-    return tuple(events)
+        fielded += [(ev, f"event[{j}]") for ev in _event(p, e, f"event[{j}]", ids)]
+    fielded.sort(key=lambda x: x[0].at)  # stable: events at the same time keep the file's order
+    _check_sequence(p, fielded)
+    return tuple(ev for ev, _ in fielded)
+
+
+# what each action needs the vehicle to be, and what it leaves it
+_NEEDS = {"kill": ("live", "paused"), "pause": ("live",), "resume": ("paused",), "restart": ("live", "paused", "gone")}
+_LEAVES = {"kill": "gone", "pause": "paused", "resume": "live", "restart": "live"}
+_FIX = {"kill": "it is already gone (killed before): remove one of the kills",
+        "pause": "it is {state} then: pause a live vehicle (a killed one needs a restart first)",
+        "resume": "it is {state} then, not paused: remove it, or pause the vehicle first "
+                  "(a killed vehicle comes back with a restart)"}
+
+
+def _check_sequence(p: Problems, fielded: list[tuple[Event, str]]) -> None:
+    """Every event must find its vehicle in a state it can act on: no resume of a vehicle
+    nobody paused, no second kill, no pause of a killed vehicle. (A lapsed pause, gone in
+    the roster after the lease, still counts as paused here: a resume brings it back.)"""
+    state: dict[str, str] = {}
+    for ev, field in fielded:
+        now = state.get(ev.vehicle, "live")
+        if now not in _NEEDS[ev.action]:
+            p.add(f"{field}.action", f"{ev.action} of {ev.vehicle} at {ev.at:g} s: "
+                                     + _FIX[ev.action].format(state="killed" if now == "gone" else now))
+            continue
+        state[ev.vehicle] = _LEAVES[ev.action]
 
 
 def _event(p: Problems, e: dict, field: str, ids: Sequence[str] | None) -> list[Event]:

@@ -165,6 +165,8 @@ def test_an_outsider_cannot_stop_retune_or_inject_into_a_secured_fleet(tmp_path,
         res = run_cli([*gs, "gains", "k=1.5", "c=2.0"], timeout=60)  # the configured gains: a visible no-op
         assert res.returncode == 0, res.stderr
         events.wait_for("gains_changed")
+        ground.put(command, encode_control("pause"))
+        events.wait_for("fleet", "paused")
         ground.put(command, encode_control("resume"))
         events.wait_for("fleet", "resumed")
     finally:

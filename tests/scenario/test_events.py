@@ -100,3 +100,31 @@ def test_a_scenario_with_bad_events_is_rejected(raw, fragment):
     with pytest.raises(ConfigError) as e:
         parse_scenario(data, "x.toml")
     assert f"x.toml: {fragment}" in str(e.value)
+
+
+@pytest.mark.parametrize("raw, field, text", [
+    ([{"at": 10, "action": "resume", "vehicle": "usv1"}], "event[0].action", "it is live then, not paused"),
+    ([{"at": 10, "action": "kill", "vehicle": "usv1"}, {"at": 5, "action": "kill", "vehicle": "usv1"}],
+     "event[0].action", "already gone"),  # sorted by time: the later one, in the file first, is the second kill
+    ([{"at": 10, "action": "kill", "vehicle": "usv1"}, {"at": 20, "action": "pause", "vehicle": "usv1"}],
+     "event[1].action", "it is killed then"),
+    ([{"at": 10, "action": "kill", "vehicle": "usv1"}, {"at": 20, "action": "resume", "vehicle": "usv1"}],
+     "event[1].action", "comes back with a restart"),
+])
+def test_an_event_that_finds_its_vehicle_in_no_state_to_act_on_is_refused(raw, field, text):
+    _, problems = events(raw)
+    assert [f for f, _ in problems] == [field]
+    assert text in problems[0][1]
+
+
+def test_a_sequence_that_makes_sense_passes():
+    _, problems = events([
+        {"at": 10, "action": "pause", "vehicle": "usv1", "duration": 5},
+        {"at": 20, "action": "kill", "vehicle": "usv1"},
+        {"at": 30, "action": "restart", "vehicle": "usv1"},
+        {"at": 40, "action": "pause", "vehicle": "usv1"},
+        {"at": 45, "action": "kill", "vehicle": "usv1"},  # a paused process can be killed
+        {"at": 50, "action": "restart", "vehicle": "usv1"},
+        {"at": 55, "action": "restart", "vehicle": "usv2"},  # a live one can be restarted
+    ])
+    assert problems == []
