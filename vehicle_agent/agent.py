@@ -38,6 +38,7 @@ from typing import Any, Callable
 import zenoh
 
 from cdus.core.events import RosterChange, event_tick, plan_roster
+from cdus.core.vehicle import DivergedError
 from cdus.core.link import LinkEmulator, burst_events
 from cdus.core.node import VehicleNode
 from cdus.scenario.config import ConfigError
@@ -538,7 +539,11 @@ def run_agent(agent: Agent) -> int:
         agent.open()
         assert agent.waker is not None
         signal.set_wakeup_fd(agent.waker.wfd)  # a signal wakes the waker, which wakes the main loop
-        ticks = agent.run()
+        try:
+            ticks = agent.run()
+        except DivergedError as e:  # the simulation cannot go on: say so once, plainly, and fail
+            agent.log(f"error: {e}")
+            return 1
         per_tick = f" ({agent.cpu_s / ticks * 1e6:.0f} µs per tick)" if ticks else ""
         agent.log(f"done after {ticks} ticks; missed deadlines {agent.missed_deadlines}; "
                   f"rejected {dict(agent.rejected) or 0}; CPU in the run {agent.cpu_s:.2f} s{per_tick}")

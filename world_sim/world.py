@@ -617,6 +617,9 @@ def run_world(world: World) -> int:
         ticks = max(1, len(world.recorder))
         world.log(f"done: path settle {m['path_settle_s']}, coordination settle {m['coord_settle_s']}; "
                   f"CPU in the run {world.cpu_s:.2f} s ({world.cpu_s / ticks * 1e6:.0f} µs per tick)")
+        if len(world.recorder) and not m["live_final"] and not world.stop_requested:
+            world.log("error: no vehicle was live at the end of the run (their logs say why)")
+            return 1
         return 0
     except TimeoutError as e:
         world.log(f"error: {e}")

@@ -115,16 +115,19 @@ class Recorder:
 
     def worst_errors(self) -> tuple[np.ndarray, np.ndarray]:
         """Per instant, the worst |Φ| over the live vehicles and the worst edge error over the
-        edges whose two ends are live (0 where there is none): a killed or paused vehicle's
-        frozen ω and position are not the formation's error (docs/metrics.md)."""
+        edges whose two ends are live (0 where no edge has two live ends): a killed or paused
+        vehicle's frozen ω and position are not the formation's error (docs/metrics.md). Where
+        no vehicle at all is live both are NaN: nothing to call settled."""
         live = self.view("live")
         pe = np.where(live, self.view("path_error"), 0.0)
         worst_path = pe.max(axis=1) if pe.size else np.zeros(len(self))
+        nobody = ~live.any(axis=1) if live.size else np.zeros(len(self), dtype=bool)
+        worst_path = np.where(nobody, np.nan, worst_path)
         ee = self.edge_error()
         if not ee.size:
-            return worst_path, np.zeros(len(self))
+            return worst_path, np.where(nobody, np.nan, 0.0)
         both = np.stack([live[:, e.i] & live[:, e.k] for e in self.edges], axis=1)
-        return worst_path, np.where(both, ee, 0.0).max(axis=1)
+        return worst_path, np.where(nobody, np.nan, np.where(both, ee, 0.0).max(axis=1))
 
     def omega_rate_final(self, window: float = 1.0) -> dict[str, float | None]:
         t, w = self.view("t"), self.view("omega")

@@ -47,7 +47,7 @@ from cdus.core.neighbours import POLICIES, NeighbourLink, NeighbourTable, consen
 from cdus.core.paths import Vec
 from cdus.core.safety import Contact
 from cdus.core.schedule import delivery_tick, last_broadcast_seq, send_tick
-from cdus.core.vehicle import Telemetry, Vehicle
+from cdus.core.vehicle import DivergedError, Telemetry, Vehicle
 from cdus.wire.messages import OmegaMsg
 
 REJECT_REASONS = ("not_a_neighbour", "stale", "gone")
@@ -279,14 +279,23 @@ class VehicleNode:
         while self._policies and self._policies[0][0] <= n:
             _, self.table.policy, self.table.timeout = self._policies.pop(0)
         v = self.vehicle
-        v.control(self.table.consensus((n - 1) * T))
-        tel = v.telemetry()
-        out = None
-        if n % self.every == 0 and n < self.last_tick:
-            out = OmegaMsg(self.index, n // self.every, v.t, v.omega, v.omega_rate)
-        if v.safety is not None:
-            v.guard(self.contacts_at(n))
-        v.advance()
+        try:
+            v.control(self.table.consensus((n - 1) * T))
+            tel = v.telemetry()
+            out = None
+            if n % self.every == 0 and n < self.last_tick:
+                out = OmegaMsg(self.index, n // self.every, v.t, v.omega, v.omega_rate)
+            if v.safety is not None:
+                v.guard(self.contacts_at(n))
+            v.advance()
+        except DivergedError:
+            raise
+        except (OverflowError, ValueError, ZeroDivisionError) as e:  # float overflow, math domain
+            raise DivergedError(f"vehicle {v.id}: its numbers overflowed at t = {n * T:.2f} s (the vehicle "
+                                f"diverged; gains k = {v.k}, c = {v.c}): {e}") from e
+        if not (math.isfinite(v.omega) and all(math.isfinite(x) for x in v.q)):
+            raise DivergedError(f"vehicle {v.id}: its state is no longer finite at t = {(n + 1) * T:.2f} s "
+                                f"(the vehicle diverged; gains k = {v.k}, c = {v.c})")
         self.tick = n + 1
         return Outbox(n, tel, out)
 

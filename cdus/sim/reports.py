@@ -40,7 +40,9 @@ def graph_event(t: float, ids: Sequence[str], pairs: Iterable[Pair], alive: Iter
     live = set(alive)
     members = [v for v in ids if v in live]
     edges = [(i, k) for i, k in pairs if i in live and k in live]
-    cut = graphs.unreachable(members, edges) if members else []
+    if not members:
+        return FleetEvent.of(t, "graph", "no vehicle is live", severity="warn")
+    cut = graphs.unreachable(members, edges)
     if cut:
         return FleetEvent.of(t, "graph", f"the live graph has no spanning tree: {', '.join(cut)} cut off",
                              severity="warn")

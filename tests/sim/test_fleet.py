@@ -14,6 +14,8 @@ import pytest
 from cdus.scenario.config import load_scenario, parse_scenario
 from cdus.core.schedule import delivery_tick
 from cdus.sim.fleet import InProcessFleet
+from cdus.core.metrics import Recorder
+from cdus.core.vehicle import DivergedError, Telemetry
 
 
 def run(name: str, **overrides):
@@ -196,3 +198,20 @@ def test_lake_circle_dynamic_settles_from_every_shipped_seed_start():
     sc = load_scenario("configs/lake_circle_dynamic.toml", {"scenario.seed": 4})
     m = InProcessFleet(sc).run().metrics
     assert m["path_settle_s"] is not None and m["final_path_error_max"] < 0.15
+
+
+def test_a_diverging_fleet_stops_with_an_error_naming_the_vehicle_not_a_traceback():
+    sc = load_scenario("configs/lake_circle.toml", {"gains.k": 300.0, "scenario.duration": 20.0})
+    with pytest.raises(DivergedError, match=r"vehicle usv1: its numbers overflowed at t = .* gains k = \(300.0"):
+        InProcessFleet(sc).run()
+
+
+def test_with_no_vehicle_live_nothing_is_settled():
+    rec = Recorder(["a"], [2], [], capacity=4)
+    row = Telemetry("a", 0.0, (0.0, 0.0), 0.0, 0.0, 0.0, 0.0, 0.0)
+    for n in range(3):
+        rec.record(n * 0.1, [row], [n == 0])
+    path, coord = rec.worst_errors()
+    assert path[0] == 0.0 and np.isnan(path[1:]).all() and np.isnan(coord[1:]).all()
+    m = rec.summary(scenario="x", mode="inproc", seed=1, path_tol=0.1, coord_tol=0.1, link={}, wall_s=1.0)
+    assert m["path_settle_s"] is None and m["final_path_error_max"] is None and m["live_final"] == []
