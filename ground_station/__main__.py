@@ -152,7 +152,9 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
         elif args.action == "link":
             validate_link(table, ids, "command line")
             gs.set_link(table, args.at)
-            when = "as soon as the world can" if args.at is None else f"from t = {args.at:.2f} s"
+            t_now = float((gs.view.world or {}).get("t") or 0.0)
+            when = ("as soon as the world can" if args.at is None else f"from t = {args.at:.2f} s"
+                    if args.at > t_now else f"now (t = {args.at:.2f} s is past; the world is at {t_now:.1f} s)")
             print(f"link faults {table} {when}: sent to fleet {args.fleet!r}")
         elif args.action == "gains":
             if args.vehicle is not None:

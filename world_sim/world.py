@@ -546,8 +546,11 @@ class World:
     def _publish_status(self) -> None:
         n = len(self.recorder)
         t = (self.next_tick - 1) * self.period
-        path = float(self.recorder.view("path_error")[-1].max()) if n else None
-        coord = float(self.recorder.edge_error()[-1].max()) if n and self.recorder.edges else None
+        path = coord = None
+        if n:  # over the live formation, as the metrics (docs/metrics.md)
+            worst_path, worst_coord = self.recorder.worst_errors(start=n - 1)
+            path = None if math.isnan(worst_path[-1]) else float(worst_path[-1])
+            coord = None if math.isnan(worst_coord[-1]) or not self.recorder.edges else float(worst_coord[-1])
         paused = self.lockstep.paused if self.clock == "lockstep" else self.paused_at is not None
         self.pub_status.put(encode_status(t, self.duration, self.clock, sorted(self.st.alive), self.ids, path, coord,
                                           self.events[-10:], paused))

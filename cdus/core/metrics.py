@@ -113,17 +113,18 @@ class Recorder:
     def edge_error(self) -> np.ndarray:
         return edge_errors(self.view("omega"), self.edges)
 
-    def worst_errors(self) -> tuple[np.ndarray, np.ndarray]:
+    def worst_errors(self, start: int = 0) -> tuple[np.ndarray, np.ndarray]:
         """Per instant, the worst |Φ| over the live vehicles and the worst edge error over the
         edges whose two ends are live (0 where no edge has two live ends): a killed or paused
         vehicle's frozen ω and position are not the formation's error (docs/metrics.md). Where
         no vehicle at all is live both are NaN: nothing to call settled."""
-        live = self.view("live")
-        pe = np.where(live, self.view("path_error"), 0.0)
-        worst_path = pe.max(axis=1) if pe.size else np.zeros(len(self))
-        nobody = ~live.any(axis=1) if live.size else np.zeros(len(self), dtype=bool)
+        rows = max(0, len(self) - start)
+        live = self.view("live")[start:]
+        pe = np.where(live, self.view("path_error")[start:], 0.0)
+        worst_path = pe.max(axis=1) if pe.size else np.zeros(rows)
+        nobody = ~live.any(axis=1) if live.size else np.zeros(rows, dtype=bool)
         worst_path = np.where(nobody, np.nan, worst_path)
-        ee = self.edge_error()
+        ee = edge_errors(self.view("omega")[start:], self.edges)
         if not ee.size:
             return worst_path, np.where(nobody, np.nan, 0.0)
         both = np.stack([live[:, e.i] & live[:, e.k] for e in self.edges], axis=1)

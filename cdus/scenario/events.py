@@ -27,10 +27,11 @@ def event_section(p: Problems, raw: Any, ids: Sequence[str] | None) -> tuple[Eve
     sequence per vehicle (:func:`_check_sequence`)."""
     fielded: list[tuple[Event, str]] = []
     for j, e in enumerate(p.tables(raw, "event", "event")):
-        fielded += [(ev, f"event[{j}]") for ev in _event(p, e, f"event[{j}]", ids)]
+        evs = _event(p, e, f"event[{j}]", ids)
+        # a pause's duration brings a resume, named after the duration
+        fielded += [(ev, f"event[{j}]" + (".duration" if k else "")) for k, ev in enumerate(evs)]
     fielded.sort(key=lambda x: x[0].at)  # stable: events at the same time keep the file's order
-    _check_sequence(p, fielded)
-    return tuple(ev for ev, _ in fielded)
+    return tuple(_check_sequence(p, fielded))
 
 
 # what each action needs the vehicle to be, and what it leaves it
@@ -42,18 +43,25 @@ _FIX = {"kill": "it is already gone (killed before): remove one of the kills",
                   "(a killed vehicle comes back with a restart)"}
 
 
-def _check_sequence(p: Problems, fielded: list[tuple[Event, str]]) -> None:
+def _check_sequence(p: Problems, fielded: list[tuple[Event, str]]) -> list[Event]:
     """Every event must find its vehicle in a state it can act on: no resume of a vehicle
     nobody paused, no second kill, no pause of a killed vehicle. (A lapsed pause, gone in
-    the roster after the lease, still counts as paused here: a resume brings it back.)"""
+    the roster after the lease, still counts as paused here: a resume brings it back.) The
+    resume a pause's ``duration`` implies is dropped if a kill or restart came first.
+    Returns the events to carry out."""
     state: dict[str, str] = {}
+    out: list[Event] = []
     for ev, field in fielded:
         now = state.get(ev.vehicle, "live")
+        if field.endswith(".duration") and now != "paused":
+            continue  # the pause ended otherwise (killed or restarted meanwhile)
         if now not in _NEEDS[ev.action]:
             p.add(f"{field}.action", f"{ev.action} of {ev.vehicle} at {ev.at:g} s: "
                                      + _FIX[ev.action].format(state="killed" if now == "gone" else now))
             continue
         state[ev.vehicle] = _LEAVES[ev.action]
+        out.append(ev)
+    return out
 
 
 def _event(p: Problems, e: dict, field: str, ids: Sequence[str] | None) -> list[Event]:

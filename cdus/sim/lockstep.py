@@ -118,6 +118,7 @@ class Lockstep:
         self._current: _Pending | None = None
         self._expect: dict[int, set[str]] = {}  # liveliness changes a fault in progress explains
         self._paused_by_hand: dict[int, int] = {}  # vehicle -> tick a ground station paused it at
+        self._killed: set[int] = set()  # killed and not restarted since (a resume cannot bring them back)
         self._out: list[Action] = []
         self._lease_ticks = max(1, math.ceil(self.lease / self.period - 1e-9))
         if self.sense_every is not None and (self.sense_every < 1 or self.sense_latency < 1):
@@ -249,6 +250,19 @@ class Lockstep:
     def _carry_out(self, p: _Pending) -> None:
         j, vid = p.vehicle, self.ids[p.vehicle]
         scheduled = any(c.vehicle == j and c.tick == p.tick for c in self._plan)
+        if not scheduled and p.by is not None:  # a ground station's: is there anything to do?
+            now = self.state_at(j, p.tick)
+            killed = j in self._killed
+            moot = {"pause": now != "live", "resume": now == "live" or killed, "kill": killed}.get(p.action, False)
+            if moot:
+                self._out.append(FleetEvent.of(p.tick * self.period, "rejected",
+                                               f"{p.action} of {vid} by {p.by}: it is "
+                                               f"{'killed' if killed else now} (nothing done)", vehicle=vid))
+                return
+        if p.action == "kill":
+            self._killed.add(j)
+        elif p.action == "restart":
+            self._killed.discard(j)
         if not scheduled:  # a ground station's: decide its roster changes here
             if p.action == "pause" and self.state_at(j, p.tick) == "live":
                 self._send(RosterChange(p.tick, j, "paused"))

@@ -128,3 +128,15 @@ def test_a_sequence_that_makes_sense_passes():
         {"at": 55, "action": "restart", "vehicle": "usv2"},  # a live one can be restarted
     ])
     assert problems == []
+
+
+def test_a_kill_or_restart_during_a_timed_pause_ends_it_without_its_resume():
+    out, problems = events([
+        {"at": 10, "action": "pause", "vehicle": "usv1", "duration": 5},
+        {"at": 12, "action": "restart", "vehicle": "usv1"},
+        {"at": 10, "action": "pause", "vehicle": "usv2", "duration": 5},
+        {"at": 12, "action": "kill", "vehicle": "usv2"},
+    ])
+    assert problems == []
+    assert [(e.at, e.action, e.vehicle) for e in out] == [
+        (10, "pause", "usv1"), (10, "pause", "usv2"), (12, "restart", "usv1"), (12, "kill", "usv2")]

@@ -384,3 +384,21 @@ def test_a_ground_stations_restart_sends_gone_and_fresh_live_on_one_tick():
     acts = step(ls)
     assert Join(0, 5) in acts
     assert max(grants(acts)) == 100
+
+
+def test_a_ground_stations_fault_with_nothing_to_act_on_is_refused_without_holding_the_fleet():
+    ls = started(window=5)
+    ls.poll()
+    ls.vehicle_fault("resume", 1, by="gs1")  # it is live
+    ls.vehicle_fault("kill", 2, by="gs1")
+    acts = step(ls)
+    ls.on_fault_done(2)
+    acts += step(ls, who=[0, 1])
+    ls.vehicle_fault("kill", 2, by="gs1")  # again
+    ls.vehicle_fault("resume", 2, by="gs1")  # a killed vehicle comes back with a restart only
+    acts += step(ls, who=[0, 1])
+    said = [a.text for a in acts if isinstance(a, FleetEvent) and a.kind == "rejected"]
+    assert said == ["resume of b by gs1: it is live (nothing done)", "kill of c by gs1: it is killed (nothing done)",
+                    "resume of c by gs1: it is killed (nothing done)"]
+    assert faults(acts) == [Fault("kill", 2)]
+    assert ls.granted == 100  # nobody waited for a launcher that was never asked
