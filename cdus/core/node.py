@@ -118,6 +118,7 @@ class VehicleNode:
         self._inbox: list[OmegaMsg] = []  # deterministic: received, not yet decided (send order)
         self._due: dict[int, list[tuple[OmegaMsg, float]]] = defaultdict(list)  # by delivery tick
         self._pending: list[tuple[float, int, OmegaMsg, float]] = []  # realtime: (usable at, order, msg, delay)
+        self._deaf_before = 0  # messages sent before this tick are not heard (a pause that lapsed)
         self._order = 0
         self._self_changes: list[RosterChange] = []
         self._gains: list[tuple[int, tuple[float, ...], float]] = []  # (tick, k, c), by tick
@@ -138,6 +139,8 @@ class VehicleNode:
         peer = self._peers.get(k)
         if peer is None:
             return self._reject("not_a_neighbour")
+        if send_tick(msg.t_send, self.period) < self._deaf_before:
+            return None  # sent while this vehicle's process was gone: it never heard it (see rejoin)
         if msg.seq <= self.seen_seq.get(k, -1):
             return self._reject("stale")
         self.seen_seq[k] = msg.seq
@@ -305,6 +308,12 @@ class VehicleNode:
         ``q``. ω is taken near what the neighbours' consensus asks (``neighbour_omegas``) if
         any is known, else near ``omega_hint``, so it does not have to make up laps."""
         target = consensus_target(self.table.links, neighbour_omegas or {})
+        if n > 0 and self.own_state_at(n - 1)[0] == "gone":
+            # Back from a pause that outlasted the lease: in a fleet of processes its session was
+            # closed and what was sent to it meanwhile is lost or not, depending on wall time.
+            # Hear none of it, in every runner alike (what was decided before the pause stays).
+            self._deaf_before = n
+            self._inbox = [m for m in self._inbox if send_tick(m.t_send, self.period) >= n]
         self.vehicle.rejoin(n, q, heading, target if target is not None else omega_hint)
         self.joined_at = n
         self.tick = n

@@ -231,3 +231,21 @@ def test_the_filter_runs_in_the_step_and_counts_interventions():
     assert nd.vehicle.interventions == 0  # tick 0 has no contacts yet (latency 1)
     nd.step(1)
     assert nd.vehicle.interventions == 1 and nd.vehicle.last_filter.intervened
+
+
+def test_back_from_a_pause_that_lapsed_it_hears_nothing_sent_while_it_was_gone():
+    """Its session was closed: in a fleet of processes what was sent meanwhile is lost or not
+    depending on wall time, so every runner drops all of it (lockstep == in-process)."""
+    a = node(0)
+    for ch in (RosterChange(2, 0, "paused"), RosterChange(5, 0, "gone"), RosterChange(8, 0, "live")):
+        a.on_roster(ch)
+    a.step(0)
+    a.step(1)
+    for t in (1, 3, 6):  # before the pause (not decided yet), paused, gone
+        a.on_message(msg(1, t))
+    a.rejoin(8, None, None, None)
+    assert a.on_message(msg(2, 7)) is None  # late, from the gone interval: not heard, not counted
+    a.on_message(msg(1, 8))
+    a.step(8)
+    a.step(9)
+    assert held(a) == {1: 8} and a.counters.sent == 1
