@@ -83,14 +83,26 @@ def summary_table(metrics: dict, vehicles: Sequence[VehicleSpec]) -> str:
     lines.append(head)
     lines.append("  " + "-" * (len(head) - 2))
     pe = m.get("final_path_error", {})
+    live = m.get("live_final")
     for v in vehicles:
+        gone = live is not None and v.id not in live
         lines.append(
             f"  {v.id:<10} {v.kind:<4} {v.plant:<22} {_fmt(pe.get(v.id), '.4f', 'n/a'):>14} "
-            f"{_fmt(m['omega_rate_final'].get(v.id), '.4f', 'n/a'):>10}")
+            f"{_fmt(m['omega_rate_final'].get(v.id), '.4f', 'n/a'):>10}"
+            + ("  (not live at the end: killed or paused; left out of the worst errors)" if gone else ""))
     lines.append(f"  path settle (worst |Φ| < {m['path_tol']} m):             {_settle(m['path_settle_s'])}")
     lines.append(f"  coordination settle (worst edge < {m['coord_tol']} rad): {_settle(m['coord_settle_s'])}")
     lines.append(f"  final worst |Φ| {_fmt(m['final_path_error_max'], '.4f', 'n/a')} m, "
                  f"final worst coordination error {_fmt(m['final_coord_error_max'], '.4f', 'n/a')} rad")
+    safety = m.get("safety") or {}
+    if safety.get("enabled") or m.get("min_separation_m") is not None:
+        sep = m.get("min_separation_m")
+        radius = safety.get("radius_m")
+        below = (sep is not None and radius is not None and safety.get("enabled") and sep < radius - 1e-6)
+        lines.append(f"  min separation (same domain) {_fmt(sep, '.3f', 'n/a')} m"
+                     + (f", safety radius {radius:g} m, {m.get('interventions', 0)} filter interventions"
+                        if safety.get("enabled") else "")
+                     + ("  [BELOW THE SAFETY RADIUS]" if below else ""))
     link = m.get("link") or {}
     if link:
         lines.append(f"  link: {link.get('sent', 0)} sent, {link.get('delivered', 0)} delivered, "

@@ -37,7 +37,8 @@ from cdus.sim.fleet import InProcessFleet
 FIELDS = ("scenario", "mode", "duration_s", "path_tol", "coord_tol", "path_settle_s", "coord_settle_s",
           "final_path_error_max", "final_coord_error_max", "omega_rate_mean", "link_sent", "link_delivered",
           "link_dropped", "link_rejected", "link_latency_ms_p50", "link_latency_ms_p99", "wall_s",
-          "realtime_factor", "omega_rate_final")
+          "realtime_factor", "omega_rate_final", "min_separation_m", "interventions", "completed", "policy",
+          "live_final")
 
 
 @dataclass(frozen=True)
@@ -99,6 +100,7 @@ def _flatten(metrics: dict) -> dict:
     row = {k: metrics.get(k) for k in FIELDS if k in metrics}
     row["omega_rate_mean"] = statistics.mean(rates) if rates else None
     row["omega_rate_final"] = json.dumps(metrics.get("omega_rate_final") or {})
+    row["live_final"] = " ".join(metrics.get("live_final") or [])
     for k in ("sent", "delivered", "dropped", "rejected", "latency_ms_p50", "latency_ms_p99"):
         row[f"link_{k}"] = link.get(k)
     return row
