@@ -106,6 +106,7 @@ class World:
         self.st = WorldState()
         self.pairs = [(e.i, e.k) for e in scenario.edges]
         self._commands: list[tuple[str | None, bytes]] = []  # run-time link and gains commands, for (re)joiners
+        self._rt_expect: dict[str, set[str]] = {}  # realtime: liveliness changes a fault we asked for explains
         self.log = log or (lambda s: print(f"[world] {s}", flush=True))
         self.next_tick = 0  # next tick to record
         self.events: list[FleetEvent] = []
@@ -290,6 +291,7 @@ class World:
                 self.lockstep.vehicle_fault(action, self.index[f["vehicle"]], by=sender)
             else:
                 self.pub_launcher.put(encode_control(op, vehicle=f["vehicle"]))
+                self._expect_news(f["vehicle"], action)
                 self._note(FleetEvent.of(self._sim_now(), "fault", f"{action} of {f['vehicle']} by {sender}",
                                          vehicle=f["vehicle"]))
         else:
@@ -347,9 +349,19 @@ class World:
                 self._note(vehicle_back(n * self.period, name))
             else:
                 self._send_roster(RosterChange(n, j, "gone"))
-                self._note(vehicle_lost(n * self.period, name))
+                expected = self._rt_expect.get(name, set())
+                if "down" in expected:  # the fault we asked for, already reported as such
+                    expected.discard("down")
+                else:
+                    self._note(vehicle_lost(n * self.period, name))
         if self.started:
             self._check_graph()
+
+    def _expect_news(self, vid: str, action: str) -> None:
+        """Realtime: the liveliness changes a kill | pause | resume | restart we asked the
+        launcher for will cause (a paused process's token lapses with the lease)."""
+        self._rt_expect[vid] = {"kill": {"down"}, "pause": {"down"}, "resume": set(),
+                                "restart": {"down"}}.get(action, set())
 
     def _replay_commands(self, vid: str) -> None:
         """A (re)started or resumed process missed the ground stations' link and gains commands
@@ -540,6 +552,7 @@ class World:
             ev = self._realtime_faults.pop(0)
             op = {"pause": "pause_vehicle", "resume": "resume_vehicle"}.get(ev.action, ev.action)
             self.pub_launcher.put(encode_control(op, vehicle=ev.vehicle))
+            self._expect_news(ev.vehicle, ev.action)
             self._note(FleetEvent.of(now, "fault", f"scheduled {ev.action} of {ev.vehicle} (t = {ev.at:g} s)",
                                      vehicle=ev.vehicle))
 

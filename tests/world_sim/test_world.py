@@ -237,6 +237,18 @@ def test_realtime_liveliness_changes_become_roster_changes_and_events():
     assert ("vehicle_back", "usv2") in [(e.kind, e.vehicle) for e in w.events]
 
 
+def test_realtime_a_fault_we_asked_for_is_not_reported_again_as_a_lost_vehicle():
+    w = world(clock="realtime")
+    for vid in w.ids:
+        w._on_alive(vid, True)
+    w.started, w.t0, w.paused_at = True, 0.0, 2.0
+    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("kill", vehicle="usv2"))))
+    w._on_alive("usv2", False)
+    w._on_alive("uav1", False)  # nobody asked for that one
+    kinds = [(e.kind, e.vehicle) for e in w.events if e.kind != "graph"]
+    assert kinds == [("fault", "usv2"), ("vehicle_lost", "uav1")]
+
+
 def test_realtime_scheduled_faults_go_to_the_launcher_when_their_time_comes(tmp_path):
     w = world(tmp_path, clock="realtime", events=EVENTS)
     w._realtime_faults_due(0.98)
