@@ -62,8 +62,17 @@ def status_table(view: FleetView, now: float | None = None) -> str:
         events = view.events or (w or {}).get("events") or []  # heard live, else the world's recent ones
         if events:
             rows.append("events:")
+            # the newest 8, drop bursts only where nothing else is left to show (a lossy link makes thousands)
+            others = [e for e in events if e.kind != "link_burst"]
+            bursts = len(events) - len(others)
+            room = max(0, 8 - len(others))
+            burst_list = [e for e in events if e.kind == "link_burst"]
+            shown = others[-8:] + (burst_list[len(burst_list) - room:] if room else [])
+            shown.sort(key=lambda e: e.t)
             rows += [f"  {e.line()}" + ("  [" + e.severity.upper() + "]" if e.severity != "info" else "")
-                     for e in events[-8:]]
+                     for e in shown[-8:]]
+            if bursts > room:
+                rows.append(f"  ({bursts} drop bursts heard; the newest shown only where room is left)")
         if view.rejected:
             rows.append(f"({view.rejected} malformed messages ignored)")
     return "\n".join(rows)

@@ -57,6 +57,7 @@ from cdus.wire.transport import Transport, open_session
 
 STATE_BATCH = {"lockstep": 10, "realtime": 5}  # telemetry rows per message
 STATS_PERIOD = 1.0  # s of wall time between counter reports
+BURSTS_PER_STATS = 100  # drop bursts one report carries; a report goes early once half as many wait
 STALL_TICKS = 10  # realtime: this many periods late means the process was frozen, not just slow
 END_WAIT = 10.0  # s to wait for the world's stop after the last tick
 INBOX_CAPACITY = 4096
@@ -377,7 +378,8 @@ class Agent:
             self.flush_states()
         self.ticks_done = n + 1
         now = time.monotonic()
-        if now - self._last_stats > STATS_PERIOD:
+        bursts = self.node.bursts
+        if now - self._last_stats > STATS_PERIOD or len(bursts.done) - bursts.reported >= BURSTS_PER_STATS // 2:
             self._last_stats = now
             self.publish_stats()
 
@@ -504,7 +506,7 @@ class Agent:
             duplicated=c.duplicated, rejected=c.rejected + sum(self.rejected.values()),
             rejected_by_reason=by_reason, missed_deadlines=self.missed_deadlines, joined_at=node.joined_at,
             latencies_ms=tuple(x * 1000.0 for x in new[::step][:100]), faults=faults,
-            bursts=tuple(e.as_dict() for e in burst_events(node.bursts, self.ids)[-20:]),
+            bursts=tuple(e.as_dict() for e in burst_events(node.bursts, self.ids)[-BURSTS_PER_STATS:]),
             interventions=node.vehicle.interventions, incarnation=self.incarnation)
 
     def publish_stats(self) -> None:

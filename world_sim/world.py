@@ -39,7 +39,7 @@ from cdus.files import write_json
 from cdus.scenario.model import Scenario
 from cdus.sim.build import metric_edges, sensor_schedule
 from cdus.sim.lockstep import CatchUp, Fault, Grant, Join, Lockstep, Roster, Sense
-from cdus.sim.reports import graph_event, vehicle_back, vehicle_lost
+from cdus.sim.reports import ConsoleQuota, graph_event, vehicle_back, vehicle_lost
 from cdus.sim.sensing import sense_tick
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
 from cdus.sim.summary import link_block, run_metrics
@@ -106,6 +106,7 @@ class World:
         self.st = WorldState()
         self.pairs = [(e.i, e.k) for e in scenario.edges]
         self._commands: list[tuple[str | None, bytes]] = []  # run-time link and gains commands, for (re)joiners
+        self._console = ConsoleQuota()
         self._rt_expect: dict[str, set[str]] = {}  # realtime: liveliness changes a fault we asked for explains
         self.log = log or (lambda s: print(f"[world] {s}", flush=True))
         self.next_tick = 0  # next tick to record
@@ -381,7 +382,8 @@ class World:
     def _note(self, event: FleetEvent) -> None:
         self.events.append(event)
         self.sink.event(event)
-        self.log(event.line())
+        for line in self._console.lines(event):
+            self.log(line)
         if self.session is not None:
             self.pub_events.put(encode_event(event))
 

@@ -32,6 +32,7 @@ import zenoh
 from cdus.scenario.model import DEFAULT_RESTART, Scenario, Supervision
 from cdus.app.report import Progress
 from cdus.files import write_json
+from cdus.sim.reports import ConsoleQuota
 from cdus.wire import keys
 from cdus.wire.messages import CTL_OPS, LAUNCHER_OPS, decode_control, encode_control
 from cdus.wire.schemas import FleetEvent, decode_event, decode_status, encode_event
@@ -139,6 +140,7 @@ class Launcher:
         self.cond = threading.Condition()
         self.alive: set[str] = set()
         self.status: dict | None = None
+        self._console = ConsoleQuota()  # what of the events to print (drop bursts per link are capped)
         self.children: dict[str, Child] = {}
         self.session = None
         self.stopping = False
@@ -276,7 +278,8 @@ class Launcher:
     def _on_event(self, sample: Any) -> None:
         e = decode_event(sample.payload.to_bytes())
         if not self.opts.quiet and not isinstance(e, str):
-            self.log(f"  event: {e.line()}")
+            for line in self._console.lines(e):
+                self.log(f"  event: {line}")
 
     def _wait_alive(self, names: list[str], timeout: float) -> list[str]:
         """Wait for every name's liveliness token; returns the missing ones (early exits end the wait)."""

@@ -47,3 +47,24 @@ def graph_event(t: float, ids: Sequence[str], pairs: Iterable[Pair], alive: Iter
         return FleetEvent.of(t, "graph", f"the live graph has no spanning tree: {', '.join(cut)} cut off",
                              severity="warn")
     return FleetEvent.of(t, "graph", f"the live graph ({len(members)} vehicles) still has a spanning tree")
+
+
+class ConsoleQuota:
+    """What to print of a stream of events: every event, but only the first ``per_link``
+    ``link_burst`` events of each link (a lossy link makes thousands), then one line saying
+    the rest are in metrics.json. Returns the lines to print for ``event`` (maybe none)."""
+
+    def __init__(self, per_link: int = 3):
+        self.per_link = per_link
+        self.seen: dict[str | None, int] = {}
+
+    def lines(self, event: FleetEvent) -> list[str]:
+        if event.kind != "link_burst":
+            return [event.line()]
+        n = self.seen[event.link] = self.seen.get(event.link, 0) + 1
+        if n <= self.per_link:
+            return [event.line()]
+        if n == self.per_link + 1:
+            return [f"(further drop bursts on {event.link or 'this link'} are not printed; the metrics' events "
+                    "have them all)"]
+        return []

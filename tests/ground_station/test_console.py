@@ -63,3 +63,22 @@ def test_gains_problem_names_what_does_not_fit_a_vehicle():
     assert gains_problem({"k": 2.0, "c": 0}, 2) == "c must be a number > 0, got 0"
     assert gains_problem({"k": True}, 2) is not None and gains_problem({}, 2) is not None
     assert gains_problem({"k": [1.0, 2.0], "c": 3}, 2) is None
+
+
+def test_drop_bursts_do_not_push_the_other_events_out_of_the_status():
+    view = FleetView()
+    view.events = [FleetEvent.of(1.0, "vehicle_lost", "vehicle uav1 lost", vehicle="uav1")]
+    view.events += [FleetEvent.of(2.0 + i, "link_burst", f"{i} drops in a row", link="usv1->usv2") for i in range(50)]
+    out = status_table(view)
+    assert "vehicle uav1 lost" in out and "49 drops in a row" in out and "48 drops in a row" not in out.split("uav1 lost")[0]
+    assert "(50 drop bursts heard" in out
+    assert out.count("drops in a row") == 7
+
+
+def test_the_console_prints_a_few_bursts_per_link_then_says_so_once():
+    from cdus.sim.reports import ConsoleQuota
+    q = ConsoleQuota(per_link=2)
+    ev = lambda link: FleetEvent.of(1.0, "link_burst", "3 drops in a row", link=link)  # noqa: E731
+    lines = [line for _ in range(5) for line in q.lines(ev("a->b"))] + q.lines(ev("b->a"))
+    assert len(lines) == 4 and "not printed" in lines[2]
+    assert q.lines(FleetEvent.of(1.0, "vehicle_lost", "vehicle a lost", vehicle="a")) != []
