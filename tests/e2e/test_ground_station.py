@@ -38,9 +38,9 @@ def test_ground_station_watches_and_commands_a_running_fleet(tmp_path, launches)
     deadline = time.monotonic() + 15
     while time.monotonic() < deadline:
         out = gs(fleet, port, "status", "--once").stdout
-        if "usv2 lost" in out:
+        if "kill of usv2 by" in out and "3/4 vehicles alive" in out:
             break
-    assert "usv2 lost" in out, out
+    assert "kill of usv2 by" in out and "3/4 vehicles alive" in out, out
 
     assert gs(fleet, port, "stop").returncode == 0
     assert la.wait(timeout=60) == 0, la.output()
@@ -48,7 +48,8 @@ def test_ground_station_watches_and_commands_a_running_fleet(tmp_path, launches)
     assert m["completed"] is False  # stopped early, by the operator
     assert m["link"]["faults"]["total"]["dropped_by"]["loss"] > 0
     kinds = [(e["kind"], e.get("vehicle")) for e in m["events"]]
-    assert ("vehicle_lost", "usv2") in kinds and ("link_changed", None) in kinds, m["events"]
+    assert ("fault", "usv2") in kinds and ("link_changed", None) in kinds, m["events"]
+    assert ("vehicle_lost", "usv2") not in kinds  # the kill it asked for is not news again
     assert not fleet_processes(fleet)
 
 
