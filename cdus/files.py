@@ -9,11 +9,18 @@ from typing import Any
 
 
 def write_json(path: str | os.PathLike, data: Any) -> None:
-    """Write atomically (temp file + rename), so a reader never sees half a file."""
+    """Write atomically (temp file + rename), so a reader never sees half a file. A path that
+    exists and is not a regular file (/dev/stdout, a pipe, /dev/null) is written to directly,
+    never replaced."""
     p = Path(path)
+    text = json.dumps(data, indent=2, sort_keys=False, allow_nan=False, default=_jsonable) + "\n"
+    if p.exists() and not p.is_file():
+        with open(p, "w") as fh:
+            fh.write(text)
+        return
     p.parent.mkdir(parents=True, exist_ok=True)
     tmp = p.with_name(p.name + ".tmp")
-    tmp.write_text(json.dumps(data, indent=2, sort_keys=False, allow_nan=False, default=_jsonable) + "\n")
+    tmp.write_text(text)
     os.replace(tmp, p)
 
 

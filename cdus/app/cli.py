@@ -129,8 +129,18 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _note_late_events(scenario: Scenario) -> None:
+    """Say (not fail: --duration often shortens a run on purpose) which scheduled faults the
+    run ends before."""
+    late = [e for e in scenario.events if e.at > scenario.duration]
+    if late:
+        which = ", ".join(f"{e.action} of {e.vehicle} at {e.at:g} s" for e in late)
+        print(f"note: the run ends at {scenario.duration:g} s, before {which}: not carried out", file=sys.stderr)
+
+
 def cmd_sim(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.config, _overrides(args))
+    _note_late_events(scenario)
     out_dir = None
     metrics_out = args.metrics_out
     if metrics_out is None:
@@ -197,6 +207,7 @@ def remote_ids(values: list[str], scenario: Scenario) -> tuple[str, ...]:
 
 def cmd_launch(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.config, _overrides(args))
+    _note_late_events(scenario)
     try:
         parse_spec(args.rerun, Path(args.logs or "."))  # a bad --rerun starts nothing
     except ValueError as e:

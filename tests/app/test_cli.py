@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from cdus.app.cli import build_parser, launch_options
+from cdus.app.cli import build_parser, launch_options, main
 from cdus.scenario.config import ConfigError, load_scenario
 from cdus.scenario.model import RESTART_POLICIES
 
@@ -55,3 +55,10 @@ def test_direct_links_are_refused_where_they_would_skip_the_router(flag):
     assert opts.links == "router"
     with pytest.raises(ConfigError, match=f"--links: direct links .* with {flag[0]} use --links router"):
         options(*flag, "--links", "direct")
+
+
+def test_scheduled_faults_after_the_end_are_named_not_silently_skipped(capsys, tmp_path):
+    code = main(["sim", "configs/lake_circle.toml", "--rerun", "off", "-q", "--duration", "2",
+                 "--metrics-out", str(tmp_path / "m.json"), "--set", 'event=[{at=100.0,action="kill",vehicle="usv2"}]'])
+    assert code == 0
+    assert "before kill of usv2 at 100 s: not carried out" in capsys.readouterr().err
