@@ -38,9 +38,9 @@ from typing import Any, Callable
 import zenoh
 
 from cdus.core.events import RosterChange, event_tick, plan_roster
-from cdus.core.vehicle import DivergedError
 from cdus.core.link import LinkEmulator, burst_events
-from cdus.core.node import VehicleNode
+from cdus.core.node import VehicleNode, gains_problem
+from cdus.core.vehicle import DivergedError
 from cdus.scenario.config import ConfigError
 from cdus.scenario.model import Scenario
 from cdus.scenario.link import merge_link_tables, validate_link
@@ -328,17 +328,15 @@ class Agent:
 
     def _set_gains(self, gains: dict, tick: int) -> None:
         v = self.node.vehicle
-        k, c = gains.get("k", v.k), gains.get("c", v.c)
-        if _number(k):
-            k = (float(k),) * v.dim
-        try:
-            if not isinstance(k, (list, tuple)) or not all(_number(x) for x in k) or not _number(c):
-                raise ValueError(f"k must be a number or {v.dim} numbers and c a number, got {gains}")
-            self.node.set_gains(tuple(k), float(c), tick)
-        except ValueError as e:
+        problem = gains_problem(gains, v.dim)  # the check the world made before relaying it
+        if problem is not None:
             self.rejected["bad_gains_command"] += 1
-            self.log(f"gains command rejected: {e}")
+            self.log(f"gains command rejected: {problem}")
             return
+        k = gains.get("k", v.k)
+        k = tuple(float(x) for x in k) if isinstance(k, (list, tuple)) else (float(k),) * v.dim
+        c = float(gains.get("c", v.c))
+        self.node.set_gains(k, c, tick)
         self.log(f"gains k = {tuple(k)}, c = {c} from tick {tick}")
 
     def _recv(self, now: Callable[[], float | None]) -> None:
@@ -524,10 +522,6 @@ class Agent:
         never: Callable[[], None] = lambda: None
         while not self._stopping() and time.time() < deadline:
             self._recv(never)
-
-
-def _number(x: Any) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
 
 def run_agent(agent: Agent) -> int:
