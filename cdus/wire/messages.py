@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 import struct
 from dataclasses import dataclass
+from typing import Any
 
 import msgpack
 
@@ -137,20 +138,30 @@ def encode_states(rows: list[StateMsg]) -> bytes:
                   [[m.tick, m.t, list(m.q), m.heading, m.speed, m.omega, m.omega_rate, m.path_error] for m in rows]])
 
 
-def decode_states(payload: bytes, n_vehicles: int | None = None) -> list[StateMsg] | str:
-    """The rows of a telemetry batch, or the reason it was rejected (the whole batch is)."""
-    if len(payload) > 96 * MAX_STATE_ROWS:
+def _versioned_triple(payload: bytes, max_bytes: int, max_rows: int, version: int) -> tuple[Any, Any] | str:
+    """The (head, rows) of a ``[version, head, rows]`` msgpack array of numbers only, or the
+    reason it is rejected (``oversized``, ``malformed``, ``version``); never raises."""
+    if len(payload) > max_bytes:
         return "oversized"
     try:
-        obj = msgpack.unpackb(payload, raw=True, max_array_len=MAX_STATE_ROWS, max_map_len=0, max_str_len=0,
+        obj = msgpack.unpackb(payload, raw=True, max_array_len=max_rows, max_map_len=0, max_str_len=0,
                               max_bin_len=0, max_ext_len=0)
     except MSGPACK_ERRORS:
         return "malformed"
     if not isinstance(obj, list) or len(obj) != 3:
         return "malformed"
-    v, sender, rows = obj
-    if type(v) is not int or v != STATE_VERSION:
+    v, head, rows = obj
+    if type(v) is not int or v != version:
         return "version"
+    return head, rows
+
+
+def decode_states(payload: bytes, n_vehicles: int | None = None) -> list[StateMsg] | str:
+    """The rows of a telemetry batch, or the reason it was rejected (the whole batch is)."""
+    obj = _versioned_triple(payload, 96 * MAX_STATE_ROWS, MAX_STATE_ROWS, STATE_VERSION)
+    if isinstance(obj, str):
+        return obj
+    sender, rows = obj
     if type(sender) is not int or not isinstance(rows, list) or not rows:
         return "type"
     if sender < 0 or (n_vehicles is not None and sender >= n_vehicles):
@@ -195,18 +206,10 @@ def encode_contacts(m: ContactsMsg) -> bytes:
 def decode_contacts(payload: bytes, n_vehicles: int | None = None) -> ContactsMsg | str:
     """A valid contacts message, or the reason it is rejected (``malformed``, ``version``,
     ``type``, ``non_finite``, ``share``, ``unknown_sender``, ``oversized``); never raises."""
-    if len(payload) > 48 * MAX_CONTACTS + 16:
-        return "oversized"
-    try:
-        obj = msgpack.unpackb(payload, raw=True, max_array_len=MAX_CONTACTS, max_map_len=0, max_str_len=0,
-                              max_bin_len=0, max_ext_len=0)
-    except MSGPACK_ERRORS:
-        return "malformed"
-    if not isinstance(obj, list) or len(obj) != 3:
-        return "malformed"
-    v, tick, rows = obj
-    if type(v) is not int or v != CONTACTS_VERSION:
-        return "version"
+    obj = _versioned_triple(payload, 48 * MAX_CONTACTS + 16, MAX_CONTACTS, CONTACTS_VERSION)
+    if isinstance(obj, str):
+        return obj
+    tick, rows = obj
     if type(tick) is not int or tick < 0 or not isinstance(rows, list):
         return "type"
     out = []
