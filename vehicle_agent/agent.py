@@ -49,7 +49,7 @@ from cdus.sim.sensing import contacts_of
 from cdus.core.schedule import CLOCKS, total_ticks
 from cdus.wire import keys
 from cdus.wire.messages import (
-    CTL_OPS, OmegaMsg, StateMsg, decode_contacts, decode_control, decode_omega, decode_states, encode_omega,
+    CTL_OPS, StateMsg, decode_contacts, decode_control, decode_omega, decode_states, encode_omega,
     encode_states,
 )
 from cdus.wire.schemas import AgentStats, encode_stats

@@ -11,7 +11,6 @@ duplicate), toxiproxy (per-link toxics) and Jepsen's partitions and "grudges".
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any
 

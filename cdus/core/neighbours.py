@@ -14,7 +14,6 @@ guidance with a stale-neighbour policy (docs/link.md):
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
 
 from cdus.core.guidance import Consensus
 from cdus.core.linkspec import POLICIES

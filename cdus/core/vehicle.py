@@ -25,13 +25,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from cdus.core import regulators as reg
-from cdus.core.disturbance import Disturbance, DisturbanceSpec
+from cdus.core.disturbance import Disturbance
 from cdus.core.guidance import Consensus, desired_velocity, integrate_omega, omega_law
 from cdus.core.observer import ESO, known_velocity
 from cdus.core.safety import Contact, FilterInfo, SafetyParams, safety_filter
-from cdus.core.paths import Path, Vec, for_dimension, make_path, nearest_omega
+from cdus.core.paths import Path, Vec, nearest_omega
 from cdus.core.plants import (
-    USV_PRESETS, PointState, UAVState, USVState, step_ideal, step_uav, step_usv,
+    PointState, UAVState, USVState, step_ideal, step_uav, step_usv,
 )
 
 

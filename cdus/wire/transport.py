@@ -18,7 +18,7 @@ import argparse
 import json
 import socket
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import Sequence
 
 import zenoh
 

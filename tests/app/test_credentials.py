@@ -14,6 +14,7 @@ from cdus.app.credentials import CredentialsError, endpoint_host, make_credentia
 from cdus.wire import access, keys
 from cdus.wire.messages import OmegaMsg, encode_control, encode_omega
 from cdus.wire.transport import Transport, free_tcp_port, open_session
+from tests.outsider import raw_client
 
 IDS = ("usv1", "usv2", "uav1")
 LISTENERS = {"usv1": ("usv2", "uav1"), "usv2": ("usv1",), "uav1": ("usv1",)}  # vehicle -> who hears its ω
@@ -65,15 +66,6 @@ def test_the_acl_is_a_valid_zenoh_config_section():
     rules = {r["id"]: r for r in back["rules"]}
     assert rules["vehicle-usv1-put"]["key_exprs"] == ["cdus/f1/to/+usv2+uav1+/omega/usv1",
                                                       "cdus/f1/to/+world+/state/usv1", "cdus/f1/to/+world+/stats/usv1"]
-
-
-def raw_client(endpoint: str) -> zenoh.Config:
-    """An outsider: a plain Zenoh client, no credentials, no retries."""
-    conf = zenoh.Config()
-    conf.insert_json5("mode", '"client"')
-    conf.insert_json5("scouting/multicast/enabled", "false")
-    conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
-    return conf
 
 
 class Heard:

@@ -16,7 +16,7 @@ import pytest
 from cdus.core.linkspec import Burst, Delay, LinkSpec
 from cdus.scenario.link import validate_link
 from cdus.core.link import (
-    DropBursts, IdealLink, LinkEmulator, LinkFaultCounters, burst_bad, burst_events, draw_delay, merge_link_summaries, stream_key, uniform,
+    DropBursts, LinkEmulator, LinkFaultCounters, burst_bad, burst_events, draw_delay, merge_link_summaries, stream_key, uniform,
 )
 
 IDS = ("usv1", "usv2", "usv3", "uav1", "uav2", "uav3")

@@ -31,6 +31,16 @@ def fleet_processes(fleet: str) -> list[str]:
     return [ln for ln in out.splitlines() if "pgrep" not in ln]
 
 
+def kill_group(proc: subprocess.Popen) -> None:
+    """SIGKILL a process started with its own session group, and everything in that group."""
+    if proc.poll() is None:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        proc.wait()
+
+
 class Launch:
     """`cdus launch ...` in the background, its stdout collected line by line."""
 
@@ -77,12 +87,7 @@ class Launch:
             return "\n".join(self.lines)
 
     def kill(self) -> None:
-        if self.proc.poll() is None:
-            try:
-                os.killpg(self.proc.pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
-            self.proc.wait()
+        kill_group(self.proc)
 
 
 @pytest.fixture

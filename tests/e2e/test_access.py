@@ -29,17 +29,10 @@ from cdus.wire.messages import OmegaMsg, encode_control, encode_omega
 from cdus.wire.schemas import FleetEvent, decode_event, decode_status
 from cdus.wire.transport import free_tcp_port
 
+from tests.outsider import raw_client
+
 from .conftest import fleet_processes, run_cli, unique_fleet
 from .test_faults import hostile_omega_payloads
-
-
-def raw_client(endpoint: str) -> zenoh.Config:
-    """An outsider's Zenoh client: no credentials, no retries, multicast off."""
-    conf = zenoh.Config()
-    conf.insert_json5("mode", '"client"')
-    conf.insert_json5("scouting/multicast/enabled", "false")
-    conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
-    return conf
 
 
 def member(config_file) -> zenoh.Session:

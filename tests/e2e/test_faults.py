@@ -6,7 +6,6 @@ import json
 import math
 import queue
 import random
-import struct
 
 import msgpack
 import numpy as np

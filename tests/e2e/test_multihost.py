@@ -22,7 +22,6 @@ import re
 import secrets
 import shlex
 import shutil
-import signal
 import subprocess
 import sys
 import time
@@ -36,7 +35,7 @@ from cdus.app.launcher import ZENOH_RUNTIME
 from cdus.scenario.config import load_scenario
 from cdus.sim.fleet import InProcessFleet
 
-from .conftest import ROOT, Launch, fleet_processes, unique_fleet
+from .conftest import ROOT, Launch, fleet_processes, kill_group, unique_fleet
 
 PORT = 7447  # the namespaces are this test's own: a fixed port cannot collide
 
@@ -118,12 +117,7 @@ class Hosts:
 
     def close(self) -> None:
         for p in self.procs:
-            if p.poll() is None:
-                try:
-                    os.killpg(p.pid, signal.SIGKILL)
-                except ProcessLookupError:
-                    pass
-            p.wait()
+            kill_group(p)
         for ns in self.made:  # deleting a namespace deletes the veth ends inside it
             _ip("netns", "del", ns, check=False)
         left = [ns for ns in self.made if ns in _ip("netns", "list").stdout]

@@ -16,7 +16,6 @@ import importlib.util
 import io
 import os
 import shutil
-import signal
 import subprocess
 
 import numpy as np
@@ -27,7 +26,7 @@ from cdus.wire.transport import free_tcp_port
 from cdus.sim.fleet import InProcessFleet
 from world_sim.rerun_sink import make_sink
 
-from .conftest import ROOT
+from .conftest import ROOT, kill_group
 
 
 def _mesa_installed() -> bool:
@@ -65,12 +64,7 @@ def viewers():
 
     yield start
     for p in started:
-        if p.poll() is None:
-            try:
-                os.killpg(p.pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
-            p.wait()
+        kill_group(p)
 
 
 def _pixels(png: bytes | os.PathLike) -> np.ndarray:
