@@ -41,7 +41,7 @@ from cdus.scenario.vehicles import defaults_section, vehicles_section
 # The entry points, and for their callers the error and the result types (defined in errors.py, model.py).
 __all__ = [
     "ConfigError", "Edge", "Rates", "Safety", "Scenario", "Supervision", "VehicleSpec", "apply_override", "load_scenario",
-    "parse_overrides", "parse_scenario", "parse_value",
+    "parse_overrides", "parse_scenario", "parse_text", "parse_value",
 ]
 
 SECTIONS = ("scenario", "rates", "metrics", "gains", "guidance", "defaults", "supervision", "safety", "disturbance",
@@ -51,22 +51,53 @@ SECTIONS = ("scenario", "rates", "metrics", "gains", "guidance", "defaults", "su
 # --------------------------------------------------------------------------- entry points
 
 
+#: The largest scenario file read (bytes), checked before parsing. A fleet at the size limit
+#: (cdus.scenario.vehicles.MAX_VEHICLES) with every per-vehicle key spelled out takes well
+#: under 1 MB; the shipped configs take 1-4 kB. Parsing costs about 2 s and 13 MB of memory
+#: per MB of TOML (a 53 MB file took 115 s and 700 MB), so 4 MB bounds it to seconds.
+MAX_FILE_BYTES = 4 * 1024 * 1024
+#: The deepest nesting of tables and lists accepted. A scenario nests 4 levels at most
+#: ([[vehicle]] > start > region_min > number); past this the file is not a scenario, and
+#: deep nesting would exhaust Python's recursion (50,000 brackets gave a RecursionError).
+MAX_NESTING = 32
+
+
 def load_scenario(path: str | os.PathLike, overrides: Mapping[str, Any] | None = None) -> Scenario:
     """Read, override, validate and resolve a scenario file. Raises :class:`ConfigError`."""
     source = os.fspath(path)
     try:
         with open(source, "rb") as fh:
-            if source.endswith(".json"):  # a resolved scenario (Scenario.raw) handed to a subprocess
-                data = json.load(fh)
-            else:
-                data = tomllib.load(fh)
+            raw = fh.read(MAX_FILE_BYTES + 1)
     except FileNotFoundError:
         raise ConfigError(source, [("file", "not found; give the path of a scenario .toml file "
                                             "(see configs/ for examples)")]) from None
     except OSError as e:
         raise ConfigError(source, [("file", f"cannot be read: {e.strerror or e}")]) from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise ConfigError(source, [("file", f"larger than {MAX_FILE_BYTES // (1024 * 1024)} MB, the size limit of a "
+                                            f"scenario file (a fleet of the largest size allowed, every key spelled "
+                                            f"out, takes under 1 MB); give a scenario .toml file, not a data file")])
+    data = parse_text(raw, source, json_format=source.endswith(".json"))
+    return parse_scenario(data, source, overrides)
+
+
+def parse_text(raw: bytes, source: str, json_format: bool = False) -> dict:
+    """The bytes of a scenario file as TOML (or JSON: a resolved scenario, Scenario.raw,
+    handed to a subprocess) data. A UTF-8 byte order mark and CRLF or CR line ends are
+    accepted (a copy saved by a Windows editor); nesting deeper than :data:`MAX_NESTING`
+    is a :class:`ConfigError`, never a RecursionError."""
+    try:
+        text = raw.decode("utf-8")
     except UnicodeDecodeError:
         raise ConfigError(source, [("file", "is not UTF-8 text; a scenario is a TOML file")]) from None
+    text = text.removeprefix("\ufeff").replace("\r\n", "\n").replace("\r", "\n")
+    deep = _too_deep_text(text)
+    if deep is not None:
+        raise ConfigError(source, [(deep, _nesting_message())])
+    try:
+        data = json.loads(text) if json_format else tomllib.loads(text)
+    except RecursionError:  # not expected after _too_deep_text; never a traceback
+        raise ConfigError(source, [("file", _nesting_message())]) from None
     except json.JSONDecodeError as e:
         raise ConfigError(source, [(f"line {e.lineno}, column {e.colno}", f"JSON syntax error: {e.msg}")]) from None
     except tomllib.TOMLDecodeError as e:
@@ -75,12 +106,94 @@ def load_scenario(path: str | os.PathLike, overrides: Mapping[str, Any] | None =
         where = f"line {m.group(1)}, column {m.group(2)}" if m else "TOML"
         message = text[:m.start()].strip() if m else text
         raise ConfigError(source, [(where, f"TOML syntax error: {message}")]) from None
-    return parse_scenario(data, source, overrides)
+    if not isinstance(data, dict):
+        raise ConfigError(source, [("file", f"must hold a table of sections, got {describe(data)}")])
+    return data
+
+
+def _nesting_message() -> str:
+    return (f"lists and tables nested deeper than {MAX_NESTING} levels; a scenario nests 4 at most "
+            f"(e.g. [[vehicle]] > start > region_min > a number): this is not a scenario file")
+
+
+def _too_deep_text(text: str) -> str | None:
+    """``line L, column C`` of the first bracket or brace nested deeper than
+    :data:`MAX_NESTING` outside strings and comments, else None. A linear scan: a
+    conservative bound on the depth the parser will reach (TOML nests through inline
+    brackets and braces; table headers ``[a.b]`` nest by dotted keys, bounded by the data
+    check in :func:`parse_scenario`)."""
+    depth = 0
+    line, col = 1, 0
+    quote: str | None = None
+    comment = False
+    triple = False
+    escape = False
+    j, n = 0, len(text)
+    while j < n:
+        ch = text[j]
+        col += 1
+        if ch == "\n":
+            line, col, comment = line + 1, 0, False
+            if quote is not None and not triple:
+                quote = None  # an unterminated string: the parser reports it
+            j += 1
+            continue
+        if comment:
+            j += 1
+            continue
+        if quote is not None:
+            if escape:
+                escape = False
+            elif ch == "\\" and quote == '"':
+                escape = True
+            elif ch == quote and (not triple or text.startswith(quote * 3, j)):
+                if triple:
+                    j += 2
+                    col += 2
+                quote, triple = None, False
+            j += 1
+            continue
+        if ch in "\"'":
+            triple = text.startswith(ch * 3, j)
+            quote = ch
+            if triple:
+                j += 2
+                col += 2
+        elif ch == "#":
+            comment = True
+        elif ch in "[{":
+            depth += 1
+            if depth > MAX_NESTING:
+                return f"line {line}, column {col}"
+        elif ch in "]}":
+            depth = max(0, depth - 1)
+        j += 1
+    return None
+
+
+def nesting_problem(data: Any, limit: int = MAX_NESTING) -> bool:
+    """Is ``data`` (parsed TOML/JSON, or an override value) nested deeper than ``limit``?
+    Iterative, so it cannot itself run out of recursion."""
+    stack = [(data, 0)]
+    while stack:
+        v, d = stack.pop()
+        if isinstance(v, (dict, list, tuple)) and d > limit:
+            return True
+        if isinstance(v, dict):
+            stack.extend((x, d + 1) for x in v.values())
+        elif isinstance(v, (list, tuple)):
+            stack.extend((x, d + 1) for x in v)
+    return False
 
 
 def parse_scenario(data: Mapping[str, Any], source: str = "<config>",
                    overrides: Mapping[str, Any] | None = None) -> Scenario:
     """Validate and resolve already-parsed TOML data (``data`` is not modified)."""
+    if nesting_problem(data):
+        raise ConfigError(source, [("file", _nesting_message())])
+    for key, value in (overrides or {}).items():
+        if nesting_problem(value, MAX_NESTING - 1):
+            raise ConfigError(source, [(f"override {key}", _nesting_message())])
     data = copy.deepcopy(dict(data))
     for key, value in (overrides or {}).items():
         try:
@@ -149,9 +262,11 @@ def parse_value(text: str) -> Any:
     stripped = text.strip()
     if stripped in ("True", "False"):
         return stripped == "True"
+    if _too_deep_text(stripped) is not None:
+        return text  # kept as a string; never a RecursionError
     try:
         value = tomllib.loads(f"v = {stripped}")["v"]
-    except tomllib.TOMLDecodeError:
+    except (tomllib.TOMLDecodeError, RecursionError):
         return text
     if isinstance(value, (int, float, bool, str, list, dict)):
         return value

@@ -1,0 +1,113 @@
+"""Reading a scenario file that is hostile or merely unusual: size, nesting, BOM and line ends."""
+
+import pathlib
+import subprocess
+import sys
+
+import pytest
+
+from cdus.scenario import config as cfg
+from cdus.scenario.config import ConfigError, load_scenario, parse_scenario, parse_value
+from tests.scenario.common import MINIMAL, base
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+SHIPPED = sorted((ROOT / "configs").glob("*.toml"))
+
+
+@pytest.mark.parametrize("config", SHIPPED, ids=lambda p: p.name)
+@pytest.mark.parametrize("variant", ["bom", "crlf", "bom+crlf", "cr"])
+def test_a_windows_copy_of_every_shipped_config_loads_as_the_original(tmp_path, config, variant):
+    text = config.read_bytes()
+    if "crlf" in variant:
+        text = text.replace(b"\n", b"\r\n")
+    if variant == "cr":
+        text = text.replace(b"\n", b"\r")
+    if "bom" in variant:
+        text = b"\xef\xbb\xbf" + text
+    copy = tmp_path / config.name
+    copy.write_bytes(text)
+    original = load_scenario(config)
+    loaded = load_scenario(copy)
+    assert loaded.raw == original.raw and loaded.vehicles == original.vehicles and loaded.edges == original.edges
+
+
+@pytest.mark.parametrize("opening", ["[", "{a = "])
+def test_deep_nesting_is_a_config_error_naming_the_file_not_a_recursion_error(tmp_path, opening):
+    f = tmp_path / "deep.toml"
+    close = "]" if opening == "[" else "}"
+    f.write_text("x = " + opening * 50_000 + "1" + close * 50_000 + "\n")
+    with pytest.raises(ConfigError) as e:
+        load_scenario(f)
+    assert str(f) in str(e.value) and "nested deeper than 32" in str(e.value)
+
+
+def test_nesting_just_past_the_limit_is_refused_and_at_the_limit_reaches_validation(tmp_path):
+    f = tmp_path / "n.toml"
+    f.write_text("x = " + "[" * 33 + "1" + "]" * 33 + "\n")
+    with pytest.raises(ConfigError, match="nested deeper"):
+        load_scenario(f)
+    f.write_text("x = " + "[" * 32 + "1" + "]" * 32 + "\n")
+    with pytest.raises(ConfigError) as e:
+        load_scenario(f)
+    assert "nested deeper" not in str(e.value) and "x: unknown section" in str(e.value)
+
+
+def test_brackets_inside_strings_and_comments_do_not_count_as_nesting(tmp_path):
+    f = tmp_path / "s.toml"
+    deep = "[" * 100
+    f.write_text(MINIMAL.replace('name = "two_boats"', f'name = "two_boats"\ndescription = "{deep}" # {deep}\n'
+                                 f"# {deep}\n"))
+    assert load_scenario(f).description == deep
+
+
+def test_deep_data_and_deep_overrides_are_config_errors():
+    deep: list = []
+    node = deep
+    for _ in range(5000):
+        node.append([])
+        node = node[0]
+    data = base()
+    data["scenario"]["description"] = deep
+    with pytest.raises(ConfigError, match="nested deeper"):
+        parse_scenario(data)
+    with pytest.raises(ConfigError, match="nested deeper"):
+        parse_scenario(base(), overrides={"scenario.description": deep})
+    assert parse_value("[" * 50_000) == "[" * 50_000  # kept as text, no RecursionError
+
+
+def test_a_file_over_the_size_limit_is_refused_before_parsing(tmp_path, monkeypatch):
+    f = tmp_path / "big.toml"
+    f.write_text(MINIMAL + "#" * 200 + "\n")
+    monkeypatch.setattr(cfg, "MAX_FILE_BYTES", len(MINIMAL) + 100)
+    parsed = []
+    monkeypatch.setattr(cfg.tomllib, "loads", lambda *a, **k: parsed.append(1))
+    with pytest.raises(ConfigError) as e:
+        load_scenario(f)
+    assert "size limit" in str(e.value) and str(f) in str(e.value) and not parsed
+
+
+def test_the_real_size_limit_is_4_mb_and_a_file_of_it_is_refused(tmp_path):
+    assert cfg.MAX_FILE_BYTES == 4 * 1024 * 1024
+    f = tmp_path / "big.toml"
+    with open(f, "wb") as fh:
+        fh.write(MINIMAL.encode())
+        fh.write(b"#" * cfg.MAX_FILE_BYTES + b"\n")
+    with pytest.raises(ConfigError, match="larger than 4 MB"):
+        load_scenario(f)
+
+
+def test_a_top_level_json_value_that_is_not_a_table_is_a_config_error(tmp_path):
+    f = tmp_path / "s.json"
+    f.write_text("[1, 2]")
+    with pytest.raises(ConfigError, match="table of sections"):
+        load_scenario(f)
+
+
+@pytest.mark.parametrize("body", ["x = " + "[" * 50_000 + "\n"])
+def test_cdus_sim_exits_2_on_deep_nesting_without_a_traceback(tmp_path, body):
+    f = tmp_path / "deep.toml"
+    f.write_text(body)
+    r = subprocess.run([sys.executable, "-m", "cdus", "sim", str(f)], capture_output=True, text=True, timeout=120,
+                       cwd=ROOT)
+    assert r.returncode == 2, r.stderr
+    assert "Traceback" not in r.stderr and str(f) in r.stderr and "nested deeper" in r.stderr
