@@ -81,9 +81,18 @@ def build_pairs(topology: str, ids: Sequence[str], directed: bool, hub: str | No
 
 def reachable_from(root: str, pairs: Iterable[Pair]) -> set[str]:
     """The vehicles that hear from ``root``, directly or not (information flows k -> i)."""
+    return _reach(root, _listeners(pairs))
+
+
+def _listeners(pairs: Iterable[Pair]) -> dict[str, list[str]]:
+    """k -> the vehicles listening to k (the information-flow adjacency)."""
     listeners: dict[str, list[str]] = {}
     for i, k in pairs:
         listeners.setdefault(k, []).append(i)
+    return listeners
+
+
+def _reach(root: str, listeners: dict[str, list[str]]) -> set[str]:
     seen = {root}
     queue = deque([root])
     while queue:
@@ -95,23 +104,110 @@ def reachable_from(root: str, pairs: Iterable[Pair]) -> set[str]:
     return seen
 
 
+#: At most this many candidate roots are searched when no vehicle reaches everyone
+#: (:func:`spanning_root`): each search costs O(n + m), so the check stays linear.
+MAX_ROOT_SEARCHES = 32
+
+
+def _components(ids: Sequence[str], listeners: dict[str, list[str]]) -> dict[str, int]:
+    """Strongly connected components of the information-flow graph (Tarjan, iterative:
+    no recursion limit, O(n + m)). Returns vehicle -> component number."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    comp: dict[str, int] = {}
+    on_stack: set[str] = set()
+    stack: list[str] = []
+    counter = 0
+    n_comps = 0
+    for start in ids:
+        if start in index:
+            continue
+        work = [(start, iter(listeners.get(start, ())))]
+        index[start] = low[start] = counter
+        counter += 1
+        stack.append(start)
+        on_stack.add(start)
+        while work:
+            v, it = work[-1]
+            pushed = False
+            for w in it:
+                if w not in index:
+                    index[w] = low[w] = counter
+                    counter += 1
+                    stack.append(w)
+                    on_stack.add(w)
+                    work.append((w, iter(listeners.get(w, ()))))
+                    pushed = True
+                    break
+                if w in on_stack and index[w] < low[v]:
+                    low[v] = index[w]
+            if pushed:
+                continue
+            work.pop()
+            if work:
+                u = work[-1][0]
+                if low[v] < low[u]:
+                    low[u] = low[v]
+            if low[v] == index[v]:
+                while True:
+                    w = stack.pop()
+                    on_stack.discard(w)
+                    comp[w] = n_comps
+                    if w == v:
+                        break
+                n_comps += 1
+    return comp
+
+
 def spanning_root(ids: Sequence[str], pairs: Iterable[Pair]) -> str | None:
-    """The root that reaches the most vehicles (ties: the first id); None without vehicles."""
-    pairs = list(pairs)
-    best, best_n = None, -1
-    for root in ids:
-        n = len(reachable_from(root, pairs))
+    """The root that reaches the most vehicles (ties: the first id); None without vehicles.
+
+    O(n + m): the best root lies in a *source* component of the information flow (one no
+    other vehicle is heard by); with one source component its first vehicle reaches
+    everyone. With several, the first :data:`MAX_ROOT_SEARCHES` source components (by
+    their first vehicle) are searched; for an undirected graph every component is a source
+    and its size is its reach, so the answer there is always exact.
+    """
+    ids = list(ids)
+    if not ids:
+        return None
+    listeners = _listeners(pairs)
+    comp = _components(ids, listeners)
+    heard = set()  # components that hear from another component
+    for k, ws in listeners.items():
+        for w in ws:
+            if k in comp and w in comp and comp[w] != comp[k]:
+                heard.add(comp[w])
+    firsts: dict[int, str] = {}
+    for v in ids:
+        firsts.setdefault(comp[v], v)
+    sources = [v for c, v in firsts.items() if c not in heard]  # ordered by first id
+    if len(sources) == 1:
+        return sources[0]
+    sizes: dict[int, int] = {}
+    for v in ids:
+        sizes[comp[v]] = sizes.get(comp[v], 0) + 1
+    if not heard:  # no edges between components (e.g. undirected): reach = own component
+        return _first_largest(sources, lambda v: sizes[comp[v]])
+    return _first_largest(sources[:MAX_ROOT_SEARCHES], lambda v: len(_reach(v, listeners)))
+
+
+def _first_largest(candidates: list[str], size) -> str:
+    """The candidate with the largest ``size`` (ties: the earliest in the list)."""
+    best, best_n = candidates[0], -1
+    for v in candidates:
+        n = size(v)
         if n > best_n:
-            best, best_n = root, n
+            best, best_n = v, n
     return best
 
 
 def unreachable(ids: Sequence[str], pairs: Iterable[Pair]) -> list[str]:
     """[] if the graph has a directed spanning tree, else the vehicles the best root misses.
 
-    The best root is the one reaching the most vehicles (ties: the first id). For an
-    undirected graph (both directions of every pair) this is "not connected to the
-    largest component".
+    The best root is the one reaching the most vehicles (ties: the first id;
+    :func:`spanning_root`). For an undirected graph (both directions of every pair) this
+    is "not connected to the largest component". O(n + m).
     """
     pairs = list(pairs)
     root = spanning_root(ids, pairs)

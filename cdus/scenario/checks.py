@@ -33,8 +33,17 @@ def quote(s: Any) -> str:
     return '"' + str(s).replace('"', '\\"') + '"'
 
 
+#: A value shown in a message is cut after this many characters.
+MAX_SHOWN = 200
+
+
 def show(v: Any) -> str:
-    """A value as the user wrote it in TOML."""
+    """A value as the user wrote it in TOML (cut after :data:`MAX_SHOWN` characters)."""
+    text = _show(v)
+    return text if len(text) <= MAX_SHOWN else text[:MAX_SHOWN] + f"... ({len(text)} characters)"
+
+
+def _show(v: Any) -> str:
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, str):
@@ -42,9 +51,11 @@ def show(v: Any) -> str:
     if isinstance(v, float):
         return repr(v) if math.isfinite(v) else str(v)
     if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(show(x) for x in v) + "]"
+        return "[" + ", ".join(_show(x) for x in v[:MAX_SHOWN]) + (", ...]" if len(v) > MAX_SHOWN else "]")
     if isinstance(v, dict):
-        return "{" + ", ".join(f"{k} = {show(x)}" for k, x in v.items()) + "}"
+        items = list(v.items())
+        return "{" + ", ".join(f"{k} = {_show(x)}" for k, x in items[:MAX_SHOWN]) + \
+            (", ...}" if len(items) > MAX_SHOWN else "}")
     return repr(v)
 
 
@@ -86,28 +97,86 @@ def _in_range(v: float, gt: float | None, ge: float | None, le: float | None) ->
     return ((gt is None or v > gt) and (ge is None or v >= ge) and (le is None or v <= le))
 
 
+def names(ids: Iterable[str], most: int = 10) -> str:
+    """``a, b, c`` for a few names; past ``most``, the first ones and how many more."""
+    ids = list(ids)
+    shown = ", ".join(ids[:most])
+    return shown if len(ids) <= most else f"{shown} and {len(ids) - most} more"
+
+
+class IdList(list):
+    """The vehicle ids, in file order, with O(1) membership (``id in ids``) and index
+    (:meth:`position`): references to ids are checked once each, so the checks stay
+    linear in the size of the file."""
+
+    def __init__(self, ids: Iterable[str] = ()) -> None:
+        super().__init__(ids)
+        self._pos = {v: j for j, v in enumerate(self)}
+
+    def __contains__(self, v: object) -> bool:
+        try:
+            return v in self._pos
+        except TypeError:  # unhashable
+            return False
+
+    def position(self, v: str) -> int:
+        return self._pos[v]
+
+
 # --------------------------------------------------------------------------- problems
+
+#: Problems kept for the error message; the rest are counted ("and N more problems").
+MAX_PROBLEMS = 100
+#: "did you mean" suggestions made at most (each compares the word with every option).
+MAX_SUGGESTIONS = 50
 
 
 class Problems:
-    """Collects (field, message) problems, each once, in the order they were found."""
+    """Collects (field, message) problems, each once, in the order they were found.
+
+    ``len()`` counts every problem; :attr:`items` holds the first :data:`MAX_PROBLEMS`
+    and then one line saying how many more there are, so a file with thousands of
+    mistakes gives a readable error in time linear in its size.
+    """
 
     def __init__(self) -> None:
-        self.items: list[tuple[str, str]] = []
+        self._kept: list[tuple[str, str]] = []
+        self._seen: set[tuple[str, str]] = set()
+        self._more = 0
+        self.suggestions = 0
+
+    @property
+    def items(self) -> list[tuple[str, str]]:
+        more = [("...", f"and {self._more} more problem{'s' if self._more != 1 else ''} not shown; fix these "
+                        f"first")] if self._more else []
+        return self._kept + more
 
     def add(self, field: str, message: str) -> None:
-        if (field, message) not in self.items:
-            self.items.append((field, message))
+        key = (field, message)
+        if key in self._seen:
+            return
+        self._seen.add(key)
+        if len(self._kept) < MAX_PROBLEMS:
+            self._kept.append(key)
+        else:
+            self._more += 1
 
     def __len__(self) -> int:
-        return len(self.items)
+        return len(self._seen)
 
     def __iter__(self) -> Iterator[tuple[str, str]]:
         return iter(self.items)
 
     def since(self, mark: int) -> bool:
         """Were problems added after ``mark = len(problems)``?"""
-        return len(self.items) > mark
+        return len(self) > mark
+
+    def suggest(self, word: Any, options: Iterable[str]) -> str:
+        """:func:`did_you_mean`, at most :data:`MAX_SUGGESTIONS` times per file."""
+        if self.suggestions >= MAX_SUGGESTIONS:
+            return ""
+        self.suggestions += 1
+        return did_you_mean(word, options)
 
     # ---- scalars
 
@@ -165,7 +234,7 @@ class Problems:
         options = list(options)
         if isinstance(v, str) and v in options:
             return v
-        self.add(field, f"unknown {what} {show(v)}{note}{did_you_mean(v, options)}; "
+        self.add(field, f"unknown {what} {show(v)}{note}{self.suggest(v, options)}; "
                         f"choose one of {', '.join(options)}{extra}")
         return None
 
@@ -178,8 +247,8 @@ class Problems:
             return None
         if (wildcard and v == ANY_VEHICLE) or ids is None or v in ids:
             return v
-        self.add(field, f"{quote(v)} is not a vehicle{did_you_mean(v, ids)}; ids are "
-                        f"{', '.join(ids) or '(none)'}{star}")
+        self.add(field, f"{quote(v)} is not a vehicle{self.suggest(v, ids)}; ids are "
+                        f"{names(ids) or '(none)'}{star}")
         return None
 
     # ---- compounds
@@ -214,7 +283,9 @@ class Problems:
         for key in table:
             if key in allowed or key in skip:
                 continue
-            close = difflib.get_close_matches(str(key), allowed, n=1, cutoff=0.6)
+            close = difflib.get_close_matches(str(key), allowed, n=1, cutoff=0.6) \
+                if self.suggestions < MAX_SUGGESTIONS else []
+            self.suggestions += 1
             hint = f"did you mean {quote(close[0])}? " if close else ""
             self.add(join(prefix, key), f"unknown {what}; {hint}{valid or f'valid {what}s here'}: "
                                         f"{', '.join(allowed)}")

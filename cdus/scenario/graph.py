@@ -14,7 +14,7 @@ from typing import Any, Mapping, Sequence
 
 from cdus.core import graph as graphs
 from cdus.core.paths import Path
-from cdus.scenario.checks import Problems, describe, quote
+from cdus.scenario.checks import IdList, Problems, describe, names, quote
 from cdus.scenario.model import Edge
 from cdus.scenario.vehicles import Fleet
 
@@ -22,6 +22,12 @@ TOPOLOGIES = graphs.TOPOLOGIES
 GRAPH_KEYS = ("topology", "directed", "weight", "hub", "edges", "edge")
 EDGE_KEYS = ("i", "k", "weight", "delta")
 DEFAULT_WEIGHT = 1.0
+#: The most listening pairs a graph may have: a complete graph of 256 vehicles (65,280).
+#: Every pair is a term of a vehicle's consensus sum at every control tick and a coordination
+#: error the world measures at every tick, and a vehicle's ω key names all its listeners
+#: (``to/+id1+id2+.../omega/<id>``, up to 33 bytes per listener): a complete graph of 1,024
+#: vehicles would be 1 M pairs and 34 kB keys.
+MAX_PAIRS = 65_536
 
 Pair = tuple[str, str]
 
@@ -58,6 +64,17 @@ def graph_section(p: Problems, gr: Mapping[str, Any], fleet: Fleet) -> tuple[str
         if "topology" in gr:
             p.add("graph.topology", f'a ring needs at least 2 vehicles, got {len(ids)}; leave topology unset or '
                                     f'use "complete" for a single vehicle')
+        return topology, directed, ()
+    n = len(ids)
+    expected = {"ring": n if directed or n == 2 else 2 * n, "chain": (n - 1) * (1 if directed else 2),
+                "complete": n * (n - 1), "star": (n - 1) * (1 if directed else 2),
+                "explicit": len(explicit) * (1 if directed else 2)}[topology]
+    if expected > MAX_PAIRS:
+        p.add("graph.topology" if topology != "explicit" else "graph.edges",
+              f"the {topology} graph of {n} vehicles has {expected} listening pairs, more than the limit of "
+              f"{MAX_PAIRS} (a complete graph of 256 vehicles): each pair costs every control tick a term in a "
+              f"consensus sum and a measured coordination error, and a vehicle's ω key names all its listeners; "
+              f'use a sparser topology ("ring", "chain", "star") for a fleet this large')
         return topology, directed, ()
     pairs = graphs.build_pairs(topology, ids, directed, hub=hub, explicit=explicit)
     edges = _edges(p, pairs, refinements, weight, directed, f"{'directed' if directed else 'undirected'} "
@@ -137,18 +154,24 @@ def _edge_tables(p: Problems, gr: Mapping[str, Any], ids: Sequence[str] | None) 
 def _edges(p: Problems, pairs: list[Pair], refinements: list[_Refinement], weight: float, directed: bool,
            kind_text: str, ids: Sequence[str], phases: Mapping[str, float]) -> tuple[Edge, ...]:
     """Every pair's weight and Δ (default θ_i - θ_k), refined by [[graph.edge]]."""
+    ids = ids if isinstance(ids, IdList) else IdList(ids)
+    listens_to: dict[str, list[str]] | None = None  # built on the first error that needs it
     weights = {pr: weight for pr in pairs}
     deltas = {(i, k): phases.get(i, 0.0) - phases.get(k, 0.0) for i, k in pairs}
     set_by: dict[Pair, int] = {}
     for r in refinements:
         where = f"graph.edge[{r.j}]"
         if (r.i, r.k) not in weights:
-            listens = [b for a, b in pairs if a == r.i]
+            if listens_to is None:
+                listens_to = {}
+                for a, b in pairs:
+                    listens_to.setdefault(a, []).append(b)
+            listens = listens_to.get(r.i, [])
             p.add(where, f"{r.i} does not listen to {r.k} in this {kind_text} ({r.i} listens to "
-                         f"{', '.join(listens) or 'nobody'}); a [[graph.edge]] can only refine an existing pair "
+                         f"{names(listens) or 'nobody'}); a [[graph.edge]] can only refine an existing pair "
                          f'unless topology = "explicit"')
             continue
-        key = (r.i, r.k) if directed else tuple(sorted((r.i, r.k), key=list(ids).index))
+        key = (r.i, r.k) if directed else tuple(sorted((r.i, r.k), key=ids.position))
         if key in set_by:
             both = "" if directed else " (the graph is undirected: one table sets both directions)"
             p.add(where, f"the pair {r.i} - {r.k} is already set by graph.edge[{set_by[key]}]{both}")
@@ -171,12 +194,13 @@ def _edges(p: Problems, pairs: list[Pair], refinements: list[_Refinement], weigh
 def _spanning_message(ids: Sequence[str], pairs: list[Pair], missing: list[str], directed: bool,
                       topology: str) -> str:
     root = graphs.spanning_root(ids, pairs)
-    reached = [v for v in ids if v not in missing]
+    gone = set(missing)
+    reached = [v for v in ids if v not in gone]
     where = "graph.edges" if topology == "explicit" else 'graph.edges (with topology = "explicit")'
     if not directed:
-        return (f"the graph is not connected: {', '.join(missing)} cannot exchange ω with "
-                f"{', '.join(reached)}; add an edge such as [{quote(missing[0])}, {quote(root)}] to {where}")
-    msg = (f"no directed spanning tree: {', '.join(missing)} never hear{'s' if len(missing) == 1 else ''} "
+        return (f"the graph is not connected: {names(missing)} cannot exchange ω with "
+                f"{names(reached)}; add an edge such as [{quote(missing[0])}, {quote(root)}] to {where}")
+    msg = (f"no directed spanning tree: {names(missing)} never hear{'s' if len(missing) == 1 else ''} "
            f"(even indirectly) from {root}, the vehicle that reaches the most others, and no other vehicle "
            f"reaches everyone (a pair [i, k] means i listens to k, so information flows from k to i); add a pair "
            f"such as [{quote(missing[0])}, {quote(root)}] ({missing[0]} listens to {root}) to {where}")
@@ -223,8 +247,10 @@ def _common_period(periods: list[float | None]) -> float | None:
     return longest
 
 
-def _phase_lines(phases: Mapping[str, float]) -> str:
-    return ", ".join(f"vehicle {quote(v)} phase = {round(t, 6)!r}" for v, t in phases.items())
+def _phase_lines(phases: Mapping[str, float], most: int = 20) -> str:
+    items = list(phases.items())
+    text = ", ".join(f"vehicle {quote(v)} phase = {round(t, 6)!r}" for v, t in items[:most])
+    return text if len(items) <= most else text + f" and so on for the {len(items) - most} other vehicles"
 
 
 def _pi_text(x: float) -> str | None:

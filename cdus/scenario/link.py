@@ -14,7 +14,7 @@ from typing import Any, Callable, Mapping, Sequence, TypeVar
 from cdus.core.linkspec import (
     ANY, DEFAULT_POLICY, DEFAULT_TIMEOUT, DISTRIBUTIONS, POLICIES, Burst, Delay, Down, LinkSpec, Override, Partition,
 )
-from cdus.scenario.checks import Problems, describe, quote, show
+from cdus.scenario.checks import IdList, Problems, describe, quote, show
 from cdus.scenario.errors import ConfigError
 
 LINK_KEYS = ("policy", "timeout", "seed", "delay", "loss", "burst", "duplicate", "override", "down", "partition")
@@ -53,7 +53,7 @@ def validate_link(link: Any, ids: Ids, source: str) -> LinkSpec:
     Raises ``ConfigError(source, [(field, message), ...])`` with every problem.
     """
     p = Problems()
-    spec = link_section(p, link, None if ids is None else [str(i) for i in ids])
+    spec = link_section(p, link, None if ids is None else IdList(str(i) for i in ids))
     if p:
         raise ConfigError(source, p.items)
     assert spec is not None

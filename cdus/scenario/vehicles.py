@@ -18,7 +18,7 @@ from typing import Any, Mapping
 from cdus.core.limits import default_limits
 from cdus.core.paths import FAMILIES, Path, PathError, for_dimension, make_path
 from cdus.core.plants import USV_PRESETS
-from cdus.scenario.checks import Problems, describe, is_number, quote, show
+from cdus.scenario.checks import IdList, Problems, describe, is_number, quote, show
 from cdus.scenario.model import VehicleSpec
 from cdus.scenario.sections import DEFAULT_GAINS, gain_values
 
@@ -44,6 +44,12 @@ START_KEYS = ("position", "heading", "region_min", "region_max")
 DISTURBANCE_KEYS = ("constant", "gust", "gust_tau")
 ID_PATTERN = re.compile(r"[A-Za-z0-9_-]{1,32}")
 PATH_EXAMPLE = '{ family = "circle", center = [0, 0], radius = 10 }'
+#: The largest fleet a scenario may hold. Each vehicle of `cdus launch` is an OS process of
+#: 49-51 MB (README, "Measured"), so 1,024 vehicles need about 50 GB, beyond any one host;
+#: realtime holds 48-64 vehicles at 50 Hz on a 2-core machine and `cdus sim` runs 600 at 1x
+#: real time (~30 µs per vehicle step). The ω wire format itself carries sender indices up to
+#: 65,535 (uint16 past 256), so it is not the bound. Raise it here if a host can take more.
+MAX_VEHICLES = 1024
 
 
 @dataclass
@@ -55,9 +61,9 @@ class Fleet:
     paths: dict[str, Path] = field(default_factory=dict)
 
     @property
-    def known(self) -> list[str]:
-        """The valid, unique ids."""
-        return [v for v in self.ids if v is not None]
+    def known(self) -> IdList:
+        """The valid, unique ids (O(1) membership)."""
+        return IdList(v for v in self.ids if v is not None)
 
     @property
     def complete(self) -> bool:
@@ -133,6 +139,12 @@ def vehicles_section(p: Problems, raw: Any, defaults: Mapping, fleet_gains: Mapp
         p.add("vehicle", "no vehicles; add at least one [[vehicle]] table with id, kind and path")
         return fleet
     tables = p.tables(raw, "vehicle", "vehicle", ", not [vehicle]")
+    if len(tables) > MAX_VEHICLES:
+        p.add("vehicle", f"{len(tables)} [[vehicle]] tables, more than the fleet-size limit of {MAX_VEHICLES}: every "
+                         f"vehicle of cdus launch is a process of about 50 MB ({MAX_VEHICLES} take about 50 GB) and "
+                         f"realtime holds about 48-64 vehicles at 50 Hz on this kind of machine; split the fleet or "
+                         f"raise MAX_VEHICLES in cdus/scenario/vehicles.py on a host that can take it")
+        return fleet
     first_index: dict[str, int] = {}
     for index, table in enumerate(tables):
         vid = vehicle_id(p, table, index, first_index)
