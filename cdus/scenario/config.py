@@ -36,7 +36,7 @@ from cdus.scenario.sections import (
     gains_section, guidance_section, metrics_section, rates_section, scenario_section, section,
     supervision_section,
 )
-from cdus.scenario.vehicles import defaults_section, vehicles_section
+from cdus.scenario.vehicles import defaults_section, gain_bounds, vehicles_section
 
 # The entry points, and for their callers the error and the result types (defined in errors.py, model.py).
 __all__ = [
@@ -295,6 +295,7 @@ def _resolve(p: Problems, data: Mapping[str, Any], source: str) -> Scenario | No
     if scale_omega:
         fleet.specs = [None if s is None else replace(s, scale_omega=True) for s in fleet.specs]
     topology, directed, edges = graph_section(p, section(p, data, "graph"), fleet)
+    gain_bounds(p, data.get("vehicle"), defaults, fleet_gains, fleet.specs, rates, edges)
     ids = fleet.known if fleet.complete else None
     link = link_section(p, data.get("link", {}), ids)
     events = event_section(p, data.get("event", []), ids)

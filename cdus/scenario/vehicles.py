@@ -13,13 +13,14 @@ import math
 import random
 import re
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
+from cdus.core.gain_bounds import gains_problem_for_rate, regulator_gains_problem
 from cdus.core.limits import default_limits
 from cdus.core.paths import FAMILIES, Path, PathError, for_dimension, make_path
 from cdus.core.plants import USV_PRESETS
 from cdus.scenario.checks import IdList, Problems, describe, is_number, quote, show
-from cdus.scenario.model import VehicleSpec
+from cdus.scenario.model import Edge, Rates, VehicleSpec
 from cdus.scenario.sections import DEFAULT_GAINS, gain_values
 
 KINDS: dict[str, int] = {"usv": 2, "uav": 3}  # kind -> dimension
@@ -477,3 +478,38 @@ def _disturbance(p: Problems, t: _Merged, kind: str | None) -> tuple[tuple[str, 
         out["gust_tau"] = p.number(dt["gust_tau"], t.field("disturbance", "gust_tau"), gt=0, unit=" s",
                                    note=t.note("disturbance", "gust_tau"))
     return tuple(sorted((k, x) for k, x in out.items() if x is not None))
+
+
+# --------------------------------------------------------------------------- gains against the rates
+
+
+def gain_bounds(p: Problems, raw: Any, defaults: Mapping, fleet_gains: Mapping, specs: Sequence[VehicleSpec | None], rates: Rates,
+                edges: Sequence[Edge]) -> None:
+    """Each vehicle's k, c and regulator gains against what the discrete controller takes at
+    the scenario's rates (cdus.core.gain_bounds: k·T < 2, c·Σa_ik·T < 1, b·h < 2). The field
+    is the vehicle's, marked with the table the value came from."""
+    weight_sums: dict[str, float] = {}
+    for e in edges:
+        weight_sums[e.i] = weight_sums.get(e.i, 0.0) + e.weight
+    tables = raw if isinstance(raw, list) else []
+    for spec in specs:
+        if spec is None:
+            continue
+        label = f"vehicle[{spec.index}] (id {quote(spec.id)})"
+        own = tables[spec.index].get("gains") if spec.index < len(tables) else None
+        own = own if isinstance(own, dict) else {}
+        dflt = defaults.get("gains") if isinstance(defaults.get("gains"), dict) else {}
+
+        def origin(key: str) -> str:
+            return ("" if key in own else " (set in [defaults])" if key in dflt
+                    else " (set in [gains])" if key in fleet_gains else " (the default)")
+
+        problem = gains_problem_for_rate(spec.k, None, rates.control, plant=spec.plant, physics_hz=rates.physics)
+        if problem:
+            p.add(f"{label}.gains.k", problem + origin("k"))
+        problem = gains_problem_for_rate(None, spec.c, rates.control, weight_sum=weight_sums.get(spec.id, 0.0))
+        if problem:
+            p.add(f"{label}.gains.c", problem + origin("c"))
+        problem = regulator_gains_problem(spec.regulator_gains, rates.physics)
+        if problem:
+            p.add(f"{label}.regulator_gains", problem)
