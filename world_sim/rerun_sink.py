@@ -23,12 +23,28 @@ one chunk per entity, one call), and updates are coalesced so a batch goes out e
 ``flush_every`` simulated seconds: at the default 5 s, logging stays under 10% of the
 world's CPU (bench/rerun_cost.py; every update, 0.5 s, would cost ~42%). A live viewer
 therefore sees data in 5 s steps. ``close()`` sends whatever is left.
+
+A file survives a crash (docs/rerun.md, "After a crash"). Rerun's FileSink writes an .rrd's
+footer only when it closes, and after a failed write (a full disk) its flush times out and
+its disconnect blocks for good (rerun-sdk 0.41). So files are written by this module: the
+stream goes into a Rerun ``BinaryStream``, and every ``segment_every`` simulated seconds
+(10 s) one ``read()`` of it, a complete .rrd with its footer, is written to
+``PATH.parts/NNN.rrd`` (through ``NNN.rrd.partial`` and a rename, so a segment is either
+whole or absent). After a SIGKILL every segment passes ``rerun rrd verify`` and
+``rerun PATH.parts/*.rrd`` opens them as one recording (one recording id): all but the last
+``segment_every`` seconds survive. A clean ``close()`` merges the segments into PATH and
+removes the parts, so a finished run leaves one file as before. A write that fails (ENOSPC,
+EFBIG, any OSError) stops the file recording with one warning and the run goes on; free
+space is checked at the start against the expected size (:data:`BYTES_PER_VEHICLE_SECOND`).
+Live viewers (spawn, connect) get their own RecordingStream with the same recording id.
 """
 
 from __future__ import annotations
 
 import math
+import os
 import shlex
+import shutil
 import socket
 import sys
 import threading
@@ -36,6 +52,8 @@ import uuid
 from pathlib import Path
 from typing import Any, Iterable, Sequence
 from urllib.parse import urlparse
+
+from rerun.chunk import RrdReader
 
 import numpy as np
 import pyarrow as pa
@@ -55,6 +73,12 @@ FLUSH_EVERY = 5.0  # simulated seconds between batches sent to Rerun (bench/reru
 TRAIL_SECONDS = 10.0  # length of a trail
 TRAIL_POINTS_EVERY = 10  # ticks between trail points (5 Hz at 50 Hz control)
 PATH_POINTS = 400  # samples of a closed path's period
+SEGMENT_EVERY = 10.0  # simulated seconds per file segment: what a crash can lose at most
+#: Measured .rrd size per vehicle and simulated second: 8.4 MB for a ring of 10 vehicles over
+#: 120 s at 50 Hz (docs/rerun.md, "What it costs") is 7.0 kB; rounded up. A clean close
+#: needs twice the recording (the segments and the merged file) for a moment.
+BYTES_PER_VEHICLE_SECOND = 8_000
+PARTS_SUFFIX = ".parts"
 
 USV_COLOURS = ((31, 119, 180), (0, 170, 220), (70, 90, 220), (40, 150, 170), (110, 150, 255), (20, 80, 150))
 UAV_COLOURS = ((255, 127, 14), (230, 85, 13), (250, 175, 40), (215, 110, 60), (255, 150, 90), (190, 95, 0))
@@ -216,11 +240,15 @@ class RerunSink:
     """
 
     def __init__(self, targets: Sequence[Target], *, recording_id: str | None = None,
-                 flush_every: float = FLUSH_EVERY, out: Any = None):
+                 flush_every: float = FLUSH_EVERY, out: Any = None, segment_every: float = SEGMENT_EVERY):
         self.flush_every = flush_every
+        self.segment_every = segment_every
         self.out = out if out is not None else sys.stdout
         self.files = [Path(t.where) for t in targets if t.kind == "save"]
-        self.rec = rr.RecordingStream(APP_ID, recording_id=recording_id or f"cdus-{uuid.uuid4().hex[:12]}")
+        self.recording_id = recording_id or f"cdus-{uuid.uuid4().hex[:12]}"
+        self._segment = 0  # the number of the next segment to write
+        self._segment_t0 = 0.0  # simulated time the data not yet written starts at
+        self._blueprint: Any = None
         self._lock = threading.RLock()
         self._closed = False
         self._recorder: Any = None
@@ -230,23 +258,41 @@ class RerunSink:
         self._rate = 50.0  # control rate, from the scenario
         self._link_states: dict[tuple[str, str], str] = {}
         self._layout: _Layout | None = None
-        self.rec.set_sinks(*self._sinks(targets))
+        self._file_rec: rr.RecordingStream | None = None
+        self._stream: rr.BinaryStream | None = None
+        streams = []
+        for f in list(self.files):
+            try:
+                parts = _parts(f)
+                parts.mkdir(parents=True, exist_ok=True)
+                for old in [*parts.glob("*.rrd"), *parts.glob("*.rrd.partial")]:
+                    old.unlink()  # a previous run's segments under this name
+            except OSError as e:
+                _warn(f"cannot record into {f}: {e.strerror or e}; the run goes on without the file")
+                self.files.remove(f)
+        if self.files:
+            self._file_rec = rr.RecordingStream(APP_ID, recording_id=self.recording_id)
+            self._stream = self._file_rec.binary_stream()
+            streams.append(self._file_rec)
+        live = rr.RecordingStream(APP_ID, recording_id=self.recording_id)
+        sinks = self._live_sinks(targets, live)
+        if sinks:
+            live.set_sinks(*sinks)
+            streams.append(live)
+        self.rec = _Tee(streams)  # every log goes to the file stream and the live one
+        self._off = not streams  # nowhere to send: log nothing
 
-    def _sinks(self, targets: Sequence[Target]) -> list[Any]:
+    def _live_sinks(self, targets: Sequence[Target], live: rr.RecordingStream) -> list[Any]:
         sinks: list[Any] = []
         for t in targets:
-            if t.kind == "save":
-                path = Path(t.where)
-                path.parent.mkdir(parents=True, exist_ok=True)
-                sinks.append(rr.FileSink(str(path)))
-            elif t.kind == "connect":
+            if t.kind == "connect":
                 if _reachable(t.where):
                     sinks.append(rr.GrpcSink(t.where))
                 else:
                     _warn(f"no Rerun viewer listens at {t.where}; not streaming there (start one with `rerun`)")
             elif t.kind == "spawn":
                 try:
-                    self.rec.spawn(connect=False, hide_welcome_screen=True)
+                    live.spawn(connect=False, hide_welcome_screen=True)
                     sinks.append(rr.GrpcSink())
                 except Exception as e:  # no viewer binary, no window system...
                     _warn(f"could not start a Rerun viewer ({e}); use --rerun save:PATH instead")
@@ -258,6 +304,7 @@ class RerunSink:
             if self._closed:
                 return
             self._rate = float(scenario.rates.control)
+            self._check_space(expected_bytes(len(scenario.vehicles), scenario.duration))
             self.rec.send_recording_name(scenario.name)
             self.rec.log(bp.WORLD, rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
             rank = {"usv": 0, "uav": 0}
@@ -290,53 +337,162 @@ class RerunSink:
                 self.rec.log(f"{bp.LINKS}/{src}__{dst}", config, static=True)
             for src, dst in links:  # every link starts up, as the link emulator's do; changes come in
                 self._link_change(0.0, src, dst, "up")
-            self.rec.send_blueprint(bp.blueprint(np.concatenate(scene) if scene else None))
+            self._blueprint = bp.blueprint(np.concatenate(scene) if scene else None)
+            self.rec.send_blueprint(self._blueprint)
 
     def update(self, recorder: Any) -> None:
         with self._lock:
             if self._closed:
                 return
             self._recorder = recorder
+            if self._off:
+                return
             n = len(recorder)
             if n > self._sent and (self._sent == 0 or recorder.t[n - 1] - self._t_sent >= self.flush_every - 1e-9):
-                self._send(recorder, n)
+                try:
+                    self._send(recorder, n)
+                    if self._stream is not None and self._t_sent - self._segment_t0 >= self.segment_every - 1e-9:
+                        self._write_segment()
+                except (OSError, RuntimeError) as e:
+                    self._stop_files(e)
 
     def event(self, event: FleetEvent) -> None:
         with self._lock:
-            if self._closed:
+            if self._closed or self._off:
                 return
-            self._set_time(event.t)
-            self.rec.log(bp.EVENTS, rr.TextLog(event.text, level=LEVELS[event.severity]))
+            try:
+                self._set_time(event.t)
+                self.rec.log(bp.EVENTS, rr.TextLog(event.text, level=LEVELS[event.severity]))
+            except (OSError, RuntimeError) as e:
+                self._stop_files(e)
 
     def link_state(self, t: float, src: str, dst: str, state: str) -> None:
         """``state`` is up | lossy | down (anything else is drawn too, uncoloured: it may come off the wire)."""
         with self._lock:
-            if self._closed or self._link_states.get((src, dst)) == state:
+            if self._closed or self._off or self._link_states.get((src, dst)) == state:
                 return
-            self._link_change(t, src, dst, state)
+            try:
+                self._link_change(t, src, dst, state)
+            except (OSError, RuntimeError) as e:
+                self._stop_files(e)
 
     def close(self) -> None:
-        """Send what is left, flush, close the sinks (the .rrd gets its footer). Idempotent."""
+        """Send what is left, flush, close the sinks (the last segment gets its footer), and
+        merge the segments into the file asked for. Idempotent."""
         with self._lock:
             if self._closed:
                 return
             self._closed = True
             try:
-                rec = self._recorder
+                rec = None if self._off else self._recorder
                 if rec is not None and len(rec) > self._sent:
                     self._send(rec, len(rec))
                 if rec is not None and len(rec) and (len(rec) - 1) % UPDATE_EVERY:
                     self._send_trails(rec, [len(rec) - 1])  # the trail as the run ended
+            except (OSError, RuntimeError) as e:
+                self._stop_files(e)
             finally:
-                try:
-                    self.rec.flush(timeout_sec=10.0)
-                except Exception as e:  # a viewer that went away
-                    _warn(f"Rerun flush: {e}")
-                self.rec.disconnect()
+                if self._stream is not None:
+                    try:
+                        self._write_segment()
+                    except (OSError, RuntimeError) as e:
+                        self._stop_files(e)
+                for stream in self.rec.streams:
+                    try:
+                        stream.flush(timeout_sec=10.0)
+                    except Exception as e:  # a viewer that went away
+                        _warn(f"Rerun flush: {e}")
+                    stream.disconnect()
+        if self._stream is None:
+            return
+        self._stream = None
         for path in self.files:
+            parts = _parts(path)
+            try:
+                self._merge(path, parts)
+            except (OSError, RuntimeError) as e:
+                _warn(f"could not merge the recording into {path} ({getattr(e, 'strerror', None) or e}); its "
+                      f"segments are kept: open them with: rerun {shlex.quote(str(parts))}/*.rrd")
+                continue
             print(f"  recording: {path}  (open it with: rerun {shlex.quote(str(path))})", file=self.out)
 
+    def _merge(self, path: Path, parts: Path) -> None:
+        """The segments of ``parts`` as one .rrd at ``path``; ``parts`` removed after."""
+        segments = sorted(parts.glob("*.rrd"))
+        regular = not path.exists() or path.is_file()
+        if len(segments) == 1 and regular:
+            os.replace(segments[0], path)
+        else:
+            size = sum(f.stat().st_size for f in segments)
+            free = _free_bytes(path.parent)
+            if free is not None and free < size:
+                raise OSError(28, f"{free / 1e6:.1f} MB free, {size / 1e6:.1f} MB needed to merge")
+            final = rr.RecordingStream(APP_ID, recording_id=self.recording_id)
+            out = final.binary_stream()
+            for seg in segments:
+                reader = RrdReader(str(seg))
+                for store in reader.recordings():
+                    rr.send_chunks(reader.stream(store=store), recording=final)
+            if self._blueprint is not None:
+                final.send_blueprint(self._blueprint)
+            data = out.read(flush=True, flush_timeout_sec=60.0) or b""
+            final.disconnect()
+            _write_whole(path, data)
+        for seg in segments:
+            seg.unlink(missing_ok=True)
+        try:
+            parts.rmdir()
+        except OSError:
+            pass  # something else was put there: leave it
+
     # ------------------------------------------------------------------ internals
+    def _write_segment(self) -> None:
+        """What the file stream holds since the last segment, as the next segment of every file
+        (a complete .rrd: one read of a Rerun BinaryStream ends with its footer)."""
+        data = self._stream.read(flush=True, flush_timeout_sec=30.0) if self._stream is not None else None
+        self._segment_t0 = self._t_sent
+        if not data:
+            return
+        for f in self.files:
+            parts = _parts(f)
+            partial = parts / f"{self._segment:03d}.rrd.partial"
+            _write_whole(partial, data)
+            os.replace(partial, parts / f"{self._segment:03d}.rrd")
+        self._segment += 1
+
+    def _stop_files(self, error: BaseException) -> None:
+        """Stop writing files after ``error`` (one warning); live viewers keep their stream."""
+        if self._stream is None:
+            return
+        self._stream = None
+        reason = getattr(error, "strerror", None) or str(error)
+        kept = " ".join(f"{shlex.quote(str(_parts(f)))}/*.rrd" for f in self.files)
+        _warn(f"the Rerun recording stopped: {reason}; the run goes on. What was recorded before stays "
+              f"readable: rerun {kept}")
+        if self._file_rec is not None:
+            self.rec.streams.remove(self._file_rec)
+            try:
+                self._file_rec.disconnect()
+            except Exception:
+                pass
+            self._file_rec = None
+        for f in self.files:  # a segment cut short by the failure
+            for partial in _parts(f).glob("*.rrd.partial"):
+                try:
+                    partial.unlink()
+                except OSError:
+                    pass
+        self._off = not self.rec.streams
+
+    def _check_space(self, need: int) -> None:
+        """A warning when the disk of a file target has less room than the run is expected to take."""
+        for f in self.files:
+            free = _free_bytes(_parts(f))
+            if free is not None and free < 2 * need:
+                _warn(f"{free / 1e6:.1f} MB free on the disk of {f}; this run is expected to record about "
+                      f"{need / 1e6:.1f} MB (and twice that for a moment when it is merged at the end); the "
+                      f"recording stops with a warning if the disk fills, the run goes on")
+
     def _send(self, recorder: Any, hi: int) -> None:
         """Rows [sent, hi) of every per-tick entity in one record batch, then the trails due in them."""
         lo = self._sent
@@ -353,8 +509,7 @@ class RerunSink:
         scalars = np.concatenate([recorder.path_error[lo:hi].T, recorder.omega_rate[lo:hi].T,
                                   edge_errors(recorder.omega[lo:hi], recorder.edges).T])
         columns += _lists(_SCALAR, pa.array(scalars.ravel()), _rows(scalars.size), len(scalars))
-        rr.send_record_batch(pa.RecordBatch.from_arrays(columns, schema=layout.ticks), recording=self.rec,
-                             index=bp.TIMELINE)
+        self.rec.send_record_batch(pa.RecordBatch.from_arrays(columns, schema=layout.ticks), index=bp.TIMELINE)
         first = -(-lo // UPDATE_EVERY) * UPDATE_EVERY
         self._send_trails(recorder, list(range(first, hi, UPDATE_EVERY)))
         self._sent = hi
@@ -369,8 +524,7 @@ class RerunSink:
         picks = [trail_indices(i, window, TRAIL_POINTS_EVERY) for i in rows]
         points = recorder.q[np.concatenate(picks)].transpose(1, 0, 2)  # [N, points, 3]
         columns = [_time(recorder.t[rows])] + _strip_lists(points, np.array([len(p) for p in picks]))
-        rr.send_record_batch(pa.RecordBatch.from_arrays(columns, schema=layout.trails), recording=self.rec,
-                             index=bp.TIMELINE)
+        self.rec.send_record_batch(pa.RecordBatch.from_arrays(columns, schema=layout.trails), index=bp.TIMELINE)
 
     def _layout_for(self, recorder: Any) -> _Layout:
         if self._layout is None:
@@ -428,6 +582,56 @@ def _reachable(url: str, timeout: float = 0.5) -> bool:
             return True
     except OSError:
         return False
+
+
+def expected_bytes(vehicles: int, seconds: float) -> int:
+    """About how large a recording of ``vehicles`` over ``seconds`` simulated seconds gets."""
+    return int(BYTES_PER_VEHICLE_SECOND * max(1, vehicles) * max(0.0, seconds))
+
+
+def _parts(path: Path) -> Path:
+    """The directory of the segments of ``save:path``: ``path.parts``."""
+    return path.with_name(path.name + PARTS_SUFFIX)
+
+
+def _segment(parts: Path, n: int) -> Path:
+    return parts / f"{n:03d}.rrd"
+
+
+def _write_whole(path: Path, data: bytes) -> None:
+    """``data`` into ``path``, flushed to the disk, or OSError (ENOSPC, EFBIG...)."""
+    with open(path, "wb") as fh:
+        fh.write(data)
+        fh.flush()
+        if os.path.isfile(path):  # not a pipe or a terminal
+            os.fsync(fh.fileno())
+
+
+class _Tee:
+    """The file stream and the live stream as one: each call goes to every stream."""
+
+    def __init__(self, streams: list[rr.RecordingStream]):
+        self.streams = streams
+
+    def send_record_batch(self, batch: pa.RecordBatch, *, index: str) -> None:
+        for stream in self.streams:
+            rr.send_record_batch(batch, recording=stream, index=index)
+
+    def __getattr__(self, name: str) -> Any:
+        def call(*args: Any, **kwargs: Any) -> None:
+            for stream in self.streams:
+                getattr(stream, name)(*args, **kwargs)
+        return call
+
+
+def _free_bytes(where: Path) -> int | None:
+    """Free bytes on the file system of ``where`` (or of its nearest existing parent); None if unknown."""
+    for p in (where, *where.parents):
+        try:
+            return shutil.disk_usage(p).free
+        except OSError:
+            continue
+    return None
 
 
 def _warn(text: str) -> None:

@@ -325,3 +325,126 @@ def _wait_for_port(port: int, proc: subprocess.Popen, timeout: float = 30.0) -> 
             if proc.poll() is not None or time.monotonic() > deadline:
                 raise AssertionError(f"nothing listens on {port} (rc {proc.poll()})")
             time.sleep(0.05)
+
+
+# --------------------------------------------------------------------------- crashes and full disks
+
+# A child that records lake_circle in process, for a long time, in segments of 2 simulated
+# seconds; it prints "started" once the sink is set up and "done" if it ends.
+RECORDING_CHILD = r"""
+import sys
+from cdus.scenario.config import load_scenario
+from cdus.sim.fleet import InProcessFleet
+from world_sim.recording import Target
+from world_sim.rerun_sink import RerunSink
+path, duration, segment = sys.argv[1], float(sys.argv[2]), float(sys.argv[3])
+if len(sys.argv) > 4:  # a file-size limit: writes past it fail with EFBIG (SIGXFSZ ignored)
+    import resource, signal
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    limit = int(sys.argv[4])
+    resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+sc = load_scenario(sys.argv[5] if len(sys.argv) > 5 else "configs/lake_circle.toml", {"scenario.duration": duration})
+sink = RerunSink([Target("save", path)], segment_every=segment, flush_every=1.0)
+print("started", flush=True)
+result = InProcessFleet(sc, sink=sink).run()
+sink.close()
+print("done", len(result.recorder), flush=True)
+"""
+
+
+def _child(*args: str) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-c", RECORDING_CHILD, *args], cwd=ROOT, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+
+
+def test_a_sigkilled_recorder_leaves_verifiable_segments_with_all_but_the_last_seconds(tmp_path):
+    import time
+
+    path = tmp_path / "crash.rrd"
+    parts = tmp_path / "crash.rrd.parts"
+    proc = _child(str(path), "100000", "2.0")
+    try:
+        deadline = time.monotonic() + 120
+        while len(list(parts.glob("*.rrd"))) < 3:  # three closed segments: 6 simulated seconds
+            assert proc.poll() is None, proc.stderr.read()
+            assert time.monotonic() < deadline, "no segments"
+            time.sleep(0.05)
+        os.killpg(proc.pid, signal.SIGKILL)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+    assert not path.exists()  # never merged: the run did not end
+    segments = sorted(parts.glob("*.rrd"))
+    assert len(segments) >= 3  # a segment cut short by the kill is a .partial, never a broken .rrd
+    for seg in segments:
+        r = rerun_cli("rrd", "verify", str(seg))
+        assert r.returncode == 0, (seg, r.stdout + r.stderr)
+    ticks = []
+    for seg in segments:
+        rec = Recording(seg)
+        if "metrics/path_error/usv1" in rec.temporal:
+            t, _ = rec.column("metrics/path_error/usv1", "Scalars:scalars")
+            ticks += (t // 20_000_000).tolist()
+    assert sorted(ticks) == list(range(len(ticks))) and len(ticks) >= 6 * 50  # every tick from 0, no gap
+    assert "world/paths/usv1" in Recording(segments[0]).static  # the scene is in the first segment
+
+
+def test_segments_merge_into_one_file_on_a_clean_close(tmp_path):
+    path = tmp_path / "clean.rrd"
+    proc = _child(str(path), "9", "2.0")
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 0, err
+    assert not (tmp_path / "clean.rrd.parts").exists()
+    assert rerun_cli("rrd", "verify", str(path)).returncode == 0
+    rec = Recording(path)
+    assert rec.rows("metrics/path_error/usv1") == 9 * 50 + 1 and len(rec.blueprints) == 1
+    assert "world/paths/usv1" in rec.static
+
+
+def test_a_write_that_fails_stops_the_recording_with_one_warning_and_the_run_goes_on(tmp_path):
+    path = tmp_path / "full.rrd"
+    proc = _child(str(path), "60", "2.0", str(150_000))  # a 150 kB file-size limit: a few seconds of lake_circle
+    out, err = proc.communicate(timeout=180)
+    assert proc.returncode == 0, err
+    assert "done 3001" in out  # every tick of the run
+    assert err.count("warning: the Rerun recording stopped") == 1, err
+    assert "Traceback" not in err
+    for seg in (tmp_path / "full.rrd.parts").glob("*.rrd"):  # what was closed before the failure is readable
+        assert rerun_cli("rrd", "verify", str(seg)).returncode == 0, seg
+
+
+def test_a_full_disk_warns_at_the_start_and_stops_the_recording_cleanly(tmp_path):
+    mount = tmp_path / "tiny"
+    mount.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=300k", "tmpfs", str(mount)],
+                      capture_output=True).returncode != 0:
+        pytest.skip("cannot mount a tmpfs here (needs root)")
+    try:
+        proc = _child(str(mount / "disk.rrd"), "60", "2.0")
+        out, err = proc.communicate(timeout=180)
+    finally:
+        subprocess.run(["umount", "-l", str(mount)], capture_output=True)
+    assert proc.returncode == 0, err
+    assert "done 3001" in out
+    assert "MB free on the disk of" in err and "expected to record about" in err  # the start check
+    assert err.count("warning: the Rerun recording stopped") == 1, err
+    assert "Traceback" not in err
+
+
+def test_the_start_check_compares_free_space_with_the_expected_size(tmp_path, monkeypatch, capsys):
+    import world_sim.rerun_sink as sink_module
+
+    sc = load_scenario(CONFIG, {"scenario.duration": 120.0})
+    need = sink_module.expected_bytes(6, 120.0)
+    assert need == 6 * 120 * sink_module.BYTES_PER_VEHICLE_SECOND
+    monkeypatch.setattr(sink_module, "_free_bytes", lambda where: 2 * need - 1)
+    sink = make_sink(f"save:{tmp_path / 'a.rrd'}")
+    sink.start(sc)
+    assert "expected to record about 5.8 MB" in capsys.readouterr().err
+    monkeypatch.setattr(sink_module, "_free_bytes", lambda where: 2 * need)
+    sink2 = make_sink(f"save:{tmp_path / 'b.rrd'}")
+    sink2.start(sc)
+    assert "free on the disk" not in capsys.readouterr().err
+    sink.close()
+    sink2.close()
