@@ -74,9 +74,9 @@ TRAIL_SECONDS = 10.0  # length of a trail
 TRAIL_POINTS_EVERY = 10  # ticks between trail points (5 Hz at 50 Hz control)
 PATH_POINTS = 400  # samples of a closed path's period
 SEGMENT_EVERY = 10.0  # simulated seconds per file segment: what a crash can lose at most
-#: Measured .rrd size per vehicle and simulated second: 8.4 MB for a ring of 10 vehicles over
-#: 120 s at 50 Hz (docs/rerun.md, "What it costs") is 7.0 kB; rounded up. A clean close
-#: needs twice the recording (the segments and the merged file) for a moment.
+#: Measured .rrd size per vehicle and simulated second at 50 Hz: 7.6 kB (lake_circle, 60 s),
+#: 7.7 kB (lissajous_5x5); rounded up. A clean close needs twice the recording (the segments
+#: and the merged file) for a moment.
 BYTES_PER_VEHICLE_SECOND = 8_000
 PARTS_SUFFIX = ".parts"
 
