@@ -100,7 +100,8 @@ def event_from_dict(d: Any, ids: Collection[str] | None = None) -> FleetEvent | 
     if not set(d) <= {"v", "t", "kind", "text", "severity", "vehicle", "link", "origin"}:
         return "unknown_field"
     t, kind, text, sev = d.get("t"), d.get("kind"), d.get("text"), d.get("severity", "info")
-    if not _number(t) or kind not in EVENT_KINDS or not isinstance(text, str) or sev not in SEVERITIES:
+    if not _number(t) or not isinstance(kind, str) or kind not in EVENT_KINDS or not isinstance(text, str) \
+            or not isinstance(sev, str) or sev not in SEVERITIES:
         return "type"
     if not 0 <= t <= MAX_TIME:
         return "range"
