@@ -31,7 +31,7 @@ import signal
 import sys
 import threading
 import time
-from collections import Counter
+from collections import Counter, deque
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -49,7 +49,7 @@ from cdus.sim.sensing import contacts_of
 from cdus.core.schedule import CLOCKS, total_ticks
 from cdus.wire import keys
 from cdus.wire.messages import (
-    CTL_OPS, StateMsg, decode_contacts, decode_control, decode_omega, decode_states, encode_omega,
+    CTL_OPS, MAX_STATE_ROWS, StateMsg, decode_contacts, decode_control, decode_omega, decode_states, encode_omega,
     encode_states,
 )
 from cdus.wire.schemas import AgentStats, encode_stats
@@ -62,6 +62,10 @@ STALL_TICKS = 10  # realtime: this many periods late means the process was froze
 END_WAIT = 10.0  # s to wait for the world's stop after the last tick
 INBOX_CAPACITY = 4096
 LOG_WAIT = 5.0  # s of waiting before saying what for
+#: lockstep: s stuck on one tick before this vehicle says its last ω and recent telemetry again:
+#: a router that lapsed (frozen, restarted) lost what was in flight, and the fleet waits for it
+#: (receivers drop what they already have as a duplicate)
+RESEND_WAIT = 1.0
 MAX_NAP = 0.05  # s: realtime sleeps at most this long between checks for a stop or a pause
 PING_TIMEOUT = 1.0  # s for a link check's reply (it is immediate when nobody answers)
 PING_RETRY = 0.02  # s between link checks
@@ -152,6 +156,8 @@ class Agent:
         self.rejected: Counter = Counter()
         self._logged: set[tuple[str, str]] = set()
         self._states: list[StateMsg] = []
+        self._last_omega: bytes | None = None  # lockstep: said again when stuck (RESEND_WAIT)
+        self._recent: deque[StateMsg] = deque(maxlen=MAX_STATE_ROWS)  # telemetry sent, newest last
         self.missed_deadlines = 0
         self.ticks_done = 0
         self._lat_sent = 0
@@ -368,7 +374,8 @@ class Agent:
     def _tick(self, n: int) -> None:
         out = self.node.step(n)
         if out.omega is not None:  # ω before telemetry: whoever saw tick n can count on it
-            self.pub_omega.put(encode_omega(out.omega))
+            self._last_omega = encode_omega(out.omega)
+            self.pub_omega.put(self._last_omega)
         tel = out.telemetry
         self._states.append(StateMsg(self.index, n, tel.t, tuple(tel.q), tel.heading, tel.speed,
                                      tel.omega, tel.omega_rate, tel.path_error))
@@ -391,7 +398,7 @@ class Agent:
         n = clock.join
         if n > 0:  # the run is under way: a restarted process
             self._rejoin(n)
-        waited_since = time.monotonic()
+        waited_since = resent_at = time.monotonic()
         while n <= self.last_tick:
             state, fresh = node.own_state_at(n)
             if state != "live":  # paused (or gone) by the roster: skip to where it resumes
@@ -412,6 +419,9 @@ class Agent:
                 if self._states and clock.granted < n:  # the world may be waiting for these rows to grant
                     self.flush_states()
                 self._recv(never)
+                if time.monotonic() - resent_at > RESEND_WAIT:
+                    resent_at = time.monotonic()
+                    self._resend()
                 if time.monotonic() - waited_since > LOG_WAIT:
                     waited_since = time.monotonic()
                     missing = node.waiting_for(n)
@@ -421,7 +431,7 @@ class Agent:
             if self._stopping():
                 return
             self._tick(n)
-            waited_since = time.monotonic()
+            waited_since = resent_at = time.monotonic()
             n += 1
 
     def _run_realtime(self) -> None:
@@ -488,7 +498,17 @@ class Agent:
     def flush_states(self) -> None:
         if self._states and self.session is not None:
             self.pub_state.put(encode_states(self._states))
+            self._recent.extend(self._states)
         self._states = []
+
+    def _resend(self) -> None:
+        """Lockstep, stuck: say the last ω and the recent telemetry again (RESEND_WAIT)."""
+        if self.session is None:
+            return
+        if self._last_omega is not None:
+            self.pub_omega.put(self._last_omega)
+        if self._recent:
+            self.pub_state.put(encode_states(list(self._recent)))
 
     def stats(self) -> AgentStats:
         node, c = self.node, self.node.counters

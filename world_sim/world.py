@@ -25,7 +25,8 @@ import math
 import signal
 import threading
 import time
-from dataclasses import dataclass, field
+from collections import Counter, deque
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable
 
 import zenoh
@@ -42,12 +43,15 @@ from cdus.sim.lockstep import CatchUp, Fault, Grant, Join, Lockstep, Roster, Sen
 from cdus.sim.reports import ConsoleQuota, graph_event, vehicle_back, vehicle_lost
 from cdus.sim.sensing import sense_tick
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
-from cdus.sim.summary import link_block, run_metrics
+from cdus.sim.summary import COMPLETED, link_block, run_metrics
 from cdus.wire import keys
 from cdus.wire.messages import (
     COMMAND_OPS, StateMsg, decode_control, decode_states, encode_contacts, encode_control, encode_states,
 )
-from cdus.wire.schemas import AgentStats, FleetEvent, decode_stats, encode_event, encode_status
+from cdus.wire.schemas import (
+    ID_RE, ORIGIN_WORLD, AgentStats, FleetEvent, decode_stats, encode_event, encode_status,
+)
+from cdus.wire.text import printable
 from cdus.wire.transport import Transport, open_session
 
 REALTIME_LAG = 8  # ticks the world waits before recording a realtime tick (> the telemetry batch)
@@ -57,6 +61,19 @@ JOIN_TIMEOUT = 30.0  # s a restarted process may take to come up
 GRANT_RESEND = 0.5  # s: grants and start times are said again for processes that missed them
 LINK_LEAD = 0.5  # s of simulated time between a link command and when it applies, if not given
 INBOX_CAPACITY = 8192
+#: realtime: telemetry may be this far (s) ahead of the world's own clock (clock skew between
+#: hosts, a batch sent at once); beyond it, a row is from a tick nobody can have stepped yet
+REALTIME_SLACK = 1.0
+#: the reject reasons of the agents' ω checks that say someone forges a vehicle's ω (docs/metrics.md)
+SUSPECT_REASONS = ("future", "conflict", "implausible")
+SUSPECT_EVERY = 5.0  # s: at most one suspect event per (vehicle, reason) in this time
+#: s a lockstep world waits for a fleet that dropped all at once (the router or the network went,
+#: not the vehicles: their processes keep their state) before it declares them lost. A router
+#: frozen or restarted comes back in seconds, and the agents' sessions reconnect every <= 0.5 s
+#: (cdus.wire.transport), so 30 s covers that with room; a fleet gone longer is not coming back.
+OUTAGE_GRACE = 30.0
+DROP_WINDOW = 0.3  # s: liveliness losses this close together count as one (a lapsed router drops them all)
+MAX_LOGGED_REJECTS = 200  # (sender, reason) pairs logged; beyond, counted only
 
 
 @dataclass
@@ -72,7 +89,11 @@ class WorldState:
     latencies: LinkCounters = field(default_factory=LinkCounters)  # every sample the agents sent, thinned
     link_commanded: bool = False  # a ground station changed the link faults during the run
     link_changes: set[tuple[float, str, str]] = field(default_factory=set)
-    rejected: int = 0
+    rejects: Counter = field(default_factory=Counter)  # reason -> messages the world dropped
+
+    @property
+    def rejected(self) -> int:
+        return sum(self.rejects.values())
 
 
 class World:
@@ -121,6 +142,15 @@ class World:
         self._fault_since: float | None = None
         self._t_start = 0.0
         self._lock = threading.Lock()  # guards st.latest for the queryable's thread
+        self._alive_news: deque[tuple[str, bool]] = deque()  # liveliness callbacks -> main thread
+        self._logged_rejects: set[tuple[str, str]] = set()
+        self._recorded: dict[int, StateMsg] = {}  # the row each vehicle was last recorded with
+        self._suspect_seen: dict[tuple[str, str], float] = {}  # (vehicle, reason) -> last suspect event
+        self._drops_since: float | None = None  # monotonic time of the first undecided liveliness loss
+        self._outage_since: float | None = None  # the whole fleet dropped at once: waiting for it
+        self.completion: str | None = None  # why the run ended early (docs/metrics.md, completion)
+        self.outage_grace = OUTAGE_GRACE
+        self._rt_lost: set[str] = set()  # realtime: lost with nobody asking, not back
 
     # ------------------------------------------------------------------ wiring
     def open(self) -> None:
@@ -134,12 +164,8 @@ class World:
         wake = s.declare_publisher(keys.wake(f, keys.WORLD), allowed_destination=zenoh.Locality.SESSION_LOCAL)
         self._wake = lambda payload=b"": wake.put(payload)
         # liveliness and the last-state queries are rare: callbacks that hand over to the main thread
-        alive = s.declare_publisher(f"{keys.wake(f, keys.WORLD)}/alive", allowed_destination=zenoh.Locality.SESSION_LOCAL)
         self._subs = [
-            s.liveliness().declare_subscriber(
-                keys.any_alive(f),
-                lambda sample: alive.put(("-" if str(sample.kind).endswith("DELETE") else "+")
-                                         + str(keys.alive_name(str(sample.key_expr)))), history=True),
+            s.liveliness().declare_subscriber(keys.any_alive(f), self._on_alive_sample, history=True),
             s.declare_queryable(keys.world_last(f, "*"), self._on_last_query),
         ]
         self.token = s.liveliness().declare_token(keys.alive(f, keys.WORLD))
@@ -167,6 +193,17 @@ class World:
             except zenoh.ZError:
                 return
 
+    def _on_alive_sample(self, sample: Any) -> None:
+        """Liveliness news (Zenoh's thread): queued for the main thread, which a wake fetches. The
+        news itself never travels over the wire, so nobody else can fake it."""
+        name = keys.alive_name(str(sample.key_expr))
+        if name is not None:
+            self._alive_news.append((name, not str(sample.kind).endswith("DELETE")))
+            try:
+                self._wake()
+            except zenoh.ZError:
+                pass
+
     def request_stop(self) -> None:
         self.stop_requested = True
         self._wake()
@@ -188,33 +225,71 @@ class World:
             self._handle(sample)
 
     def _handle(self, sample: Any) -> None:
+        """One sample of the inbox (anything anyone can put on a key addressed to the world):
+        handled, or counted by reason and dropped. Never raises."""
+        try:
+            self._dispatch(sample)
+        except Exception as e:  # a bug of ours, not the sender's: counted, logged once, the run goes on
+            self._reject("?", "internal", f"{type(e).__name__}: {e}")
+        while self._alive_news:
+            name, up = self._alive_news.popleft()
+            self._on_alive(name, up)
+
+    def _dispatch(self, sample: Any) -> None:
         key = str(sample.key_expr)
+        parts = key.split("/")
         kind, src = keys.leaf(key)
+        if kind == "wake":
+            return  # the ticker, or liveliness news (queued by _on_alive_sample)
         payload = sample.payload.to_bytes()
+        if kind not in ("state", "stats", "cmd") or len(parts) != 6 or parts[1] != self.fleet:
+            return self._reject("?", "key")
         if kind == "state":
             self._on_state(src, payload)
         elif kind == "stats":
             self._on_stats(src, payload)
-        elif kind == "cmd":
+        else:
             self._on_command(src, payload)
-        elif kind == "wake" and key.endswith("/alive"):
-            text = payload.decode(errors="replace")
-            self._on_alive(text[1:], text[:1] == "+")
-        elif kind != "wake":
-            self.st.rejected += 1
+
+    def _reject(self, sender: str, reason: str, detail: str = "") -> None:
+        """Count a dropped message by reason; log the first of each (sender, reason)."""
+        self.st.rejects[reason] += 1
+        pair = (sender[:64], reason)
+        if pair in self._logged_rejects or len(self._logged_rejects) > MAX_LOGGED_REJECTS:
+            return
+        self._logged_rejects.add(pair)
+        more = "" if len(self._logged_rejects) <= MAX_LOGGED_REJECTS else " (further senders are counted only)"
+        self.log(f"rejected from {printable(sender, 64)}: {reason}"
+                 + (f" ({printable(detail, 200)})" if detail else "") + more)
+
+    def _tick_limit(self) -> int:
+        """The newest tick a vehicle can have stepped: the grant (lockstep), the wall clock's tick
+        plus REALTIME_SLACK (realtime; before the start, the first ticks)."""
+        if self.clock == "lockstep":
+            return self.lockstep.granted
+        return self._tick_now() + math.ceil(REALTIME_SLACK / self.period)
 
     def _on_state(self, vid: str, payload: bytes) -> None:
+        if vid not in self.index:
+            return self._reject(vid, "unknown_sender")
         rows = decode_states(payload, len(self.ids))
+        if isinstance(rows, str):
+            return self._reject(vid, rows)
+        j = self.index[vid]
+        if any(m.sender != j for m in rows):
+            return self._reject(vid, "sender_mismatch")
+        limit = self._tick_limit()
+        if any(m.tick > limit for m in rows):  # the whole batch: it cannot all be genuine
+            return self._reject(vid, "future", f"tick {max(m.tick for m in rows)} > {limit}")
         st = self.st
-        if isinstance(rows, str) or vid not in self.index or self.index[vid] != rows[0].sender:
-            st.rejected += 1
-            return
-        j = rows[0].sender
         for m in rows:
             if m.tick >= self.next_tick:
-                st.rows.setdefault(m.tick, {})[j] = m
+                have = st.rows.setdefault(m.tick, {}).setdefault(j, m)
+                if have != m:  # a second, different row for a tick: the first stands
+                    self._reject(vid, "conflict", f"tick {m.tick}")
+                    continue
             if self.sensing is not None and m.tick % self.sensing[0] == 0 and m.tick > self.lockstep.sensed:
-                self._sample_rows.setdefault(m.tick, {})[j] = m.q
+                self._sample_rows.setdefault(m.tick, {}).setdefault(j, m.q)
             prev = st.latest.get(j)
             if prev is None or m.tick >= prev.tick:
                 with self._lock:
@@ -223,51 +298,70 @@ class World:
             self.lockstep.on_report(j, m.tick)
 
     def _on_stats(self, vid: str, payload: bytes) -> None:
-        s = decode_stats(payload)
-        if isinstance(s, str) or s.id != vid or vid not in self.index:
-            self.st.rejected += 1
-            return
+        if vid not in self.index:
+            return self._reject(vid, "unknown_sender")
+        s = decode_stats(payload, self.index)
+        if isinstance(s, str):
+            return self._reject(vid, s)
+        if s.id != vid:
+            return self._reject(vid, "sender_mismatch")
         old = self.st.stats.get(vid)
         if old is not None and old.incarnation != s.incarnation:  # a restarted process: its counters start anew
             self.st.retired.append(old)
+            old = None
         self.st.stats[vid] = s
         for x in s.latencies_ms:  # each message carries the samples since the previous one
             self.st.latencies.record_latency(x / 1000.0)
-        if isinstance(s.faults, dict):
+        if s.faults is not None:
             self._forward_link_changes(s.faults)
-        for b in s.bursts:
-            ev = FleetEvent.of(float(b.get("t", 0.0)), "link_burst", str(b.get("text", ""))[:200],
-                               link=b.get("link") if isinstance(b.get("link"), str) else None)
-            self._note(ev)
+        for b in s.bursts:  # rebuilt by the decoder from its numbers and ids
+            self._note(b.event(origin=vid))
+        self._suspects(vid, s, old)
+
+    def _suspects(self, vid: str, s: AgentStats, old: AgentStats | None) -> None:
+        """A vehicle that counts new ω it cannot trust (from beyond its sender's possible seq, a
+        second different message for a seq, a jump its dynamics cannot make): a ``suspect``
+        event, at most one per (vehicle, reason) per SUSPECT_EVERY seconds."""
+        now = time.monotonic()
+        for reason in SUSPECT_REASONS:
+            new = s.rejected_by_reason.get(reason, 0) - (old.rejected_by_reason.get(reason, 0) if old else 0)
+            last = self._suspect_seen.get((vid, reason))
+            if new <= 0 or last is not None and now - last < SUSPECT_EVERY:
+                continue
+            self._suspect_seen[(vid, reason)] = now
+            self._note(FleetEvent.of(self._sim_now(), "suspect",
+                                     f"{vid} received ω it cannot trust: {new} new {reason!r} rejects "
+                                     f"({s.rejected_by_reason[reason]} in all)", vehicle=vid, origin=vid))
 
     def _forward_link_changes(self, faults: dict) -> None:
-        """New link state changes an agent reports: to the event log and the recording."""
-        for ch in faults.get("state_changes") or []:
-            try:
-                key = (float(ch["t"]), str(ch["link"]), str(ch["state"]))
-            except (KeyError, TypeError, ValueError):
-                self.st.rejected += 1
-                continue
+        """New link state changes an agent reports (checked by decode_stats): to the event log and
+        the recording."""
+        for ch in faults["state_changes"]:
+            key = (ch["t"], ch["link"], ch["state"])
             if key in self.st.link_changes:
                 continue
             self.st.link_changes.add(key)
             src, _, dst = key[1].partition("->")
             self.sink.link_state(key[0], src, dst, key[2])
-            if self.started and math.isfinite(key[0]):
+            if self.started:
                 self._note(FleetEvent.of(key[0], "link_state", f"link {key[1]} {key[2]} (from t = {key[0]:.2f} s)",
                                          severity="warn" if key[2] == "down" else "info", link=key[1]))
 
     def _on_command(self, sender: str, payload: bytes) -> None:
+        if not ID_RE.match(sender):
+            return self._reject(sender, "key")
         c = decode_control(payload, COMMAND_OPS)
         if isinstance(c, str):
-            self.st.rejected += 1
-            return
+            return self._reject(sender, c)
         op, f = c.op, c.fields
         if op == "stop":
             if not self.stop_requested:
                 self._note(FleetEvent.of(self._sim_now(), "fleet", f"fleet stopped by {sender}"))
+                self.completion = self.completion or "stopped"
             self.stop_requested = True
         elif op == "fault_done":
+            if sender != keys.LAUNCHER:
+                return self._reject(sender, "sender")
             if f["vehicle"] in self.index:
                 self.lockstep.on_fault_done(self.index[f["vehicle"]])
         elif op in ("pause", "resume"):
@@ -285,7 +379,8 @@ class World:
             self._commands.append((None, payload))
             self.st.link_commanded = True
             self._note(FleetEvent.of(self._sim_now(), "link_changed",
-                                     f"link faults changed from t = {at:.2f} s by {sender}: {f['link']}"))
+                                     f"link faults changed from t = {at:.2f} s by {sender}: "
+                                     f"{printable(f['link'], 200)}"))
         elif f.get("vehicle") in self.index:  # kill | pause_vehicle | resume_vehicle | restart
             action = {"pause_vehicle": "pause", "resume_vehicle": "resume"}.get(op, op)
             if self.clock == "lockstep":
@@ -296,15 +391,16 @@ class World:
                 self._note(FleetEvent.of(self._sim_now(), "fault", f"{action} of {f['vehicle']} by {sender}",
                                          vehicle=f["vehicle"]))
         else:
-            self.st.rejected += 1
+            self._reject(sender, "unknown_vehicle")
 
     def _relay_gains(self, gains: dict, vehicle: str, sender: str) -> None:
         targets = self.ids if vehicle == "" else [vehicle] if vehicle in self.index else []
         problems = {gains_problem(gains, self.scenario.vehicle(v).dim) for v in targets} - {None}
         if not targets or problems:  # all or nothing: no fleet with gains half changed
-            self.st.rejected += 1
-            why = f"no vehicle {vehicle!r}" if not targets else "; ".join(sorted(problems))
-            self._note(FleetEvent.of(self._sim_now(), "rejected", f"gains {gains} from {sender}: {why}"))
+            self._reject(sender, "gains")
+            why = f"no vehicle {printable(vehicle, 64)!r}" if not targets else printable("; ".join(sorted(problems)))
+            self._note(FleetEvent.of(self._sim_now(), "rejected",
+                                     f"gains {printable(gains, 120)} from {sender}: {why}"))
             return
         tick = self.lockstep.granted + 1 if self.clock == "lockstep" else self._tick_now() + 1
         payload = encode_control("gains", gains=gains, tick=tick)
@@ -340,10 +436,13 @@ class World:
         j = self.index[name]
         if self.clock == "lockstep":
             self.lockstep.on_alive(j, up)
+            if self.lockstep.pending and self._drops_since is None:
+                self._drops_since = time.monotonic()
             self._act(self.lockstep.poll())
         elif self.started:
             n = self._tick_now()
             if up:
+                self._rt_lost.discard(name)
                 self._send_roster(RosterChange(n, j, "live", fresh=True))
                 self.pub_ctl.put(encode_control("start", t0=self.t0))
                 self._replay_commands(name)
@@ -354,6 +453,7 @@ class World:
                 if "down" in expected:  # the fault we asked for, already reported as such
                     expected.discard("down")
                 else:
+                    self._rt_lost.add(name)
                     self._note(vehicle_lost(n * self.period, name))
         if self.started:
             self._check_graph()
@@ -380,6 +480,9 @@ class World:
                                         fresh=ch.fresh))
 
     def _note(self, event: FleetEvent) -> None:
+        """An event the world built (from validated fields only), marked with its origin."""
+        if event.origin is None:
+            event = replace(event, origin=ORIGIN_WORLD)
         self.events.append(event)
         self.sink.event(event)
         for line in self._console.lines(event):
@@ -472,6 +575,8 @@ class World:
             self._act(ls.poll())
             self._record_complete()
             now = time.monotonic()
+            if self._supervise_outage(now):
+                break
             if now - self._last_grant > GRANT_RESEND and ls.granted >= 0:  # for anyone who missed it
                 self._last_grant = now
                 self.pub_ctl.put(encode_control("grant", until=ls.granted))
@@ -486,20 +591,61 @@ class World:
             if self.next_tick <= self.last_tick:
                 self._drain(block=True)
 
+    def _supervise_outage(self, now: float) -> bool:
+        """Decide liveliness losses once those of the moment are in (DROP_WINDOW); wait for a fleet
+        that dropped all at once up to ``outage_grace``. True: the run cannot go on."""
+        ls = self.lockstep
+        if not ls.pending:
+            self._drops_since = None
+        elif self._drops_since is not None and now - self._drops_since > DROP_WINDOW:
+            self._drops_since = None
+            if ls.decide_drops() == "outage":
+                self._outage_since = now
+                self.log(f"every vehicle dropped at once: waiting up to {self.outage_grace:g} s for them")
+            self._act(ls.poll())
+        if not ls.outage:
+            self._outage_since = None
+        elif self._outage_since is not None and now - self._outage_since > self.outage_grace:
+            self.completion = "router_lost" if self._router_lost() else "vehicles_lost"
+            ls.end_outage()
+            self._act(ls.poll())
+            self.log(f"the fleet did not come back within {self.outage_grace:g} s: the run ends ({self.completion})")
+            return True
+        return False
+
+    def _router_lost(self) -> bool:
+        """Has this process (a client) lost its router? (A router of its own cannot be lost.)"""
+        if self.session is None or self.transport.mode == "router":
+            return False
+        try:
+            return not list(self.session.info.routers_zid())
+        except (zenoh.ZError, AttributeError):
+            return False
+
     def _record_complete(self) -> None:
         while self.next_tick <= self.last_tick and self.lockstep.recordable(self.next_tick):
             if not self._record(self.next_tick):
                 return
 
     def _record(self, n: int) -> bool:
+        """Record tick n: each vehicle's own row of tick n; one that did not step it (not live, or
+        realtime: its row is late) repeats the row it was last recorded with, or its newest at or
+        before n. Never a row of another tick as n's, never one nobody sent."""
         st = self.st
-        row = st.rows.pop(n, {})
+        row = st.rows.get(n, {})
         states = []
         for j in range(len(self.ids)):
-            m = row.get(j) or st.latest.get(j)
+            m = row.get(j)
+            if m is None:
+                latest, last = st.latest.get(j), self._recorded.get(j)
+                m = max((x for x in (latest, last) if x is not None and x.tick <= n), key=lambda x: x.tick,
+                        default=last)
             if m is None:
                 return False  # a vehicle never reported: nothing to record yet
             states.append(m)
+        st.rows.pop(n, None)
+        for j, m in enumerate(states):
+            self._recorded[j] = m
         self.recorder.record(n * self.period, states, self._live_at(n))
         self.next_tick = n + 1
         if n % UPDATE_EVERY == 0:
@@ -599,6 +745,25 @@ class World:
                                            for t, link, state in sorted(self.st.link_changes)]
         return link_block(total, merged, missed_deadlines=missed)
 
+    def _completion(self) -> str:
+        """COMPLETED if every tick to the end was stepped by the live fleet, else why not
+        (docs/metrics.md, ``completion``)."""
+        if self.completion is not None:
+            return self.completion
+        lost = self.lockstep.lost | self.lockstep.outage if self.clock == "lockstep" else self._rt_lost
+        if self.next_tick > self.last_tick and not self.stop_requested:
+            return "vehicles_lost" if lost else COMPLETED
+        if not self.started:
+            return "not_started"
+        return "vehicles_lost" if lost else "interrupted"
+
+    def rejects_by_reason(self) -> dict[str, dict[str, int]]:
+        """What was dropped, by reason: by the world, and by the vehicles (every process's last counters)."""
+        vehicles: Counter = Counter()
+        for s in self._processes():
+            vehicles.update(s.rejected_by_reason)
+        return {"world": dict(sorted(self.st.rejects.items())), "vehicles": dict(sorted(vehicles.items()))}
+
     def finish(self) -> dict:
         """Tell the agents to stop, write the metrics (and trace). Safe to call after a stop."""
         self.finished = True
@@ -609,10 +774,12 @@ class World:
                 self._drain(block=False)
                 time.sleep(0.02)
         wall = time.perf_counter() - self._t_start if self.started else 0.0
+        completion = self._completion()
         metrics = run_metrics(self.scenario, self.recorder, mode=self.clock, link=self.link_block(), wall_s=wall,
                               policy=self.policy, events=self.events,
                               interventions=sum(s.interventions for s in self._processes()),
-                              completed=self.next_tick > self.last_tick and not self.stop_requested)
+                              completed=completion == COMPLETED, completion=completion,
+                              rejected_by_reason=self.rejects_by_reason())
         if self.metrics_out:
             write_json(self.metrics_out, metrics)
             self.log(f"metrics written to {self.metrics_out}")
@@ -625,6 +792,7 @@ class World:
 def run_world(world: World) -> int:
     """Open, run, write; SIGINT/SIGTERM stop the run and still write the metrics."""
     def _stop(signum, frame):
+        world.completion = world.completion or "interrupted"
         world.stop_requested = True
 
     signal.signal(signal.SIGTERM, _stop)

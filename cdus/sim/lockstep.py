@@ -26,6 +26,14 @@ acknowledgements (``on_fault_done``) and operator commands (``pause``, ``resume`
 - a :class:`FleetEvent` for the record.
 
 A tick is complete (:meth:`recordable`) once every vehicle live at it has reported it.
+
+A liveliness loss nobody asked for is not decided at once: the world calls
+:meth:`decide_drops` once the losses of the moment are in (``pending``). Some vehicles
+gone and others still there: they crashed, and are gone from the first tick they did not
+report (``lost`` until a new process joins). Every vehicle gone at once: the router or the
+network went, not the vehicles, whose processes keep their state: an ``outage``, with no
+roster change, until they are back (the run goes on as if nothing happened) or the world
+gives up (:meth:`end_outage`: they are lost).
 """
 
 from __future__ import annotations
@@ -120,6 +128,9 @@ class Lockstep:
         self._paused_by_hand: dict[int, int] = {}  # vehicle -> tick a ground station paused it at
         self._killed: set[int] = set()  # killed and not restarted since (a resume cannot bring them back)
         self._out: list[Action] = []
+        self.pending: set[int] = set()  # liveliness lost, not decided yet (decide_drops)
+        self.outage: set[int] = set()  # lost all at once with the rest of the fleet: waited for
+        self.lost: set[int] = set()  # lost with nobody asking (a crash, an outage given up) and not back
         self._lease_ticks = max(1, math.ceil(self.lease / self.period - 1e-9))
         if self.sense_every is not None and (self.sense_every < 1 or self.sense_latency < 1):
             raise ValueError(f"sense_every and sense_latency must be >= 1 tick, got {self.sense_every}, "
@@ -171,7 +182,16 @@ class Lockstep:
             if up:
                 self._out.append(vehicle_back(t, vid))
             return
+        if up and (j in self.pending or j in self.outage):  # back before anything was decided: same process
+            self.pending.discard(j)
+            if j in self.outage:
+                self.outage.discard(j)
+                if not self.outage:
+                    self._out.append(FleetEvent.of(t, "fleet", "every vehicle is back; the run goes on"))
+                    self._out.append(Grant(self.granted))  # said again: one sent meanwhile may be lost
+            return
         if up:  # an unscheduled (re)start: it joins at the first tick nobody has been granted
+            self.lost.discard(j)
             b = self.granted + 1
             self._send(RosterChange(b, j, "gone"))
             self._send(RosterChange(b, j, "live", fresh=True))
@@ -179,11 +199,42 @@ class Lockstep:
             self._out.append(Join(j, b))
             self.acked[j] = b - 1
             self._out.append(vehicle_back(t, vid, joins_at=b))
-        else:  # a crash, or a kill nobody scheduled: gone from the first tick it did not report
-            g = self.acked.get(j, -1) + 1
-            if self.state_at(j, g) != "gone":
-                self._send(RosterChange(g, j, "gone"))
-            self._out.append(vehicle_lost(t, vid))
+        else:  # a crash, a kill nobody scheduled, or an outage: decide_drops tells them apart
+            self.pending.add(j)
+
+    def decide_drops(self) -> str | None:
+        """Decide the pending liveliness losses: ``"outage"`` if they leave no vehicle of the fleet
+        that is live and alive (the router or network went: wait for them), ``"lost"`` if others
+        remain (crashes: gone from the first tick each did not report), None if nothing pending."""
+        if not self.pending or not self.started:
+            return None
+        n = self._frontier()
+        remaining = [j for j in self.alive if self.state_at(j, n) == "live"]
+        if not remaining and len(self.pending) > 1:
+            self.outage |= self.pending
+            self.pending = set()
+            names = ", ".join(self.ids[j] for j in sorted(self.outage))
+            self._out.append(FleetEvent.of(n * self.period, "fleet", f"every vehicle dropped at once ({names}): "
+                                           "waiting for them (router or network)", severity="warn"))
+            return "outage"
+        for j in sorted(self.pending):
+            self._lose(j)
+        self.pending = set()
+        return "lost"
+
+    def end_outage(self) -> None:
+        """The fleet did not come back in time: each vehicle still away is lost."""
+        for j in sorted(self.outage):
+            self._lose(j)
+        self.outage = set()
+
+    def _lose(self, j: int) -> None:
+        """Gone from the first tick it did not report."""
+        g = self.acked.get(j, -1) + 1
+        if self.state_at(j, g) != "gone":
+            self._send(RosterChange(g, j, "gone"))
+        self.lost.add(j)
+        self._out.append(vehicle_lost(self._frontier() * self.period, self.ids[j]))
 
     def on_fault_done(self, j: int) -> None:
         p = self._current

@@ -19,6 +19,13 @@ from cdus.scenario.model import Scenario
 from cdus.wire.schemas import FleetEvent
 
 
+COMPLETED = "completed"  # the completion of a run that stepped every tick to its end (docs/metrics.md)
+#: why a run did not complete: SIGINT/SIGTERM; a ground station's stop; vehicles lost with nobody
+#: asking and not back by the end; the whole fleet gone with the world's router; the world died
+#: (written by the launcher); the vehicles never all came up
+COMPLETIONS = (COMPLETED, "interrupted", "stopped", "vehicles_lost", "router_lost", "world_lost", "not_started")
+
+
 def link_block(counters: LinkCounters, faults: dict | None = None, **extra: Any) -> dict[str, Any]:
     """``link`` of the metrics JSON from summed counters (and the emulator's summary)."""
     c = counters
@@ -42,13 +49,18 @@ def sum_counters(counters: Iterable[LinkCounters]) -> LinkCounters:
 
 def run_metrics(scenario: Scenario, recorder: Recorder, *, mode: str, link: dict[str, Any], wall_s: float,
                 policy: str, events: Sequence[FleetEvent] = (), completed: bool = True,
-                interventions: int = 0, **extra: Any) -> dict[str, Any]:
-    """The metrics JSON (also of an empty or interrupted run)."""
+                interventions: int = 0, completion: str | None = None, **extra: Any) -> dict[str, Any]:
+    """The metrics JSON (also of an empty or interrupted run). ``completion``: COMPLETED or why
+    not (COMPLETIONS); by default COMPLETED or "interrupted" after ``completed``."""
+    completion = completion or (COMPLETED if completed else "interrupted")
+    if completion not in COMPLETIONS or completed != (completion == COMPLETED):
+        raise ValueError(f"completed {completed} with completion {completion!r}")
     m = recorder.summary(scenario=scenario.name, mode=mode, seed=scenario.seed, path_tol=scenario.path_tol,
                          coord_tol=scenario.coord_tol, link=link, wall_s=wall_s)
     m["policy"] = policy
     m["events"] = [e.as_dict() for e in events]
     m["completed"] = completed
+    m["completion"] = completion
     sep = min_separation(recorder.view("q"), [v.kind for v in scenario.vehicles])
     m["min_separation_m"] = None if sep is None else round(sep, 6)
     m["interventions"] = interventions

@@ -2,25 +2,30 @@
 
 - :class:`FleetEvent`: something a person should know (a vehicle lost, a link down, a
   scheduled fault carried out), with a ``kind`` and a ``severity`` a program can act on,
-  and a ``text`` a person reads. The world publishes them, the metrics JSON lists them,
+  a ``text`` a person reads, and its ``origin`` (who saw it: ``world``, or the vehicle
+  whose counters reported it). The world publishes them, the metrics JSON lists them,
   the Rerun event log shows them; the in-process fleet makes the same ones.
 - :class:`AgentStats`: a vehicle agent's counters, about once a second, to the world.
 - world status: the world's summary, about once a second, for ground stations and the
   launcher (:func:`encode_status` / :func:`decode_status`).
 
-Every decoder validates and never raises: it returns the record or the reason it was
-rejected, so a receiver counts and drops.
+Every decoder validates every field, nested ones included, into typed records rebuilt
+from numbers and ids (no map from the wire is passed on as it came), and never raises:
+it returns the record or the reason it was rejected, so a receiver counts and drops.
+Texts from the wire come out escaped (:func:`cdus.wire.text.printable`), safe to print.
 """
 
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import asdict, dataclass, field
-from typing import Any
+from typing import Any, Collection
 
 import msgpack
 
 from cdus.wire.messages import MSGPACK_ERRORS
+from cdus.wire.text import printable
 
 SCHEMA_VERSION = 1
 SEVERITIES = ("info", "warn", "error")
@@ -38,8 +43,29 @@ EVENT_KINDS: dict[str, str] = {
     "gains_changed": "info",  # guidance gains changed at run time
     "fleet": "info",  # the fleet paused, resumed or stopped
     "rejected": "warn",  # a command or message was rejected
+    "suspect": "warn",  # a vehicle received ω that its sender cannot have sent (future, conflict, implausible)
 }
 MAX_TEXT = 300
+MAX_ID = 64
+ID_RE = re.compile(r"^[A-Za-z0-9_-]{1,64}$")  # vehicle and process ids (cdus.wire.keys)
+REASON_RE = re.compile(r"^[a-z0-9_]{1,40}$")  # a reject reason's name
+MAX_TIME = 1e9  # s: a plausible simulated time (31 years); anything beyond is not a run's
+MAX_COUNT = 2**53  # a counter beyond this is not a count a process can have made
+MAX_REASONS = 32
+MAX_LATENCIES = 4096
+MAX_BURSTS = 128  # vehicle_agent sends at most 100 (BURSTS_PER_STATS)
+MAX_STATE_CHANGES = 64  # vehicle_agent sends its newest 50
+MAX_LINKS = 256 * 255
+MAX_STATUS_IDS = 4096
+MAX_STATUS_EVENTS = 64
+CLOCKS = ("lockstep", "realtime")
+#: the link emulator's counters_summary() (cdus.core.link, which this layer cannot import;
+#: tests/wire/test_schemas.py checks that they agree)
+FAULT_COUNTERS = ("sent", "dropped", "duplicated", "delayed")
+DROP_CAUSES = ("loss", "burst", "down", "partition")
+LINK_STATES = ("up", "lossy", "down")
+ORIGIN_WORLD = "world"
+ORIGINS = (ORIGIN_WORLD, "launcher")  # the processes that are not vehicles and report events
 
 
 @dataclass(frozen=True)
@@ -50,47 +76,86 @@ class FleetEvent:
     severity: str = "info"
     vehicle: str | None = None
     link: str | None = None  # "src->dst"
+    origin: str | None = None  # who saw it: "world", or the vehicle whose report it came from
 
     @staticmethod
     def of(t: float, kind: str, text: str, *, severity: str | None = None, vehicle: str | None = None,
-           link: str | None = None) -> "FleetEvent":
+           link: str | None = None, origin: str | None = None) -> "FleetEvent":
         """An event with its kind's default severity unless one is given."""
-        return FleetEvent(t, kind, text[:MAX_TEXT], severity or EVENT_KINDS[kind], vehicle, link)
+        return FleetEvent(t, kind, text[:MAX_TEXT], severity or EVENT_KINDS[kind], vehicle, link, origin)
 
     def line(self) -> str:
         """How a person reads it in a log."""
-        return f"t = {self.t:.2f} s: {self.text}"
+        return f"t = {self.t:.2f} s: {printable(self.text, MAX_TEXT)}"
 
     def as_dict(self) -> dict[str, Any]:
         return {k: v for k, v in asdict(self).items() if v is not None}
 
 
-def event_from_dict(d: Any) -> FleetEvent | str:
+def event_from_dict(d: Any, ids: Collection[str] | None = None) -> FleetEvent | str:
+    """A FleetEvent from a decoded map (every field checked; the text escaped), or the reason.
+    ``ids``: the fleet's vehicle ids, when the receiver knows them."""
     if not isinstance(d, dict):
         return "malformed"
+    if not set(d) <= {"v", "t", "kind", "text", "severity", "vehicle", "link", "origin"}:
+        return "unknown_field"
     t, kind, text, sev = d.get("t"), d.get("kind"), d.get("text"), d.get("severity", "info")
-    if not _number(t) or kind not in EVENT_KINDS or not isinstance(text, str) or sev not in SEVERITIES:
+    if not _number(t) or not isinstance(kind, str) or kind not in EVENT_KINDS or not isinstance(text, str) \
+            or not isinstance(sev, str) or sev not in SEVERITIES:
         return "type"
-    veh, link = d.get("vehicle"), d.get("link")
-    if veh is not None and not isinstance(veh, str) or link is not None and not isinstance(link, str):
+    if not 0 <= t <= MAX_TIME:
+        return "range"
+    veh, link, origin = d.get("vehicle"), d.get("link"), d.get("origin")
+    if veh is not None and not isinstance(veh, str) or link is not None and not isinstance(link, str) \
+            or origin is not None and not isinstance(origin, str):
         return "type"
-    return FleetEvent(float(t), kind, text[:MAX_TEXT], sev, veh, link)
+    if veh is not None and not _id(veh, ids) or link is not None and _link(link, ids) is None \
+            or origin is not None and not (origin in ORIGINS or _id(origin, ids)):
+        return "unknown_sender"
+    return FleetEvent(float(t), kind, printable(text, MAX_TEXT), sev, veh, link, origin)
 
 
 def encode_event(e: FleetEvent) -> bytes:
     return msgpack.packb({"v": SCHEMA_VERSION, **e.as_dict()}, use_bin_type=True)
 
 
-def decode_event(payload: bytes) -> FleetEvent | str:
+def decode_event(payload: bytes, ids: Collection[str] | None = None) -> FleetEvent | str:
     obj = _unpack(payload)
     if isinstance(obj, str):
         return obj
     if obj.get("v") != SCHEMA_VERSION:
         return "version"
-    return event_from_dict(obj)
+    return event_from_dict(obj, ids)
 
 
 # --------------------------------------------------------------------------- agent stats
+
+
+@dataclass(frozen=True)
+class BurstReport:
+    """A run of ``drops`` consecutive drops on link src->dst from t0 to t (an agent's
+    link_burst event, rebuilt from its numbers and ids)."""
+
+    t: float  # when it ended (the next message got through)
+    t0: float
+    src: str
+    dst: str
+    drops: int
+
+    @property
+    def link(self) -> str:
+        return f"{self.src}->{self.dst}"
+
+    def text(self) -> str:
+        """The text cdus.core.link.burst_events writes."""
+        return f"link {self.link}: {self.drops} messages dropped in a row ({self.t0:.2f}-{self.t:.2f} s)"
+
+    def event(self, origin: str | None = None) -> FleetEvent:
+        return FleetEvent.of(self.t, "link_burst", self.text(), link=self.link, origin=origin)
+
+
+_BURST_TEXT = re.compile(r"^link ([A-Za-z0-9_-]{1,64})->([A-Za-z0-9_-]{1,64}): ([0-9]{1,12}) messages dropped in a "
+                         r"row \(([0-9]{1,10}\.[0-9]{2})-([0-9]{1,10}\.[0-9]{2}) s\)$")
 
 
 @dataclass(frozen=True)
@@ -108,48 +173,136 @@ class AgentStats:
     missed_deadlines: int = 0
     joined_at: int = 0
     latencies_ms: tuple[float, ...] = ()  # new samples since the last report
-    faults: dict | None = None  # the link emulator's counters_summary(), newest state changes only
-    bursts: tuple[dict, ...] = ()  # new link_burst events (FleetEvent.as_dict())
+    #: the link emulator's counters_summary(), newest state changes only; decoded: rebuilt
+    #: from its checked numbers and ids ({"total", "links", "state_changes"})
+    faults: dict | None = None
+    #: new link_burst events: FleetEvent.as_dict() as an agent sends them; decoded: BurstReport
+    bursts: tuple[Any, ...] = ()
     interventions: int = 0  # control steps at which the safety filter changed the velocity reference
     incarnation: int = 0  # drawn at random when the process starts: a new value is a new process (a restart)
 
     def as_dict(self) -> dict[str, Any]:
         d = asdict(self)
         d["latencies_ms"] = list(self.latencies_ms)
-        d["bursts"] = list(self.bursts)
+        d["bursts"] = [b.event().as_dict() if isinstance(b, BurstReport) else b for b in self.bursts]
         return d
 
 
 _STAT_INTS = ("tick", "sent_to_me", "delivered", "dropped", "duplicated", "rejected", "missed_deadlines", "joined_at",
               "interventions", "incarnation")
+_STAT_FIELDS = {"v", "id", "rejected_by_reason", "latencies_ms", "faults", "bursts", *_STAT_INTS}
 
 
 def encode_stats(s: AgentStats) -> bytes:
     return msgpack.packb({"v": SCHEMA_VERSION, **s.as_dict()}, use_bin_type=True)
 
 
-def decode_stats(payload: bytes) -> AgentStats | str:
+def decode_stats(payload: bytes, ids: Collection[str] | None = None) -> AgentStats | str:
+    """An agent's stats, every field checked (``ids``: the fleet's vehicle ids, when known:
+    the sender and every link must name them), or the reason: ``oversized``, ``malformed``,
+    ``version``, ``unknown_field``, ``type``, ``range``, ``unknown_sender``, ``reasons``,
+    ``latencies``, ``faults``, ``bursts``."""
     obj = _unpack(payload, limit=1 << 16)
     if isinstance(obj, str):
         return obj
     if obj.get("v") != SCHEMA_VERSION:
         return "version"
+    if not set(obj) <= _STAT_FIELDS:
+        return "unknown_field"
     vid = obj.get("id")
     if not isinstance(vid, str):
         return "type"
+    if not _id(vid, ids):
+        return "unknown_sender"
     ints = {k: obj.get(k, 0) for k in _STAT_INTS}
     if not all(type(x) is int and x >= 0 for x in ints.values()):
         return "type"
+    if not all(x < MAX_COUNT for x in ints.values()):
+        return "range"
     by = obj.get("rejected_by_reason", {})
     lat = obj.get("latencies_ms", [])
     faults = obj.get("faults")
     bursts = obj.get("bursts", [])
-    if (not isinstance(by, dict) or not all(isinstance(k, str) and type(x) is int for k, x in by.items())
-            or not isinstance(lat, list) or not all(_number(x) for x in lat)
-            or faults is not None and not isinstance(faults, dict) or not isinstance(bursts, list)):
+    if not isinstance(by, dict) or not isinstance(lat, list) or faults is not None and not isinstance(faults, dict) \
+            or not isinstance(bursts, list):
         return "type"
-    return AgentStats(vid, rejected_by_reason=by, latencies_ms=tuple(float(x) for x in lat), faults=faults,
-                      bursts=tuple(b for b in bursts if isinstance(b, dict)), **ints)
+    if not all(isinstance(k, str) and type(x) is int for k, x in by.items()) or not all(_number(x) for x in lat):
+        return "type"
+    if len(by) > MAX_REASONS or not all(REASON_RE.match(k) and 0 <= x < MAX_COUNT for k, x in by.items()):
+        return "reasons"
+    if len(lat) > MAX_LATENCIES or not all(0 <= x <= 1e7 for x in lat):
+        return "latencies"
+    checked = None
+    if faults is not None:
+        checked = _faults(faults, ids)
+        if checked is None:
+            return "faults"
+    if len(bursts) > MAX_BURSTS:
+        return "bursts"
+    reports = tuple(_burst(b, ids) for b in bursts)
+    if not all(reports):
+        return "bursts"
+    return AgentStats(vid, rejected_by_reason={k: int(x) for k, x in by.items()},
+                      latencies_ms=tuple(float(x) for x in lat), faults=checked, bursts=reports, **ints)
+
+
+def _counter_block(d: Any) -> dict | None:
+    """A {sent, dropped, dropped_by: {loss, burst, down, partition}, duplicated, delayed} block, rebuilt."""
+    if not isinstance(d, dict) or set(d) != {*FAULT_COUNTERS, "dropped_by"}:
+        return None
+    by = d["dropped_by"]
+    if not isinstance(by, dict) or set(by) != set(DROP_CAUSES):
+        return None
+    nums = [d[k] for k in FAULT_COUNTERS] + [by[k] for k in DROP_CAUSES]
+    if not all(type(x) is int and 0 <= x < MAX_COUNT for x in nums):
+        return None
+    return {"sent": d["sent"], "dropped": d["dropped"], "dropped_by": {c: by[c] for c in DROP_CAUSES},
+            "duplicated": d["duplicated"], "delayed": d["delayed"]}
+
+
+def _faults(d: dict, ids: Collection[str] | None) -> dict | None:
+    """The link emulator's counters_summary(), checked field by field and rebuilt, or None."""
+    if set(d) != {"total", "links", "state_changes"}:
+        return None
+    total, links, changes = _counter_block(d["total"]), d["links"], d["state_changes"]
+    if total is None or not isinstance(links, dict) or not isinstance(changes, list) \
+            or len(links) > MAX_LINKS or len(changes) > MAX_STATE_CHANGES:
+        return None
+    out_links = {}
+    for name, block in links.items():
+        ends = _link(name, ids) if isinstance(name, str) else None
+        b = _counter_block(block)
+        if ends is None or b is None:
+            return None
+        out_links[f"{ends[0]}->{ends[1]}"] = b
+    out_changes = []
+    for ch in changes:
+        if not isinstance(ch, dict) or set(ch) != {"t", "link", "state"}:
+            return None
+        t, link, state = ch["t"], ch["link"], ch["state"]
+        ends = _link(link, ids) if isinstance(link, str) else None
+        if not _number(t) or not 0 <= t <= MAX_TIME or ends is None or state not in LINK_STATES:
+            return None
+        out_changes.append({"t": float(t), "link": f"{ends[0]}->{ends[1]}", "state": str(state)})
+    return {"total": total, "links": out_links, "state_changes": out_changes}
+
+
+def _burst(d: Any, ids: Collection[str] | None) -> BurstReport | None:
+    """A link_burst event an agent sent (FleetEvent.as_dict()), rebuilt from its numbers and ids."""
+    if not isinstance(d, dict) or not set(d) <= {"t", "kind", "text", "severity", "link", "origin"}:
+        return None
+    t, text, link = d.get("t"), d.get("text"), d.get("link")
+    if d.get("kind") != "link_burst" or not _number(t) or not 0 <= t <= MAX_TIME or not isinstance(text, str) \
+            or not isinstance(link, str):
+        return None
+    m = _BURST_TEXT.match(text)
+    ends = _link(link, ids)
+    if m is None or ends is None or (m[1], m[2]) != ends:
+        return None
+    drops, t0 = int(m[3]), float(m[4])
+    if drops < 1 or t0 > t + 0.01:  # the text's times are rounded to 10 ms
+        return None
+    return BurstReport(float(t), t0, ends[0], ends[1], drops)
 
 
 # --------------------------------------------------------------------------- world status
@@ -166,20 +319,37 @@ def encode_status(t: float, duration: float, clock: str, alive: list[str], ids: 
                           "paused": paused}, use_bin_type=True)
 
 
-def decode_status(payload: bytes) -> dict[str, Any] | str:
-    """The world's status as a dict (STATUS_KEYS; events as FleetEvent), or the reject reason."""
+def decode_status(payload: bytes, ids: Collection[str] | None = None) -> dict[str, Any] | str:
+    """The world's status as a dict (STATUS_KEYS; events as FleetEvent), or the reject reason.
+    Every field is checked: times finite and plausible, the clock a known one, ``alive`` a
+    subset of ``ids`` (and ``ids`` the receiver's, when it knows them), errors finite or
+    None, ``paused`` a bool, at most MAX_STATUS_EVENTS events, each a valid one (an invalid
+    event is left out)."""
     obj = _unpack(payload, limit=1 << 16)
     if isinstance(obj, str):
         return obj
     if obj.get("v") != SCHEMA_VERSION:
         return "version"
-    if (not _number(obj.get("t")) or not _number(obj.get("duration")) or not isinstance(obj.get("clock"), str)
-            or not _strings(obj.get("alive")) or not _strings(obj.get("ids"))
-            or not isinstance(obj.get("events"), list)):
+    if not set(obj) <= {"v", *STATUS_KEYS}:
+        return "unknown_field"
+    t, duration, alive, sids, events = obj.get("t"), obj.get("duration"), obj.get("alive"), obj.get("ids"), \
+        obj.get("events")
+    errors = (obj.get("path_error_max"), obj.get("coord_error_max"))
+    if (not _number(t) or not _number(duration) or not isinstance(obj.get("clock"), str)
+            or not _strings(alive) or not _strings(sids) or not isinstance(events, list)
+            or not all(x is None or _number(x) for x in errors) or type(obj.get("paused", False)) is not bool):
         return "type"
-    events = [e for e in (event_from_dict(d) for d in obj["events"]) if isinstance(e, FleetEvent)]
+    if not -1.0 <= t <= MAX_TIME or not 0 <= duration <= MAX_TIME or obj["clock"] not in CLOCKS \
+            or not all(x is None or x >= 0 for x in errors):
+        return "range"
+    if len(sids) > MAX_STATUS_IDS or len(events) > MAX_STATUS_EVENTS or not all(_id(v, ids) for v in sids) \
+            or not set(alive) <= set(sids):
+        return "unknown_sender"
+    known = sids if ids is None else ids
     out = {k: obj.get(k) for k in STATUS_KEYS}
-    out["events"] = events
+    out["t"], out["duration"] = float(t), float(duration)
+    out["path_error_max"], out["coord_error_max"] = (None if x is None else float(x) for x in errors)
+    out["events"] = [e for e in (event_from_dict(d, known) for d in events) if isinstance(e, FleetEvent)]
     out["paused"] = bool(obj.get("paused"))
     return out
 
@@ -192,8 +362,10 @@ def _unpack(payload: bytes, limit: int = 4096) -> dict | str:
         return "oversized"
     try:
         obj = msgpack.unpackb(payload, raw=False, max_str_len=limit, max_array_len=4096, max_map_len=256,
-                              max_bin_len=0, max_ext_len=0)
+                              max_bin_len=0, max_ext_len=0, strict_map_key=True)
     except MSGPACK_ERRORS:
+        return "malformed"
+    except RecursionError:  # nesting deeper than the interpreter's stack
         return "malformed"
     return obj if isinstance(obj, dict) else "malformed"
 
@@ -204,6 +376,22 @@ def _number(x: Any) -> bool:
 
 def _strings(x: Any) -> bool:
     return isinstance(x, list) and all(isinstance(s, str) for s in x)
+
+
+def _id(x: str, ids: Collection[str] | None) -> bool:
+    """A well-formed id, and one of ``ids`` if they are known."""
+    return (x in ids) if ids is not None else bool(ID_RE.match(x))
+
+
+def _link(x: str, ids: Collection[str] | None) -> tuple[str, str] | None:
+    """The (src, dst) of a "src->dst" link name of two ids (known ones, with ``ids``), or None."""
+    if len(x) > 2 * MAX_ID + 2:
+        return None
+    src, sep, dst = x.partition("->")
+    if not sep or not ID_RE.match(src) or not ID_RE.match(dst) or src == dst \
+            or ids is not None and (src not in ids or dst not in ids):
+        return None
+    return src, dst
 
 
 def _finite(x: float | None) -> float | None:

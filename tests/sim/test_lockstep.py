@@ -242,8 +242,10 @@ def test_a_crash_takes_the_vehicle_out_from_the_first_tick_it_did_not_report():
     for n in range(4):
         ls.on_report(1, n)
     ls.on_alive(1, False)
+    assert ls.poll() == [] and ls.pending == {1}  # not decided at once: the others may follow
+    assert ls.decide_drops() == "lost"
     acts = ls.poll()
-    assert rosters(acts) == [RosterChange(4, 1, "gone")]
+    assert rosters(acts) == [RosterChange(4, 1, "gone")] and ls.lost == {1}
     assert ("vehicle_lost", "b") in events(acts)
     acts = step(ls, who=[0, 2])
     assert max(grants(acts)) == 100 and ls.recordable(100)
@@ -254,10 +256,12 @@ def test_a_crashed_vehicle_that_comes_back_joins_at_the_first_ungranted_tick_as_
     ls = started(window=5)
     ls.poll()
     ls.on_alive(1, False)
+    ls.decide_drops()
     step(ls, who=[0, 2], rounds=2)  # the others run on for a bit
     b = ls.granted + 1
     ls.on_alive(1, True)
     acts = ls.poll()
+    assert ls.lost == set()
     assert Join(1, b) in acts
     assert RosterChange(b, 1, "gone") in rosters(acts) and RosterChange(b, 1, "live", fresh=True) in rosters(acts)
     assert ("vehicle_back", "b") in events(acts)
@@ -273,6 +277,7 @@ def test_a_late_report_from_a_crashed_vehicle_does_not_bring_it_back():
     ls = started(window=5)
     ls.poll()
     ls.on_alive(1, False)
+    ls.decide_drops()
     ls.poll()
     ls.on_report(1, 2)  # an in-flight report after the loss
     assert ls.state_at(1, 50) == "gone"
@@ -402,3 +407,47 @@ def test_a_ground_stations_fault_with_nothing_to_act_on_is_refused_without_holdi
                     "resume of c by gs1: it is killed (nothing done)"]
     assert faults(acts) == [Fault("kill", 2)]
     assert ls.granted == 100  # nobody waited for a launcher that was never asked
+
+
+# ---------------------------------------------------------------------- the whole fleet at once
+
+
+def test_every_vehicle_dropping_at_once_is_an_outage_waited_for_without_roster_changes():
+    ls = started(window=5)
+    step(ls, rounds=2)
+    granted = ls.granted
+    for j in range(3):
+        ls.on_alive(j, False)
+    assert ls.decide_drops() == "outage" and ls.outage == {0, 1, 2}
+    acts = ls.poll()
+    assert rosters(acts) == [] and ("fleet", None) in events(acts) and ls.granted == granted
+    assert not ls.recordable(granted + 1)  # nothing is recorded for them meanwhile
+    for j in range(3):
+        ls.on_alive(j, True)
+    acts = ls.poll()
+    assert Grant(granted) in acts and ls.outage == set() and ls.lost == set()
+    assert not any(isinstance(a, Join) for a in acts)  # the same processes: they go on where they were
+    assert max(grants(step(ls))) == 100 and ls.changes == []
+
+
+def test_an_outage_given_up_loses_every_vehicle_still_away():
+    ls = started(window=5)
+    step(ls)
+    for j in range(3):
+        ls.on_alive(j, False)
+    ls.decide_drops()
+    ls.on_alive(0, True)
+    ls.end_outage()
+    acts = ls.poll()
+    assert ls.lost == {1, 2} and {ch.vehicle for ch in rosters(acts)} == {1, 2}
+    assert ("vehicle_lost", "b") in events(acts) and ("vehicle_lost", "c") in events(acts)
+
+
+def test_a_vehicle_back_before_its_loss_was_decided_is_the_same_process():
+    ls = started(window=5)
+    step(ls)
+    ls.on_alive(1, False)
+    ls.on_alive(1, True)
+    assert ls.decide_drops() is None
+    assert rosters(ls.poll()) == []
+    assert ls.pending == set() and ls.changes == [] and ls.lost == set()

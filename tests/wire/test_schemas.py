@@ -9,6 +9,10 @@ import random
 import msgpack
 import pytest
 
+from dataclasses import replace
+
+from cdus.wire import schemas
+from cdus.wire.schemas import BurstReport
 from cdus.wire.schemas import (
     EVENT_KINDS, MAX_TEXT, SCHEMA_VERSION, STATUS_KEYS, AgentStats, FleetEvent, decode_event, decode_stats,
     decode_status, encode_event, encode_stats, encode_status, event_from_dict,
@@ -41,7 +45,7 @@ def test_an_events_text_is_cut_to_the_limit_and_reads_as_a_log_line():
     assert len(e.text) == MAX_TEXT
     assert e.line() == f"t = 3.00 s: {e.text}"
     long = pack({"v": SCHEMA_VERSION, "t": 1.0, "kind": "fleet", "text": "y" * (MAX_TEXT + 5)})
-    assert decode_event(long).text == "y" * MAX_TEXT
+    assert decode_event(long).text == "y" * MAX_TEXT + "…"  # cut by printable(), marked
 
 
 def test_an_unknown_event_kind_is_a_programming_error():
@@ -89,16 +93,38 @@ def test_event_payloads_that_are_not_a_map_or_too_big_are_rejected():
 # ---------------------------------------------------------------------- agent stats
 
 
+IDS = ("usv1", "usv2", "uav1")
+
+
+def block(sent=10, dropped=2) -> dict:
+    return {"sent": sent, "dropped": dropped, "dropped_by": {"loss": dropped, "burst": 0, "down": 0, "partition": 0},
+            "duplicated": 0, "delayed": 1}
+
+
+def faults() -> dict:
+    return {"total": block(20, 4), "links": {"usv1->uav1": block(), "usv2->uav1": block()},
+            "state_changes": [{"t": 2.0, "link": "usv1->uav1", "state": "down"}]}
+
+
+def burst() -> dict:
+    return FleetEvent.of(3.0, "link_burst", "link usv1->uav1: 12 messages dropped in a row (2.50-3.00 s)",
+                         link="usv1->uav1").as_dict()
+
+
 def stats() -> AgentStats:
     return AgentStats(id="uav1", tick=500, sent_to_me=1000, delivered=990, dropped=10, duplicated=2,
                       rejected=3, rejected_by_reason={"stale": 1, "sender": 2}, missed_deadlines=4,
-                      joined_at=100, latencies_ms=(0.25, 1.5), faults={"total": {"sent": 1000}},
-                      bursts=(FleetEvent.of(3.0, "link_burst", "12 drops", link="usv1->uav1").as_dict(),))
+                      joined_at=100, latencies_ms=(0.25, 1.5), faults=faults(), bursts=(burst(),))
 
 
-def test_agent_stats_round_trip():
+def test_agent_stats_round_trip_into_typed_bursts_and_rebuilt_faults():
     s = stats()
-    assert decode_stats(encode_stats(s)) == s
+    got = decode_stats(encode_stats(s), IDS)
+    assert got.bursts == (BurstReport(3.0, 2.5, "usv1", "uav1", 12),)
+    assert got.bursts[0].event().as_dict() == burst()  # the same text cdus.core.link writes
+    assert got.faults == faults() and got.faults is not s.faults
+    assert replace(got, bursts=s.bursts) == s
+    assert decode_stats(encode_stats(got)) == got
     empty = AgentStats(id="usv1", tick=0)
     assert decode_stats(encode_stats(empty)) == empty
 
@@ -132,9 +158,54 @@ def test_a_malformed_stats_field_is_rejected_with_its_reason(field, value, reaso
     assert decode_stats(pack(d)) == reason
 
 
-def test_bursts_that_are_not_maps_are_left_out():
-    d = {"v": SCHEMA_VERSION, **stats().as_dict(), "bursts": [{"t": 1.0}, 5, "x"]}
-    assert decode_stats(pack(d)).bursts == ({"t": 1.0},)
+@pytest.mark.parametrize("bursts", [
+    [{"t": "x"}], [5], ["x"], [{"t": 1.0}],
+    [{**burst(), "text": "link usv1->uav1: \x1b[31m12 messages dropped"}],
+    [{**burst(), "link": "usv2->uav1"}],  # the text names another link
+    [{**burst(), "kind": "fleet"}],
+    [{**burst(), "t": float("inf")}],
+    [{**burst(), "extra": 1}],
+    [burst()] * 200,
+])
+def test_a_stats_message_with_any_malformed_burst_is_rejected_whole(bursts):
+    d = {"v": SCHEMA_VERSION, **stats().as_dict(), "bursts": bursts}
+    assert decode_stats(pack(d)) == "bursts"
+
+
+def test_bursts_and_links_must_name_known_vehicles_when_the_receiver_knows_them():
+    assert isinstance(decode_stats(encode_stats(stats())), AgentStats)
+    assert decode_stats(encode_stats(stats()), ("usv1", "uav1")) == "faults"  # usv2->uav1 in links
+    assert decode_stats(encode_stats(replace(stats(), faults=None)), ("usv1", "uav1")).bursts
+    assert decode_stats(encode_stats(replace(stats(), id="ghost")), IDS) == "unknown_sender"
+
+
+@pytest.mark.parametrize("bad", [
+    {"state_changes": 5},
+    {"total": {"sent": 1000}},
+    {"total": {**block(), "dropped_by": {"loss": 1}}},
+    {"total": {**block(), "sent": -1}},
+    {"total": {**block(), "sent": 2**60}},
+    {"links": {"usv1": block()}},
+    {"links": {"usv1->usv1": block()}},
+    {"links": [block()]},
+    {"state_changes": [{"t": "x", "link": "usv1->uav1", "state": "down"}]},
+    {"state_changes": [{"t": 1.0, "link": "usv1->uav1", "state": "exploded"}]},
+    {"state_changes": [{"t": 1.0, "link": "usv1->uav1", "state": "down", "x": 1}]},
+    {"state_changes": [{"t": 1.0, "link": "usv1->uav1", "state": "down"}] * 100},
+    {"extra": {}},
+])
+def test_faults_must_have_the_link_emulators_exact_shape(bad):
+    d = {"v": SCHEMA_VERSION, **stats().as_dict()}
+    d["faults"] = {**faults(), **bad}
+    assert decode_stats(pack(d)) == "faults"
+    d["faults"] = {k: x for k, x in faults().items() if k != "links"}
+    assert decode_stats(pack(d)) == "faults"
+
+
+def test_the_fault_shape_is_the_link_emulators():
+    from cdus.core.link import DROP_CAUSES as CORE_CAUSES, LINK_STATES as CORE_STATES, LinkFaultCounters
+    assert schemas.DROP_CAUSES == CORE_CAUSES and schemas.LINK_STATES == CORE_STATES
+    assert set(LinkFaultCounters().as_dict()) == {*schemas.FAULT_COUNTERS, "dropped_by"}
 
 
 def test_stats_payloads_that_are_not_a_map_or_too_big_are_rejected():
@@ -149,7 +220,7 @@ def test_stats_payloads_that_are_not_a_map_or_too_big_are_rejected():
 
 
 def status(**over) -> bytes:
-    args = dict(t=12.0, duration=250.0, clock="lockstep", alive=["usv1", "uav1"], ids=["usv1", "uav1"],
+    args = dict(t=12.0, duration=250.0, clock="lockstep", alive=["usv1", "uav1"], ids=["usv1", "uav1", "uav2"],
                 path_error_max=0.05, coord_error_max=0.01,
                 events=[FleetEvent.of(10.0, "vehicle_lost", "vehicle uav2 lost", vehicle="uav2")], paused=False)
     args.update(over)
@@ -160,7 +231,7 @@ def test_world_status_round_trips():
     st = decode_status(status())
     assert set(st) == set(STATUS_KEYS)
     assert st["t"] == 12.0 and st["duration"] == 250.0 and st["clock"] == "lockstep"
-    assert st["alive"] == ["usv1", "uav1"] and st["ids"] == ["usv1", "uav1"]
+    assert st["alive"] == ["usv1", "uav1"] and st["ids"] == ["usv1", "uav1", "uav2"]
     assert st["path_error_max"] == 0.05 and st["coord_error_max"] == 0.01
     assert st["events"] == [FleetEvent.of(10.0, "vehicle_lost", "vehicle uav2 lost", vehicle="uav2")]
     assert st["paused"] is False
@@ -214,3 +285,60 @@ def test_decoders_never_raise_on_random_bytes():
             assert isinstance(out, (str, FleetEvent, AgentStats, dict))
             if isinstance(out, FleetEvent):
                 assert math.isfinite(out.t) and out.kind in EVENT_KINDS
+
+
+# ---------------------------------------------------------------------- property-based
+
+from hypothesis import given, settings, strategies as hs  # noqa: E402
+
+_scalars = hs.one_of(hs.none(), hs.booleans(), hs.integers(min_value=-2**64, max_value=2**64),
+                     hs.floats(allow_nan=True, allow_infinity=True), hs.text(max_size=40), hs.binary(max_size=20))
+_values = hs.recursive(_scalars, lambda inner: hs.one_of(hs.lists(inner, max_size=5),
+                                                          hs.dictionaries(hs.text(max_size=12), inner, max_size=5)),
+                       max_leaves=30)
+_FIELDS = [*AgentStats.__dataclass_fields__, *STATUS_KEYS, "v", "kind", "text", "severity", "vehicle", "link",
+           "origin", "t"]
+
+
+def _mutated(base: dict):
+    return hs.dictionaries(hs.sampled_from(_FIELDS), _values, max_size=4).map(lambda over: {**base, **over})
+
+
+@settings(max_examples=400, deadline=None)
+@given(hs.one_of(_mutated({"v": SCHEMA_VERSION, **stats().as_dict()}),
+                 _mutated(msgpack.unpackb(status(), raw=False)), _mutated(GOOD_EVENT)),
+       hs.sampled_from([None, IDS]))
+def test_no_decoder_raises_and_what_passes_is_typed_and_bounded(d, ids):
+    try:
+        payload = pack(d)
+    except (TypeError, ValueError, OverflowError):
+        return
+    for decode in (decode_event, decode_stats, decode_status):
+        out = decode(payload, ids)
+        if isinstance(out, str):
+            assert out.isidentifier()
+        elif isinstance(out, FleetEvent):
+            assert math.isfinite(out.t) and out.kind in EVENT_KINDS and "\x1b" not in out.text
+        elif isinstance(out, AgentStats):
+            assert all(isinstance(b, BurstReport) and math.isfinite(b.t) for b in out.bursts)
+            assert out.faults is None or set(out.faults) == {"total", "links", "state_changes"}
+            assert ids is None or out.id in ids
+            assert all(type(x) is int and 0 <= x < 2**53 for x in out.rejected_by_reason.values())
+        else:
+            assert math.isfinite(out["t"]) and out["clock"] in ("lockstep", "realtime")
+            assert all(isinstance(e, FleetEvent) for e in out["events"])
+
+
+@settings(max_examples=300, deadline=None)
+@given(hs.binary(max_size=300))
+def test_no_decoder_raises_on_arbitrary_bytes(payload):
+    for decode in (decode_event, decode_stats, decode_status):
+        assert isinstance(decode(payload), (str, FleetEvent, AgentStats, dict))
+
+
+def test_an_event_text_from_the_wire_comes_out_escaped():
+    e = decode_event(pack({**GOOD_EVENT, "text": "\x1b[2J\x1b[31mfake\nt = 1.00 s: forged"}))
+    assert "\x1b" not in e.text and "\n" not in e.text and "\\x1b" in e.text
+    assert decode_event(pack({**GOOD_EVENT, "vehicle": "usv9"}), IDS) == "unknown_sender"
+    assert decode_event(pack({**GOOD_EVENT, "t": 1e308})) == "range"
+    assert decode_status(status(t=1e308)) == "range"

@@ -68,8 +68,22 @@ def row(j: int, n: int, T: float = 0.02) -> StateMsg:
     return StateMsg(j, n, n * T, (0.0, 0.0) if j < 3 else (0.0, 0.0, 20.0), 0.0, 1.0, -n * T, -1.0, 0.5)
 
 
+def started(w: World) -> World:
+    """Every vehicle up, the lockstep run started and its first grant out."""
+    for vid in w.ids:
+        w._on_alive(vid, True)
+    w.started = True
+    w.lockstep.start()
+    w._act(w.lockstep.poll())
+    return w
+
+
+def send_rows(w: World, vid: str, rows: list[StateMsg]) -> None:
+    w._handle(Sample(keys.state(FLEET, vid), Payload(encode_states(rows))))
+
+
 def test_telemetry_reports_ticks_and_a_complete_tick_is_recorded():
-    w = world()
+    w = started(world())
     for j, vid in enumerate(w.ids):
         w._handle(Sample(keys.state(FLEET, vid), Payload(encode_states([row(j, 0), row(j, 1)]))))
         if j < 5:
@@ -86,18 +100,20 @@ def test_telemetry_from_the_wrong_key_or_malformed_is_rejected():
     w._handle(Sample(keys.stats(FLEET, "usv1"), Payload(encode_stats(AgentStats(id="usv3", tick=1)))))
     w._handle(Sample(f"cdus/{FLEET}/to/+world+/telepathy/usv1", Payload(b"")))
     assert w.st.rejected == 4 and w.lockstep.acked == {}
+    assert w.st.rejects == {"sender_mismatch": 2, "malformed": 1, "key": 1}
 
 
 def test_stats_feed_the_link_block_and_bursts_become_events():
     w = world()
-    burst = FleetEvent.of(3.0, "link_burst", "12 drops in a row", link="usv2->usv1").as_dict()
+    burst = FleetEvent.of(3.0, "link_burst", "link usv2->usv1: 12 messages dropped in a row (2.70-3.00 s)",
+                          link="usv2->usv1").as_dict()
     s = AgentStats(id="usv1", tick=100, sent_to_me=200, delivered=190, dropped=10, rejected=2,
                    latencies_ms=(1.0, 3.0), missed_deadlines=1, bursts=(burst,))
     w._handle(Sample(keys.stats(FLEET, "usv1"), Payload(encode_stats(s))))
     block = w.link_block()
     assert (block["sent"], block["delivered"], block["dropped"], block["rejected"]) == (200, 190, 10, 2)
     assert block["missed_deadlines"] == 1 and block["latency_ms_p50"] == 2.0
-    assert [(e.kind, e.link) for e in w.events] == [("link_burst", "usv2->usv1")]
+    assert [(e.kind, e.link, e.origin) for e in w.events] == [("link_burst", "usv2->usv1", "usv1")]
     assert decode_event(w.pub_events.puts[-1]).kind == "link_burst"
 
 
@@ -288,3 +304,172 @@ def test_the_launchers_acknowledgement_reaches_the_lockstep_decisions():
     assert w.lockstep._current.stage == "asked"
     w._handle(Sample(keys.world_cmd(FLEET, keys.LAUNCHER), Payload(encode_control("fault_done", vehicle="usv2"))))
     assert w.lockstep._current.stage == "done"
+
+
+# ---------------------------------------------------------------------- hostile input, honest completion
+
+import math  # noqa: E402
+
+import msgpack  # noqa: E402
+from hypothesis import given, settings, strategies as hs  # noqa: E402
+
+from cdus.wire.schemas import SCHEMA_VERSION  # noqa: E402
+
+
+def test_telemetry_for_ticks_not_granted_is_rejected_and_never_recorded():
+    """Six forged rows at tick 6000 (|Φ| = 0) ended a run at once with completed true."""
+    w = started(world())
+    granted = w.lockstep.granted
+    for j, vid in enumerate(w.ids):
+        forged = StateMsg(j, 6000, 120.0, (0.0, 0.0) if j < 3 else (0.0, 0.0, 20.0), 0.0, 1.0, 0.0, -1.0, 0.0)
+        send_rows(w, vid, [forged])
+    assert w.st.rejects == {"future": 6} and w.lockstep.acked == {} and w.st.latest == {}
+    w._record_complete()
+    assert len(w.recorder) == 0
+    for j, vid in enumerate(w.ids):  # the genuine rows still count
+        send_rows(w, vid, [row(j, n) for n in range(granted + 1)])
+    w._record_complete()
+    assert w.next_tick == granted + 1 and (w.recorder.view("path_error") == 0.5).all()
+
+
+def test_realtime_telemetry_beyond_the_clock_and_its_slack_is_rejected():
+    w = world(clock="realtime")
+    w.t0 = 1e12  # not started: the clock's tick is 0
+    send_rows(w, "usv1", [row(0, 0), row(0, 5)])
+    send_rows(w, "usv2", [row(1, 10_000)])
+    assert w.st.rejects == {"future": 1} and w.lockstep.acked == {0: 5}
+
+
+def test_a_second_different_row_for_a_tick_does_not_replace_the_first():
+    w = started(world())
+    send_rows(w, "usv1", [row(0, 0)])
+    send_rows(w, "usv1", [StateMsg(0, 0, 0.0, (9.0, 9.0), 0.0, 1.0, 0.0, -1.0, 0.0)])
+    assert w.st.rows[0][0] == row(0, 0) and w.st.rejects == {"conflict": 1}
+
+
+def stats_payload(**over) -> bytes:
+    d = {"v": SCHEMA_VERSION, **AgentStats(id="usv1", tick=10).as_dict(), **over}
+    return msgpack.packb(d, use_bin_type=True)
+
+
+def test_malformed_nested_stats_are_counted_by_reason_not_raised():
+    w = world()
+    for bad, reason in [({"bursts": [{"t": "x"}]}, "bursts"), ({"faults": {"state_changes": 5}}, "faults"),
+                        ({"id": "usv2"}, "sender_mismatch"), ({"latencies_ms": [-1.0]}, "latencies")]:
+        w._handle(Sample(keys.stats(FLEET, "usv1"), Payload(stats_payload(**bad))))
+        assert w.st.rejects[reason] == 1, reason
+    assert w.st.stats == {} and w.events == []
+
+
+def test_new_suspect_counts_in_a_vehicles_stats_make_one_event_per_vehicle_and_reason_for_a_while():
+    w = world()
+    for n, future in enumerate([0, 3, 5, 9]):
+        w._handle(Sample(keys.stats(FLEET, "usv2"), Payload(stats_payload(
+            id="usv2", tick=n, rejected_by_reason={"future": future, "stale": 7, "conflict": n // 3}))))
+    got = [(e.kind, e.vehicle, e.origin, e.severity) for e in w.events]
+    assert got == [("suspect", "usv2", "usv2", "warn")] * 2
+    assert "'future'" in w.events[0].text and "'conflict'" in w.events[1].text
+    w._suspect_seen = {k: t - 10.0 for k, t in w._suspect_seen.items()}  # a while later
+    w._handle(Sample(keys.stats(FLEET, "usv2"), Payload(stats_payload(id="usv2", tick=9,
+                                                                       rejected_by_reason={"future": 12}))))
+    assert len(w.events) == 3
+
+
+def test_the_worlds_events_are_marked_as_its_own_and_wire_text_is_escaped():
+    w = world()
+    w._handle(Sample(keys.world_cmd(FLEET, "gs1"),
+                     Payload(encode_control("set_gains", gains={"k\x1b[31m": 1.0}, vehicle=""))))
+    e = w.events[-1]
+    assert e.origin == "world" and "\x1b" not in e.text and decode_event(w.pub_events.puts[-1]).origin == "world"
+
+
+def test_liveliness_cannot_be_faked_through_the_worlds_wake_key():
+    w = started(world())
+    w._handle(Sample(f"cdus/{FLEET}/to/+world+/wake/alive", Payload(b"-usv1")))
+    assert "usv1" in w.st.alive and w.lockstep.pending == set()
+
+
+def test_a_crash_not_back_by_the_end_means_the_run_did_not_complete(tmp_path):
+    w = started(world(metrics_out=str(tmp_path / "m.json")))
+    w.session = None
+    w._on_alive("usv2", False)
+    w._on_alive("uav3", False)
+    assert w.lockstep.decide_drops() == "lost"
+    w.next_tick = w.last_tick + 1  # as if the others stepped to the end
+    m = w.finish()
+    assert m["completed"] is False and m["completion"] == "vehicles_lost"
+
+
+def test_a_run_that_reached_its_end_with_the_live_fleet_completed_and_a_stop_did_not():
+    w = started(world())
+    w.session = None
+    w.next_tick = w.last_tick + 1
+    m = w.finish()
+    assert (m["completed"], m["completion"]) == (True, "completed")
+    assert m["rejected_by_reason"] == {"world": {}, "vehicles": {}}
+    w = started(world())
+    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("stop"))))
+    w.session = None
+    assert (lambda m: (m["completed"], m["completion"]))(w.finish()) == (False, "stopped")
+
+
+def test_a_fleet_that_drops_all_at_once_is_waited_for_then_given_up(monkeypatch):
+    w = started(world())
+    for vid in w.ids:
+        w._on_alive(vid, False)
+    t = w._drops_since
+    assert w.lockstep.pending == set(range(6)) and t is not None
+    assert not w._supervise_outage(t + 0.1)  # the losses of the moment may still be coming in
+    assert not w._supervise_outage(t + 1.0) and w.lockstep.outage == set(range(6))
+    assert not w._supervise_outage(t + 1.0 + w.outage_grace / 2)  # waiting
+    w._on_alive("usv1", True)
+    assert w._supervise_outage(t + 2.0 + w.outage_grace)
+    assert w.completion == "vehicles_lost" and w.lockstep.lost == set(range(1, 6))
+
+
+def test_a_fleet_back_within_the_grace_goes_on_with_no_roster_change():
+    w = started(world())
+    sent = len(w.session.puts)
+    for vid in w.ids:
+        w._on_alive(vid, False)
+    w._supervise_outage(w._drops_since + 1.0)
+    for vid in w.ids:
+        w._on_alive(vid, True)
+    assert w._drops_since is None and not w._supervise_outage(1e12)
+    assert w.lockstep.outage == set() and w.lockstep.lost == set() and w.lockstep.changes == []
+    rosters = [k for k, _ in w.session.puts[sent:] if k.endswith("/ctl")]
+    assert rosters == []  # nothing told the vehicles anyone was gone
+
+
+_ints = hs.integers(-2**63, 2**64 - 1)
+_keys = hs.one_of(
+    hs.sampled_from([keys.state(FLEET, "usv1"), keys.stats(FLEET, "uav2"), keys.world_cmd(FLEET, "gs1"),
+                     keys.world_cmd(FLEET, keys.LAUNCHER), f"cdus/{FLEET}/to/+world+/wake/alive",
+                     f"cdus/{FLEET}/to/+world+/state/ghost", f"cdus/{FLEET}/to/+world+/state/usv1/x"]),
+    hs.text(max_size=60))
+_payloads = hs.one_of(
+    hs.binary(max_size=200),
+    hs.builds(lambda j, n, x: encode_states([StateMsg(j, n, x, (x, x), x, x, x, x, x)]),
+              hs.integers(0, 7), hs.integers(0, 2**40), hs.floats(allow_nan=False, allow_infinity=False)),
+    hs.dictionaries(hs.sampled_from(["v", "id", "tick", "bursts", "faults", "latencies_ms", "rejected_by_reason",
+                                     "op", "vehicle", "gains", "link", "at"]),
+                    hs.one_of(_ints, hs.floats(), hs.text(max_size=8), hs.lists(_ints, max_size=3),
+                              hs.dictionaries(hs.text(max_size=5), _ints, max_size=3)), max_size=6)
+    .map(lambda d: msgpack.packb(d, use_bin_type=True)),
+)
+
+
+@settings(max_examples=300, deadline=None)
+@given(hs.lists(hs.tuples(_keys, _payloads), max_size=8), hs.sampled_from(["lockstep", "realtime"]))
+def test_the_world_handles_any_key_and_payload_without_raising_and_counts_what_it_drops(samples, clock):
+    w = world(clock=clock)
+    if clock == "lockstep":
+        started(w)
+    for key, payload in samples:
+        before = w.st.rejected + len(w.lockstep.acked) + len(w.st.stats) + len(w.events)
+        w._handle(Sample(key, Payload(payload)))
+        assert w.st.rejects["internal"] == 0
+        if not key.split("/")[-1] == "alive":
+            assert w.st.rejected + len(w.lockstep.acked) + len(w.st.stats) + len(w.events) >= before
+    assert all(m.tick <= w._tick_limit() for m in w.st.latest.values())
+    assert all(math.isfinite(e.t) for e in w.events)
