@@ -17,8 +17,13 @@ token once it is ready.
   missed deadline. A small waker thread pokes the channel at each tick time (and on
   SIGTERM/SIGINT, so a signal is never stuck behind a blocking wait).
 
-Everything received is validated (cdus.wire.messages) and counted when rejected, with
-one log line per sender and reason.
+Everything received is validated (cdus.wire.messages, then cdus.core.node for ω and
+:meth:`Agent._ctl_problem` for the world's control maps) and counted by reason when
+rejected (stale duplicates too), with one log line per sender and reason. ω is accepted
+only within a window of what its sender can have sent (:meth:`Agent._horizon`). Work per
+sender is bounded: in realtime, ω beyond what a sender can send (its broadcast rate times
+:data:`RATE_MARGIN`, bursts of :data:`RATE_BURST`) is dropped before it is decoded
+(``rate``); the inbox is a bounded channel (:data:`INBOX_CAPACITY`).
 """
 
 from __future__ import annotations
@@ -47,6 +52,8 @@ from cdus.scenario.link import merge_link_tables, validate_link
 from cdus.sim.build import build_node, link_emulator_for, listeners_of
 from cdus.sim.sensing import contacts_of
 from cdus.core.schedule import CLOCKS, total_ticks
+from cdus.sim.lockstep import GRANT_WINDOW
+from cdus.wire.text import printable
 from cdus.wire import keys
 from cdus.wire.messages import (
     CTL_OPS, StateMsg, decode_contacts, decode_control, decode_omega, decode_states, encode_omega,
@@ -60,7 +67,18 @@ STATS_PERIOD = 1.0  # s of wall time between counter reports
 BURSTS_PER_STATS = 100  # drop bursts one report carries; a report goes early once half as many wait
 STALL_TICKS = 10  # realtime: this many periods late means the process was frozen, not just slow
 END_WAIT = 10.0  # s to wait for the world's stop after the last tick
-INBOX_CAPACITY = 4096
+INBOX_CAPACITY = 4096  # samples; when full, Zenoh's delivery to this session waits (nothing grows)
+#: lockstep: a neighbour may have a grant this agent has not received yet; one grant moves at
+#: most GRANT_WINDOW past the slowest live vehicle's acknowledged tick, which is <= ours
+LOCKSTEP_SEQ_MARGIN = 2 * GRANT_WINDOW
+REALTIME_SLACK = 0.25  # s: a realtime ω may be stamped this far past this agent's wall-clock tick
+T0_PAST = 86400.0  # s: a realtime t0 (start, resume) older than the run's duration plus this is not ours
+T0_AHEAD = 60.0  # s: ... nor one further in the future than this
+RATE_MARGIN = 4.0  # realtime: a sender's ω rate allowed, in multiples of its broadcast rate
+RATE_BURST = 64  # realtime: ω a sender may send back to back (a stall's catch-up is < STALL_TICKS)
+_KINDS = ("omega", "state", "stats", "ctl", "contacts", "cmd", "wake", "last")  # named in a reject reason
+MAX_LOGGED = 256
+MAX_LINK_AT = 1e9  # s: a link change's time (past the run's end it never applies)  # (sender, reason) pairs logged; past that, rejects are only counted
 LOG_WAIT = 5.0  # s of waiting before saying what for
 MAX_NAP = 0.05  # s: realtime sleeps at most this long between checks for a stop or a pause
 PING_TIMEOUT = 1.0  # s for a link check's reply (it is immediate when nobody answers)
@@ -149,7 +167,9 @@ class Agent:
         self.link_table: dict = scenario.link_table
         self.clock = Clock()
         self.state_batch = STATE_BATCH[clock]
-        self.rejected: Counter = Counter()
+        self.rejected: Counter = Counter()  # by reason, every reject (the node's ω ones too, but "gone")
+        self._bucket: dict[int, tuple[float, float]] = {}  # realtime ω rate per neighbour: (tokens, when)
+        self._rate = RATE_MARGIN * scenario.rates.broadcast  # ω per s a neighbour may send
         self._logged: set[tuple[str, str]] = set()
         self._states: list[StateMsg] = []
         self.missed_deadlines = 0
@@ -242,20 +262,50 @@ class Agent:
     # ------------------------------------------------------------------ receiving
     def _reject(self, sender: str, reason: str) -> None:
         self.rejected[reason] += 1
-        if (sender, reason) not in self._logged:  # log once per sender and reason
+        if (sender, reason) not in self._logged and len(self._logged) < MAX_LOGGED:  # once per sender, reason
             self._logged.add((sender, reason))
-            self.log(f"rejected a message from {sender!r}: {reason} (counted; logged once)")
+            self.log(f"rejected a message from {printable(sender, 64)!r}: {reason} (counted; logged once)")
+
+    def _horizon(self) -> int:
+        """The newest tick a genuine neighbour can have broadcast at, as this agent knows time:
+        lockstep, its grant (or join) plus :data:`LOCKSTEP_SEQ_MARGIN`; realtime, its wall-clock
+        tick plus :data:`REALTIME_SLACK` (from tick 0 while the start is not known)."""
+        clock = self.clock
+        if self.clock_mode == "lockstep":
+            return max(clock.granted, clock.join) + LOCKSTEP_SEQ_MARGIN
+        slack = math.ceil(REALTIME_SLACK / self.period)
+        if clock.t0 is None:
+            return slack
+        return max(0, math.floor((time.time() - clock.t0) / self.period)) + slack
+
+    def _over_rate(self, k: int) -> bool:
+        """Realtime: has neighbour ``k`` sent more than it can (a token bucket at RATE_MARGIN times
+        its broadcast rate, RATE_BURST deep)? Lockstep takes everything: a genuine message is
+        never dropped there, and a sender's ω is bounded by the grant window."""
+        if self.clock_mode != "realtime":
+            return False
+        now = time.monotonic()
+        tokens, last = self._bucket.get(k, (float(RATE_BURST), now))
+        tokens = min(float(RATE_BURST), tokens + (now - last) * self._rate)
+        if tokens < 1.0:
+            self._bucket[k] = (tokens, now)
+            return True
+        self._bucket[k] = (tokens - 1.0, now)
+        return False
 
     def _handle(self, sample: Any, now: float | None) -> None:
         """One sample from the inbox. ``now``: simulated arrival time (realtime) or None."""
         key = str(sample.key_expr)
         k = self._omega_from.get(key)
         if k is not None:
+            if self._over_rate(k):  # before decoding: a flood costs a lookup and a subtraction
+                return self._reject(self.ids[k], "rate")
             msg = decode_omega(sample.payload.to_bytes(), expected_sender=k, n_vehicles=len(self.ids))
             if isinstance(msg, str):
                 return self._reject(self.ids[k], msg)
+            self.node.horizon = self._horizon()
             reason = self.node.on_message(msg, now)
-            if reason is not None and reason != "stale":
+            if reason is not None:
                 self._reject(self.ids[k], reason)
             return
         if key.endswith("/ctl"):
@@ -265,13 +315,39 @@ class Agent:
         if key.endswith("/wake"):
             return
         kind, src = keys.leaf(key)
-        self._reject(src or key, f"unexpected {kind or 'key'}")
+        self._reject(src or key, "unexpected " + (kind if kind in _KINDS else "key"))
+
+    def _ctl_problem(self, op: str, f: dict) -> str | None:
+        """What is out of range in a control message from the world (None: nothing): ticks within
+        the run, a grant not past its last tick, a realtime t0 near now, a known roster vehicle."""
+        last = self.last_tick
+        if op == "grant" and not 0 <= f["until"] <= last:
+            return "grant_range"
+        if op == "join" and not 0 <= f["tick"] <= last:
+            return "join_range"
+        if op == "gains" and not 0 <= f["tick"] < 2**31:  # past the run's end it never applies: harmless
+            return "gains_range"
+        if op == "roster" and (f["vehicle"] not in self.ids or f["state"] not in ("live", "paused", "gone")
+                               or not 0 <= f["tick"] <= last + 1):
+            return "bad_roster"
+        if op in ("start", "resume"):
+            now = time.time()
+            if not now - T0_PAST - last * self.period <= f["t0"] <= now + T0_AHEAD:
+                return "t0_range"
+        if op == "link" and not 0.0 <= f["at"] <= MAX_LINK_AT:
+            return "link_range"
+        if op in ("link", "gains") and _depth(f[op]) > 3:
+            return f"{op}_range"
+        return None
 
     def _on_ctl(self, payload: bytes) -> None:
         c = decode_control(payload, CTL_OPS)
         if isinstance(c, str):
             return self._reject("world", c)
         op, f, clock = c.op, c.fields, self.clock
+        problem = self._ctl_problem(op, f)
+        if problem is not None:
+            return self._reject("world", problem)
         if op == "grant":
             clock.granted = max(clock.granted, f["until"])
         elif op == "join":
@@ -302,8 +378,6 @@ class Agent:
         self.node.on_contacts(msg.tick, contacts_of(msg, self.ids))
 
     def _on_roster(self, f: dict) -> None:
-        if f["vehicle"] not in self.ids or f["state"] not in ("live", "paused", "gone") or f["tick"] < 0:
-            return self._reject("world", "bad_roster")
         j = self.ids.index(f["vehicle"])
         self.node.on_roster(RosterChange(f["tick"], j, f["state"], f["fresh"]))
         if j in self.node.neighbours:
@@ -492,7 +566,9 @@ class Agent:
 
     def stats(self) -> AgentStats:
         node, c = self.node, self.node.counters
-        by_reason = {**dict(self.rejected), **{r: x for r, x in node.rejected.items() if x}}
+        by_reason = dict(self.rejected)
+        if node.rejected["gone"]:  # counted by the node when a message is offered (in c.rejected)
+            by_reason["gone"] = node.rejected["gone"]
         faults = node.link.counters_summary() if isinstance(node.link, LinkEmulator) else None
         if faults is not None:
             faults["state_changes"] = faults["state_changes"][-50:]  # the newest; the world keeps the history
@@ -522,6 +598,15 @@ class Agent:
         never: Callable[[], None] = lambda: None
         while not self._stopping() and time.time() < deadline:
             self._recv(never)
+
+
+def _depth(obj: Any, level: int = 0) -> int:
+    """How deeply ``obj`` nests maps and lists (a decoded control map is already bounded in size)."""
+    if isinstance(obj, dict):
+        return max((_depth(v, level + 1) for v in obj.values()), default=level + 1)
+    if isinstance(obj, (list, tuple)):
+        return max((_depth(v, level + 1) for v in obj), default=level + 1)
+    return level
 
 
 def run_agent(agent: Agent) -> int:

@@ -3,6 +3,7 @@ scripted list of samples (the agent's one subscription), publishers that record 
 
 from __future__ import annotations
 
+import time
 from collections import deque
 
 import msgpack
@@ -258,14 +259,15 @@ def test_a_link_command_without_a_policy_keeps_the_one_the_agent_runs(fake):
 
 def test_clock_messages_set_the_agents_clock(fake):
     a, s, lines = fake(clock="realtime")
-    ctl(s, "start", t0=1000.0)
+    t0 = time.time()
+    ctl(s, "start", t0=t0)
     ctl(s, "pause")
     a._drain(lambda: None)
-    assert a.clock.t0 == 1000.0 and a.clock.paused
-    ctl(s, "resume", t0=1005.0)
+    assert a.clock.t0 == t0 and a.clock.paused
+    ctl(s, "resume", t0=t0 + 5.0)
     ctl(s, "stop")
     a._drain(lambda: None)
-    assert a.clock.t0 == 1005.0 and not a.clock.paused and a.clock.stop
+    assert a.clock.t0 == t0 + 5.0 and not a.clock.paused and a.clock.stop
 
 
 def test_stats_round_trip_and_send_only_new_latency_samples(fake):
@@ -289,3 +291,81 @@ def test_the_waker_deadline_is_the_next_tick_or_the_alarm():
     assert w._deadline(1.03) == pytest.approx(1.04)
     w.alarm = 1.035
     assert w._deadline(1.03) == 1.035
+
+
+# ------------------------------------------------------------------ hostile ω and control (issue 15)
+
+def forged(session: Session, a: Agent, vid: str, seq: int, t: float, omega: float, rate: float = -1.0) -> None:
+    j = a.ids.index(vid)
+    key = keys.omega(FLEET, vid, listeners_of(a.scenario, vid))
+    session.inbox.q.append(Sample(key, Payload(encode_omega(OmegaMsg(j, seq, t, omega, rate)))))
+
+
+def test_hostile_omega_neither_crashes_nor_locks_out_nor_offsets_a_lockstep_run(fake):
+    """The attacks of issue 15 between genuine messages: the run steps every tick with the
+    genuine values, and each attack is counted under its reason."""
+    a, s, lines = fake(duration=0.1)
+    ctl(s, "join", tick=0)
+    ctl(s, "grant", until=5)
+    forged(s, a, "usv2", 0, 1e308, 1.0)  # crashed send_tick before
+    forged(s, a, "usv2", 2**32 - 1, (2**32 - 1) * a.period, 1.0)  # locked the sender out before
+    for seq in range(5):
+        omega_from(s, a, "usv2", seq)
+        omega_from(s, a, "uav3", seq)
+        if seq < 4:  # the next one, offset by 1 rad: sent before the genuine one
+            forged(s, a, "uav3", seq + 1, (seq + 1) * a.period, 2.0 - (seq + 1) * a.period)
+        omega_from(s, a, "usv2", seq)  # a replay
+    stop_when_idle(s)
+    assert a.run() == 6
+    assert a.rejected["inconsistent"] == 1 and a.rejected["future"] == 1
+    assert a.rejected["implausible"] == 4 and a.rejected["stale"] == 5
+    assert a.rejected["conflict"] == 0
+    latest = a.node.table.latest
+    assert latest[a.ids.index("uav3")].omega == 1.0 - 4 * a.period  # the genuine value is used
+    stats = a.stats()
+    assert stats.rejected == 11 and stats.rejected_by_reason["implausible"] == 4
+    assert len([ln for ln in lines if "implausible" in ln]) == 1  # logged once
+
+
+def test_a_conflicting_replay_is_counted(fake):
+    a, s, lines = fake(duration=0.1)
+    ctl(s, "join", tick=0)
+    ctl(s, "grant", until=5)
+    omega_from(s, a, "usv2", 0)
+    forged(s, a, "usv2", 0, 0.0, 1.5)
+    a._drain(lambda: None)
+    assert a.rejected["conflict"] == 1 and a.stats().rejected == 1
+
+
+@pytest.mark.parametrize("op, fields, reason", [
+    ("grant", {"until": 6}, "grant_range"),  # past the run's last tick (5)
+    ("grant", {"until": -3}, "grant_range"),
+    ("join", {"tick": 99}, "join_range"),
+    ("start", {"t0": 1e12}, "t0_range"),
+    ("resume", {"t0": 0.0}, "t0_range"),
+    ("roster", {"vehicle": "usv2", "tick": 10**9, "state": "gone", "fresh": False}, "bad_roster"),
+    ("gains", {"gains": {"k": 2.0}, "tick": -1}, "gains_range"),
+    ("link", {"link": {"loss": 0.1}, "at": -1.0}, "link_range"),
+    ("link", {"link": {"delay": {"base": {"x": {"y": 1}}}}, "at": 0.0}, "link_range"),
+])
+def test_control_fields_out_of_range_are_counted_and_dropped(fake, op, fields, reason):
+    a, s, lines = fake(duration=0.1)
+    before = (a.clock.granted, a.clock.join, a.clock.t0, dict(a.link_table))
+    ctl(s, op, **fields)
+    a._drain(lambda: None)
+    assert a.rejected == {reason: 1}
+    assert (a.clock.granted, a.clock.join, a.clock.t0, dict(a.link_table)) == before
+    assert not a.node._gains
+
+
+def test_a_realtime_flood_on_one_key_is_cut_at_the_senders_rate_before_decoding(fake, monkeypatch):
+    a, s, lines = fake(clock="realtime", duration=0.1)
+    decoded = []
+    real = agent_module.decode_omega
+    monkeypatch.setattr(agent_module, "decode_omega", lambda *x, **kw: decoded.append(1) or real(*x, **kw))
+    for _ in range(10 * agent_module.RATE_BURST):
+        omega_from(s, a, "usv2", 0)
+    a._drain(lambda: 0.0)
+    assert len(decoded) <= agent_module.RATE_BURST + 5  # a few tokens refill while it drains
+    assert a.rejected["rate"] >= 9 * agent_module.RATE_BURST - 5
+    assert sum(a.rejected.values()) == 10 * agent_module.RATE_BURST - 1  # all but the first
