@@ -378,3 +378,92 @@ def _on_message_before_issue_15(self, msg, arrival=None):
             self._order += 1
             heapq.heappush(self._pending, (arrival + d, self._order, msg, d))
     return None
+
+
+# ------------------------------------------------------------------ properties (issue 15)
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+_floats = st.floats(allow_nan=False, allow_infinity=False) | st.sampled_from([0.0, 1e308, -1e308, T, 1e-300])
+_any_omega = st.builds(OmegaMsg, st.integers(-2, 5), st.integers(-2, 2**33), _floats, _floats, _floats)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 12), _any_omega, st.booleans()), max_size=40))
+def test_on_message_never_raises_and_counts_every_reject(script):
+    """Arbitrary decoded messages between steps: no exception, and every message is either
+    taken (its seq becomes the sender's newest) or rejected and counted."""
+    a = node(0)
+    n = 0
+    for at, m, realtime in sorted(script, key=lambda s: s[0]):
+        while n < at:
+            _ticked(a, n)
+            n += 1
+        before = sum(a.rejected.values())
+        reason = a.on_message(m, arrival=n * T if realtime else None)
+        if reason is None:
+            assert a.seen_seq.get(m.sender) == m.seq or m.seq * a.every < a._deaf_before
+        else:
+            assert reason in a.rejected and sum(a.rejected.values()) == before + 1
+    for k in range(n, n + 3):
+        _ticked(a, k)
+
+
+def _hostile(data: st.DataObject, src: int, n: int, last: int) -> OmegaMsg | bytes:
+    """A message on ``src``'s key that is out of window or malformed at fleet tick ``n``."""
+    how = data.draw(st.sampled_from(["future", "inconsistent", "stale", "other", "bytes", "huge"]))
+    w = data.draw(_floats)
+    wd = data.draw(_floats)
+    if how == "future":
+        s = data.draw(st.integers(n + 1, 2**32 - 1))
+        return OmegaMsg(src, s, s * T, w, wd)
+    if how == "inconsistent":
+        s = data.draw(st.integers(0, n))
+        t = data.draw(_floats.filter(lambda t: t != s * T))
+        return OmegaMsg(src, s, t, w, wd)
+    if how == "stale" and n > 0:  # a seq already sent: a replay with any content
+        s = data.draw(st.integers(0, n - 1))
+        return OmegaMsg(src, s, s * T, w, wd)
+    if how == "other":  # another vehicle's index on this key
+        return OmegaMsg((src + 1) % 3, n, n * T, w, wd)
+    if how in ("huge", "stale"):
+        return OmegaMsg(src, 2**32 - 1, 1e308, w, wd)
+    return data.draw(st.binary(max_size=40))
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.data())
+def test_hostile_traffic_out_of_window_never_changes_a_genuine_run(data):
+    """The ring run in process, with hostile messages injected on the genuine senders' keys
+    before and after each genuine one: the trajectory is the clean run's, bit for bit, and
+    every hostile message is counted."""
+    from cdus.sim.fleet import InProcessFleet
+    from cdus.scenario.config import parse_scenario
+    from cdus.wire.messages import decode_omega, encode_omega
+
+    sc = parse_scenario({**RING, "scenario": {"name": "ring3", "duration": 1.0}})
+    clean = InProcessFleet(sc)
+    clean.run()
+    fleet = InProcessFleet(sc)
+    sent = {"hostile": 0}
+    real_send = fleet._send
+
+    def send(src, msg, n):
+        for _ in range(data.draw(st.integers(0, 2))):
+            h = _hostile(data, src, n, fleet.end_tick)
+            wire = decode_omega(h if isinstance(h, bytes) else encode_omega(h), expected_sender=src, n_vehicles=3)
+            for dst in fleet.listeners[src]:
+                if isinstance(wire, str):
+                    sent["hostile"] += 1
+                    fleet.nodes[dst].rejected.setdefault(wire, 0)
+                    fleet.nodes[dst].rejected[wire] += 1
+                else:
+                    sent["hostile"] += 1
+                    assert fleet.nodes[dst].on_message(wire) is not None
+        real_send(src, msg, n)
+    fleet._send = send
+    fleet.run()
+    for attr in ("t", "q", "heading", "omega", "omega_rate"):
+        assert np.array_equal(getattr(clean.recorder, attr), getattr(fleet.recorder, attr)), attr
+    counted = sum(sum(x for r, x in nd.rejected.items() if r != "gone") for nd in fleet.nodes)
+    assert counted == sent["hostile"]
