@@ -369,3 +369,97 @@ def test_a_realtime_flood_on_one_key_is_cut_at_the_senders_rate_before_decoding(
     assert len(decoded) <= agent_module.RATE_BURST + 5  # a few tokens refill while it drains
     assert a.rejected["rate"] >= 9 * agent_module.RATE_BURST - 5
     assert sum(a.rejected.values()) == 10 * agent_module.RATE_BURST - 1  # all but the first
+
+
+# ------------------------------------------------------------------ properties (issue 15)
+
+from hypothesis import HealthCheck, given, settings, strategies as st  # noqa: E402
+
+_FIXTURE = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+_CTL = [encode_control("grant", until=3), encode_control("join", tick=0), encode_control("start", t0=time.time()),
+        encode_control("roster", vehicle="usv2", tick=3, state="gone", fresh=False),
+        encode_control("link", link={"loss": 0.1}, at=0.0), encode_control("gains", gains={"c": 2.0}, tick=2)]
+
+
+def _payload(data, valid: list[bytes]) -> bytes:
+    p = bytearray(data.draw(st.sampled_from(valid)))
+    if data.draw(st.booleans()):
+        return data.draw(st.binary(max_size=64))
+    for _ in range(data.draw(st.integers(0, 3))):
+        if p:
+            p[data.draw(st.integers(0, len(p) - 1))] = data.draw(st.integers(0, 255))
+    return bytes(p)
+
+
+@_FIXTURE
+@given(data=st.data(), clock=st.sampled_from(["lockstep", "realtime"]))
+def test_the_agents_handler_never_raises_and_counts_every_omega_it_does_not_take(fake, data, clock):
+    a, s, lines = fake(clock=clock, duration=0.1)
+    keyset = {vid: keys.omega(FLEET, vid, listeners_of(a.scenario, vid)) for vid in ("usv2", "uav3")}
+    omegas = [encode_omega(OmegaMsg(j, q, q * a.period, 1.0 - q * a.period, -1.0)) for j in (1, 2) for q in range(4)]
+    taken = rejected = 0
+    for _ in range(data.draw(st.integers(1, 30))):
+        kind = data.draw(st.sampled_from(["omega", "ctl", "contacts", "other"]))
+        if kind == "omega":
+            vid = data.draw(st.sampled_from(sorted(keyset)))
+            before_seq, before_rej = dict(a.node.seen_seq), sum(a.rejected.values())
+            a._handle(Sample(keyset[vid], Payload(_payload(data, omegas))), 0.0 if clock == "realtime" else None)
+            if a.node.seen_seq != before_seq:
+                taken += 1
+            else:
+                assert sum(a.rejected.values()) == before_rej + 1
+                rejected += 1
+        elif kind == "ctl":
+            a._handle(Sample(keys.ctl(FLEET, [ME]), Payload(_payload(data, _CTL))), None)
+        elif kind == "contacts":
+            a._handle(Sample(f"cdus/{FLEET}/to/+{ME}+/contacts", Payload(data.draw(st.binary(max_size=64)))), None)
+        else:
+            key = data.draw(st.sampled_from([f"cdus/{FLEET}/to/+{ME}+/", f"cdus/{FLEET}/x", "a/b/to/c/\x1b[31m/z"]))
+            a._handle(Sample(key + data.draw(st.text(max_size=10)), Payload(b"")), None)
+    stats = a.stats()
+    assert decode_stats(encode_stats(stats)) == stats
+    assert all("\x1b" not in ln for ln in lines)
+
+
+def _lockstep_run(fake, hostile) -> list:
+    """A lockstep run of 6 ticks with ``hostile(s, a, seq)`` samples before each genuine pair."""
+    a, s, lines = fake(duration=0.1)
+    ctl(s, "join", tick=0)
+    ctl(s, "grant", until=5)
+    for seq in range(5):
+        hostile(s, a, seq)
+        omega_from(s, a, "usv2", seq)
+        omega_from(s, a, "uav3", seq)
+    stop_when_idle(s)
+    assert a.run() == 6
+    return [r for p in s.pubs[keys.state(FLEET, ME)].puts for r in decode_states(p)], a
+
+
+@_FIXTURE
+@given(data=st.data())
+def test_hostile_samples_out_of_window_or_malformed_never_change_a_lockstep_agents_run(fake, data):
+    clean, _ = _lockstep_run(fake, lambda s, a, seq: None)
+    n_hostile = [0]
+
+    def hostile(s, a, seq):
+        for _ in range(data.draw(st.integers(0, 3))):
+            vid = data.draw(st.sampled_from(["usv2", "uav3"]))
+            how = data.draw(st.sampled_from(["future", "inconsistent", "stale", "bytes", "ctl"]))
+            w = data.draw(st.floats(allow_nan=False))
+            n_hostile[0] += 1
+            if how == "future":
+                q = data.draw(st.integers(5 + agent_module.LOCKSTEP_SEQ_MARGIN + 1, 2**32 - 1))
+                forged(s, a, vid, q, q * a.period, w)
+            elif how == "inconsistent":
+                forged(s, a, vid, seq, data.draw(st.floats().filter(lambda t: t != seq * a.period)), w)
+            elif how == "stale" and seq > 0:
+                q = data.draw(st.integers(0, seq - 1))
+                forged(s, a, vid, q, q * a.period, w)
+            elif how == "ctl":  # a control message out of range
+                ctl(s, "grant", until=data.draw(st.integers(6, 2**40)))
+            else:
+                omega_from(s, a, vid, seq, payload=data.draw(st.binary(max_size=40)))
+
+    rows, a = _lockstep_run(fake, hostile)
+    assert rows == clean
+    assert sum(a.rejected.values()) == n_hostile[0]
