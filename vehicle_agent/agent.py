@@ -3,7 +3,9 @@
 Everything addressed to this vehicle (its neighbours' ω, the world's clock, roster and
 relayed commands) arrives through one subscription into one channel, and the main
 thread waits on that channel alone: no callbacks, no locks, one wake-up per message
-(docs/architecture.md, "The agent"). It publishes its ω to the vehicles listening to
+(docs/architecture.md, "The agent"). In realtime, where the main thread polls at least
+every MAX_NAP, each neighbour's ω has a bounded ring channel of its own instead, so a
+flood on one key is cut by Zenoh before it costs Python anything. It publishes its ω to the vehicles listening to
 it, its telemetry in batches and its counters to the world, and declares a liveliness
 token once it is ready.
 
@@ -68,6 +70,7 @@ BURSTS_PER_STATS = 100  # drop bursts one report carries; a report goes early on
 STALL_TICKS = 10  # realtime: this many periods late means the process was frozen, not just slow
 END_WAIT = 10.0  # s to wait for the world's stop after the last tick
 INBOX_CAPACITY = 4096  # samples; when full, Zenoh's delivery to this session waits (nothing grows)
+OMEGA_RING = 16  # realtime: ω samples kept per neighbour between drains (<= MAX_NAP apart), newest first
 #: lockstep: a neighbour may have a grant this agent has not received yet; one grant moves at
 #: most GRANT_WINDOW past the slowest live vehicle's acknowledged tick, which is <= ours
 LOCKSTEP_SEQ_MARGIN = 2 * GRANT_WINDOW
@@ -168,6 +171,7 @@ class Agent:
         self.clock = Clock()
         self.state_batch = STATE_BATCH[clock]
         self.rejected: Counter = Counter()  # by reason, every reject (the node's ω ones too, but "gone")
+        self._rings: list[Any] = []  # realtime: one ω subscription per neighbour (ring channels)
         self._bucket: dict[int, tuple[float, float]] = {}  # realtime ω rate per neighbour: (tokens, when)
         self._rate = RATE_MARGIN * scenario.rates.broadcast  # ω per s a neighbour may send
         self._logged: set[tuple[str, str]] = set()
@@ -188,12 +192,21 @@ class Agent:
     def open(self) -> None:
         s = self.session = open_session(self.transport)
         f, me = self.fleet, self.id
-        self.inbox = s.declare_subscriber(keys.inbox(f, me), zenoh.handlers.FifoChannel(INBOX_CAPACITY))
-        # declared after the subscription, on the same session: whoever gets a reply holds both
-        self.pinged = s.declare_queryable(keys.ping(f, me), lambda q: q.reply(keys.ping(f, me), b""))
         # the exact key each neighbour's ω arrives on (its listener set is known): no parsing
         self._omega_from = {keys.omega(f, self.ids[k], listeners_of(self.scenario, self.ids[k])): k
                             for k in self.node.neighbours}
+        if self.clock_mode == "lockstep":  # one FIFO for everything: a genuine message is never lost
+            self.inbox = s.declare_subscriber(keys.inbox(f, me), zenoh.handlers.FifoChannel(INBOX_CAPACITY))
+        else:
+            # Realtime: the world's one-chunk keys (ctl, contacts, wake) through the FIFO, each
+            # neighbour's ω through a ring of its own that Zenoh overwrites oldest first, so a
+            # flood on one key costs this process at most OMEGA_RING samples per drain, not one
+            # Python wake-up per message (the newest ω is the one that matters).
+            self.inbox = s.declare_subscriber(keys.inbox(f, me)[:-2] + "*", zenoh.handlers.FifoChannel(INBOX_CAPACITY))
+            self._rings = [s.declare_subscriber(key, zenoh.handlers.RingChannel(OMEGA_RING))
+                           for key in self._omega_from]
+        # declared after the subscriptions, on the same session: whoever gets a reply holds them
+        self.pinged = s.declare_queryable(keys.ping(f, me), lambda q: q.reply(keys.ping(f, me), b""))
         # Block rather than drop under congestion: losses are the link emulator's job, and a
         # lockstep neighbour waits for every broadcast.
         block = zenoh.CongestionControl.BLOCK
@@ -417,12 +430,16 @@ class Agent:
         """Block for the next sample, then take everything else that is waiting."""
         handle = self._handle
         handle(self.inbox.recv(), now())
-        while (sample := self.inbox.try_recv()) is not None:
-            handle(sample, now())
+        self._drain(now)
 
     def _drain(self, now: Callable[[], float | None]) -> None:
         while (sample := self.inbox.try_recv()) is not None:
             self._handle(sample, now())
+        for ring in self._rings:  # realtime ω: at most OMEGA_RING each
+            for _ in range(OMEGA_RING):
+                if (sample := ring.try_recv()) is None:
+                    break
+                self._handle(sample, now())
 
     def _stopping(self) -> bool:
         return self.clock.stop or self.stop_requested
