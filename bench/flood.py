@@ -27,6 +27,7 @@ import time
 
 from _fleet import REPO, Launch, load_line, role, rss_mb
 
+import psutil
 import zenoh
 
 from cdus.scenario.config import load_scenario
@@ -85,12 +86,27 @@ def main() -> None:
         def missed() -> dict[str, int]:
             return {v: getattr(s, "missed_deadlines", 0) for v, s in stats.items() if not isinstance(s, str)}
 
+        launcher = psutil.Process(la.proc.pid)
+
+        def cpu_now() -> dict[str, float]:
+            out = {}
+            for name, p in [("router", launcher), *agents.items()]:
+                try:
+                    t = p.cpu_times()
+                    out[name] = t.user + t.system
+                except psutil.Error:
+                    pass
+            return out
+
+        cpu_at: dict[str, tuple[float, dict[str, float]]] = {"start": (time.monotonic(), cpu_now())}
+
         def sample_rss(name: str, until: float) -> None:
             while time.monotonic() < until and la.proc.poll() is None:
                 for v in targets:
                     if v in agents and (m := rss_mb(agents[v])) is not None:
                         rss.setdefault(name, []).append(m)
                 time.sleep(0.5)
+            cpu_at[name] = (time.monotonic(), cpu_now())
 
         t_up = time.monotonic()
         sample_rss("before", t_up + args.start)
@@ -133,8 +149,17 @@ def main() -> None:
         print(f"flood: {flood['sent']} stale ω in {flood['seconds']:.1f} s ({rate:,.0f} per s) "
               f"from {args.start:g} s of wall time after the fleet was up")
     prev: dict[str, int] = {}
-    print(f"{'phase':<8} {'missed (targets)':>17} {'missed (others)':>16} {'target RSS MB min/max':>22}")
+    print(f"{'phase':<8} {'missed (targets)':>17} {'missed (others)':>16} {'target RSS MB min/max':>22} "
+          f"{'CPU % per target':>17} {'CPU % router':>13}")
+    prev_cpu = cpu_at["start"]
     for name in ("before", "during", "after"):
+        t1, c1 = cpu_at.get(name, prev_cpu)
+        t0c, c0 = prev_cpu
+        prev_cpu = (t1, c1)
+        span = max(t1 - t0c, 1e-9)
+        per_target = [100 * (c1[v] - c0[v]) / span for v in targets if v in c1 and v in c0]
+        cpu_t = f"{sum(per_target) / len(per_target):.0f}" if per_target else "-"
+        cpu_r = f"{100 * (c1['router'] - c0['router']) / span:.0f}" if "router" in c1 and "router" in c0 else "-"
         m = missed_at.get(name, {})
         d = {v: m.get(v, 0) - prev.get(v, 0) for v in m}
         prev = m
@@ -142,7 +167,7 @@ def main() -> None:
         om = sum(x for v, x in d.items() if v not in targets)
         r = rss.get(name, [])
         rr = f"{min(r):.1f}/{max(r):.1f}" if r else "-"
-        print(f"{name:<8} {tm:>17} {om:>16} {rr:>22}")
+        print(f"{name:<8} {tm:>17} {om:>16} {rr:>22} {cpu_t:>17} {cpu_r:>13}")
     for v in targets:
         s = stats.get(v)
         if s is not None and not isinstance(s, str):
