@@ -5,7 +5,10 @@ in-process fleet drives one per vehicle in memory, the vehicle agent drives one 
 Zenoh, and both therefore step the same ticks with the same inputs (docs/architecture.md,
 "One tick protocol"). Its inputs:
 
-- ``on_message(msg, arrival)``: a validated ω message from a neighbour. The link model
+- ``on_message(msg, arrival)``: a decoded ω message from a neighbour, checked at entry
+  (send time implied by its seq, seq within :attr:`VehicleNode.horizon`, duplicates and
+  conflicts, ω plausible against the sender's own past; docs/architecture.md, "What a
+  vehicle accepts"); a reject is counted and never advances the sender's seq. The link model
   decides, at this receiver, whether and when the message becomes usable, from
   (seed, src, dst, seq) alone. Deterministic runners (in-process, lockstep) pass no
   arrival time: the message is decided at the first tick after the one it was sent at,
