@@ -279,11 +279,13 @@ class Agent:
             self._logged.add((sender, reason))
             self.log(f"rejected a message from {printable(sender, 64)!r}: {reason} (counted; logged once)")
 
-    def _horizon(self) -> int:
+    def _horizon(self) -> int | None:
         """The newest tick a genuine neighbour can have broadcast at, as this agent knows time:
         lockstep, its grant (or join) plus :data:`LOCKSTEP_SEQ_MARGIN`; realtime, its wall-clock
         tick plus :data:`REALTIME_SLACK` (from tick 0 while the start is not known)."""
         clock = self.clock
+        if self.rejoin and not (clock.begun if self.clock_mode == "lockstep" else clock.t0 is not None):
+            return None  # a restart that does not know where the run is yet: the run's last tick bounds
         if self.clock_mode == "lockstep":
             return max(clock.granted, clock.join) + LOCKSTEP_SEQ_MARGIN
         slack = math.ceil(REALTIME_SLACK / self.period)

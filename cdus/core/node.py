@@ -70,7 +70,8 @@ def omega_plausible(prev: OmegaMsg, msg: OmegaMsg, period: float) -> bool:
     float32 (relative error <= 2^-24). So for consecutive ticks the relation is exact up to
     rounding. Over a gap of g > 1 ticks (a broadcast period of several control ticks, or
     messages lost) only the end rates are known: the mean rate must lie within the end rates'
-    spread plus :data:`GAP_RATE_SLACK`. A restart or a rejoin moves ω freely; the caller skips
+    half spread, plus their mean (a sender frozen meanwhile kept its ω), plus
+    :data:`GAP_RATE_SLACK`, around their mean. A restart or a rejoin moves ω freely; the caller skips
     the check where the roster explains the gap (and heals after :data:`HEAL` messages).
     """
     g = round((msg.t_send - prev.t_send) / period)
@@ -82,7 +83,9 @@ def omega_plausible(prev: OmegaMsg, msg: OmegaMsg, period: float) -> bool:
         return abs(d - period * msg.omega_rate) <= period * abs(msg.omega_rate) * 2.0 ** -21 + ulp
     span = g * period
     mid = 0.5 * (prev.omega_rate + msg.omega_rate)
-    return abs(d - span * mid) <= span * (0.5 * abs(msg.omega_rate - prev.omega_rate) + GAP_RATE_SLACK) + ulp
+    # a sender frozen meanwhile (a realtime stall) kept its ω: a mean rate of 0 is allowed too
+    return abs(d - span * mid) <= span * (0.5 * abs(msg.omega_rate - prev.omega_rate) + abs(mid) + GAP_RATE_SLACK) \
+        + ulp
 
 
 def gains_problem(gains: dict, dim: int) -> str | None:

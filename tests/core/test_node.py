@@ -336,6 +336,19 @@ def test_a_restart_in_the_roster_lets_omega_jump_and_a_consistent_new_past_heals
     assert b.rejected["implausible"] == 2 and b.seen_seq[1] == 3
 
 
+def test_a_slower_broadcast_rejects_nothing_and_a_frozen_senders_omega_passes():
+    from cdus.core.node import omega_plausible
+    from cdus.scenario.config import load_scenario
+    from cdus.sim.fleet import InProcessFleet
+    sc = load_scenario("configs/lake_circle.toml", {"scenario.duration": 30.0, "rates.broadcast": 10.0})
+    fleet = InProcessFleet(sc)
+    fleet.run()
+    assert fleet.nodes[0].every == 5
+    assert not any(nd.rejected[r] for nd in fleet.nodes for r in ("implausible", "future", "conflict"))
+    # a sender frozen for 12 ticks: ω where it was, rate the law's
+    assert omega_plausible(OmegaMsg(1, 0, 0.0, 3.0, -1.0), OmegaMsg(1, 12, 12 * T, 3.0 + 0.01, -1.02), T)
+
+
 @pytest.mark.parametrize("name", ["concentric_circles", "crossing", "lake_circle", "lake_circle_dynamic",
                                   "lake_windy", "lissajous_5x5", "offset_circles"])
 def test_clean_runs_of_the_shipped_configs_reject_nothing_hostile_and_are_unchanged(name, monkeypatch):

@@ -463,3 +463,15 @@ def test_hostile_samples_out_of_window_or_malformed_never_change_a_lockstep_agen
     rows, a = _lockstep_run(fake, hostile)
     assert rows == clean
     assert sum(a.rejected.values()) == n_hostile[0]
+
+
+def test_a_restarted_agent_takes_omega_from_a_run_under_way_before_it_knows_where_the_run_is(fake):
+    a, s, lines = fake(duration=10.0)
+    a.rejoin = True
+    omega_from(s, a, "usv2", 300)  # far past any window of a process that has not joined yet
+    a._drain(lambda: None)
+    assert not a.rejected and a.node.seen_seq[a.ids.index("usv2")] == 300
+    b, s, lines = fake(duration=10.0)  # a first start: tick 300 is beyond what anyone was granted
+    omega_from(s, b, "usv2", 300)
+    b._drain(lambda: None)
+    assert b.rejected == {"future": 1}
