@@ -322,6 +322,9 @@ class Agent:
             reason = self.node.on_message(msg, now)
             if reason is not None:
                 self._reject(self.ids[k], reason)
+            elif k in self._bucket:  # only what is rejected spends a sender's budget
+                tokens, when = self._bucket[k]
+                self._bucket[k] = (min(float(RATE_BURST), tokens + 1.0), when)
             return
         if key.endswith("/ctl"):
             return self._on_ctl(sample.payload.to_bytes())

@@ -475,3 +475,12 @@ def test_a_restarted_agent_takes_omega_from_a_run_under_way_before_it_knows_wher
     omega_from(s, b, "usv2", 300)
     b._drain(lambda: None)
     assert b.rejected == {"future": 1}
+
+
+def test_genuine_omega_does_not_spend_its_senders_rate_budget(fake):
+    a, s, lines = fake(clock="realtime", duration=10.0)
+    a.clock.t0 = time.time() - 5.0  # the run is at tick ~250
+    for seq in range(3 * agent_module.RATE_BURST):  # more genuine messages than the bucket holds
+        omega_from(s, a, "usv2", seq)
+    a._drain(lambda: 5.0)
+    assert not a.rejected
