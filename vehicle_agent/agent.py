@@ -3,7 +3,9 @@
 Everything addressed to this vehicle (its neighbours' ω, the world's clock, roster and
 relayed commands) arrives through one subscription into one channel, and the main
 thread waits on that channel alone: no callbacks, no locks, one wake-up per message
-(docs/architecture.md, "The agent"). It publishes its ω to the vehicles listening to
+(docs/architecture.md, "The agent"). In realtime, where the main thread polls at least
+every MAX_NAP, each neighbour's ω has a bounded ring channel of its own instead, so a
+flood on one key is cut by Zenoh before it costs Python anything. It publishes its ω to the vehicles listening to
 it, its telemetry in batches and its counters to the world, and declares a liveliness
 token once it is ready.
 
@@ -17,8 +19,13 @@ token once it is ready.
   missed deadline. A small waker thread pokes the channel at each tick time (and on
   SIGTERM/SIGINT, so a signal is never stuck behind a blocking wait).
 
-Everything received is validated (cdus.wire.messages) and counted when rejected, with
-one log line per sender and reason.
+Everything received is validated (cdus.wire.messages, then cdus.core.node for ω and
+:meth:`Agent._ctl_problem` for the world's control maps) and counted by reason when
+rejected (stale duplicates too), with one log line per sender and reason. ω is accepted
+only within a window of what its sender can have sent (:meth:`Agent._horizon`). Work per
+sender is bounded: in realtime, ω beyond what a sender can send (its broadcast rate times
+:data:`RATE_MARGIN`, bursts of :data:`RATE_BURST`) is dropped before it is decoded
+(``rate``); the inbox is a bounded channel (:data:`INBOX_CAPACITY`).
 """
 
 from __future__ import annotations
@@ -47,6 +54,8 @@ from cdus.scenario.link import merge_link_tables, validate_link
 from cdus.sim.build import build_node, link_emulator_for, listeners_of
 from cdus.sim.sensing import contacts_of
 from cdus.core.schedule import CLOCKS, total_ticks
+from cdus.sim.lockstep import GRANT_WINDOW
+from cdus.wire.text import printable
 from cdus.wire import keys
 from cdus.wire.messages import (
     CTL_OPS, MAX_STATE_ROWS, StateMsg, decode_contacts, decode_control, decode_omega, decode_states, encode_omega,
@@ -60,7 +69,19 @@ STATS_PERIOD = 1.0  # s of wall time between counter reports
 BURSTS_PER_STATS = 100  # drop bursts one report carries; a report goes early once half as many wait
 STALL_TICKS = 10  # realtime: this many periods late means the process was frozen, not just slow
 END_WAIT = 10.0  # s to wait for the world's stop after the last tick
-INBOX_CAPACITY = 4096
+INBOX_CAPACITY = 4096  # samples; when full, Zenoh's delivery to this session waits (nothing grows)
+OMEGA_RING = 16  # realtime: ω samples kept per neighbour between drains (<= MAX_NAP apart), newest first
+#: lockstep: a neighbour may have a grant this agent has not received yet; one grant moves at
+#: most GRANT_WINDOW past the slowest live vehicle's acknowledged tick, which is <= ours
+LOCKSTEP_SEQ_MARGIN = 2 * GRANT_WINDOW
+REALTIME_SLACK = 0.25  # s: a realtime ω may be stamped this far past this agent's wall-clock tick
+T0_PAST = 86400.0  # s: a realtime t0 (start, resume) older than the run's duration plus this is not ours
+T0_AHEAD = 60.0  # s: ... nor one further in the future than this
+RATE_MARGIN = 4.0  # realtime: a sender's ω rate allowed, in multiples of its broadcast rate
+RATE_BURST = 64  # realtime: ω a sender may send back to back (a stall's catch-up is < STALL_TICKS)
+_KINDS = ("omega", "state", "stats", "ctl", "contacts", "cmd", "wake", "last")  # named in a reject reason
+MAX_LOGGED = 256
+MAX_LINK_AT = 1e9  # s: a link change's time (past the run's end it never applies)  # (sender, reason) pairs logged; past that, rejects are only counted
 LOG_WAIT = 5.0  # s of waiting before saying what for
 #: lockstep: s stuck on one tick before this vehicle says its last ω and recent telemetry again:
 #: a router that lapsed (frozen, restarted) lost what was in flight, and the fleet waits for it
@@ -153,7 +174,10 @@ class Agent:
         self.link_table: dict = scenario.link_table
         self.clock = Clock()
         self.state_batch = STATE_BATCH[clock]
-        self.rejected: Counter = Counter()
+        self.rejected: Counter = Counter()  # by reason, every reject (the node's ω ones too, but "gone")
+        self._rings: list[Any] = []  # realtime: one ω subscription per neighbour (ring channels)
+        self._bucket: dict[int, tuple[float, float]] = {}  # realtime ω rate per neighbour: (tokens, when)
+        self._rate = RATE_MARGIN * scenario.rates.broadcast  # ω per s a neighbour may send
         self._logged: set[tuple[str, str]] = set()
         self._states: list[StateMsg] = []
         self._last_omega: bytes | None = None  # lockstep: said again when stuck (RESEND_WAIT)
@@ -174,12 +198,21 @@ class Agent:
     def open(self) -> None:
         s = self.session = open_session(self.transport)
         f, me = self.fleet, self.id
-        self.inbox = s.declare_subscriber(keys.inbox(f, me), zenoh.handlers.FifoChannel(INBOX_CAPACITY))
-        # declared after the subscription, on the same session: whoever gets a reply holds both
-        self.pinged = s.declare_queryable(keys.ping(f, me), lambda q: q.reply(keys.ping(f, me), b""))
         # the exact key each neighbour's ω arrives on (its listener set is known): no parsing
         self._omega_from = {keys.omega(f, self.ids[k], listeners_of(self.scenario, self.ids[k])): k
                             for k in self.node.neighbours}
+        if self.clock_mode == "lockstep":  # one FIFO for everything: a genuine message is never lost
+            self.inbox = s.declare_subscriber(keys.inbox(f, me), zenoh.handlers.FifoChannel(INBOX_CAPACITY))
+        else:
+            # Realtime: the world's one-chunk keys (ctl, contacts, wake) through the FIFO, each
+            # neighbour's ω through a ring of its own that Zenoh overwrites oldest first, so a
+            # flood on one key costs this process at most OMEGA_RING samples per drain, not one
+            # Python wake-up per message (the newest ω is the one that matters).
+            self.inbox = s.declare_subscriber(keys.inbox(f, me)[:-2] + "*", zenoh.handlers.FifoChannel(INBOX_CAPACITY))
+            self._rings = [s.declare_subscriber(key, zenoh.handlers.RingChannel(OMEGA_RING))
+                           for key in self._omega_from]
+        # declared after the subscriptions, on the same session: whoever gets a reply holds them
+        self.pinged = s.declare_queryable(keys.ping(f, me), lambda q: q.reply(keys.ping(f, me), b""))
         # Block rather than drop under congestion: losses are the link emulator's job, and a
         # lockstep neighbour waits for every broadcast.
         block = zenoh.CongestionControl.BLOCK
@@ -248,21 +281,56 @@ class Agent:
     # ------------------------------------------------------------------ receiving
     def _reject(self, sender: str, reason: str) -> None:
         self.rejected[reason] += 1
-        if (sender, reason) not in self._logged:  # log once per sender and reason
+        if (sender, reason) not in self._logged and len(self._logged) < MAX_LOGGED:  # once per sender, reason
             self._logged.add((sender, reason))
-            self.log(f"rejected a message from {sender!r}: {reason} (counted; logged once)")
+            self.log(f"rejected a message from {printable(sender, 64)!r}: {reason} (counted; logged once)")
+
+    def _horizon(self) -> int | None:
+        """The newest tick a genuine neighbour can have broadcast at, as this agent knows time:
+        lockstep, its grant (or join) plus :data:`LOCKSTEP_SEQ_MARGIN`; realtime, its wall-clock
+        tick plus :data:`REALTIME_SLACK` (from tick 0 while the start is not known)."""
+        clock = self.clock
+        if self.rejoin and not (clock.begun if self.clock_mode == "lockstep" else clock.t0 is not None):
+            return None  # a restart that does not know where the run is yet: the run's last tick bounds
+        if self.clock_mode == "lockstep":
+            return max(clock.granted, clock.join) + LOCKSTEP_SEQ_MARGIN
+        slack = math.ceil(REALTIME_SLACK / self.period)
+        if clock.t0 is None:
+            return slack
+        return max(0, math.floor((time.time() - clock.t0) / self.period)) + slack
+
+    def _over_rate(self, k: int) -> bool:
+        """Realtime: has neighbour ``k`` sent more than it can (a token bucket at RATE_MARGIN times
+        its broadcast rate, RATE_BURST deep)? Lockstep takes everything: a genuine message is
+        never dropped there, and a sender's ω is bounded by the grant window."""
+        if self.clock_mode != "realtime":
+            return False
+        now = time.monotonic()
+        tokens, last = self._bucket.get(k, (float(RATE_BURST), now))
+        tokens = min(float(RATE_BURST), tokens + (now - last) * self._rate)
+        if tokens < 1.0:
+            self._bucket[k] = (tokens, now)
+            return True
+        self._bucket[k] = (tokens - 1.0, now)
+        return False
 
     def _handle(self, sample: Any, now: float | None) -> None:
         """One sample from the inbox. ``now``: simulated arrival time (realtime) or None."""
         key = str(sample.key_expr)
         k = self._omega_from.get(key)
         if k is not None:
+            if self._over_rate(k):  # before decoding: a flood costs a lookup and a subtraction
+                return self._reject(self.ids[k], "rate")
             msg = decode_omega(sample.payload.to_bytes(), expected_sender=k, n_vehicles=len(self.ids))
             if isinstance(msg, str):
                 return self._reject(self.ids[k], msg)
+            self.node.horizon = self._horizon()
             reason = self.node.on_message(msg, now)
-            if reason is not None and reason != "stale":
+            if reason is not None:
                 self._reject(self.ids[k], reason)
+            elif k in self._bucket:  # only what is rejected spends a sender's budget
+                tokens, when = self._bucket[k]
+                self._bucket[k] = (min(float(RATE_BURST), tokens + 1.0), when)
             return
         if key.endswith("/ctl"):
             return self._on_ctl(sample.payload.to_bytes())
@@ -271,13 +339,39 @@ class Agent:
         if key.endswith("/wake"):
             return
         kind, src = keys.leaf(key)
-        self._reject(src or key, f"unexpected {kind or 'key'}")
+        self._reject(src or key, "unexpected " + (kind if kind in _KINDS else "key"))
+
+    def _ctl_problem(self, op: str, f: dict) -> str | None:
+        """What is out of range in a control message from the world (None: nothing): ticks within
+        the run, a grant not past its last tick, a realtime t0 near now, a known roster vehicle."""
+        last = self.last_tick
+        if op == "grant" and not 0 <= f["until"] <= last:
+            return "grant_range"
+        if op == "join" and not 0 <= f["tick"] <= last:
+            return "join_range"
+        if op == "gains" and not 0 <= f["tick"] < 2**31:  # past the run's end it never applies: harmless
+            return "gains_range"
+        if op == "roster" and (f["vehicle"] not in self.ids or f["state"] not in ("live", "paused", "gone")
+                               or not 0 <= f["tick"] <= last + 1):
+            return "bad_roster"
+        if op in ("start", "resume"):
+            now = time.time()
+            if not now - T0_PAST - last * self.period <= f["t0"] <= now + T0_AHEAD:
+                return "t0_range"
+        if op == "link" and not 0.0 <= f["at"] <= MAX_LINK_AT:
+            return "link_range"
+        if op in ("link", "gains") and _depth(f[op]) > 3:
+            return f"{op}_range"
+        return None
 
     def _on_ctl(self, payload: bytes) -> None:
         c = decode_control(payload, CTL_OPS)
         if isinstance(c, str):
             return self._reject("world", c)
         op, f, clock = c.op, c.fields, self.clock
+        problem = self._ctl_problem(op, f)
+        if problem is not None:
+            return self._reject("world", problem)
         if op == "grant":
             clock.granted = max(clock.granted, f["until"])
         elif op == "join":
@@ -308,8 +402,6 @@ class Agent:
         self.node.on_contacts(msg.tick, contacts_of(msg, self.ids))
 
     def _on_roster(self, f: dict) -> None:
-        if f["vehicle"] not in self.ids or f["state"] not in ("live", "paused", "gone") or f["tick"] < 0:
-            return self._reject("world", "bad_roster")
         j = self.ids.index(f["vehicle"])
         self.node.on_roster(RosterChange(f["tick"], j, f["state"], f["fresh"]))
         if j in self.node.neighbours:
@@ -349,12 +441,16 @@ class Agent:
         """Block for the next sample, then take everything else that is waiting."""
         handle = self._handle
         handle(self.inbox.recv(), now())
-        while (sample := self.inbox.try_recv()) is not None:
-            handle(sample, now())
+        self._drain(now)
 
     def _drain(self, now: Callable[[], float | None]) -> None:
         while (sample := self.inbox.try_recv()) is not None:
             self._handle(sample, now())
+        for ring in self._rings:  # realtime ω: at most OMEGA_RING each
+            for _ in range(OMEGA_RING):
+                if (sample := ring.try_recv()) is None:
+                    break
+                self._handle(sample, now())
 
     def _stopping(self) -> bool:
         return self.clock.stop or self.stop_requested
@@ -512,7 +608,9 @@ class Agent:
 
     def stats(self) -> AgentStats:
         node, c = self.node, self.node.counters
-        by_reason = {**dict(self.rejected), **{r: x for r, x in node.rejected.items() if x}}
+        by_reason = dict(self.rejected)
+        if node.rejected["gone"]:  # counted by the node when a message is offered (in c.rejected)
+            by_reason["gone"] = node.rejected["gone"]
         faults = node.link.counters_summary() if isinstance(node.link, LinkEmulator) else None
         if faults is not None:
             faults["state_changes"] = faults["state_changes"][-50:]  # the newest; the world keeps the history
@@ -542,6 +640,15 @@ class Agent:
         never: Callable[[], None] = lambda: None
         while not self._stopping() and time.time() < deadline:
             self._recv(never)
+
+
+def _depth(obj: Any, level: int = 0) -> int:
+    """How deeply ``obj`` nests maps and lists (a decoded control map is already bounded in size)."""
+    if isinstance(obj, dict):
+        return max((_depth(v, level + 1) for v in obj.values()), default=level + 1)
+    if isinstance(obj, (list, tuple)):
+        return max((_depth(v, level + 1) for v in obj), default=level + 1)
+    return level
 
 
 def run_agent(agent: Agent) -> int:

@@ -5,7 +5,10 @@ in-process fleet drives one per vehicle in memory, the vehicle agent drives one 
 Zenoh, and both therefore step the same ticks with the same inputs (docs/architecture.md,
 "One tick protocol"). Its inputs:
 
-- ``on_message(msg, arrival)``: a validated ω message from a neighbour. The link model
+- ``on_message(msg, arrival)``: a decoded ω message from a neighbour, checked at entry
+  (send time implied by its seq, seq within :attr:`VehicleNode.horizon`, duplicates and
+  conflicts, ω plausible against the sender's own past; docs/architecture.md, "What a
+  vehicle accepts"); a reject is counted and never advances the sender's seq. The link model
   decides, at this receiver, whether and when the message becomes usable, from
   (seed, src, dst, seq) alone. Deterministic runners (in-process, lockstep) pass no
   arrival time: the message is decided at the first tick after the one it was sent at,
@@ -50,7 +53,39 @@ from cdus.core.schedule import delivery_tick, last_broadcast_seq, send_tick
 from cdus.core.vehicle import DivergedError, Telemetry, Vehicle
 from cdus.wire.messages import OmegaMsg
 
-REJECT_REASONS = ("not_a_neighbour", "stale", "gone")
+REJECT_REASONS = ("not_a_neighbour", "inconsistent", "future", "stale", "conflict", "implausible", "gone")
+#: reasons a hostile or broken sender shows (the world turns new counts of them into an event)
+HOSTILE_REASONS = ("future", "conflict", "implausible")
+RECENT = 8  # messages kept per sender to tell a duplicate ("stale") from a forgery ("conflict")
+HEAL = 3  # consecutive messages consistent with each other but not with the sender's past: a new past
+#: slack of the loose check over a gap of several ticks (rad/s on the mean rate; docs/architecture.md)
+GAP_RATE_SLACK = 1.0
+
+
+def omega_plausible(prev: OmegaMsg, msg: OmegaMsg, period: float) -> bool:
+    """Can a genuine sender that sent ``prev`` send ``msg`` next (``msg.seq > prev.seq``)?
+
+    A vehicle's ω at tick n is ω at tick n - 1 plus T ω̇_n, where ω̇_n is the mean rate over
+    that period and is what the message carries (cdus.core.vehicle.Vehicle.control), packed as
+    float32 (relative error <= 2^-24). So for consecutive ticks the relation is exact up to
+    rounding. Over a gap of g > 1 ticks (a broadcast period of several control ticks, or
+    messages lost) only the end rates are known: the mean rate must lie within the end rates'
+    half spread, plus their mean (a sender frozen meanwhile kept its ω), plus
+    :data:`GAP_RATE_SLACK`, around their mean. A restart or a rejoin moves ω freely; the caller skips
+    the check where the roster explains the gap (and heals after :data:`HEAL` messages).
+    """
+    g = round((msg.t_send - prev.t_send) / period)
+    if g <= 0:
+        return False
+    d = msg.omega - prev.omega
+    ulp = 4 * math.ulp(max(abs(msg.omega), abs(prev.omega), 1.0))
+    if g == 1:
+        return abs(d - period * msg.omega_rate) <= period * abs(msg.omega_rate) * 2.0 ** -21 + ulp
+    span = g * period
+    mid = 0.5 * (prev.omega_rate + msg.omega_rate)
+    # a sender frozen meanwhile (a realtime stall) kept its ω: a mean rate of 0 is allowed too
+    return abs(d - span * mid) <= span * (0.5 * abs(msg.omega_rate - prev.omega_rate) + abs(mid) + GAP_RATE_SLACK) \
+        + ulp
 
 
 def gains_problem(gains: dict, dim: int) -> str | None:
@@ -89,6 +124,10 @@ class _Neighbour:
     state: str = "live"
     since: int = 0  # tick of its newest (re)start: nothing it sent before is used
     changes: list[RosterChange] = field(default_factory=list)  # not yet applied, by tick
+    change_ticks: list[int] = field(default_factory=list)  # ticks of every change heard of (newest RECENT)
+    last: OmegaMsg | None = None  # its newest message taken (the past a new one must agree with)
+    recent: dict[int, OmegaMsg] = field(default_factory=dict)  # seq -> message taken, newest RECENT
+    chain: list[OmegaMsg] = field(default_factory=list)  # implausible messages consistent with each other
 
 
 class VehicleNode:
@@ -114,6 +153,10 @@ class VehicleNode:
         self.seen_seq: dict[int, int] = {}  # newest sequence number physically received, per sender
         self.counters = LinkCounters()
         self.rejected = {r: 0 for r in REJECT_REASONS}
+        #: the newest send tick a genuine sender can have reached, set by the runner (the fleet's
+        #: current tick, a lockstep grant plus its window, a realtime wall tick plus slack);
+        #: None: no bound but the run's last tick
+        self.horizon: int | None = None
         self.bursts = DropBursts()
         self._inbox: list[OmegaMsg] = []  # deterministic: received, not yet decided (send order)
         self._due: dict[int, list[tuple[OmegaMsg, float]]] = defaultdict(list)  # by delivery tick
@@ -134,15 +177,45 @@ class VehicleNode:
 
     # ------------------------------------------------------------------ inputs
     def on_message(self, msg: OmegaMsg, arrival: float | None = None) -> str | None:
-        """Take a validated ω message from the wire; returns a reject reason or None."""
+        """Take a validated ω message from the wire; returns a reject reason or None.
+
+        Checked in this order, every reject counted by reason: the sender is a neighbour; its
+        send time is the one its seq implies (``inconsistent``); the seq is within what the
+        sender can have sent (``future``: past :attr:`horizon` or the run's last tick); it is
+        newer than the newest taken (``stale``: a duplicate, ``conflict``: the same seq with
+        other content); and ω agrees with the sender's own recent messages
+        (``implausible``, :func:`omega_plausible`). A rejected message never advances the
+        sender's newest seq, so nobody else's message can lock a sender out.
+        """
         k = msg.sender
         peer = self._peers.get(k)
         if peer is None:
             return self._reject("not_a_neighbour")
-        if send_tick(msg.t_send, self.period) < self._deaf_before:
+        tick = msg.seq * self.every
+        if msg.t_send != tick * self.period:  # Vehicle.t = tick * T exactly, tick = seq * every
+            return self._reject("inconsistent")
+        if tick > self.last_tick or (self.horizon is not None and tick > self.horizon):
+            return self._reject("future")
+        if tick < self._deaf_before:
             return None  # sent while this vehicle's process was gone: it never heard it (see rejoin)
         if msg.seq <= self.seen_seq.get(k, -1):
-            return self._reject("stale")
+            old = peer.recent.get(msg.seq)
+            return self._reject("conflict" if old is not None and old != msg else "stale")
+        last = peer.last
+        if last is not None and not self._explained(peer, last, tick) and \
+                not omega_plausible(last, msg, self.period):
+            chain = peer.chain
+            if chain and msg.seq > chain[-1].seq and omega_plausible(chain[-1], msg, self.period):
+                chain.append(msg)
+            else:
+                chain[:] = [msg]
+            if len(chain) < HEAL:
+                return self._reject("implausible")
+        peer.chain.clear()
+        peer.last = msg
+        peer.recent[msg.seq] = msg
+        if len(peer.recent) > RECENT:
+            del peer.recent[min(peer.recent)]
         self.seen_seq[k] = msg.seq
         if arrival is None:
             self._inbox.append(msg)
@@ -152,13 +225,22 @@ class VehicleNode:
                 heapq.heappush(self._pending, (arrival + d, self._order, msg, d))
         return None
 
+    def _explained(self, peer: _Neighbour, last: OmegaMsg, tick: int) -> bool:
+        """Does the roster explain a jump of ω between ``last`` and a message sent at ``tick``
+        (a change of the sender's liveness in between: a restart, a pause, a resume)?"""
+        t0 = send_tick(last.t_send, self.period)
+        return any(t0 < c <= tick for c in peer.change_ticks)
+
     def on_roster(self, change: RosterChange) -> None:
         """A liveness change of a neighbour or of this vehicle, effective at ``change.tick``
         (or at the next tick stepped, if that has passed)."""
         if change.vehicle == self.index:
             _insert(self._self_changes, change)
         elif change.vehicle in self._peers:
-            _insert(self._peers[change.vehicle].changes, change)
+            peer = self._peers[change.vehicle]
+            _insert(peer.changes, change)
+            peer.change_ticks.append(change.tick)
+            del peer.change_ticks[:-RECENT]
 
     def on_contacts(self, tick: int, contacts: tuple[Contact, ...]) -> None:
         """The proximity sensor's contacts of this vehicle sampled at ``tick``."""
@@ -315,6 +397,9 @@ class VehicleNode:
             self._deaf_before = n
             self._inbox = [m for m in self._inbox if send_tick(m.t_send, self.period) >= n]
         self.vehicle.rejoin(n, q, heading, target if target is not None else omega_hint)
+        for peer in self._peers.values():  # what it missed meanwhile cannot be checked against
+            peer.last = None
+            peer.chain.clear()
         self.joined_at = n
         self.tick = n
         self.state = "live"

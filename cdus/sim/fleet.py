@@ -144,6 +144,8 @@ class InProcessFleet:
             self._faults_at(n)
         rows = self._last
         stepped = []
+        for node in self.nodes:  # nobody can have sent anything later than this tick
+            node.horizon = n
         for j, node in enumerate(self.nodes):
             state, _ = node.own_state_at(n)
             if state != "live":

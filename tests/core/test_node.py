@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from cdus.core.events import RosterChange
@@ -27,8 +28,9 @@ def node(j: int = 0, link=None, **kw) -> VehicleNode:
     return build_node(sc, f"v{j}", link or IdealLink(), **kw)
 
 
-def msg(sender: int, tick: int, omega: float = 1.0) -> OmegaMsg:
-    return OmegaMsg(sender, tick, tick * T, omega, -1.0)
+def msg(sender: int, tick: int, omega: float | None = None) -> OmegaMsg:
+    """What a genuine sender sends at ``tick``: ω falls at the rate it carries, -1 rad/s."""
+    return OmegaMsg(sender, tick, tick * T, 1.0 - tick * T if omega is None else omega, -1.0)
 
 
 def held(n: VehicleNode) -> dict[int, int]:
@@ -195,7 +197,7 @@ def test_not_a_neighbour_and_stale_are_counted():
     assert a.on_message(msg(2, 0)) == "not_a_neighbour"
     assert a.on_message(msg(0, 3)) is None
     assert a.on_message(msg(0, 3)) == "stale"
-    assert a.rejected == {"not_a_neighbour": 1, "stale": 1, "gone": 0}
+    assert {r: x for r, x in a.rejected.items() if x} == {"not_a_neighbour": 1, "stale": 1}
 
 
 # --------------------------------------------------------------------------- proximity contacts
@@ -249,3 +251,232 @@ def test_back_from_a_pause_that_lapsed_it_hears_nothing_sent_while_it_was_gone()
     a.step(8)
     a.step(9)
     assert held(a) == {1: 8} and a.counters.sent == 1
+
+
+# ------------------------------------------------------------------ entry validation (issue 15)
+
+def _ticked(a: VehicleNode, n: int) -> None:
+    a.horizon = n
+    a.step(n)
+
+
+def test_a_send_time_that_its_seq_does_not_imply_is_inconsistent_and_crashes_nothing():
+    a = node(0)
+    a.step(0)
+    for t in (1e308, -1e308, 5 * T + 1e-6, -T):
+        assert a.on_message(OmegaMsg(1, 5, t, 1.0, -1.0)) == "inconsistent"
+    assert a.rejected["inconsistent"] == 4 and a.seen_seq == {}
+    a.step(1)  # nothing to send_tick's overflow
+
+
+def test_a_seq_past_the_horizon_is_future_and_does_not_lock_the_sender_out():
+    a = node(0)
+    _ticked(a, 0)
+    assert a.on_message(msg(1, 0)) is None
+    assert a.on_message(msg(1, 2**32 - 1)) == "future"  # past the run's last tick
+    assert a.on_message(msg(1, 1)) == "future"  # tick 1 is not stepped yet by anyone
+    _ticked(a, 1)
+    assert a.on_message(msg(1, 1)) is None
+    assert a.on_message(msg(1, 5)) == "future"  # beyond what the sender can have reached
+    _ticked(a, 2)
+    assert a.on_message(msg(1, 2)) is None  # the genuine one is still taken
+    assert a.rejected["future"] == 3 and a.seen_seq[1] == 2
+
+
+def test_a_seq_seen_with_other_content_is_a_conflict_and_a_duplicate_is_stale():
+    a = node(0)
+    _ticked(a, 0)
+    a.on_message(msg(1, 0))
+    assert a.on_message(msg(1, 0)) == "stale"
+    assert a.on_message(msg(1, 0, omega=2.0)) == "conflict"
+    assert a.rejected["stale"] == 1 and a.rejected["conflict"] == 1
+
+
+def test_an_offset_omega_is_implausible_and_does_not_advance_the_seq():
+    a = node(0)
+    _ticked(a, 0)
+    a.on_message(msg(1, 0))
+    _ticked(a, 1)
+    forged = msg(1, 1)
+    assert a.on_message(OmegaMsg(1, 1, forged.t_send, forged.omega + 1.0, forged.omega_rate)) == "implausible"
+    assert a.seen_seq[1] == 0
+    assert a.on_message(msg(1, 1)) is None  # the genuine one still gets through
+    _ticked(a, 2)
+    assert held(a) == {1: 1} and a.table.latest[1].omega == msg(1, 1).omega
+
+
+def test_a_float32_rate_and_a_gap_of_lost_messages_pass_the_plausibility_check():
+    import struct
+    from cdus.core.node import omega_plausible
+    w0, wd = 1234.5678901234, -0.987654321987
+    w1 = w0 + T * wd
+    rate32 = struct.unpack(">f", struct.pack(">f", (w1 - w0) / T))[0]
+    assert omega_plausible(OmegaMsg(1, 7, 7 * T, w0, -0.9), OmegaMsg(1, 8, 8 * T, w1, rate32), T)
+    assert not omega_plausible(OmegaMsg(1, 7, 7 * T, w0, -0.9), OmegaMsg(1, 8, 8 * T, w1 + 1e-6, rate32), T)
+    # 3 ticks lost, the rate drifting from -1 to -0.8: within the end rates' spread
+    assert omega_plausible(OmegaMsg(1, 0, 0.0, 0.0, -1.0), OmegaMsg(1, 4, 4 * T, -0.09 * 4 * T / 0.09 * 0.9, -0.8), T)
+    assert not omega_plausible(OmegaMsg(1, 0, 0.0, 0.0, -1.0), OmegaMsg(1, 4, 4 * T, 1.0, -0.8), T)
+
+
+def test_a_restart_in_the_roster_lets_omega_jump_and_a_consistent_new_past_heals():
+    a = node(0)
+    _ticked(a, 0)
+    a.on_message(msg(1, 0))
+    a.on_roster(RosterChange(1, 1, "gone"))
+    a.on_roster(RosterChange(1, 1, "live", fresh=True))
+    _ticked(a, 1)
+    assert a.on_message(msg(1, 1, omega=7.0)) is None  # explained by the restart
+    b = node(0)  # no roster news (a realtime stall): three consistent messages make a new past
+    _ticked(b, 0)
+    b.on_message(msg(1, 0))
+    for n in (1, 2, 3):
+        _ticked(b, n)
+        reason = b.on_message(msg(1, n, omega=5.0 - n * T))
+        assert reason == ("implausible" if n < 3 else None)
+    assert b.rejected["implausible"] == 2 and b.seen_seq[1] == 3
+
+
+def test_a_slower_broadcast_rejects_nothing_and_a_frozen_senders_omega_passes():
+    from cdus.core.node import omega_plausible
+    from cdus.scenario.config import load_scenario
+    from cdus.sim.fleet import InProcessFleet
+    sc = load_scenario("configs/lake_circle.toml", {"scenario.duration": 30.0, "rates.broadcast": 10.0})
+    fleet = InProcessFleet(sc)
+    fleet.run()
+    assert fleet.nodes[0].every == 5
+    assert not any(nd.rejected[r] for nd in fleet.nodes for r in ("implausible", "future", "conflict"))
+    # a sender frozen for 12 ticks: ω where it was, rate the law's
+    assert omega_plausible(OmegaMsg(1, 0, 0.0, 3.0, -1.0), OmegaMsg(1, 12, 12 * T, 3.0 + 0.01, -1.02), T)
+
+
+@pytest.mark.parametrize("name", ["concentric_circles", "crossing", "lake_circle", "lake_circle_dynamic",
+                                  "lake_windy", "lissajous_5x5", "offset_circles"])
+def test_clean_runs_of_the_shipped_configs_reject_nothing_hostile_and_are_unchanged(name, monkeypatch):
+    """The entry checks on a clean run: nothing is future, conflict or implausible, and the
+    trajectory is bit for bit the one without the checks."""
+    from cdus.core import node as node_mod
+    from cdus.scenario.config import load_scenario
+    from cdus.sim.fleet import InProcessFleet
+
+    def run():
+        sc = load_scenario(f"configs/{name}.toml", {"scenario.duration": 30.0})
+        fleet = InProcessFleet(sc)
+        res = fleet.run()
+        return res.recorder, [*fleet._retired, *fleet.nodes]
+
+    rec, nodes = run()
+    for nd in nodes:
+        assert not any(nd.rejected[r] for r in node_mod.HOSTILE_REASONS + ("inconsistent", "stale")), nd.rejected
+    monkeypatch.setattr(node_mod.VehicleNode, "on_message", _on_message_before_issue_15)
+    rec2, _ = run()
+    for attr in ("t", "q", "heading", "omega", "omega_rate"):
+        assert np.array_equal(getattr(rec, attr), getattr(rec2, attr)), attr
+
+
+def _on_message_before_issue_15(self, msg, arrival=None):
+    """The entry of ω before the checks, for the comparison above."""
+    import heapq
+    k = msg.sender
+    if k not in self._peers:
+        return self._reject("not_a_neighbour")
+    if round(msg.t_send / self.period) < self._deaf_before:
+        return None
+    if msg.seq <= self.seen_seq.get(k, -1):
+        return self._reject("stale")
+    self.seen_seq[k] = msg.seq
+    if arrival is None:
+        self._inbox.append(msg)
+    else:
+        for d in self._decide(msg):
+            self._order += 1
+            heapq.heappush(self._pending, (arrival + d, self._order, msg, d))
+    return None
+
+
+# ------------------------------------------------------------------ properties (issue 15)
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+_floats = st.floats(allow_nan=False, allow_infinity=False) | st.sampled_from([0.0, 1e308, -1e308, T, 1e-300])
+_any_omega = st.builds(OmegaMsg, st.integers(-2, 5), st.integers(-2, 2**33), _floats, _floats, _floats)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 12), _any_omega, st.booleans()), max_size=40))
+def test_on_message_never_raises_and_counts_every_reject(script):
+    """Arbitrary decoded messages between steps: no exception, and every message is either
+    taken (its seq becomes the sender's newest) or rejected and counted."""
+    a = node(0)
+    n = 0
+    for at, m, realtime in sorted(script, key=lambda s: s[0]):
+        while n < at:
+            _ticked(a, n)
+            n += 1
+        before = sum(a.rejected.values())
+        reason = a.on_message(m, arrival=n * T if realtime else None)
+        if reason is None:
+            assert a.seen_seq.get(m.sender) == m.seq or m.seq * a.every < a._deaf_before
+        else:
+            assert reason in a.rejected and sum(a.rejected.values()) == before + 1
+    for k in range(n, n + 3):
+        _ticked(a, k)
+
+
+def _hostile(data: st.DataObject, src: int, n: int, last: int) -> OmegaMsg | bytes:
+    """A message on ``src``'s key that is out of window or malformed at fleet tick ``n``."""
+    how = data.draw(st.sampled_from(["future", "inconsistent", "stale", "other", "bytes", "huge"]))
+    w = data.draw(_floats)
+    wd = data.draw(_floats)
+    if how == "future":
+        s = data.draw(st.integers(n + 1, 2**32 - 1))
+        return OmegaMsg(src, s, s * T, w, wd)
+    if how == "inconsistent":
+        s = data.draw(st.integers(0, n))
+        t = data.draw(_floats.filter(lambda t: t != s * T))
+        return OmegaMsg(src, s, t, w, wd)
+    if how == "stale" and n > 0:  # a seq already sent: a replay with any content
+        s = data.draw(st.integers(0, n - 1))
+        return OmegaMsg(src, s, s * T, w, wd)
+    if how == "other":  # another vehicle's index on this key
+        return OmegaMsg((src + 1) % 3, n, n * T, w, wd)
+    if how in ("huge", "stale"):
+        return OmegaMsg(src, 2**32 - 1, 1e308, w, wd)
+    return data.draw(st.binary(max_size=40))
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.data())
+def test_hostile_traffic_out_of_window_never_changes_a_genuine_run(data):
+    """The ring run in process, with hostile messages injected on the genuine senders' keys
+    before and after each genuine one: the trajectory is the clean run's, bit for bit, and
+    every hostile message is counted."""
+    from cdus.sim.fleet import InProcessFleet
+    from cdus.scenario.config import parse_scenario
+    from cdus.wire.messages import decode_omega, encode_omega
+
+    sc = parse_scenario({**RING, "scenario": {"name": "ring3", "duration": 1.0}})
+    clean = InProcessFleet(sc)
+    clean.run()
+    fleet = InProcessFleet(sc)
+    sent = {"hostile": 0}
+    real_send = fleet._send
+
+    def send(src, msg, n):
+        for _ in range(data.draw(st.integers(0, 2))):
+            h = _hostile(data, src, n, fleet.end_tick)
+            wire = decode_omega(h if isinstance(h, bytes) else encode_omega(h), expected_sender=src, n_vehicles=3)
+            for dst in fleet.listeners[src]:
+                if isinstance(wire, str):
+                    sent["hostile"] += 1
+                    fleet.nodes[dst].rejected.setdefault(wire, 0)
+                    fleet.nodes[dst].rejected[wire] += 1
+                else:
+                    sent["hostile"] += 1
+                    assert fleet.nodes[dst].on_message(wire) is not None
+        real_send(src, msg, n)
+    fleet._send = send
+    fleet.run()
+    for attr in ("t", "q", "heading", "omega", "omega_rate"):
+        assert np.array_equal(getattr(clean.recorder, attr), getattr(fleet.recorder, attr)), attr
+    counted = sum(sum(x for r, x in nd.rejected.items() if r != "gone") for nd in fleet.nodes)
+    assert counted == sent["hostile"]

@@ -3,6 +3,7 @@ scripted list of samples (the agent's one subscription), publishers that record 
 
 from __future__ import annotations
 
+import time
 from collections import deque
 
 import msgpack
@@ -258,14 +259,15 @@ def test_a_link_command_without_a_policy_keeps_the_one_the_agent_runs(fake):
 
 def test_clock_messages_set_the_agents_clock(fake):
     a, s, lines = fake(clock="realtime")
-    ctl(s, "start", t0=1000.0)
+    t0 = time.time()
+    ctl(s, "start", t0=t0)
     ctl(s, "pause")
     a._drain(lambda: None)
-    assert a.clock.t0 == 1000.0 and a.clock.paused
-    ctl(s, "resume", t0=1005.0)
+    assert a.clock.t0 == t0 and a.clock.paused
+    ctl(s, "resume", t0=t0 + 5.0)
     ctl(s, "stop")
     a._drain(lambda: None)
-    assert a.clock.t0 == 1005.0 and not a.clock.paused and a.clock.stop
+    assert a.clock.t0 == t0 + 5.0 and not a.clock.paused and a.clock.stop
 
 
 def test_stats_round_trip_and_send_only_new_latency_samples(fake):
@@ -289,3 +291,196 @@ def test_the_waker_deadline_is_the_next_tick_or_the_alarm():
     assert w._deadline(1.03) == pytest.approx(1.04)
     w.alarm = 1.035
     assert w._deadline(1.03) == 1.035
+
+
+# ------------------------------------------------------------------ hostile ω and control (issue 15)
+
+def forged(session: Session, a: Agent, vid: str, seq: int, t: float, omega: float, rate: float = -1.0) -> None:
+    j = a.ids.index(vid)
+    key = keys.omega(FLEET, vid, listeners_of(a.scenario, vid))
+    session.inbox.q.append(Sample(key, Payload(encode_omega(OmegaMsg(j, seq, t, omega, rate)))))
+
+
+def test_hostile_omega_neither_crashes_nor_locks_out_nor_offsets_a_lockstep_run(fake):
+    """The attacks of issue 15 between genuine messages: the run steps every tick with the
+    genuine values, and each attack is counted under its reason."""
+    a, s, lines = fake(duration=0.1)
+    ctl(s, "join", tick=0)
+    ctl(s, "grant", until=5)
+    forged(s, a, "usv2", 0, 1e308, 1.0)  # crashed send_tick before
+    forged(s, a, "usv2", 2**32 - 1, (2**32 - 1) * a.period, 1.0)  # locked the sender out before
+    for seq in range(5):
+        omega_from(s, a, "usv2", seq)
+        omega_from(s, a, "uav3", seq)
+        if seq < 4:  # the next one, offset by 1 rad: sent before the genuine one
+            forged(s, a, "uav3", seq + 1, (seq + 1) * a.period, 2.0 - (seq + 1) * a.period)
+        omega_from(s, a, "usv2", seq)  # a replay
+    stop_when_idle(s)
+    assert a.run() == 6
+    assert a.rejected["inconsistent"] == 1 and a.rejected["future"] == 1
+    assert a.rejected["implausible"] == 4 and a.rejected["stale"] == 5
+    assert a.rejected["conflict"] == 0
+    latest = a.node.table.latest
+    assert latest[a.ids.index("uav3")].omega == 1.0 - 4 * a.period  # the genuine value is used
+    stats = a.stats()
+    assert stats.rejected == 11 and stats.rejected_by_reason["implausible"] == 4
+    assert len([ln for ln in lines if "implausible" in ln]) == 1  # logged once
+
+
+def test_a_conflicting_replay_is_counted(fake):
+    a, s, lines = fake(duration=0.1)
+    ctl(s, "join", tick=0)
+    ctl(s, "grant", until=5)
+    omega_from(s, a, "usv2", 0)
+    forged(s, a, "usv2", 0, 0.0, 1.5)
+    a._drain(lambda: None)
+    assert a.rejected["conflict"] == 1 and a.stats().rejected == 1
+
+
+@pytest.mark.parametrize("op, fields, reason", [
+    ("grant", {"until": 6}, "grant_range"),  # past the run's last tick (5)
+    ("grant", {"until": -3}, "grant_range"),
+    ("join", {"tick": 99}, "join_range"),
+    ("start", {"t0": 1e12}, "t0_range"),
+    ("resume", {"t0": 0.0}, "t0_range"),
+    ("roster", {"vehicle": "usv2", "tick": 10**9, "state": "gone", "fresh": False}, "bad_roster"),
+    ("gains", {"gains": {"k": 2.0}, "tick": -1}, "gains_range"),
+    ("link", {"link": {"loss": 0.1}, "at": -1.0}, "link_range"),
+    ("link", {"link": {"delay": {"base": {"x": {"y": 1}}}}, "at": 0.0}, "link_range"),
+])
+def test_control_fields_out_of_range_are_counted_and_dropped(fake, op, fields, reason):
+    a, s, lines = fake(duration=0.1)
+    before = (a.clock.granted, a.clock.join, a.clock.t0, dict(a.link_table))
+    ctl(s, op, **fields)
+    a._drain(lambda: None)
+    assert a.rejected == {reason: 1}
+    assert (a.clock.granted, a.clock.join, a.clock.t0, dict(a.link_table)) == before
+    assert not a.node._gains
+
+
+def test_a_realtime_flood_on_one_key_is_cut_at_the_senders_rate_before_decoding(fake, monkeypatch):
+    a, s, lines = fake(clock="realtime", duration=0.1)
+    decoded = []
+    real = agent_module.decode_omega
+    monkeypatch.setattr(agent_module, "decode_omega", lambda *x, **kw: decoded.append(1) or real(*x, **kw))
+    for _ in range(10 * agent_module.RATE_BURST):
+        omega_from(s, a, "usv2", 0)
+    a._drain(lambda: 0.0)
+    assert len(decoded) <= agent_module.RATE_BURST + 5  # a few tokens refill while it drains
+    assert a.rejected["rate"] >= 9 * agent_module.RATE_BURST - 5
+    assert sum(a.rejected.values()) == 10 * agent_module.RATE_BURST - 1  # all but the first
+
+
+# ------------------------------------------------------------------ properties (issue 15)
+
+from hypothesis import HealthCheck, given, settings, strategies as st  # noqa: E402
+
+_FIXTURE = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+_CTL = [encode_control("grant", until=3), encode_control("join", tick=0), encode_control("start", t0=time.time()),
+        encode_control("roster", vehicle="usv2", tick=3, state="gone", fresh=False),
+        encode_control("link", link={"loss": 0.1}, at=0.0), encode_control("gains", gains={"c": 2.0}, tick=2)]
+
+
+def _payload(data, valid: list[bytes]) -> bytes:
+    p = bytearray(data.draw(st.sampled_from(valid)))
+    if data.draw(st.booleans()):
+        return data.draw(st.binary(max_size=64))
+    for _ in range(data.draw(st.integers(0, 3))):
+        if p:
+            p[data.draw(st.integers(0, len(p) - 1))] = data.draw(st.integers(0, 255))
+    return bytes(p)
+
+
+@_FIXTURE
+@given(data=st.data(), clock=st.sampled_from(["lockstep", "realtime"]))
+def test_the_agents_handler_never_raises_and_counts_every_omega_it_does_not_take(fake, data, clock):
+    a, s, lines = fake(clock=clock, duration=0.1)
+    keyset = {vid: keys.omega(FLEET, vid, listeners_of(a.scenario, vid)) for vid in ("usv2", "uav3")}
+    omegas = [encode_omega(OmegaMsg(j, q, q * a.period, 1.0 - q * a.period, -1.0)) for j in (1, 2) for q in range(4)]
+    taken = rejected = 0
+    for _ in range(data.draw(st.integers(1, 30))):
+        kind = data.draw(st.sampled_from(["omega", "ctl", "contacts", "other"]))
+        if kind == "omega":
+            vid = data.draw(st.sampled_from(sorted(keyset)))
+            before_seq, before_rej = dict(a.node.seen_seq), sum(a.rejected.values())
+            a._handle(Sample(keyset[vid], Payload(_payload(data, omegas))), 0.0 if clock == "realtime" else None)
+            if a.node.seen_seq != before_seq:
+                taken += 1
+            else:
+                assert sum(a.rejected.values()) == before_rej + 1
+                rejected += 1
+        elif kind == "ctl":
+            a._handle(Sample(keys.ctl(FLEET, [ME]), Payload(_payload(data, _CTL))), None)
+        elif kind == "contacts":
+            a._handle(Sample(f"cdus/{FLEET}/to/+{ME}+/contacts", Payload(data.draw(st.binary(max_size=64)))), None)
+        else:
+            key = data.draw(st.sampled_from([f"cdus/{FLEET}/to/+{ME}+/", f"cdus/{FLEET}/x", "a/b/to/c/\x1b[31m/z"]))
+            a._handle(Sample(key + data.draw(st.text(max_size=10)), Payload(b"")), None)
+    stats = a.stats()
+    assert decode_stats(encode_stats(stats)) == stats
+    assert all("\x1b" not in ln for ln in lines)
+
+
+def _lockstep_run(fake, hostile) -> list:
+    """A lockstep run of 6 ticks with ``hostile(s, a, seq)`` samples before each genuine pair."""
+    a, s, lines = fake(duration=0.1)
+    ctl(s, "join", tick=0)
+    ctl(s, "grant", until=5)
+    for seq in range(5):
+        hostile(s, a, seq)
+        omega_from(s, a, "usv2", seq)
+        omega_from(s, a, "uav3", seq)
+    stop_when_idle(s)
+    assert a.run() == 6
+    return [r for p in s.pubs[keys.state(FLEET, ME)].puts for r in decode_states(p)], a
+
+
+@_FIXTURE
+@given(data=st.data())
+def test_hostile_samples_out_of_window_or_malformed_never_change_a_lockstep_agents_run(fake, data):
+    clean, _ = _lockstep_run(fake, lambda s, a, seq: None)
+    n_hostile = [0]
+
+    def hostile(s, a, seq):
+        for _ in range(data.draw(st.integers(0, 3))):
+            vid = data.draw(st.sampled_from(["usv2", "uav3"]))
+            how = data.draw(st.sampled_from(["future", "inconsistent", "stale", "bytes", "ctl"]))
+            w = data.draw(st.floats(allow_nan=False))
+            n_hostile[0] += 1
+            if how == "future":
+                q = data.draw(st.integers(5 + agent_module.LOCKSTEP_SEQ_MARGIN + 1, 2**32 - 1))
+                forged(s, a, vid, q, q * a.period, w)
+            elif how == "inconsistent":
+                forged(s, a, vid, seq, data.draw(st.floats().filter(lambda t: t != seq * a.period)), w)
+            elif how == "stale" and seq > 0:
+                q = data.draw(st.integers(0, seq - 1))
+                forged(s, a, vid, q, q * a.period, w)
+            elif how == "ctl":  # a control message out of range
+                ctl(s, "grant", until=data.draw(st.integers(6, 2**40)))
+            else:
+                omega_from(s, a, vid, seq, payload=data.draw(st.binary(max_size=40)))
+
+    rows, a = _lockstep_run(fake, hostile)
+    assert rows == clean
+    assert sum(a.rejected.values()) == n_hostile[0]
+
+
+def test_a_restarted_agent_takes_omega_from_a_run_under_way_before_it_knows_where_the_run_is(fake):
+    a, s, lines = fake(duration=10.0)
+    a.rejoin = True
+    omega_from(s, a, "usv2", 300)  # far past any window of a process that has not joined yet
+    a._drain(lambda: None)
+    assert not a.rejected and a.node.seen_seq[a.ids.index("usv2")] == 300
+    b, s, lines = fake(duration=10.0)  # a first start: tick 300 is beyond what anyone was granted
+    omega_from(s, b, "usv2", 300)
+    b._drain(lambda: None)
+    assert b.rejected == {"future": 1}
+
+
+def test_genuine_omega_does_not_spend_its_senders_rate_budget(fake):
+    a, s, lines = fake(clock="realtime", duration=10.0)
+    a.clock.t0 = time.time() - 5.0  # the run is at tick ~250
+    for seq in range(3 * agent_module.RATE_BURST):  # more genuine messages than the bucket holds
+        omega_from(s, a, "usv2", seq)
+    a._drain(lambda: 5.0)
+    assert not a.rejected

@@ -220,3 +220,80 @@ def test_bad_contacts_are_rejected_with_a_reason(obj, reason):
     from cdus.wire.messages import decode_contacts
     assert decode_contacts(msgpack.packb(obj), 3) == reason
     assert decode_contacts(b"\x00" * 20000) == "oversized"
+
+
+# ------------------------------------------------------------------ properties (issue 15)
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+from cdus.wire.messages import (  # noqa: E402
+    COMMAND_OPS, CTL_OPS, LAUNCHER_OPS, ContactsMsg, Control, decode_contacts, decode_control,
+    encode_contacts, encode_control,
+)
+
+_VALID = [
+    encode_omega(OmegaMsg(2, 17, 17 * 0.02, -3.25, -1.0)),
+    encode_omega(OmegaMsg(300, 2**32 - 1, 1.0, 1e300, 3e38)),
+    encode_contacts(ContactsMsg(12, ((1, 0.5, (1.0, 2.0)), (3, 1.0, (0.0, 1.0, 2.0))))),
+    encode_control("grant", until=40),
+    encode_control("roster", vehicle="usv2", tick=3, state="gone", fresh=False),
+    encode_control("link", link={"delay": {"base": 0.2}, "loss": 0.1}, at=1.0),
+    encode_control("gains", gains={"k": [1.0, 2.0], "c": 3.0}, tick=5),
+]
+
+
+def _mutated(data: st.DataObject) -> bytes:
+    """A valid payload with bytes flipped, cut, inserted or repeated."""
+    p = bytearray(data.draw(st.sampled_from(_VALID)))
+    for _ in range(data.draw(st.integers(1, 4))):
+        how = data.draw(st.sampled_from(["flip", "cut", "insert", "grow"]))
+        i = data.draw(st.integers(0, max(0, len(p) - 1)))
+        if how == "flip" and p:
+            p[i] = data.draw(st.integers(0, 255))
+        elif how == "cut":
+            del p[i:]
+        elif how == "insert":
+            p[i:i] = data.draw(st.binary(max_size=8))
+        else:
+            p += p[i:][:4096]
+    return bytes(p)
+
+
+def _decoders(p: bytes) -> list:
+    return [decode_omega(p), decode_omega(p, expected_sender=2, n_vehicles=3), decode_contacts(p),
+            decode_contacts(p, 4), decode_control(p, CTL_OPS), decode_control(p, COMMAND_OPS),
+            decode_control(p, LAUNCHER_OPS)]
+
+
+def _message_or_reason(out) -> bool:
+    return isinstance(out, (str, OmegaMsg, ContactsMsg, Control))
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.binary(max_size=200))
+def test_decoders_never_raise_on_arbitrary_bytes(p):
+    assert all(_message_or_reason(x) for x in _decoders(p))
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.data())
+def test_decoders_never_raise_on_mutated_valid_payloads(data):
+    p = _mutated(data)
+    for out in _decoders(p):
+        assert _message_or_reason(out)
+        if isinstance(out, OmegaMsg):  # what passes is finite: nothing downstream overflows on it
+            assert all(math.isfinite(x) for x in (out.t_send, out.omega, out.omega_rate))
+        if isinstance(out, Control):
+            assert all(math.isfinite(v) for v in out.fields.values() if isinstance(v, float))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.recursive(st.none() | st.booleans() | st.integers(-2**70, 2**70) | st.floats() | st.text(max_size=20),
+                    lambda c: st.lists(c, max_size=5) | st.dictionaries(st.text(max_size=8), c, max_size=5),
+                    max_leaves=30))
+def test_decoders_never_raise_on_any_msgpack_value(obj):
+    try:
+        p = msgpack.packb(obj, use_bin_type=True)
+    except (OverflowError, ValueError):
+        return
+    assert all(_message_or_reason(x) for x in _decoders(p))
