@@ -87,6 +87,7 @@ LOG_WAIT = 5.0  # s of waiting before saying what for
 #: a router that lapsed (frozen, restarted) lost what was in flight, and the fleet waits for it
 #: (receivers drop what they already have as a duplicate)
 RESEND_WAIT = 1.0
+RESEND_OMEGAS = 16  # the newest ω said again when stuck: more than a grant lets a sender run ahead
 MAX_NAP = 0.05  # s: realtime sleeps at most this long between checks for a stop or a pause
 PING_TIMEOUT = 1.0  # s for a link check's reply (it is immediate when nobody answers)
 PING_RETRY = 0.02  # s between link checks
@@ -180,7 +181,7 @@ class Agent:
         self._rate = RATE_MARGIN * scenario.rates.broadcast  # ω per s a neighbour may send
         self._logged: set[tuple[str, str]] = set()
         self._states: list[StateMsg] = []
-        self._last_omega: bytes | None = None  # lockstep: said again when stuck (RESEND_WAIT)
+        self._last_omegas: deque[bytes] = deque(maxlen=RESEND_OMEGAS)  # lockstep: said again when stuck
         self._recent: deque[StateMsg] = deque(maxlen=MAX_STATE_ROWS)  # telemetry sent, newest last
         self.missed_deadlines = 0
         self.ticks_done = 0
@@ -339,7 +340,7 @@ class Agent:
         if key.endswith("/wake"):
             return
         kind, src = keys.leaf(key)
-        self._reject(src or key, "unexpected " + (kind if kind in _KINDS else "key"))
+        self._reject(src or key, "unexpected_" + (kind if kind in _KINDS else "key"))
 
     def _ctl_problem(self, op: str, f: dict) -> str | None:
         """What is out of range in a control message from the world (None: nothing): ticks within
@@ -470,8 +471,9 @@ class Agent:
     def _tick(self, n: int) -> None:
         out = self.node.step(n)
         if out.omega is not None:  # ω before telemetry: whoever saw tick n can count on it
-            self._last_omega = encode_omega(out.omega)
-            self.pub_omega.put(self._last_omega)
+            wire = encode_omega(out.omega)
+            self._last_omegas.append(wire)
+            self.pub_omega.put(wire)
         tel = out.telemetry
         self._states.append(StateMsg(self.index, n, tel.t, tuple(tel.q), tel.heading, tel.speed,
                                      tel.omega, tel.omega_rate, tel.path_error))
@@ -598,11 +600,13 @@ class Agent:
         self._states = []
 
     def _resend(self) -> None:
-        """Lockstep, stuck: say the last ω and the recent telemetry again (RESEND_WAIT)."""
+        """Lockstep, stuck: say the last ω messages and the recent telemetry again (RESEND_WAIT):
+        a receiver that lost one in flight (a router outage) takes it as a gap filled, the
+        others drop the copies as stale."""
         if self.session is None:
             return
-        if self._last_omega is not None:
-            self.pub_omega.put(self._last_omega)
+        for wire in self._last_omegas:
+            self.pub_omega.put(wire)
         if self._recent:
             self.pub_state.put(encode_states(list(self._recent)))
 

@@ -57,6 +57,7 @@ REJECT_REASONS = ("not_a_neighbour", "inconsistent", "future", "stale", "conflic
 #: reasons a hostile or broken sender shows (the world turns new counts of them into an event)
 HOSTILE_REASONS = ("future", "conflict", "implausible")
 RECENT = 8  # messages kept per sender to tell a duplicate ("stale") from a forgery ("conflict")
+GAP = 64  # seqs skipped by a newer message that are still taken if they come (an outage's resends)
 HEAL = 3  # consecutive messages consistent with each other but not with the sender's past: a new past
 #: slack of the loose check over a gap of several ticks (rad/s on the mean rate; docs/architecture.md)
 GAP_RATE_SLACK = 1.0
@@ -128,6 +129,7 @@ class _Neighbour:
     last: OmegaMsg | None = None  # its newest message taken (the past a new one must agree with)
     recent: dict[int, OmegaMsg] = field(default_factory=dict)  # seq -> message taken, newest RECENT
     chain: list[OmegaMsg] = field(default_factory=list)  # implausible messages consistent with each other
+    missing: set[int] = field(default_factory=set)  # seqs skipped by a newer one (lost in flight), newest GAP
 
 
 class VehicleNode:
@@ -198,7 +200,10 @@ class VehicleNode:
             return self._reject("future")
         if tick < self._deaf_before:
             return None  # sent while this vehicle's process was gone: it never heard it (see rejoin)
-        if msg.seq <= self.seen_seq.get(k, -1):
+        newest = self.seen_seq.get(k, -1)
+        if msg.seq <= newest:
+            if msg.seq in peer.missing:  # a message lost in flight, said again: fill the gap
+                return self._fill(peer, msg, arrival)
             old = peer.recent.get(msg.seq)
             return self._reject("conflict" if old is not None and old != msg else "stale")
         last = peer.last
@@ -213,16 +218,37 @@ class VehicleNode:
                 return self._reject("implausible")
         peer.chain.clear()
         peer.last = msg
+        if newest >= 0 and msg.seq > newest + 1:  # skipped ones may still come (a resend after an outage)
+            lo = max(newest + 1, msg.seq - GAP, -(-max(self.joined_at, self._deaf_before) // self.every))
+            peer.missing.update(range(lo, msg.seq))
+        if peer.missing:
+            peer.missing = {g for g in peer.missing if g > msg.seq - GAP}
+        self.seen_seq[k] = msg.seq
+        self._take(peer, msg, arrival)
+        return None
+
+    def _take(self, peer: _Neighbour, msg: OmegaMsg, arrival: float | None) -> None:
         peer.recent[msg.seq] = msg
         if len(peer.recent) > RECENT:
             del peer.recent[min(peer.recent)]
-        self.seen_seq[k] = msg.seq
         if arrival is None:
             self._inbox.append(msg)
         else:
             for d in self._decide(msg):
                 self._order += 1
                 heapq.heappush(self._pending, (arrival + d, self._order, msg, d))
+
+    def _fill(self, peer: _Neighbour, msg: OmegaMsg, arrival: float | None) -> str | None:
+        """Take ``msg``, a seq that a newer message skipped, if it agrees with the sender's
+        messages around it (the same check as for the newest, against the nearest older one)."""
+        older = [s for s in peer.recent if s < msg.seq]
+        if older:
+            prev = peer.recent[max(older)]
+            if not self._explained(peer, prev, msg.seq * self.every) and \
+                    not omega_plausible(prev, msg, self.period):
+                return self._reject("implausible")
+        peer.missing.discard(msg.seq)
+        self._take(peer, msg, arrival)
         return None
 
     def _explained(self, peer: _Neighbour, last: OmegaMsg, tick: int) -> bool:
@@ -322,7 +348,13 @@ class VehicleNode:
         sent = seq * self.every
         if sent < self.joined_at:
             return []
-        return [k for k in self.neighbours if self.seen_seq.get(k, -1) < seq and self.live_at(k, sent)]
+        return [k for k in self.neighbours if (self.seen_seq.get(k, -1) < seq and self.live_at(k, sent))
+                or self._peers[k].missing and self._gap_before(k, n)]
+
+    def _gap_before(self, k: int, n: int) -> bool:
+        """Is a broadcast of ``k`` sent before tick ``n``, while it was live, skipped (lost in flight)?"""
+        return any(self.joined_at <= g * self.every < n and g * self.every >= self._deaf_before
+                   and self.live_at(k, g * self.every) for g in self._peers[k].missing)
 
     def own_state_at(self, n: int) -> tuple[str, bool]:
         """This vehicle's state at tick ``n`` from the changes it has been told of, and whether
@@ -400,6 +432,7 @@ class VehicleNode:
         for peer in self._peers.values():  # what it missed meanwhile cannot be checked against
             peer.last = None
             peer.chain.clear()
+            peer.missing = {g for g in peer.missing if g * self.every >= max(n, self._deaf_before)}
         self.joined_at = n
         self.tick = n
         self.state = "live"
@@ -440,6 +473,8 @@ class VehicleNode:
         order per link); keep the others until their turn."""
         T = self.period
         early = []
+        if len(self._inbox) > 1:  # in send order per link (a gap filled late arrives after newer ones)
+            self._inbox.sort(key=lambda m: (m.t_send, m.sender))
         for msg in self._inbox:
             m = send_tick(msg.t_send, T)
             if m >= n:  # from a neighbour already at or past us: decide it when it can matter

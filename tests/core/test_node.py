@@ -480,3 +480,40 @@ def test_hostile_traffic_out_of_window_never_changes_a_genuine_run(data):
         assert np.array_equal(getattr(clean.recorder, attr), getattr(fleet.recorder, attr)), attr
     counted = sum(sum(x for r, x in nd.rejected.items() if r != "gone") for nd in fleet.nodes)
     assert counted == sent["hostile"]
+
+
+def test_a_message_lost_in_flight_and_said_again_fills_its_gap_in_send_order():
+    """An outage loses seq 2 in flight while 3 gets through; the sender's resend of 2 is taken
+    (not 'stale'), the node waits for it before stepping past it, and both are decided in send
+    order, so the run is the one in which nothing was lost."""
+    ref, a = node(0), node(0)
+    for n in range(6):
+        for k in (1, 2):
+            ref.on_message(msg(k, n))
+        ref.step(n)
+    for n in range(2):
+        for k in (1, 2):
+            a.on_message(msg(k, n))
+        a.step(n)
+    a.on_message(msg(1, 3))  # 2 lost, 3 arrived
+    a.on_message(msg(2, 2))
+    a.on_message(msg(2, 3))
+    assert a.waiting_for(3) == [1]  # seq 2 of vehicle 1 is missing
+    assert a.on_message(msg(1, 2)) is None  # the resend fills the gap
+    assert a.rejected["stale"] == 0 and a.waiting_for(3) == []
+    assert a.on_message(msg(1, 2)) == "stale"  # a second copy is a duplicate
+    for n in range(2, 6):
+        if n >= 4:
+            for k in (1, 2):
+                a.on_message(msg(k, n))
+        a.step(n)
+    assert a.vehicle.omega == ref.vehicle.omega and list(a.vehicle.q) == list(ref.vehicle.q)
+    assert a.counters.sent == ref.counters.sent and a.counters.delivered == ref.counters.delivered
+
+
+def test_a_forged_fill_of_a_gap_is_implausible():
+    a = node(0)
+    a.on_message(msg(1, 0))
+    a.on_message(msg(1, 2))
+    assert a.on_message(msg(1, 1, omega=1.0 - T + 1.0)) == "implausible"
+    assert a.on_message(msg(1, 1)) is None

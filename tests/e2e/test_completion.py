@@ -83,10 +83,9 @@ def test_a_router_frozen_for_5_s_is_waited_for_and_the_run_matches_the_clean_one
     assert got[0]["completed"] is True and got[0]["completion"] == "completed", la.output()
     assert got[0]["live_final"] == clean[0]["live_final"] and np.array_equal(got[1]["live"], clean[1]["live"])
     assert not [e for e in got[0]["events"] if e["kind"] == "vehicle_lost"], got[0]["events"]
-    # Not yet bit for bit: an ω lost in flight while the router was frozen, with its sender's next
-    # one delivered, is skipped by its receivers (cdus.core.node keeps the newest seq only and
-    # drops an older one re-sent as stale), so the run can differ by ~1e-4 rad from the freeze on.
-    # assert_same_run(got, clean) holds once a receiver accepts a missing seq within its window.
+    # an ω lost in flight while the router was frozen is said again by its sender and taken as
+    # a gap filled (cdus.core.node), so the run is the clean one, bit for bit
+    assert_same_run(got, clean)
     assert not fleet_processes(fleet)
 
 
