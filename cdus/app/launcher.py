@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import json
 import math
 import os
 import shlex
@@ -81,6 +82,29 @@ def die_with_parent(parent_pid: int) -> Callable[[], None] | None:
         if os.getppid() != parent_pid:
             os._exit(1)
     return preexec
+
+
+# Router-side rate limits (Zenoh's own ``downsampling``, realtime runs only: it is wall-clock
+# based, and a lockstep run goes many times faster than real time and must lose nothing).
+# Zenoh keeps one timer per rule and per incoming link (flow ingress): a flooder's link gets
+# its own budget, so a flood on vehicle v's ω key reaches v's listeners at most
+# OMEGA_MARGIN x the broadcast rate, and v's own messages, on v's own link, are not starved.
+# The margin absorbs jitter: Zenoh drops a message that follows the previous one of its
+# link by less than 1 / rate (no burst allowance), so a genuine ω is dropped only if it
+# arrives less than a quarter period after the one before.
+OMEGA_MARGIN = 4.0
+COMMAND_HZ = 10.0  # the world's command inbox (ground stations): one command per `cdus gs` call
+
+
+def rate_limits(fleet: str, ids: tuple[str, ...] | list[str], broadcast_hz: float) -> list[dict]:
+    """The router's ``downsampling`` section: every vehicle's ω (any listener set) at
+    OMEGA_MARGIN x ``broadcast_hz``, the world's command inbox at COMMAND_HZ, per incoming
+    link. Not the world's ctl or the launcher's key: the world sends genuine bursts there
+    (several faults in one tick); under --secure only the world may publish them."""
+    omega = [{"key_expr": f"{keys.prefix(fleet)}/to/*/omega/{vid}", "freq": OMEGA_MARGIN * broadcast_hz}
+             for vid in ids]
+    commands = [{"key_expr": f"{keys.prefix(fleet)}/to/+{keys.WORLD}+/cmd/*", "freq": COMMAND_HZ}]
+    return [{"id": "cdus-rate-limits", "flows": ["ingress"], "messages": ["put"], "rules": omega + commands}]
 
 
 WORLD_LOST = "world_lost"  # the completion reason the launcher writes when the world died without metrics
@@ -196,6 +220,9 @@ class Launcher:
         self.sockets: Path | None = None  # direct links: each agent's unix socket, in a short temp dir
         if self.opts.links == "direct":
             self.sockets = Path(tempfile.mkdtemp(prefix="cdus-"))
+        if self.opts.clock == "realtime":
+            limits = rate_limits(self.fleet, self.scenario.ids, self.scenario.rates.broadcast)
+            self.router = replace(self.router, extra=(*self.router.extra, ("downsampling", json.dumps(limits))))
         sv = self.scenario.supervision  # the policy from the command line, the limits from the scenario
         self.supervision = Supervision(self.opts.restart, sv.max_restarts, sv.backoff_s)
 

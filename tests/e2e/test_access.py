@@ -14,6 +14,7 @@ import json
 import random
 import re
 import shlex
+import signal
 import threading
 import time
 
@@ -226,4 +227,56 @@ def test_over_tls_only_a_certificate_of_the_run_gets_in_and_the_ground_station_c
     assert la.wait(timeout=60) == 0, la.output()
     m = json.loads((run / "metrics.json").read_text())
     assert m["completed"] is False
+    assert not fleet_processes(fleet)
+
+
+def test_in_realtime_the_router_passes_a_flood_on_one_omega_key_at_most_at_its_stated_rate(tmp_path, launches):
+    """Zenoh's downsampling, per incoming link: an outsider flooding usv1's ω key reaches usv1's
+    listeners at most OMEGA_MARGIN x the broadcast rate, and usv1's own ω still gets through."""
+    from cdus.app.launcher import OMEGA_MARGIN
+
+    fleet = unique_fleet()
+    port = free_tcp_port()
+    endpoint = f"tcp/127.0.0.1:{port}"
+    sc = load_scenario("configs/concentric_circles.toml")
+    la = launches(["configs/concentric_circles.toml", "--clock", "realtime", "--duration", "600", "--rerun", "off",
+                   "--listen", endpoint, "--logs", str(tmp_path / "run"), "-q"], fleet)
+    la.wait_for(f"fleet '{fleet}' up")
+    key = keys.omega(fleet, "usv1", listeners_of(sc, "usv1"))
+    forged = encode_omega(OmegaMsg(sc.ids.index("usv1"), 10**6, 1.0, 1e3, -1.0))
+    seen = {"forged": 0, "genuine": 0}
+    lock = threading.Lock()
+    counting = threading.Event()
+
+    def on(sample) -> None:
+        if counting.is_set():
+            with lock:
+                seen["forged" if sample.payload.to_bytes() == forged else "genuine"] += 1
+
+    observer = zenoh.open(raw_client(endpoint))
+    flooder = zenoh.open(raw_client(endpoint))
+    try:
+        observer.declare_subscriber(keys.any_omega(fleet).replace("/omega/*", "/omega/usv1"), on)
+        Status(observer, fleet).wait_past(1.0)  # the run is on: usv1 broadcasts
+        pub = flooder.declare_publisher(key)
+        sent = 0
+        counting.set()
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 3.0:
+            for _ in range(100):
+                pub.put(forged)
+            sent += 100
+        time.sleep(0.3)  # what the router let through has arrived
+        counting.clear()
+        window = time.monotonic() - t0
+    finally:
+        flooder.close()
+        observer.close()
+    rate = OMEGA_MARGIN * sc.rates.broadcast
+    assert sent > 20 * rate * 3.0, f"the flood ({sent} messages) was too slow to prove anything"
+    assert 0 < seen["forged"] <= rate * window + 2, (seen, sent, rate, window)
+    assert seen["genuine"] > 0.5 * sc.rates.broadcast * window, seen  # usv1's own link has its own budget
+    assert la.proc.poll() is None, la.output()
+    la.proc.send_signal(signal.SIGINT)
+    assert la.wait(timeout=60) == 130, la.output()
     assert not fleet_processes(fleet)
