@@ -17,6 +17,7 @@ import shlex
 import signal
 import threading
 import time
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -26,8 +27,8 @@ from cdus.scenario.config import load_scenario
 from cdus.sim.build import listeners_of
 from cdus.sim.fleet import InProcessFleet
 from cdus.wire import keys
-from cdus.wire.messages import OmegaMsg, encode_control, encode_omega
-from cdus.wire.schemas import FleetEvent, decode_event, decode_status
+from cdus.wire.messages import OmegaMsg, StateMsg, encode_control, encode_omega, encode_states
+from cdus.wire.schemas import AgentStats, FleetEvent, decode_event, decode_status, encode_event, encode_stats, encode_status
 from cdus.wire.transport import free_tcp_port
 
 from tests.outsider import raw_client
@@ -140,6 +141,15 @@ def test_an_outsider_cannot_stop_retune_or_inject_into_a_secured_fleet(tmp_path,
                 mallory.put(keys.ctl(fleet, targets), encode_control("stop"))
                 mallory.put(keys.ctl(fleet, targets), encode_control("gains", gains={"k": 7.0, "c": 0.1}, tick=1))
             mallory.put(keys.launcher_cmd(fleet), encode_control("kill", vehicle="usv2"))
+            mallory.put(keys.launcher_cmd(fleet), encode_control("kill", vehicle="world"))
+            # another vehicle's telemetry and counters, the world's status and events: not its keys
+            forged_row = StateMsg(sc.ids.index("usv2"), 6000, 120.0, (0.0, 0.0), 0.0, 0.0, 0.0, 0.0, 0.0)
+            for tick in (1, 50, 6000):
+                mallory.put(keys.state(fleet, "usv2"), encode_states([replace(forged_row, tick=tick)]))
+            mallory.put(keys.stats(fleet, "usv2"), encode_stats(AgentStats("usv2", 6000, rejected=10**6,
+                                                                           rejected_by_reason={"forged": 10**6})))
+            mallory.put(keys.world_status(fleet), encode_status(1e308, 1.0, "FORGED", [], [], 0.0, 0.0, [], False))
+            mallory.put(keys.world_events(fleet), encode_event(FleetEvent.of(0.0, "fleet", "FORGED stopped")))
             for vid in sc.ids:
                 j = sc.ids.index(vid)
                 to = [v for v in sc.ids if v != vid]  # to everyone, and to its real listeners
@@ -163,10 +173,12 @@ def test_an_outsider_cannot_stop_retune_or_inject_into_a_secured_fleet(tmp_path,
         events.wait_for("fleet", "paused")
         ground.put(command, encode_control("resume"))
         events.wait_for("fleet", "resumed")
+        assert not [e for e in events.events if "FORGED" in e.text], events.events  # its event never reached us
     finally:
         ground.close()
 
     assert la.wait(timeout=300) == 0, la.output()
+    assert "FORGED" not in la.output()
     m = json.loads((run / "metrics.json").read_text())
     assert m["completed"] is True, m["events"]  # no stop got through
     kinds = [e["kind"] for e in m["events"]]
