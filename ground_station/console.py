@@ -21,6 +21,7 @@ from cdus.wire.messages import VEHICLE_FAULTS, StateMsg, decode_states, encode_c
 from cdus.wire.schemas import FleetEvent, decode_event, decode_status
 from cdus.wire.text import printable
 
+MAX_NAMES = 10_000  # vehicles (telemetry, liveliness) the console tracks: names beyond are forged
 MAX_EVENTS = 1000  # events the console keeps (it shows the newest 8)
 BIG = 1e9  # numbers beyond this are shown in scientific notation, not as hundreds of digits
 
@@ -133,7 +134,8 @@ class GroundStation:
         rows = decode_states(sample.payload.to_bytes())
         _, vid = keys.leaf(str(sample.key_expr))
         with self.view.lock:
-            if isinstance(rows, str) or vid is None:
+            if (isinstance(rows, str) or vid is None or not keys.FLEET_RE.match(vid)
+                    or vid not in self.view.states and len(self.view.states) >= MAX_NAMES):
                 self.view.rejected += 1
                 return
             self.view.states[vid] = rows[-1]
@@ -160,8 +162,10 @@ class GroundStation:
         with self.view.lock:
             if str(sample.kind).endswith("DELETE"):
                 self.view.alive.discard(who)
-            else:
+            elif who and keys.FLEET_RE.match(who) and len(self.view.alive) < MAX_NAMES:
                 self.view.alive.add(who)
+            else:
+                self.view.rejected += 1
 
     def wait_for_status(self, timeout: float) -> bool:
         """Wait until the world's status has been heard (it is published about once a second)."""

@@ -529,7 +529,7 @@ class Launcher:
         m["world_lost"] = {
             "world_exit": code, "last_status_t": t_last,
             "last_status": {k: st.get(k) for k in ("alive", "path_error_max", "coord_error_max", "paused")} if st else None,
-            "alive_tokens": sorted(self.alive - {keys.WORLD}),
+            "alive_tokens": sorted(self.alive & set(sc.ids)),  # the scenario's names only, not whatever was declared
             "restarts": {n: c.restarts for n, c in self.children.items() if n != keys.WORLD and c.restarts},
             "rejected_by_launcher": dict(self.rejected),
         }

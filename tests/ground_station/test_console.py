@@ -148,3 +148,23 @@ def test_the_console_keeps_a_bounded_number_of_events():
     for i in range(MAX_EVENTS + 50):
         gs._on_event(Sample("cdus/f/world/events", encode_event(FleetEvent.of(float(i), "fleet", "x"))))
     assert len(gs.view.events) == MAX_EVENTS and gs.view.events[-1].t == MAX_EVENTS + 49
+
+
+def test_forged_names_are_not_tracked():
+    from ground_station.console import MAX_NAMES
+
+    gs = GroundStation("f", None)
+    row = encode_states([StateMsg(0, 1, 0.0, (0.0, 0.0), 0.0, 0.0, 0.0, 0.0, 0.0)])
+    gs._on_state(Sample("cdus/f/to/+world+/state/us\x1bv1", row))
+    gs._on_state(Sample("cdus/f/to/+world+/state/usv1", row))
+    assert set(gs.view.states) == {"usv1"} and gs.view.rejected == 1
+    gs.view.states.update({f"v{i}": None for i in range(MAX_NAMES)})
+    gs._on_state(Sample("cdus/f/to/+world+/state/one_more", row))
+    assert "one_more" not in gs.view.states and gs.view.rejected == 2
+
+    class Alive(Sample):
+        kind = "SampleKind.PUT"
+
+    gs._on_alive(Alive("cdus/f/alive/\x1b[2J", b""))
+    gs._on_alive(Alive("cdus/f/alive/usv1", b""))
+    assert gs.view.alive == {"usv1"} and gs.view.rejected == 3
