@@ -103,7 +103,8 @@ def rate_limits(fleet: str, ids: tuple[str, ...] | list[str], broadcast_hz: floa
     (several faults in one tick); under --secure only the world may publish them."""
     omega = [{"key_expr": f"{keys.prefix(fleet)}/to/*/omega/{vid}", "freq": OMEGA_MARGIN * broadcast_hz}
              for vid in ids]
-    commands = [{"key_expr": f"{keys.prefix(fleet)}/to/+{keys.WORLD}+/cmd/*", "freq": COMMAND_HZ}]
+    # any recipient set: the world also hears to/+world+x+/cmd/..., which a flooder could pick
+    commands = [{"key_expr": f"{keys.prefix(fleet)}/to/*/cmd/*", "freq": COMMAND_HZ}]
     return [{"id": "cdus-rate-limits", "flows": ["ingress"], "messages": ["put"], "rules": omega + commands}]
 
 
