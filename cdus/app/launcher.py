@@ -10,8 +10,9 @@ times per vehicle, after a doubling back-off; docs/config.md), and at the end, o
 on SIGTERM or on a failure, walks the shutdown ladder: ask the world to stop (it writes the
 metrics), let everyone exit for a grace period, SIGTERM their process groups, then SIGKILL.
 Nothing it started outlives it, not even when the launcher itself is SIGKILLed: every child
-is started with ``PR_SET_PDEATHSIG`` = SIGTERM (Linux), so the kernel tells it to stop (the
-world still writes what it has) the moment the launcher dies. If the world dies, the
+is started with ``PR_SET_PDEATHSIG`` (Linux): the moment the launcher dies the kernel sends
+the world SIGTERM (it still writes what it has) and the agents SIGKILL (nothing to save, and
+a vehicle paused by a fault, SIGSTOPped, would never act on a SIGTERM). If the world dies, the
 launcher writes the run's metrics.json itself (``completed: false``, ``completion:
 "world_lost"``, what it knew from the world's last status), stops the fleet and exits 1.
 
@@ -71,14 +72,15 @@ _LIBC = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True
 _PRCTL = _LIBC.prctl if _LIBC is not None else None  # looked up now: the child only calls it
 
 
-def die_with_parent(parent_pid: int) -> Callable[[], None] | None:
-    """A ``preexec_fn`` asking the kernel for SIGTERM when the parent dies (Linux), and exiting
+def die_with_parent(parent_pid: int, sig: int = signal.SIGTERM) -> Callable[[], None] | None:
+    """A ``preexec_fn`` asking the kernel for ``sig`` when the parent dies (Linux), and exiting
     at once if the parent is already gone (it died between fork and prctl). None elsewhere."""
     if _PRCTL is None:
         return None
+    signum = int(sig)
 
     def preexec() -> None:  # runs in the forked child: no imports, no allocations of note
-        _PRCTL(PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
+        _PRCTL(PR_SET_PDEATHSIG, signum, 0, 0, 0)
         if os.getppid() != parent_pid:
             os._exit(1)
     return preexec
@@ -129,13 +131,17 @@ class Child:
     log_file: Any = None
     intended_exit: bool = False  # killed on purpose (a scheduled fault): not a failure to restart
     restart_args: tuple[str, ...] = ()  # added when it is started again (an agent rejoins)
+    # what the kernel sends it when the launcher dies: the world SIGTERM (it writes its metrics);
+    # an agent SIGKILL (it has nothing to save, and one paused by a fault, SIGSTOPped, would
+    # hold a SIGTERM pending for ever)
+    death_signal: int = signal.SIGKILL
 
     def start(self, env: dict[str, str]) -> None:
         self.log_file = open(self.log_path, "ab")
         argv = self.argv + list(self.restart_args if self.restarts else ())
         self.proc = subprocess.Popen(argv, stdout=self.log_file, stderr=subprocess.STDOUT,
                                      stdin=subprocess.DEVNULL, start_new_session=True, env=env,
-                                     preexec_fn=die_with_parent(os.getpid()))
+                                     preexec_fn=die_with_parent(os.getpid(), self.death_signal))
         self.exit_code = None
         self.intended_exit = False
 
@@ -245,7 +251,7 @@ class Launcher:
         argv += ["--rerun", self.opts.rerun, "--run-dir", str(self.run_dir)]
         if self.opts.policy:
             argv += ["--policy", self.opts.policy]
-        return Child("world", argv, self.logs / "world.log")
+        return Child("world", argv, self.logs / "world.log", death_signal=signal.SIGTERM)
 
     def _agent(self, vid: str) -> Child:
         argv = [sys.executable, "-m", "vehicle_agent", *self._common(vid, self._agent_transport(vid)), "--id", vid]

@@ -63,10 +63,18 @@ class WorldTime:
 def test_a_sigkilled_launcher_leaves_no_process_of_its_fleet(tmp_path, launches):
     fleet = unique_fleet()
     run = tmp_path / "run"
+    port = free_tcp_port()
     la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", "3000", "--rerun", "off",
-                   "--logs", str(run), "-q"], fleet)
+                   "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "-q"], fleet)
     la.wait_for(f"fleet '{fleet}' up")
     assert len(set(pids(fleet)) - {la.proc.pid}) == 7  # the world and six agents, each in its own session
+    # one vehicle paused (SIGSTOPped) by a fault: a stopped process acts on no signal but SIGKILL
+    s = zenoh.open(raw_client(f"tcp/127.0.0.1:{port}"))
+    try:
+        s.put(keys.launcher_cmd(fleet), encode_control("pause_vehicle", vehicle="usv2"))
+        la.wait_for("fault: pause usv2")
+    finally:
+        s.close()
     os.kill(la.proc.pid, signal.SIGKILL)  # the launcher alone, not its children's groups
     la.wait(timeout=10)
     left = wait_no_process(fleet, ORPHAN_WAIT_S)
