@@ -559,6 +559,7 @@ class Launcher:
         for c in self.children.values():
             if c.running():
                 c.signal_group(signal.SIGTERM)
+                c.signal_group(signal.SIGCONT)  # a vehicle paused by a fault acts on its SIGTERM only once resumed
         self._wait_exit(self.opts.grace)
         for c in self.children.values():
             if c.running():

@@ -259,3 +259,17 @@ def test_a_world_that_died_leaves_metrics_that_say_so(tmp_path):
     from cdus.app.report import summary_table
 
     assert "lake_circle (lockstep" in summary_table(m, la.scenario.vehicles)  # the CLI prints it as any other
+
+
+def test_stop_ends_a_paused_vehicle_with_sigterm_not_after_the_grace_with_sigkill(tmp_path):
+    la, lines = quiet_launcher(tmp_path, grace=2.0)
+    c = la.children["usv1"] = Child("usv1", SLEEP, la.logs / "usv1.log")
+    c.start(la.env)
+    c.signal_group(signal.SIGSTOP)  # what a pause_vehicle fault does
+    try:
+        la.stop()
+        assert c.proc.returncode == -signal.SIGTERM, (c.proc.returncode, lines)
+    finally:
+        if c.running():
+            c.signal_group(signal.SIGKILL)
+            c.proc.wait()
