@@ -21,8 +21,9 @@ import zenoh
 
 from cdus.scenario.config import ConfigError, parse_value
 from cdus.scenario.link import validate_link
+from cdus.wire.keys import FLEET_RE
 from cdus.wire.transport import add_transport_args, transport_from_args, with_default_endpoint
-from ground_station.console import GroundStation, status_table
+from ground_station.console import GroundStation, num, status_table
 
 VEHICLE_ACTIONS = {"kill": "kill", "restart": "restart", "pause-vehicle": "pause", "resume-vehicle": "resume"}
 
@@ -138,7 +139,8 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
                   f"{', '.join(transport.connect) or 'the configured endpoint'}: is it running? "
                   "(cdus launch prints the fleet name and the endpoint to attach to)", file=sys.stderr)
             return 1
-        ids = list((gs.view.world or {}).get("ids") or [])
+        # the world's ids: names of the key space (letters, digits, _ and -), nothing else is trusted
+        ids = [i for i in (gs.view.world or {}).get("ids") or [] if isinstance(i, str) and FLEET_RE.match(i)]
         if args.action == "status":
             if args.once:
                 print(status_table(gs.view))
@@ -152,9 +154,9 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
         elif args.action == "link":
             validate_link(table, ids, "command line")
             gs.set_link(table, args.at)
-            t_now = float((gs.view.world or {}).get("t") or 0.0)
+            t_now = gs.sim_time() or 0.0
             when = ("as soon as the world can" if args.at is None else f"from t = {args.at:.2f} s"
-                    if args.at > t_now else f"now (t = {args.at:.2f} s is past; the world is at {t_now:.1f} s)")
+                    if args.at > t_now else f"now (t = {args.at:.2f} s is past; the world is at {num(t_now, '.1f')} s)")
             print(f"link faults {table} {when}: sent to fleet {args.fleet!r}")
         elif args.action == "gains":
             if args.vehicle is not None:

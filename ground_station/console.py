@@ -19,6 +19,27 @@ from cdus.wire import keys
 from cdus.wire.transport import Transport, open_session
 from cdus.wire.messages import VEHICLE_FAULTS, StateMsg, decode_states, encode_control
 from cdus.wire.schemas import FleetEvent, decode_event, decode_status
+from cdus.wire.text import printable
+
+MAX_NAMES = 10_000  # vehicles (telemetry, liveliness) the console tracks: names beyond are forged
+MAX_EVENTS = 1000  # events the console keeps (it shows the newest 8)
+BIG = 1e9  # numbers beyond this are shown in scientific notation, not as hundreds of digits
+
+
+def num(x: Any, spec: str = ".3f", none: str = "-") -> str:
+    """A number from the wire as text: a finite one formatted by ``spec`` (or as ``%.3g`` when
+    huge), ``nan``/``inf`` as they are, anything else (a string, a list) escaped and marked ``?``."""
+    if x is None:
+        return none
+    if isinstance(x, bool) or not isinstance(x, (int, float)):
+        return "?" + printable(repr(x), 24)
+    if not math.isfinite(x):
+        return str(float(x))
+    return format(x, spec) if abs(x) < BIG else f"{x:.3g}"
+
+
+def _text(x: Any, limit: int = 64) -> str:
+    return printable(x if isinstance(x, str) else repr(x), limit)
 
 
 @dataclass
@@ -34,32 +55,37 @@ class FleetView:
 
 
 def status_table(view: FleetView, now: float | None = None) -> str:
-    """A plain-text table of the fleet: one row per vehicle seen, then the world's line."""
+    """A plain-text table of the fleet: one row per vehicle seen, then the world's line. Every
+    string that came over the wire is escaped (cdus.wire.text.printable), every number that is
+    not a finite one is shown as what it is."""
     with view.lock:
-        known = (view.world or {}).get("ids") or []
+        w = view.world
+        known = (w or {}).get("ids")
+        known = [k for k in known if isinstance(k, str)] if isinstance(known, list) else []
         ids = sorted(set(view.states) | (view.alive - {keys.WORLD}) | set(known))
         rows = [f"{'vehicle':<10} {'alive':<5} {'t (s)':>8} {'|Φ| (m)':>9} {'ω':>11} {'ω̇':>8}  position"]
         for vid in ids:
             m = view.states.get(vid)
             alive = "yes" if vid in view.alive else "NO"
+            name = _text(vid, 32)
             if m is None:
-                rows.append(f"{vid:<10} {alive:<5} {'-':>8}")
+                rows.append(f"{name:<10} {alive:<5} {'-':>8}")
                 continue
-            pos = ", ".join(f"{x:.1f}" for x in m.q)
-            rows.append(f"{vid:<10} {alive:<5} {m.t:8.2f} {m.path_error:9.3f} {m.omega:11.3f} "
-                        f"{m.omega_rate:8.3f}  ({pos})")
-        w = view.world
+            pos = ", ".join(num(x, ".1f") for x in m.q)
+            rows.append(f"{name:<10} {alive:<5} {num(m.t, '.2f'):>8} {num(m.path_error):>9} {num(m.omega):>11} "
+                        f"{num(m.omega_rate):>8}  ({pos})")
         if w:
             coord = w.get("coord_error_max")
             path = w.get("path_error_max")
             paused = ", PAUSED" if w.get("paused") else ""
-            rows.append(f"world: t = {w.get('t', 0):.1f} / {w.get('duration', 0):.0f} s ({w.get('clock')}{paused}), "
-                        f"{len(w.get('alive', []))}/{len(w.get('ids') or [])} vehicles alive, worst |Φ| "
-                        f"{'-' if path is None else f'{path:.3f}'} m, worst edge error "
-                        f"{'-' if coord is None else f'{coord:.4f}'} rad")
+            alive_n = len(w["alive"]) if isinstance(w.get("alive"), list) else "?"
+            rows.append(f"world: t = {num(w.get('t', 0), '.1f')} / {num(w.get('duration', 0), '.0f')} s "
+                        f"({_text(w.get('clock'), 16)}{paused}), {alive_n}/{len(known)} vehicles alive, worst |Φ| "
+                        f"{num(path)} m, worst edge error {num(coord, '.4f')} rad")
         else:
             rows.append("world: no status yet")
         events = view.events or (w or {}).get("events") or []  # heard live, else the world's recent ones
+        events = [e for e in events if isinstance(e, FleetEvent)]
         if events:
             rows.append("events:")
             # the newest 8, drop bursts only where nothing else is left to show (a lossy link makes thousands)
@@ -69,7 +95,8 @@ def status_table(view: FleetView, now: float | None = None) -> str:
             burst_list = [e for e in events if e.kind == "link_burst"]
             shown = others[-8:] + (burst_list[len(burst_list) - room:] if room else [])
             shown.sort(key=lambda e: e.t)
-            rows += [f"  {e.line()}" + ("  [" + e.severity.upper() + "]" if e.severity != "info" else "")
+            rows += [f"  t = {num(e.t, '.2f')} s: {_text(e.text, 300)}"
+                     + ("  [" + _text(e.severity.upper(), 8) + "]" if e.severity != "info" else "")
                      for e in shown[-8:]]
             if bursts > room:
                 rows.append(f"  ({bursts} drop bursts heard; the newest shown only where room is left)")
@@ -107,7 +134,8 @@ class GroundStation:
         rows = decode_states(sample.payload.to_bytes())
         _, vid = keys.leaf(str(sample.key_expr))
         with self.view.lock:
-            if isinstance(rows, str) or vid is None:
+            if (isinstance(rows, str) or vid is None or not keys.FLEET_RE.match(vid)
+                    or vid not in self.view.states and len(self.view.states) >= MAX_NAMES):
                 self.view.rejected += 1
                 return
             self.view.states[vid] = rows[-1]
@@ -127,14 +155,17 @@ class GroundStation:
                 self.view.rejected += 1
             else:
                 self.view.events.append(e)
+                del self.view.events[:-MAX_EVENTS]  # a flood of events cannot grow the console without bound
 
     def _on_alive(self, sample: Any) -> None:
         who = keys.alive_name(str(sample.key_expr))
         with self.view.lock:
             if str(sample.kind).endswith("DELETE"):
                 self.view.alive.discard(who)
-            else:
+            elif who and keys.FLEET_RE.match(who) and len(self.view.alive) < MAX_NAMES:
                 self.view.alive.add(who)
+            else:
+                self.view.rejected += 1
 
     def wait_for_status(self, timeout: float) -> bool:
         """Wait until the world's status has been heard (it is published about once a second)."""
@@ -147,8 +178,10 @@ class GroundStation:
         return False
 
     def sim_time(self) -> float | None:
+        """The world's simulated time, None before its status or if it is not a finite number."""
         with self.view.lock:
-            return None if self.view.world is None else float(self.view.world.get("t", 0.0))
+            t = None if self.view.world is None else self.view.world.get("t")
+        return float(t) if isinstance(t, (int, float)) and not isinstance(t, bool) and math.isfinite(t) else None
 
     # ------------------------------------------------------------------ commanding
     def send(self, op: str, **fields: Any) -> None:

@@ -16,6 +16,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any, Sequence
 
+import zenoh
+
 from cdus.app.credentials import Credentials, CredentialsError, make_credentials
 from cdus.app.launcher import LINKS, LaunchOptions, launch
 from cdus.app.sweep import check_grid, parse_grid, sweep
@@ -27,7 +29,7 @@ from cdus.sim.build import listeners_of
 from cdus.sim.fleet import InProcessFleet
 from cdus.wire import keys
 from cdus.wire.access import GROUND_ROLE, WORLD_ROLE, vehicle_role
-from cdus.wire.transport import Transport, client_of, endpoint
+from cdus.wire.transport import Transport, client_of, endpoint, exposed_endpoints
 from cdus.wire.transport import router as fleet_router
 from ground_station.__main__ import main as gs_main
 from world_sim.recording import parse_spec
@@ -106,6 +108,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--tls", action="store_true",
                    help="--secure, over TLS: a private CA for the run, a certificate per process (mutual TLS), "
                         "the router's endpoints tls/...; the list also checks each certificate's name")
+    p.add_argument("--insecure", action="store_true",
+                   help="let a router that listens beyond this host (any endpoint but loopback or a unix socket) "
+                        "run without credentials: anyone who reaches it can then stop, retune, kill and steer "
+                        "the fleet (docs/security.md); without this flag such a router needs --secure or --tls")
     p.set_defaults(func=cmd_launch)
 
     p = sub.add_parser("sweep", allow_abbrev=False,
@@ -220,14 +226,18 @@ def cmd_launch(args: argparse.Namespace) -> int:
     if (args.secure or args.tls) and args.zenoh_config and not args.listen:
         raise ConfigError("command line", [("--secure", "with --zenoh-config, give the router's endpoints with "
                                                         "--listen too (the credentials name them)")])
+    router = fleet_router(args.listen, args.zenoh_config)
+    exposed = check_exposure(args, router)
     run = Path(args.logs) if args.logs else run_dir(args.runs_dir, scenario.name)
     run.mkdir(parents=True, exist_ok=True)
-    router = fleet_router(args.listen, args.zenoh_config)
     cred = None
     if args.secure or args.tls:
         router, cred = secure_router(router, opts, scenario, run / "secure", "tls" if args.tls else "password")
     print(f"{scenario.name}: launching {len(scenario.vehicles) - len(opts.remote)} vehicle processes + world "
           f"({args.clock} clock), router {', '.join(router.listen) or args.zenoh_config}")
+    if args.insecure:
+        print("  WARNING: --insecure: " + INSECURE_ALLOWS.format(eps=", ".join(exposed) or "this router"),
+              file=sys.stderr)
     if cred is not None:
         print(f"  secured ({cred.mode}): credentials in {cred.directory}; only the fleet's own processes and "
               f"ground stations holding {cred.file(GROUND_ROLE).name} may publish under cdus/{opts.fleet}/")
@@ -246,6 +256,32 @@ def cmd_launch(args: argparse.Namespace) -> int:
         print(f"no metrics were written; logs: {la.logs}", file=sys.stderr)
         status = status or EXIT_FAIL
     return status
+
+
+INSECURE_ALLOWS = ("anyone who reaches {eps} can, without any credential: stop, pause or resume the fleet; change "
+                   "its gains and link faults; have the launcher kill, pause or restart any vehicle; publish "
+                   "any vehicle's ω and telemetry (steering the formation, forging results); flood any key "
+                   "(docs/security.md)")
+
+
+def check_exposure(args: argparse.Namespace, router: Transport) -> tuple[str, ...]:
+    """The rule of a safe default: a router that listens on anything but loopback (127.0.0.0/8,
+    ::1) or a unix socket needs credentials (--secure or --tls) unless --insecure says the user
+    means it. Returns the exposed endpoints (a usage error if they are not allowed)."""
+    secured = args.secure or args.tls
+    if args.insecure and secured:
+        raise ConfigError("command line", [("--insecure", "contradicts --secure/--tls; give one of them")])
+    try:
+        exposed = exposed_endpoints(router)
+    except zenoh.ZError as e:
+        raise ConfigError("command line", [("--zenoh-config", str(e).split(" at /")[0])]) from None
+    if exposed and not secured and not args.insecure:
+        where = "listens on" if router.listen else f"(its config {args.zenoh_config}, or Zenoh's default) listens on"
+        raise ConfigError("command line", [(
+            "--listen", f"the router {where} {', '.join(exposed)}, which other hosts can reach: add --secure "
+                        f"(or --tls) so only this run's processes get in (docs/multihost.md), listen on "
+                        f"127.0.0.1 or a unix socket, or add --insecure to run it open to anyone on the network")])
+    return exposed
 
 
 def secure_router(router: Transport, opts: LaunchOptions, scenario: Scenario, directory: Path,

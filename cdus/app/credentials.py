@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 from cdus.wire import access
-from cdus.wire.transport import client_of, Transport
+from cdus.wire.transport import Transport, client_of, endpoint_host
 
 MODES = ("password", "tls")
 WILDCARDS = ("0.0.0.0", "::", "[::]")
@@ -70,13 +70,6 @@ def secure_endpoints(listen: tuple[str, ...], mode: str) -> tuple[str, ...]:
                                    f"give tcp/HOST:PORT or tls/HOST:PORT")
         out.append(f"tls/{rest}")
     return tuple(out)
-
-
-def endpoint_host(ep: str) -> str:
-    """``tls/10.0.0.1:7447#opts`` -> ``10.0.0.1``; ``tcp/[::1]:7447`` -> ``::1``."""
-    rest = ep.partition("/")[2].split("#", 1)[0].split("?", 1)[0]
-    host = rest.rsplit(":", 1)[0]
-    return host[1:-1] if host.startswith("[") and host.endswith("]") else host
 
 
 def _write_private(path: Path, data: str | bytes) -> None:

@@ -9,11 +9,24 @@ scenario's ``[supervision]`` (restart never | on-failure | always, at most ``max
 times per vehicle, after a doubling back-off; docs/config.md), and at the end, on Ctrl-C,
 on SIGTERM or on a failure, walks the shutdown ladder: ask the world to stop (it writes the
 metrics), let everyone exit for a grace period, SIGTERM their process groups, then SIGKILL.
-Nothing it started outlives it.
+Nothing it started outlives it, not even when the launcher itself is SIGKILLed: every child
+is started with ``PR_SET_PDEATHSIG`` (Linux): the moment the launcher dies the kernel sends
+the world SIGTERM (it still writes what it has) and the agents SIGKILL (nothing to save, and
+a vehicle paused by a fault, SIGSTOPped, would never act on a SIGTERM). If the world dies, the
+launcher writes the run's metrics.json itself (``completed: false``, ``completion:
+"world_lost"``, what it knew from the world's last status), stops the fleet and exits 1.
+
+The launcher's command key (``to/+launcher+/cmd``) carries out faults on the scenario's
+own vehicles only: anything else (``kill world``, an unknown id, a malformed message) is
+counted by reason, logged once per reason (escaped) and dropped.
 """
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
+import json
+import math
 import os
 import shlex
 import shutil
@@ -23,7 +36,7 @@ import sys
 import tempfile
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable
 
@@ -31,11 +44,15 @@ import zenoh
 
 from cdus.scenario.model import DEFAULT_RESTART, Scenario, Supervision
 from cdus.app.report import Progress
+from cdus.core.metrics import Recorder
 from cdus.files import write_json
+from cdus.sim.build import metric_edges
+from cdus.sim.summary import run_metrics
 from cdus.sim.reports import ConsoleQuota
 from cdus.wire import keys
 from cdus.wire.messages import CTL_OPS, LAUNCHER_OPS, decode_control, encode_control
 from cdus.wire.schemas import FleetEvent, decode_event, decode_status, encode_event
+from cdus.wire.text import printable
 from cdus.wire.transport import DEFAULT_LEASE_MS, Transport, client_of, open_session
 
 LINKS = ("direct", "router")  # how ω travels between neighbours (docs/architecture.md)
@@ -45,6 +62,55 @@ LOG_TAIL = 15
 # default thread pools cost more in context switches than they give (measured: lockstep
 # lake_circle 13x -> 17x real time on 2 cores). A user's own ZENOH_RUNTIME wins.
 ZENOH_RUNTIME = "(app: (worker_threads: 1), acc: (handover: app), rx: (handover: app), tx: (handover: app))"
+
+
+# Children die with the launcher: prctl(PR_SET_PDEATHSIG, SIGTERM) in the child between fork
+# and exec. The kernel sends the signal when the *thread* that forked the child exits, so
+# children are only ever started from the launcher's main thread (start, supervise, stop).
+PR_SET_PDEATHSIG = 1
+_LIBC = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True) if sys.platform == "linux" else None
+_PRCTL = _LIBC.prctl if _LIBC is not None else None  # looked up now: the child only calls it
+
+
+def die_with_parent(parent_pid: int, sig: int = signal.SIGTERM) -> Callable[[], None] | None:
+    """A ``preexec_fn`` asking the kernel for ``sig`` when the parent dies (Linux), and exiting
+    at once if the parent is already gone (it died between fork and prctl). None elsewhere."""
+    if _PRCTL is None:
+        return None
+    signum = int(sig)
+
+    def preexec() -> None:  # runs in the forked child: no imports, no allocations of note
+        _PRCTL(PR_SET_PDEATHSIG, signum, 0, 0, 0)
+        if os.getppid() != parent_pid:
+            os._exit(1)
+    return preexec
+
+
+# Router-side rate limits (Zenoh's own ``downsampling``, realtime runs only: it is wall-clock
+# based, and a lockstep run goes many times faster than real time and must lose nothing).
+# Zenoh keeps one timer per rule and per incoming link (flow ingress): a flooder's link gets
+# its own budget, so a flood on vehicle v's ω key reaches v's listeners at most
+# OMEGA_MARGIN x the broadcast rate, and v's own messages, on v's own link, are not starved.
+# The margin absorbs jitter: Zenoh drops a message that follows the previous one of its
+# link by less than 1 / rate (no burst allowance), so a genuine ω is dropped only if it
+# arrives less than a quarter period after the one before.
+OMEGA_MARGIN = 4.0
+COMMAND_HZ = 10.0  # the world's command inbox (ground stations): one command per `cdus gs` call
+
+
+def rate_limits(fleet: str, ids: tuple[str, ...] | list[str], broadcast_hz: float) -> list[dict]:
+    """The router's ``downsampling`` section: every vehicle's ω (any listener set) at
+    OMEGA_MARGIN x ``broadcast_hz``, the world's command inbox at COMMAND_HZ, per incoming
+    link. Not the world's ctl or the launcher's key: the world sends genuine bursts there
+    (several faults in one tick); under --secure only the world may publish them."""
+    omega = [{"key_expr": f"{keys.prefix(fleet)}/to/*/omega/{vid}", "freq": OMEGA_MARGIN * broadcast_hz}
+             for vid in ids]
+    # any recipient set: the world also hears to/+world+x+/cmd/..., which a flooder could pick
+    commands = [{"key_expr": f"{keys.prefix(fleet)}/to/*/cmd/*", "freq": COMMAND_HZ}]
+    return [{"id": "cdus-rate-limits", "flows": ["ingress"], "messages": ["put"], "rules": omega + commands}]
+
+
+WORLD_LOST = "world_lost"  # the completion reason the launcher writes when the world died without metrics
 
 
 class LaunchError(Exception):
@@ -65,12 +131,17 @@ class Child:
     log_file: Any = None
     intended_exit: bool = False  # killed on purpose (a scheduled fault): not a failure to restart
     restart_args: tuple[str, ...] = ()  # added when it is started again (an agent rejoins)
+    # what the kernel sends it when the launcher dies: the world SIGTERM (it writes its metrics);
+    # an agent SIGKILL (it has nothing to save, and one paused by a fault, SIGSTOPped, would
+    # hold a SIGTERM pending for ever)
+    death_signal: int = signal.SIGKILL
 
     def start(self, env: dict[str, str]) -> None:
         self.log_file = open(self.log_path, "ab")
         argv = self.argv + list(self.restart_args if self.restarts else ())
         self.proc = subprocess.Popen(argv, stdout=self.log_file, stderr=subprocess.STDOUT,
-                                     stdin=subprocess.DEVNULL, start_new_session=True, env=env)
+                                     stdin=subprocess.DEVNULL, start_new_session=True, env=env,
+                                     preexec_fn=die_with_parent(os.getpid(), self.death_signal))
         self.exit_code = None
         self.intended_exit = False
 
@@ -140,6 +211,7 @@ class Launcher:
         self.cond = threading.Condition()
         self.alive: set[str] = set()
         self.status: dict | None = None
+        self.rejected: dict[str, int] = {}  # messages to the launcher dropped, by reason
         self._console = ConsoleQuota()  # what of the events to print (drop bursts per link are capped)
         self.children: dict[str, Child] = {}
         self.session = None
@@ -155,6 +227,9 @@ class Launcher:
         self.sockets: Path | None = None  # direct links: each agent's unix socket, in a short temp dir
         if self.opts.links == "direct":
             self.sockets = Path(tempfile.mkdtemp(prefix="cdus-"))
+        if self.opts.clock == "realtime":
+            limits = rate_limits(self.fleet, self.scenario.ids, self.scenario.rates.broadcast)
+            self.router = replace(self.router, extra=(*self.router.extra, ("downsampling", json.dumps(limits))))
         sv = self.scenario.supervision  # the policy from the command line, the limits from the scenario
         self.supervision = Supervision(self.opts.restart, sv.max_restarts, sv.backoff_s)
 
@@ -176,7 +251,7 @@ class Launcher:
         argv += ["--rerun", self.opts.rerun, "--run-dir", str(self.run_dir)]
         if self.opts.policy:
             argv += ["--policy", self.opts.policy]
-        return Child("world", argv, self.logs / "world.log")
+        return Child("world", argv, self.logs / "world.log", death_signal=signal.SIGTERM)
 
     def _agent(self, vid: str) -> Child:
         argv = [sys.executable, "-m", "vehicle_agent", *self._common(vid, self._agent_transport(vid)), "--id", vid]
@@ -218,13 +293,29 @@ class Launcher:
         ]
 
     def _on_fault_request(self, sample: Any) -> None:
-        """The world asks for a scheduled vehicle fault; the supervise loop carries it out."""
+        """The world asks for a vehicle fault; the supervise loop carries it out. Only faults on
+        the scenario's vehicles started here: never the world, an unknown or a remote id."""
         c = decode_control(sample.payload.to_bytes(), LAUNCHER_OPS)
-        if isinstance(c, str) or c.fields["vehicle"] not in self.children:
+        if isinstance(c, str):
+            self._reject(f"command {c}", f"a malformed command on {printable(str(sample.key_expr))}")
+            return
+        vid = c.fields["vehicle"]
+        if vid not in self.scenario.ids:
+            self._reject("command not_a_vehicle", f"{c.op} {printable(vid, 64)}: not a vehicle of the scenario")
+            return
+        if vid not in self.children:
+            self._reject("command remote", f"{c.op} {printable(vid, 64)}: started on another host, not here")
             return
         with self.cond:
-            self.requests.append((c.op, c.fields["vehicle"]))
+            self.requests.append((c.op, vid))
             self.cond.notify_all()
+
+    def _reject(self, reason: str, what: str) -> None:
+        """Count a dropped message by reason; log the first of each reason (escaped text only)."""
+        with self.cond:
+            n = self.rejected[reason] = self.rejected.get(reason, 0) + 1
+        if n == 1:
+            self.log(f"  rejected: {what} ({reason}; further ones are only counted)")
 
     def _carry_out(self, op: str, vid: str) -> None:
         c = self.children[vid]
@@ -270,6 +361,12 @@ class Launcher:
     def _on_status(self, sample: Any) -> None:
         st = decode_status(sample.payload.to_bytes())
         if isinstance(st, str):
+            self._reject(f"status {st}", "a malformed world status")
+            return
+        t = st.get("t")
+        limit = 2 * (self.opts.duration or self.scenario.duration) + 1.0
+        if not (isinstance(t, (int, float)) and math.isfinite(t) and -1.0 <= t <= limit):  # -T before tick 0
+            self._reject("status t", f"a world status with t = {printable(t, 40)} (not in [-1, {limit:g}] s)")
             return
         with self.cond:
             self.status = st
@@ -277,9 +374,12 @@ class Launcher:
 
     def _on_event(self, sample: Any) -> None:
         e = decode_event(sample.payload.to_bytes())
-        if not self.opts.quiet and not isinstance(e, str):
+        if isinstance(e, str):
+            self._reject(f"event {e}", "a malformed event")
+            return
+        if not self.opts.quiet:
             for line in self._console.lines(e):
-                self.log(f"  event: {line}")
+                self.log(f"  event: {printable(line)}")
 
     def _wait_alive(self, names: list[str], timeout: float) -> list[str]:
         """Wait for every name's liveliness token; returns the missing ones (early exits end the wait)."""
@@ -351,8 +451,8 @@ class Launcher:
                 if not self.requests:
                     self.cond.wait(timeout=self._wait_s())
                 st = self.status
-            if st and float(st.get("t", 0.0)) > 0:
-                progress(float(st.get("t", 0.0)), duration)
+            if st and st["t"] > 0:  # checked where it came in (_on_status)
+                progress(float(st["t"]), duration)
 
     def _watch_agents(self) -> None:
         """Notice agents that exited and restart those whose back-off is over (never blocks)."""
@@ -396,8 +496,7 @@ class Launcher:
 
     def _give_up(self, c: Child, how: str) -> None:
         sv = self.supervision
-        st = self.status or {}
-        t = float(st.get("t", 0.0)) if isinstance(st.get("t"), (int, float)) else 0.0
+        t = float(self.status["t"]) if self.status else 0.0
         event = FleetEvent.of(t, "gave_up", f"vehicle {c.name} {how} after {c.supervised_restarts} restarts; "
                               f"the launcher gives up on it (supervision.max_restarts = {sv.max_restarts}); "
                               f"its log: {c.log_path}", vehicle=c.name)
@@ -409,6 +508,41 @@ class Launcher:
             except zenoh.ZError as e:
                 self.log(f"  could not publish that: {e}")
 
+    def metrics_mark(self) -> tuple | None:
+        """What the metrics file is now (None: absent), to tell later whether the world wrote it."""
+        try:
+            st = os.stat(self.metrics_out)
+        except OSError:
+            return None
+        return (st.st_ino, st.st_mtime_ns, st.st_size)
+
+    def write_world_lost(self, code: int, wall_s: float) -> dict:
+        """The world died without writing its metrics: write what the launcher knows (an empty
+        record, ``completed: false``, ``completion: "world_lost"``, the world's last status)."""
+        sc = self.scenario
+        if self.opts.duration is not None:
+            sc = replace(sc, duration=self.opts.duration)
+        rec = Recorder(list(sc.ids), [v.dim for v in sc.vehicles], metric_edges(sc))
+        st = self.status or {}
+        events = list(st.get("events") or [])
+        how = f"exited with status {code}" if code >= 0 else f"was killed by signal {-code}"
+        t_last = float(st["t"]) if st else None
+        events.append(FleetEvent.of(t_last or 0.0, "fault", f"the world process {how}; the launcher wrote these "
+                                    "metrics from the world's last status", severity="error"))
+        m = run_metrics(sc, rec, mode=self.opts.clock, link={}, wall_s=wall_s,
+                        policy=self.opts.policy or sc.link.policy, events=events, completed=False)
+        m["completion"] = WORLD_LOST
+        m["written_by"] = "launcher"
+        m["world_lost"] = {
+            "world_exit": code, "last_status_t": t_last,
+            "last_status": {k: st.get(k) for k in ("alive", "path_error_max", "coord_error_max", "paused")} if st else None,
+            "alive_tokens": sorted(self.alive & set(sc.ids)),  # the scenario's names only, not whatever was declared
+            "restarts": {n: c.restarts for n, c in self.children.items() if n != keys.WORLD and c.restarts},
+            "rejected_by_launcher": dict(self.rejected),
+        }
+        write_json(self.metrics_out, m)
+        return m
+
     def stop(self) -> None:
         """The shutdown ladder: ask, wait, SIGTERM, wait, SIGKILL. Idempotent."""
         self.stopping = True
@@ -416,12 +550,16 @@ class Launcher:
         if self.session is not None and world is not None and world.running():
             try:
                 self.session.put(keys.world_cmd(self.fleet, keys.LAUNCHER), encode_control("stop"))
+                self._wait_exit(self.opts.grace)  # the world stops the agents
             except zenoh.ZError as e:
                 self.log(f"  could not ask the world to stop ({e}); stopping the processes")
-        self._wait_exit(self.opts.grace)
+        elif self.finished:  # the world ended the run and told the agents to stop
+            self._wait_exit(self.opts.grace)
+        # else the world died: nobody tells the agents to stop but the signals below
         for c in self.children.values():
             if c.running():
                 c.signal_group(signal.SIGTERM)
+                c.signal_group(signal.SIGCONT)  # a vehicle paused by a fault acts on its SIGTERM only once resumed
         self._wait_exit(self.opts.grace)
         for c in self.children.values():
             if c.running():
@@ -465,12 +603,18 @@ def launch(scenario: Scenario, run_dir: Path, router: Transport, opts: LaunchOpt
     # A shell starting us in the background (`cdus launch ... &` in a script) ignores SIGINT
     # for us, and Python keeps it ignored: Ctrl-C / kill -INT must still stop the fleet cleanly.
     old_int = signal.signal(signal.SIGINT, _term)
+    mark = la.metrics_mark()
+    t0 = time.perf_counter()
     try:
         la.start()
         code = la.supervise()
         status = 0 if code == 0 else 1
         if code != 0:
             la.log(f"world exited with status {code}; its log ends with:\n{la.children['world'].tail()}")
+            if la.metrics_mark() == mark:  # it wrote nothing: the launcher writes what it knows
+                la.write_world_lost(code, time.perf_counter() - t0)
+                la.log(f"the world wrote no metrics: {la.metrics_out} written by the launcher "
+                       f"(completed: false, completion: {WORLD_LOST!r}); stopping the fleet")
     except LaunchError as e:
         la.log(f"error: the fleet did not come up:\n{e}")
         status = 1
@@ -488,4 +632,7 @@ def launch(scenario: Scenario, run_dir: Path, router: Transport, opts: LaunchOpt
         signal.signal(signal.SIGINT, old_int)
     if interrupted:
         status = 130
+    if la.rejected:
+        la.log(f"  the launcher dropped {sum(la.rejected.values())} messages: "
+               + ", ".join(f"{n} {r}" for r, n in sorted(la.rejected.items())))
     return status, la

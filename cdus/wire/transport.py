@@ -15,6 +15,7 @@ from a user's file: it would send packets off this machine. Connect to explicit 
 from __future__ import annotations
 
 import argparse
+import ipaddress
 import json
 import socket
 from dataclasses import dataclass, field
@@ -69,6 +70,48 @@ def endpoint(text: str) -> str:
             raise argparse.ArgumentTypeError(f"{text!r}: expected {proto}/<host>:<port> with a port 0-65535, "
                                              f"e.g. {proto}/127.0.0.1:7447")
     return text
+
+
+LOCAL_PROTOCOLS = ("unixsock-stream", "unixpipe")  # reachable from this host only
+
+
+def endpoint_host(ep: str) -> str:
+    """``tls/10.0.0.1:7447#opts`` -> ``10.0.0.1``; ``tcp/[::1]:7447`` -> ``::1``."""
+    rest = ep.partition("/")[2].split("#", 1)[0].split("?", 1)[0]
+    host = rest.rsplit(":", 1)[0]
+    return host[1:-1] if host.startswith("[") and host.endswith("]") else host
+
+
+def is_local_endpoint(ep: str) -> bool:
+    """Whether only this host can reach ``ep``: a unix socket or pipe, or an IP protocol on a
+    loopback address literal (127.0.0.0/8, ::1). A host name (even ``localhost``), a wildcard
+    (0.0.0.0, ::) or any other address is not: it is, or may be, reachable from elsewhere."""
+    proto = ep.partition("/")[0]
+    if proto in LOCAL_PROTOCOLS:
+        return True
+    if proto not in _IP_PROTOCOLS:
+        return False
+    try:
+        return ipaddress.ip_address(endpoint_host(ep)).is_loopback
+    except ValueError:
+        return False
+
+
+def router_listen(t: Transport) -> tuple[str, ...]:
+    """The endpoints a router made from ``t`` listens on: its own, else its config file's, else
+    Zenoh's default for a router (every interface, ``tcp/[::]:7447``)."""
+    if t.listen:
+        return t.listen
+    conf = zenoh.Config.from_file(t.config_file) if t.config_file else zenoh.Config()
+    eps = json.loads(conf.get_json("listen/endpoints"))
+    if isinstance(eps, dict):
+        eps = eps.get("router", [])
+    return tuple(str(e) for e in eps)
+
+
+def exposed_endpoints(t: Transport) -> tuple[str, ...]:
+    """The endpoints of router ``t`` that another host may reach (see :func:`is_local_endpoint`)."""
+    return tuple(ep for ep in router_listen(t) if not is_local_endpoint(ep))
 
 
 def add_transport_args(p: argparse.ArgumentParser, default_mode: str = "client") -> None:

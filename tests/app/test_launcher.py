@@ -148,3 +148,128 @@ def test_nothing_is_restarted_once_the_run_is_stopping(make):
 def test_the_policy_comes_from_the_options_and_the_limits_from_the_scenario(make):
     la, c, clock, lines = make("on-failure", EXIT_0, max_restarts=4, backoff_s=2.5)
     assert (la.supervision.restart, la.supervision.max_restarts, la.supervision.backoff_s) == ("on-failure", 4, 2.5)
+
+
+# ---------------------------------------------------------------- what reaches the launcher over the wire
+
+import json  # noqa: E402
+import math  # noqa: E402
+
+import msgpack  # noqa: E402
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+from cdus.app.launcher import COMMAND_HZ, OMEGA_MARGIN, WORLD_LOST  # noqa: E402
+from cdus.wire.messages import LAUNCHER_OPS, encode_control  # noqa: E402
+from cdus.wire.schemas import FleetEvent, encode_event, encode_status  # noqa: E402
+
+
+class Sample:
+    def __init__(self, payload: bytes, key: str = "cdus/t/to/+launcher+/cmd"):
+        self.payload = type("P", (), {"to_bytes": lambda _self: payload})()
+        self.key_expr = key
+
+
+def quiet_launcher(tmp_path, **opts) -> tuple[Launcher, list[str]]:
+    lines: list[str] = []
+    sc = load_scenario("configs/lake_circle.toml")
+    la = Launcher(sc, tmp_path / "run", Transport(mode="router", listen=("tcp/127.0.0.1:0",)),
+                  LaunchOptions(fleet="t", **opts), log=lines.append)
+    return la, lines
+
+
+def test_the_launchers_key_moves_the_scenarios_own_vehicles_only(tmp_path):
+    la, lines = quiet_launcher(tmp_path, remote=("uav3",))
+    for vid in ("usv1", "usv2", "uav3"):
+        if vid != "uav3":
+            la.children[vid] = Child(vid, SLEEP, la.logs / f"{vid}.log")
+    la.children["world"] = Child("world", SLEEP, la.logs / "world.log")
+    for op in LAUNCHER_OPS:
+        la._on_fault_request(Sample(encode_control(op, vehicle="world")))
+    la._on_fault_request(Sample(encode_control("kill", vehicle="uav3")))  # remote: not ours to kill
+    la._on_fault_request(Sample(encode_control("kill", vehicle="\x1b]0;pwned\x07")))
+    la._on_fault_request(Sample(b"\x92\x01"))
+    la._on_fault_request(Sample(encode_control("kill", vehicle="usv2")))
+    assert la.requests == [("kill", "usv2")]
+    assert la.rejected == {"command not_a_vehicle": 5, "command remote": 1, "command malformed": 1}
+    assert len(lines) == 3 and not any("\x1b" in ln or "\x07" in ln for ln in lines), lines
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.one_of(st.binary(max_size=300),
+                 st.builds(lambda op, v: encode_control(op, vehicle=v),
+                           st.sampled_from([*LAUNCHER_OPS, "stop", "grant"]), st.one_of(st.text(max_size=80),
+                                                                                        st.sampled_from(["world", "usv1", "launcher"]))),
+                 st.builds(lambda d: msgpack.packb(d), st.dictionaries(st.text(max_size=5),
+                                                                        st.one_of(st.integers(-2**63, 2**64 - 1), st.text(max_size=5),
+                                                                                  st.floats()), max_size=4))))
+def test_no_message_on_the_launchers_key_escapes_or_goes_uncounted(tmp_path_factory, payload):
+    la, _ = quiet_launcher(tmp_path_factory.mktemp("l"))
+    la.children["usv1"] = Child("usv1", SLEEP, la.logs / "usv1.log")
+    la.children["world"] = Child("world", SLEEP, la.logs / "world.log")
+    la._on_fault_request(Sample(payload))
+    assert len(la.requests) + sum(la.rejected.values()) == 1
+    assert all(vid == "usv1" for _, vid in la.requests)
+
+
+def status(t: float) -> bytes:
+    return encode_status(t, 250.0, "lockstep", ["usv1"], ["usv1"], None, None, [], False)
+
+
+def test_a_world_status_with_a_time_that_is_not_a_plausible_number_is_dropped(tmp_path):
+    la, lines = quiet_launcher(tmp_path)
+    la._on_status(Sample(status(12.5)))
+    for bad in (math.nan, math.inf, 1e308, -5.0):
+        raw = msgpack.unpackb(status(0.0))
+        raw["t"] = bad
+        la._on_status(Sample(msgpack.packb(raw)))
+    la._on_status(Sample(b"junk"))
+    assert la.status["t"] == 12.5
+    assert sum(la.rejected.values()) == 5 and la.rejected["status malformed"] == 1, la.rejected
+    assert la.rejected.get("status t", 0) >= 1  # 1e308 and -5 s are numbers; the decoder may or may not take them
+
+
+def test_events_are_printed_escaped(tmp_path):
+    la, lines = quiet_launcher(tmp_path)
+    la._on_event(Sample(encode_event(FleetEvent.of(1.0, "fleet", "paused\x1b[2J\r\nt = 99 s: all good"))))
+    assert lines and all("\x1b" not in ln and "\n" not in ln and "\r" not in ln for ln in lines), lines
+    assert "\\x1b[2J\\r\\n" in lines[0]
+
+
+def test_rate_limits_are_set_for_realtime_runs_only(tmp_path):
+    la, _ = quiet_launcher(tmp_path, clock="lockstep")
+    assert "downsampling" not in dict(la.router.extra)
+    la, _ = quiet_launcher(tmp_path / "rt", clock="realtime")
+    (ds,) = json.loads(dict(la.router.extra)["downsampling"])
+    assert ds["flows"] == ["ingress"] and ds["messages"] == ["put"]
+    rules = {r["key_expr"]: r["freq"] for r in ds["rules"]}
+    assert rules == {**{f"cdus/t/to/*/omega/{v}": OMEGA_MARGIN * 50.0 for v in la.scenario.ids},
+                     "cdus/t/to/*/cmd/*": COMMAND_HZ}
+
+
+def test_a_world_that_died_leaves_metrics_that_say_so(tmp_path):
+    la, _ = quiet_launcher(tmp_path, duration=40.0)
+    la._on_status(Sample(status(12.5)))
+    la.alive = {"world", "usv1", "usv2"}
+    m = la.write_world_lost(-9, 3.0)
+    assert json.loads(la.metrics_out.read_text()) == m
+    assert m["completed"] is False and m["completion"] == WORLD_LOST and m["written_by"] == "launcher"
+    assert m["world_lost"]["world_exit"] == -9 and m["world_lost"]["last_status_t"] == 12.5
+    assert m["world_lost"]["alive_tokens"] == ["usv1", "usv2"]
+    assert m["events"][-1]["text"].startswith("the world process was killed by signal 9")
+    from cdus.app.report import summary_table
+
+    assert "lake_circle (lockstep" in summary_table(m, la.scenario.vehicles)  # the CLI prints it as any other
+
+
+def test_stop_ends_a_paused_vehicle_with_sigterm_not_after_the_grace_with_sigkill(tmp_path):
+    la, lines = quiet_launcher(tmp_path, grace=2.0)
+    c = la.children["usv1"] = Child("usv1", SLEEP, la.logs / "usv1.log")
+    c.start(la.env)
+    c.signal_group(signal.SIGSTOP)  # what a pause_vehicle fault does
+    try:
+        la.stop()
+        assert c.proc.returncode == -signal.SIGTERM, (c.proc.returncode, lines)
+    finally:
+        if c.running():
+            c.signal_group(signal.SIGKILL)
+            c.proc.wait()

@@ -14,8 +14,10 @@ import json
 import random
 import re
 import shlex
+import signal
 import threading
 import time
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -25,8 +27,8 @@ from cdus.scenario.config import load_scenario
 from cdus.sim.build import listeners_of
 from cdus.sim.fleet import InProcessFleet
 from cdus.wire import keys
-from cdus.wire.messages import OmegaMsg, encode_control, encode_omega
-from cdus.wire.schemas import FleetEvent, decode_event, decode_status
+from cdus.wire.messages import OmegaMsg, StateMsg, encode_control, encode_omega, encode_states
+from cdus.wire.schemas import AgentStats, FleetEvent, decode_event, decode_status, encode_event, encode_stats, encode_status
 from cdus.wire.transport import free_tcp_port
 
 from tests.outsider import raw_client
@@ -139,6 +141,15 @@ def test_an_outsider_cannot_stop_retune_or_inject_into_a_secured_fleet(tmp_path,
                 mallory.put(keys.ctl(fleet, targets), encode_control("stop"))
                 mallory.put(keys.ctl(fleet, targets), encode_control("gains", gains={"k": 7.0, "c": 0.1}, tick=1))
             mallory.put(keys.launcher_cmd(fleet), encode_control("kill", vehicle="usv2"))
+            mallory.put(keys.launcher_cmd(fleet), encode_control("kill", vehicle="world"))
+            # another vehicle's telemetry and counters, the world's status and events: not its keys
+            forged_row = StateMsg(sc.ids.index("usv2"), 6000, 120.0, (0.0, 0.0), 0.0, 0.0, 0.0, 0.0, 0.0)
+            for tick in (1, 50, 6000):
+                mallory.put(keys.state(fleet, "usv2"), encode_states([replace(forged_row, tick=tick)]))
+            mallory.put(keys.stats(fleet, "usv2"), encode_stats(AgentStats("usv2", 6000, rejected=10**6,
+                                                                           rejected_by_reason={"forged": 10**6})))
+            mallory.put(keys.world_status(fleet), encode_status(1e308, 1.0, "FORGED", [], [], 0.0, 0.0, [], False))
+            mallory.put(keys.world_events(fleet), encode_event(FleetEvent.of(0.0, "fleet", "FORGED stopped")))
             for vid in sc.ids:
                 j = sc.ids.index(vid)
                 to = [v for v in sc.ids if v != vid]  # to everyone, and to its real listeners
@@ -162,10 +173,12 @@ def test_an_outsider_cannot_stop_retune_or_inject_into_a_secured_fleet(tmp_path,
         events.wait_for("fleet", "paused")
         ground.put(command, encode_control("resume"))
         events.wait_for("fleet", "resumed")
+        assert not [e for e in events.events if "FORGED" in e.text], events.events  # its event never reached us
     finally:
         ground.close()
 
     assert la.wait(timeout=300) == 0, la.output()
+    assert "FORGED" not in la.output()
     m = json.loads((run / "metrics.json").read_text())
     assert m["completed"] is True, m["events"]  # no stop got through
     kinds = [e["kind"] for e in m["events"]]
@@ -226,4 +239,56 @@ def test_over_tls_only_a_certificate_of_the_run_gets_in_and_the_ground_station_c
     assert la.wait(timeout=60) == 0, la.output()
     m = json.loads((run / "metrics.json").read_text())
     assert m["completed"] is False
+    assert not fleet_processes(fleet)
+
+
+def test_in_realtime_the_router_passes_a_flood_on_one_omega_key_at_most_at_its_stated_rate(tmp_path, launches):
+    """Zenoh's downsampling, per incoming link: an outsider flooding usv1's ω key reaches usv1's
+    listeners at most OMEGA_MARGIN x the broadcast rate, and usv1's own ω still gets through."""
+    from cdus.app.launcher import OMEGA_MARGIN
+
+    fleet = unique_fleet()
+    port = free_tcp_port()
+    endpoint = f"tcp/127.0.0.1:{port}"
+    sc = load_scenario("configs/concentric_circles.toml")
+    la = launches(["configs/concentric_circles.toml", "--clock", "realtime", "--duration", "600", "--rerun", "off",
+                   "--listen", endpoint, "--logs", str(tmp_path / "run"), "-q"], fleet)
+    la.wait_for(f"fleet '{fleet}' up")
+    key = keys.omega(fleet, "usv1", listeners_of(sc, "usv1"))
+    forged = encode_omega(OmegaMsg(sc.ids.index("usv1"), 10**6, 1.0, 1e3, -1.0))
+    seen = {"forged": 0, "genuine": 0}
+    lock = threading.Lock()
+    counting = threading.Event()
+
+    def on(sample) -> None:
+        if counting.is_set():
+            with lock:
+                seen["forged" if sample.payload.to_bytes() == forged else "genuine"] += 1
+
+    observer = zenoh.open(raw_client(endpoint))
+    flooder = zenoh.open(raw_client(endpoint))
+    try:
+        observer.declare_subscriber(keys.any_omega(fleet).replace("/omega/*", "/omega/usv1"), on)
+        Status(observer, fleet).wait_past(1.0)  # the run is on: usv1 broadcasts
+        pub = flooder.declare_publisher(key)
+        sent = 0
+        counting.set()
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 3.0:
+            for _ in range(100):
+                pub.put(forged)
+            sent += 100
+        time.sleep(0.3)  # what the router let through has arrived
+        counting.clear()
+        window = time.monotonic() - t0
+    finally:
+        flooder.close()
+        observer.close()
+    rate = OMEGA_MARGIN * sc.rates.broadcast
+    assert sent > 20 * rate * 3.0, f"the flood ({sent} messages) was too slow to prove anything"
+    assert 0 < seen["forged"] <= rate * window + 2, (seen, sent, rate, window)
+    assert seen["genuine"] > 0.5 * sc.rates.broadcast * window, seen  # usv1's own link has its own budget
+    assert la.proc.poll() is None, la.output()
+    la.proc.send_signal(signal.SIGINT)
+    assert la.wait(timeout=60) == 130, la.output()
     assert not fleet_processes(fleet)

@@ -140,9 +140,10 @@ def hosts(tmp_path):
 
 
 def launch_in(hosts: Hosts, launches, config: str, fleet: str, run: Path, extra: list[str]) -> Launch:
-    """`cdus launch` in namespace r, listening on both router addresses, every vehicle remote."""
+    """`cdus launch` in namespace r, listening on both router addresses, every vehicle remote
+    (--insecure: the namespaces' private addresses reach nobody else; a real LAN takes --secure)."""
     sc = load_scenario(config)
-    return launches([config, "--listen", hosts.endpoint("a"), "--listen", hosts.endpoint("b"),
+    return launches([config, "--listen", hosts.endpoint("a"), "--listen", hosts.endpoint("b"), "--insecure",
                      "--remote", ",".join(sc.ids), "--logs", str(run), *extra], fleet, hosts.prefix("r"))
 
 

@@ -82,3 +82,89 @@ def test_the_console_prints_a_few_bursts_per_link_then_says_so_once():
     lines = [line for _ in range(5) for line in q.lines(ev("a->b"))] + q.lines(ev("b->a"))
     assert len(lines) == 4 and "not printed" in lines[2]
     assert q.lines(FleetEvent.of(1.0, "vehicle_lost", "vehicle a lost", vehicle="a")) != []
+
+
+# ---------------------------------------------------------------- what came over the wire is shown, not obeyed
+
+import math  # noqa: E402
+import unicodedata  # noqa: E402
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+from ground_station.console import GroundStation, num  # noqa: E402
+from cdus.wire.schemas import encode_event, encode_status  # noqa: E402
+from cdus.wire.messages import encode_states  # noqa: E402
+
+
+def test_numbers_that_are_not_finite_numbers_are_shown_as_such():
+    assert num(1.23456) == "1.235" and num(None) == "-"
+    assert num(math.nan) == "nan" and num(math.inf) == "inf" and num(-math.inf) == "-inf"
+    assert num(1e308, ".1f") == "1e+308"  # not 309 digits
+    assert num("x\x1b[31m") == "?'x\\x1b[31m'" and num(True) == "?True" and num([1]) == "?[1]"
+
+
+def test_the_status_table_escapes_every_wire_string_and_survives_any_value():
+    esc = "\x1b[2J\x1b[31mOK\r\n"
+    view = FleetView()
+    view.states[esc] = StateMsg(0, 1, math.nan, (math.inf, 1e308), 0.0, 0.0, -math.inf, 1.0, math.nan)
+    view.alive = {esc, "world"}
+    view.world = {"t": 1e308, "duration": 250.0, "clock": esc, "alive": "not a list", "ids": [esc, 7, None],
+                  "path_error_max": "0.0", "coord_error_max": math.nan, "paused": False,
+                  "events": [FleetEvent.of(1.0, "fleet", esc + "t = 250 s: done"), "not an event"]}
+    text = status_table(view)
+    assert "\x1b" not in text and "\r" not in text
+    assert text.count("\n") == len(text.splitlines()) - 1 and "\\x1b[2J" in text
+    assert "world: t = 1e+308 / 250 s" in text and "worst |Φ| ?'0.0' m" in text and "edge error nan rad" in text
+    assert "nan" in text.splitlines()[1] and "(inf, 1e+308)" in text
+
+
+class Sample:
+    def __init__(self, key: str, payload: bytes):
+        self.key_expr = key
+        self.payload = type("P", (), {"to_bytes": lambda _self: payload})()
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.binary(max_size=200), st.text(max_size=20))
+def test_no_message_escapes_the_ground_stations_handlers_and_the_table_always_prints(payload, text):
+    gs = GroundStation("f", None)
+    gs._on_state(Sample(f"cdus/f/to/+world+/state/{text}", payload))
+    gs._on_status(Sample("cdus/f/world/status", payload))
+    gs._on_event(Sample("cdus/f/world/events", payload))
+    gs._on_event(Sample("cdus/f/world/events", encode_event(FleetEvent.of(0.0, "fleet", text))))
+    gs._on_status(Sample("cdus/f/world/status", encode_status(0.0, 1.0, text, [text], [text], None, None, [], False)))
+    gs._on_state(Sample(f"cdus/f/to/+world+/state/{text}", encode_states([StateMsg(0, 1, 0.0, (0.0, 0.0), 0.0, 0.0,
+                                                                                       0.0, 0.0, 0.0)])))
+    out = status_table(gs.view)
+    lines = out.split("\n")
+    assert len(lines) == len(out.splitlines())  # no line breaks but the table's own
+    assert not any(unicodedata.category(ch)[0] == "C" for ln in lines for ch in ln), out
+
+
+def test_the_console_keeps_a_bounded_number_of_events():
+    from ground_station.console import MAX_EVENTS
+
+    gs = GroundStation("f", None)
+    for i in range(MAX_EVENTS + 50):
+        gs._on_event(Sample("cdus/f/world/events", encode_event(FleetEvent.of(float(i), "fleet", "x"))))
+    assert len(gs.view.events) == MAX_EVENTS and gs.view.events[-1].t == MAX_EVENTS + 49
+
+
+def test_forged_names_are_not_tracked():
+    from ground_station.console import MAX_NAMES
+
+    gs = GroundStation("f", None)
+    row = encode_states([StateMsg(0, 1, 0.0, (0.0, 0.0), 0.0, 0.0, 0.0, 0.0, 0.0)])
+    gs._on_state(Sample("cdus/f/to/+world+/state/us\x1bv1", row))
+    gs._on_state(Sample("cdus/f/to/+world+/state/usv1", row))
+    assert set(gs.view.states) == {"usv1"} and gs.view.rejected == 1
+    gs.view.states.update({f"v{i}": None for i in range(MAX_NAMES)})
+    gs._on_state(Sample("cdus/f/to/+world+/state/one_more", row))
+    assert "one_more" not in gs.view.states and gs.view.rejected == 2
+
+    class Alive(Sample):
+        kind = "SampleKind.PUT"
+
+    gs._on_alive(Alive("cdus/f/alive/\x1b[2J", b""))
+    gs._on_alive(Alive("cdus/f/alive/usv1", b""))
+    assert gs.view.alive == {"usv1"} and gs.view.rejected == 3
