@@ -58,6 +58,7 @@ REJECT_REASONS = ("not_a_neighbour", "inconsistent", "future", "stale", "conflic
 HOSTILE_REASONS = ("future", "conflict", "implausible")
 RECENT = 8  # messages kept per sender to tell a duplicate ("stale") from a forgery ("conflict")
 GAP = 64  # seqs skipped by a newer message that are still taken if they come (an outage's resends)
+CANDIDATES = 4  # messages kept per seq that agree with the sender's past (the genuine one among forgeries)
 HEAL = 3  # consecutive messages consistent with each other but not with the sender's past: a new past
 #: slack of the loose check over a gap of several ticks (rad/s on the mean rate; docs/architecture.md)
 GAP_RATE_SLACK = 1.0
@@ -126,8 +127,9 @@ class _Neighbour:
     since: int = 0  # tick of its newest (re)start: nothing it sent before is used
     changes: list[RosterChange] = field(default_factory=list)  # not yet applied, by tick
     change_ticks: list[int] = field(default_factory=list)  # ticks of every change heard of (newest RECENT)
-    last: OmegaMsg | None = None  # its newest message taken (the past a new one must agree with)
-    recent: dict[int, OmegaMsg] = field(default_factory=dict)  # seq -> message taken, newest RECENT
+    #: seq -> the messages heard with it that agreed with the sender's past (the one taken first),
+    #: newest RECENT seqs: the past a new message must agree with, and what tells a copy from a forgery
+    recent: dict[int, list[OmegaMsg]] = field(default_factory=dict)
     chain: list[OmegaMsg] = field(default_factory=list)  # implausible messages consistent with each other
     missing: set[int] = field(default_factory=set)  # seqs skipped by a newer one (lost in flight), newest GAP
 
@@ -202,13 +204,19 @@ class VehicleNode:
             return None  # sent while this vehicle's process was gone: it never heard it (see rejoin)
         newest = self.seen_seq.get(k, -1)
         if msg.seq <= newest:
-            if msg.seq in peer.missing:  # a message lost in flight, said again: fill the gap
-                return self._fill(peer, msg, arrival)
-            old = peer.recent.get(msg.seq)
-            return self._reject("conflict" if old is not None and old != msg else "stale")
-        last = peer.last
-        if last is not None and not self._explained(peer, last, tick) and \
-                not omega_plausible(last, msg, self.period):
+            if msg in peer.recent.get(msg.seq, ()):
+                return self._reject("stale")  # a copy of what was taken or heard
+            if msg.seq in peer.missing and self._plausible(peer, msg, tick):
+                return self._fill(peer, msg, arrival)  # a message lost in flight, said again
+            if msg.seq in peer.recent:
+                # Someone else sends with this seq. Keep it as a candidate if it agrees with the
+                # sender's past, so that if it is the genuine one its successor is not judged
+                # against a forgery taken before it (that would lock the sender out).
+                if self._plausible(peer, msg, tick):
+                    self._remember(peer, msg)
+                return self._reject("conflict")
+            return self._reject("implausible" if msg.seq in peer.missing else "stale")
+        if not self._plausible(peer, msg, tick):
             chain = peer.chain
             if chain and msg.seq > chain[-1].seq and omega_plausible(chain[-1], msg, self.period):
                 chain.append(msg)
@@ -217,7 +225,6 @@ class VehicleNode:
             if len(chain) < HEAL:
                 return self._reject("implausible")
         peer.chain.clear()
-        peer.last = msg
         if newest >= 0 and msg.seq > newest + 1:  # skipped ones may still come (a resend after an outage)
             lo = max(newest + 1, msg.seq - GAP, -(-max(self.joined_at, self._deaf_before) // self.every))
             peer.missing.update(range(lo, msg.seq))
@@ -227,10 +234,25 @@ class VehicleNode:
         self._take(peer, msg, arrival)
         return None
 
-    def _take(self, peer: _Neighbour, msg: OmegaMsg, arrival: float | None) -> None:
-        peer.recent[msg.seq] = msg
-        if len(peer.recent) > RECENT:
+    def _plausible(self, peer: _Neighbour, msg: OmegaMsg, tick: int) -> bool:
+        """Does ``msg`` agree with any message heard at the nearest older seq that itself agreed
+        with the sender's past (or is there no such past, or does the roster explain a jump)?"""
+        older = [q for q in peer.recent if q < msg.seq]
+        if not older:
+            return True
+        return any(self._explained(peer, prev, tick) or omega_plausible(prev, msg, self.period)
+                   for prev in peer.recent[max(older)])
+
+    def _remember(self, peer: _Neighbour, msg: OmegaMsg) -> None:
+        """Keep ``msg`` among its seq's candidates (at most CANDIDATES; the newest RECENT seqs)."""
+        cands = peer.recent.setdefault(msg.seq, [])
+        if msg not in cands and len(cands) < CANDIDATES:
+            cands.append(msg)
+        while len(peer.recent) > RECENT:
             del peer.recent[min(peer.recent)]
+
+    def _take(self, peer: _Neighbour, msg: OmegaMsg, arrival: float | None) -> None:
+        self._remember(peer, msg)
         if arrival is None:
             self._inbox.append(msg)
         else:
@@ -239,14 +261,7 @@ class VehicleNode:
                 heapq.heappush(self._pending, (arrival + d, self._order, msg, d))
 
     def _fill(self, peer: _Neighbour, msg: OmegaMsg, arrival: float | None) -> str | None:
-        """Take ``msg``, a seq that a newer message skipped, if it agrees with the sender's
-        messages around it (the same check as for the newest, against the nearest older one)."""
-        older = [s for s in peer.recent if s < msg.seq]
-        if older:
-            prev = peer.recent[max(older)]
-            if not self._explained(peer, prev, msg.seq * self.every) and \
-                    not omega_plausible(prev, msg, self.period):
-                return self._reject("implausible")
+        """Take ``msg``, a seq that a newer message skipped (checked by the caller)."""
         peer.missing.discard(msg.seq)
         self._take(peer, msg, arrival)
         return None
@@ -430,7 +445,7 @@ class VehicleNode:
             self._inbox = [m for m in self._inbox if send_tick(m.t_send, self.period) >= n]
         self.vehicle.rejoin(n, q, heading, target if target is not None else omega_hint)
         for peer in self._peers.values():  # what it missed meanwhile cannot be checked against
-            peer.last = None
+            peer.recent.clear()
             peer.chain.clear()
             peer.missing = {g for g in peer.missing if g * self.every >= max(n, self._deaf_before)}
         self.joined_at = n

@@ -517,3 +517,24 @@ def test_a_forged_fill_of_a_gap_is_implausible():
     a.on_message(msg(1, 2))
     assert a.on_message(msg(1, 1, omega=1.0 - T + 1.0)) == "implausible"
     assert a.on_message(msg(1, 1)) is None
+
+
+def test_a_forgery_taken_first_does_not_lock_the_genuine_sender_out():
+    """A forged ω that arrives before the genuine one of its seq, when there is no past to judge
+    it by, is taken; the genuine one is a conflict but kept as a candidate, so the genuine
+    sender's next messages agree with the past and are taken: the sender is never locked out."""
+    a = node(0)
+    assert a.on_message(msg(1, 0, omega=99.0)) is None  # forged, first heard: nothing to judge it by
+    assert a.on_message(msg(1, 0)) == "conflict"  # the genuine one
+    for t in range(1, 6):
+        assert a.on_message(msg(1, t)) is None, t  # genuine, agrees with the genuine candidate
+        assert a.on_message(msg(1, t + 1, omega=1.0 - t * T + 1.0)) == "implausible"
+    assert a.seen_seq[1] >= 5 and a.rejected["implausible"] >= 4
+
+
+def test_forgeries_that_disagree_with_the_past_are_never_candidates():
+    a = node(0)
+    a.on_message(msg(1, 0))
+    a.on_message(msg(1, 1))
+    assert a.on_message(msg(1, 1, omega=5.0)) == "conflict"
+    assert all(m.omega != 5.0 for m in a._peers[1].recent[1])
