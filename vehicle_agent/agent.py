@@ -427,7 +427,7 @@ class Agent:
 
     def _set_gains(self, gains: dict, tick: int) -> None:
         v = self.node.vehicle
-        problem = gains_problem(gains, v.dim)  # the check the world made before relaying it
+        problem = gains_problem(gains, v.dim, **self.scenario.gain_context(self.id))  # as the world checked
         if problem is not None:
             self.rejected["bad_gains_command"] += 1
             self.log(f"gains command rejected: {problem}")

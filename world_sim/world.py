@@ -395,7 +395,8 @@ class World:
 
     def _relay_gains(self, gains: dict, vehicle: str, sender: str) -> None:
         targets = self.ids if vehicle == "" else [vehicle] if vehicle in self.index else []
-        problems = {gains_problem(gains, self.scenario.vehicle(v).dim) for v in targets} - {None}
+        problems = {gains_problem(gains, self.scenario.vehicle(v).dim, **self.scenario.gain_context(v))
+                    for v in targets} - {None}
         if not targets or problems:  # all or nothing: no fleet with gains half changed
             self._reject(sender, "gains")
             why = f"no vehicle {printable(vehicle, 64)!r}" if not targets else printable("; ".join(sorted(problems)))

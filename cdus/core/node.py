@@ -44,6 +44,7 @@ from collections import defaultdict
 from dataclasses import dataclass, field
 
 from cdus.core.events import RosterChange
+from cdus.core.gain_bounds import gains_problem_for_rate
 from cdus.core.link import DropBursts, LinkCounters, LinkModel
 from cdus.core.linkspec import LinkSpec
 from cdus.core.neighbours import POLICIES, NeighbourLink, NeighbourTable, consensus_target
@@ -90,9 +91,20 @@ def omega_plausible(prev: OmegaMsg, msg: OmegaMsg, period: float) -> bool:
         + ulp
 
 
-def gains_problem(gains: dict, dim: int) -> str | None:
+def gains_problem(gains: dict, dim: int, *, control_hz: float | None = None, plant: str = "ideal",
+                  physics_hz: float | None = None, weight_sum: float = 0.0) -> str | None:
     """What is wrong with a run-time gains command ``{"k": number | [per axis], "c": number}``
-    for a vehicle of ``dim`` axes (None: nothing). Numbers must be finite and > 0."""
+    for a vehicle of ``dim`` axes (None: nothing). Numbers must be finite and > 0, and, given
+    the vehicle's rates, plant and edge-weight sum, within what the discrete controller takes
+    (cdus.core.gain_bounds: the same bound the scenario's validation applies)."""
+    problem = _gains_shape_problem(gains, dim)
+    if problem is None and control_hz is not None:
+        problem = gains_problem_for_rate(gains.get("k"), gains.get("c"), control_hz, plant=plant,
+                                         physics_hz=physics_hz, weight_sum=weight_sum)
+    return problem
+
+
+def _gains_shape_problem(gains: dict, dim: int) -> str | None:
     def ok(x) -> bool:
         return isinstance(x, (int, float)) and not isinstance(x, bool) and 0 < x < math.inf
 

@@ -145,6 +145,12 @@ class Scenario:
     def ids(self) -> tuple[str, ...]:
         return tuple(v.id for v in self.vehicles)
 
+    def gain_context(self, vid: str) -> dict:
+        """What bounds vehicle ``vid``'s guidance gains (cdus.core.gain_bounds): its rates, its
+        plant and the sum of the weights of the edges it listens on."""
+        return {"control_hz": self.rates.control, "plant": self.vehicle(vid).plant,
+                "physics_hz": self.rates.physics, "weight_sum": sum(e.weight for e in self.edges if e.i == vid)}
+
     @property
     def link_table(self) -> dict:
         """The ``[link]`` table as written (run-time link commands merge over it)."""

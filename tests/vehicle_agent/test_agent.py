@@ -485,3 +485,11 @@ def test_genuine_omega_does_not_spend_its_senders_rate_budget(fake):
         omega_from(s, a, "usv2", seq)
     a._drain(lambda: 5.0)
     assert not a.rejected
+
+
+def test_gains_past_the_bound_for_the_rate_are_refused_by_the_agent_too(fake):
+    a, s, lines = fake()
+    ctl(s, "gains", gains={"k": 1e300}, tick=3)
+    a._drain(lambda: None)
+    assert a.rejected["bad_gains_command"] == 1 and not a.node._gains
+    assert any("too large" in ln for ln in lines)

@@ -473,3 +473,15 @@ def test_the_world_handles_any_key_and_payload_without_raising_and_counts_what_i
             assert w.st.rejected + len(w.lockstep.acked) + len(w.st.stats) + len(w.events) >= before
     assert all(m.tick <= w._tick_limit() for m in w.st.latest.values())
     assert all(math.isfinite(e.t) for e in w.events)
+
+
+def test_gains_past_what_the_controller_takes_at_its_rate_are_refused():
+    """gs gains k=1e300 diverged the fleet; the world refuses gains beyond cdus.core.gain_bounds."""
+    w = world()
+    for gains in ({"k": 1e300}, {"k": 2 * w.scenario.rates.control}, {"c": 1e6}):
+        before = len(w.session.puts)
+        w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("set_gains", gains=gains, vehicle=""))))
+        assert len(w.session.puts) == before, gains
+        assert w.events[-1].kind == "rejected" and "too large" in w.events[-1].text
+    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("set_gains", gains={"k": 3.0}, vehicle=""))))
+    assert w.events[-1].kind == "gains_changed"
