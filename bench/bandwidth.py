@@ -111,7 +111,8 @@ def measure(config: str, sc, duration: float, work: Path) -> dict:
         return cb
 
     args = ["launch", config, "--clock", "realtime", "--duration", f"{duration:g}", "-q", "--fleet", fleet,
-            "--logs", str(work / "run"), "--listen", ep]
+            "--logs", str(work / "run"), "--listen", ep,
+            "--insecure"]  # an open fleet: this bench's own client listens without credentials
     session = None
     with Launch(args, fleet=fleet) as la:
         try:

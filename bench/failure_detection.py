@@ -86,7 +86,8 @@ def main() -> int:
     with tempfile.TemporaryDirectory(prefix="cdus-fd-") as tmp:
         cli = ["launch", config, "--clock", "realtime", "--duration", f"{duration:g}", "-q", "--fleet", fleet,
                "--logs", str(Path(tmp) / "run"), "--listen", ep, "--restart", "on-failure", "--rerun", "off",
-               "--set", f"supervision.max_restarts={args.kills}"]
+               "--set", f"supervision.max_restarts={args.kills}",
+               "--insecure"]  # an open fleet: this bench's own client watches it without credentials
         session = None
         with Launch(cli, fleet=fleet) as la:
             try:

@@ -63,7 +63,8 @@ def main() -> None:
     endpoint = f"tcp/127.0.0.1:{port}"
     targets = listeners_of(sc, args.source)
     launch = ["launch", args.config, "--clock", "realtime", "--duration", str(args.duration), "--fleet", fleet,
-              "-l", endpoint, "--rerun", "off", "-q", "--seed", "1", "--logs", tempfile.mkdtemp(prefix="flood")]
+              "-l", endpoint, "--rerun", "off", "-q", "--seed", "1", "--logs", tempfile.mkdtemp(prefix="flood"),
+              "--insecure"]  # an open fleet: the flooder is an outsider without credentials
     stats: dict[str, object] = {}
     phase = {"name": "start"}
     missed_at: dict[str, dict[str, int]] = {}  # phase -> vehicle -> missed deadlines at its end

@@ -39,7 +39,9 @@ def once(cmd: str, config: str, duration: float, work: Path, k: int, links: str 
     fleet = None
     if cmd == "launch":
         fleet = f"bench_ls_{os.getpid()}_{links}_{k}"
-        args += ["--clock", "lockstep", "--fleet", fleet, "--logs", str(run), "--links", links]
+        # --insecure: direct links skip the router's access control, so they need an open fleet; the
+        # router row runs open too, so the two topologies compare alone
+        args += ["--clock", "lockstep", "--fleet", fleet, "--logs", str(run), "--links", links, "--insecure"]
     with Launch(args, fleet=fleet, track_cpu=True) as la:
         rc = la.wait(timeout=600)
     m = json.loads(metrics.read_text()) if metrics.exists() else {}

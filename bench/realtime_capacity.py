@@ -40,7 +40,8 @@ def run_size(n: int, duration: float, work: Path, links: str = "direct") -> dict
     fleet = f"bench_rt_{os.getpid()}_{links}_{n}"
     run = work / f"run{links}{n}"
     args = ["launch", str(path), "--clock", "realtime", "--duration", f"{duration:g}", "-q",
-            "--fleet", fleet, "--logs", str(run), "--links", links]
+            "--fleet", fleet, "--logs", str(run), "--links", links,
+            "--insecure"]  # direct links (the default here) need an open fleet; router runs open alike
     out = {"n": n}
     with Launch(args, fleet=fleet) as la:
         la.up.wait(timeout=120 + n)

@@ -1,11 +1,11 @@
-"""What securing a loopback fleet costs: authentication + the access-control list, open vs
-`--secure`, in one run (alternating, so both see the same machine).
+"""What securing a loopback fleet costs: authentication + the access-control list, open
+(`--insecure`) vs secured (the default, `--secure`), in one run (alternating, so both see the same machine).
 
     python bench/secure_cost.py                       # lake_circle 60 s lockstep x2 each; 2000 ω at 200 Hz x2 each
     python bench/secure_cost.py --duration 120 --repeat 3 -n 5000
 
 1. Lockstep speed: the real command, `cdus launch CONFIG --clock lockstep --links router
-   --duration D -q`, with and without `--secure`; "run s" is the metrics' wall_s (every
+   --duration D -q`, with `--insecure` and `--secure`; "run s" is the metrics' wall_s (every
    vehicle up -> metrics), best of --repeat, and its ratio secured / open.
 2. ω latency through the router: this process is the router (open, or with the run's
    credentials and access-control list exactly as `cdus launch --secure` builds them); a
@@ -52,8 +52,7 @@ def lockstep_once(config: str, duration: float, work: Path, tag: str, secure: bo
     fleet = f"bench_sec_{os.getpid()}_{tag}"
     args = ["launch", config, "--clock", "lockstep", "--links", "router", "--duration", f"{duration:g}", "-q",
             "--rerun", "off", "--fleet", fleet, "--logs", str(run), "--metrics-out", str(metrics)]
-    if secure:
-        args.append("--secure")
+    args.append("--secure" if secure else "--insecure")  # secured is the default; open needs --insecure
     with Launch(args, fleet=fleet) as la:
         rc = la.wait(timeout=900)
     m = json.loads(metrics.read_text()) if metrics.exists() else {}

@@ -95,23 +95,26 @@ def build_parser() -> argparse.ArgumentParser:
                         "for agents on other hosts")
     p.add_argument("--zenoh-config", metavar="FILE", help="zenoh json5 config for the router (multicast forced off)")
     p.add_argument("--links", choices=LINKS, default=None,
-                   help="router (default, and the only choice with --remote, --secure or --tls): everything "
+                   help="router (default, and the only choice with --remote or a secured fleet): everything "
                         "through the router; direct: neighbours exchange ω over their own unix-socket links, "
-                        "the rest through the router (measured slower on 2 cores; docs/architecture.md)")
+                        "the rest through the router (measured slower on 2 cores; docs/architecture.md); direct "
+                        "links skip the router's access control, so they need --insecure")
     p.add_argument("--remote", action="append", default=[], metavar="ID",
                    help="a vehicle started on another host (repeat, or ID,ID,...): not started here; the launcher "
                         "prints its command line and waits for it (docs/multihost.md)")
     p.add_argument("--secure", action="store_true",
-                   help="generate credentials for this run in <run dir>/secure/ and require them: a Zenoh user "
-                        "and password per process, and an access-control list on the router that lets each "
-                        "process publish only its own keys (a ground station attaches with secure/ground.json5)")
+                   help="the default, kept for old command lines: generate credentials for this run in "
+                        "<run dir>/secure/ and require them: a Zenoh user and password per process, and an "
+                        "access-control list on the router that lets each process publish only its own keys (a "
+                        "ground station attaches with --zenoh-config <run dir>/secure/ground.json5)")
     p.add_argument("--tls", action="store_true",
-                   help="--secure, over TLS: a private CA for the run, a certificate per process (mutual TLS), "
-                        "the router's endpoints tls/...; the list also checks each certificate's name")
+                   help="the secured fleet over TLS: a private CA for the run, a certificate per process (mutual "
+                        "TLS), the router's endpoints tls/...; the list also checks each certificate's name")
     p.add_argument("--insecure", action="store_true",
-                   help="let a router that listens beyond this host (any endpoint but loopback or a unix socket) "
-                        "run without credentials: anyone who reaches it can then stop, retune, kill and steer "
-                        "the fleet (docs/security.md); without this flag such a router needs --secure or --tls")
+                   help="run the fleet open, without credentials or access control: anyone who reaches the "
+                        "router (on loopback: any process of this host) can then stop, retune, kill and steer "
+                        "the fleet (docs/security.md); needed for --links direct and for outside tools that "
+                        "attach without credentials")
     p.set_defaults(func=cmd_launch)
 
     p = sub.add_parser("sweep", allow_abbrev=False,
@@ -193,11 +196,15 @@ def launch_options(args: argparse.Namespace, scenario: Scenario) -> LaunchOption
 
 def links_of_run(args: argparse.Namespace) -> str:
     """--links, by default router (measured faster on 2 cores, docs/architecture.md); router with vehicles on other hosts (unix sockets do not
-    reach them) or a secured fleet (direct links would bypass the router's access control)."""
-    why = "--remote" if args.remote else "--secure" if args.secure else "--tls" if args.tls else None
-    if why and args.links == "direct":
-        raise ConfigError("command line", [("--links", f"direct links are unix sockets between the vehicles on this "
-                                                       f"host and skip the router; with {why} use --links router")])
+    reach them) or a secured fleet, the default (direct links would bypass the router's access control):
+    direct needs --insecure."""
+    if args.links == "direct" and args.remote:
+        raise ConfigError("command line", [("--links", "direct links are unix sockets between the vehicles on this "
+                                                       "host and skip the router; with --remote use --links router")])
+    if args.links == "direct" and not args.insecure:
+        raise ConfigError("command line", [("--links", "direct links skip the router and its access control, so a "
+                                                       "fleet is secured only with --links router (the default); add "
+                                                       "--insecure to run an open fleet with direct links")])
     return args.links or "router"
 
 
@@ -223,21 +230,24 @@ def cmd_launch(args: argparse.Namespace) -> int:
         keys.check_fleet(opts.fleet)
     except ValueError as e:
         raise ConfigError("command line", [("--fleet", str(e))]) from None
-    if (args.secure or args.tls) and args.zenoh_config and not args.listen:
-        raise ConfigError("command line", [("--secure", "with --zenoh-config, give the router's endpoints with "
-                                                        "--listen too (the credentials name them)")])
+    if not args.insecure and args.zenoh_config and not args.listen:
+        raise ConfigError("command line", [("--zenoh-config", "a secured fleet (the default) needs the router's "
+                                                              "endpoints on the command line: give --listen too "
+                                                              "(the credentials name them), or add --insecure to "
+                                                              "run an open fleet")])
     router = fleet_router(args.listen, args.zenoh_config)
     exposed = check_exposure(args, router)
     run = Path(args.logs) if args.logs else run_dir(args.runs_dir, scenario.name)
     run.mkdir(parents=True, exist_ok=True)
     cred = None
-    if args.secure or args.tls:
+    if not args.insecure:
         router, cred = secure_router(router, opts, scenario, run / "secure", "tls" if args.tls else "password")
     print(f"{scenario.name}: launching {len(scenario.vehicles) - len(opts.remote)} vehicle processes + world "
           f"({args.clock} clock), router {', '.join(router.listen) or args.zenoh_config}")
     if args.insecure:
-        print("  WARNING: --insecure: " + INSECURE_ALLOWS.format(eps=", ".join(exposed) or "this router"),
-              file=sys.stderr)
+        where = ", ".join(exposed) or f"this router ({', '.join(router.listen) or args.zenoh_config}: any " \
+                                      f"process of this host)"
+        print("  WARNING: --insecure: " + INSECURE_ALLOWS.format(eps=where), file=sys.stderr)
     if cred is not None:
         print(f"  secured ({cred.mode}): credentials in {cred.directory}; only the fleet's own processes and "
               f"ground stations holding {cred.file(GROUND_ROLE).name} may publish under cdus/{opts.fleet}/")
@@ -265,23 +275,16 @@ INSECURE_ALLOWS = ("anyone who reaches {eps} can, without any credential: stop, 
 
 
 def check_exposure(args: argparse.Namespace, router: Transport) -> tuple[str, ...]:
-    """The rule of a safe default: a router that listens on anything but loopback (127.0.0.0/8,
-    ::1) or a unix socket needs credentials (--secure or --tls) unless --insecure says the user
-    means it. Returns the exposed endpoints (a usage error if they are not allowed)."""
-    secured = args.secure or args.tls
-    if args.insecure and secured:
+    """The rule of a safe default: every fleet is secured (credentials and the router's
+    access-control list; --tls for TLS) unless --insecure says the user means it open. Checks
+    the flags agree and the router's config parses; returns the endpoints other hosts can
+    reach (anything but loopback, 127.0.0.0/8 and ::1, or a unix socket), for the warning."""
+    if args.insecure and (args.secure or args.tls):
         raise ConfigError("command line", [("--insecure", "contradicts --secure/--tls; give one of them")])
     try:
-        exposed = exposed_endpoints(router)
+        return exposed_endpoints(router)
     except zenoh.ZError as e:
         raise ConfigError("command line", [("--zenoh-config", str(e).split(" at /")[0])]) from None
-    if exposed and not secured and not args.insecure:
-        where = "listens on" if router.listen else f"(its config {args.zenoh_config}, or Zenoh's default) listens on"
-        raise ConfigError("command line", [(
-            "--listen", f"the router {where} {', '.join(exposed)}, which other hosts can reach: add --secure "
-                        f"(or --tls) so only this run's processes get in (docs/multihost.md), listen on "
-                        f"127.0.0.1 or a unix socket, or add --insecure to run it open to anyone on the network")])
-    return exposed
 
 
 def secure_router(router: Transport, opts: LaunchOptions, scenario: Scenario, directory: Path,
@@ -292,7 +295,7 @@ def secure_router(router: Transport, opts: LaunchOptions, scenario: Scenario, di
         cred = make_credentials(directory, opts.fleet, {v: listeners_of(scenario, v) for v in ids}, router.listen,
                                 mode)
     except CredentialsError as e:
-        raise ConfigError("command line", [("--secure", str(e))]) from None
+        raise ConfigError("command line", [("--tls" if mode == "tls" else "--secure", str(e))]) from None
     opts.zenoh_configs = {"world": str(cred.file(WORLD_ROLE)), **{v: str(cred.file(vehicle_role(v))) for v in ids}}
     return replace(router, listen=cred.listen, extra=router.extra + cred.router_extra()), cred
 

@@ -5,6 +5,7 @@ Every process of a secured fleet authenticates to the router as one role (a Zeno
 user name, and with TLS the same name as its certificate's common name):
 
     world               publishes the clock, roster and relayed commands (to/<set>/ctl),
+                        the proximity sensor's contacts (to/+<id>+/contacts),
                         fault requests to the launcher (to/+launcher+/cmd), its status
                         and events (world/status, world/events), the liveliness token
                         alive/world; answers world/last/<id> queries
@@ -76,8 +77,8 @@ def fleet_acl(fleet: str, listeners: Mapping[str, Sequence[str]], match_certific
     policies.append({"id": "members", "rules": ["fleet-out", "fleet-read"], "subjects": members})
 
     rules += [
-        _rule("world-put", ("put",), [f"{keys.prefix(f)}/to/*/ctl", keys.launcher_cmd(f), keys.world_status(f),
-                                      keys.world_events(f)]),
+        _rule("world-put", ("put",), [f"{keys.prefix(f)}/to/*/ctl", f"{keys.prefix(f)}/to/*/contacts",
+                                      keys.launcher_cmd(f), keys.world_status(f), keys.world_events(f)]),
         _rule("world-token", ("liveliness_token",), [keys.alive(f, keys.WORLD)]),
         _rule("world-last", ("declare_queryable", "reply"), [keys.world_last(f, "*")]),
     ]

@@ -49,12 +49,20 @@ def test_remote_vehicles_are_checked_and_take_router_links():
         options("--remote", "usv1,usv9")
 
 
-@pytest.mark.parametrize("flag", [["--remote", "usv1"], ["--secure"], ["--tls"]])
-def test_direct_links_are_refused_where_they_would_skip_the_router(flag):
+@pytest.mark.parametrize("flag", [[], ["--secure"], ["--tls"]])
+def test_direct_links_need_insecure_because_they_would_skip_the_routers_access_control(flag):
     _, opts = options(*flag)
     assert opts.links == "router"
-    with pytest.raises(ConfigError, match=f"--links: direct links .* with {flag[0]} use --links router"):
+    with pytest.raises(ConfigError, match="--links: direct links skip the router and its access control.* add "
+                                          "--insecure to run an open fleet with direct links"):
         options(*flag, "--links", "direct")
+    _, opts = options("--links", "direct", "--insecure")
+    assert opts.links == "direct"
+
+
+def test_direct_links_are_refused_with_remote_vehicles_even_when_open():
+    with pytest.raises(ConfigError, match="--links: direct links .* with --remote use --links router"):
+        options("--remote", "usv1", "--links", "direct", "--insecure")
 
 
 def test_scheduled_faults_after_the_end_are_named_not_silently_skipped(capsys, tmp_path):
@@ -92,42 +100,81 @@ def test_a_router_config_file_without_endpoints_listens_where_zenoh_does_by_defa
     assert exposed_endpoints(Transport(mode="router", config_file=str(f))) == ()
 
 
-@pytest.mark.parametrize("flags", [["--listen", "tcp/0.0.0.0:7447"], ["--listen", "tcp/192.168.1.10:7447"],
-                                   ["--listen", "tcp/127.0.0.1:7447", "--listen", "tcp/[::]:7447"],
-                                   ["--zenoh-config", "EMPTY"]])
-def test_a_router_reachable_from_other_hosts_without_credentials_is_a_usage_error(flags, tmp_path, capsys,
-                                                                                  monkeypatch):
+def _started(monkeypatch):
+    """Replace the fleet by a recorder of the routers it would have been started with."""
     import cdus.app.cli as cli
 
-    monkeypatch.setattr(cli, "launch", lambda *a, **k: pytest.fail("a fleet was started"))
+    started = []
+    monkeypatch.setattr(cli, "launch", lambda scenario, run, router, opts: (started.append((router, opts)),
+                                                                             (0, _NoRun(run)))[1])
+    return started
+
+
+def _auth(router):
+    import json
+
+    value = dict(router.extra).get("transport/auth/usrpwd/dictionary_file")
+    return None if value is None else json.loads(value)
+
+
+@pytest.mark.parametrize("flags", [[], ["--listen", "tcp/127.0.0.1:7447"], ["--listen", "tcp/0.0.0.0:7447"],
+                                   ["--listen", "tcp/192.168.1.10:7447"], ["--secure"]])
+def test_a_launch_is_secured_by_default_on_loopback_and_beyond(flags, tmp_path, capsys, monkeypatch):
+    started = _started(monkeypatch)
+    run = tmp_path / "run"
+    main(["launch", CONFIG, "--logs", str(run), "--rerun", "off", *flags])
+    (router, opts), = started
+    assert _auth(router) == str((run / "secure" / "passwords").resolve())
+    assert "access_control" in dict(router.extra)
+    assert opts.zenoh_configs["world"] == str(run / "secure" / "world.json5")
+    assert set(opts.zenoh_configs) == {"world", "usv1", "usv2", "usv3", "uav1", "uav2", "uav3"}
+    out, err = capsys.readouterr()
+    assert "secured (password): credentials in" in out and "WARNING" not in err
+    # the printed ground-station line carries the ground station's credentials
+    gs = next(ln for ln in out.splitlines() if "attach a ground station:" in ln)
+    assert gs.endswith(f"--zenoh-config {run / 'secure' / 'ground.json5'} status")
+    assert " -e tcp/" in gs and "ENDPOINT" not in gs
+
+
+def test_insecure_runs_open_on_loopback_and_says_what_it_allows(tmp_path, capsys, monkeypatch):
+    started = _started(monkeypatch)
+    main(["launch", CONFIG, "--logs", str(tmp_path / "run"), "--rerun", "off", "--insecure"])
+    (router, opts), = started
+    assert _auth(router) is None and "access_control" not in dict(router.extra) and opts.zenoh_configs == {}
+    assert not (tmp_path / "run" / "secure").exists()
+    out, err = capsys.readouterr()
+    assert "WARNING: --insecure: anyone who reaches this router (tcp/127.0.0.1:" in err
+    assert "any process of this host) can, without any credential: stop" in err
+    assert "--zenoh-config" not in out and "secured" not in out
+
+
+def test_a_router_config_without_listen_needs_insecure_and_says_so(tmp_path, capsys, monkeypatch):
+    started = _started(monkeypatch)
     (tmp_path / "empty.json5").write_text("{}")
-    flags = [str(tmp_path / "empty.json5") if f == "EMPTY" else f for f in flags]
     runs = tmp_path / "runs"
-    assert main(["launch", CONFIG, "--runs-dir", str(runs), "--rerun", "off", *flags]) == 2
+    assert main(["launch", CONFIG, "--runs-dir", str(runs), "--rerun", "off", "--zenoh-config",
+                 str(tmp_path / "empty.json5")]) == 2
     err = capsys.readouterr().err
-    assert "which other hosts can reach: add --secure" in err and "--insecure" in err and "nothing was started" in err
-    assert not runs.exists()
+    assert "--zenoh-config: a secured fleet (the default) needs the router's endpoints" in err
+    assert "or add --insecure to run an open fleet" in err and "nothing was started" in err
+    assert not runs.exists() and not started
+    # with --insecure it runs open, and says the config's (Zenoh's default) endpoint is reachable
+    main(["launch", CONFIG, "--runs-dir", str(runs), "--rerun", "off", "--zenoh-config",
+          str(tmp_path / "empty.json5"), "--insecure"])
+    assert len(started) == 1
+    assert "WARNING: --insecure: anyone who reaches tcp/[::]:7447 can" in capsys.readouterr().err
 
 
 def test_insecure_is_refused_with_secure_and_says_what_it_allows(tmp_path, capsys, monkeypatch):
-    import cdus.app.cli as cli
-
     assert main(["launch", CONFIG, "--runs-dir", str(tmp_path), "--listen", "tcp/0.0.0.0:7447", "--secure",
                  "--insecure"]) == 2
     assert "--insecure: contradicts --secure" in capsys.readouterr().err
-    started = []
-    monkeypatch.setattr(cli, "launch", lambda scenario, run, router, opts: (started.append(router), (0, _NoRun(run)))[1])
+    started = _started(monkeypatch)
     main(["launch", CONFIG, "--logs", str(tmp_path / "run"), "--rerun", "off", "--listen", "tcp/192.168.1.10:7447",
           "--insecure"])
-    assert started and started[0].listen == ("tcp/192.168.1.10:7447",)
+    assert started and started[0][0].listen == ("tcp/192.168.1.10:7447",)
     err = capsys.readouterr().err
     assert "WARNING: --insecure: anyone who reaches tcp/192.168.1.10:7447 can, without any credential: stop" in err
-    # on loopback no flag is needed, and the secured router still passes the rule
-    started.clear()
-    main(["launch", CONFIG, "--logs", str(tmp_path / "run2"), "--rerun", "off", "--listen", "tcp/127.0.0.1:7447"])
-    main(["launch", CONFIG, "--logs", str(tmp_path / "run3"), "--rerun", "off", "--listen", "tcp/192.168.1.10:7447",
-          "--secure"])
-    assert len(started) == 2 and "WARNING" not in capsys.readouterr().err
 
 
 class _NoRun:

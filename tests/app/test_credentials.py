@@ -131,6 +131,7 @@ def test_each_role_may_publish_only_its_own_keys(tmp_path, mode):
         usv1.put(keys.ctl(fleet, every), encode_control("stop"))
         usv1.put(keys.launcher_cmd(fleet), encode_control("kill", vehicle="usv2"))
         usv1.put(keys.state(fleet, "usv2"), b"x")
+        usv1.put(keys.contacts(fleet, "usv2"), b"x")  # the world's proximity sensor
         usv1.liveliness().declare_token(keys.alive(fleet, "usv2"))
         usv1.liveliness().declare_token(keys.alive(fleet, "usv1"))
         usv1.put(keys.state(fleet, "usv1"), b"x")
@@ -140,11 +141,13 @@ def test_each_role_may_publish_only_its_own_keys(tmp_path, mode):
         ground.put(keys.ctl(fleet, every), encode_control("stop"))
         ground.put(keys.world_cmd(fleet, keys.LAUNCHER), encode_control("stop"))
         ground.put(keys.world_status(fleet), b"x")
+        ground.put(keys.contacts(fleet, "usv1"), b"x")
         ground.put(keys.world_cmd(fleet, keys.GROUND), encode_control("stop"))
         # the world: the clock and relayed commands, its reports; not ω or vehicle telemetry
         world.put(keys.state(fleet, "usv1"), b"x")
         world.put(keys.omega(fleet, "usv1", LISTENERS["usv1"]), omega)
         world.put(keys.world_events(fleet), b"x")
+        world.put(keys.contacts(fleet, "usv1"), b"x")  # its proximity sensor (the safety filter's input)
         world.put(keys.ctl(fleet, ["usv2"]), encode_control("stop"))
         # a key outside the fleet is nobody's
         ground.put(keys.world_cmd("otherfleet", keys.GROUND), encode_control("stop"))
@@ -154,7 +157,8 @@ def test_each_role_may_publish_only_its_own_keys(tmp_path, mode):
         heard.wait_for(keys.alive(fleet, "usv1"))
         assert heard.tokens == {keys.alive(fleet, "usv1")}
         assert sorted(heard.puts) == sorted([keys.state(fleet, "usv1"), mine, keys.world_cmd(fleet, keys.GROUND),
-                                             keys.world_events(fleet), keys.ctl(fleet, ["usv2"])])
+                                             keys.world_events(fleet), keys.contacts(fleet, "usv1"),
+                                             keys.ctl(fleet, ["usv2"])])
         # members hear each other: usv1's ω reached uav1 through the router
         # (uav1's subscription may reach the router after usv1's first put: put again until heard)
         deadline = time.monotonic() + 10

@@ -21,7 +21,7 @@ def argv_after(argv, flag):
 
 
 def test_direct_links_make_each_agent_a_peer_on_its_own_socket_linked_to_its_ring_neighbours(tmp_path):
-    la = launcher(tmp_path, "--links", "direct")
+    la = launcher(tmp_path, "--links", "direct", "--insecure")
     try:
         argv = la._agent("usv2").argv
         assert argv_after(argv, "--mode") == ["peer"]

@@ -1,4 +1,4 @@
-"""End to end: a secured fleet (cdus launch --secure / --tls) ignores everyone but its own.
+"""End to end: a secured fleet (cdus launch, by default; --tls) ignores everyone but its own.
 
 An outsider tries what would hurt a fleet: stop the world and the vehicles (through the
 world's command inbox, or the world's ctl to the vehicles directly), change their gains,
@@ -96,6 +96,31 @@ def gs_command(launch_output_line: str) -> list[str]:
     words = shlex.split(launch_output_line.split("attach a ground station:", 1)[1])
     assert words[:2] == ["cdus", "gs"] and words[-1] == "status", words
     return words[1:-1]
+
+
+def test_a_default_launch_is_secured_and_its_printed_ground_station_line_works(tmp_path, launches):
+    """No flag at all (not even --listen): an outsider without credentials cannot connect,
+    the ground station line the launcher prints works as printed."""
+    fleet = unique_fleet()
+    run = tmp_path / "run"
+    la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", "3000", "--rerun", "off",
+                   "--logs", str(run), "-q"], fleet)
+    la.wait_for(f"fleet '{fleet}' up")
+    assert "secured (password): credentials in" in la.wait_for("secured (")
+    gs = gs_command(la.wait_for("attach a ground station"))
+    assert "WARNING" not in la.output()
+    endpoint = gs[gs.index("-e") + 1]
+    assert endpoint.startswith("tcp/127.0.0.1:")
+    with pytest.raises(zenoh.ZError):  # no credentials: refused at the handshake
+        zenoh.open(raw_client(endpoint))
+    res = run_cli([*gs, "status", "--once"], timeout=60)
+    assert res.returncode == 0, res.stderr
+    assert "world: t =" in res.stdout and "usv1" in res.stdout
+    res = run_cli([*gs, "stop"], timeout=60)
+    assert res.returncode == 0, res.stderr
+    assert la.wait(timeout=60) == 0, la.output()
+    assert json.loads((run / "metrics.json").read_text())["completed"] is False  # stopped, as asked
+    assert not fleet_processes(fleet)
 
 
 def test_an_outsider_cannot_stop_retune_or_inject_into_a_secured_fleet(tmp_path, launches):
@@ -252,8 +277,11 @@ def test_in_realtime_the_router_passes_a_flood_on_one_omega_key_at_most_at_its_s
     endpoint = f"tcp/127.0.0.1:{port}"
     sc = load_scenario("configs/concentric_circles.toml")
     la = launches(["configs/concentric_circles.toml", "--clock", "realtime", "--duration", "600", "--rerun", "off",
-                   "--listen", endpoint, "--logs", str(tmp_path / "run"), "-q"], fleet)
+                   "--listen", endpoint, "--logs", str(tmp_path / "run"), "-q", "--insecure"], fleet)
     la.wait_for(f"fleet '{fleet}' up")
+    # an open fleet on loopback, and the launcher said what that allows
+    assert f"WARNING: --insecure: anyone who reaches this router ({endpoint}: any process of this host) can" \
+        in la.wait_for("WARNING: --insecure")
     key = keys.omega(fleet, "usv1", listeners_of(sc, "usv1"))
     forged = encode_omega(OmegaMsg(sc.ids.index("usv1"), 10**6, 1.0, 1e3, -1.0))
     seen = {"forged": 0, "genuine": 0}

@@ -91,7 +91,7 @@ def test_a_router_frozen_for_5_s_is_waited_for_and_the_run_matches_the_clean_one
 
 def test_forged_telemetry_from_an_outsider_does_not_end_the_run(tmp_path, launches, clean):
     port = free_tcp_port()
-    la, fleet, run = lockstep_run(launches, tmp_path, "forged", port)
+    la, fleet, run = lockstep_run(launches, tmp_path, "forged", port, extra=["--insecure"])  # an open fleet's validation
     la.wait_for(f"fleet '{fleet}' up")
     session = zenoh.open(raw_client(f"tcp/127.0.0.1:{port}"))
     try:

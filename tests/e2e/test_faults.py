@@ -66,7 +66,7 @@ def test_a_partition_that_splits_the_ring_and_heals_reconverges(tmp_path, launch
     fleet = unique_fleet()
     run = tmp_path / "run"
     # over direct links: the restarted process (--rejoin) re-links to its neighbours' sockets
-    la = launches([str(cfg), "--clock", "lockstep", "--logs", str(run), "-q", "--links", "direct"], fleet)
+    la = launches([str(cfg), "--clock", "lockstep", "--logs", str(run), "-q", "--links", "direct", "--insecure"], fleet)
     assert la.wait(timeout=300) == 0, la.output()
     m = json.loads((run / "metrics.json").read_text())
     assert m["coord_settle_s"] == ref.metrics["coord_settle_s"]
@@ -167,7 +167,7 @@ def test_fuzzed_payloads_are_counted_and_never_reach_a_controller(tmp_path, laun
     run = tmp_path / "run"
     la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", "150",
                    "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run),
-                   "--trace-out", str(tmp_path / "trace.npz"), "-q"], fleet)
+                   "--trace-out", str(tmp_path / "trace.npz"), "-q", "--insecure"], fleet)
     la.wait_for(f"fleet '{fleet}' up")
     sc = load_scenario("configs/lake_circle.toml", {"scenario.duration": 150.0})
     listeners = {v.id: sum(1 for e in sc.edges if e.k == v.id) for v in sc.vehicles}

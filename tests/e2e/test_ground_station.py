@@ -1,4 +1,7 @@
-"""End to end: a ground station attaches to a running fleet, watches it and commands it."""
+"""End to end: a ground station attaches to a running fleet, watches it and commands it.
+
+The fleets are launched as a user would, secured by default: the ground station holds the
+run's ground credentials (<run>/secure/ground.json5), as the launcher's printed line says."""
 
 from __future__ import annotations
 
@@ -10,8 +13,9 @@ from cdus.wire.transport import free_tcp_port
 from .conftest import fleet_processes, run_cli, unique_fleet
 
 
-def gs(fleet: str, port: int, *args: str):
-    return run_cli(["gs", "--fleet", fleet, "-e", f"tcp/127.0.0.1:{port}", *args], timeout=60)
+def gs(fleet: str, port: int, run, *args: str):
+    return run_cli(["gs", "--fleet", fleet, "-e", f"tcp/127.0.0.1:{port}",
+                    "--zenoh-config", str(run / "secure" / "ground.json5"), *args], timeout=60)
 
 
 def test_ground_station_watches_and_commands_a_running_fleet(tmp_path, launches):
@@ -23,26 +27,26 @@ def test_ground_station_watches_and_commands_a_running_fleet(tmp_path, launches)
     la.wait_for(f"fleet '{fleet}' up")
     la.wait_for("attach a ground station")
 
-    res = gs(fleet, port, "status", "--once")
+    res = gs(fleet, port, run, "status", "--once")
     assert res.returncode == 0, res.stderr
     for vid in ("usv1", "usv2", "uav1", "uav2"):
         assert vid in res.stdout
     assert "world: t =" in res.stdout
 
-    res = gs(fleet, port, "link", "loss=1.0")  # cut every link
+    res = gs(fleet, port, run, "link", "loss=1.0")  # cut every link
     assert res.returncode == 0, res.stderr
-    assert gs(fleet, port, "link", "loss=7").returncode == 2  # a bad value is refused locally
+    assert gs(fleet, port, run, "link", "loss=7").returncode == 2  # a bad value is refused locally
 
-    res = gs(fleet, port, "kill", "usv2")
+    res = gs(fleet, port, run, "kill", "usv2")
     assert res.returncode == 0, res.stderr
     deadline = time.monotonic() + 15
     while time.monotonic() < deadline:
-        out = gs(fleet, port, "status", "--once").stdout
+        out = gs(fleet, port, run, "status", "--once").stdout
         if "kill of usv2 by" in out and "3/4 vehicles alive" in out:
             break
     assert "kill of usv2 by" in out and "3/4 vehicles alive" in out, out
 
-    assert gs(fleet, port, "stop").returncode == 0
+    assert gs(fleet, port, run, "stop").returncode == 0
     assert la.wait(timeout=60) == 0, la.output()
     m = json.loads((run / "metrics.json").read_text())
     assert m["completed"] is False  # stopped early, by the operator
@@ -70,21 +74,21 @@ def test_a_vehicle_paused_past_its_lease_and_resumed_from_the_ground_station_rej
     la = launches(["configs/concentric_circles.toml", "--clock", "lockstep", "--duration", "3000",
                    "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "-q"], fleet)
     la.wait_for(f"fleet '{fleet}' up")
-    assert gs(fleet, port, "pause-vehicle", "uav1").returncode == 0
+    assert gs(fleet, port, run, "pause-vehicle", "uav1").returncode == 0
     time.sleep(3.0)  # well past the lease: the router closes its session
-    assert gs(fleet, port, "resume-vehicle", "uav1").returncode == 0
+    assert gs(fleet, port, run, "resume-vehicle", "uav1").returncode == 0
     resumed = t = None
     deadline = time.monotonic() + 90
     while time.monotonic() < deadline:
         if resumed is None and "resuming at tick" in (run / "logs" / "uav1.log").read_text():
-            resumed = _world_t(gs(fleet, port, "status", "--once").stdout)
+            resumed = _world_t(gs(fleet, port, run, "status", "--once").stdout)
         elif resumed is not None:
-            t = _world_t(gs(fleet, port, "status", "--once").stdout)
+            t = _world_t(gs(fleet, port, run, "status", "--once").stdout)
             if t is not None and t > resumed + 50.0:  # the fleet moves on with uav1
                 break
         time.sleep(0.5)
     assert resumed is not None and t is not None and t > resumed + 50.0, (run / "logs" / "uav2.log").read_text()[-1500:]
-    assert gs(fleet, port, "stop").returncode == 0
+    assert gs(fleet, port, run, "stop").returncode == 0
     assert la.wait(timeout=60) == 0, la.output()
     m = json.loads((run / "metrics.json").read_text())
     kinds = [(e["kind"], e.get("vehicle")) for e in m["events"]]

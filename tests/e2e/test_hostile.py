@@ -1,6 +1,7 @@
 """End to end: the attacks of issue 15 against a real fleet, in both clocks.
 
-An outsider on an open fleet (no credentials needed on loopback) sends what the issue's
+An outsider on an open fleet (launched with --insecure: a default fleet does not let it
+connect, tests/e2e/test_access.py) sends what the issue's
 runs sent: ω with a send time of 1e308, with seq 2^32-1, a vehicle's ω republished with
 +1 rad and a higher seq, a flood of stale ω, stats whose nested fields are of the wrong
 type, telemetry rows for ticks far ahead, fake events with terminal escapes, and the
@@ -154,7 +155,7 @@ def test_lockstep_under_attack_ends_as_the_clean_run(tmp_path, launches):
     run = tmp_path / "run"
     la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", "60",
                    "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run),
-                   "--trace-out", str(tmp_path / "trace.npz")], fleet)
+                   "--trace-out", str(tmp_path / "trace.npz"), "--insecure"], fleet)
     la.wait_for(f"fleet '{fleet}' up")
     sc = load_scenario("configs/lake_circle.toml", {"scenario.duration": 60.0})
     attack = _attack(port, fleet, sc, hold=True)
@@ -184,7 +185,7 @@ def test_realtime_under_attack_keeps_running_and_counts(tmp_path, launches):
     port = free_tcp_port()
     run = tmp_path / "run"
     la = launches(["configs/lake_circle.toml", "--clock", "realtime", "--duration", "12",
-                   "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run)], fleet)
+                   "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "--insecure"], fleet)
     la.wait_for(f"fleet '{fleet}' up")
     sc = load_scenario("configs/lake_circle.toml", {"scenario.duration": 12.0})
     attack = _attack(port, fleet, sc, hold=False)

@@ -25,7 +25,7 @@ def test_lockstep_reproduces_the_in_process_run(tmp_path, launches, links):
     fleet = unique_fleet()
     run = tmp_path / "run"
     la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", "10", "--seed", "3",
-                   "--logs", str(run), "--trace-out", str(tmp_path / "trace.npz"), "-q", "--links", links], fleet)
+                   "--logs", str(run), "--trace-out", str(tmp_path / "trace.npz"), "-q", "--links", links, *(["--insecure"] if links == "direct" else [])], fleet)
     assert la.wait() == 0, la.output()
     sc = load_scenario("configs/lake_circle.toml", {"scenario.duration": 10.0, "scenario.seed": 3})
     ref = InProcessFleet(sc).run()
@@ -59,7 +59,7 @@ def test_a_killed_agent_is_reported_with_the_graph_it_leaves(tmp_path, launches)
     fleet = unique_fleet()
     port = free_tcp_port()
     la = launches(["configs/lake_circle.toml", "--clock", "realtime", "--duration", "120",
-                   "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(tmp_path / "run"), "-q"], fleet)
+                   "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(tmp_path / "run"), "-q", "--insecure"], fleet)
     la.wait_for(f"fleet '{fleet}' up")
     events: list[tuple[float, str]] = []
     session = open_session(Transport(mode="client", connect=(f"tcp/127.0.0.1:{port}",)))

@@ -65,7 +65,7 @@ def test_a_sigkilled_launcher_leaves_no_process_of_its_fleet(tmp_path, launches)
     run = tmp_path / "run"
     port = free_tcp_port()
     la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", "3000", "--rerun", "off",
-                   "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "-q"], fleet)
+                   "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "-q", "--insecure"], fleet)
     la.wait_for(f"fleet '{fleet}' up")
     assert len(set(pids(fleet)) - {la.proc.pid}) == 7  # the world and six agents, each in its own session
     # one vehicle paused (SIGSTOPped) by a fault: a stopped process acts on no signal but SIGKILL
@@ -89,7 +89,7 @@ def test_a_sigkilled_world_leaves_metrics_that_say_so_and_the_launcher_fails(tmp
     port = free_tcp_port()
     run = tmp_path / "run"
     la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", "3000", "--rerun", "off",
-                   "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "-q"], fleet)
+                   "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "-q", "--insecure"], fleet)
     la.wait_for(f"fleet '{fleet}' up")
     s = zenoh.open(raw_client(f"tcp/127.0.0.1:{port}"))
     try:
@@ -115,7 +115,7 @@ def test_the_launchers_key_moves_vehicles_only_never_the_world(tmp_path, launche
     port = free_tcp_port()
     run = tmp_path / "run"
     la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", "3000", "--rerun", "off",
-                   "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "-q"], fleet)
+                   "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "-q", "--insecure"], fleet)
     la.wait_for(f"fleet '{fleet}' up")
     world = pids(fleet, "world_sim")
     s = zenoh.open(raw_client(f"tcp/127.0.0.1:{port}"))
