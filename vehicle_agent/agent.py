@@ -83,11 +83,11 @@ _KINDS = ("omega", "state", "stats", "ctl", "contacts", "cmd", "wake", "last")  
 MAX_LOGGED = 256
 MAX_LINK_AT = 1e9  # s: a link change's time (past the run's end it never applies)  # (sender, reason) pairs logged; past that, rejects are only counted
 LOG_WAIT = 5.0  # s of waiting before saying what for
-#: lockstep: s stuck on one tick before this vehicle says its last ω and recent telemetry again:
-#: a router that lapsed (frozen, restarted) lost what was in flight, and the fleet waits for it
-#: (receivers drop what they already have as a duplicate)
-RESEND_WAIT = 1.0
-RESEND_OMEGAS = 16  # the newest ω said again when stuck: more than a grant lets a sender run ahead
+#: lockstep: when this session was cut off from the router (the world's liveliness token went and
+#: came back: a router frozen or restarted, a network cut), what was in flight may be lost and
+#: the fleet would wait for it: the agent says its newest ω and telemetry again (receivers take
+#: what they missed and drop what they have as a duplicate)
+RESEND_OMEGAS = 16  # the newest ω said again: more than a sender can run ahead of its listeners
 MAX_NAP = 0.05  # s: realtime sleeps at most this long between checks for a stop or a pause
 PING_TIMEOUT = 1.0  # s for a link check's reply (it is immediate when nobody answers)
 PING_RETRY = 0.02  # s between link checks
@@ -181,6 +181,8 @@ class Agent:
         self._rate = RATE_MARGIN * scenario.rates.broadcast  # ω per s a neighbour may send
         self._logged: set[tuple[str, str]] = set()
         self._states: list[StateMsg] = []
+        self._cut_off = False  # lockstep: set when the world's token comes back (say the recent messages again)
+        self._world_seen = None
         self._last_omegas: deque[bytes] = deque(maxlen=RESEND_OMEGAS)  # lockstep: said again when stuck
         self._recent: deque[StateMsg] = deque(maxlen=MAX_STATE_ROWS)  # telemetry sent, newest last
         self.missed_deadlines = 0
@@ -228,6 +230,8 @@ class Agent:
         # Ready: the subscription is in place and every listener can hear us. The token tells
         # the world and the launcher.
         self.token = s.liveliness().declare_token(keys.alive(f, me))
+        if self.clock_mode == "lockstep":  # the world's token back: this session was cut off (an outage)
+            self._world_seen = s.liveliness().declare_subscriber(keys.alive(f, keys.WORLD), self._on_world_token)
         spec = self.scenario.vehicle(me)
         self.log(f"ready: {spec.kind} on a {dict(spec.path)['family']} path, "
                  f"neighbours {[self.ids[k] for k in self.node.neighbours]}, clock {self.clock_mode}")
@@ -496,7 +500,7 @@ class Agent:
         n = clock.join
         if n > 0:  # the run is under way: a restarted process
             self._rejoin(n)
-        waited_since = resent_at = time.monotonic()
+        waited_since = time.monotonic()
         while n <= self.last_tick:
             state, fresh = node.own_state_at(n)
             if state != "live":  # paused (or gone) by the roster: skip to where it resumes
@@ -517,8 +521,8 @@ class Agent:
                 if self._states and clock.granted < n:  # the world may be waiting for these rows to grant
                     self.flush_states()
                 self._recv(never)
-                if time.monotonic() - resent_at > RESEND_WAIT:
-                    resent_at = time.monotonic()
+                if self._cut_off:  # back from an outage: what was in flight may be lost
+                    self._cut_off = False
                     self._resend()
                 if time.monotonic() - waited_since > LOG_WAIT:
                     waited_since = time.monotonic()
@@ -529,7 +533,7 @@ class Agent:
             if self._stopping():
                 return
             self._tick(n)
-            waited_since = resent_at = time.monotonic()
+            waited_since = time.monotonic()
             n += 1
 
     def _run_realtime(self) -> None:
@@ -599,8 +603,19 @@ class Agent:
             self._recent.extend(self._states)
         self._states = []
 
+    def _on_world_token(self, sample: Any) -> None:
+        """Liveliness of the world as this session sees it: its token coming back means the link
+        to the router was cut and restored, and what was in flight then may be lost."""
+        if sample.kind == zenoh.SampleKind.PUT:
+            self._cut_off = True
+            self._wake()
+
+    def _wake(self) -> None:
+        if self.waker is not None:
+            self.waker.interrupt()
+
     def _resend(self) -> None:
-        """Lockstep, stuck: say the last ω messages and the recent telemetry again (RESEND_WAIT):
+        """Lockstep, back from an outage: say the last ω messages and the recent telemetry again:
         a receiver that lost one in flight (a router outage) takes it as a gap filled, the
         others drop the copies as stale."""
         if self.session is None:

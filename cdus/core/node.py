@@ -225,6 +225,13 @@ class VehicleNode:
                 # sender's past, so that if it is the genuine one its successor is not judged
                 # against a forgery taken before it (that would lock the sender out).
                 if self._plausible(peer, msg, tick):
+                    taken = peer.recent[msg.seq][0]
+                    if arrival is None and taken in self._inbox and not self._plausible(peer, taken, tick):
+                        # The one taken first disagrees with the past as it is known now (it came
+                        # before its predecessor): it was the forgery, and it is not decided yet.
+                        self._inbox[self._inbox.index(taken)] = msg
+                        peer.recent[msg.seq] = [msg]
+                        return self._reject("implausible")  # counted for the forgery
                     self._remember(peer, msg)
                 return self._reject("conflict")
             return self._reject("implausible" if msg.seq in peer.missing else "stale")

@@ -63,7 +63,13 @@ class Token:
 
 
 class Liveliness:
+    callbacks: list = []
+
     def declare_token(self, key: str) -> Token:
+        return Token()
+
+    def declare_subscriber(self, key: str, callback) -> Token:
+        Liveliness.callbacks.append((key, callback))
         return Token()
 
 
