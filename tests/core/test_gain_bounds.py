@@ -122,3 +122,10 @@ def test_a_diverging_dynamic_vehicle_raises_rather_than_running_on():
             run(DYNAMIC, {"gains.k": 404.0}, duration=3.0)
     finally:
         vehicles.gains_problem_for_rate = saved
+
+
+def test_c_is_unbounded_without_edges_and_bounded_by_a_fractional_weight_sum():
+    from cdus.core.gain_bounds import C_LIMIT, c_bound, gains_problem_for_rate
+    assert gains_problem_for_rate(None, 1e6, 50.0) is None  # no weight sum given: a vehicle that listens to nobody
+    assert c_bound(50.0, 0.5) == C_LIMIT * 50.0 / 0.5
+    assert gains_problem_for_rate(None, C_LIMIT * 50.0 / 0.5 * 1.01, 50.0, weight_sum=0.5) is not None
