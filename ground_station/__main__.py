@@ -176,6 +176,9 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
         why = str(e).split(" at /")[0]  # not the Rust source path
         print(f"error: could not reach the fleet's router at {', '.join(transport.connect)} within "
               f"{GS_CONNECT_TIMEOUT_MS / 1000:g} s: {why}", file=sys.stderr)
+        if not transport.config_file:  # fleets are secured by default: the router refuses a session without them
+            print("  a fleet started without --insecure takes only its own credentials: add "
+                  "--zenoh-config RUN/secure/ground.json5 (the launcher prints the whole line)", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         return 0

@@ -356,8 +356,12 @@ class World:
         op, f = c.op, c.fields
         if op == "stop":
             if not self.stop_requested:
-                self._note(FleetEvent.of(self._sim_now(), "fleet", f"fleet stopped by {sender}"))
-                self.completion = self.completion or "stopped"
+                # the launcher asks only when it was interrupted (Ctrl-C, SIGTERM); anyone else's
+                # stop is an operator's
+                interrupted = sender == keys.LAUNCHER
+                self._note(FleetEvent.of(self._sim_now(), "fleet", "fleet stopped: the launcher was interrupted"
+                                         if interrupted else f"fleet stopped by {sender}"))
+                self.completion = self.completion or ("interrupted" if interrupted else "stopped")
             self.stop_requested = True
         elif op == "fault_done":
             if sender != keys.LAUNCHER:
@@ -790,6 +794,10 @@ class World:
         self.sink.close()
         return metrics
 
+def _s(settle: float | None) -> str:
+    return "never" if settle is None else f"{settle:.2f} s"
+
+
 def run_world(world: World) -> int:
     """Open, run, write; SIGINT/SIGTERM stop the run and still write the metrics."""
     def _stop(signum, frame):
@@ -802,7 +810,7 @@ def run_world(world: World) -> int:
         world.open()
         m = world.run()
         ticks = max(1, len(world.recorder))
-        world.log(f"done: path settle {m['path_settle_s']}, coordination settle {m['coord_settle_s']}; "
+        world.log(f"done: path settle {_s(m['path_settle_s'])}, coordination settle {_s(m['coord_settle_s'])}; "
                   f"CPU in the run {world.cpu_s:.2f} s ({world.cpu_s / ticks * 1e6:.0f} µs per tick)")
         if len(world.recorder) and not m["live_final"] and not world.stop_requested:
             world.log("error: no vehicle was live at the end of the run (their logs say why)")

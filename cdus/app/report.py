@@ -79,6 +79,9 @@ def summary_table(metrics: dict, vehicles: Sequence[VehicleSpec]) -> str:
     lines.append(
         f"{m['scenario']} ({m['mode']}, seed {m['seed']}): {m['duration_s']:.1f} s simulated in "
         f"{m['wall_s']:.1f} s wall" + (f" ({rf:.0f}x real time)" if rf else ""))
+    if m.get("completed") is False:
+        lines.append(f"  NOT COMPLETED ({m.get('completion', 'interrupted')}): the run ended at "
+                     f"{m['duration_s']:.1f} s; the settle times and errors below are of what ran")
     head = f"  {'vehicle':<10} {'kind':<4} {'plant':<22} {'|Φ| final (m)':>14} {'ω̇ final':>10}"
     lines.append(head)
     lines.append("  " + "-" * (len(head) - 2))

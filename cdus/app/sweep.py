@@ -235,8 +235,10 @@ def sweep(config: str, grid: list[tuple[str, list[Any]]], seeds: Sequence[int], 
         rows.append(row)
         if not quiet:
             cell = ", ".join(f"{k}={v}" for k, v in run.cell) or "(base)"
-            what = (f"coord settle {res.get('coord_settle_s')} s, final edge error "
-                    f"{res.get('final_coord_error_max')}" if res["status"] == "ok" else f"FAILED: {res['reason']}")
+            settle, err = res.get("coord_settle_s"), res.get("final_coord_error_max")
+            what = (f"coord settle {'never' if settle is None else f'{settle:.1f} s'}, final edge error "
+                    f"{'n/a' if err is None else f'{err:.4f} rad'}" if res["status"] == "ok"
+                    else f"FAILED: {res['reason']}")
             bar = "#" * int(20 * len(rows) / len(runs))
             print(f"[{bar:<20}] {len(rows)}/{len(runs)} {cell}, seed {run.seed}: {what}", flush=True)
 

@@ -260,7 +260,9 @@ def test_a_world_that_died_leaves_metrics_that_say_so(tmp_path):
     assert m["events"][-1]["text"].startswith("the world process was killed by signal 9")
     from cdus.app.report import summary_table
 
-    assert "lake_circle (lockstep" in summary_table(m, la.scenario.vehicles)  # the CLI prints it as any other
+    table = summary_table(m, la.scenario.vehicles)
+    assert "lake_circle (lockstep" in table  # the CLI prints it as any other
+    assert "NOT COMPLETED (world_lost)" in table  # and says it is not a finished run
 
 
 def test_stop_ends_a_paused_vehicle_with_sigterm_not_after_the_grace_with_sigkill(tmp_path):

@@ -168,3 +168,15 @@ def test_forged_names_are_not_tracked():
     gs._on_alive(Alive("cdus/f/alive/\x1b[2J", b""))
     gs._on_alive(Alive("cdus/f/alive/usv1", b""))
     assert gs.view.alive == {"usv1"} and gs.view.rejected == 3
+
+
+def test_an_unreachable_router_says_that_fleets_take_credentials(capsys):
+    """Fleets are secured by default: a ground station without credentials is refused at the
+    handshake, which looks like an unreachable router; the error says what to add."""
+    from cdus.wire.transport import free_tcp_port
+    from ground_station.__main__ import main
+
+    code = main(["--fleet", "nobody", "-e", f"tcp/127.0.0.1:{free_tcp_port()}", "status", "--once"])
+    err = capsys.readouterr().err
+    assert code == 1 and "could not reach the fleet's router" in err
+    assert "--zenoh-config RUN/secure/ground.json5" in err

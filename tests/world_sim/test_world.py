@@ -485,3 +485,13 @@ def test_gains_past_what_the_controller_takes_at_its_rate_are_refused():
         assert w.events[-1].kind == "rejected" and "too large" in w.events[-1].text
     w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("set_gains", gains={"k": 3.0}, vehicle=""))))
     assert w.events[-1].kind == "gains_changed"
+
+
+def test_a_stop_from_the_interrupted_launcher_is_an_interruption_and_an_operators_is_a_stop():
+    w = world()
+    w._handle(Sample(keys.world_cmd(FLEET, keys.LAUNCHER), Payload(encode_control("stop"))))
+    assert w.stop_requested and w.completion == "interrupted"
+    assert w.events[-1].text == "fleet stopped: the launcher was interrupted"
+    w = world()
+    w._handle(Sample(keys.world_cmd(FLEET, "gs"), Payload(encode_control("stop"))))
+    assert w.completion == "stopped"
