@@ -567,6 +567,10 @@ class Launcher:
                 c.signal_group(signal.SIGKILL)
                 c.proc.wait()
             c.poll()
+        self.close_router()
+
+    def close_router(self) -> None:
+        """Close the router's session (its threads would keep the interpreter from exiting)."""
         if self.session is not None:
             try:
                 self.session.close()
@@ -575,6 +579,7 @@ class Launcher:
             self.session = None
         if self.sockets is not None:
             shutil.rmtree(self.sockets, ignore_errors=True)
+            self.sockets = None
 
     def _wait_exit(self, seconds: float) -> None:
         deadline = time.monotonic() + seconds
@@ -623,11 +628,18 @@ def launch(scenario: Scenario, run_dir: Path, router: Transport, opts: LaunchOpt
         status = 130
         la.log("\ninterrupted: stopping the fleet (the world writes what it has)")
     finally:
+        def _again(signum, frame):  # while stopping: a second Ctrl-C kills at once, a SIGTERM changes nothing
+            if signum == signal.SIGINT:
+                raise KeyboardInterrupt
+        signal.signal(signal.SIGTERM, _again)
+        signal.signal(signal.SIGINT, _again)
         try:
             la.stop()
         except KeyboardInterrupt:  # a second Ctrl-C: go straight to the kill
             for c in la.children.values():
                 c.signal_group(signal.SIGKILL)
+                c.poll()
+            la.close_router()
         signal.signal(signal.SIGTERM, old)
         signal.signal(signal.SIGINT, old_int)
     if interrupted:

@@ -192,3 +192,21 @@ def test_children_are_asked_to_stop_when_their_parent_dies():
                 os.killpg(child, signal.SIGKILL)
             except ProcessLookupError:
                 pass
+
+
+def test_a_second_sigterm_while_stopping_still_stops_cleanly(tmp_path, launches):
+    """`timeout` and `pkill` each send a SIGTERM: the second one, arriving while the launcher
+    stops the fleet, used to abort the stop (no metrics.json, zombie children, a launcher that
+    never exited)."""
+    fleet = unique_fleet()
+    run = tmp_path / "run"
+    la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", "3000", "--rerun", "off",
+                   "--logs", str(run), "-q"], fleet)
+    la.wait_for(f"fleet '{fleet}' up")
+    os.kill(la.proc.pid, signal.SIGTERM)
+    la.wait_for("interrupted: stopping the fleet")
+    os.kill(la.proc.pid, signal.SIGTERM)
+    assert la.wait(timeout=60) == 130, la.output()
+    m = json.loads((run / "metrics.json").read_text())
+    assert m["completed"] is False and m["completion"] == "interrupted", m["completion"]
+    assert not wait_no_process(fleet, ORPHAN_WAIT_S)
