@@ -140,14 +140,23 @@ class Waker(threading.Thread):
             ready, _, _ = select.select([self.rfd], [], [], None if deadline is None else max(0.0, deadline - now))
             if ready:
                 data = os.read(self.rfd, 64)
-                if data.strip(b"\xff"):  # a signal number: wake the main thread to handle it
-                    self.put()
+                if data.strip(b"\xff") and not self._poke():  # a signal number: wake the main thread
+                    return
                 continue
             while time.time() < deadline:  # never early: the main loop compares with the same clock
                 time.sleep(deadline - time.time())
             if self.alarm is not None and time.time() >= self.alarm:
                 self.alarm = None
+            if not self._poke():
+                return
+
+    def _poke(self) -> bool:
+        """Wake the main loop; False once the session is closed (the agent is exiting)."""
+        try:
             self.put()
+        except zenoh.ZError:
+            return False
+        return True
 
 
 class Agent:
@@ -612,7 +621,7 @@ class Agent:
 
     def _wake(self) -> None:
         if self.waker is not None:
-            self.waker.interrupt()
+            self.waker._poke()
 
     def _resend(self) -> None:
         """Lockstep, back from an outage: say the last ω messages and the recent telemetry again:

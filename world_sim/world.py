@@ -37,6 +37,8 @@ from cdus.core.node import gains_problem
 from cdus.core.metrics import Recorder
 from cdus.core.schedule import total_ticks
 from cdus.files import write_json
+from cdus.scenario.config import ConfigError
+from cdus.scenario.link import merge_link_tables, validate_link
 from cdus.scenario.model import Scenario
 from cdus.sim.build import metric_edges, sensor_schedule
 from cdus.sim.lockstep import CatchUp, Fault, Grant, Join, Lockstep, Roster, Sense
@@ -115,6 +117,7 @@ class World:
         self.start_timeout = start_timeout
         self.sink = sink or NullSink()
         self.policy = policy or scenario.link.policy
+        self._link_table = scenario.link_table  # the [link] table as run-time commands have left it
         self.recorder = Recorder(self.ids, [v.dim for v in scenario.vehicles], metric_edges(scenario))
         self.events_scheduled = scenario.events
         self.sensing = sensor_schedule(scenario)  # (every, latency) ticks, None: no proximity sensor
@@ -373,6 +376,15 @@ class World:
         elif op == "set_gains":
             self._relay_gains(f["gains"], f["vehicle"], sender)
         elif op == "link":
+            merged = merge_link_tables(self._link_table, f["link"])
+            try:  # the agents' own check, made before relaying: a table they would refuse is no change
+                validate_link(merged, self.ids, "link command")
+            except (ConfigError, ValueError) as e:
+                self._reject(sender, "link")
+                self._note(FleetEvent.of(self._sim_now(), "rejected",
+                                         f"link command from {printable(sender, 64)}: {printable(str(e), 200)}"))
+                return
+            self._link_table = merged
             # Never before what a vehicle may already have sent (lockstep: past the grant), so
             # every receiver applies it from the same message on; a past --at means "now".
             earliest = ((self.lockstep.granted + 1) * self.period if self.clock == "lockstep"

@@ -533,6 +533,12 @@ class Launcher:
                         policy=self.opts.policy or sc.link.policy, events=events, completed=False)
         m["completion"] = WORLD_LOST
         m["written_by"] = "launcher"
+        if st:  # what the world last said, in the fields a reader looks at first (the trace is lost)
+            m["duration_s"] = t_last
+            m["realtime_factor"] = t_last / wall_s if wall_s > 0 else None
+            m["final_path_error_max"] = st.get("path_error_max")
+            m["final_coord_error_max"] = st.get("coord_error_max")
+            m["live_final"] = sorted(set(st.get("alive") or ()) & set(sc.ids))
         m["world_lost"] = {
             "world_exit": code, "last_status_t": t_last,
             "last_status": {k: st.get(k) for k in ("alive", "path_error_max", "coord_error_max", "paused")} if st else None,
@@ -579,7 +585,6 @@ class Launcher:
             self.session = None
         if self.sockets is not None:
             shutil.rmtree(self.sockets, ignore_errors=True)
-            self.sockets = None
 
     def _wait_exit(self, seconds: float) -> None:
         deadline = time.monotonic() + seconds

@@ -257,6 +257,8 @@ def test_a_world_that_died_leaves_metrics_that_say_so(tmp_path):
     assert m["completed"] is False and m["completion"] == WORLD_LOST and m["written_by"] == "launcher"
     assert m["world_lost"]["world_exit"] == -9 and m["world_lost"]["last_status_t"] == 12.5
     assert m["world_lost"]["alive_tokens"] == ["usv1", "usv2"]
+    assert m["duration_s"] == 12.5  # the top-level fields say what the world last said, not 0
+    assert m["final_path_error_max"] == m["world_lost"]["last_status"]["path_error_max"]
     assert m["events"][-1]["text"].startswith("the world process was killed by signal 9")
     from cdus.app.report import summary_table
 

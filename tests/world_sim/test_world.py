@@ -495,3 +495,14 @@ def test_a_stop_from_the_interrupted_launcher_is_an_interruption_and_an_operator
     w = world()
     w._handle(Sample(keys.world_cmd(FLEET, "gs"), Payload(encode_control("stop"))))
     assert w.completion == "stopped"
+
+
+def test_a_link_command_the_agents_would_refuse_is_rejected_not_relayed_or_reported_as_a_change():
+    w = world()
+    before = len(w.session.puts)
+    for bad in ({"a": {"b": {"c": {"d": {}}}}}, {"loss": 2.0}):
+        w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("link", link=bad, at=-1.0))))
+        assert len(w.session.puts) == before and w.events[-1].kind == "rejected", w.events
+    assert not [e for e in w.events if e.kind == "link_changed"]
+    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("link", link={"loss": 0.2}, at=-1.0))))
+    assert w.events[-1].kind == "link_changed"
