@@ -605,9 +605,17 @@ def launch(scenario: Scenario, run_dir: Path, router: Transport, opts: LaunchOpt
     """
     la = Launcher(scenario, run_dir, router, opts, **({"log": log} if log else {}))
     interrupted = False
+    phase = {"stopping": False, "in_stop": False}
 
     def _term(signum, frame):
-        raise KeyboardInterrupt
+        # The first SIGINT/SIGTERM stops the fleet. While it stops, a SIGTERM changes nothing
+        # (`timeout` and `pkill` each send one) and a second Ctrl-C kills at once, but only once
+        # the stop is under way (never between the first signal and the stop).
+        if not phase["stopping"]:
+            phase["stopping"] = True
+            raise KeyboardInterrupt
+        if signum == signal.SIGINT and phase["in_stop"]:
+            raise KeyboardInterrupt
 
     old = signal.signal(signal.SIGTERM, _term)
     # A shell starting us in the background (`cdus launch ... &` in a script) ignores SIGINT
@@ -633,11 +641,7 @@ def launch(scenario: Scenario, run_dir: Path, router: Transport, opts: LaunchOpt
         status = 130
         la.log("\ninterrupted: stopping the fleet (the world writes what it has)")
     finally:
-        def _again(signum, frame):  # while stopping: a second Ctrl-C kills at once, a SIGTERM changes nothing
-            if signum == signal.SIGINT:
-                raise KeyboardInterrupt
-        signal.signal(signal.SIGTERM, _again)
-        signal.signal(signal.SIGINT, _again)
+        phase["stopping"] = phase["in_stop"] = True
         try:
             la.stop()
         except KeyboardInterrupt:  # a second Ctrl-C: go straight to the kill
