@@ -48,7 +48,7 @@ from cdus.core.events import RosterChange, event_tick, plan_roster
 from cdus.core.link import LinkEmulator, burst_events
 from cdus.core.node import VehicleNode, gains_problem
 from cdus.core.vehicle import DivergedError
-from cdus.scenario.config import ConfigError
+from cdus.scenario.config import ConfigError, nesting_problem
 from cdus.scenario.model import Scenario
 from cdus.scenario.link import merge_link_tables, validate_link
 from cdus.sim.build import build_node, link_emulator_for, listeners_of
@@ -80,8 +80,9 @@ T0_AHEAD = 60.0  # s: ... nor one further in the future than this
 RATE_MARGIN = 4.0  # realtime: a sender's ω rate allowed, in multiples of its broadcast rate
 RATE_BURST = 64  # realtime: ω a sender may send back to back (a stall's catch-up is < STALL_TICKS)
 _KINDS = ("omega", "state", "stats", "ctl", "contacts", "cmd", "wake", "last")  # named in a reject reason
-MAX_LOGGED = 256
-MAX_LINK_AT = 1e9  # s: a link change's time (past the run's end it never applies)  # (sender, reason) pairs logged; past that, rejects are only counted
+MAX_LOGGED = 256  # (sender, reason) pairs logged; past that, rejects are only counted
+MAX_LINK_AT = 1e9  # s: a link change's time (past the run's end it never applies)
+MAX_COMMAND_NESTING = 2  # a link or gains table nests its containers at most this deep (delay = {...})
 LOG_WAIT = 5.0  # s of waiting before saying what for
 #: lockstep: when this session was cut off from the router (the world's liveliness token went and
 #: came back: a router frozen or restarted, a network cut), what was in flight may be lost and
@@ -140,17 +141,17 @@ class Waker(threading.Thread):
             ready, _, _ = select.select([self.rfd], [], [], None if deadline is None else max(0.0, deadline - now))
             if ready:
                 data = os.read(self.rfd, 64)
-                if data.strip(b"\xff") and not self._poke():  # a signal number: wake the main thread
+                if data.strip(b"\xff") and not self.poke():  # a signal number: wake the main thread
                     return
                 continue
             while time.time() < deadline:  # never early: the main loop compares with the same clock
                 time.sleep(deadline - time.time())
             if self.alarm is not None and time.time() >= self.alarm:
                 self.alarm = None
-            if not self._poke():
+            if not self.poke():
                 return
 
-    def _poke(self) -> bool:
+    def poke(self) -> bool:
         """Wake the main loop; False once the session is closed (the agent is exiting)."""
         try:
             self.put()
@@ -192,7 +193,7 @@ class Agent:
         self._states: list[StateMsg] = []
         self._cut_off = False  # lockstep: set when the world's token comes back (say the recent messages again)
         self._world_seen = None
-        self._last_omegas: deque[bytes] = deque(maxlen=RESEND_OMEGAS)  # lockstep: said again when stuck
+        self._last_omegas: deque[bytes] = deque(maxlen=RESEND_OMEGAS)  # lockstep: said again after an outage
         self._recent: deque[StateMsg] = deque(maxlen=MAX_STATE_ROWS)  # telemetry sent, newest last
         self.missed_deadlines = 0
         self.ticks_done = 0
@@ -374,7 +375,7 @@ class Agent:
                 return "t0_range"
         if op == "link" and not 0.0 <= f["at"] <= MAX_LINK_AT:
             return "link_range"
-        if op in ("link", "gains") and _depth(f[op]) > 3:
+        if op in ("link", "gains") and nesting_problem(f[op], MAX_COMMAND_NESTING):
             return f"{op}_range"
         return None
 
@@ -621,7 +622,7 @@ class Agent:
 
     def _wake(self) -> None:
         if self.waker is not None:
-            self.waker._poke()
+            self.waker.poke()
 
     def _resend(self) -> None:
         """Lockstep, back from an outage: say the last ω messages and the recent telemetry again:
@@ -670,13 +671,6 @@ class Agent:
             self._recv(never)
 
 
-def _depth(obj: Any, level: int = 0) -> int:
-    """How deeply ``obj`` nests maps and lists (a decoded control map is already bounded in size)."""
-    if isinstance(obj, dict):
-        return max((_depth(v, level + 1) for v in obj.values()), default=level + 1)
-    if isinstance(obj, (list, tuple)):
-        return max((_depth(v, level + 1) for v in obj), default=level + 1)
-    return level
 
 
 def run_agent(agent: Agent) -> int:

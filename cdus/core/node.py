@@ -198,10 +198,12 @@ class VehicleNode:
         Checked in this order, every reject counted by reason: the sender is a neighbour; its
         send time is the one its seq implies (``inconsistent``); the seq is within what the
         sender can have sent (``future``: past :attr:`horizon` or the run's last tick); it is
-        newer than the newest taken (``stale``: a duplicate, ``conflict``: the same seq with
-        other content); and ω agrees with the sender's own recent messages
-        (``implausible``, :func:`omega_plausible`). A rejected message never advances the
-        sender's newest seq, so nobody else's message can lock a sender out.
+        newer than the newest taken (``stale``: a copy, ``conflict``: the same seq with other
+        content), unless it fills a seq a newer one skipped; and ω agrees with a message of
+        the nearest older seq that agreed with the sender's past (``implausible``,
+        :func:`omega_plausible`; every such message is kept as a candidate of its seq, so a
+        forgery taken first cannot make the genuine sender implausible). A rejected message
+        never advances the sender's newest seq, so nobody else's message can lock a sender out.
         """
         k = msg.sender
         peer = self._peers.get(k)

@@ -18,6 +18,10 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 import pytest
+import zenoh
+
+from cdus.wire import keys
+from cdus.wire.schemas import decode_status
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -122,3 +126,27 @@ def run_cli(args: list[str], timeout: float = 300.0) -> subprocess.CompletedProc
         out, err = proc.communicate()
         raise AssertionError(f"cdus {' '.join(args)} timed out:\n{out}\n{err}")
     return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
+
+
+class WorldTime:
+    """The world's simulated time, from its status messages (one that does not decode is skipped)."""
+
+    def __init__(self, session: zenoh.Session, fleet: str):
+        self.cond = threading.Condition()
+        self.t = -1.0
+        self.sub = session.declare_subscriber(keys.world_status(fleet), self._on)
+
+    def _on(self, sample) -> None:
+        st = decode_status(sample.payload.to_bytes())
+        if not isinstance(st, str):
+            with self.cond:
+                self.t = float(st["t"])
+                self.cond.notify_all()
+
+    def wait_past(self, t: float, timeout: float = 60.0) -> float:
+        deadline = time.monotonic() + timeout
+        with self.cond:
+            while self.t <= t:
+                assert time.monotonic() < deadline, f"the world's time stayed at {self.t}, not past {t}"
+                self.cond.wait(timeout=0.2)
+            return self.t

@@ -28,12 +28,12 @@ from cdus.sim.build import listeners_of
 from cdus.sim.fleet import InProcessFleet
 from cdus.wire import keys
 from cdus.wire.messages import OmegaMsg, StateMsg, encode_control, encode_omega, encode_states
-from cdus.wire.schemas import AgentStats, FleetEvent, decode_event, decode_status, encode_event, encode_stats, encode_status
+from cdus.wire.schemas import AgentStats, FleetEvent, decode_event, encode_event, encode_stats, encode_status
 from cdus.wire.transport import free_tcp_port
 
 from tests.outsider import raw_client
 
-from .conftest import fleet_processes, run_cli, unique_fleet
+from .conftest import WorldTime, fleet_processes, run_cli, unique_fleet
 from .test_faults import hostile_omega_payloads
 
 
@@ -65,30 +65,6 @@ class Events:
                         return e
                 assert time.monotonic() < deadline, f"no {kind} event {text!r}; heard {self.events}"
                 self.cond.wait(timeout=0.2)
-
-
-class Status:
-    """The world's simulated time, from its status messages."""
-
-    def __init__(self, session: zenoh.Session, fleet: str):
-        self.cond = threading.Condition()
-        self.t = -1.0
-        self.sub = session.declare_subscriber(keys.world_status(fleet), self._on)
-
-    def _on(self, sample) -> None:
-        st = decode_status(sample.payload.to_bytes())
-        assert not isinstance(st, str), st
-        with self.cond:
-            self.t = float(st["t"])
-            self.cond.notify_all()
-
-    def wait_past(self, t: float, timeout: float = 30.0) -> float:
-        deadline = time.monotonic() + timeout
-        with self.cond:
-            while self.t <= t:
-                assert time.monotonic() < deadline, f"the world's time stayed at {self.t}, not past {t}"
-                self.cond.wait(timeout=0.2)
-            return self.t
 
 
 def gs_command(launch_output_line: str) -> list[str]:
@@ -244,7 +220,7 @@ def test_over_tls_only_a_certificate_of_the_run_gets_in_and_the_ground_station_c
     # a vehicle's certificate and password: its stop is refused; the world runs on
     ground = member(secure / "ground.json5")
     try:
-        status = Status(ground, fleet)
+        status = WorldTime(ground, fleet)
         mallory = member(secure / "vehicle-usv1.json5")
         try:
             mallory.put(keys.world_cmd(fleet, keys.GROUND), encode_control("stop"))
@@ -297,7 +273,7 @@ def test_in_realtime_the_router_passes_a_flood_on_one_omega_key_at_most_at_its_s
     flooder = zenoh.open(raw_client(endpoint))
     try:
         observer.declare_subscriber(keys.any_omega(fleet).replace("/omega/*", "/omega/usv1"), on)
-        Status(observer, fleet).wait_past(1.0)  # the run is on: usv1 broadcasts
+        WorldTime(observer, fleet).wait_past(1.0)  # the run is on: usv1 broadcasts
         pub = flooder.declare_publisher(key)
         sent = 0
         counting.set()

@@ -21,7 +21,6 @@ import threading
 
 import msgpack
 import numpy as np
-import pytest
 import zenoh
 
 from cdus.scenario.config import load_scenario

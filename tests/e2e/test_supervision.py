@@ -8,7 +8,6 @@ import json
 import os
 import signal
 import subprocess
-import threading
 import time
 
 import pytest
@@ -16,12 +15,11 @@ import zenoh
 
 from cdus.wire import keys
 from cdus.wire.messages import encode_control
-from cdus.wire.schemas import decode_status
 from cdus.wire.transport import free_tcp_port
 
 from tests.outsider import raw_client
 
-from .conftest import fleet_processes, unique_fleet
+from .conftest import WorldTime, fleet_processes, unique_fleet
 
 ORPHAN_WAIT_S = 3.0  # the bound: no process of the fleet 3 s after the launcher's SIGKILL
 
@@ -37,28 +35,6 @@ def wait_no_process(fleet: str, seconds: float) -> list[str]:
         if not left or time.monotonic() > deadline:
             return left
         time.sleep(0.1)
-
-
-class WorldTime:
-    def __init__(self, session: zenoh.Session, fleet: str):
-        self.cond = threading.Condition()
-        self.t = -1.0
-        self.sub = session.declare_subscriber(keys.world_status(fleet), self._on)
-
-    def _on(self, sample) -> None:
-        st = decode_status(sample.payload.to_bytes())
-        if not isinstance(st, str):
-            with self.cond:
-                self.t = float(st["t"])
-                self.cond.notify_all()
-
-    def wait_past(self, t: float, timeout: float = 60.0) -> float:
-        deadline = time.monotonic() + timeout
-        with self.cond:
-            while self.t <= t:
-                assert time.monotonic() < deadline, f"the world's time stayed at {self.t}, not past {t}"
-                self.cond.wait(timeout=0.2)
-            return self.t
 
 
 def test_a_sigkilled_launcher_leaves_no_process_of_its_fleet(tmp_path, launches):
