@@ -89,6 +89,11 @@ LOG_WAIT = 5.0  # s of waiting before saying what for
 #: the fleet would wait for it: the agent says its newest ω and telemetry again (receivers take
 #: what they missed and drop what they have as a duplicate)
 RESEND_OMEGAS = 16  # the newest ω said again: more than a sender can run ahead of its listeners
+#: said again every RESEND_EVERY s while stuck, for RESEND_FOR s after the world's token came back:
+#: the token can arrive before the router knows the neighbours' subscriptions again, and what is
+#: said before that is lost too
+RESEND_EVERY = 1.0
+RESEND_FOR = 10.0
 MAX_NAP = 0.05  # s: realtime sleeps at most this long between checks for a stop or a pause
 PING_TIMEOUT = 1.0  # s for a link check's reply (it is immediate when nobody answers)
 PING_RETRY = 0.02  # s between link checks
@@ -191,7 +196,8 @@ class Agent:
         self._rate = RATE_MARGIN * scenario.rates.broadcast  # ω per s a neighbour may send
         self._logged: set[tuple[str, str]] = set()
         self._states: list[StateMsg] = []
-        self._cut_off = False  # lockstep: set when the world's token comes back (say the recent messages again)
+        self._resend_until = 0.0  # lockstep, monotonic s: back from an outage, say recent messages again till then
+        self._resent_at = 0.0
         self._world_seen = None
         self._last_omegas: deque[bytes] = deque(maxlen=RESEND_OMEGAS)  # lockstep: said again after an outage
         self._recent: deque[StateMsg] = deque(maxlen=MAX_STATE_ROWS)  # telemetry sent, newest last
@@ -531,8 +537,9 @@ class Agent:
                 if self._states and clock.granted < n:  # the world may be waiting for these rows to grant
                     self.flush_states()
                 self._recv(never)
-                if self._cut_off:  # back from an outage: what was in flight may be lost
-                    self._cut_off = False
+                now_m = time.monotonic()
+                if now_m < self._resend_until and now_m - self._resent_at >= RESEND_EVERY:
+                    self._resent_at = now_m  # back from an outage: what was in flight may be lost
                     self._resend()
                 if time.monotonic() - waited_since > LOG_WAIT:
                     waited_since = time.monotonic()
@@ -617,7 +624,7 @@ class Agent:
         """Liveliness of the world as this session sees it: its token coming back means the link
         to the router was cut and restored, and what was in flight then may be lost."""
         if sample.kind == zenoh.SampleKind.PUT:
-            self._cut_off = True
+            self._resend_until = time.monotonic() + RESEND_FOR
             self._wake()
 
     def _wake(self) -> None:
