@@ -11,24 +11,21 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import time
-from dataclasses import replace
 from pathlib import Path
 from typing import Any, Sequence
 
 import zenoh
 
-from cdus.app.credentials import Credentials, CredentialsError, make_credentials
+from cdus import api
+from cdus.app.fleet_run import secure_router
 from cdus.app.launcher import LINKS, LaunchOptions, launch
 from cdus.app.sweep import check_grid, parse_grid, sweep
 from cdus.core.vehicle import DivergedError
 from cdus.scenario.config import ConfigError, load_scenario, parse_overrides
 from cdus.core.linkspec import POLICIES
 from cdus.scenario.model import RESTART_POLICIES, Scenario
-from cdus.sim.build import listeners_of
-from cdus.sim.fleet import InProcessFleet
 from cdus.wire import keys
-from cdus.wire.access import GROUND_ROLE, WORLD_ROLE, vehicle_role
+from cdus.wire.access import GROUND_ROLE
 from cdus.wire.transport import Transport, client_of, endpoint, exposed_endpoints
 from cdus.wire.transport import router as fleet_router
 from ground_station.__main__ import main as gs_main
@@ -148,35 +145,31 @@ def _note_late_events(scenario: Scenario) -> None:
 
 
 def cmd_sim(args: argparse.Namespace) -> int:
-    scenario = load_scenario(args.config, _overrides(args))
+    """`cdus sim`: cdus.api.run in process, its metrics (and trace) written, a summary printed."""
+    scenario = api.load(args.config, _overrides(args))
     _note_late_events(scenario)
     out_dir = None
     metrics_out = args.metrics_out
     if metrics_out is None:
         out_dir = run_dir(args.runs_dir, scenario.name)
         metrics_out = out_dir / "metrics.json"
-    from world_sim.rerun_sink import make_sink  # Rerun costs ~1 s and 55 MB to import: only `sim` pays it
-
     try:
-        sink = make_sink(args.rerun, Path(metrics_out).parent)
+        parse_spec(args.rerun, Path(metrics_out).parent)  # the flag's own wording for a bad --rerun
     except ValueError as e:
         raise ConfigError("command line", [("--rerun", str(e))]) from None
-    fleet = InProcessFleet(scenario, policy=args.policy, sink=sink, clock=time.perf_counter)
     progress = Progress(f"{scenario.name}", quiet=args.quiet)
     status = EXIT_OK
     try:
-        result = fleet.run(progress=progress)
-        metrics = result.metrics
-    except KeyboardInterrupt:
+        result = api.run(scenario, policy=args.policy, rerun=args.rerun, run_dir=Path(metrics_out).parent,
+                         progress=progress)
+    except api.RunInterrupted as e:
         status = EXIT_INTERRUPTED
-        metrics = fleet.partial_metrics()
-        metrics["interrupted"] = True
-    finally:
-        sink.close()
+        result = e.result
     progress.done()
+    metrics = result.metrics.to_dict()
     write_json(metrics_out, metrics)
     if args.trace_out:
-        fleet.recorder.save_trace(args.trace_out)
+        result.trace.save(args.trace_out)
     print(summary_table(metrics, scenario.vehicles))
     print(f"  metrics: {metrics_out}" + (f"\n  trace: {args.trace_out}" if args.trace_out else ""))
     return status
@@ -285,19 +278,6 @@ def check_exposure(args: argparse.Namespace, router: Transport) -> tuple[str, ..
         return exposed_endpoints(router)
     except zenoh.ZError as e:
         raise ConfigError("command line", [("--zenoh-config", str(e).split(" at /")[0])]) from None
-
-
-def secure_router(router: Transport, opts: LaunchOptions, scenario: Scenario, directory: Path,
-                  mode: str) -> tuple[Transport, Credentials]:
-    """Credentials for this run; the router requires them, every child gets its own file."""
-    ids = scenario.ids
-    try:
-        cred = make_credentials(directory, opts.fleet, {v: listeners_of(scenario, v) for v in ids}, router.listen,
-                                mode)
-    except CredentialsError as e:
-        raise ConfigError("command line", [("--tls" if mode == "tls" else "--secure", str(e))]) from None
-    opts.zenoh_configs = {"world": str(cred.file(WORLD_ROLE)), **{v: str(cred.file(vehicle_role(v))) for v in ids}}
-    return replace(router, listen=cred.listen, extra=router.extra + cred.router_extra()), cred
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
