@@ -1,0 +1,340 @@
+"""The Python API (cdus.api, docs/api.md): the same numbers as the command line, typed
+metrics that give their JSON back, the trace as arrays and tables, inputs checked where they
+enter, and ``import cdus`` without Zenoh or Rerun."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import cdus
+from cdus.api import Metrics, Trace
+from cdus.core.metrics import min_separation, settle_time
+from cdus.sim.fleet import InProcessFleet
+
+ROOT = Path(__file__).resolve().parents[2]
+LAKE = str(ROOT / "configs/lake_circle.toml")
+CONCENTRIC = str(ROOT / "configs/concentric_circles.toml")
+FAULTS = {  # link faults, a kill and a restart: every nested part of the metrics JSON is there
+    "link.loss": 0.2, "link.burst": {"p": 0.01, "r": 0.25}, "link.delay": {"base": 0.04, "jitter": 0.01},
+    "event": [{"at": 5.0, "action": "kill", "vehicle": "usv2"}, {"at": 10.0, "action": "restart", "vehicle": "usv2"}],
+}
+WALL = ("wall_s", "realtime_factor")  # wall-clock fields: differ between any two runs
+
+
+def toml(v) -> str:
+    """A value as `--set` reads it (TOML inline syntax)."""
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{k} = {toml(x)}" for k, x in v.items()) + "}"
+    if isinstance(v, list):
+        return "[" + ", ".join(toml(x) for x in v) + "]"
+    return json.dumps(v)
+
+
+def cli_sim(tmp_path: Path, config: str, overrides: dict) -> tuple[dict, dict]:
+    """`cdus sim CONFIG --duration 20 --metrics-out X --rerun off`, in its own process: the
+    metrics JSON and the trace it wrote."""
+    sets = [a for k, v in overrides.items() for a in ("--set", f"{k}={toml(v)}")]
+    m, tr = tmp_path / "m.json", tmp_path / "trace.npz"
+    proc = subprocess.run([sys.executable, "-m", "cdus.app.cli", "sim", config, "--duration", "20", "--metrics-out",
+                           str(m), "--trace-out", str(tr), "--rerun", "off", "-q", *sets], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=120, start_new_session=True)
+    assert proc.returncode == 0, proc.stderr
+    with np.load(tr) as z:
+        return json.loads(m.read_text()), {k: z[k] for k in z.files}
+
+
+@pytest.mark.parametrize("config,overrides", [(CONCENTRIC, {}), (LAKE, FAULTS)], ids=["concentric", "faults"])
+def test_the_api_gives_the_numbers_of_the_command_line(tmp_path, config, overrides):
+    want, trace = cli_sim(tmp_path, config, overrides)
+    res = cdus.run(cdus.load(config, {**overrides, "scenario.duration": 20}))
+    got = res.metrics.to_dict()
+    assert {k: v for k, v in got.items() if k not in WALL} == {k: v for k, v in want.items() if k not in WALL}
+    assert list(got) == list(want)  # the same fields, in the file's order
+    for name, arr in trace.items():
+        assert np.array_equal(arr, getattr(res.trace, name)), name
+
+
+def test_the_metrics_fields_are_those_of_docs_metrics_md():
+    text = (ROOT / "docs/metrics.md").read_text()
+    table = text[text.index("## Fields"):text.index("### `link`")]
+    documented = set(re.findall(r"^\| `(\w+)` \|", table, flags=re.M))
+    assert len(documented) >= 20
+    assert documented == {f for f in Metrics.__dataclass_fields__ if f != "extra"}
+    link = text[text.index("### `link`"):text.index("`link.faults`")]
+    fields = {f for names in re.findall(r"^\| (`[^|]+`) \|", link, flags=re.M) for f in re.findall(r"`(\w+)`", names)}
+    assert fields == {f for f in cdus.LinkMetrics.__dataclass_fields__ if f != "extra"}
+
+
+def metric_dicts(tmp_path) -> dict[str, dict]:
+    """Metrics JSONs of every writer: a run, a run with faults, an interrupted one (as `cdus
+    sim` writes it after Ctrl-C), the world's (a lockstep run: rejected_by_reason,
+    missed_deadlines) and the launcher's when the world died (link {}, extra fields)."""
+    from cdus.app.launcher import LaunchOptions, Launcher
+    from cdus.wire.transport import local_router
+
+    sc = cdus.load(LAKE, {"scenario.duration": 4})
+    out = {"run": InProcessFleet(sc).run().metrics,
+           "faults": InProcessFleet(cdus.override(sc, {**FAULTS, "scenario.duration": 12})).run().metrics}
+    fleet = InProcessFleet(sc)
+    for _ in range(30):
+        fleet.step()
+    out["interrupted"] = {**fleet.partial_metrics(), "interrupted": True}
+    la = Launcher(sc, tmp_path / "run", local_router(), LaunchOptions(fleet="t1", quiet=True))
+    la.status = {"t": 2.5, "alive": ["usv1"], "path_error_max": 0.5, "coord_error_max": 0.1}
+    out["world_lost"] = la.write_world_lost(-9, 1.0)
+    world = dict(out["faults"], mode="lockstep", rejected_by_reason={"world": {"key": 2}, "vehicles": {}})
+    world["link"] = {**world["link"], "missed_deadlines": 0}
+    world["link"] = {k: world["link"][k] for k in ("sent", "delivered", "dropped", "duplicated", "rejected",
+                                                   "latency_ms_p50", "latency_ms_p99", "missed_deadlines", "faults")}
+    out["world"] = world
+    return {k: json.loads(json.dumps(v)) for k, v in out.items()}  # as read back from the file
+
+
+def test_metrics_read_from_any_writer_give_their_json_back_in_order(tmp_path):
+    for name, d in metric_dicts(tmp_path).items():
+        m = Metrics.from_dict(d)
+        assert json.dumps(m.to_dict()) == json.dumps(d), name
+    dicts = metric_dicts(tmp_path)
+    faults = Metrics.from_dict(dicts["faults"])
+    assert faults.link.faults.total.dropped_by.loss > 0 and faults.link.faults.links["usv1->usv2"].sent > 0
+    kill = next(e for e in faults.events if e.kind == "fault")
+    assert (kill.t, kill.vehicle, kill.severity, kill.link) == (5.0, "usv2", "warn", None)
+    lost = Metrics.from_dict(dicts["world_lost"])
+    assert lost.link is None and lost.extra["written_by"] == "launcher" and lost.completion == "world_lost"
+    world = Metrics.from_dict(dicts["world"])
+    assert world.rejected_by_reason.world == {"key": 2} and world.link.missed_deadlines == 0
+    assert Metrics.from_dict(dicts["interrupted"]).interrupted is True and faults.interrupted is None
+
+
+JSON = st.recursive(st.none() | st.booleans() | st.integers(-10, 10) | st.floats(allow_nan=False) | st.text(max_size=4),
+                    lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=4), inner, max_size=3),
+                    max_leaves=6)
+
+
+def paths(d, prefix=()):
+    yield prefix
+    if isinstance(d, dict):
+        for k, v in d.items():
+            yield from paths(v, (*prefix, k))
+    elif isinstance(d, list):
+        for j, v in enumerate(d):
+            yield from paths(v, (*prefix, j))
+
+
+BASE = json.loads(json.dumps(InProcessFleet(cdus.load(LAKE, {"scenario.duration": 2, **FAULTS}))
+                             .run().metrics))
+PATHS = [p for p in paths(BASE) if p]
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.sampled_from(PATHS), JSON, st.booleans())
+def test_a_damaged_metrics_json_is_refused_naming_the_field_or_kept_whole(path, value, delete):
+    d = json.loads(json.dumps(BASE))
+    node = d
+    for k in path[:-1]:
+        node = node[k]
+    if delete and isinstance(node, dict):
+        del node[path[-1]]
+    else:
+        node[path[-1]] = value
+    try:
+        m = Metrics.from_dict(d)
+    except ValueError as e:
+        assert str(e).startswith("metrics: ")
+    else:
+        assert json.dumps(m.to_dict()) == json.dumps(d)  # accepted: nothing lost, nothing changed
+
+
+def test_a_metrics_file_reads_back(tmp_path):
+    d = metric_dicts(tmp_path)["faults"]
+    (tmp_path / "m.json").write_text(json.dumps(d))
+    assert Metrics.from_json(tmp_path / "m.json").to_dict() == d
+    with pytest.raises(ValueError, match="metrics: seed: expected an integer"):
+        Metrics.from_dict({**d, "seed": "1"})
+    with pytest.raises(ValueError, match="metrics: link.faults.total.dropped_by.loss: missing"):
+        bad = json.loads(json.dumps(d))
+        del bad["link"]["faults"]["total"]["dropped_by"]["loss"]
+        Metrics.from_dict(bad)
+
+
+# ---------------------------------------------------------------- the trace
+
+
+@pytest.fixture(scope="module")
+def concentric():
+    return cdus.run(CONCENTRIC if False else cdus.load(CONCENTRIC, {"scenario.duration": 20}))
+
+
+def test_the_trace_agrees_with_the_metrics(concentric):
+    res = concentric
+    tr, m, sc = res.trace, res.metrics, res.scenario
+    T, N = int(round(20 * sc.rates.control)) + 1, len(sc.vehicles)
+    assert len(tr) == T and tr.q.shape == (T, N, 3) and tr.path_error.shape == (T, N)
+    assert tr.ids == sc.ids and tr.edge_error.shape == (T, len(tr.edge_names)) and tr.live.dtype == bool
+    assert tr.live.all() and m.live_final == sc.ids
+    assert m.duration_s == tr.t[-1] - tr.t[0] == 20.0
+    assert m.final_path_error == {vid: tr.path_error[-1, j] for j, vid in enumerate(tr.ids)}
+    assert m.final_path_error_max == tr.path_error[-1].max()
+    assert m.final_coord_error_max == tr.edge_error[-1].max()
+    assert m.path_settle_s == settle_time(tr.t, tr.path_error.max(axis=1), m.path_tol) is not None
+    assert m.coord_settle_s == settle_time(tr.t, tr.edge_error.max(axis=1), m.coord_tol) is not None
+    assert m.min_separation_m == round(min_separation(tr.q, [v.kind for v in sc.vehicles]), 6)
+
+
+def test_the_trace_saves_as_trace_out_does_and_reads_back(tmp_path, concentric):
+    from cdus.core.metrics import Recorder
+
+    sc = concentric.scenario
+    fleet = InProcessFleet(sc)
+    fleet.run()
+    fleet.recorder.save_trace(str(tmp_path / "rec.npz"))
+    concentric.trace.save(tmp_path / "api.npz")
+    with np.load(tmp_path / "rec.npz") as a, np.load(tmp_path / "api.npz") as b:
+        assert a.files == b.files
+        for k in a.files:
+            assert np.array_equal(a[k], b[k]) and a[k].dtype == b[k].dtype, k
+    back = Trace.from_npz(tmp_path / "api.npz")
+    assert back.ids == concentric.trace.ids and back.edge_names == concentric.trace.edge_names
+    assert all(np.array_equal(getattr(back, k), getattr(concentric.trace, k)) for k in ("t", "q", "live"))
+    np.savez(tmp_path / "other.npz", t=np.zeros(3))
+    with pytest.raises(ValueError, match="not a cdus trace: no q"):
+        Trace.from_npz(tmp_path / "other.npz")
+    assert isinstance(fleet.recorder, Recorder)
+
+
+def test_the_trace_as_a_dataframe_and_a_dataset(concentric):
+    tr = concentric.trace
+    T, N = len(tr), len(tr.ids)
+    df = tr.to_dataframe()
+    assert list(df.columns) == ["t", "vehicle", "x", "y", "z", "heading", "omega", "omega_rate", "path_error", "live"]
+    assert len(df) == T * N
+    row = df.iloc[7 * N + 2]  # tick 7, the third vehicle
+    assert (row.t, row.vehicle, row.x, row.z, row.omega) == (tr.t[7], tr.ids[2], tr.q[7, 2, 0], tr.q[7, 2, 2],
+                                                             tr.omega[7, 2])
+    last = df[df.t == tr.t[-1]].set_index("vehicle")["path_error"].to_dict()
+    assert last == concentric.metrics.final_path_error
+    edges = tr.edges_dataframe()
+    assert len(edges) == T * len(tr.edge_names)
+    assert edges.groupby("edge", observed=True)["error"].last().max() == concentric.metrics.final_coord_error_max
+    ds = tr.to_xarray()
+    assert dict(ds.sizes) == {"t": T, "vehicle": N, "axis": 3, "edge": len(tr.edge_names)}
+    assert float(ds.q.sel(vehicle=tr.ids[1], axis="y").isel(t=-1)) == tr.q[-1, 1, 1]
+    assert ds.path_error.attrs["units"] == "m" and ds.t.attrs["units"] == "s"
+
+
+def test_without_pandas_the_error_names_the_extra(concentric, monkeypatch):
+    monkeypatch.setitem(sys.modules, "pandas", None)
+    monkeypatch.setitem(sys.modules, "xarray", None)
+    with pytest.raises(ImportError, match=r"Trace.to_dataframe needs pandas.*pip install 'cdus\[api\]'"):
+        concentric.trace.to_dataframe()
+    with pytest.raises(ImportError, match=r"Trace.to_xarray needs xarray.*'cdus\[api\]'"):
+        concentric.trace.to_xarray()
+
+
+# ---------------------------------------------------------------- inputs
+
+
+def test_override_on_a_loaded_scenario():
+    sc = cdus.load(LAKE)
+    other = cdus.override(sc, {"scenario.seed": 4, "link.loss": np.float64(0.25), "rates.control": np.int64(20)})
+    assert (other.seed, other.link.loss, other.rates.control) == (4, 0.25, 20)
+    assert type(other.raw["link"]["loss"]) is float and type(other.raw["rates"]["control"]) is int
+    assert other.vehicles[0].start_position != sc.vehicles[0].start_position  # starts drawn again from the new seed
+    assert sc.seed == 1 and "link" not in sc.raw  # the first is untouched
+    assert cdus.override(other, {"scenario.seed": 1}).vehicles == sc.vehicles
+
+
+@pytest.mark.parametrize("call,match", [
+    (lambda: cdus.load("nowhere.toml"), r"nowhere.toml: file: not found; give the path of a scenario .toml"),
+    (lambda: cdus.load(3), r"cdus.load: path: expected the path of a scenario .toml file.*got int"),
+    (lambda: cdus.load(LAKE, ["link.loss=0.2"]), r"overrides: expected a mapping of dotted keys to values"),
+    (lambda: cdus.load(LAKE, {"vehicle.nobody.gains.k": 2}), r"override vehicle.nobody.gains.k: .*usv1"),
+    (lambda: cdus.load(LAKE, {"rates.control": -5}), r"rates.control"),
+    (lambda: cdus.load(LAKE, {"link.loss": {0.1}}), r"override link.loss: a set is not a config value"),
+    (lambda: cdus.load(LAKE, {1: 2}), r"overrides: keys are dotted config keys"),
+    (lambda: cdus.override("not a scenario" and 5, {}), r"cdus.override: scenario: expected a Scenario"),
+    (lambda: cdus.run(LAKE, clock="fast"), r"cdus.run: clock: 'fast' is not one of inproc, lockstep"),
+    (lambda: cdus.run(LAKE, policy="wait"), r"policy: 'wait' is not one of hold, timeout, extrapolate"),
+    (lambda: cdus.run(LAKE, rerun="somewhere"), r"cdus.run: rerun: .*off"),
+    (lambda: cdus.run(LAKE, progress="yes"), r"progress: expected True, False or a callable"),
+    (lambda: cdus.run(LAKE, clock="lockstep", secure=False, tls=True), r"tls: TLS is a mode of the secured fleet"),
+    (lambda: cdus.run(LAKE, clock="lockstep", fleet="a b"), r"fleet: fleet name 'a b': use 1-64 letters"),
+    (lambda: cdus.run(LAKE, clock="lockstep", ready_timeout=0), r"ready_timeout: expected seconds > 0"),
+    (lambda: cdus.sweep(LAKE, {"link.loss": 0.2}, out="x"), r"grid link.loss: expected a non-empty list"),
+    (lambda: cdus.sweep(LAKE, {"link.loss": [2.0]}, out="x"), r"link.loss"),
+    (lambda: cdus.sweep(LAKE, {}, out="x", seeds=0), r"seeds: expected how many seeds"),
+    (lambda: cdus.sweep(LAKE, {}, out=None), r"cdus.sweep: out: expected a directory path"),
+    (lambda: cdus.sweep(LAKE, {}, out="x", jobs=0), r"jobs: expected a number of parallel runs"),
+    (lambda: cdus.sweep(LAKE, {}, out="x", duration=-1), r"duration: expected simulated seconds > 0"),
+])
+def test_bad_inputs_are_a_config_error_naming_the_field_and_nothing_runs(call, match, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(cdus.ConfigError, match=match):
+        call()
+    assert not (tmp_path / "x").exists()  # a sweep refused before it made its directory
+
+
+def test_a_lockstep_run_outside_the_main_thread_is_refused_before_anything_starts():
+    import threading
+
+    errors = []
+    t = threading.Thread(target=lambda: errors.append(pytest.raises(cdus.ConfigError, cdus.run, LAKE,
+                                                                    clock="lockstep")))
+    t.start()
+    t.join()
+    assert "call it from the main thread" in str(errors[0].value)
+
+
+def test_ctrl_c_during_an_in_process_run_gives_what_ran():
+    sc = cdus.load(LAKE, {"scenario.duration": 20})
+
+    def stop(t, total):
+        if t >= 5:
+            raise KeyboardInterrupt
+
+    with pytest.raises(cdus.RunInterrupted) as info:
+        cdus.run(sc, progress=stop)
+    assert isinstance(info.value, KeyboardInterrupt)
+    res = info.value.result
+    assert res.metrics.interrupted is True and res.metrics.completed is False
+    assert res.metrics.completion == "interrupted" and res.metrics.duration_s == res.trace.t[-1] == pytest.approx(4.98)
+
+
+# ---------------------------------------------------------------- import cost and sweeps
+
+
+def test_import_cdus_and_an_in_process_run_import_neither_zenoh_nor_rerun():
+    code = ("import sys, cdus\n"
+            "assert 'cdus.api' not in sys.modules and 'numpy' not in sys.modules, sorted(sys.modules)\n"
+            f"res = cdus.run(cdus.load({LAKE!r}, {{'scenario.duration': 1}}))\n"
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in ('zenoh', 'rerun')), res.metrics.completed)\n"
+            "assert sorted(dir(cdus)) == sorted(set(dir(cdus)) | set(cdus.__all__))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, cwd=ROOT)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["[]", "True"]
+    with pytest.raises(AttributeError, match="no attribute 'nothing'"):
+        cdus.nothing  # noqa: B018
+
+
+def test_a_sweep_through_the_api_gives_its_table(tmp_path, monkeypatch):
+    sc = cdus.load(LAKE, {"scenario.seed": 7})
+    table = cdus.sweep(sc, {"link.loss": [0, 0.3]}, out=tmp_path / "sw", seeds=2, duration=4, jobs=1)
+    assert (tmp_path / "sw/scenario.json").exists() and (tmp_path / "sw/results.csv").exists()
+    assert list(table["link.loss"]) == [0, 0, 0.3, 0.3] and list(table["seed"]) == [7, 8, 7, 8]
+    assert set(table["status"]) == {"ok"}
+    one = cdus.run(cdus.override(sc, {"link.loss": 0.3, "scenario.seed": 8, "scenario.duration": 4}))
+    row = table.iloc[3]
+    assert row.final_coord_error_max == one.metrics.final_coord_error_max
+    assert row.link_dropped == one.metrics.link.dropped > 0
+    monkeypatch.setitem(sys.modules, "pandas", None)
+    rows = cdus.sweep(LAKE, {}, out=tmp_path / "plain", seeds=[3], duration=2, jobs=1)
+    assert isinstance(rows, list) and rows[0]["seed"] == 3 and rows[0]["status"] == "ok"
