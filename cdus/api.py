@@ -20,6 +20,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import sys
 import tempfile
 import threading
 import time
@@ -767,10 +768,26 @@ def sweep(config: str | os.PathLike | Scenario, grid: Mapping[str, Sequence[Any]
         raise _arg_error(where, "seeds", f"expected how many seeds (>= 1) or a list of integer seeds, got {seeds!r}")
     seed_list = list(range(base.seed, base.seed + seeds)) if isinstance(seeds, int) else list(seeds)
     app_sweep.check_grid(config, axes, over)
-    rows = app_sweep.sweep(config, axes, seed_list, out, clock=clock, jobs=jobs,
-                           duration=None if duration is None else float(duration), quiet=quiet)
+    backend = _pyplot_backend()
+    try:
+        rows = app_sweep.sweep(config, axes, seed_list, out, clock=clock, jobs=jobs,
+                               duration=None if duration is None else float(duration), quiet=quiet)
+    finally:  # its plot switches pyplot to Agg: a notebook's inline figures would stop showing
+        _restore_pyplot_backend(backend)
     try:
         import pandas as pd
     except ImportError:
         return rows
     return pd.DataFrame(rows)
+
+
+def _pyplot_backend() -> str | None:
+    """The caller's pyplot backend, if the caller uses pyplot."""
+    plt = sys.modules.get("matplotlib.pyplot")
+    return None if plt is None else plt.get_backend()
+
+
+def _restore_pyplot_backend(backend: str | None) -> None:
+    plt = sys.modules.get("matplotlib.pyplot")
+    if backend is not None and plt is not None and plt.get_backend() != backend:
+        plt.switch_backend(backend)

@@ -326,8 +326,17 @@ def test_import_cdus_and_an_in_process_run_import_neither_zenoh_nor_rerun():
 
 
 def test_a_sweep_through_the_api_gives_its_table(tmp_path, monkeypatch):
+    import matplotlib.pyplot as plt
+
     sc = cdus.load(LAKE, {"scenario.seed": 7})
-    table = cdus.sweep(sc, {"link.loss": [0, 0.3]}, out=tmp_path / "sw", seeds=2, duration=4, jobs=1)
+    before = plt.get_backend()
+    plt.switch_backend("pdf")  # the caller's (a notebook's is inline)
+    try:
+        table = cdus.sweep(sc, {"link.loss": [0, 0.3]}, out=tmp_path / "sw", seeds=2, duration=4, jobs=1)
+        assert plt.get_backend() == "pdf"  # the sweep's own plot did not take it away
+    finally:
+        plt.switch_backend(before)
+    assert (tmp_path / "sw/sweep.png").exists()
     assert (tmp_path / "sw/scenario.json").exists() and (tmp_path / "sw/results.csv").exists()
     assert list(table["link.loss"]) == [0, 0, 0.3, 0.3] and list(table["seed"]) == [7, 8, 7, 8]
     assert set(table["status"]) == {"ok"}
