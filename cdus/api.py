@@ -633,6 +633,9 @@ def run(scenario: Scenario | str | os.PathLike, *, clock: str = "inproc", policy
         raise _arg_error(where, "progress", f"expected True, False or a callable (t, duration), got {progress!r}")
     if clock == "inproc":
         return _run_inproc(scenario, policy, rerun, base, progress)
+    if base is None and any(item.strip().lower() == "auto" for item in rerun.split(",")):
+        raise _arg_error(where, "rerun", "'auto' may save the recording into the run directory, and a lockstep "
+                                         "run's default one is temporary: give run_dir=..., or rerun='save:PATH'")
     for name, value in (("secure", secure), ("tls", tls)):
         if not isinstance(value, bool):
             raise _arg_error(where, name, f"expected True or False, got {value!r}")

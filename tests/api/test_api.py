@@ -265,6 +265,7 @@ def test_override_on_a_loaded_scenario():
     (lambda: cdus.run(LAKE, clock="fast"), r"cdus.run: clock: 'fast' is not one of inproc, lockstep"),
     (lambda: cdus.run(LAKE, policy="wait"), r"policy: 'wait' is not one of hold, timeout, extrapolate"),
     (lambda: cdus.run(LAKE, rerun="somewhere"), r"cdus.run: rerun: .*off"),
+    (lambda: cdus.run(LAKE, clock="lockstep", rerun="auto"), r"rerun: 'auto' may save the recording into the run"),
     (lambda: cdus.run(LAKE, progress="yes"), r"progress: expected True, False or a callable"),
     (lambda: cdus.run(LAKE, clock="lockstep", secure=False, tls=True), r"tls: TLS is a mode of the secured fleet"),
     (lambda: cdus.run(LAKE, clock="lockstep", fleet="a b"), r"fleet: fleet name 'a b': use 1-64 letters"),
