@@ -60,7 +60,11 @@ class RunError(RuntimeError):
 
     def __init__(self, message: str, log: Sequence[str] = ()):
         self.log = tuple(log)
+        self.message = message
         super().__init__(message + ("\nthe launcher's log:\n" + "\n".join(self.log[-40:]) if self.log else ""))
+
+    def __reduce__(self):  # picklable (a worker process's error) with its log
+        return (type(self), (self.message, self.log))
 
 
 class RunInterrupted(KeyboardInterrupt):
@@ -72,6 +76,9 @@ class RunInterrupted(KeyboardInterrupt):
         self.result = result
         super().__init__("interrupted" + ("" if result is None else
                                           f" at t = {result.metrics.duration_s:g} s of {result.scenario.name}"))
+
+    def __reduce__(self):
+        return (type(self), (self.result,))
 
 
 # --------------------------------------------------------------------------- reading a metrics JSON
@@ -629,13 +636,16 @@ def run(scenario: Scenario | str | os.PathLike, *, clock: str = "inproc", policy
         raise _arg_error(where, "rerun", str(e) if isinstance(e, ValueError) else
                          f"expected a string such as 'off', 'spawn' or 'save:run.rrd', got {type(rerun).__name__}"
                          ) from None
-    if not (progress in (True, False) or callable(progress)):
+    if not (isinstance(progress, bool) or callable(progress)):
         raise _arg_error(where, "progress", f"expected True, False or a callable (t, duration), got {progress!r}")
     if clock == "inproc":
         return _run_inproc(scenario, policy, rerun, base, progress)
     if base is None and any(item.strip().lower() == "auto" for item in rerun.split(",")):
         raise _arg_error(where, "rerun", "'auto' may save the recording into the run directory, and a lockstep "
                                          "run's default one is temporary: give run_dir=..., or rerun='save:PATH'")
+    if not isinstance(progress, bool):
+        raise _arg_error(where, "progress", "a lockstep run shows the launcher's own progress: give True or False "
+                                            "(a callable is for clock='inproc')")
     for name, value in (("secure", secure), ("tls", tls)):
         if not isinstance(value, bool):
             raise _arg_error(where, name, f"expected True or False, got {value!r}")

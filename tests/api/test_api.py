@@ -266,6 +266,8 @@ def test_override_on_a_loaded_scenario():
     (lambda: cdus.run(LAKE, policy="wait"), r"policy: 'wait' is not one of hold, timeout, extrapolate"),
     (lambda: cdus.run(LAKE, rerun="somewhere"), r"cdus.run: rerun: .*off"),
     (lambda: cdus.run(LAKE, clock="lockstep", rerun="auto"), r"rerun: 'auto' may save the recording into the run"),
+    (lambda: cdus.run(LAKE, progress=1), r"progress: expected True, False or a callable"),
+    (lambda: cdus.run(LAKE, clock="lockstep", progress=print), r"progress: a lockstep run shows the launcher's own"),
     (lambda: cdus.run(LAKE, progress="yes"), r"progress: expected True, False or a callable"),
     (lambda: cdus.run(LAKE, clock="lockstep", secure=False, tls=True), r"tls: TLS is a mode of the secured fleet"),
     (lambda: cdus.run(LAKE, clock="lockstep", fleet="a b"), r"fleet: fleet name 'a b': use 1-64 letters"),
@@ -308,6 +310,34 @@ def test_ctrl_c_during_an_in_process_run_gives_what_ran():
     res = info.value.result
     assert res.metrics.interrupted is True and res.metrics.completed is False
     assert res.metrics.completion == "interrupted" and res.metrics.duration_s == res.trace.t[-1] == pytest.approx(4.98)
+
+
+def test_errors_pickle_with_what_they_carry():
+    import pickle
+
+    res = cdus.run(cdus.load(LAKE, {"scenario.duration": 1}))
+    back = pickle.loads(pickle.dumps(cdus.RunInterrupted(res)))
+    assert back.result.metrics == res.metrics and np.array_equal(back.result.trace.q, res.trace.q)
+    err = pickle.loads(pickle.dumps(cdus.RunError("no fleet", ["a", "b"])))
+    assert err.log == ("a", "b") and str(err).startswith("no fleet\nthe launcher's log:\na\nb")
+
+
+def test_ctrl_c_during_cdus_sim_still_writes_the_metrics_and_trace_of_what_ran(tmp_path, monkeypatch, capsys):
+    from cdus.app import cli
+
+    class CtrlC(cli.Progress):
+        def __call__(self, t, total):
+            if t >= 2:
+                raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "Progress", CtrlC)
+    m, tr = tmp_path / "m.json", tmp_path / "t.npz"
+    assert cli.main(["sim", LAKE, "--duration", "20", "--rerun", "off", "-q", "--metrics-out", str(m),
+                     "--trace-out", str(tr)]) == 130
+    d = json.loads(m.read_text())
+    assert d["interrupted"] is True and d["completion"] == "interrupted" and d["duration_s"] == pytest.approx(4.98)  # progress is called every 250 ticks
+    assert len(Trace.from_npz(tr)) == 250
+    assert f"metrics: {m}" in capsys.readouterr().out
 
 
 # ---------------------------------------------------------------- import cost and sweeps

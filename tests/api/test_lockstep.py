@@ -4,6 +4,7 @@ when its caller is interrupted."""
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -58,7 +59,9 @@ def test_a_lockstep_run_through_the_api_equals_the_in_process_one_to_the_bit(tmp
     assert a.link.faults.total == b.link.faults.total and a.link.dropped > 0
     assert a.rejected_by_reason is not None and a.link.missed_deadlines == 0
     run = tmp_path / "run"
-    assert (run / "secure/world.json5").exists() or any((run / "secure").iterdir())  # secured by default
+    written = json.loads((run / "metrics.json").read_text())  # the world's own file
+    assert json.dumps(a.to_dict()) == json.dumps(written)
+    assert any((run / "secure").glob("*.json5"))  # secured by default: a credentials file per process
     assert (run / "metrics.json").exists() and (run / "logs/world.log").exists() and res.run_dir == run
     assert any(f"fleet '{fleet}' up" in line for line in res.log)
     assert not fleet_processes(fleet)
