@@ -35,7 +35,7 @@ from cdus.app.report import Progress
 from cdus.core.linkspec import POLICIES
 from cdus.core.metrics import Recorder
 from cdus.core.vehicle import DivergedError
-from cdus.scenario.config import ConfigError, load_scenario, parse_scenario
+from cdus.scenario.config import MAX_NESTING, ConfigError, load_scenario, nesting_problem, parse_scenario
 from cdus.scenario.model import Scenario
 from cdus.sim.fleet import InProcessFleet
 from cdus.wire import keys
@@ -358,7 +358,8 @@ class Metrics:
         return cls(
             scenario=_str(d, "scenario", w), mode=_str(d, "mode", w), seed=_int(d, "seed", w),
             duration_s=_num(d, "duration_s", w), path_tol=_num(d, "path_tol", w), coord_tol=_num(d, "coord_tol", w),
-            path_settle_s=_num(d, "path_settle_s", w, null=True), coord_settle_s=_num(d, "coord_settle_s", w, null=True),
+            path_settle_s=_num(d, "path_settle_s", w, null=True),
+            coord_settle_s=_num(d, "coord_settle_s", w, null=True),
             final_path_error_max=_num(d, "final_path_error_max", w, null=True),
             final_coord_error_max=_num(d, "final_coord_error_max", w, null=True),
             omega_rate_final=_numbers_by_id(d, "omega_rate_final", w),
@@ -561,13 +562,16 @@ def _overrides(overrides: Any, where: str) -> dict[str, Any]:
     if overrides is None:
         return {}
     if not isinstance(overrides, Mapping):
-        raise _arg_error(where, "overrides", f"expected a mapping of dotted keys to values, e.g. "
-                                             f"{{'link.loss': 0.2, 'scenario.seed': 3}}, got {type(overrides).__name__}")
+        raise _arg_error(where, "overrides", f"expected a mapping of dotted keys to values, e.g. {{'link.loss': "
+                                             f"0.2, 'scenario.seed': 3}}, got {type(overrides).__name__}")
     out = {}
     for key, value in overrides.items():
         if not isinstance(key, str):
             raise _arg_error(where, "overrides", f"keys are dotted config keys (strings) such as 'rates.control', "
                                                  f"got {key!r}")
+        if nesting_problem(value, MAX_NESTING - 1):  # iteratively, before _plain recurses into it
+            raise _arg_error(where, f"override {key}", f"lists and tables nested deeper than {MAX_NESTING} levels "
+                                                       f"are not a config value")
         out[key] = _plain(value, where, key)
     return out
 

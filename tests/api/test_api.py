@@ -253,6 +253,13 @@ def test_override_on_a_loaded_scenario():
     assert cdus.override(other, {"scenario.seed": 1}).vehicles == sc.vehicles
 
 
+def deep(n: int) -> list:
+    out: list = []
+    for _ in range(n):
+        out = [out]
+    return out
+
+
 @pytest.mark.parametrize("call,match", [
     (lambda: cdus.load("nowhere.toml"), r"nowhere.toml: file: not found; give the path of a scenario .toml"),
     (lambda: cdus.load(3), r"cdus.load: path: expected the path of a scenario .toml file.*got int"),
@@ -260,6 +267,7 @@ def test_override_on_a_loaded_scenario():
     (lambda: cdus.load(LAKE, {"vehicle.nobody.gains.k": 2}), r"override vehicle.nobody.gains.k: .*usv1"),
     (lambda: cdus.load(LAKE, {"rates.control": -5}), r"rates.control"),
     (lambda: cdus.load(LAKE, {"link.loss": {0.1}}), r"override link.loss: a set is not a config value"),
+    (lambda: cdus.load(LAKE, {"link.loss": deep(100_000)}), r"override link.loss: lists and tables nested deeper"),
     (lambda: cdus.load(LAKE, {1: 2}), r"overrides: keys are dotted config keys"),
     (lambda: cdus.override("not a scenario" and 5, {}), r"cdus.override: scenario: expected a Scenario"),
     (lambda: cdus.run(LAKE, clock="fast"), r"cdus.run: clock: 'fast' is not one of inproc, lockstep"),
@@ -335,7 +343,8 @@ def test_ctrl_c_during_cdus_sim_still_writes_the_metrics_and_trace_of_what_ran(t
     assert cli.main(["sim", LAKE, "--duration", "20", "--rerun", "off", "-q", "--metrics-out", str(m),
                      "--trace-out", str(tr)]) == 130
     d = json.loads(m.read_text())
-    assert d["interrupted"] is True and d["completion"] == "interrupted" and d["duration_s"] == pytest.approx(4.98)  # progress is called every 250 ticks
+    assert d["interrupted"] is True and d["completion"] == "interrupted"
+    assert d["duration_s"] == pytest.approx(4.98)  # progress is called every 250 ticks: stopped at the 250th
     assert len(Trace.from_npz(tr)) == 250
     assert f"metrics: {m}" in capsys.readouterr().out
 
