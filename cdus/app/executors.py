@@ -21,6 +21,10 @@ from cdus.scenario.config import ConfigError
 
 EXECUTORS = ("local", "dask")
 CONNECT_TIMEOUT_S = 10.0
+# A LocalCluster on loopback only: the scheduler, the workers and the scheduler's HTTP server
+# (health checks; it always runs, on 8787 by default) on 127.0.0.1, on free ports, no dashboard.
+LOCAL_CLUSTER = {"host": "127.0.0.1", "dashboard_address": None, "worker_dashboard_address": None,
+                 "scheduler_kwargs": {"dashboard": False, "dashboard_address": "127.0.0.1:0"}}
 
 
 class Executor:
@@ -114,9 +118,7 @@ class DaskExecutor(Executor):
             self.name = f"dask ({address})"
         else:
             n = jobs or os.cpu_count() or 1
-            # 127.0.0.1 only; the scheduler's HTTP server (health checks) also stays on loopback
-            self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                        dashboard_address=None, worker_dashboard_address=None)
+            self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, **LOCAL_CLUSTER)
             self.client = Client(self.cluster, set_as_default=False)
             self.name = f"dask (LocalCluster, {n} processes)"
         threads = sum(self.client.nthreads().values())
@@ -128,7 +130,8 @@ class DaskExecutor(Executor):
     def wait(self, pending: set) -> tuple[set, set]:
         from distributed import wait
 
-        done, not_done = wait(list(pending), return_when="FIRST_COMPLETED")
+        with self.client.as_current():  # not set as the process's default client (a notebook may have its own)
+            done, not_done = wait(list(pending), return_when="FIRST_COMPLETED")
         return set(done), set(not_done)
 
     def cancel(self, pending: set) -> None:

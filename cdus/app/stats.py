@@ -65,13 +65,13 @@ def describe(values: Iterable[float], seed: int = SEED) -> Stat:
 
 def fmt_number(x: Any, digits: int = 1) -> str:
     """A number as a person reads it: ``141.42000000000002`` -> ``141.4``; small values keep
-    significant digits (``0.000236`` -> ``0.000236``), never ``None`` or ``nan``."""
+    three significant digits (``0.000236`` -> ``0.000236``), never ``None`` or ``nan``."""
     if x is None:
         return "n/a"
     x = float(x)
     if not math.isfinite(x):
         return "n/a"
-    if x != 0 and abs(x) < 10 ** -digits:
+    if x != 0 and abs(x) < 10 ** -(digits - 1):  # too small for ``digits`` decimals to say much
         return f"{x:.3g}"
     return f"{x:.{digits}f}"
 

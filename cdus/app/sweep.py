@@ -305,11 +305,12 @@ def axis_label(key: str) -> str:
     return f"{key} ({unit})" if unit else key
 
 
-def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "") -> None:
+def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "") -> dict[str, Any]:
     """Coordination settle time and final coordination error over the first grid key, one
     line per combination of the other keys: the mean over the seeds with its 95 % bootstrap
     interval as error bars; a cell whose runs did not all settle gets a marker at the top
-    with the count; a panel with nothing to show says so."""
+    with the count; a panel with nothing to show says so. Returns what it drew besides the
+    lines: ``{"empty": [the texts of empty panels], "never": [the labels of the markers]}``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -333,6 +334,7 @@ def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "")
     panels = (("coord_settle_s", "coordination settle time (s)", "no run settled"),
               ("final_coord_error_max", "final coordination error, worst edge (rad)", "no run finished"))
     shown = [False, False]
+    drawn: dict[str, list[str]] = {"empty": [], "never": []}
     n_series = max(1, len(series))
     for si, (label, group) in enumerate(series.items()):
         group = sorted(group, key=lambda c: pos(dict(c.cell)[x_key]) if x_key else 0.0)
@@ -352,8 +354,10 @@ def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "")
                         y = 0.96 - 0.05 * (si % 4)
                         ax.plot([x], [y], marker="v", ls="none", color=line[0].get_color(), transform=trans,
                                 markersize=8, clip_on=False)
-                        ax.text(x, y - 0.045, f"{c.never('coord')}/{c.ok} never", transform=trans, ha="center",
-                                va="top", fontsize=7, color=line[0].get_color())
+                        text = f"{c.never('coord')}/{c.ok} never"
+                        ax.text(x, y - 0.045, text, transform=trans, ha="center", va="top", fontsize=7,
+                                color=line[0].get_color())
+                        drawn["never"].append(text)
     for ax, ok, (_, ylabel, empty) in zip(axes, shown, panels):
         ax.set_ylabel(ylabel)
         ax.set_xlabel(axis_label(x_key) if x_key else "")
@@ -363,6 +367,7 @@ def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "")
                           fontsize=8, rotation=15 if max(map(len, categories), default=0) > 12 else 0)
         if not ok:
             ax.text(0.5, 0.5, empty, transform=ax.transAxes, ha="center", va="center", fontsize=13, color="0.4")
+            drawn["empty"].append(empty)
         elif n_series > 1 or others:
             ax.legend(fontsize=8)
     if shown[1]:
@@ -374,6 +379,7 @@ def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+    return drawn
 
 
 # --- the engine -------------------------------------------------------------------------------
