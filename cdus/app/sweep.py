@@ -603,6 +603,10 @@ def sweep(scenario: str | os.PathLike | Scenario,
     return result
 
 
+def _count(n: int, what: str) -> str:
+    return f"{n} {what}" + ("" if n == 1 else "s")
+
+
 def _finish(out: Path, base: Scenario, g: Grid, p: _Plan, clock: str, executor: str, before: Any, resumed: int,
             ran: int, lost: int, interrupted: bool, wall: float) -> SweepResult:
     """The tables, the summary and the plot, from results.jsonl."""
@@ -613,12 +617,12 @@ def _finish(out: Path, base: Scenario, g: Grid, p: _Plan, clock: str, executor: 
     result = SweepResult(out, p.size, n, ran, resumed, tally.failed, before.torn, before.unreadable, lost, wall,
                          executor, interrupted, cells)
     seeds = p.seeds
-    seed_text = f"{seeds[0]}..{seeds[-1]}" if seeds == list(range(seeds[0], seeds[-1] + 1)) else \
-        ", ".join(map(str, seeds))
+    seed_text = f"seed {seeds[0]}" if len(seeds) == 1 else f"seeds {seeds[0]}..{seeds[-1]}" \
+        if seeds == list(range(seeds[0], seeds[-1] + 1)) else "seeds " + ", ".join(map(str, seeds))
     rate = f" ({60 * ran / wall:.1f} runs per minute)" if ran and wall > 0 else ""
     lines = [f"# Sweep of {base.source}", "",
-             f"{n} of {p.size} runs in the table ({len(p.cells)} cells × seeds {seed_text}; {clock} clock, "
-             f"{executor}). This call: {ran} runs in {fmt_duration(wall)}{rate}"
+             f"{n} of {p.size} runs in the table ({_count(len(p.cells), 'cell')} × {seed_text}; {clock} clock, "
+             f"{executor}). This call: {_count(ran, 'run')} in {fmt_duration(wall)}{rate}"
              + (f", {resumed} done before" if resumed else "")
              + (f", {lost} lost by the executor (run again to retry)" if lost else "")
              + (", interrupted" if interrupted else "") + "."]
