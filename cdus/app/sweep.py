@@ -319,6 +319,11 @@ def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "")
 
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.6))
     x_key, others = (keys[0], keys[1:]) if keys else (None, [])
+    fixed = [k for k in others if len({canonical(dict(c.cell)[k]) for c in cells if c.runs}) == 1]
+    if fixed:  # keys with one value go in the title, not in every legend entry
+        first = dict(next((c for c in cells if c.runs), cells[0]).cell)
+        title = ", ".join([title] * bool(title) + [f"{k}={cell_label(first[k])}" for k in fixed])
+        others = [k for k in others if k not in fixed]
     series: dict[tuple, list[CellSummary]] = {}
     for c in cells:
         if c.runs:
@@ -362,6 +367,7 @@ def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "")
         ax.set_ylabel(ylabel)
         ax.set_xlabel(axis_label(x_key) if x_key else "")
         ax.grid(True, alpha=0.3)
+        ax.margins(x=0.08)
         if not numeric:
             ax.set_xticks(range(len(categories)), [str(cell_label(json.loads(c))) for c in categories],
                           fontsize=8, rotation=15 if max(map(len, categories), default=0) > 12 else 0)
