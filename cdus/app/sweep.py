@@ -452,11 +452,10 @@ class SweepInterrupted(KeyboardInterrupt):
 
 def run_text(run: Run, res: dict) -> str:
     """One finished run for the progress line: ``link.loss=0.3, seed 2: coord settle 141.4 s``."""
-    cell = ", ".join(f"{k}={cell_label(v)}" for k, v in run.cell) or "(base)"
     if res.get("status") != "ok":
-        return f"{cell}, seed {run.seed}: FAILED: {res.get('reason')}"
+        return f"{cell_text(run)}: FAILED: {res.get('reason')}"
     err = res.get("final_coord_error_max")
-    return (f"{cell}, seed {run.seed}: coord settle {fmt_seconds(res.get('coord_settle_s'))}, final edge error "
+    return (f"{cell_text(run)}: coord settle {fmt_seconds(res.get('coord_settle_s'))}, final edge error "
             f"{fmt_number(err, 4)} rad")
 
 
@@ -523,84 +522,25 @@ def sweep(scenario: str | os.PathLike | Scenario,
     check_out(out, manifest)
     p = _Plan(g, seed_list)
     rows_path = out / ROWS
-    before = scan_rows(rows_path, p.index_of)
-    done_before = set(before.offsets)
-    resumed = len(done_before)
     if jobs is None and clock == "lockstep" and executor == "local" and cluster is None:
         jobs = 1  # a launched fleet is already a process per vehicle
     ex = make_executor(executor, cluster, jobs, connect_timeout)  # an unreachable cluster: nothing written yet
-    ran = lost = failed_now = 0
-    interrupted = False
     try:
         out.mkdir(parents=True, exist_ok=True)
-        write_manifest(out, manifest)
-        log = RowLog(rows_path, before.end)
-        say = stream or sys.stderr
-        bar = tqdm(total=p.size, initial=resumed, unit="run", file=say, disable=quiet, dynamic_ncols=True,
-                   smoothing=0.05, mininterval=0.5 if say.isatty() else 10.0, desc="sweep")
-        if not quiet:
-            notes = [f"{resumed} of {p.size} runs already done in {out}: running the other {p.size - resumed}"
-                     if resumed else "", f"{before.torn} torn last line of {ROWS} ignored (its run runs again)"
-                     if before.torn else "", f"{before.unreadable} unreadable lines of {ROWS} ignored"
-                     if before.unreadable else ""]
-            for n in filter(None, notes):
-                bar.write(n, file=say)
-        pending: dict[Any, int] = {}
-        todo = (j for j in range(p.size) if j not in done_before)
-
-        def record(j: int, res: dict) -> None:
-            nonlocal ran, failed_now
-            run = p.run(j)
-            log.append({"cell": dict(run.cell), "seed": run.seed, **res})
-            ran += 1
-            if res.get("status") != "ok":
-                failed_now += 1
-                if failed_now <= 10 and not quiet:
-                    bar.write(run_text(run, res), file=say)
-            bar.update(1)
-            if not quiet:
-                bar.set_postfix_str(run_text(run, res)[:70], refresh=False)
-
-        try:
-            exhausted = False
-            while True:
-                while not exhausted and len(pending) < ex.slots:
-                    j = next(todo, None)
-                    if j is None:
-                        exhausted = True
-                        break
-                    run = p.run(j)
-                    try:
-                        resolved = parse_scenario(base.raw, str(base.source), {**dict(run.cell),
-                                                                               "scenario.seed": run.seed})
-                    except ConfigError as e:
-                        record(j, {"status": "failed", "reason": f"config: {e}".replace("\n", "; ")})
-                        continue
-                    pending[ex.submit(run_task, resolved, clock)] = j
-                if not pending:
-                    break
-                finished, _ = ex.wait(set(pending))
-                for f in finished:
-                    j = pending.pop(f)
-                    try:
-                        res = ex.result(f)
-                    except Exception as e:  # the executor's failure, not the run's: not recorded
-                        lost += 1
-                        if lost <= 3 and not quiet:
-                            bar.write(f"lost a run ({run_text(p.run(j), {})[:-10]}...) to the executor: "
-                                      f"{type(e).__name__}: {str(e)[:200]}", file=say)
-                        continue
-                    record(j, res)
-        except KeyboardInterrupt:
-            interrupted = True
-            ex.cancel(set(pending))
-        finally:
-            log.close()
-            bar.close()
-    finally:
+        log = RowLog(rows_path)  # locked: what the file holds now is all another sweep will have written
+    except BaseException:
         ex.close()
-    result = _finish(out, base, g, p, clock, ex.describe(), before, resumed, ran, lost, interrupted,
-                     time.perf_counter() - start)
+        raise
+    try:
+        with ex:
+            before = scan_rows(rows_path, p.index_of)
+            log.cut(before.end)
+            write_manifest(out, manifest)
+            ran, lost, interrupted = _run_all(p, base, clock, ex, log, before, quiet, stream or sys.stderr, out)
+        result = _finish(out, base, g, p, clock, ex.describe(), before, ran, lost, interrupted,
+                         time.perf_counter() - start)
+    finally:
+        log.close()
     if interrupted:
         left = result.planned - result.done
         raise SweepInterrupted(result, f"interrupted: {result.done} of {result.planned} runs done and kept in "
@@ -609,17 +549,91 @@ def sweep(scenario: str | os.PathLike | Scenario,
     return result
 
 
+def cell_text(run: Run) -> str:
+    """``link.loss=0.3, seed 2``."""
+    return (", ".join(f"{k}={cell_label(v)}" for k, v in run.cell) or "(base)") + f", seed {run.seed}"
+
+
+def _run_all(p: _Plan, base: Scenario, clock: str, ex: Any, log: RowLog, before: Any, quiet: bool, say: TextIO,
+             out: Path) -> tuple[int, int, bool]:
+    """Resolve, submit (a bounded window in flight), record each result as it comes:
+    (runs recorded, runs lost by the executor, interrupted)."""
+    resumed = len(before.offsets)
+    ran = lost = failed_now = 0
+    bar = tqdm(total=p.size, initial=resumed, unit="run", file=say, disable=quiet, dynamic_ncols=True,
+               smoothing=0.05, mininterval=0.5 if say.isatty() else 10.0, desc="sweep")
+    notes = [f"{resumed} of {p.size} runs already done in {out}: running the other {p.size - resumed}"
+             if resumed else "", f"{before.torn} torn last line of {ROWS} ignored (its run runs again)"
+             if before.torn else "", f"{before.unreadable} unreadable lines of {ROWS} ignored"
+             if before.unreadable else ""]
+    for n in filter(None, notes):
+        if not quiet:
+            bar.write(n, file=say)
+    pending: dict[Any, int] = {}
+    todo = (j for j in range(p.size) if j not in before.offsets)
+
+    def record(j: int, res: dict) -> None:
+        nonlocal ran, failed_now
+        run = p.run(j)
+        log.append({"cell": dict(run.cell), "seed": run.seed, **res})
+        ran += 1
+        if res.get("status") != "ok":
+            failed_now += 1
+            if failed_now <= 10 and not quiet:
+                bar.write(run_text(run, res), file=say)
+        bar.update(1)
+        if not quiet:
+            bar.set_postfix_str(run_text(run, res)[:70], refresh=False)
+
+    try:
+        exhausted = False
+        while True:
+            while not exhausted and len(pending) < ex.slots:
+                j = next(todo, None)
+                if j is None:
+                    exhausted = True
+                    break
+                run = p.run(j)
+                try:
+                    resolved = parse_scenario(base.raw, str(base.source), {**dict(run.cell), "scenario.seed": run.seed})
+                except ConfigError as e:
+                    record(j, {"status": "failed", "reason": f"config: {e}".replace("\n", "; ")})
+                    continue
+                pending[ex.submit(run_task, resolved, clock)] = j
+            if not pending:
+                break
+            finished, _ = ex.wait(set(pending))
+            for f in finished:
+                j = pending.pop(f)
+                try:
+                    res = ex.result(f)
+                except Exception as e:  # the executor's failure, not the run's: not recorded, runs again next time
+                    lost += 1
+                    if lost <= 3 and not quiet:
+                        bar.write(f"lost {cell_text(p.run(j))} to the executor: {type(e).__name__}: "
+                                  f"{str(e)[:200]}", file=say)
+                    continue
+                record(j, res)
+    except KeyboardInterrupt:
+        ex.cancel(set(pending))
+        return ran, lost, True
+    finally:
+        bar.close()
+    return ran, lost, False
+
+
 def _count(n: int, what: str) -> str:
     return f"{n} {what}" + ("" if n == 1 else "s")
 
 
-def _finish(out: Path, base: Scenario, g: Grid, p: _Plan, clock: str, executor: str, before: Any, resumed: int,
-            ran: int, lost: int, interrupted: bool, wall: float) -> SweepResult:
+def _finish(out: Path, base: Scenario, g: Grid, p: _Plan, clock: str, executor: str, before: Any, ran: int,
+            lost: int, interrupted: bool, wall: float) -> SweepResult:
     """The tables, the summary and the plot, from results.jsonl."""
     scan = scan_rows(out / ROWS, p.index_of)
     tally = _Tally(p)
     n = write_tables(out, p.keys, [grid_type(v) for _, v in g], tally.feed(read_rows(out / ROWS, scan.offsets)))
     cells = tally.finish()
+    resumed = len(before.offsets)
     result = SweepResult(out, p.size, n, ran, resumed, tally.failed, before.torn, before.unreadable, lost, wall,
                          executor, interrupted, cells)
     seeds = p.seeds

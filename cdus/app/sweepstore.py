@@ -12,6 +12,7 @@
 from __future__ import annotations
 
 import csv
+import fcntl
 import hashlib
 import json
 import math
@@ -99,7 +100,7 @@ def check_out(out: Path, manifest: Manifest) -> bool:
     results of this one (a resume). Reads only."""
     mpath, rpath = out / MANIFEST, out / ROWS
     if not mpath.exists():
-        if rpath.exists():
+        if rpath.exists() and rpath.stat().st_size > 0:
             raise ConfigError("--out", [(str(out), f"has {ROWS} but no {MANIFEST}: not a sweep this version can "
                                                    f"resume; give another --out")])
         return False
@@ -172,13 +173,22 @@ def _index(line: bytes, index_of: Any) -> int | None:
 
 
 class RowLog:
-    """Appends rows to results.jsonl: one ``os.write`` of the whole line, then fsync."""
+    """Appends rows to results.jsonl: one ``os.write`` of the whole line, then fsync. Holds an
+    exclusive lock on the file while open, so two sweeps never write into one ``out``."""
 
-    def __init__(self, path: Path, end: int):
-        if path.exists() and path.stat().st_size > end:
-            with open(path, "r+b") as fh:  # cut a torn last line off before appending
-                fh.truncate(end)
+    def __init__(self, path: Path):
         self.fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(self.fd)
+            raise ConfigError("--out", [(str(path.parent), "another sweep is running into this directory now; "
+                                                           "wait for it or give another --out")]) from None
+
+    def cut(self, end: int) -> None:
+        """Cut what follows the last whole line off (a torn line), before appending."""
+        if os.fstat(self.fd).st_size > end:
+            os.ftruncate(self.fd, end)
 
     def append(self, row: dict) -> None:
         data = (json.dumps({k: clean(v) for k, v in row.items()}, separators=(",", ":"), allow_nan=False,

@@ -162,3 +162,23 @@ def test_summary_cells_show_mean_sd_and_interval():
     assert line.startswith("| 0.0 | 3/3 | 3/3 | 11.0 ± 1.0 [") and "0.0150 ± 0.0050 [" in line
     assert isinstance(st, Stat)
     json.dumps(st.__dict__)  # plain numbers, no numpy types
+
+
+def test_a_grid_of_words_and_tables_plots_as_categories(tmp_path):
+    cells = []
+    for policy in ("hold", "extrapolate"):
+        c = CellSummary((("link.policy", policy), ("link.burst", {"p": 0.01, "r": 0.5})), runs=2, ok=2)
+        c.values["coord_settle_s"] = [10.0, 11.0]
+        c.values["final_coord_error_max"] = [0.01, 0.02]
+        c.finish(seed=0)
+        cells.append(c)
+    assert plot(["link.policy", "link.burst"], cells, tmp_path / "c.png", "t") == {"empty": [], "never": []}
+    assert (tmp_path / "c.png").stat().st_size > 10_000
+
+
+def test_the_cli_refuses_no_seeds(tmp_path, capsys):
+    from cdus.app.cli import main
+
+    assert main(["sweep", "configs/concentric_circles.toml", "--seeds", "0", "--out", str(tmp_path / "o")]) == 2
+    assert "--seeds: must be at least 1" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
