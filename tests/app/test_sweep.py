@@ -182,3 +182,22 @@ def test_the_cli_refuses_no_seeds(tmp_path, capsys):
     assert main(["sweep", "configs/concentric_circles.toml", "--seeds", "0", "--out", str(tmp_path / "o")]) == 2
     assert "--seeds: must be at least 1" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+
+
+def test_progress_goes_to_its_stream_with_an_eta_and_quiet_silences_it(tmp_path):
+    import io
+
+    loud = io.StringIO()
+    sweep("configs/concentric_circles.toml", {"link.loss": [0, 0.3]}, 2, tmp_path / "a", jobs=1, duration=5.0,
+          stream=loud)
+    text = loud.getvalue()
+    assert "sweep: 100%" in text and "4/4" in text and "<00:00" in text  # elapsed<remaining: the ETA
+    assert "None" not in text
+    again = io.StringIO()
+    sweep("configs/concentric_circles.toml", {"link.loss": [0, 0.3]}, 3, tmp_path / "a", jobs=1, duration=5.0,
+          stream=again)
+    assert "4 of 6 runs already done" in again.getvalue()
+    quiet = io.StringIO()
+    sweep("configs/concentric_circles.toml", {"link.loss": [0, 0.3]}, 2, tmp_path / "b", jobs=1, duration=5.0,
+          stream=quiet, quiet=True)
+    assert quiet.getvalue() == ""
