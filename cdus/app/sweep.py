@@ -41,13 +41,14 @@ from tqdm import tqdm
 from cdus.app.executors import CONNECT_TIMEOUT_S, make_executor
 from cdus.app.stats import CI_SHORT, CI_WORDS, Stat, describe, fmt_duration, fmt_number, fmt_seconds, fmt_stat
 from cdus.app.sweepstore import (
-    CSV, FIELDS, MANIFEST, PARQUET, ROWS, Manifest, RowLog, canonical, cell_label, check_out, grid_type, read_rows,
+    CSV, FIELDS, PARQUET, ROWS, Manifest, RowLog, canonical, cell_label, check_out, grid_type, read_rows,
     scan_rows, write_manifest, write_tables,
 )
 from cdus.files import write_json
 from cdus.scenario.config import ConfigError, load_scenario, parse_scenario, parse_value
 from cdus.scenario.model import Scenario
 from cdus.sim.fleet import InProcessFleet
+from cdus.wire.text import printable
 
 __all__ = ["sweep", "SweepResult", "SweepInterrupted", "parse_grid", "check_grid", "plan", "Run", "FIELDS",
            "CLOCKS", "cell_label"]
@@ -607,13 +608,15 @@ def _run_all(p: _Plan, base: Scenario, clock: str, ex: Any, log: RowLog, before:
                 j = pending.pop(f)
                 try:
                     res = ex.result(f)
+                    if not isinstance(res, dict) or res.get("status") not in ("ok", "failed"):
+                        raise TypeError(f"a worker returned {type(res).__name__}, not a run's row")
                 except Exception as e:  # the executor's failure, not the run's: not recorded, runs again next time
                     lost += 1
                     if lost <= 3 and not quiet:
                         bar.write(f"lost {cell_text(p.run(j))} to the executor: {type(e).__name__}: "
-                                  f"{str(e)[:200]}", file=say)
+                                  f"{printable(str(e), 200)}", file=say)
                     continue
-                record(j, res)
+                record(j, {**res, "reason": printable(res.get("reason") or "", 1000)})
     except KeyboardInterrupt:
         ex.cancel(set(pending))
         return ran, lost, True

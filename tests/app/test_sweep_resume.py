@@ -250,3 +250,14 @@ def test_a_sweep_without_a_grid_runs_the_seeds_of_the_scenario(tmp_path):
     assert [r["seed"] for r in res.rows()] == [4, 5] and res.failed == 0
     assert "| 2/2 |" in (tmp_path / "summary.md").read_text()
     assert (tmp_path / "sweep.png").stat().st_size > 10_000
+
+
+def test_what_a_worker_returns_is_checked_and_its_reason_made_printable(tmp_path, monkeypatch):
+    import cdus.app.sweep as engine
+
+    answers = iter([["not", "a", "row"], {"status": "failed", "reason": "bad\x1b[2Jvalue\nhere"}])
+    monkeypatch.setattr(engine, "run_task", lambda scenario, clock: next(answers))
+    res = sweep(CONFIG, {"link.loss": [0]}, 2, tmp_path, jobs=1, duration=5.0, quiet=True)
+    assert (res.lost, res.ran, res.failed) == (1, 1, 1)
+    (row,) = res.rows()
+    assert row["reason"] == "bad\\x1b[2Jvalue\\nhere"
