@@ -143,9 +143,9 @@ def test_an_unreachable_cluster_is_a_usage_error_naming_it_and_nothing_runs(tmp_
     assert not out.exists()
 
 
-def _start(out: Path, seeds: int = 10) -> subprocess.Popen:
+def _start(out: Path, jobs: int, seeds: int = 10) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "cdus.app.cli", "sweep", CONFIG, "--set", "link.loss=0,0.1",
-                             "--seeds", str(seeds), "--duration", "30", "--jobs", "1", "--out", str(out)],
+                             "--seeds", str(seeds), "--duration", "30", "--jobs", str(jobs), "--out", str(out)],
                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True)
 
@@ -168,9 +168,10 @@ def _wait_rows(proc: subprocess.Popen, out: Path, n: int, timeout: float = 120.0
     raise AssertionError(f"the sweep wrote fewer than {n} rows (exit {proc.poll()})")
 
 
-def test_a_sweep_killed_half_way_and_restarted_runs_each_pair_exactly_once(tmp_path):
+@pytest.mark.parametrize("jobs", [1, 2])  # the driver alone; the driver and its pool of processes
+def test_a_sweep_killed_half_way_and_restarted_runs_each_pair_exactly_once(tmp_path, jobs):
     out = tmp_path / "o"
-    proc = _start(out)
+    proc = _start(out, jobs)
     try:
         _wait_rows(proc, out, 3)
         _kill_group(proc)
@@ -194,9 +195,10 @@ def test_a_sweep_killed_half_way_and_restarted_runs_each_pair_exactly_once(tmp_p
                                                             for s in range(1, 11)]
 
 
-def test_ctrl_c_keeps_the_rows_done_and_says_how_to_resume(tmp_path):
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_ctrl_c_keeps_the_rows_done_and_says_how_to_resume(tmp_path, jobs):
     out = tmp_path / "o"
-    proc = _start(out)
+    proc = _start(out, jobs)
     try:
         _wait_rows(proc, out, 2)
         _kill_group(proc, signal.SIGINT)  # as a terminal's Ctrl-C: the whole group
