@@ -312,13 +312,11 @@ def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "")
     interval as error bars; a cell whose runs did not all settle gets a marker at the top
     with the count; a panel with nothing to show says so. Returns what it drew besides the
     lines: ``{"empty": [the texts of empty panels], "never": [the labels of the markers]}``."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # no pyplot: a notebook's backend and figures are left alone
     from matplotlib.transforms import blended_transform_factory
 
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.6))
+    fig = Figure(figsize=(12, 4.6))
+    axes = fig.subplots(1, 2)
     x_key, others = (keys[0], keys[1:]) if keys else (None, [])
     fixed = [k for k in others if len({canonical(dict(c.cell)[k]) for c in cells if c.runs}) == 1]
     if fixed:  # keys with one value go in the title, not in every legend entry
@@ -385,7 +383,6 @@ def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "")
                  fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return drawn
 
 
@@ -427,6 +424,11 @@ class SweepResult:
 
     def __len__(self) -> int:
         return self.done
+
+    def __iter__(self) -> Iterator[dict]:
+        """The rows of the table (as ``rows()``), so ``list(result)`` and
+        ``pandas.DataFrame(result)`` work too."""
+        return iter(self.rows())
 
     def rows(self) -> list[dict]:
         """The table as a list of dicts (the grid values under their keys, typed), plan order."""

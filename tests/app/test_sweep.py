@@ -201,3 +201,18 @@ def test_progress_goes_to_its_stream_with_an_eta_and_quiet_silences_it(tmp_path)
     sweep("configs/concentric_circles.toml", {"link.loss": [0, 0.3]}, 2, tmp_path / "b", jobs=1, duration=5.0,
           stream=quiet, quiet=True)
     assert quiet.getvalue() == ""
+
+
+def test_the_result_iterates_over_its_rows_and_leaves_pyplot_alone(tmp_path):
+    import sys
+
+    before = sys.modules.get("matplotlib.pyplot")
+    backend = before.get_backend() if before else None
+    res = sweep("configs/concentric_circles.toml", {"link.loss": [0, 0.3]}, 1, tmp_path, jobs=1, duration=5.0,
+                quiet=True)
+    assert len(res) == 2 and list(res) == res.rows()
+    pd = pytest.importorskip("pandas")
+    assert list(pd.DataFrame(res)["link.loss"]) == [0.0, 0.3]
+    assert res.table().shape == pd.DataFrame(res).shape
+    after = sys.modules.get("matplotlib.pyplot")
+    assert (after.get_backend() if after else None) == backend
