@@ -13,9 +13,11 @@ scheduler there is used as it is (its workers need only the cdus package install
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import os
+import signal
 from multiprocessing import get_context
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 from cdus.scenario.config import ConfigError
 
@@ -118,7 +120,8 @@ class DaskExecutor(Executor):
             self.name = f"dask ({address})"
         else:
             n = jobs or os.cpu_count() or 1
-            self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, **LOCAL_CLUSTER)
+            with _sigint_ignored():  # the workers inherit it: Ctrl-C is the driver's to handle, which stops them
+                self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, **LOCAL_CLUSTER)
             self.client = Client(self.cluster, set_as_default=False)
             self.name = f"dask (LocalCluster, {n} processes)"
         threads = sum(self.client.nthreads().values())
@@ -144,6 +147,22 @@ class DaskExecutor(Executor):
         finally:
             if self.cluster is not None:
                 self.cluster.close()
+
+
+@contextlib.contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """SIGINT ignored while worker processes are started (they inherit that), so a terminal's
+    Ctrl-C, which reaches the whole process group, stops the sweep through the driver alone
+    instead of printing a traceback from every worker. Only the main thread can do it."""
+    try:
+        old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the main thread
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
 
 
 def _probe(address: str, timeout: float) -> None:
