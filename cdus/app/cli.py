@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
 import time
 from dataclasses import replace
@@ -319,6 +320,10 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     grid = parse_grid(args.set)
     over = {"scenario.duration": args.duration} if args.duration is not None else None
     check_grid(args.config, grid, over)
+    def stop(signum: int, frame: Any) -> None:  # SIGTERM (a batch system's stop) ends the sweep as Ctrl-C does
+        raise KeyboardInterrupt
+
+    before = signal.signal(signal.SIGTERM, stop)
     try:
         res = sweep(args.config, grid, args.seeds, Path(args.out), clock=args.clock, executor=args.executor,
                     cluster=args.cluster, jobs=args.jobs, duration=args.duration, quiet=args.quiet,
@@ -326,6 +331,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     except SweepInterrupted as e:
         print(f"\n{e.message}", file=sys.stderr)
         return EXIT_INTERRUPTED
+    finally:
+        signal.signal(signal.SIGTERM, before)
     print(res.summary.read_text())
     print(f"results: {res.csv} (and {res.parquet.name}, {ROWS})\nplot: {res.plot}"
           + (f"\n{res.failed} of {res.done} runs failed (see summary.md)" if res.failed else ""))

@@ -195,13 +195,16 @@ def test_a_sweep_killed_half_way_and_restarted_runs_each_pair_exactly_once(tmp_p
                                                             for s in range(1, 11)]
 
 
-@pytest.mark.parametrize("jobs", [1, 2])
-def test_ctrl_c_keeps_the_rows_done_and_says_how_to_resume(tmp_path, jobs):
+@pytest.mark.parametrize("jobs, how", [(1, "ctrl-c"), (2, "ctrl-c"), (2, "sigterm")])
+def test_ctrl_c_keeps_the_rows_done_and_says_how_to_resume(tmp_path, jobs, how):
     out = tmp_path / "o"
     proc = _start(out, jobs)
     try:
         _wait_rows(proc, out, 2)
-        _kill_group(proc, signal.SIGINT)  # as a terminal's Ctrl-C: the whole group
+        if how == "ctrl-c":
+            _kill_group(proc, signal.SIGINT)  # as a terminal's Ctrl-C: the whole group
+        else:
+            proc.send_signal(signal.SIGTERM)  # as a batch system's stop: the driver alone
         _, err = proc.communicate(timeout=60)
     finally:
         _kill_group(proc)
