@@ -266,3 +266,42 @@ def test_what_a_worker_returns_is_checked_and_its_reason_made_printable(tmp_path
     assert (res.lost, res.ran, res.failed) == (1, 1, 1)
     (row,) = res.rows()
     assert row["reason"] == "bad\\x1b[2Jvalue\\nhere"
+
+
+def _launchers(marker: str) -> list[int]:
+    """Pids of processes whose command line has ``marker`` (this test's temporary directory: the
+    launcher's config and logs are there, and its world's and vehicles' files)."""
+    out = []
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                cmd = (d / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+            except OSError:
+                continue
+            if marker in cmd:
+                out.append(int(d.name))
+    return out
+
+
+def test_ctrl_c_during_a_lockstep_run_stops_its_launched_fleet(tmp_path):
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    proc = subprocess.Popen([sys.executable, "-m", "cdus.app.cli", "sweep", CONFIG, "--seeds", "2", "--duration", "600",
+                             "--clock", "lockstep", "--out", str(tmp_path / "o")], cwd=ROOT, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True,
+                            env={**os.environ, "TMPDIR": str(tmp)})
+    try:
+        deadline = time.monotonic() + 60
+        while not _launchers(str(tmp)) and time.monotonic() < deadline and proc.poll() is None:
+            time.sleep(0.05)
+        assert _launchers(str(tmp)), "no launcher started"
+        time.sleep(1.0)  # its fleet up and running
+        _kill_group(proc, signal.SIGINT)  # the launcher is in a session of its own: it and its fleet must go too
+        _, err = proc.communicate(timeout=60)
+    finally:
+        _kill_group(proc)
+        proc.wait()
+        for pid in _launchers(str(tmp)):  # teardown: nothing of this test may stay
+            os.kill(pid, signal.SIGKILL)
+    assert proc.returncode == 130, err
+    assert _launchers(str(tmp)) == []
