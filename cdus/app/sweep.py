@@ -102,8 +102,10 @@ def normalize_grid(grid: Mapping[str, Sequence[Any]] | Sequence[tuple[str, Seque
             problems.append(("grid", f"expected (key, [values]) pairs, got {item!r}"))
             continue
         key, values = item
+        if hasattr(values, "tolist") and not isinstance(values, (str, bytes)):  # a numpy array: np.linspace(...)
+            values = values.tolist()
         values = [values] if isinstance(values, (str, bytes, dict)) or not isinstance(values, Sequence) \
-            else list(values)
+            else [_plain(v) for v in values]
         if not values:
             problems.append((key, "no values"))
         elif len({canonical(v) for v in values}) != len(values):
@@ -114,6 +116,11 @@ def normalize_grid(grid: Mapping[str, Sequence[Any]] | Sequence[tuple[str, Seque
     if problems:
         raise ConfigError("grid", problems)
     return out
+
+
+def _plain(value: Any) -> Any:
+    """A numpy scalar as the Python number it holds (np.float64(0.1) -> 0.1)."""
+    return value.item() if type(value).__module__ == "numpy" and hasattr(value, "item") else value
 
 
 def check_grid(config: str, grid: Grid, base: dict[str, Any] | None = None) -> None:
@@ -516,7 +523,7 @@ def sweep(scenario: str | os.PathLike | Scenario,
             raise ConfigError("command line", [("--seeds", f"must be at least 1, got {seeds}")])
         seed_list = list(range(base.seed, base.seed + seeds))
     else:
-        seed_list = list(seeds)
+        seed_list = [_plain(s) for s in seeds]
         if not seed_list or any(type(s) is not int or s < 0 for s in seed_list) or len(set(seed_list)) != len(
                 seed_list):
             raise ConfigError("command line", [("seeds", f"expected distinct integers >= 0, got {seed_list!r}")])

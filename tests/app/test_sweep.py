@@ -216,3 +216,14 @@ def test_the_result_iterates_over_its_rows_and_leaves_pyplot_alone(tmp_path):
     assert res.table().shape == pd.DataFrame(res).shape
     after = sys.modules.get("matplotlib.pyplot")
     assert (after.get_backend() if after else None) == backend
+
+
+def test_numpy_grids_and_seeds_are_plain_values(tmp_path):
+    import numpy as np
+
+    grid = normalize_grid({"link.loss": np.linspace(0, 0.2, 3), "rates.control": [np.int64(20), 50]})
+    assert grid == [("link.loss", [0.0, 0.1, 0.2]), ("rates.control", [20, 50])]
+    assert all(type(v) in (int, float) for _, vals in grid for v in vals)
+    res = sweep("configs/concentric_circles.toml", {"link.loss": np.array([0.0, 0.1])}, np.arange(1, 3), tmp_path,
+                jobs=1, duration=5.0, quiet=True)
+    assert [(r["link.loss"], r["seed"]) for r in res.rows()] == [(0.0, 1), (0.0, 2), (0.1, 1), (0.1, 2)]
