@@ -112,6 +112,8 @@ def normalize_grid(grid: Mapping[str, Sequence[Any]] | Sequence[tuple[str, Seque
             problems.append((key, "a value is given twice"))
         if key in (k for k, _ in out):
             problems.append((key, "given twice"))
+        if key == "scenario.seed":
+            problems.append((key, "is what --seeds (seeds=) sets for every cell; give the seeds there"))
         out.append((key, values))
     if problems:
         raise ConfigError("grid", problems)

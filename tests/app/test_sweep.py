@@ -39,6 +39,8 @@ def test_a_grid_is_a_mapping_or_pairs_each_key_and_value_once():
         normalize_grid({"link.loss": [0.1, 0.1]})
     with pytest.raises(ConfigError, match="no values"):
         normalize_grid({"link.loss": []})
+    with pytest.raises(ConfigError, match="scenario.seed: is what --seeds"):
+        normalize_grid({"scenario.seed": [1, 2]})
 
 
 def test_a_sweep_writes_results_summary_and_plot_and_records_failures(tmp_path):
