@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
 from pathlib import Path
 from typing import Any, Sequence
@@ -19,7 +20,9 @@ import zenoh
 from cdus import api
 from cdus.app.fleet_run import secure_router
 from cdus.app.launcher import LINKS, LaunchOptions, launch
-from cdus.app.sweep import check_grid, parse_grid, sweep
+from cdus.app.executors import CONNECT_TIMEOUT_S, EXECUTORS
+from cdus.app.sweep import CLOCKS, SweepInterrupted, check_grid, parse_grid, sweep
+from cdus.app.sweepstore import ROWS
 from cdus.core.vehicle import DivergedError
 from cdus.scenario.config import ConfigError, load_scenario, parse_overrides
 from cdus.core.linkspec import POLICIES
@@ -116,18 +119,31 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("sweep", allow_abbrev=False,
                        help="run a grid of config values x seeds; a table, a summary and a plot",
-                       description="Run a grid of overrides x seeds in parallel; write results.csv, "
-                                   "summary.md and sweep.png to --out.")
+                       description="Run a grid of overrides x seeds on local processes or a Dask cluster; each "
+                                   "finished run is appended to --out/results.jsonl at once, and the same command "
+                                   "again resumes (runs only what is missing). At the end: results.csv, "
+                                   "results.parquet, summary.md (mean, sd, 95 %% bootstrap CI per cell) and "
+                                   "sweep.png.")
     p.add_argument("config", help="scenario file (TOML)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=V1,V2,...",
                    help="a grid axis: a dotted config key and its values, e.g. --set link.loss=0,0.2,0.4")
     p.add_argument("--seeds", type=int, default=3, metavar="N", help="seeds per cell: the scenario's seed and the next N-1")
-    p.add_argument("--clock", choices=("inproc", "lockstep"), default="inproc",
+    p.add_argument("--clock", choices=CLOCKS, default="inproc",
                    help="inproc: one process per run (fast, parallel); lockstep: a launched fleet per run")
     p.add_argument("--duration", type=float, metavar="S", help="simulated seconds per run")
-    p.add_argument("--jobs", type=int, metavar="J", help="runs in parallel (default: the number of cores for inproc)")
-    p.add_argument("--out", required=True, metavar="DIR", help="where results.csv, summary.md and sweep.png go")
-    p.add_argument("-q", "--quiet", action="store_true")
+    p.add_argument("--jobs", type=int, metavar="J",
+                   help="runs in parallel on this machine (default: the number of cores for inproc, 1 for "
+                        "lockstep); with --executor dask, the LocalCluster's worker processes")
+    p.add_argument("--executor", choices=EXECUTORS, default="local",
+                   help="local: processes of this machine (default); dask: a Dask LocalCluster on 127.0.0.1")
+    p.add_argument("--cluster", metavar="ADDRESS",
+                   help="run on the running Dask scheduler at ADDRESS, e.g. tcp://127.0.0.1:8786 (its workers need "
+                        "only the cdus package installed)")
+    p.add_argument("--connect-timeout", type=float, default=CONNECT_TIMEOUT_S, metavar="S",
+                   help=f"how long to try to reach --cluster (default {CONNECT_TIMEOUT_S:g} s)")
+    p.add_argument("--out", required=True, metavar="DIR",
+                   help="where the results go; the same DIR again resumes the same sweep")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_sweep)
 
     # `cdus gs ...` is handed to ground_station whole (see main); listed here for --help
@@ -282,16 +298,28 @@ def check_exposure(args: argparse.Namespace, router: Transport) -> tuple[str, ..
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     grid = parse_grid(args.set)
-    over = {"scenario.duration": args.duration} if args.duration else None
-    base = load_scenario(args.config, over)
+    over = {"scenario.duration": args.duration} if args.duration is not None else None
     check_grid(args.config, grid, over)
-    seeds = list(range(base.seed, base.seed + args.seeds))
-    rows = sweep(args.config, grid, seeds, Path(args.out), clock=args.clock, jobs=args.jobs,
-                 duration=args.duration, quiet=args.quiet)
-    failed = sum(1 for r in rows if r["status"] != "ok")
-    print(Path(args.out, "summary.md").read_text())
-    print(f"results: {Path(args.out, 'results.csv')}\nplot: {Path(args.out, 'sweep.png')}"
-          + (f"\n{failed} of {len(rows)} runs failed (see summary.md)" if failed else ""))
+    def stop(signum: int, frame: Any) -> None:  # SIGTERM (a batch system's stop) ends the sweep as Ctrl-C does
+        raise KeyboardInterrupt
+
+    before = signal.signal(signal.SIGTERM, stop)
+    try:
+        res = sweep(args.config, grid, args.seeds, Path(args.out), clock=args.clock, executor=args.executor,
+                    cluster=args.cluster, jobs=args.jobs, duration=args.duration, quiet=args.quiet,
+                    connect_timeout=args.connect_timeout)
+    except SweepInterrupted as e:
+        print(f"\n{e.message}", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    finally:
+        signal.signal(signal.SIGTERM, before)
+    print(res.summary.read_text())
+    print(f"results: {res.csv} (and {res.parquet.name}, {ROWS})\nplot: {res.plot}"
+          + (f"\n{res.failed} of {res.done} runs failed (see summary.md)" if res.failed else ""))
+    if res.lost:
+        print(f"{res.lost} runs were lost by the executor and not recorded: run the same command again to retry "
+              f"them", file=sys.stderr)
+        return EXIT_FAIL
     return EXIT_OK
 
 

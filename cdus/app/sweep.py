@@ -1,19 +1,26 @@
-"""The experiment runner: a grid of config overrides × seeds, in parallel, to a table and a plot.
+"""The experiment runner: a grid of config overrides × seeds, on any executor, streamed to
+disk, resumable, to a table, a summary with confidence intervals and a plot.
 
     cdus sweep configs/lake_circle.toml --set link.loss=0,0.2,0.4 --set link.delay.base=0,0.1 \\
-        --seeds 3 --out runs/loss_sweep
+        --seeds 3 --out runs/loss_sweep [--jobs J | --executor dask | --cluster tcp://127.0.0.1:8786]
 
-Each run is `cdus sim`'s in-process fleet (or a `cdus launch --clock lockstep` fleet) with
-the cell's overrides; a run that fails (a bad value, a diverged fleet, a crash) is
-recorded as failed with its reason and the sweep goes on. Writes ``results.csv`` (one
-row per run: the grid values, the seed, the metrics JSON's fields), ``summary.md`` (mean
-and spread over seeds per cell) and ``sweep.png`` (coordination settle time and final
-coordination error over the grid).
+Each run is `cdus sim`'s in-process fleet (or a `cdus launch --clock lockstep` fleet) of the
+scenario resolved on the driver with the cell's overrides and the seed; the resolved
+:class:`~cdus.scenario.model.Scenario` is what goes to the worker, so a worker needs only the
+package, never the config file. A run that fails (a bad value, a diverged fleet, a crash) is
+recorded as failed with its reason and the sweep goes on.
+
+In ``out``: ``manifest.json`` (which sweep this is), ``results.jsonl`` (one row per finished
+run, appended as it comes), and, written at the end from those rows, ``results.csv`` and
+``results.parquet`` (one row per run in plan order: the grid values as typed columns, the
+seed, the status, the metrics JSON's fields), ``summary.md`` (per cell: mean, standard
+deviation and a 95 % bootstrap interval of the mean, how many settled) and ``sweep.png``.
+Running the same sweep again with the same ``out`` runs only the (cell, seed) pairs not done
+yet (cdus.app.sweepstore has the file formats).
 """
 
 from __future__ import annotations
 
-import csv
 import itertools
 import json
 import math
@@ -25,20 +32,29 @@ import tempfile
 import time
 import traceback
 import uuid
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass
-from multiprocessing import get_context
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Iterator, Mapping, Sequence, TextIO
 
-from cdus.scenario.config import ConfigError, load_scenario, parse_value
+from tqdm import tqdm
+
+from cdus.app.executors import CONNECT_TIMEOUT_S, make_executor
+from cdus.app.stats import CI_SHORT, CI_WORDS, Stat, describe, fmt_duration, fmt_number, fmt_seconds, fmt_stat
+from cdus.app.sweepstore import (
+    CSV, FIELDS, PARQUET, ROWS, Manifest, RowLog, canonical, cell_label, check_out, grid_type, read_rows,
+    scan_rows, write_manifest, write_tables,
+)
+from cdus.files import write_json
+from cdus.scenario.config import ConfigError, load_scenario, parse_scenario, parse_value
+from cdus.scenario.model import Scenario
 from cdus.sim.fleet import InProcessFleet
+from cdus.wire.text import printable
 
-FIELDS = ("scenario", "mode", "duration_s", "path_tol", "coord_tol", "path_settle_s", "coord_settle_s",
-          "final_path_error_max", "final_coord_error_max", "omega_rate_mean", "link_sent", "link_delivered",
-          "link_dropped", "link_rejected", "link_latency_ms_p50", "link_latency_ms_p99", "wall_s",
-          "realtime_factor", "omega_rate_final", "min_separation_m", "interventions", "completed", "policy",
-          "live_final")
+__all__ = ["sweep", "SweepResult", "SweepInterrupted", "parse_grid", "check_grid", "plan", "Run", "FIELDS",
+           "CLOCKS", "cell_label"]
+
+CLOCKS = ("inproc", "lockstep")
+Grid = list[tuple[str, list[Any]]]
 
 
 @dataclass(frozen=True)
@@ -47,7 +63,7 @@ class Run:
     seed: int
 
 
-def parse_grid(items: Sequence[str]) -> list[tuple[str, list[Any]]]:
+def parse_grid(items: Sequence[str]) -> Grid:
     """``["link.loss=0,0.1", "rates.control=20,50"]`` -> [(key, [values...]), ...].
 
     Values are split on commas outside brackets, so ``k=[1,2],[3,4]`` gives two lists.
@@ -75,24 +91,78 @@ def parse_grid(items: Sequence[str]) -> list[tuple[str, list[Any]]]:
     return grid
 
 
-def cell_label(value: Any) -> Any:
-    """A grid value as the table, the CSV and the plot show it: tables and lists as compact
-    JSON (``{"p":0.01,"r":0.25}``), so they can label a cell."""
-    return json.dumps(value, separators=(",", ":"), sort_keys=True) if isinstance(value, (dict, list)) else value
+def normalize_grid(grid: Mapping[str, Sequence[Any]] | Sequence[tuple[str, Sequence[Any]]] | None) -> Grid:
+    """A grid as a mapping ``{key: [values]}`` or pairs ``[(key, [values])]``, checked: each
+    key once, each with at least one value, each value once."""
+    pairs = list(grid.items()) if isinstance(grid, Mapping) else list(grid or [])
+    out: Grid = []
+    problems = []
+    for item in pairs:
+        if not (isinstance(item, (tuple, list)) and len(item) == 2 and isinstance(item[0], str)):
+            problems.append(("grid", f"expected (key, [values]) pairs, got {item!r}"))
+            continue
+        key, values = item
+        if hasattr(values, "tolist") and not isinstance(values, (str, bytes)):  # a numpy array: np.linspace(...)
+            values = values.tolist()
+        values = [values] if isinstance(values, (str, bytes, dict)) or not isinstance(values, Sequence) \
+            else [_plain(v) for v in values]
+        if not values:
+            problems.append((key, "no values"))
+        elif len({canonical(v) for v in values}) != len(values):
+            problems.append((key, "a value is given twice"))
+        if key in (k for k, _ in out):
+            problems.append((key, "given twice"))
+        if key == "scenario.seed":
+            problems.append((key, "is what --seeds (seeds=) sets for every cell; give the seeds there"))
+        out.append((key, values))
+    if problems:
+        raise ConfigError("grid", problems)
+    return out
 
 
-def check_grid(config: str, grid: list[tuple[str, list[Any]]], base: dict[str, Any] | None = None) -> None:
+def _plain(value: Any) -> Any:
+    """A numpy scalar as the Python number it holds (np.float64(0.1) -> 0.1)."""
+    return value.item() if type(value).__module__ == "numpy" and hasattr(value, "item") else value
+
+
+def check_grid(config: str, grid: Grid, base: dict[str, Any] | None = None) -> None:
     """Validate every cell of the grid, values together (``link.burst.p`` needs
     ``link.burst.r``), before any run: a typo should not cost a sweep. Raises ConfigError."""
     for run in plan(grid, [0]):
         load_scenario(config, {**(base or {}), **dict(run.cell)})
 
 
-def plan(grid: list[tuple[str, list[Any]]], seeds: Sequence[int]) -> list[Run]:
-    keys = [k for k, _ in grid]
-    cells = itertools.product(*[vals for _, vals in grid]) if grid else [()]
-    return [Run(tuple(zip(keys, combo)), seed) for combo in cells for seed in seeds]
+def plan(grid: Grid, seeds: Sequence[int]) -> list[Run]:
+    """Every (cell, seed), cells in the grid's order (the last key fastest), seeds innermost."""
+    p = _Plan(grid, seeds)
+    return [p.run(j) for j in range(p.size)]
 
+
+class _Plan:
+    """The runs of a sweep, indexed 0 .. size-1 without listing them (cells × seeds)."""
+
+    def __init__(self, grid: Grid, seeds: Sequence[int]):
+        self.keys = [k for k, _ in grid]
+        self.cells = list(itertools.product(*[vals for _, vals in grid])) if grid else [()]
+        self.seeds = list(seeds)
+        self.size = len(self.cells) * len(self.seeds)
+        self._cell_index = {canonical(list(c)): i for i, c in enumerate(self.cells)}
+        self._seed_index = {s: i for i, s in enumerate(self.seeds)}
+
+    def run(self, j: int) -> Run:
+        c, s = divmod(j, len(self.seeds))
+        return Run(tuple(zip(self.keys, self.cells[c])), self.seeds[s])
+
+    def index_of(self, cell: dict, seed: int) -> int | None:
+        """The plan index of a row's (cell, seed); None if this plan has no such run."""
+        if set(cell) != set(self.keys):
+            return None
+        c = self._cell_index.get(canonical([cell[k] for k in self.keys]))
+        s = self._seed_index.get(seed)
+        return None if c is None or s is None else c * len(self.seeds) + s
+
+
+# --- one run (on a worker) ---------------------------------------------------------------
 
 def _flatten(metrics: dict) -> dict:
     link = metrics.get("link") or {}
@@ -106,17 +176,14 @@ def _flatten(metrics: dict) -> dict:
     return row
 
 
-def run_one(config: str, run: Run, clock: str, duration: float | None) -> dict:
-    """One run; never raises: a failure comes back as status "failed" with its reason."""
-    overrides = dict(run.cell)
-    overrides["scenario.seed"] = run.seed
-    if duration is not None:
-        overrides["scenario.duration"] = duration
+def run_task(scenario: Scenario, clock: str) -> dict:
+    """One run of a resolved scenario (what a worker executes); never raises: a failure
+    comes back as status "failed" with its reason."""
     try:
         if clock == "inproc":
-            metrics = InProcessFleet(load_scenario(config, overrides), clock=time.perf_counter).run().metrics
+            metrics = InProcessFleet(scenario, clock=time.perf_counter).run().metrics
         else:
-            metrics = _run_lockstep(config, overrides)
+            metrics = _run_lockstep(scenario)
         status, reason = "ok", ""
         if metrics.get("final_path_error_max") is None or not math.isfinite(metrics["final_path_error_max"]):
             status, reason = "failed", "the fleet diverged (non-finite path error)"
@@ -124,142 +191,485 @@ def run_one(config: str, run: Run, clock: str, duration: float | None) -> dict:
     except ConfigError as e:
         return {"status": "failed", "reason": f"config: {e}".replace("\n", "; ")}
     except Exception as e:  # a crash in one cell must not end the sweep
-        tb = traceback.format_exception_only(type(e), e)[-1].strip()
-        return {"status": "failed", "reason": tb}
+        return {"status": "failed", "reason": traceback.format_exception_only(type(e), e)[-1].strip()}
 
 
-def _run_lockstep(config: str, overrides: dict) -> dict:
+def _run_lockstep(scenario: Scenario) -> dict:
+    """A `cdus launch --clock lockstep` fleet of the resolved scenario (its data as JSON)."""
     with tempfile.TemporaryDirectory(prefix="cdus-sweep-") as tmp:
-        args = [sys.executable, "-m", "cdus.app.cli", "launch", config, "--clock", "lockstep", "-q",
-                "--fleet", "sweep" + uuid.uuid4().hex[:8], "--logs", tmp]
-        for k, v in overrides.items():
-            args += ["--set", f"{k}={json.dumps(v)}"]
+        config = Path(tmp) / "scenario.json"
+        write_json(config, scenario.raw)
+        logs = Path(tmp) / "run"
+        args = [sys.executable, "-m", "cdus.app.cli", "launch", str(config), "--clock", "lockstep", "-q",
+                "--rerun", "off", "--fleet", "sweep" + uuid.uuid4().hex[:8], "--logs", str(logs)]
         proc = subprocess.run(args, capture_output=True, text=True, start_new_session=True)
-        path = Path(tmp) / "metrics.json"
+        path = logs / "metrics.json"
         if proc.returncode != 0 or not path.exists():
             tail = (proc.stderr or proc.stdout).strip().splitlines()[-3:]
             raise RuntimeError(f"launch exited with {proc.returncode}: {' / '.join(tail)}")
         return json.loads(path.read_text())
 
 
-def summarize(grid_keys: list[str], rows: list[dict]) -> str:
-    """Markdown: per cell, runs ok, mean ± std of the settle times and final errors."""
-    out = ["| " + " | ".join(grid_keys + ["runs ok", "coord settle s", "final coord error rad",
-                                          "path settle s", "final path error m"]) + " |",
-           "|" + "---|" * (len(grid_keys) + 5)]
-    cells: dict[tuple, list[dict]] = {}
-    for r in rows:
-        cells.setdefault(tuple(r[k] for k in grid_keys), []).append(r)
-    for cell, rs in cells.items():
-        ok = [r for r in rs if r["status"] == "ok"]
-        out.append("| " + " | ".join([*(str(c) for c in cell), f"{len(ok)}/{len(rs)}",
-                                      _spread([r.get("coord_settle_s") for r in ok]),
-                                      _spread([r.get("final_coord_error_max") for r in ok], ".4f"),
-                                      _spread([r.get("path_settle_s") for r in ok]),
-                                      _spread([r.get("final_path_error_max") for r in ok], ".3f")]) + " |")
-    failed = [r for r in rows if r["status"] != "ok"]
-    if failed:
-        out += ["", "Failed runs:", ""]
-        out += [f"- {', '.join(f'{k}={r[k]}' for k in grid_keys)}, seed {r['seed']}: {r['reason']}" for r in failed]
+# --- statistics of the cells ---------------------------------------------------------------
+
+STAT_FIELDS = ("coord_settle_s", "final_coord_error_max", "path_settle_s", "final_path_error_max")
+MAX_LISTED_FAILURES = 50
+
+
+@dataclass
+class CellSummary:
+    """A cell's runs in the table: how many, how many ok, and the statistics of each of
+    :data:`STAT_FIELDS` over the ok runs (settle times over the runs that settled)."""
+    cell: tuple[tuple[str, Any], ...]
+    runs: int = 0
+    ok: int = 0
+    values: dict[str, list[float]] = field(default_factory=lambda: {f: [] for f in STAT_FIELDS})
+    stats: dict[str, Stat] = field(default_factory=dict)
+
+    def settled(self, what: str = "coord") -> int:
+        return len(self.values[f"{what}_settle_s"]) if not self.stats else self.stats[f"{what}_settle_s"].n
+
+    def never(self, what: str = "coord") -> int:
+        """Ok runs that never settled."""
+        return self.ok - self.settled(what)
+
+    def finish(self, seed: int) -> None:
+        self.stats = {f: describe(v, seed=seed) for f, v in self.values.items()}
+        self.values = {f: [] for f in STAT_FIELDS}  # the stats are kept, not the values
+
+
+class _Tally:
+    """Per-cell statistics gathered while the table is written (one pass over the rows)."""
+
+    def __init__(self, p: _Plan):
+        self.plan = p
+        self.cells = [CellSummary(tuple(zip(p.keys, c))) for c in p.cells]
+        self.failures: list[tuple[Run, str]] = []
+        self.failed = 0
+
+    def feed(self, rows: Iterator[tuple[int, dict]]) -> Iterator[dict]:
+        for j, row in rows:
+            c = self.cells[j // len(self.plan.seeds)]
+            c.runs += 1
+            if row.get("status") == "ok":
+                c.ok += 1
+                for f in STAT_FIELDS:
+                    v = row.get(f)
+                    if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v):
+                        c.values[f].append(float(v))
+            else:
+                self.failed += 1
+                if len(self.failures) < MAX_LISTED_FAILURES:
+                    self.failures.append((self.plan.run(j), str(row.get("reason") or "")))
+            yield row
+
+    def finish(self) -> list[CellSummary]:
+        for i, c in enumerate(self.cells):
+            c.finish(seed=i)
+        return self.cells
+
+
+def summarize(keys: list[str], cells: list[CellSummary]) -> str:
+    """Markdown: per cell, runs ok, how many settled, mean ± sd [95 % CI] of the settle times
+    and final errors."""
+    head = keys + ["runs ok", "coord settled", "coord settle s", "final coord error rad", "path settled",
+                   "path settle s", "final path error m"]
+    out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for c in cells:
+        if c.runs == 0:
+            continue
+        st = c.stats
+        out.append("| " + " | ".join([
+            *(str(cell_label(v)) for _, v in c.cell), f"{c.ok}/{c.runs}",
+            f"{st['coord_settle_s'].n}/{c.ok}", fmt_stat(st["coord_settle_s"], 1, c.never("coord")),
+            fmt_stat(st["final_coord_error_max"], 4),
+            f"{st['path_settle_s'].n}/{c.ok}", fmt_stat(st["path_settle_s"], 1, c.never("path")),
+            fmt_stat(st["final_path_error_max"], 3)]) + " |")
     return "\n".join(out) + "\n"
 
 
-def _spread(values: list[Any], spec: str = ".1f") -> str:
-    vals = [float(v) for v in values if v not in (None, "")]
-    never = len(values) - len(vals)
-    if not vals:
-        return "never" if values else "-"
-    s = format(statistics.mean(vals), spec)
-    if len(vals) > 1:
-        s += " ± " + format(statistics.stdev(vals), spec)
-    return s + (f" ({never} never)" if never else "")
+def explain() -> str:
+    return (f"Each cell: mean ± standard deviation [{CI_WORDS}] over its runs that finished (runs ok). Settle "
+            f"times are over the runs that settled (the settled columns: of the runs ok); \"(k never)\" counts "
+            f"the runs ok that never settled within the run. Errors are the worst over the vehicles (path, m) "
+            f"or the edges (coordination, rad) at the end of the run.\n")
 
 
-def plot(grid_keys: list[str], rows: list[dict], path: Path) -> None:
-    """Coordination settle time and final coordination error over the first grid key,
-    one line per combination of the other keys (mean over seeds, error bars = std)."""
-    import matplotlib
+# --- the plot ----------------------------------------------------------------------------------
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+UNITS = {"scenario.duration": "s", "link.timeout": "s", "metrics.path_tol": "m", "metrics.coord_tol": "rad",
+         "safety.radius": "m", "safety.range": "m", "safety.rate": "Hz", "safety.latency": "s",
+         "safety.gamma": "1/s", "supervision.backoff_s": "s"}
+SUFFIX_UNITS = {".loss": "fraction", ".duplicate": "fraction", ".bad_loss": "fraction", ".good_loss": "fraction",
+                ".burst.p": "probability", ".burst.r": "probability", ".delay.base": "s", ".delay.jitter": "s",
+                ".phase": "ω units"}
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
-    if not grid_keys:
-        grid_keys = ["seed"]
-    x_key, others = grid_keys[0], grid_keys[1:]
-    series: dict[tuple, dict[Any, list[dict]]] = {}
-    for r in rows:
-        series.setdefault(tuple(r.get(k) for k in others), {}).setdefault(r.get(x_key), []).append(r)
-    for label, by_x in series.items():
-        xs = list(by_x)
-        numeric = all(isinstance(x, (int, float)) for x in xs)
-        order = sorted(xs) if numeric else xs
-        pos = order if numeric else list(range(len(order)))
+
+def axis_label(key: str) -> str:
+    """A grid key with its unit where known: ``link.delay.base (s)``, ``link.loss (fraction)``."""
+    unit = UNITS.get(key)
+    if unit is None and key.startswith("rates."):
+        unit = "Hz"
+    if unit is None:
+        unit = next((u for sfx, u in SUFFIX_UNITS.items() if key.endswith(sfx) or key == sfx[1:]), None)
+    return f"{key} ({unit})" if unit else key
+
+
+def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "") -> dict[str, Any]:
+    """Coordination settle time and final coordination error over the first grid key, one
+    line per combination of the other keys: the mean over the seeds with its 95 % bootstrap
+    interval as error bars; a cell whose runs did not all settle gets a marker at the top
+    with the count; a panel with nothing to show says so. Returns what it drew besides the
+    lines: ``{"empty": [the texts of empty panels], "never": [the labels of the markers]}``."""
+    from matplotlib.figure import Figure  # no pyplot: a notebook's backend and figures are left alone
+    from matplotlib.transforms import blended_transform_factory
+
+    fig = Figure(figsize=(12, 4.6))
+    axes = fig.subplots(1, 2)
+    x_key, others = (keys[0], keys[1:]) if keys else (None, [])
+    fixed = [k for k in others if len({canonical(dict(c.cell)[k]) for c in cells if c.runs}) == 1]
+    if fixed:  # keys with one value go in the title, not in every legend entry
+        first = dict(next((c for c in cells if c.runs), cells[0]).cell)
+        title = ", ".join([title] * bool(title) + [f"{k}={cell_label(first[k])}" for k in fixed])
+        others = [k for k in others if k not in fixed]
+    series: dict[tuple, list[CellSummary]] = {}
+    for c in cells:
+        if c.runs:
+            values = dict(c.cell)
+            series.setdefault(tuple(cell_label(values[k]) for k in others), []).append(c)
+    xs_all = [dict(c.cell)[x_key] if x_key else "all runs" for c in cells if c.runs]
+    numeric = all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in xs_all)
+    categories = list(dict.fromkeys(canonical(x) for x in xs_all))
+
+    def pos(x: Any) -> float:
+        return float(x) if numeric else float(categories.index(canonical(x)))
+
+    panels = (("coord_settle_s", "coordination settle time (s)", "no run settled"),
+              ("final_coord_error_max", "final coordination error, worst edge (rad)", "no run finished"))
+    shown = [False, False]
+    drawn: dict[str, list[str]] = {"empty": [], "never": []}
+    n_series = max(1, len(series))
+    for si, (label, group) in enumerate(series.items()):
+        group = sorted(group, key=lambda c: pos(dict(c.cell)[x_key]) if x_key else 0.0)
+        xs = [pos(dict(c.cell)[x_key]) if x_key else 0.0 for c in group]
         name = ", ".join(f"{k}={v}" for k, v in zip(others, label)) or None
-        for ax, field in zip(axes, ("coord_settle_s", "final_coord_error_max")):
-            means, stds = [], []
-            for x in order:
-                vals = [float(r[field]) for r in by_x[x] if r["status"] == "ok" and r.get(field) not in (None, "")]
-                means.append(statistics.mean(vals) if vals else float("nan"))
-                stds.append(statistics.stdev(vals) if len(vals) > 1 else 0.0)
-            ax.errorbar(pos, means, yerr=stds, marker="o", capsize=3, label=name)
-            if not numeric:
-                ax.set_xticks(pos, [str(x) for x in order])
-    axes[0].set_ylabel("coordination settle time (s)")
-    axes[0].set_title("coordination settle time (missing = never)")
-    axes[1].set_ylabel("final coordination error (rad)")
-    axes[1].set_title("final worst edge error")
-    axes[1].set_yscale("log")
-    for ax in axes:
-        ax.set_xlabel(x_key)
+        for ai, (ax, (fld, _, _)) in enumerate(zip(axes, panels)):
+            means = [c.stats[fld].mean if c.stats[fld].n else math.nan for c in group]
+            lo = [m - c.stats[fld].lo if c.stats[fld].n else 0.0 for m, c in zip(means, group)]
+            hi = [c.stats[fld].hi - m if c.stats[fld].n else 0.0 for m, c in zip(means, group)]
+            if any(not math.isnan(m) for m in means):
+                shown[ai] = True
+            line = ax.errorbar(xs, means, yerr=[lo, hi], marker="o", capsize=3, label=name)
+            if fld == "coord_settle_s":  # runs that never settled: a marker at the top, with the count
+                trans = blended_transform_factory(ax.transData, ax.transAxes)
+                for x, c in zip(xs, group):
+                    if c.never("coord"):
+                        y = 0.96 - 0.05 * (si % 4)
+                        ax.plot([x], [y], marker="v", ls="none", color=line[0].get_color(), transform=trans,
+                                markersize=8, clip_on=False)
+                        text = f"{c.never('coord')}/{c.ok} never"
+                        ax.text(x, y - 0.045, text, transform=trans, ha="center", va="top", fontsize=7,
+                                color=line[0].get_color())
+                        drawn["never"].append(text)
+    for ax, ok, (_, ylabel, empty) in zip(axes, shown, panels):
+        ax.set_ylabel(ylabel)
+        ax.set_xlabel(axis_label(x_key) if x_key else "")
         ax.grid(True, alpha=0.3)
-        if others:
+        ax.margins(x=0.08)
+        if not numeric:
+            ax.set_xticks(range(len(categories)), [str(cell_label(json.loads(c))) for c in categories],
+                          fontsize=8, rotation=15 if max(map(len, categories), default=0) > 12 else 0)
+        if not ok:
+            ax.text(0.5, 0.5, empty, transform=ax.transAxes, ha="center", va="center", fontsize=13, color="0.4")
+            drawn["empty"].append(empty)
+        elif n_series > 1 or others:
             ax.legend(fontsize=8)
+    if shown[1]:
+        axes[1].set_yscale("log")
+    axes[0].set_title("coordination settle time (▼: runs that never settled)", fontsize=10)
+    axes[1].set_title("final coordination error", fontsize=10)
+    fig.suptitle((title + "\n" if title else "") + f"points: mean over seeds; error bars: {CI_SHORT}",
+                 fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
+    return drawn
 
 
-def sweep(config: str, grid: list[tuple[str, list[Any]]], seeds: Sequence[int], out: Path,
-          clock: str = "inproc", jobs: int | None = None, duration: float | None = None, quiet: bool = False) -> list[dict]:
-    out.mkdir(parents=True, exist_ok=True)
-    runs = plan(grid, seeds)
-    keys = [k for k, _ in grid]
-    jobs = jobs or (os.cpu_count() or 1 if clock == "inproc" else 1)
-    rows: list[dict] = []
+# --- the engine -------------------------------------------------------------------------------
+
+@dataclass
+class SweepResult:
+    """What a sweep did and where its table is. ``rows()`` and ``table()`` read the files
+    (nothing of the runs is held in memory)."""
+    out: Path
+    planned: int  # (cell, seed) pairs of the plan
+    done: int  # rows in the table (done now or before)
+    ran: int  # runs finished by this call
+    resumed: int  # pairs already done in ``out`` before this call (skipped)
+    failed: int  # rows of the table with status "failed"
+    torn: int  # a torn last line of results.jsonl found at the start (ignored; its run ran again)
+    unreadable: int  # whole lines of results.jsonl that are not a row of this sweep (ignored)
+    lost: int  # runs the executor lost (a worker killed, the cluster gone): not recorded, run again to retry
+    wall_s: float
+    executor: str
+    interrupted: bool = False
+    cells: list[CellSummary] = field(default_factory=list)
+
+    @property
+    def csv(self) -> Path:
+        return self.out / CSV
+
+    @property
+    def parquet(self) -> Path:
+        return self.out / PARQUET
+
+    @property
+    def summary(self) -> Path:
+        return self.out / "summary.md"
+
+    @property
+    def plot(self) -> Path:
+        return self.out / "sweep.png"
+
+    def __len__(self) -> int:
+        return self.done
+
+    def __iter__(self) -> Iterator[dict]:
+        """The rows of the table (as ``rows()``), so ``list(result)`` and
+        ``pandas.DataFrame(result)`` work too."""
+        return iter(self.rows())
+
+    def rows(self) -> list[dict]:
+        """The table as a list of dicts (the grid values under their keys, typed), plan order."""
+        import pyarrow.parquet as pq
+
+        return pq.read_table(self.parquet).to_pylist()
+
+    def table(self) -> Any:
+        """The table as a pandas DataFrame (needs pandas)."""
+        import pyarrow.parquet as pq
+
+        return pq.read_table(self.parquet).to_pandas()
+
+
+class SweepInterrupted(KeyboardInterrupt):
+    """Ctrl-C during a sweep: the rows done are on disk (and in the tables); ``result`` says
+    how far it got and the message how to resume."""
+
+    def __init__(self, result: SweepResult, message: str):
+        super().__init__(message)
+        self.result = result
+        self.message = message
+
+
+def run_text(run: Run, res: dict) -> str:
+    """One finished run for the progress line: ``link.loss=0.3, seed 2: coord settle 141.4 s``."""
+    if res.get("status") != "ok":
+        return f"{cell_text(run)}: FAILED: {res.get('reason')}"
+    err = res.get("final_coord_error_max")
+    return (f"{cell_text(run)}: coord settle {fmt_seconds(res.get('coord_settle_s'))}, final edge error "
+            f"{fmt_number(err, 4)} rad")
+
+
+def base_scenario(scenario: str | os.PathLike | Scenario, overrides: Mapping[str, Any] | None,
+                  duration: float | None) -> Scenario:
+    """The scenario every run starts from: the file (or the Scenario's data) with the fixed
+    overrides and the duration applied, validated once. Raises ConfigError."""
+    over = dict(overrides or {})
+    if duration is not None:
+        over["scenario.duration"] = duration
+    if isinstance(scenario, Scenario):
+        return parse_scenario(scenario.raw, scenario.source, over) if over else scenario
+    return load_scenario(scenario, over)
+
+
+def sweep(scenario: str | os.PathLike | Scenario,
+          grid: Mapping[str, Sequence[Any]] | Sequence[tuple[str, Sequence[Any]]] | None,
+          seeds: int | Sequence[int], out: str | os.PathLike, *,
+          overrides: Mapping[str, Any] | None = None, clock: str = "inproc", executor: str = "local",
+          cluster: str | None = None, jobs: int | None = None, duration: float | None = None, quiet: bool = False,
+          connect_timeout: float = CONNECT_TIMEOUT_S, stream: TextIO | None = None) -> SweepResult:
+    """Run every (cell, seed) of ``grid`` × ``seeds`` not already done in ``out``; return
+    what was done and where the table is.
+
+    ``scenario``: a scenario file path, or a :class:`Scenario` (its ``raw`` data is used).
+    ``grid``: ``{"link.loss": [0, 0.2], ...}`` or ``[("link.loss", [0, 0.2]), ...]`` (dotted
+    config keys, as ``--set``); every combination is a cell. ``seeds``: a count N (the
+    scenario's seed and the next N-1) or the seeds themselves. ``overrides``: fixed config
+    values of every run; ``duration``: simulated seconds of every run.
+    ``clock``: ``"inproc"`` (`cdus sim`'s fleet in the worker) or ``"lockstep"`` (a launched
+    fleet per run). ``executor``: ``"local"`` (``jobs`` processes of this machine, default
+    the number of cores, 1 for lockstep; ``jobs=1`` runs in this process) or ``"dask"`` (a LocalCluster of
+    ``jobs`` processes on 127.0.0.1); ``cluster``: the address of a running Dask scheduler
+    (e.g. ``"tcp://127.0.0.1:8786"``), overrides ``executor``. ``quiet``: no progress bar
+    (else a tqdm bar with an ETA on ``stream``, default stderr).
+
+    Every run is resolved here (a cell whose values are invalid is recorded as failed
+    without running); the worker gets the resolved Scenario. Each finished run is appended
+    to ``out/results.jsonl`` at once; at the end ``results.csv``, ``results.parquet``,
+    ``summary.md`` and ``sweep.png`` are written from that file. ``out`` must be new, empty
+    of sweeps, or hold this same sweep (same resolved config, grid and clock; the seeds may
+    differ): then only the missing pairs run.
+
+    Raises ConfigError (nothing run, nothing written) for a bad config, grid, ``out`` of
+    another sweep or an unreachable cluster; :class:`SweepInterrupted` (a KeyboardInterrupt)
+    on Ctrl-C, after writing the tables of the rows done.
+    """
     start = time.perf_counter()
-
-    def report(j: int, res: dict) -> None:
-        run = runs[j]
-        row = {**{k: cell_label(v) for k, v in run.cell}, "seed": run.seed, **res, "_order": j}
-        rows.append(row)
-        if not quiet:
-            cell = ", ".join(f"{k}={v}" for k, v in run.cell) or "(base)"
-            settle, err = res.get("coord_settle_s"), res.get("final_coord_error_max")
-            what = (f"coord settle {'never' if settle is None else f'{settle:.1f} s'}, final edge error "
-                    f"{'n/a' if err is None else f'{err:.4f} rad'}" if res["status"] == "ok"
-                    else f"FAILED: {res['reason']}")
-            bar = "#" * int(20 * len(rows) / len(runs))
-            print(f"[{bar:<20}] {len(rows)}/{len(runs)} {cell}, seed {run.seed}: {what}", flush=True)
-
-    if jobs <= 1:
-        for j, run in enumerate(runs):
-            report(j, run_one(config, run, clock, duration))
+    if clock not in CLOCKS:
+        raise ConfigError("command line", [("--clock", f"expected one of {', '.join(CLOCKS)}, got {clock!r}")])
+    g = normalize_grid(grid)
+    base = base_scenario(scenario, overrides, duration)
+    if isinstance(seeds, int) and not isinstance(seeds, bool):
+        if seeds < 1:
+            raise ConfigError("command line", [("--seeds", f"must be at least 1, got {seeds}")])
+        seed_list = list(range(base.seed, base.seed + seeds))
     else:
-        with ProcessPoolExecutor(max_workers=jobs, mp_context=get_context("spawn")) as pool:
-            futures = {pool.submit(run_one, config, run, clock, duration): j for j, run in enumerate(runs)}
-            for fut in as_completed(futures):
-                report(futures[fut], fut.result())
-    rows.sort(key=lambda r: r.pop("_order"))
-    columns = keys + ["seed", "status", "reason", *FIELDS]
-    with open(out / "results.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=columns, extrasaction="ignore")
-        w.writeheader()
-        for r in rows:
-            w.writerow({c: ("" if r.get(c) is None else r.get(c)) for c in columns})
-    wall = time.perf_counter() - start
-    header = (f"# Sweep of {config}\n\n{len(runs)} runs ({clock}), seeds {list(seeds)}, "
-              f"{wall:.1f} s wall ({60 * len(runs) / wall:.1f} runs per minute)\n\n")
-    (out / "summary.md").write_text(header + summarize(keys, rows))
-    plot(keys, rows, out / "sweep.png")
-    return rows
+        seed_list = [_plain(s) for s in seeds]
+        if not seed_list or any(type(s) is not int or s < 0 for s in seed_list) or len(set(seed_list)) != len(
+                seed_list):
+            raise ConfigError("command line", [("seeds", f"expected distinct integers >= 0, got {seed_list!r}")])
+    out = Path(out)
+    manifest = Manifest.of(str(base.source), base.raw, g, clock)
+    check_out(out, manifest)
+    p = _Plan(g, seed_list)
+    rows_path = out / ROWS
+    if jobs is None and clock == "lockstep" and executor == "local" and cluster is None:
+        jobs = 1  # a launched fleet is already a process per vehicle
+    ex = make_executor(executor, cluster, jobs, connect_timeout)  # an unreachable cluster: nothing written yet
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        log = RowLog(rows_path)  # locked: what the file holds now is all another sweep will have written
+    except BaseException:
+        ex.close()
+        raise
+    try:
+        with ex:
+            before = scan_rows(rows_path, p.index_of)
+            log.cut(before.end)
+            write_manifest(out, manifest)
+            ran, lost, interrupted = _run_all(p, base, clock, ex, log, before, quiet, stream or sys.stderr, out)
+        result = _finish(out, base, g, p, clock, ex.describe(), before, ran, lost, interrupted,
+                         time.perf_counter() - start)
+    finally:
+        log.close()
+    if interrupted:
+        left = result.planned - result.done
+        raise SweepInterrupted(result, f"interrupted: {result.done} of {result.planned} runs done and kept in "
+                                       f"{out / ROWS}; {left} left. Run the same command again (same --out) to "
+                                       f"run only those.")
+    return result
+
+
+def cell_text(run: Run) -> str:
+    """``link.loss=0.3, seed 2``."""
+    return (", ".join(f"{k}={cell_label(v)}" for k, v in run.cell) or "(base)") + f", seed {run.seed}"
+
+
+def _run_all(p: _Plan, base: Scenario, clock: str, ex: Any, log: RowLog, before: Any, quiet: bool, say: TextIO,
+             out: Path) -> tuple[int, int, bool]:
+    """Resolve, submit (a bounded window in flight), record each result as it comes:
+    (runs recorded, runs lost by the executor, interrupted)."""
+    resumed = len(before.offsets)
+    ran = lost = failed_now = 0
+    bar = tqdm(total=p.size, initial=resumed, unit="run", file=say, disable=quiet, dynamic_ncols=True,
+               smoothing=0.05, mininterval=0.5 if say.isatty() else 10.0, desc="sweep")
+    notes = [f"{resumed} of {p.size} runs already done in {out}: running the other {p.size - resumed}"
+             if resumed else "", f"{before.torn} torn last line of {ROWS} ignored (its run runs again)"
+             if before.torn else "", f"{before.unreadable} unreadable lines of {ROWS} ignored"
+             if before.unreadable else ""]
+    for n in filter(None, notes):
+        if not quiet:
+            bar.write(n, file=say)
+    pending: dict[Any, int] = {}
+    todo = (j for j in range(p.size) if j not in before.offsets)
+
+    def record(j: int, res: dict) -> None:
+        nonlocal ran, failed_now
+        run = p.run(j)
+        log.append({"cell": dict(run.cell), "seed": run.seed, **res})
+        ran += 1
+        if res.get("status") != "ok":
+            failed_now += 1
+            if failed_now <= 10 and not quiet:
+                bar.write(run_text(run, res), file=say)
+        bar.update(1)
+        if not quiet:
+            bar.set_postfix_str(run_text(run, res)[:70], refresh=False)
+
+    try:
+        exhausted = False
+        while True:
+            while not exhausted and len(pending) < ex.slots:
+                j = next(todo, None)
+                if j is None:
+                    exhausted = True
+                    break
+                run = p.run(j)
+                try:
+                    resolved = parse_scenario(base.raw, str(base.source), {**dict(run.cell), "scenario.seed": run.seed})
+                except ConfigError as e:
+                    record(j, {"status": "failed", "reason": f"config: {e}".replace("\n", "; ")})
+                    continue
+                pending[ex.submit(run_task, resolved, clock)] = j
+            if not pending:
+                break
+            finished, _ = ex.wait(set(pending))
+            for f in finished:
+                j = pending.pop(f)
+                try:
+                    res = ex.result(f)
+                    if not isinstance(res, dict) or res.get("status") not in ("ok", "failed"):
+                        raise TypeError(f"a worker returned {type(res).__name__}, not a run's row")
+                except Exception as e:  # the executor's failure, not the run's: not recorded, runs again next time
+                    lost += 1
+                    if lost <= 3 and not quiet:
+                        bar.write(f"lost {cell_text(p.run(j))} to the executor: {type(e).__name__}: "
+                                  f"{printable(str(e), 200)}", file=say)
+                    continue
+                record(j, {**res, "reason": printable(res.get("reason") or "", 1000)})
+    except KeyboardInterrupt:
+        ex.cancel(set(pending))
+        return ran, lost, True
+    finally:
+        bar.close()
+    return ran, lost, False
+
+
+def _count(n: int, what: str) -> str:
+    return f"{n} {what}" + ("" if n == 1 else "s")
+
+
+def _finish(out: Path, base: Scenario, g: Grid, p: _Plan, clock: str, executor: str, before: Any, ran: int,
+            lost: int, interrupted: bool, wall: float) -> SweepResult:
+    """The tables, the summary and the plot, from results.jsonl."""
+    scan = scan_rows(out / ROWS, p.index_of)
+    tally = _Tally(p)
+    n = write_tables(out, p.keys, [grid_type(v) for _, v in g], tally.feed(read_rows(out / ROWS, scan.offsets)))
+    cells = tally.finish()
+    resumed = len(before.offsets)
+    result = SweepResult(out, p.size, n, ran, resumed, tally.failed, before.torn, before.unreadable, lost, wall,
+                         executor, interrupted, cells)
+    seeds = p.seeds
+    seed_text = f"seed {seeds[0]}" if len(seeds) == 1 else f"seeds {seeds[0]}..{seeds[-1]}" \
+        if seeds == list(range(seeds[0], seeds[-1] + 1)) else "seeds " + ", ".join(map(str, seeds))
+    rate = f" ({60 * ran / wall:.1f} runs per minute)" if ran and wall > 0 else ""
+    lines = [f"# Sweep of {base.source}", "",
+             f"{n} of {p.size} runs in the table ({_count(len(p.cells), 'cell')} × {seed_text}; {clock} clock, "
+             f"{executor}). This call: {_count(ran, 'run')} in {fmt_duration(wall)}{rate}"
+             + (f", {resumed} done before" if resumed else "")
+             + (f", {lost} lost by the executor (run again to retry)" if lost else "")
+             + (", interrupted" if interrupted else "") + "."]
+    if scan.outside:
+        lines.append(f"{scan.outside} rows of {ROWS} are of seeds not in this plan: kept there, not in the table.")
+    lines += ["", summarize(p.keys, cells), explain()]
+    if tally.failed:
+        lines += ["Failed runs:", ""]
+        lines += [f"- {', '.join(f'{k}={cell_label(v)}' for k, v in run.cell) or '(base)'}, seed {run.seed}: "
+                  f"{reason}" for run, reason in tally.failures]
+        if tally.failed > len(tally.failures):
+            lines.append(f"- and {tally.failed - len(tally.failures)} more (status \"failed\" in {CSV})")
+        lines.append("")
+    (out / "summary.md").write_text("\n".join(lines))
+    plot(p.keys, cells, out / "sweep.png", f"{base.name}: {n} runs")
+    return result

@@ -1,0 +1,279 @@
+"""A sweep's directory on disk: the manifest, the streamed rows, and the tables made from them.
+
+``manifest.json``  what the sweep is (the resolved config's digest, the grid, the clock): a
+                   re-run with the same ``--out`` resumes only the same sweep.
+``results.jsonl``  one JSON object per finished run, appended as it comes with a single
+                   write + flush + fsync, so a crash leaves whole lines and at most a torn
+                   last one (ignored, counted, cut off before the next append; its run runs again).
+``results.csv`` and ``results.parquet``  the table in plan order, written at the end from the
+                   streamed rows (never all of them in memory: the file is read by offsets).
+"""
+
+from __future__ import annotations
+
+import csv
+import fcntl
+import hashlib
+import json
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterator, Sequence
+
+from cdus.files import write_json
+from cdus.scenario.config import ConfigError
+
+MANIFEST, ROWS, CSV, PARQUET = "manifest.json", "results.jsonl", "results.csv", "results.parquet"
+FORMAT = "cdus-sweep/1"
+
+# The metrics fields of a row (the metrics JSON's, flattened) and their Parquet types.
+FIELD_TYPES: dict[str, str] = {
+    "scenario": "string", "mode": "string", "duration_s": "float64", "path_tol": "float64", "coord_tol": "float64",
+    "path_settle_s": "float64", "coord_settle_s": "float64", "final_path_error_max": "float64",
+    "final_coord_error_max": "float64", "omega_rate_mean": "float64", "link_sent": "int64",
+    "link_delivered": "int64", "link_dropped": "int64", "link_rejected": "int64", "link_latency_ms_p50": "float64",
+    "link_latency_ms_p99": "float64", "wall_s": "float64", "realtime_factor": "float64",
+    "omega_rate_final": "string", "min_separation_m": "float64", "interventions": "int64", "completed": "bool",
+    "policy": "string", "live_final": "string",
+}
+FIELDS = tuple(FIELD_TYPES)
+WALL_CLOCK_FIELDS = ("wall_s", "realtime_factor")  # differ between two runs of the same (cell, seed)
+
+
+def canonical(value: Any) -> str:
+    """One text per value, for keys and digests (TOML dates as text)."""
+    return json.dumps(value, sort_keys=True, separators=(",", ":"), default=str)
+
+
+def cell_label(value: Any) -> Any:
+    """A grid value as the CSV and the plot show it: tables and lists as compact JSON
+    (``{"p":0.01,"r":0.25}``), so they can label a cell."""
+    return json.dumps(value, separators=(",", ":"), sort_keys=True, default=str) if isinstance(value, (dict, list)) \
+        else value
+
+
+def clean(value: Any) -> Any:
+    """A row value as JSON takes it: non-finite floats become None (the row's status says why)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if hasattr(value, "item") and not isinstance(value, (dict, list, str)):  # numpy scalars
+        return clean(value.item())
+    return value
+
+
+@dataclass(frozen=True)
+class Manifest:
+    """What a sweep directory holds results of."""
+    config: str  # where the config came from (informational)
+    config_sha256: str  # digest of the resolved, overridden config data (every key, so the duration too)
+    grid: list  # [[key, [values...]], ...]
+    clock: str
+
+    @staticmethod
+    def of(source: str, raw: dict, grid: Sequence[tuple[str, Sequence[Any]]], clock: str) -> "Manifest":
+        digest = hashlib.sha256(canonical(raw).encode()).hexdigest()
+        return Manifest(source, digest, json.loads(canonical([[k, list(v)] for k, v in grid])), clock)
+
+    def to_json(self) -> dict:
+        return {"format": FORMAT, "config": self.config, "config_sha256": self.config_sha256, "grid": self.grid,
+                "clock": self.clock}
+
+    def differences(self, other: dict) -> list[str]:
+        """How an earlier manifest (as read) differs from this one, worded; [] if it is the same sweep."""
+        out = []
+        if other.get("format") != FORMAT:
+            return [f"it is not a cdus sweep manifest of this version ({other.get('format')!r})"]
+        if other.get("config_sha256") != self.config_sha256:
+            out.append(f"the config differs (it was {other.get('config')!r} with other values or overrides, "
+                       f"--duration included)")
+        if other.get("grid") != self.grid:
+            was = "; ".join(f"{k}={','.join(map(canonical, v))}" for k, v in other.get("grid") or []) or "no grid"
+            out.append(f"the grid differs (it was {was})")
+        if other.get("clock") != self.clock:
+            out.append(f"the clock differs (it was {other.get('clock')!r})")
+        return out
+
+
+def check_out(out: Path, manifest: Manifest) -> bool:
+    """Refuse (ConfigError) an ``out`` that holds results of another sweep; True if it holds
+    results of this one (a resume). Reads only."""
+    mpath, rpath = out / MANIFEST, out / ROWS
+    if not mpath.exists():
+        if rpath.exists() and rpath.stat().st_size > 0:
+            raise ConfigError("--out", [(str(out), f"has {ROWS} but no {MANIFEST}: not a sweep this version can "
+                                                   f"resume; give another --out")])
+        return False
+    try:
+        earlier = json.loads(mpath.read_text())
+        if not isinstance(earlier, dict):
+            raise ValueError("not a JSON object")
+    except (OSError, ValueError) as e:
+        raise ConfigError("--out", [(str(mpath), f"cannot be read ({e}); give another --out")]) from None
+    diff = manifest.differences(earlier)
+    if diff:
+        raise ConfigError("--out", [(str(out), "holds the results of another sweep: " + "; ".join(diff) +
+                                     "; give another --out (or the same command as before to resume it)")])
+    return rpath.exists()
+
+
+def write_manifest(out: Path, manifest: Manifest) -> None:
+    write_json(out / MANIFEST, manifest.to_json())
+
+
+@dataclass
+class Scan:
+    """What an existing results.jsonl holds: for each plan index, the byte offset of its row."""
+    offsets: dict[int, int] = field(default_factory=dict)
+    torn: int = 0  # a last line without its newline: a write cut off by a crash
+    unreadable: int = 0  # whole lines that are not a row of this plan's cells
+    duplicates: int = 0  # a (cell, seed) already seen (only the first counts)
+    outside: int = 0  # rows of seeds this plan does not have (kept in the file, not in the table)
+    end: int = 0  # where the whole lines end
+
+
+def scan_rows(path: Path, index_of: Any) -> Scan:
+    """Index ``path``'s rows; ``index_of(cell_values_key, seed)`` gives a row's plan index or
+    None (a row of a seed this plan does not have: kept in the file, not in the table)."""
+    s = Scan()
+    if not path.exists():
+        return s
+    with open(path, "rb") as fh:
+        pos = 0
+        for line in fh:
+            if not line.endswith(b"\n"):
+                s.torn += 1
+                break
+            j = _index(line, index_of)
+            if j is None:
+                s.unreadable += 1
+            elif j < 0:
+                s.outside += 1
+            else:
+                if j in s.offsets:
+                    s.duplicates += 1
+                else:
+                    s.offsets[j] = pos
+            pos += len(line)
+            s.end = pos
+    return s
+
+
+def _index(line: bytes, index_of: Any) -> int | None:
+    """The plan index of a row line; -1 for a valid row outside the plan; None if unreadable."""
+    try:
+        row = json.loads(line)
+    except (ValueError, RecursionError):
+        return None
+    if not isinstance(row, dict) or not isinstance(row.get("cell"), dict) or type(row.get("seed")) is not int \
+            or not isinstance(row.get("status"), str):
+        return None
+    j = index_of(row["cell"], row["seed"])
+    return -2 if j is None else j
+
+
+class RowLog:
+    """Appends rows to results.jsonl: one ``os.write`` of the whole line, then fsync. Holds an
+    exclusive lock on the file while open, so two sweeps never write into one ``out``."""
+
+    def __init__(self, path: Path):
+        self.fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(self.fd)
+            raise ConfigError("--out", [(str(path.parent), "another sweep is running into this directory now; "
+                                                           "wait for it or give another --out")]) from None
+
+    def cut(self, end: int) -> None:
+        """Cut what follows the last whole line off (a torn line), before appending."""
+        if os.fstat(self.fd).st_size > end:
+            os.ftruncate(self.fd, end)
+
+    def append(self, row: dict) -> None:
+        data = (json.dumps({k: clean(v) for k, v in row.items()}, separators=(",", ":"), allow_nan=False,
+                           default=str) + "\n").encode()
+        view = memoryview(data)
+        while view:
+            n = os.write(self.fd, view)
+            view = view[n:]
+        os.fsync(self.fd)
+
+    def close(self) -> None:
+        os.close(self.fd)
+
+
+def read_rows(path: Path, offsets: dict[int, int]) -> Iterator[tuple[int, dict]]:
+    """The rows at ``offsets`` in plan order: (plan index, row)."""
+    with open(path, "rb") as fh:
+        for j in sorted(offsets):
+            fh.seek(offsets[j])
+            yield j, json.loads(fh.readline())
+
+
+def grid_type(values: Sequence[Any]) -> str:
+    """The Parquet type of a grid key's column: numbers as numbers, else text (tables and
+    lists as compact JSON)."""
+    if values and all(isinstance(v, bool) for v in values):
+        return "bool"
+    if values and all(isinstance(v, int) and not isinstance(v, bool) for v in values):
+        return "int64"
+    if values and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+        return "float64"
+    if values and all(isinstance(v, str) for v in values):
+        return "string"
+    return "json"
+
+
+def _typed(value: Any, kind: str) -> Any:
+    """A value as its column's type; None where it is not one (never an exception)."""
+    if value is None:
+        return None
+    number = isinstance(value, (int, float)) and not isinstance(value, bool)
+    if kind == "float64":
+        return float(value) if number else None
+    if kind == "int64":
+        return int(value) if number and float(value).is_integer() else None
+    if kind == "bool":
+        return value if isinstance(value, bool) else None
+    if kind == "json":
+        return canonical(value)
+    return value if isinstance(value, str) else canonical(value)
+
+
+def write_tables(out: Path, keys: Sequence[str], key_types: Sequence[str], rows: Iterator[dict],
+                 batch: int = 1000) -> int:
+    """results.csv and results.parquet from ``rows`` (plan order), ``batch`` rows in memory
+    at a time; returns how many rows."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    columns = [*keys, "seed", "status", "reason", *FIELDS]
+    types = {**dict(zip(keys, key_types)), "seed": "int64", "status": "string", "reason": "string", **FIELD_TYPES}
+    arrow = {"float64": pa.float64(), "int64": pa.int64(), "bool": pa.bool_(), "string": pa.string(),
+             "json": pa.string()}
+    schema = pa.schema([pa.field(c, arrow[types[c]]) for c in columns])
+    n = 0
+    csv_tmp, pq_tmp = out / (CSV + ".tmp"), out / (PARQUET + ".tmp")
+    with open(csv_tmp, "w", newline="") as fh, pq.ParquetWriter(pq_tmp, schema) as writer:
+        w = csv.DictWriter(fh, fieldnames=columns, extrasaction="ignore")
+        w.writeheader()
+        chunk: list[dict] = []
+
+        def flush() -> None:
+            if chunk:
+                writer.write_table(pa.Table.from_pylist(chunk, schema=schema))
+                chunk.clear()
+
+        for row in rows:
+            flat = {**{k: row["cell"].get(k) for k in keys}, **{c: row.get(c) for c in columns if c not in keys}}
+            w.writerow({c: "" if flat.get(c) is None else (cell_label(flat[c]) if c in keys else flat[c])
+                        for c in columns})
+            chunk.append({c: _typed(flat.get(c), types[c]) for c in columns})
+            n += 1
+            if len(chunk) >= batch:
+                flush()
+        flush()
+    os.replace(csv_tmp, out / CSV)
+    os.replace(pq_tmp, out / PARQUET)
+    return n
