@@ -20,7 +20,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import sys
 import tempfile
 import threading
 import time
@@ -736,23 +735,28 @@ def _run_lockstep(scenario: Scenario, fleet: str, policy: str | None, rerun: str
 
 
 def sweep(config: str | os.PathLike | Scenario, grid: Mapping[str, Sequence[Any]], *, out: str | os.PathLike,
-          seeds: int | Sequence[int] = 3, clock: str = "inproc", jobs: int | None = None,
-          duration: float | None = None, quiet: bool = True):
-    """Run every combination of ``grid``'s values x ``seeds`` (``cdus sweep``) and return its
-    table: a pandas DataFrame if pandas is installed, else a list of dicts, one row per run
-    (the grid values, ``seed``, ``status``, ``reason`` and the metrics' fields; docs/api.md).
+          seeds: int | Sequence[int] = 3, clock: str = "inproc", executor: str = "local", cluster: str | None = None,
+          jobs: int | None = None, duration: float | None = None, overrides: Mapping[str, Any] | None = None,
+          quiet: bool = True):
+    """Run every combination of ``grid``'s values x ``seeds`` (``cdus sweep``'s engine,
+    cdus.app.sweep.sweep) and return its table: a pandas DataFrame if pandas is installed,
+    else a list of dicts, one row per (cell, seed) in plan order (the grid values as typed
+    columns, ``seed``, ``status``, ``reason`` and the metrics' fields; docs/api.md).
 
-    ``config``: a scenario file, or a loaded Scenario (its resolved data is written to
-    ``out/scenario.json`` and swept from there). ``grid``: dotted key -> list of values, e.g.
-    ``{"link.loss": [0, 0.2], "rates.control": [20, 50]}`` ({} runs the scenario alone).
-    ``seeds``: how many (the scenario's seed and the next ones) or which. ``out``: where
-    results.csv, summary.md and sweep.png go. ``clock``: ``inproc`` or ``lockstep``; ``jobs``:
-    runs in parallel; ``duration``: simulated seconds per run. Every cell is validated
-    before any run (ConfigError)."""
+    ``config``: a scenario file or a loaded Scenario (the workers get it resolved).
+    ``grid``: dotted key -> list of values, e.g. ``{"link.loss": [0, 0.2], "rates.control":
+    [20, 50]}`` ({} runs the scenario alone). ``seeds``: how many (the scenario's seed and the
+    next ones) or which. ``out``: where results.jsonl (streamed, one row per run), results.csv,
+    results.parquet, summary.md and sweep.png go; a second call with the same ``out`` runs
+    only the (cell, seed) pairs not done yet (resume). ``clock``: ``inproc`` or ``lockstep``;
+    ``executor``: ``local`` (processes of this machine) or ``dask`` (a LocalCluster on
+    127.0.0.1); ``cluster``: a running Dask scheduler's address; ``jobs``: runs in parallel;
+    ``duration``: simulated seconds per run; ``overrides``: fixed config values of every run.
+    Every cell is validated before any run (ConfigError). Ctrl-C raises
+    cdus.app.sweep.SweepInterrupted (a KeyboardInterrupt) with the rows done kept on disk."""
     where = "cdus.sweep"
     if out is None or not isinstance(out, (str, os.PathLike)):
         raise _arg_error(where, "out", f"expected a directory path for the results, got {type(out).__name__}")
-    out = Path(out)
     if clock not in CLOCKS:
         raise _arg_error(where, "clock", f"{clock!r} is not one of {', '.join(CLOCKS)}")
     if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
@@ -769,42 +773,18 @@ def sweep(config: str | os.PathLike | Scenario, grid: Mapping[str, Sequence[Any]
             raise _arg_error(where, f"grid {key}", f"expected a non-empty list of values, e.g. [0, 0.2], got "
                                                    f"{values!r}")
         axes.append((key, values))
-    if isinstance(config, Scenario):
-        out.mkdir(parents=True, exist_ok=True)
-        path = out / "scenario.json"
-        path.write_text(json.dumps(config.raw, indent=2) + "\n")
-        config = path
-    elif not isinstance(config, (str, os.PathLike)):
+    if not isinstance(config, (Scenario, str, os.PathLike)):
         raise _arg_error(where, "config", f"expected a scenario file or a Scenario, got {type(config).__name__}")
-    config = os.fspath(config)
-    over = {"scenario.duration": float(duration)} if duration is not None else None
-    base = load_scenario(config, over)
     if isinstance(seeds, bool) or not (isinstance(seeds, int) and seeds >= 1 or isinstance(seeds, (list, tuple, range))
                                        and seeds and all(isinstance(s, int) and not isinstance(s, bool)
                                                          for s in seeds)):
         raise _arg_error(where, "seeds", f"expected how many seeds (>= 1) or a list of integer seeds, got {seeds!r}")
-    seed_list = list(range(base.seed, base.seed + seeds)) if isinstance(seeds, int) else list(seeds)
-    app_sweep.check_grid(config, axes, over)
-    backend = _pyplot_backend()
+    fixed = _overrides(overrides, where) if overrides else None
+    result = app_sweep.sweep(config if isinstance(config, Scenario) else os.fspath(config), axes,
+                             seeds if isinstance(seeds, int) else list(seeds), Path(out), overrides=fixed,
+                             clock=clock, executor=executor, cluster=cluster, jobs=jobs,
+                             duration=None if duration is None else float(duration), quiet=quiet)
     try:
-        rows = app_sweep.sweep(config, axes, seed_list, out, clock=clock, jobs=jobs,
-                               duration=None if duration is None else float(duration), quiet=quiet)
-    finally:  # its plot switches pyplot to Agg: a notebook's inline figures would stop showing
-        _restore_pyplot_backend(backend)
-    try:
-        import pandas as pd
+        return result.table()
     except ImportError:
-        return rows
-    return pd.DataFrame(rows)
-
-
-def _pyplot_backend() -> str | None:
-    """The caller's pyplot backend, if the caller uses pyplot."""
-    plt = sys.modules.get("matplotlib.pyplot")
-    return None if plt is None else plt.get_backend()
-
-
-def _restore_pyplot_backend(backend: str | None) -> None:
-    plt = sys.modules.get("matplotlib.pyplot")
-    if backend is not None and plt is not None and plt.get_backend() != backend:
-        plt.switch_backend(backend)
+        return result.rows()

@@ -377,7 +377,7 @@ def test_a_sweep_through_the_api_gives_its_table(tmp_path, monkeypatch):
     finally:
         plt.switch_backend(before)
     assert (tmp_path / "sw/sweep.png").exists()
-    assert (tmp_path / "sw/scenario.json").exists() and (tmp_path / "sw/results.csv").exists()
+    assert (tmp_path / "sw/results.csv").exists() and (tmp_path / "sw/results.parquet").exists()
     assert list(table["link.loss"]) == [0, 0, 0.3, 0.3] and list(table["seed"]) == [7, 8, 7, 8]
     assert set(table["status"]) == {"ok"}
     one = cdus.run(cdus.override(sc, {"link.loss": 0.3, "scenario.seed": 8, "scenario.duration": 4}))
