@@ -125,11 +125,16 @@ def _plain(value: Any) -> Any:
     return value.item() if type(value).__module__ == "numpy" and hasattr(value, "item") else value
 
 
-def check_grid(config: str, grid: Grid, base: dict[str, Any] | None = None) -> None:
+def check_grid(config: str | os.PathLike | Scenario, grid: Grid, base: Mapping[str, Any] | None = None) -> None:
     """Validate every cell of the grid, values together (``link.burst.p`` needs
-    ``link.burst.r``), before any run: a typo should not cost a sweep. Raises ConfigError."""
+    ``link.burst.r``), before any run: a typo should not cost a sweep. ``config``: a file or
+    a Scenario (its data). Raises ConfigError naming the key."""
     for run in plan(grid, [0]):
-        load_scenario(config, {**(base or {}), **dict(run.cell)})
+        over = {**(base or {}), **dict(run.cell)}
+        if isinstance(config, Scenario):
+            parse_scenario(config.raw, str(config.source), over)
+        else:
+            load_scenario(config, over)
 
 
 def plan(grid: Grid, seeds: Sequence[int]) -> list[Run]:
@@ -504,8 +509,8 @@ def sweep(scenario: str | os.PathLike | Scenario,
     (e.g. ``"tcp://127.0.0.1:8786"``), overrides ``executor``. ``quiet``: no progress bar
     (else a tqdm bar with an ETA on ``stream``, default stderr).
 
-    Every run is resolved here (a cell whose values are invalid is recorded as failed
-    without running); the worker gets the resolved Scenario. Each finished run is appended
+    Every cell is validated before any run (a ConfigError names the key, nothing is run);
+    every run is resolved here and the worker gets the resolved Scenario. Each finished run is appended
     to ``out/results.jsonl`` at once; at the end ``results.csv``, ``results.parquet``,
     ``summary.md`` and ``sweep.png`` are written from that file. ``out`` must be new, empty
     of sweeps, or hold this same sweep (same resolved config, grid and clock; the seeds may
@@ -520,6 +525,7 @@ def sweep(scenario: str | os.PathLike | Scenario,
         raise ConfigError("command line", [("--clock", f"expected one of {', '.join(CLOCKS)}, got {clock!r}")])
     g = normalize_grid(grid)
     base = base_scenario(scenario, overrides, duration)
+    check_grid(base, g)  # every cell before any run: nothing run, nothing written
     if isinstance(seeds, int) and not isinstance(seeds, bool):
         if seeds < 1:
             raise ConfigError("command line", [("--seeds", f"must be at least 1, got {seeds}")])

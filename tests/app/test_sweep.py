@@ -43,18 +43,28 @@ def test_a_grid_is_a_mapping_or_pairs_each_key_and_value_once():
         normalize_grid({"scenario.seed": [1, 2]})
 
 
-def test_a_sweep_writes_results_summary_and_plot_and_records_failures(tmp_path):
-    grid = parse_grid(["link.loss=0,0.3,1.5"])  # 1.5 is not a probability: those runs fail
+def test_a_sweep_writes_results_summary_and_plot_and_records_failures(tmp_path, monkeypatch):
+    import cdus.app.sweep as engine
+    from cdus.core.vehicle import DivergedError
+
+    class Diverging(engine.InProcessFleet):  # the runs of loss 0.6 diverge: recorded, the sweep goes on
+        def run(self, *a, **k):
+            if self.scenario.link.loss == 0.6:
+                raise DivergedError("vehicle c1: its state is no longer finite at t = 3.00 s")
+            return super().run(*a, **k)
+
+    monkeypatch.setattr(engine, "InProcessFleet", Diverging)  # jobs=1 runs in this process
+    grid = parse_grid(["link.loss=0,0.3,0.6"])
     res = sweep("configs/concentric_circles.toml", grid, [1, 2], tmp_path, jobs=1, duration=20.0, quiet=True)
     rows = res.rows()
     assert (res.planned, res.done, res.ran, res.resumed, len(rows)) == (6, 6, 6, 0, 6)
     ok = [r for r in rows if r["status"] == "ok"]
     failed = [r for r in rows if r["status"] == "failed"]
     assert len(ok) == 4 and len(failed) == 2 and res.failed == 2
-    assert all("link.loss" in r["reason"] and "probability" in r["reason"] for r in failed)
+    assert all("DivergedError" in r["reason"] and "no longer finite" in r["reason"] for r in failed)
     with open(tmp_path / "results.csv") as fh:
         table = list(csv.DictReader(fh))
-    assert [r["link.loss"] for r in table] == ["0", "0", "0.3", "0.3", "1.5", "1.5"]
+    assert [r["link.loss"] for r in table] == ["0", "0", "0.3", "0.3", "0.6", "0.6"]
     assert [r["seed"] for r in table] == ["1", "2"] * 3
     assert {"seed", "status", "coord_settle_s", "final_coord_error_max", "link_dropped"} <= set(table[0])
     lossy = [r for r in table if r["link.loss"] == "0.3"]
@@ -229,3 +239,10 @@ def test_numpy_grids_and_seeds_are_plain_values(tmp_path):
     res = sweep("configs/concentric_circles.toml", {"link.loss": np.array([0.0, 0.1])}, np.arange(1, 3), tmp_path,
                 jobs=1, duration=5.0, quiet=True)
     assert [(r["link.loss"], r["seed"]) for r in res.rows()] == [(0.0, 1), (0.0, 2), (0.1, 1), (0.1, 2)]
+
+
+def test_a_bad_value_in_any_cell_refuses_the_sweep_before_any_run(tmp_path):
+    grid = parse_grid(["link.loss=0,0.3,1.5"])  # 1.5 is not a probability
+    with pytest.raises(ConfigError, match=r"link.loss.*probability|probability.*link.loss"):
+        sweep("configs/concentric_circles.toml", grid, [1, 2], tmp_path / "out", jobs=1, duration=20.0, quiet=True)
+    assert not (tmp_path / "out").exists()  # nothing run, nothing written
