@@ -256,31 +256,48 @@ def closest_pairs(t: np.ndarray, q: np.ndarray, live: np.ndarray, ids: Sequence[
     out: dict[str, ClosestPair] = {}
     if q.shape[0] == 0:
         return out
-    best: dict[str, tuple[float, int, int, int]] = {}
     n = len(domains)
-    for j in range(n):
+    pairs: dict[str, list[tuple[int, int]]] = {}
+    for j in range(n):  # scenario order: (j, k) lexicographic
         for k in range(j + 1, n):
-            dj, dk = domains[j], domains[k]
-            if dj == dk:
-                domain, axes = dj, (2 if dj == "usv" else 3)
-                with np.errstate(invalid="ignore"):
-                    d = q[:, j, :axes] - q[:, k, :axes]
-            else:
-                domain = CROSS_DOMAIN
-                drone, boat = (j, k) if dk == "usv" else (k, j)
-                d = q[:, drone, :3].copy()
-                with np.errstate(invalid="ignore"):
-                    d[:, :2] -= q[:, boat, :2]  # the boat at (x, y, 0)
-            with np.errstate(invalid="ignore", over="ignore"):  # inf - inf, a huge square: skipped below
-                d2 = np.einsum("ij,ij->i", d, d)
-            d2 = np.where(np.isfinite(d2), d2, np.inf)
-            i = int(np.argmin(d2))
-            if not math.isfinite(d2[i]):
-                continue
-            have = best.get(domain)
-            if have is None or d2[i] < have[0] or (d2[i] == have[0] and i < have[1]):
-                best[domain] = (float(d2[i]), i, j, k)
-    for domain, (d2, i, j, k) in best.items():
-        out[domain] = ClosestPair(domain, ids[j], ids[k], math.sqrt(d2), float(t[i]), bool(live[i, j]),
-                                  bool(live[i, k]))
+            pairs.setdefault(domains[j] if domains[j] == domains[k] else CROSS_DOMAIN, []).append((j, k))
+    for domain, jk in pairs.items():
+        a, b = np.array(jk).T
+        if domain == CROSS_DOMAIN:  # the drone in 3-D minus the boat at (x, y, 0)
+            drone = np.where(np.asarray(domains)[a] == "uav", a, b)
+            first, second, axes = drone, np.where(drone == a, b, a), 2
+        else:
+            first, second, axes = a, b, (2 if domain == "usv" else 3)
+        found = _closest(q, first, second, axes, full_first=domain == CROSS_DOMAIN)
+        if found is not None:
+            d2, i, m = found
+            out[domain] = ClosestPair(domain, ids[a[m]], ids[b[m]], math.sqrt(d2), float(t[i]), bool(live[i, a[m]]),
+                                      bool(live[i, b[m]]))
     return out
+
+
+#: (ticks x pairs) distances computed at once, at most: bounds the memory of a big fleet's run
+_CHUNK = 1 << 20
+
+
+def _closest(q: np.ndarray, first: np.ndarray, second: np.ndarray, axes: int,
+             full_first: bool = False) -> tuple[float, int, int] | None:
+    """The smallest finite |q[first] - q[second]|² over the rows and the pairs, on ``axes``
+    axes (``full_first``: ``first`` in 3-D less ``second``'s (x, y, 0)): (d², row, pair), the
+    earliest row and then the first pair on ties; None if nothing is finite."""
+    step = max(1, _CHUNK // len(first))
+    best: tuple[float, int, int] | None = None
+    for r0 in range(0, q.shape[0], step):
+        block = q[r0:r0 + step]
+        with np.errstate(invalid="ignore", over="ignore"):  # inf - inf, a huge square: skipped below
+            d2 = np.zeros((block.shape[0], len(first)))
+            for k in range(3 if full_first else axes):
+                x = block[:, :, k]
+                d = x[:, first] - x[:, second] if k < 2 or not full_first else x[:, first]
+                d2 += d * d
+        d2 = np.where(np.isfinite(d2), d2, np.inf)
+        flat = int(np.argmin(d2))  # row-major: the earliest row, then the first pair
+        r, m = divmod(flat, d2.shape[1])
+        if math.isfinite(d2[r, m]) and (best is None or d2[r, m] < best[0]):
+            best = (float(d2[r, m]), r0 + r, m)
+    return best
