@@ -42,7 +42,8 @@ What it prints per preset and filter setting:
   and the coordination (worst edge < coord_tol = 0.05) settle before the end, with the
   median settle times;
 - solve time: every call of the filter is timed in the worker (the function the vehicle
-  imported from cdus.core.safety, wrapped with time.perf_counter at run time); µs per call
+  imported from cdus.core.safety, or if it imported none the module's public functions
+  named *filter*, wrapped with time.perf_counter at run time); µs per call
   (median, p99) and per control step of the fleet (filter time summed over the vehicles /
   control ticks). Also the wall time per run with and without the filter.
 
@@ -211,17 +212,25 @@ _TIMER_ON = False
 
 def _install_timer() -> list[str]:
     """Wrap every function cdus.core.vehicle imported from cdus.core.safety whose name says
-    "filter" with a perf_counter timer (once per process). Returns the wrapped names."""
+    "filter" with a perf_counter timer (once per process); if it imported none (it calls
+    them through the module), those functions of cdus.core.safety itself. Returns the
+    wrapped names."""
     global _TIMER_ON
+    import cdus.core.safety as safety_mod
     import cdus.core.vehicle as vehicle_mod
 
-    names = [n for n, f in vars(vehicle_mod).items()
-             if callable(f) and getattr(f, "__module__", "") == "cdus.core.safety" and "filter" in n.lower()
-             and not isinstance(f, type)]
+    def filters(mod):
+        return [n for n, f in vars(mod).items()
+                if callable(f) and not isinstance(f, type) and not n.startswith("_")
+                and getattr(f, "__module__", "") == "cdus.core.safety" and "filter" in n.lower()]
+
+    where, names = vehicle_mod, filters(vehicle_mod)
+    if not names:
+        where, names = safety_mod, filters(safety_mod)
     if _TIMER_ON:
-        return names
+        return [f"{where.__name__}.{n}" for n in names]
     for n in names:
-        inner = getattr(vehicle_mod, n)
+        inner = getattr(where, n)
 
         def timed(*args, _inner=inner, **kwargs):
             t0 = time.perf_counter()
@@ -232,9 +241,9 @@ def _install_timer() -> list[str]:
 
         timed.__name__ = n
         timed.__module__ = "cdus.core.safety"
-        setattr(vehicle_mod, n, timed)
+        setattr(where, n, timed)
     _TIMER_ON = True
-    return names
+    return [f"{where.__name__}.{n}" for n in names]
 
 
 def _cross_min(q: np.ndarray, kinds: list[str]) -> float | None:
