@@ -85,3 +85,19 @@ def test_no_rows_no_pair_and_non_finite_rows_are_skipped():
     assert (p.a, p.b) == ("b", "c")
     q[:, 1:, :] = math.inf
     assert closest_pairs(t, q, live, ["a", "b", "c"], ["usv"] * 3) == {}
+
+
+def test_the_recorder_keeps_intervention_counts_carried_forward_through_growth():
+    from types import SimpleNamespace
+
+    from cdus.core.metrics import Recorder
+
+    rec = Recorder(["a", "b"], [2, 2], (), capacity=16)
+    tel = SimpleNamespace(q=(0.0, 0.0), heading=0.0, omega=0.0, omega_rate=-1.0, path_error=0.0)
+    for n in range(40):
+        rec.record(n * 0.02, [tel, tel], interventions=[n, 2 * n] if n % 3 == 0 else None)
+    counts = rec.view("interventions")
+    assert counts.shape == (40, 2) and counts.dtype == np.int64
+    assert counts[:, 0].tolist() == [3 * (n // 3) for n in range(40)]  # a row without counts repeats the last
+    assert counts[:, 1].tolist() == [6 * (n // 3) for n in range(40)]
+    assert Recorder(["a"], [2], ()).view("interventions").shape == (0, 1)
