@@ -265,10 +265,9 @@ def closest_pairs(t: np.ndarray, q: np.ndarray, live: np.ndarray, ids: Sequence[
         a, b = np.array(jk).T
         if domain == CROSS_DOMAIN:  # the drone in 3-D minus the boat at (x, y, 0)
             drone = np.where(np.asarray(domains)[a] == "uav", a, b)
-            first, second, axes = drone, np.where(drone == a, b, a), 2
+            found = _closest(q, drone, np.where(drone == a, b, a), 3, second_on_surface=True)
         else:
-            first, second, axes = a, b, (2 if domain == "usv" else 3)
-        found = _closest(q, first, second, axes, full_first=domain == CROSS_DOMAIN)
+            found = _closest(q, a, b, 2 if domain == "usv" else 3)
         if found is not None:
             d2, i, m = found
             out[domain] = ClosestPair(domain, ids[a[m]], ids[b[m]], math.sqrt(d2), float(t[i]), bool(live[i, a[m]]),
@@ -281,9 +280,9 @@ _CHUNK = 1 << 20
 
 
 def _closest(q: np.ndarray, first: np.ndarray, second: np.ndarray, axes: int,
-             full_first: bool = False) -> tuple[float, int, int] | None:
-    """The smallest finite |q[first] - q[second]|² over the rows and the pairs, on ``axes``
-    axes (``full_first``: ``first`` in 3-D less ``second``'s (x, y, 0)): (d², row, pair), the
+             second_on_surface: bool = False) -> tuple[float, int, int] | None:
+    """The smallest finite |q[first] - q[second]|² over the rows and the pairs, on the first
+    ``axes`` axes (``second_on_surface``: ``second`` taken at z = 0): (d², row, pair), the
     earliest row and then the first pair on ties; None if nothing is finite."""
     step = max(1, _CHUNK // len(first))
     best: tuple[float, int, int] | None = None
@@ -291,9 +290,9 @@ def _closest(q: np.ndarray, first: np.ndarray, second: np.ndarray, axes: int,
         block = q[r0:r0 + step]
         with np.errstate(invalid="ignore", over="ignore"):  # inf - inf, a huge square: skipped below
             d2 = np.zeros((block.shape[0], len(first)))
-            for k in range(3 if full_first else axes):
+            for k in range(axes):
                 x = block[:, :, k]
-                d = x[:, first] - x[:, second] if k < 2 or not full_first else x[:, first]
+                d = x[:, first] if k == 2 and second_on_surface else x[:, first] - x[:, second]
                 d2 += d * d
         d2 = np.where(np.isfinite(d2), d2, np.inf)
         flat = int(np.argmin(d2))  # row-major: the earliest row, then the first pair

@@ -101,3 +101,35 @@ def test_the_recorder_keeps_intervention_counts_carried_forward_through_growth()
     assert counts[:, 0].tolist() == [3 * (n // 3) for n in range(40)]  # a row without counts repeats the last
     assert counts[:, 1].tolist() == [6 * (n // 3) for n in range(40)]
     assert Recorder(["a"], [2], ()).view("interventions").shape == (0, 1)
+
+
+def test_rows_taken_in_chunks_give_the_same_pair_ties_included(monkeypatch):
+    import cdus.core.metrics as metrics
+
+    rng = np.random.default_rng(5)
+    t, q, live = _run(ticks=50, n=6)
+    q[:] = np.round(rng.uniform(0.0, 4.0, q.shape))  # integer grid: many exact ties
+    live[:] = rng.uniform(size=live.shape) < 0.7
+    kinds = ["usv", "uav", "usv", "uav", "uav", "usv"]
+    ids = [f"v{j}" for j in range(6)]
+    whole = closest_pairs(t, q, live, ids, kinds)
+    monkeypatch.setattr(metrics, "_CHUNK", 7)  # a couple of rows at a time
+    assert closest_pairs(t, q, live, ids, kinds) == whole
+    for domain, p in whole.items():  # and the pair a plain loop finds
+        best = None
+        for i in range(len(t)):
+            for j in range(6):
+                for k in range(j + 1, 6):
+                    dom = kinds[j] if kinds[j] == kinds[k] else CROSS_DOMAIN
+                    if dom != domain:
+                        continue
+                    if dom == CROSS_DOMAIN:
+                        drone, boat = (j, k) if kinds[j] == "uav" else (k, j)
+                        d = math.dist(q[i, drone], (*q[i, boat, :2], 0.0))
+                    else:
+                        d = math.dist(q[i, j, :2 if dom == "usv" else 3], q[i, k, :2 if dom == "usv" else 3])
+                    if best is None or d < best[0]:
+                        best = (d, i, j, k)
+        d, i, j, k = best
+        assert (p.a, p.b, p.t, p.a_live, p.b_live) == (ids[j], ids[k], t[i], live[i, j], live[i, k])
+        assert p.distance == pytest.approx(d)
