@@ -337,7 +337,8 @@ def summarize(rows: list[dict]) -> dict[str, Any]:
 def print_table(summary: dict[str, dict[str, dict]]) -> None:
     print(f"\nR = {RADIUS} m; violation: min separation < R - {TOLERANCE} m (strictly below R in brackets); "
           f"settled: path (|Φ| < {PATH_TOL} m) and coordination (< {COORD_TOL}) both settle within {DURATION:g} s; "
-          f"violations and min sep count every pair (cross_domain: the boats' pair too; its drone-to-boat figures below)")
+          f"violations and min sep count every pair (cross_domain: the boats' pair too; its drone-to-boat figures "
+          f"below)")
     head = ("| preset | filter | encounters | violations (< R) | min sep min / p5 / p50 m | interventions mean / max "
             "| settled (path / coord p50 s) | filter µs per call / per step | wall s per run |")
     print(head)
@@ -362,7 +363,8 @@ def print_table(summary: dict[str, dict[str, dict]]) -> None:
                   f"violations by kind without / with: {off['by_kind']} / {on['by_kind']}")
         for label, s in by.items():
             if s["cross_violations"] is not None:
-                print(f"{preset} ({label}): drone-to-boat only (the boat a point on the water): {s['cross_violations']} "
+                print(f"{preset} ({label}): drone-to-boat only (the boat a point on the water): "
+                      f"{s['cross_violations']} "
                       f"violations, min / p5 / p50 {_f(s['cross_min_sep_min'])} / {_f(s['cross_min_sep_p5'])} / "
                       f"{_f(s['cross_min_sep_p50'])} m")
 
@@ -385,7 +387,8 @@ def main(argv: list[str] | None = None) -> int:
     import cdus
 
     wrapped = _install_timer()
-    print(f"cdus from {os.path.dirname(cdus.__file__)}; timing {', '.join(wrapped) or 'nothing (no filter function found)'}"
+    timing = ", ".join(wrapped) or "nothing (no filter function found)"
+    print(f"cdus from {os.path.dirname(cdus.__file__)}; timing {timing}"
           f"; {args.encounters} encounters per preset, seed {args.seed}, {args.jobs} jobs", flush=True)
     modes = {"both": (False, True), "on": (True,), "off": (False,)}[args.filter]
     jobs = [(enc, on) for p in presets for enc in encounters(p, args.encounters, args.seed) for on in modes]

@@ -621,9 +621,9 @@ class RerunSink:
             label = (f"closest so far: {p.a} - {p.b} {p.distance:.2f} m at {p.t:.2f} s"
                      + (f" ({', '.join(gone)} not live)" if gone else ""))
             self._set_time(p.t)
-            self.rec.log(f"{CLOSEST}/{domain}", rr.LineStrips3D([[qa, qb]], colors=[NEAR_COLOUR if near else CLOSEST_COLOUR],
-                                                                 radii=rr.components.Radius.ui_points(2.0),
-                                                                 labels=[label], show_labels=True))
+            line = rr.LineStrips3D([[qa, qb]], colors=[NEAR_COLOUR if near else CLOSEST_COLOUR],
+                                   radii=rr.components.Radius.ui_points(2.0), labels=[label], show_labels=True)
+            self.rec.log(f"{CLOSEST}/{domain}", line)
             if near and domain not in self._near:
                 self._near.add(domain)
                 self.rec.log(bp.EVENTS, rr.TextLog(f"near collision: {p.a} and {p.b} {p.distance:.2f} m apart at "
