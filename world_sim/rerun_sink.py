@@ -13,7 +13,18 @@ What goes where (docs/rerun.md; timeline ``sim_time``, a duration):
   Scalars, one sample per control tick (the Recorder's rows); SeriesLines styling static.
 - ``comms/links/<src>__<dst>``: StateChange ``up | lossy | down``: ``up`` at t = 0 for every
   link of the graph (as the link emulator starts them), then each change the runner reports.
-- ``comms/events``: TextLog of the runner's events (vehicles lost and back, faults, link news).
+- ``comms/events``: TextLog of the runner's events (vehicles lost and back, faults, link news),
+  and of the safety: when a vehicle's filter starts intervening, when a pair first comes
+  within the safety radius.
+- ``world/safety/interventions`` (with [safety] on): Points3D, a red dot above every vehicle
+  whose filter intervened at that tick, labelled with its id; an empty row where none did.
+  Only rows where the picture changes are logged. From the Recorder's per-vehicle counts:
+  exact per tick in process, as the agents' stats report them in the world.
+- ``world/safety/closest/<domain>``: LineStrips3D, the closest approach so far of each domain
+  (``usv``, ``uav``, ``uav-usv``: cdus.core.metrics.closest_pairs), a line between the pair at
+  that time labelled with the ids, the distance and the time; red below the safety radius.
+  Logged at the time of the approach when a batch finds a closer one, so the last one is
+  the metrics' ``closest_pairs``.
 
 Cost: one ``rr.log`` costs ~70 µs, and every chunk (one entity's rows) ~90 µs of CPU in
 Python and Rerun's threads whatever its length, while a 10-vehicle ring computes a
@@ -61,7 +72,7 @@ import rerun as rr
 
 from cdus.core.paths import for_dimension, make_path, nearest_omega
 from world_sim import blueprint as bp
-from cdus.core.metrics import edge_errors
+from cdus.core.metrics import closest_pairs, edge_errors
 from cdus.core.link import LINK_STATES
 from cdus.scenario.model import Scenario
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
@@ -86,6 +97,9 @@ EDGE_COLOURS = ((44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75), (2
                 (127, 127, 127), (188, 189, 34), (23, 190, 207), (100, 60, 160), (60, 120, 60))
 STATE_COLOURS = {"up": (76, 175, 80), "lossy": (255, 193, 7), "down": (239, 83, 80)}
 LEVELS = {"info": rr.TextLogLevel.INFO, "warn": rr.TextLogLevel.WARN, "error": rr.TextLogLevel.ERROR}  # by severity
+INTERVENTION_COLOUR = (230, 30, 30)
+NEAR_COLOUR, CLOSEST_COLOUR = (230, 30, 30), (255, 193, 7)  # a closest approach below R / at or above it
+EPISODE_GAP = 1.0  # s without an intervention after which a vehicle's next one is news in the event log
 
 
 # --------------------------------------------------------------------------- geometry (pure)
@@ -161,6 +175,7 @@ _SCALAR = _template(rr.Scalars.columns(scalars=[0.0]))
 _TRANSLATION, _QUATERNION = (_template([c]) for c in rr.Transform3D.columns(translation=[[0.0, 0.0, 0.0]],
                                                                             quaternion=[[0.0, 0.0, 0.0, 1.0]]))
 _STRIPS = _template(rr.LineStrips3D.columns(strips=[[[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]]]))
+_POSITIONS, _LABELS = (_template([c]) for c in rr.Points3D.columns(positions=[[0.0, 0.0, 0.0]], labels=["a"]))
 
 
 def _field(entity: str, template: tuple[Any, pa.DataType]) -> pa.Field:
@@ -227,6 +242,18 @@ class _Layout:
                                + [_field(vehicles[j], _STRIPS) for j in self.uav]
                                + [_field(e, _SCALAR) for e in scalars])
         self.trails = pa.schema([t] + [_field(f"{bp.TRAILS}/{v}", _STRIPS) for v in ids])
+        self.interventions = pa.schema([t, _field(INTERVENTIONS, _POSITIONS), _field(INTERVENTIONS, _LABELS)])
+
+
+INTERVENTIONS = f"{bp.WORLD}/safety/interventions"
+CLOSEST = f"{bp.WORLD}/safety/closest"
+
+
+def intervened(counts: np.ndarray, before: np.ndarray | None) -> np.ndarray:
+    """[n, N] cumulative intervention counts (and the row before them, None: zeros) -> [n, N]
+    booleans: the vehicle's count went up at that row (a restart's reset is not an intervention)."""
+    prev = np.zeros(counts.shape[1], dtype=counts.dtype) if before is None else before
+    return np.diff(np.vstack([prev[None, :], counts]), axis=0) > 0
 
 
 # --------------------------------------------------------------------------- the sink
@@ -258,6 +285,13 @@ class RerunSink:
         self._rate = 50.0  # control rate, from the scenario
         self._link_states: dict[tuple[str, str], str] = {}
         self._layout: _Layout | None = None
+        self._safety_on = False  # the scenario's filter is on: interventions are marked
+        self._radius = 2.0  # the safety radius (the [safety] table's, or its default)
+        self._marks_shown = False  # the last interventions row logged had points
+        self._last_intervention: dict[int, float] = {}  # vehicle -> time of its latest intervention
+        self._closest: dict[str, float] = {}  # domain -> closest distance logged so far
+        self._near: set[str] = set()  # domains already reported within the radius
+        self._marker = 1.0
         self._file_rec: rr.RecordingStream | None = None
         self._stream: rr.BinaryStream | None = None
         streams = []
@@ -310,6 +344,12 @@ class RerunSink:
             rank = {"usv": 0, "uav": 0}
             lines = [path_polyline(v, scenario.duration) for v in scenario.vehicles]
             size = marker_size(lines)
+            self._marker = size
+            self._safety_on = bool(scenario.safety.enabled)
+            self._radius = float(scenario.safety.radius)
+            if self._safety_on:
+                self.rec.log(INTERVENTIONS, rr.Points3D.from_fields(colors=[INTERVENTION_COLOUR], radii=[0.45 * size],
+                                                                  show_labels=False), static=True)
             scene = list(lines)
             for v, line in zip(scenario.vehicles, lines):
                 rgb = colour(v.kind, rank[v.kind])
@@ -512,6 +552,9 @@ class RerunSink:
         self.rec.send_record_batch(pa.RecordBatch.from_arrays(columns, schema=layout.ticks), index=bp.TIMELINE)
         first = -(-lo // UPDATE_EVERY) * UPDATE_EVERY
         self._send_trails(recorder, list(range(first, hi, UPDATE_EVERY)))
+        if self._safety_on and getattr(recorder, "interventions", None) is not None:
+            self._send_interventions(recorder, lo, hi)
+        self._send_closest(recorder, lo, hi)
         self._sent = hi
         self._t_sent = float(recorder.t[hi - 1])
 
@@ -525,6 +568,67 @@ class RerunSink:
         points = recorder.q[np.concatenate(picks)].transpose(1, 0, 2)  # [N, points, 3]
         columns = [_time(recorder.t[rows])] + _strip_lists(points, np.array([len(p) for p in picks]))
         self.rec.send_record_batch(pa.RecordBatch.from_arrays(columns, schema=layout.trails), index=bp.TIMELINE)
+
+    def _send_interventions(self, recorder: Any, lo: int, hi: int) -> None:
+        """Rows [lo, hi): a dot above each vehicle whose filter intervened, in one record batch
+        of the rows where the picture changes (dots, or the first row without after some);
+        an event line when a vehicle starts intervening after EPISODE_GAP s without."""
+        hit = intervened(recorder.interventions[lo:hi], recorder.interventions[lo - 1] if lo else None)
+        rows = hit.any(axis=1)
+        was = np.concatenate(([self._marks_shown], rows[:-1]))
+        keep = np.nonzero(rows | was)[0]
+        if len(keep):
+            self._marks_shown = bool(rows[-1])
+            layout = self._layout_for(recorder)
+            sel = hit[keep]
+            pos = recorder.q[lo:hi][keep][sel].copy()  # row-major: each kept row's vehicles in order
+            pos[:, 2] += 1.5 * self._marker
+            offsets = pa.array(np.concatenate(([0], np.cumsum(sel.sum(axis=1)))).astype(np.int32))
+            flat = pa.array(np.ascontiguousarray(pos, dtype=np.float32).ravel())
+            xyz = pa.FixedSizeListArray.from_arrays(flat, type=_POSITIONS[1].value_type)
+            ids = np.array(recorder.ids, dtype=object)
+            labels = pa.array([str(ids[j]) for j in np.nonzero(sel)[1]], pa.string())
+            columns = [_time(recorder.t[lo:hi][keep]), pa.ListArray.from_arrays(offsets, xyz, type=_POSITIONS[1]),
+                       pa.ListArray.from_arrays(offsets, labels, type=_LABELS[1])]
+            self.rec.send_record_batch(pa.RecordBatch.from_arrays(columns, schema=layout.interventions),
+                                       index=bp.TIMELINE)
+        for i, j in zip(*np.nonzero(hit)):
+            t = float(recorder.t[lo + i])
+            last = self._last_intervention.get(int(j))
+            if last is None or t - last > EPISODE_GAP + 1e-9:
+                self._set_time(t)
+                self.rec.log(bp.EVENTS, rr.TextLog(f"{recorder.ids[j]}: the safety filter intervenes "
+                                                   f"(t = {t:.2f} s)", level=rr.TextLogLevel.INFO))
+            self._last_intervention[int(j)] = t
+
+    def _send_closest(self, recorder: Any, lo: int, hi: int) -> None:
+        """Rows [lo, hi): where a domain's closest approach beats the one logged so far, a line
+        between the pair at that time; the first time a domain comes within the radius, an
+        event line."""
+        kinds = [self._kind(recorder, j) for j in range(len(recorder.ids))]
+        found = closest_pairs(recorder.t[lo:hi], recorder.q[lo:hi], recorder.live[lo:hi], recorder.ids, kinds)
+        for domain, p in found.items():
+            if p.distance >= self._closest.get(domain, math.inf):
+                continue  # ties keep the earlier approach, as the metrics do
+            self._closest[domain] = p.distance
+            i = lo + int(np.searchsorted(recorder.t[lo:hi], p.t))
+            a, b = recorder.ids.index(p.a), recorder.ids.index(p.b)
+            qa, qb = recorder.q[i, a].copy(), recorder.q[i, b].copy()
+            if domain == "uav-usv":  # the boat as a drone's filter sees it, on the water
+                (qa if kinds[a] == "usv" else qb)[2] = 0.0
+            near = p.distance < self._radius
+            gone = [v for v, live in ((p.a, p.a_live), (p.b, p.b_live)) if not live]
+            label = (f"closest so far: {p.a} - {p.b} {p.distance:.2f} m at {p.t:.2f} s"
+                     + (f" ({', '.join(gone)} not live)" if gone else ""))
+            self._set_time(p.t)
+            line = rr.LineStrips3D([[qa, qb]], colors=[NEAR_COLOUR if near else CLOSEST_COLOUR],
+                                   radii=rr.components.Radius.ui_points(2.0), labels=[label], show_labels=True)
+            self.rec.log(f"{CLOSEST}/{domain}", line)
+            if near and domain not in self._near:
+                self._near.add(domain)
+                self.rec.log(bp.EVENTS, rr.TextLog(f"near collision: {p.a} and {p.b} {p.distance:.2f} m apart at "
+                                                   f"t = {p.t:.2f} s, within the safety radius {self._radius:g} m",
+                                                   level=rr.TextLogLevel.WARN))
 
     def _layout_for(self, recorder: Any) -> _Layout:
         if self._layout is None:

@@ -148,6 +148,9 @@ class World:
         self._alive_news: deque[tuple[str, bool]] = deque()  # liveliness callbacks -> main thread
         self._logged_rejects: set[tuple[str, str]] = set()
         self._recorded: dict[int, StateMsg] = {}  # the row each vehicle was last recorded with
+        #: per vehicle, its processes' filter interventions as last reported (stats, every ~1 s of
+        #: wall time): what the recorder's rows carry, so the marks in Rerun lag the counts by that much
+        self._interventions = [0] * len(self.ids)
         self._suspect_seen: dict[tuple[str, str], float] = {}  # (vehicle, reason) -> last suspect event
         self._drops_since: float | None = None  # monotonic time of the first undecided liveliness loss
         self._outage_since: float | None = None  # the whole fleet dropped at once: waiting for it
@@ -313,6 +316,8 @@ class World:
             self.st.retired.append(old)
             old = None
         self.st.stats[vid] = s
+        j = self.index[vid]
+        self._interventions[j] = s.interventions + sum(x.interventions for x in self.st.retired if x.id == vid)
         for x in s.latencies_ms:  # each message carries the samples since the previous one
             self.st.latencies.record_latency(x / 1000.0)
         if s.faults is not None:
@@ -663,7 +668,7 @@ class World:
         st.rows.pop(n, None)
         for j, m in enumerate(states):
             self._recorded[j] = m
-        self.recorder.record(n * self.period, states, self._live_at(n))
+        self.recorder.record(n * self.period, states, self._live_at(n), self._interventions)
         self.next_tick = n + 1
         if n % UPDATE_EVERY == 0:
             self.sink.update(self.recorder)

@@ -106,8 +106,33 @@ def summary_table(metrics: dict, vehicles: Sequence[VehicleSpec]) -> str:
                      + (f", safety radius {radius:g} m, {m.get('interventions', 0)} filter interventions"
                         if safety.get("enabled") else "")
                      + ("  [BELOW THE SAFETY RADIUS]" if below else ""))
+    lines += closest_lines(m)
     link = m.get("link") or {}
     if link:
         lines.append(f"  link: {link.get('sent', 0)} sent, {link.get('delivered', 0)} delivered, "
                      f"{link.get('dropped', 0)} dropped, {link.get('rejected', 0)} rejected")
     return "\n".join(lines)
+
+
+#: how the summary names a closest pair's domain (cdus.core.metrics.closest_pairs)
+DOMAIN_WORDS = {"usv": "boats", "uav": "drones", "uav-usv": "drone to boat at the surface"}
+
+
+def closest_lines(m: dict) -> list[str]:
+    """One line per domain: the closest pair, its distance, when, who was not live, and a
+    NEAR COLLISION flag below the safety radius (the [safety] table's, or its default when
+    the scenario has none), whether the filter was on or off."""
+    safety = m.get("safety") or {}
+    radius = safety.get("radius_m")
+    out = []
+    for domain, p in (m.get("closest_pairs") or {}).items():
+        gone = [v for v, live in ((p["a"], p["a_live"]), (p["b"], p["b_live"])) if not live]
+        who = ("both live" if not gone else
+               f"{' and '.join(gone)} not live then (killed or paused: counted where it stopped)")
+        line = (f"  closest approach ({DOMAIN_WORDS.get(domain, domain)}): {p['a']} - {p['b']} "
+                f"{_fmt(p['distance_m'], '.3f')} m at t = {p['t_s']:.2f} s, {who}")
+        if radius is not None and p["distance_m"] is not None and p["distance_m"] < radius:
+            line += (f"  [NEAR COLLISION: below the safety radius {radius:g} m]" if safety.get("enabled") else
+                     f"  [NEAR COLLISION: below the [safety] radius {radius:g} m; the filter is off]")
+        out.append(line)
+    return out

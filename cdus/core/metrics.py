@@ -6,7 +6,10 @@
 - coordination error of edge (i, k): |ω_i - ω_k - Δ_ik|;
 - settle time: the first sample time after which the worst value stays below a tolerance
   for the rest of the run; None if it never does;
-- ω̇ final: the mean rate over the last second, (ω(T) - ω(T - 1 s)) / 1 s.
+- ω̇ final: the mean rate over the last second, (ω(T) - ω(T - 1 s)) / 1 s;
+- closest approach: per domain, the pair of vehicles that came closest, when, and whether
+  both were live then; a vehicle that does not step (killed, paused) counts where it
+  stopped (its row repeats its last state): a killed vehicle stays an obstacle where it died.
 
 Pure: arrays in, numbers out. The recorder grows NumPy arrays row by row.
 """
@@ -77,27 +80,36 @@ class Recorder:
         self.omega_rate = np.zeros((self._cap, n))
         self.path_error = np.zeros((self._cap, n))
         self.live = np.ones((self._cap, n), dtype=bool)  # stepping at that instant (not killed, not paused)
+        #: per vehicle, control steps at which its safety filter intervened, summed over its
+        #: processes, as the runner knew it when it recorded the row (docs/metrics.md)
+        self.interventions = np.zeros((self._cap, n), dtype=np.int64)
 
     def __len__(self) -> int:
         return self._n
 
     def _grow(self) -> None:
         self._cap *= 2
-        for name in ("t", "q", "heading", "omega", "omega_rate", "path_error", "live"):
+        for name in ("t", "q", "heading", "omega", "omega_rate", "path_error", "live", "interventions"):
             old = getattr(self, name)
             new = np.zeros((self._cap,) + old.shape[1:], dtype=old.dtype)
             new[: self._n] = old[: self._n]
             setattr(self, name, new)
 
-    def record(self, t: float, rows: Sequence[Any], live: Sequence[bool] | None = None) -> None:
+    def record(self, t: float, rows: Sequence[Any], live: Sequence[bool] | None = None,
+               interventions: Sequence[int] | None = None) -> None:
         """``rows``: one telemetry per vehicle, in scenario order (attrs q, heading, omega, omega_rate,
         path_error); a vehicle not stepping (killed, paused) repeats its last row. ``live``: which
-        vehicles step at this instant (default: all)."""
+        vehicles step at this instant (default: all). ``interventions``: each vehicle's count of
+        filter interventions so far (default: the previous row's)."""
         if self._n == self._cap:
             self._grow()
         n = self._n
         self.t[n] = t
         self.live[n] = True if live is None else live
+        if interventions is not None:
+            self.interventions[n] = interventions
+        elif n:
+            self.interventions[n] = self.interventions[n - 1]
         for j, tel in enumerate(rows):
             q = tel.q
             self.q[n, j, : len(q)] = q
@@ -172,6 +184,7 @@ class Recorder:
             heading=self.view("heading"), omega=self.view("omega"),
             omega_rate=self.view("omega_rate"), path_error=self.view("path_error"),
             edge_error=self.edge_error(), edge_names=np.array([e.name for e in self.edges]), live=self.view("live"),
+            interventions=self.view("interventions"),
         )
 
 
@@ -197,3 +210,93 @@ def min_separation(q: np.ndarray, domains: Sequence[str]) -> float | None:
             d = q[:, j, :axes] - q[:, k, :axes]
             best = min(best, float(np.sqrt(np.min(np.einsum("ij,ij->i", d, d)))))
     return best if math.isfinite(best) else None
+
+
+#: the domain of a closest pair between a drone and a boat (the boat a point on the water)
+CROSS_DOMAIN = "uav-usv"
+
+
+@dataclass(frozen=True)
+class ClosestPair:
+    """The closest approach of a run within one domain: vehicles ``a`` and ``b`` (scenario
+    order), ``distance`` m apart at simulated time ``t``; ``a_live``/``b_live``: whether each
+    was stepping then (one that was not is counted where it stopped: killed or paused)."""
+
+    domain: str  # "usv", "uav" or CROSS_DOMAIN
+    a: str
+    b: str
+    distance: float
+    t: float
+    a_live: bool
+    b_live: bool
+
+    @property
+    def both_live(self) -> bool:
+        return self.a_live and self.b_live
+
+    def as_dict(self) -> dict[str, Any]:
+        """The metrics JSON entry (docs/metrics.md, ``closest_pairs``)."""
+        return {"domain": self.domain, "a": self.a, "b": self.b, "distance_m": round(self.distance, 6),
+                "t_s": round(self.t, 9), "a_live": self.a_live, "b_live": self.b_live, "both_live": self.both_live}
+
+
+def closest_pairs(t: np.ndarray, q: np.ndarray, live: np.ndarray, ids: Sequence[str],
+                  domains: Sequence[str]) -> dict[str, ClosestPair]:
+    """The closest pair of each domain over a run, as :func:`min_separation` measures it
+    (boats on the water in x, y; drones in 3-D), and, when the fleet has both kinds, of
+    drone and boat (``CROSS_DOMAIN``: the drone in 3-D to the boat's point on the water,
+    (x, y, 0), as a drone's filter sees a boat).
+
+    ``t`` (ticks,), ``q`` (ticks, vehicles, 3), ``live`` (ticks, vehicles): the Recorder's
+    rows, in which a vehicle not stepping repeats the row it stopped with, so a killed
+    vehicle counts where it died. Non-finite distances (a diverged vehicle) are skipped. Ties
+    go to the earlier time, then to the pair first in scenario order. A domain without a
+    pair, or with no finite distance, is absent.
+    """
+    out: dict[str, ClosestPair] = {}
+    if q.shape[0] == 0:
+        return out
+    n = len(domains)
+    pairs: dict[str, list[tuple[int, int]]] = {}
+    for j in range(n):  # scenario order: (j, k) lexicographic
+        for k in range(j + 1, n):
+            pairs.setdefault(domains[j] if domains[j] == domains[k] else CROSS_DOMAIN, []).append((j, k))
+    for domain, jk in pairs.items():
+        a, b = np.array(jk).T
+        if domain == CROSS_DOMAIN:  # the drone in 3-D minus the boat at (x, y, 0)
+            drone = np.where(np.asarray(domains)[a] == "uav", a, b)
+            found = _closest(q, drone, np.where(drone == a, b, a), 3, second_on_surface=True)
+        else:
+            found = _closest(q, a, b, 2 if domain == "usv" else 3)
+        if found is not None:
+            d2, i, m = found
+            out[domain] = ClosestPair(domain, ids[a[m]], ids[b[m]], math.sqrt(d2), float(t[i]), bool(live[i, a[m]]),
+                                      bool(live[i, b[m]]))
+    return out
+
+
+#: (ticks x pairs) distances computed at once, at most: bounds the memory of a big fleet's run
+_CHUNK = 1 << 20
+
+
+def _closest(q: np.ndarray, first: np.ndarray, second: np.ndarray, axes: int,
+             second_on_surface: bool = False) -> tuple[float, int, int] | None:
+    """The smallest finite |q[first] - q[second]|² over the rows and the pairs, on the first
+    ``axes`` axes (``second_on_surface``: ``second`` taken at z = 0): (d², row, pair), the
+    earliest row and then the first pair on ties; None if nothing is finite."""
+    step = max(1, _CHUNK // len(first))
+    best: tuple[float, int, int] | None = None
+    for r0 in range(0, q.shape[0], step):
+        block = q[r0:r0 + step]
+        with np.errstate(invalid="ignore", over="ignore"):  # inf - inf, a huge square: skipped below
+            d2 = np.zeros((block.shape[0], len(first)))
+            for k in range(axes):
+                x = block[:, :, k]
+                d = x[:, first] if k == 2 and second_on_surface else x[:, first] - x[:, second]
+                d2 += d * d
+        d2 = np.where(np.isfinite(d2), d2, np.inf)
+        flat = int(np.argmin(d2))  # row-major: the earliest row, then the first pair
+        r, m = divmod(flat, d2.shape[1])
+        if math.isfinite(d2[r, m]) and (best is None or d2[r, m] < best[0]):
+            best = (float(d2[r, m]), r0 + r, m)
+    return best

@@ -82,6 +82,7 @@ class InProcessFleet:
         self._last: list[Telemetry] = [node.vehicle.telemetry() for node in self.nodes]  # newest of each vehicle
         self._was_live = [True] * len(self.ids)
         self._retired: list[VehicleNode] = []  # nodes replaced by a restart (their counters still count)
+        self._retired_interventions = [0] * len(self.ids)  # per vehicle, its replaced nodes' interventions
         self._changes_seen = 0
         self.tick = 0
         self.clock = clock
@@ -133,6 +134,7 @@ class InProcessFleet:
         """A new process for vehicle j: a fresh node at the last telemetry seen of it."""
         j = ch.vehicle
         self._retired.append(self.nodes[j])
+        self._retired_interventions[j] += self.nodes[j].vehicle.interventions
         node = self.nodes[j] = self._node(j, joined_at=n)
         last = self._last[j]
         omegas = {k: self._last[k].omega for k in node.neighbours if self.nodes[k].own_state_at(n)[0] == "live"}
@@ -165,7 +167,9 @@ class InProcessFleet:
         live = [False] * len(self.nodes)
         for j in stepped:
             live[j] = True
-        self.recorder.record(n * self.period, rows, live)
+        counts = None if self.sensing is None else [
+            r + node.vehicle.interventions for r, node in zip(self._retired_interventions, self.nodes)]
+        self.recorder.record(n * self.period, rows, live, counts)
         if n % UPDATE_EVERY == 0:
             self._report_link_changes()
             self.sink.update(self.recorder)

@@ -5,8 +5,10 @@ coordination settle times, final errors, ω̇, wall time), the link block (messa
 to, delivered at, dropped and rejected by the receivers, latency percentiles, and the
 fault emulator's per-link counters), the stale-neighbour policy, the events, whether
 the run reached its end, and the safety figures: ``min_separation_m`` (the smallest
-distance between two vehicles of the same domain) and ``interventions`` (control steps
-at which a safety filter changed a velocity reference, summed over the fleet).
+distance between two vehicles of the same domain), ``closest_pairs`` / ``closest_pair``
+(who came closest, when, and whether both were live), ``near_collision`` (a closest
+pair below the safety radius, also with the filter off) and ``interventions`` (control
+steps at which a safety filter changed a velocity reference, summed over the fleet).
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ from __future__ import annotations
 from typing import Any, Iterable, Sequence
 
 from cdus.core.link import LinkCounters
-from cdus.core.metrics import Recorder, min_separation, percentile_ms
+from cdus.core.metrics import CROSS_DOMAIN, Recorder, closest_pairs, min_separation, percentile_ms
 from cdus.scenario.model import Scenario
 from cdus.wire.schemas import FleetEvent
 
@@ -61,9 +63,24 @@ def run_metrics(scenario: Scenario, recorder: Recorder, *, mode: str, link: dict
     m["events"] = [e.as_dict() for e in events]
     m["completed"] = completed
     m["completion"] = completion
-    sep = min_separation(recorder.view("q"), [v.kind for v in scenario.vehicles])
+    kinds = [v.kind for v in scenario.vehicles]
+    sep = min_separation(recorder.view("q"), kinds)
     m["min_separation_m"] = None if sep is None else round(sep, 6)
+    m.update(safety_figures(recorder, kinds, scenario.safety.radius))
     m["interventions"] = interventions
     m["safety"] = {"enabled": scenario.safety.enabled, "radius_m": scenario.safety.radius}
     m.update(extra)
     return m
+
+
+def safety_figures(recorder: Recorder, kinds: Sequence[str], radius: float) -> dict[str, Any]:
+    """``closest_pairs`` (per domain), ``closest_pair`` (the closest of them) and
+    ``near_collision`` (one of them strictly below ``radius``: the [safety] table's R, or
+    its default, 2 m, when the table is absent; whether the filter is on or not)."""
+    pairs = closest_pairs(recorder.view("t"), recorder.view("q"), recorder.view("live"), recorder.ids, kinds)
+    closest = min(pairs.values(), key=lambda p: (p.distance, p.t), default=None)
+    return {
+        "closest_pairs": {d: pairs[d].as_dict() for d in ("usv", "uav", CROSS_DOMAIN) if d in pairs},
+        "closest_pair": None if closest is None else closest.as_dict(),
+        "near_collision": any(p.distance < radius for p in pairs.values()),
+    }

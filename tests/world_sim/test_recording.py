@@ -107,7 +107,9 @@ def test_every_vehicle_edge_and_link_has_its_entities(recorded):
         assert rec.rows(f"metrics/coord_error/{e.i}__{e.k}") > 0
     for e in sc.edges:  # i listens to k: ω goes k -> i
         assert rec.rows(f"comms/links/{e.k}__{e.i}") >= 1
-    assert rec.rows("comms/events") == 1
+    _, texts = rec.column("comms/events", "TextLog:text")
+    # the runner's one event; lake_circle's random starts also bring two pairs within 2 m (the sink's own lines)
+    assert [t[0] for t in texts if not t[0].startswith("near collision:")] == ["vehicle usv2 lost"]
 
 
 def test_one_sample_per_control_tick(recorded):
@@ -178,9 +180,10 @@ def test_trails_every_update_and_at_the_end(recorded):
 def test_events_and_link_changes_on_sim_time(recorded):
     _, _, _, rec = recorded
     t, text = rec.column("comms/events", "TextLog:text")
-    assert text == [["vehicle usv2 lost"]] and t.tolist() == [2_500_000_000]  # logged from another thread
     _, level = rec.column("comms/events", "TextLog:level")
-    assert level == [["WARN"]]
+    mine = [k for k, x in enumerate(text) if not x[0].startswith("near collision:")]  # not the sink's own lines
+    assert [text[k] for k in mine] == [["vehicle usv2 lost"]] and t[mine].tolist() == [2_500_000_000]  # from a thread
+    assert [level[k] for k in mine] == [["WARN"]]
     t, state = rec.column("comms/links/usv2__usv1", "StateChange:state")
     assert state == [["up"], ["down"], ["up"]]
     assert t.tolist() == [0, 2_500_000_000, 4_000_000_000]
