@@ -16,14 +16,14 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 __all__ = [
-    "CLOCKS", "ConfigError", "DivergedError", "DroppedBy", "Event", "FaultCounters", "LinkFaults", "LinkMetrics",
+    "CLOCKS", "ClosestPair", "ConfigError", "DivergedError", "DroppedBy", "Event", "FaultCounters", "LinkFaults", "LinkMetrics",
     "LinkStateChange", "Metrics", "RejectedByReason", "Result", "RunError", "RunInterrupted", "SafetyInfo",
     "Scenario", "Trace", "load", "override", "run", "sweep",
 ]
 
 if TYPE_CHECKING:  # for type checkers and editors; at run time __getattr__ loads them
     from cdus.api import (  # noqa: F401
-        CLOCKS, ConfigError, DivergedError, DroppedBy, Event, FaultCounters, LinkFaults, LinkMetrics,
+        CLOCKS, ClosestPair, ConfigError, DivergedError, DroppedBy, Event, FaultCounters, LinkFaults, LinkMetrics,
         LinkStateChange, Metrics, RejectedByReason, Result, RunError, RunInterrupted, SafetyInfo, Scenario, Trace,
         load, override, run, sweep,
     )

@@ -291,6 +291,33 @@ class SafetyInfo:
 
 
 @dataclass(frozen=True)
+class ClosestPair:
+    """One entry of the metrics' ``closest_pairs`` (and ``closest_pair``): vehicles ``a`` and
+    ``b`` (scenario order) of ``domain`` (``usv``, ``uav`` or ``uav-usv``) came
+    ``distance_m`` apart at ``t_s`` simulated s; whether each was live (stepping) then."""
+
+    domain: str
+    a: str
+    b: str
+    distance_m: float
+    t_s: float
+    a_live: bool
+    b_live: bool
+    both_live: bool
+
+    @classmethod
+    def from_dict(cls, d: Any, where: str) -> "ClosestPair":
+        d = _table(d, where.rstrip("."))
+        return cls(_str(d, "domain", where), _str(d, "a", where), _str(d, "b", where), _num(d, "distance_m", where),
+                   _num(d, "t_s", where), _bool(d, "a_live", where), _bool(d, "b_live", where),
+                   _bool(d, "both_live", where))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"domain": self.domain, "a": self.a, "b": self.b, "distance_m": self.distance_m, "t_s": self.t_s,
+                "a_live": self.a_live, "b_live": self.b_live, "both_live": self.both_live}
+
+
+@dataclass(frozen=True)
 class RejectedByReason:
     """``rejected_by_reason`` (a fleet of processes): what the world and the vehicles dropped, by reason."""
 
@@ -329,6 +356,10 @@ class Metrics:
     completed: bool
     completion: str
     min_separation_m: float | None
+    # None only in the metrics the launcher writes when the world process died
+    closest_pairs: dict[str, ClosestPair] | None
+    closest_pair: ClosestPair | None
+    near_collision: bool | None
     interventions: int
     safety: SafetyInfo
     rejected_by_reason: RejectedByReason | None = None
@@ -353,6 +384,15 @@ class Metrics:
             r = _table(d["rejected_by_reason"], "rejected_by_reason")
             rej = RejectedByReason(_counts(r.get("world"), "rejected_by_reason.world"),
                                    _counts(r.get("vehicles"), "rejected_by_reason.vehicles"))
+        pairs = None
+        trio = ("closest_pairs", "closest_pair", "near_collision")  # written together, or none (a dead world)
+        if any(k in d for k in trio):
+            for k in trio:
+                if k not in d:
+                    _missing(w, k)
+            pairs = {str(k): ClosestPair.from_dict(v, f"closest_pairs.{k}.")
+                     for k, v in _table(d["closest_pairs"], "closest_pairs").items()}
+        closest = d.get("closest_pair")
         known = {f.name for f in fields(cls)} - {"extra"}
         return cls(
             scenario=_str(d, "scenario", w), mode=_str(d, "mode", w), seed=_int(d, "seed", w),
@@ -368,7 +408,10 @@ class Metrics:
             policy=_str(d, "policy", w),
             events=tuple(Event.from_dict(e, f"events[{n}].") for n, e in enumerate(events)),
             completed=_bool(d, "completed", w), completion=_str(d, "completion", w),
-            min_separation_m=_num(d, "min_separation_m", w, null=True), interventions=_int(d, "interventions", w),
+            min_separation_m=_num(d, "min_separation_m", w, null=True), closest_pairs=pairs,
+            closest_pair=None if closest is None else ClosestPair.from_dict(closest, "closest_pair."),
+            near_collision=_bool(d, "near_collision", w) if "near_collision" in d else None,
+            interventions=_int(d, "interventions", w),
             safety=SafetyInfo(_bool(safety, "enabled", "safety."), _num(safety, "radius_m", "safety.", null=True)),
             rejected_by_reason=rej,
             interrupted=_bool(d, "interrupted", w) if "interrupted" in d else None,
@@ -401,7 +444,13 @@ class Metrics:
             elif f.name == "rejected_by_reason":
                 if v is not None:
                     out[f.name] = {"world": dict(v.world), "vehicles": dict(v.vehicles)}
-            elif f.name == "interrupted":
+            elif f.name == "closest_pairs":
+                if v is not None:
+                    out[f.name] = {k: p.to_dict() for k, p in v.items()}
+            elif f.name == "closest_pair":
+                if "closest_pairs" in out:
+                    out[f.name] = None if v is None else v.to_dict()
+            elif f.name in ("interrupted", "near_collision"):
                 _opt(v, out, f.name)
             else:
                 out[f.name] = v
@@ -439,13 +488,15 @@ class Trace:
     edge_names: tuple[str, ...]  # (E,)
     edge_error: np.ndarray  # (T, E) |ω_i - ω_k - Δ_ik|, rad
     live: np.ndarray  # (T, N) bool: stepping at that tick
+    # (T, N) int: each vehicle's safety-filter interventions so far (None: a trace written before it was kept)
+    interventions: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         T, N, E = len(self.t), len(self.ids), len(self.edge_names)
         want = {"t": (T,), "q": (T, N, 3), "heading": (T, N), "omega": (T, N), "omega_rate": (T, N),
-                "path_error": (T, N), "edge_error": (T, E), "live": (T, N)}
+                "path_error": (T, N), "edge_error": (T, E), "live": (T, N), "interventions": (T, N)}
         for name, shape in want.items():
-            if getattr(self, name).shape != shape:
+            if getattr(self, name) is not None and getattr(self, name).shape != shape:
                 raise ValueError(f"trace: {name} has shape {getattr(self, name).shape}, expected {shape} "
                                  f"({T} ticks, {N} vehicles, {E} edges)")
 
@@ -459,7 +510,7 @@ class Trace:
                    heading=rec.view("heading").copy(), omega=rec.view("omega").copy(),
                    omega_rate=rec.view("omega_rate").copy(), path_error=rec.view("path_error").copy(),
                    edge_names=tuple(e.name for e in rec.edges), edge_error=rec.edge_error(),
-                   live=rec.view("live").copy())
+                   live=rec.view("live").copy(), interventions=rec.view("interventions").copy())
 
     @classmethod
     def from_npz(cls, path: str | os.PathLike) -> "Trace":
@@ -469,6 +520,7 @@ class Trace:
             if missing:
                 raise ValueError(f"{os.fspath(path)}: not a cdus trace: no {', '.join(missing)}")
             arrays = {k: z[k] for k in TRACE_ARRAYS}
+            arrays["interventions"] = z["interventions"] if "interventions" in z.files else None
             return cls(ids=tuple(str(x) for x in z["ids"]), edge_names=tuple(str(x) for x in z["edge_names"]),
                        **arrays)
 
@@ -476,11 +528,13 @@ class Trace:
         """Write as ``--trace-out`` does (a compressed ``.npz``; :meth:`from_npz` reads it)."""
         np.savez_compressed(path, t=self.t, ids=np.array(self.ids), q=self.q, heading=self.heading,
                             omega=self.omega, omega_rate=self.omega_rate, path_error=self.path_error,
-                            edge_error=self.edge_error, edge_names=np.array(self.edge_names), live=self.live)
+                            edge_error=self.edge_error, edge_names=np.array(self.edge_names), live=self.live,
+                            **({} if self.interventions is None else {"interventions": self.interventions}))
 
     def to_dataframe(self):
         """A pandas DataFrame, one row per (tick, vehicle): ``t, vehicle, x, y, z, heading,
-        omega, omega_rate, path_error, live`` (needs pandas: the ``api`` extra)."""
+        omega, omega_rate, path_error, live`` and ``interventions`` when the trace has them
+        (needs pandas: the ``api`` extra)."""
         pd = _needs("pandas", "Trace.to_dataframe")
         T, N = len(self.t), len(self.ids)
         return pd.DataFrame({
@@ -489,6 +543,7 @@ class Trace:
             "x": self.q[:, :, 0].ravel(), "y": self.q[:, :, 1].ravel(), "z": self.q[:, :, 2].ravel(),
             "heading": self.heading.ravel(), "omega": self.omega.ravel(), "omega_rate": self.omega_rate.ravel(),
             "path_error": self.path_error.ravel(), "live": self.live.ravel(),
+            **({} if self.interventions is None else {"interventions": self.interventions.ravel()}),
         })
 
     def edges_dataframe(self):
@@ -514,6 +569,8 @@ class Trace:
             "live": (tv, self.live, {"long_name": "stepping at that tick"}),
             "edge_error": (("t", "edge"), self.edge_error, {"units": "rad", "long_name": "|ω_i - ω_k - Δ_ik|"}),
         }
+        if self.interventions is not None:
+            data["interventions"] = (tv, self.interventions, {"long_name": "safety-filter interventions so far"})
         return xr.Dataset(data, coords={"t": ("t", self.t, {"units": "s"}), "vehicle": list(self.ids),
                                         "axis": ["x", "y", "z"], "edge": list(self.edge_names)})
 

@@ -215,7 +215,8 @@ def test_the_trace_as_a_dataframe_and_a_dataset(concentric):
     tr = concentric.trace
     T, N = len(tr), len(tr.ids)
     df = tr.to_dataframe()
-    assert list(df.columns) == ["t", "vehicle", "x", "y", "z", "heading", "omega", "omega_rate", "path_error", "live"]
+    assert list(df.columns) == ["t", "vehicle", "x", "y", "z", "heading", "omega", "omega_rate", "path_error", "live",
+                                "interventions"]
     assert len(df) == T * N
     row = df.iloc[7 * N + 2]  # tick 7, the third vehicle
     assert (row.t, row.vehicle, row.x, row.z, row.omega) == (tr.t[7], tr.ids[2], tr.q[7, 2, 0], tr.q[7, 2, 2],
