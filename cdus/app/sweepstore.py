@@ -34,7 +34,7 @@ FIELD_TYPES: dict[str, str] = {
     "final_coord_error_max": "float64", "omega_rate_mean": "float64", "link_sent": "int64",
     "link_delivered": "int64", "link_dropped": "int64", "link_rejected": "int64", "link_latency_ms_p50": "float64",
     "link_latency_ms_p99": "float64", "wall_s": "float64", "realtime_factor": "float64",
-    "omega_rate_final": "string", "min_separation_m": "float64", "interventions": "int64", "completed": "bool",
+    "omega_rate_final": "string", "min_separation_m": "float64", "near_collision": "bool", "interventions": "int64", "completed": "bool",
     "policy": "string", "live_final": "string",
 }
 FIELDS = tuple(FIELD_TYPES)
