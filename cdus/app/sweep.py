@@ -24,6 +24,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import multiprocessing
 import os
 import statistics
 import subprocess
@@ -521,6 +522,10 @@ def sweep(scenario: str | os.PathLike | Scenario,
     on Ctrl-C, after writing the tables of the rows done.
     """
     start = time.perf_counter()
+    if getattr(multiprocessing.current_process(), "_inheriting", False):  # as multiprocessing's own check
+        raise RuntimeError("a sweep was started while a worker process of a sweep was importing the main script "
+                           "(local workers are spawned: they import it): put the call under "
+                           "`if __name__ == \"__main__\":` (docs/api.md)")
     if clock not in CLOCKS:
         raise ConfigError("command line", [("--clock", f"expected one of {', '.join(CLOCKS)}, got {clock!r}")])
     g = normalize_grid(grid)
@@ -617,7 +622,16 @@ def _run_all(p: _Plan, base: Scenario, clock: str, ex: Any, log: RowLog, before:
                 except ConfigError as e:
                     record(j, {"status": "failed", "reason": f"config: {e}".replace("\n", "; ")})
                     continue
-                pending[ex.submit(run_task, resolved, clock)] = j
+                try:
+                    fut = ex.submit(run_task, resolved, clock)
+                except Exception as e:  # the executor is broken: nothing more is sent; what is in flight comes back lost
+                    lost += 1
+                    exhausted = True
+                    if not quiet:
+                        bar.write(f"the executor failed ({type(e).__name__}: {printable(str(e), 200)}): no more "
+                                  f"runs sent; the same command again runs what is missing", file=say)
+                    break
+                pending[fut] = j
             if not pending:
                 break
             finished, _ = ex.wait(set(pending))
