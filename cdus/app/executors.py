@@ -98,7 +98,8 @@ class ProcessExecutor(Executor):
         self.owner: dict[cf.Future, cf.ProcessPoolExecutor] = {}
 
     def _new_pool(self) -> cf.ProcessPoolExecutor:
-        return cf.ProcessPoolExecutor(max_workers=self.jobs, mp_context=get_context("spawn"))
+        return cf.ProcessPoolExecutor(max_workers=self.jobs, mp_context=get_context("spawn"),
+                                      initializer=_die_with_parent, initargs=(os.getpid(),))
 
     def submit(self, fn: Callable, *args: Any) -> cf.Future:
         try:
@@ -126,6 +127,23 @@ class ProcessExecutor(Executor):
 
     def close(self) -> None:
         self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+PARENT_POLL_S = 0.5
+
+
+def _die_with_parent(parent: int) -> None:
+    """In a pool worker: exit once the driver that started it is gone. A driver killed with
+    SIGKILL cannot stop its pool, and the workers would wait on its queue forever."""
+    import threading
+    import time
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="cdus-parent-watch", daemon=True).start()
 
 
 class DaskExecutor(Executor):

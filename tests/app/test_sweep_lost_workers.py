@@ -9,6 +9,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+import time
 import warnings
 from collections import Counter
 from pathlib import Path
@@ -93,3 +94,55 @@ def test_a_script_without_the_main_guard_is_told_so(tmp_path):
                           cwd=tmp_path, start_new_session=True)
     assert 'if __name__ == "__main__":' in proc.stderr
     assert "another sweep is running" not in proc.stderr
+
+
+def _children(pid: int) -> list[int]:
+    try:
+        with open(f"/proc/{pid}/task/{pid}/children") as fh:
+            return [int(c) for c in fh.read().split()]
+    except OSError:
+        return []
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            return fh.read().rsplit(")", 1)[1].split()[0] != "Z"  # a zombie has exited
+    except OSError:
+        return False
+
+
+@pytest.mark.skipif(not Path(f"/proc/{os.getpid()}/task/{os.getpid()}/children").exists(), reason="needs Linux /proc")
+def test_local_workers_exit_when_the_driver_is_killed(tmp_path):
+    """kill -9 of the driver (it cannot stop its pool): its worker processes go too, instead of
+    waiting on its queue forever."""
+    out = tmp_path / "out"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
+    proc = subprocess.Popen([sys.executable, "-m", "cdus", "sweep", CONFIG, "--set", "link.loss=0,0.1,0.2,0.3",
+                             "--seeds", "10", "--duration", "20", "--jobs", "2", "-q", "--out", str(out)],
+                            cwd=ROOT, env=env, start_new_session=True, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    workers: list[int] = []
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and proc.poll() is None:
+            workers = _children(proc.pid)
+            if len(workers) >= 2 and (out / "results.jsonl").exists() and (out / "results.jsonl").stat().st_size:
+                break
+            time.sleep(0.1)
+        assert proc.poll() is None and len(workers) >= 2, "the sweep ended before it was killed: proves nothing"
+        proc.kill()
+        proc.wait()
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and any(map(_alive, workers)):
+            time.sleep(0.2)
+        assert not [w for w in workers if _alive(w)], "workers left behind"
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+        for w in workers:
+            try:
+                os.kill(w, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
