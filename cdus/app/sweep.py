@@ -675,8 +675,8 @@ def _finish(out: Path, base: Scenario, g: Grid, p: _Plan, clock: str, executor: 
         if seeds == list(range(seeds[0], seeds[-1] + 1)) else "seeds " + ", ".join(map(str, seeds))
     rate = f" ({60 * ran / wall:.1f} runs per minute)" if ran and wall > 0 else ""
     lines = [f"# Sweep of {base.source}", "",
-             f"{n} of {p.size} runs in the table ({_count(len(p.cells), 'cell')} × {seed_text}; {clock} clock, "
-             f"{executor}). This call: {_count(ran, 'run')} in {fmt_duration(wall)}{rate}"
+             f"{n} of {p.size} runs in the table ({_count(len(p.cells), 'cell')} × {seed_text}; "
+             f"{base.duration:g} simulated s per run; {clock} clock, {executor}). This call: {_count(ran, 'run')} in {fmt_duration(wall)}{rate}"
              + (f", {resumed} done before" if resumed else "")
              + (f", {lost} lost by the executor (run again to retry)" if lost else "")
              + (", interrupted" if interrupted else "") + "."]

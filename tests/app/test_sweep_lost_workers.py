@@ -146,3 +146,9 @@ def test_local_workers_exit_when_the_driver_is_killed(tmp_path):
                 os.kill(w, signal.SIGKILL)
             except ProcessLookupError:
                 pass
+
+
+def test_the_summary_says_how_long_each_run_was(tmp_path):
+    """"never settled" means "not within the run": the summary says how long a run was."""
+    sweep(CONFIG, {"link.loss": [0]}, 1, tmp_path, jobs=1, duration=3.0, quiet=True)
+    assert "3 simulated s per run" in (tmp_path / "summary.md").read_text()
