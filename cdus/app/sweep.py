@@ -624,7 +624,7 @@ def _run_all(p: _Plan, base: Scenario, clock: str, ex: Any, log: RowLog, before:
                     continue
                 try:
                     fut = ex.submit(run_task, resolved, clock)
-                except Exception as e:  # the executor is broken: nothing more is sent; what is in flight comes back lost
+                except Exception as e:  # a broken executor: nothing more is sent, what is in flight comes back lost
                     lost += 1
                     exhausted = True
                     if not quiet:
@@ -676,7 +676,8 @@ def _finish(out: Path, base: Scenario, g: Grid, p: _Plan, clock: str, executor: 
     rate = f" ({60 * ran / wall:.1f} runs per minute)" if ran and wall > 0 else ""
     lines = [f"# Sweep of {base.source}", "",
              f"{n} of {p.size} runs in the table ({_count(len(p.cells), 'cell')} × {seed_text}; "
-             f"{base.duration:g} simulated s per run; {clock} clock, {executor}). This call: {_count(ran, 'run')} in {fmt_duration(wall)}{rate}"
+             f"{base.duration:g} simulated s per run; {clock} clock, {executor}). This call: "
+             f"{_count(ran, 'run')} in {fmt_duration(wall)}{rate}"
              + (f", {resumed} done before" if resumed else "")
              + (f", {lost} lost by the executor (run again to retry)" if lost else "")
              + (", interrupted" if interrupted else "") + "."]
