@@ -311,14 +311,28 @@ SUFFIX_UNITS = {".loss": "fraction", ".duplicate": "fraction", ".bad_loss": "fra
                 ".phase": "ω units"}
 
 
-def axis_label(key: str) -> str:
-    """A grid key with its unit where known: ``link.delay.base (s)``, ``link.loss (fraction)``."""
+def unit_of(key: str) -> str | None:
+    """A grid key's unit where known: ``s``, ``Hz``, ``fraction``..."""
     unit = UNITS.get(key)
     if unit is None and key.startswith("rates."):
         unit = "Hz"
     if unit is None:
         unit = next((u for sfx, u in SUFFIX_UNITS.items() if key.endswith(sfx) or key == sfx[1:]), None)
+    return unit
+
+
+def axis_label(key: str) -> str:
+    """A grid key with its unit where known: ``link.delay.base (s)``, ``link.loss (fraction)``."""
+    unit = unit_of(key)
     return f"{key} ({unit})" if unit else key
+
+
+def value_label(key: str, value: Any) -> str:
+    """A grid value in a legend or a title, with its physical unit: ``link.delay.base=0.2 s``,
+    ``rates.control=20 Hz``, ``link.loss=0.2`` (a fraction needs none)."""
+    unit = unit_of(key)
+    text = f"{key}={cell_label(value)}"
+    return f"{text} {unit}" if unit and unit not in ("fraction", "probability", "ω units") else text
 
 
 def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "") -> dict[str, Any]:
@@ -336,13 +350,13 @@ def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "")
     fixed = [k for k in others if len({canonical(dict(c.cell)[k]) for c in cells if c.runs}) == 1]
     if fixed:  # keys with one value go in the title, not in every legend entry
         first = dict(next((c for c in cells if c.runs), cells[0]).cell)
-        title = ", ".join([title] * bool(title) + [f"{k}={cell_label(first[k])}" for k in fixed])
+        title = ", ".join([title] * bool(title) + [value_label(k, first[k]) for k in fixed])
         others = [k for k in others if k not in fixed]
     series: dict[tuple, list[CellSummary]] = {}
     for c in cells:
         if c.runs:
             values = dict(c.cell)
-            series.setdefault(tuple(cell_label(values[k]) for k in others), []).append(c)
+            series.setdefault(tuple(value_label(k, values[k]) for k in others), []).append(c)
     xs_all = [dict(c.cell)[x_key] if x_key else "all runs" for c in cells if c.runs]
     numeric = all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in xs_all)
     categories = list(dict.fromkeys(canonical(x) for x in xs_all))
@@ -358,7 +372,7 @@ def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "")
     for si, (label, group) in enumerate(series.items()):
         group = sorted(group, key=lambda c: pos(dict(c.cell)[x_key]) if x_key else 0.0)
         xs = [pos(dict(c.cell)[x_key]) if x_key else 0.0 for c in group]
-        name = ", ".join(f"{k}={v}" for k, v in zip(others, label)) or None
+        name = ", ".join(label) or None
         for ai, (ax, (fld, _, _)) in enumerate(zip(axes, panels)):
             means = [c.stats[fld].mean if c.stats[fld].n else math.nan for c in group]
             lo = [m - c.stats[fld].lo if c.stats[fld].n else 0.0 for m, c in zip(means, group)]
@@ -386,6 +400,7 @@ def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "")
             ax.set_xticks(range(len(categories)), [str(cell_label(json.loads(c))) for c in categories],
                           fontsize=8, rotation=15 if max(map(len, categories), default=0) > 12 else 0)
         if not ok:
+            ax.set_yticks([])  # no values: no scale (matplotlib's default one runs through negative times)
             ax.text(0.5, 0.5, empty, transform=ax.transAxes, ha="center", va="center", fontsize=13, color="0.4")
             drawn["empty"].append(empty)
         elif n_series > 1 or others:
