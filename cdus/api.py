@@ -23,6 +23,7 @@ import os
 import tempfile
 import threading
 import time
+import warnings
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
@@ -841,6 +842,10 @@ def sweep(config: str | os.PathLike | Scenario, grid: Mapping[str, Sequence[Any]
                              seeds if isinstance(seeds, int) else list(seeds), Path(out), overrides=fixed,
                              clock=clock, executor=executor, cluster=cluster, jobs=jobs,
                              duration=None if duration is None else float(duration), quiet=quiet)
+    if result.done < result.planned:  # runs lost by the executor (a worker died): say so, the table is short
+        warnings.warn(f"{result.planned - result.done} of {result.planned} runs are not in the table: the executor "
+                      f"lost them ({result.lost} lost, a worker process died?); the same call again runs only those",
+                      RuntimeWarning, stacklevel=2)
     try:
         return result.table()
     except ImportError:

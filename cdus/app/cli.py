@@ -122,7 +122,7 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Run a grid of overrides x seeds on local processes or a Dask cluster; each "
                                    "finished run is appended to --out/results.jsonl at once, and the same command "
                                    "again resumes (runs only what is missing). At the end: results.csv, "
-                                   "results.parquet, summary.md (mean, sd, 95 %% bootstrap CI per cell) and "
+                                   "results.parquet, summary.md (mean, sd, 95 % bootstrap CI per cell) and "
                                    "sweep.png.")
     p.add_argument("config", help="scenario file (TOML)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=V1,V2,...",

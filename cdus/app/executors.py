@@ -16,6 +16,7 @@ import concurrent.futures as cf
 import contextlib
 import os
 import signal
+from concurrent.futures.process import BrokenProcessPool
 from multiprocessing import get_context
 from typing import Any, Callable, Iterator
 
@@ -23,6 +24,7 @@ from cdus.scenario.config import ConfigError
 
 EXECUTORS = ("local", "dask")
 CONNECT_TIMEOUT_S = 10.0
+FRUITLESS_POOLS = 2  # local pools in a row that may break before finishing a task before the executor gives up
 # A LocalCluster on loopback only: the scheduler, the workers and the scheduler's HTTP server
 # (health checks; it always runs, on 8787 by default) on 127.0.0.1, on free ports, no dashboard.
 LOCAL_CLUSTER = {"host": "127.0.0.1", "dashboard_address": None, "worker_dashboard_address": None,
@@ -77,22 +79,71 @@ class InlineExecutor(Executor):
 
 
 class ProcessExecutor(Executor):
-    """A pool of ``jobs`` spawned processes of this machine."""
+    """A pool of ``jobs`` spawned processes of this machine.
+
+    A worker process that dies (killed, out of memory) breaks the whole pool: the runs in
+    flight on it come back as the executor's failures (lost, run again by the next call) and
+    the next ``submit`` starts a new pool, so the sweep goes on. After ``FRUITLESS_POOLS``
+    pools in a row broke before finishing any task (the processes cannot start, e.g. a
+    script without the ``__main__`` guard), ``submit`` raises ``BrokenProcessPool``."""
 
     def __init__(self, jobs: int):
         self.jobs = jobs
         self.slots = 2 * jobs
         self.name = f"local ({jobs} processes)"
-        self.pool = cf.ProcessPoolExecutor(max_workers=jobs, mp_context=get_context("spawn"))
+        self.pool = self._new_pool()
+        self.finished = 0  # tasks the current pool finished
+        self.replaced = 0  # broken pools replaced
+        self.fruitless = 0  # pools in a row that broke before finishing a task
+        self.owner: dict[cf.Future, cf.ProcessPoolExecutor] = {}
+
+    def _new_pool(self) -> cf.ProcessPoolExecutor:
+        return cf.ProcessPoolExecutor(max_workers=self.jobs, mp_context=get_context("spawn"),
+                                      initializer=_die_with_parent, initargs=(os.getpid(),))
 
     def submit(self, fn: Callable, *args: Any) -> cf.Future:
-        return self.pool.submit(fn, *args)
+        try:
+            fut = self.pool.submit(fn, *args)
+        except BrokenProcessPool:
+            self.fruitless = 0 if self.finished else self.fruitless + 1
+            if self.fruitless >= FRUITLESS_POOLS:  # its processes die before finishing anything: they cannot start
+                raise
+            self.pool.shutdown(wait=False, cancel_futures=True)
+            self.pool, self.finished = self._new_pool(), 0
+            self.replaced += 1
+            fut = self.pool.submit(fn, *args)
+        self.owner[fut] = self.pool
+        return fut
+
+    def result(self, fut: Any) -> Any:
+        pool = self.owner.pop(fut, None)
+        value = fut.result()
+        if pool is self.pool:
+            self.finished += 1
+        return value
 
     def cancel(self, pending: set) -> None:
         self.pool.shutdown(wait=False, cancel_futures=True)
 
     def close(self) -> None:
         self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+PARENT_POLL_S = 0.5
+
+
+def _die_with_parent(parent: int) -> None:
+    """In a pool worker: exit once the driver that started it is gone. A driver killed with
+    SIGKILL cannot stop its pool, and the workers would wait on its queue forever."""
+    import threading
+    import time
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="cdus-parent-watch", daemon=True).start()
 
 
 class DaskExecutor(Executor):

@@ -24,6 +24,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import multiprocessing
 import os
 import statistics
 import subprocess
@@ -310,14 +311,28 @@ SUFFIX_UNITS = {".loss": "fraction", ".duplicate": "fraction", ".bad_loss": "fra
                 ".phase": "ω units"}
 
 
-def axis_label(key: str) -> str:
-    """A grid key with its unit where known: ``link.delay.base (s)``, ``link.loss (fraction)``."""
+def unit_of(key: str) -> str | None:
+    """A grid key's unit where known: ``s``, ``Hz``, ``fraction``..."""
     unit = UNITS.get(key)
     if unit is None and key.startswith("rates."):
         unit = "Hz"
     if unit is None:
         unit = next((u for sfx, u in SUFFIX_UNITS.items() if key.endswith(sfx) or key == sfx[1:]), None)
+    return unit
+
+
+def axis_label(key: str) -> str:
+    """A grid key with its unit where known: ``link.delay.base (s)``, ``link.loss (fraction)``."""
+    unit = unit_of(key)
     return f"{key} ({unit})" if unit else key
+
+
+def value_label(key: str, value: Any) -> str:
+    """A grid value in a legend or a title, with its physical unit: ``link.delay.base=0.2 s``,
+    ``rates.control=20 Hz``, ``link.loss=0.2`` (a fraction needs none)."""
+    unit = unit_of(key)
+    text = f"{key}={cell_label(value)}"
+    return f"{text} {unit}" if unit and unit not in ("fraction", "probability", "ω units") else text
 
 
 def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "") -> dict[str, Any]:
@@ -335,13 +350,13 @@ def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "")
     fixed = [k for k in others if len({canonical(dict(c.cell)[k]) for c in cells if c.runs}) == 1]
     if fixed:  # keys with one value go in the title, not in every legend entry
         first = dict(next((c for c in cells if c.runs), cells[0]).cell)
-        title = ", ".join([title] * bool(title) + [f"{k}={cell_label(first[k])}" for k in fixed])
+        title = ", ".join([title] * bool(title) + [value_label(k, first[k]) for k in fixed])
         others = [k for k in others if k not in fixed]
     series: dict[tuple, list[CellSummary]] = {}
     for c in cells:
         if c.runs:
             values = dict(c.cell)
-            series.setdefault(tuple(cell_label(values[k]) for k in others), []).append(c)
+            series.setdefault(tuple(value_label(k, values[k]) for k in others), []).append(c)
     xs_all = [dict(c.cell)[x_key] if x_key else "all runs" for c in cells if c.runs]
     numeric = all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in xs_all)
     categories = list(dict.fromkeys(canonical(x) for x in xs_all))
@@ -357,7 +372,7 @@ def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "")
     for si, (label, group) in enumerate(series.items()):
         group = sorted(group, key=lambda c: pos(dict(c.cell)[x_key]) if x_key else 0.0)
         xs = [pos(dict(c.cell)[x_key]) if x_key else 0.0 for c in group]
-        name = ", ".join(f"{k}={v}" for k, v in zip(others, label)) or None
+        name = ", ".join(label) or None
         for ai, (ax, (fld, _, _)) in enumerate(zip(axes, panels)):
             means = [c.stats[fld].mean if c.stats[fld].n else math.nan for c in group]
             lo = [m - c.stats[fld].lo if c.stats[fld].n else 0.0 for m, c in zip(means, group)]
@@ -385,6 +400,7 @@ def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "")
             ax.set_xticks(range(len(categories)), [str(cell_label(json.loads(c))) for c in categories],
                           fontsize=8, rotation=15 if max(map(len, categories), default=0) > 12 else 0)
         if not ok:
+            ax.set_yticks([])  # no values: no scale (matplotlib's default one runs through negative times)
             ax.text(0.5, 0.5, empty, transform=ax.transAxes, ha="center", va="center", fontsize=13, color="0.4")
             drawn["empty"].append(empty)
         elif n_series > 1 or others:
@@ -521,6 +537,10 @@ def sweep(scenario: str | os.PathLike | Scenario,
     on Ctrl-C, after writing the tables of the rows done.
     """
     start = time.perf_counter()
+    if getattr(multiprocessing.current_process(), "_inheriting", False):  # as multiprocessing's own check
+        raise RuntimeError("a sweep was started while a worker process of a sweep was importing the main script "
+                           "(local workers are spawned: they import it): put the call under "
+                           "`if __name__ == \"__main__\":` (docs/api.md)")
     if clock not in CLOCKS:
         raise ConfigError("command line", [("--clock", f"expected one of {', '.join(CLOCKS)}, got {clock!r}")])
     g = normalize_grid(grid)
@@ -617,7 +637,16 @@ def _run_all(p: _Plan, base: Scenario, clock: str, ex: Any, log: RowLog, before:
                 except ConfigError as e:
                     record(j, {"status": "failed", "reason": f"config: {e}".replace("\n", "; ")})
                     continue
-                pending[ex.submit(run_task, resolved, clock)] = j
+                try:
+                    fut = ex.submit(run_task, resolved, clock)
+                except Exception as e:  # a broken executor: nothing more is sent, what is in flight comes back lost
+                    lost += 1
+                    exhausted = True
+                    if not quiet:
+                        bar.write(f"the executor failed ({type(e).__name__}: {printable(str(e), 200)}): no more "
+                                  f"runs sent; the same command again runs what is missing", file=say)
+                    break
+                pending[fut] = j
             if not pending:
                 break
             finished, _ = ex.wait(set(pending))
@@ -661,8 +690,9 @@ def _finish(out: Path, base: Scenario, g: Grid, p: _Plan, clock: str, executor: 
         if seeds == list(range(seeds[0], seeds[-1] + 1)) else "seeds " + ", ".join(map(str, seeds))
     rate = f" ({60 * ran / wall:.1f} runs per minute)" if ran and wall > 0 else ""
     lines = [f"# Sweep of {base.source}", "",
-             f"{n} of {p.size} runs in the table ({_count(len(p.cells), 'cell')} × {seed_text}; {clock} clock, "
-             f"{executor}). This call: {_count(ran, 'run')} in {fmt_duration(wall)}{rate}"
+             f"{n} of {p.size} runs in the table ({_count(len(p.cells), 'cell')} × {seed_text}; "
+             f"{base.duration:g} simulated s per run; {clock} clock, {executor}). This call: "
+             f"{_count(ran, 'run')} in {fmt_duration(wall)}{rate}"
              + (f", {resumed} done before" if resumed else "")
              + (f", {lost} lost by the executor (run again to retry)" if lost else "")
              + (", interrupted" if interrupted else "") + "."]

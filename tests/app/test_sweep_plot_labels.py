@@ -1,0 +1,47 @@
+"""sweep.png: every value in a legend or the title carries its unit, and a panel with no
+values shows no scale."""
+
+from matplotlib.figure import Figure
+
+from cdus.app.stats import describe
+from cdus.app.sweep import CellSummary, plot, value_label
+
+
+def _cell(cell, settle, error):
+    c = CellSummary(cell, runs=len(error), ok=len(error))
+    c.values["coord_settle_s"] = settle
+    c.values["final_coord_error_max"] = error
+    c.stats = {f: describe(v, seed=0) for f, v in c.values.items()}
+    return c
+
+
+def drawn_figure(monkeypatch, *args):
+    figs = []
+    monkeypatch.setattr(Figure, "savefig", lambda self, *a, **k: figs.append(self))
+    plot(*args)
+    (fig,) = figs
+    return fig
+
+
+def test_values_carry_their_physical_units():
+    assert value_label("link.delay.base", 0.2) == "link.delay.base=0.2 s"
+    assert value_label("rates.control", 20) == "rates.control=20 Hz"
+    assert value_label("link.loss", 0.2) == "link.loss=0.2"
+    assert value_label("link.policy", "hold") == "link.policy=hold"
+
+
+def test_legend_and_title_say_the_units(monkeypatch, tmp_path):
+    keys = ["link.loss", "link.delay.base", "rates.control"]
+    cells = [_cell((("link.loss", loss), ("link.delay.base", d), ("rates.control", 20)), [10.0, 12.0], [0.01, 0.02])
+             for loss in (0, 0.2) for d in (0, 0.1)]
+    fig = drawn_figure(monkeypatch, keys, cells, tmp_path / "p.png", "t")
+    legend = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert legend == ["link.delay.base=0 s", "link.delay.base=0.1 s"]
+    assert "rates.control=20 Hz" in fig.get_suptitle()
+
+
+def test_a_panel_with_nothing_to_show_has_no_scale(monkeypatch, tmp_path):
+    cells = [_cell((("link.loss", 0),), [], [0.1, 0.2]), _cell((("link.loss", 0.2),), [], [0.2, 0.3])]
+    fig = drawn_figure(monkeypatch, ["link.loss"], cells, tmp_path / "p.png")
+    settle, error = fig.axes
+    assert list(settle.get_yticks()) == [] and len(error.get_yticks()) > 0
