@@ -847,6 +847,31 @@ def sweep(config: str | os.PathLike | Scenario, grid: Mapping[str, Sequence[Any]
                       f"lost them ({result.lost} lost, a worker process died?); the same call again runs only those",
                       RuntimeWarning, stacklevel=2)
     try:
-        return result.table()
+        table = result.table()
     except ImportError:
         return result.rows()
+    table.attrs["cells"] = cell_statistics(result)
+    return table
+
+
+def cell_statistics(result: "app_sweep.SweepResult"):
+    """A sweep's per-cell statistics as a pandas DataFrame (what summary.md shows), one row
+    per cell: the grid values, ``runs``, ``ok``, and for each of coord_settle_s,
+    final_coord_error_max, path_settle_s and final_path_error_max: ``<field>_n`` (the ok
+    runs with a value; for a settle time, those that settled), ``_mean``, ``_std`` (n - 1;
+    None below 2 values), ``_ci_lo`` and ``_ci_hi`` (the 95 % percentile bootstrap interval
+    of the mean, 2,000 resamples, seeded). ``cdus.sweep``'s table carries it as
+    ``table.attrs["cells"]``."""
+    pd = _needs("pandas", "cdus.cell_statistics")
+    rows = []
+    for c in result.cells:
+        row: dict[str, Any] = {k: v for k, v in c.cell}
+        row["runs"], row["ok"] = c.runs, c.ok
+        for f in app_sweep.STAT_FIELDS:
+            st = c.stats.get(f)
+            for name, v in (("n", None if st is None else st.n), ("mean", None if st is None else st.mean),
+                            ("std", None if st is None else st.std), ("ci_lo", None if st is None else st.lo),
+                            ("ci_hi", None if st is None else st.hi)):
+                row[f"{f}_{name}"] = v
+        rows.append(row)
+    return pd.DataFrame(rows)

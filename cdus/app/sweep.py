@@ -574,6 +574,7 @@ def sweep(scenario: str | os.PathLike | Scenario,
             before = scan_rows(rows_path, p.index_of)
             log.cut(before.end)
             write_manifest(out, manifest)
+            write_json(out / "scenario.json", base.raw)  # what every run started from, overrides applied
             ran, lost, interrupted = _run_all(p, base, clock, ex, log, before, quiet, stream or sys.stderr, out)
         result = _finish(out, base, g, p, clock, ex.describe(), before, ran, lost, interrupted,
                          time.perf_counter() - start)

@@ -379,8 +379,15 @@ def test_a_sweep_through_the_api_gives_its_table(tmp_path, monkeypatch):
         plt.switch_backend(before)
     assert (tmp_path / "sw/sweep.png").exists()
     assert (tmp_path / "sw/results.csv").exists() and (tmp_path / "sw/results.parquet").exists()
+    assert json.loads((tmp_path / "sw/scenario.json").read_text())["scenario"]["seed"] == 7  # the fixed override
     assert list(table["link.loss"]) == [0, 0, 0.3, 0.3] and list(table["seed"]) == [7, 8, 7, 8]
     assert set(table["status"]) == {"ok"}
+    cells = table.attrs["cells"]  # the per-cell statistics of summary.md, as a table
+    assert list(cells["link.loss"]) == [0, 0.3] and list(cells["runs"]) == [2, 2] and list(cells["ok"]) == [2, 2]
+    for _, c in cells.iterrows():
+        errs = table[table["link.loss"] == c["link.loss"]]["final_coord_error_max"]
+        assert c["final_coord_error_max_n"] == 2 and c["final_coord_error_max_mean"] == pytest.approx(errs.mean())
+        assert c["final_coord_error_max_ci_lo"] <= c["final_coord_error_max_mean"] <= c["final_coord_error_max_ci_hi"]
     one = cdus.run(cdus.override(sc, {"link.loss": 0.3, "scenario.seed": 8, "scenario.duration": 4}))
     row = table.iloc[3]
     assert row.final_coord_error_max == one.metrics.final_coord_error_max
