@@ -83,7 +83,8 @@ class ProcessExecutor(Executor):
         self.jobs = jobs
         self.slots = 2 * jobs
         self.name = f"local ({jobs} processes)"
-        self.pool = cf.ProcessPoolExecutor(max_workers=jobs, mp_context=get_context("spawn"))
+        self.pool = cf.ProcessPoolExecutor(max_workers=jobs, mp_context=get_context("spawn"),
+                                           initializer=_die_with_parent, initargs=(os.getpid(),))
 
     def submit(self, fn: Callable, *args: Any) -> cf.Future:
         return self.pool.submit(fn, *args)
@@ -93,6 +94,21 @@ class ProcessExecutor(Executor):
 
     def close(self) -> None:
         self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _die_with_parent(parent: int) -> None:
+    """A pool worker's initializer: end this worker when the driver dies. A driver killed with
+    SIGKILL (or by the OOM killer) runs no cleanup, and the pool's workers would otherwise wait
+    on their task queue forever (each holds the queue's other end, so no EOF ever comes)."""
+    import threading
+    import time
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(1.0)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="cdus-parent-watch", daemon=True).start()
 
 
 class DaskExecutor(Executor):
@@ -175,7 +191,12 @@ def _probe(address: str, timeout: float) -> None:
         comm = await connect(address, timeout=timeout)
         await comm.close()
 
-    asyncio.run(once())
+    # connect's timeout bounds the TCP connect, not Dask's handshake after it: a listener that
+    # accepts and says nothing (not a scheduler) would hang here forever without this bound.
+    try:
+        asyncio.run(asyncio.wait_for(once(), timeout))
+    except asyncio.TimeoutError:
+        raise TimeoutError(f"{address} accepted the connection but did not answer as a Dask scheduler") from None
 
 
 def make_executor(executor: str = "local", cluster: str | None = None, jobs: int | None = None,
