@@ -311,6 +311,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     except SweepInterrupted as e:
         print(f"\n{e.message}", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except KeyboardInterrupt:  # a second Ctrl-C while the first one's tables were written or the workers stopped
+        print(f"\ninterrupted again: the runs done are kept in {Path(args.out) / ROWS} (the tables may be those of "
+              f"an earlier run, or missing). Run the same command again (same --out) to run the others and write "
+              f"the tables.", file=sys.stderr)
+        return EXIT_INTERRUPTED
     finally:
         signal.signal(signal.SIGTERM, before)
     print(res.summary.read_text())

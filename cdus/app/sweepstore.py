@@ -264,15 +264,30 @@ def write_tables(out: Path, keys: Sequence[str], key_types: Sequence[str], rows:
     """results.csv and results.parquet from ``rows`` (plan order), ``batch`` rows in memory
     at a time; returns how many rows."""
     import pyarrow as pa
-    import pyarrow.parquet as pq
 
     columns = [*keys, "seed", "status", "reason", *FIELDS]
     types = {**dict(zip(keys, key_types)), "seed": "int64", "status": "string", "reason": "string", **FIELD_TYPES}
     arrow = {"float64": pa.float64(), "int64": pa.int64(), "bool": pa.bool_(), "string": pa.string(),
              "json": pa.string()}
     schema = pa.schema([pa.field(c, arrow[types[c]]) for c in columns])
-    n = 0
     csv_tmp, pq_tmp = out / (CSV + ".tmp"), out / (PARQUET + ".tmp")
+    try:
+        n = _write(csv_tmp, pq_tmp, columns, keys, types, schema, rows, batch)
+    except BaseException:  # a second Ctrl-C, a full disk: no half-written table left behind
+        csv_tmp.unlink(missing_ok=True)
+        pq_tmp.unlink(missing_ok=True)
+        raise
+    os.replace(csv_tmp, out / CSV)
+    os.replace(pq_tmp, out / PARQUET)
+    return n
+
+
+def _write(csv_tmp: Path, pq_tmp: Path, columns: list, keys: Sequence[str], types: dict, schema: Any,
+           rows: Iterator[dict], batch: int) -> int:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    n = 0
     with open(csv_tmp, "w", newline="") as fh, pq.ParquetWriter(pq_tmp, schema) as writer:
         w = csv.DictWriter(fh, fieldnames=columns, extrasaction="ignore")
         w.writeheader()
@@ -292,6 +307,4 @@ def write_tables(out: Path, keys: Sequence[str], key_types: Sequence[str], rows:
             if len(chunk) >= batch:
                 flush()
         flush()
-    os.replace(csv_tmp, out / CSV)
-    os.replace(pq_tmp, out / PARQUET)
     return n

@@ -229,3 +229,26 @@ def test_a_seed_the_table_cannot_hold_is_refused_before_any_run(tmp_path, seeds)
 def test_a_plan_too_large_to_list_is_refused_before_it_is_made(tmp_path):
     with pytest.raises(ConfigError, match="more than 10,000,000 runs"):
         sweep(CONFIG, GRID, 10 ** 12, tmp_path / "o", jobs=1, duration=5.0, quiet=True)
+
+
+def test_tables_interrupted_while_written_leave_no_half_written_file(tmp_path):
+    def rows():
+        yield {"cell": {"link.loss": 0}, "seed": 1, "status": "ok"}
+        raise KeyboardInterrupt  # the second Ctrl-C
+
+    with pytest.raises(KeyboardInterrupt):
+        write_tables(tmp_path, ["link.loss"], ["int64"], rows())
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_second_ctrl_c_is_exit_130_saying_how_to_resume_not_a_traceback(tmp_path, monkeypatch, capsys):
+    import cdus.app.cli as cli
+
+    def interrupted_twice(*args, **kwargs):
+        raise KeyboardInterrupt  # not a SweepInterrupted: the second one came while the first was handled
+
+    monkeypatch.setattr(cli, "sweep", interrupted_twice)
+    code = cli.main(["sweep", CONFIG, "--set", "link.loss=0", "--seeds", "1", "--duration", "5", "-q", "--out",
+                     str(tmp_path / "o")])
+    assert code == 130
+    assert "interrupted again" in capsys.readouterr().err
