@@ -252,3 +252,32 @@ def test_a_second_ctrl_c_is_exit_130_saying_how_to_resume_not_a_traceback(tmp_pa
                      str(tmp_path / "o")])
     assert code == 130
     assert "interrupted again" in capsys.readouterr().err
+
+
+def test_a_disk_that_fills_up_mid_sweep_is_an_error_saying_how_to_resume_and_loses_no_row(tmp_path, monkeypatch,
+                                                                                            capsys):
+    import errno
+
+    import cdus.app.cli as cli
+    from cdus.app.sweepstore import RowLog
+
+    real = RowLog.append
+    written: list = []
+
+    def fills_up(self, row):
+        if len(written) == 2:
+            os.write(self.fd, b'{"cell":{"link.lo')  # what fit before ENOSPC: a torn line
+            raise OSError(errno.ENOSPC, "No space left on device")
+        written.append(row)
+        real(self, row)
+
+    monkeypatch.setattr(RowLog, "append", fills_up)
+    out = tmp_path / "o"
+    args = ["sweep", CONFIG, "--set", "link.loss=0,0.2", "--seeds", "2", "--duration", "5", "--jobs", "1", "-q",
+            "--out", str(out)]
+    assert cli.main(args) == 1
+    err = capsys.readouterr().err
+    assert "No space left on device" in err and "run the same command again" in err
+    monkeypatch.undo()
+    assert cli.main(args) == 0
+    assert len(_pairs(out)) == 4 and set(_pairs(out).values()) == {1}
