@@ -24,6 +24,7 @@ import tempfile
 import threading
 import time
 import warnings
+import zipfile
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
@@ -516,14 +517,32 @@ class Trace:
     @classmethod
     def from_npz(cls, path: str | os.PathLike) -> "Trace":
         """Read a ``--trace-out`` file (``.npz``)."""
-        with np.load(path, allow_pickle=False) as z:
-            missing = [k for k in (*TRACE_ARRAYS, "ids", "edge_names") if k not in z.files]
-            if missing:
-                raise ValueError(f"{os.fspath(path)}: not a cdus trace: no {', '.join(missing)}")
-            arrays = {k: z[k] for k in TRACE_ARRAYS}
-            arrays["interventions"] = z["interventions"] if "interventions" in z.files else None
-            return cls(ids=tuple(str(x) for x in z["ids"]), edge_names=tuple(str(x) for x in z["edge_names"]),
-                       **arrays)
+        where = os.fspath(path)
+        try:
+            z = np.load(path, allow_pickle=False)
+            if not isinstance(z, np.lib.npyio.NpzFile):  # a plain .npy: one array
+                raise ValueError("a single array, not an .npz archive")
+            with z:
+                missing = [k for k in (*TRACE_ARRAYS, "ids", "edge_names") if k not in z.files]
+                if missing:
+                    raise ValueError(f"no {', '.join(missing)}")
+                names = [*TRACE_ARRAYS, "ids", "edge_names"] + (["interventions"] if "interventions" in z.files
+                                                                else [])
+                arrays = {k: z[k] for k in names}
+        except (EOFError, zipfile.BadZipFile, ValueError, UnicodeError) as e:  # OSError (no such file) as it is
+            raise ValueError(f"{where}: not a cdus trace: {e}") from None
+        for k, a in arrays.items():  # a member that is not a .npy comes back as bytes
+            text = k in ("ids", "edge_names")
+            if not isinstance(a, np.ndarray) or (a.ndim != 1 if text else a.ndim == 0 or a.dtype.kind not in "biuf"):
+                what = type(a).__name__ if not isinstance(a, np.ndarray) else f"{a.ndim}-d {a.dtype}"
+                raise ValueError(f"{where}: not a cdus trace: {k} is {what}, expected "
+                                 + ("a 1-d array of names" if text else "a numeric array"))
+        ids, edge_names = arrays.pop("ids"), arrays.pop("edge_names")
+        arrays.setdefault("interventions", None)
+        try:
+            return cls(ids=tuple(str(x) for x in ids), edge_names=tuple(str(x) for x in edge_names), **arrays)
+        except ValueError as e:  # the shapes do not fit together
+            raise ValueError(f"{where}: not a cdus trace: {e}") from None
 
     def save(self, path: str | os.PathLike) -> None:
         """Write as ``--trace-out`` does (a compressed ``.npz``; :meth:`from_npz` reads it)."""

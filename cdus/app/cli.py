@@ -311,6 +311,16 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     except SweepInterrupted as e:
         print(f"\n{e.message}", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except KeyboardInterrupt:  # a second Ctrl-C while the first one's tables were written or the workers stopped
+        print(f"\ninterrupted again: the runs done are kept in {Path(args.out) / ROWS} (the tables may be those of "
+              f"an earlier run, or missing). Run the same command again (same --out) to run the others and write "
+              f"the tables.", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except OSError as e:  # the disk filled up or went read-only mid-sweep: whole rows are kept, a torn one cut
+        print(f"error: writing the results into {args.out} failed: {e}. The runs done are kept in "
+              f"{Path(args.out) / ROWS}; make room and run the same command again (same --out) to run the others.",
+              file=sys.stderr)
+        return EXIT_FAIL
     finally:
         signal.signal(signal.SIGTERM, before)
     print(res.summary.read_text())

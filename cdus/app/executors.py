@@ -226,7 +226,12 @@ def _probe(address: str, timeout: float) -> None:
         comm = await connect(address, timeout=timeout)
         await comm.close()
 
-    asyncio.run(once())
+    # connect's timeout bounds the TCP connect, not Dask's handshake after it: a listener that
+    # accepts and says nothing (not a scheduler) would hang here forever without this bound.
+    try:
+        asyncio.run(asyncio.wait_for(once(), timeout))
+    except asyncio.TimeoutError:
+        raise TimeoutError(f"{address} accepted the connection but did not answer as a Dask scheduler") from None
 
 
 def make_executor(executor: str = "local", cluster: str | None = None, jobs: int | None = None,

@@ -55,6 +55,8 @@ __all__ = ["sweep", "SweepResult", "SweepInterrupted", "parse_grid", "check_grid
            "CLOCKS", "cell_label"]
 
 CLOCKS = ("inproc", "lockstep")
+MAX_SEED = 2 ** 63  # a seed is an int64 column of the table
+MAX_RUNS = 10_000_000  # cells × seeds of one sweep (its plan is held as lists of cells and seeds)
 Grid = list[tuple[str, list[Any]]]
 
 
@@ -266,7 +268,7 @@ class _Tally:
             else:
                 self.failed += 1
                 if len(self.failures) < MAX_LISTED_FAILURES:
-                    self.failures.append((self.plan.run(j), str(row.get("reason") or "")))
+                    self.failures.append((self.plan.run(j), printable(str(row.get("reason") or ""), 1000)))
             yield row
 
     def finish(self) -> list[CellSummary]:
@@ -544,17 +546,24 @@ def sweep(scenario: str | os.PathLike | Scenario,
     if clock not in CLOCKS:
         raise ConfigError("command line", [("--clock", f"expected one of {', '.join(CLOCKS)}, got {clock!r}")])
     g = normalize_grid(grid)
+    n_cells = math.prod(len(v) for _, v in g)
+    n_seeds = seeds if isinstance(seeds, int) and not isinstance(seeds, bool) else None
+    if n_cells * (n_seeds or 1) > MAX_RUNS:  # the plan's cells and seeds are lists: bound them before making them
+        raise ConfigError("command line", [("--seeds", f"{n_cells} cells × {n_seeds or 1} seeds is more than "
+                                                       f"{MAX_RUNS:,} runs; split the sweep")])
     base = base_scenario(scenario, overrides, duration)
     check_grid(base, g)  # every cell before any run: nothing run, nothing written
-    if isinstance(seeds, int) and not isinstance(seeds, bool):
-        if seeds < 1:
-            raise ConfigError("command line", [("--seeds", f"must be at least 1, got {seeds}")])
+    if n_seeds is not None:
+        if seeds < 1 or base.seed + seeds > MAX_SEED:
+            raise ConfigError("command line", [("--seeds", f"must be at least 1 (and the last seed below 2**63), "
+                                                           f"got {seeds}")])
         seed_list = list(range(base.seed, base.seed + seeds))
     else:
         seed_list = [_plain(s) for s in seeds]
-        if not seed_list or any(type(s) is not int or s < 0 for s in seed_list) or len(set(seed_list)) != len(
-                seed_list):
-            raise ConfigError("command line", [("seeds", f"expected distinct integers >= 0, got {seed_list!r}")])
+        if not seed_list or any(type(s) is not int or not 0 <= s < MAX_SEED for s in seed_list) or \
+                len(set(seed_list)) != len(seed_list):
+            raise ConfigError("command line", [("seeds", f"expected distinct integers in [0, 2**63), got "
+                                                         f"{printable(repr(seed_list), 200)}")])
     out = Path(out)
     manifest = Manifest.of(str(base.source), base.raw, g, clock)
     check_out(out, manifest)
@@ -564,8 +573,17 @@ def sweep(scenario: str | os.PathLike | Scenario,
         jobs = 1  # a launched fleet is already a process per vehicle
     ex = make_executor(executor, cluster, jobs, connect_timeout)  # an unreachable cluster: nothing written yet
     try:
-        out.mkdir(parents=True, exist_ok=True)
-        log = RowLog(rows_path)  # locked: what the file holds now is all another sweep will have written
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+            log = RowLog(rows_path)  # locked: what the file holds now is all another sweep will have written
+        except OSError as e:  # a file, a dangling link, a read-only or full file system
+            raise ConfigError("--out", [(str(out), f"cannot hold the results ({e.strerror or e}); give a "
+                                                   f"directory this user can write")]) from None
+        try:
+            check_out(out, manifest)  # again under the lock: another sweep may have started it meanwhile
+        except BaseException:
+            log.close()
+            raise
     except BaseException:
         ex.close()
         raise
@@ -650,7 +668,11 @@ def _run_all(p: _Plan, base: Scenario, clock: str, ex: Any, log: RowLog, before:
                 pending[fut] = j
             if not pending:
                 break
-            finished, _ = ex.wait(set(pending))
+            try:
+                finished, _ = ex.wait(set(pending))
+            except Exception as e:  # the cluster is gone (the scheduler stopped: FuturesCancelledError)
+                lost += _broken(ex, pending, e, quiet, bar, say)
+                return ran, lost, False
             for f in finished:
                 j = pending.pop(f)
                 try:
@@ -670,6 +692,21 @@ def _run_all(p: _Plan, base: Scenario, clock: str, ex: Any, log: RowLog, before:
     finally:
         bar.close()
     return ran, lost, False
+
+
+def _broken(ex: Any, pending: dict, e: Exception, quiet: bool, bar: Any, say: TextIO) -> int:
+    """The executor failed as a whole: stop submitting, drop what is in flight (not recorded:
+    a re-run with the same ``out`` runs it), so the rows done still make the tables. Returns
+    how many runs were in flight (lost)."""
+    if not quiet:
+        why = printable(str(e).splitlines()[0] if str(e) else "", 200)
+        bar.write(f"the executor failed ({type(e).__name__}: {why}); stopping: the runs done are kept, run the "
+                  f"same command again to run the others", file=say)
+    try:
+        ex.cancel(set(pending))
+    except Exception:  # already broken: nothing more to cancel
+        pass
+    return len(pending)
 
 
 def _count(n: int, what: str) -> str:

@@ -26,6 +26,7 @@ from cdus.scenario.config import ConfigError
 
 MANIFEST, ROWS, CSV, PARQUET = "manifest.json", "results.jsonl", "results.csv", "results.parquet"
 FORMAT = "cdus-sweep/1"
+STATUSES = ("ok", "failed")  # a row's status; a line with another is not a row
 
 # The metrics fields of a row (the metrics JSON's, flattened) and their Parquet types.
 FIELD_TYPES: dict[str, str] = {
@@ -88,7 +89,12 @@ class Manifest:
             out.append(f"the config differs (it was {other.get('config')!r} with other values or overrides, "
                        f"--duration included)")
         if other.get("grid") != self.grid:
-            was = "; ".join(f"{k}={','.join(map(canonical, v))}" for k, v in other.get("grid") or []) or "no grid"
+            grid = other.get("grid")
+            if isinstance(grid, list) and all(isinstance(kv, list) and len(kv) == 2 and isinstance(kv[0], str)
+                                              and isinstance(kv[1], list) for kv in grid):
+                was = "; ".join(f"{k}={','.join(map(canonical, v))}" for k, v in grid) or "no grid"
+            else:  # a manifest edited by hand or damaged: say what it holds, shortened
+                was = f"not a grid: {canonical(grid)[:100]}"
             out.append(f"the grid differs (it was {was})")
         if other.get("clock") != self.clock:
             out.append(f"the clock differs (it was {other.get('clock')!r})")
@@ -108,8 +114,9 @@ def check_out(out: Path, manifest: Manifest) -> bool:
         earlier = json.loads(mpath.read_text())
         if not isinstance(earlier, dict):
             raise ValueError("not a JSON object")
-    except (OSError, ValueError) as e:
-        raise ConfigError("--out", [(str(mpath), f"cannot be read ({e}); give another --out")]) from None
+    except (OSError, ValueError, RecursionError) as e:  # RecursionError: JSON nested too deep
+        raise ConfigError("--out", [(str(mpath), f"cannot be read ({type(e).__name__}: {str(e)[:200]}); give "
+                                                 f"another --out")]) from None
     diff = manifest.differences(earlier)
     if diff:
         raise ConfigError("--out", [(str(out), "holds the results of another sweep: " + "; ".join(diff) +
@@ -166,7 +173,7 @@ def _index(line: bytes, index_of: Any) -> int | None:
     except (ValueError, RecursionError):
         return None
     if not isinstance(row, dict) or not isinstance(row.get("cell"), dict) or type(row.get("seed")) is not int \
-            or not isinstance(row.get("status"), str):
+            or row.get("status") not in STATUSES:
         return None
     j = index_of(row["cell"], row["seed"])
     return -2 if j is None else j
@@ -231,9 +238,12 @@ def _typed(value: Any, kind: str) -> Any:
         return None
     number = isinstance(value, (int, float)) and not isinstance(value, bool)
     if kind == "float64":
-        return float(value) if number else None
+        try:
+            return float(value) if number else None
+        except OverflowError:  # an int beyond any float (a hand-edited results.jsonl)
+            return None
     if kind == "int64":
-        return int(value) if number and float(value).is_integer() else None
+        return int(value) if number and _int64(value) else None
     if kind == "bool":
         return value if isinstance(value, bool) else None
     if kind == "json":
@@ -241,20 +251,43 @@ def _typed(value: Any, kind: str) -> Any:
     return value if isinstance(value, str) else canonical(value)
 
 
+def _int64(value: int | float) -> bool:
+    """An integral number an int64 column holds."""
+    try:
+        return float(value).is_integer() and -2 ** 63 <= int(value) < 2 ** 63
+    except OverflowError:
+        return False
+
+
 def write_tables(out: Path, keys: Sequence[str], key_types: Sequence[str], rows: Iterator[dict],
                  batch: int = 1000) -> int:
     """results.csv and results.parquet from ``rows`` (plan order), ``batch`` rows in memory
     at a time; returns how many rows."""
     import pyarrow as pa
-    import pyarrow.parquet as pq
 
     columns = [*keys, "seed", "status", "reason", *FIELDS]
     types = {**dict(zip(keys, key_types)), "seed": "int64", "status": "string", "reason": "string", **FIELD_TYPES}
     arrow = {"float64": pa.float64(), "int64": pa.int64(), "bool": pa.bool_(), "string": pa.string(),
              "json": pa.string()}
     schema = pa.schema([pa.field(c, arrow[types[c]]) for c in columns])
-    n = 0
     csv_tmp, pq_tmp = out / (CSV + ".tmp"), out / (PARQUET + ".tmp")
+    try:
+        n = _write(csv_tmp, pq_tmp, columns, keys, types, schema, rows, batch)
+    except BaseException:  # a second Ctrl-C, a full disk: no half-written table left behind
+        csv_tmp.unlink(missing_ok=True)
+        pq_tmp.unlink(missing_ok=True)
+        raise
+    os.replace(csv_tmp, out / CSV)
+    os.replace(pq_tmp, out / PARQUET)
+    return n
+
+
+def _write(csv_tmp: Path, pq_tmp: Path, columns: list, keys: Sequence[str], types: dict, schema: Any,
+           rows: Iterator[dict], batch: int) -> int:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    n = 0
     with open(csv_tmp, "w", newline="") as fh, pq.ParquetWriter(pq_tmp, schema) as writer:
         w = csv.DictWriter(fh, fieldnames=columns, extrasaction="ignore")
         w.writeheader()
@@ -274,6 +307,4 @@ def write_tables(out: Path, keys: Sequence[str], key_types: Sequence[str], rows:
             if len(chunk) >= batch:
                 flush()
         flush()
-    os.replace(csv_tmp, out / CSV)
-    os.replace(pq_tmp, out / PARQUET)
     return n
