@@ -16,6 +16,9 @@ from cdus.scenario.model import (
 )
 
 DEFAULT_DURATION = 60.0
+# 10^7 simulated s (about 116 days): a longer run would never end on any machine (and 1e308 s
+# overflowed the tick count)
+MAX_DURATION = 1.0e7
 DEFAULT_SEED = 0
 DEFAULT_RATES = {"physics": 200.0, "control": 50.0, "broadcast": 50.0}
 DEFAULT_METRICS = {"path_tol": 0.1, "coord_tol": 0.05}
@@ -51,7 +54,7 @@ def scenario_section(p: Problems, sc: Mapping[str, Any]) -> Header:
     description = p.string(sc.get("description", ""), "scenario.description") or ""
     duration = DEFAULT_DURATION
     if "duration" in sc:
-        duration = p.number(sc["duration"], "scenario.duration", gt=0, unit=" s") or DEFAULT_DURATION
+        duration = p.number(sc["duration"], "scenario.duration", gt=0, le=MAX_DURATION, unit=" s") or DEFAULT_DURATION
     seed = p.integer(sc.get("seed", DEFAULT_SEED), "scenario.seed", ge=0)
     return Header(name, description, duration, DEFAULT_SEED if seed is None else seed)
 

@@ -41,14 +41,17 @@ BAD = {
     "unknown key": (section("scenario", durration=3), 'scenario.durration: unknown key; did you mean "duration"?'),
     "string for number": (section("rates", control="fast"),
                           'rates.control: must be a number > 0 Hz, got the string "fast"'),
-    "bool for number": (section("scenario", duration=True), "scenario.duration: must be a number > 0 s, "
+    "bool for number": (section("scenario", duration=True), "scenario.duration: must be a number > 0 and <= 1e+07 s, "
                                                             "got the boolean true"),
     "missing name": (drop("scenario", "name"), "scenario.name: missing"),
     "empty name": (section("scenario", name=" "), 'scenario.name: must be a non-empty string, got the string " "'),
     "description": (section("scenario", description=3), "scenario.description: must be a string, got the number 3"),
     "seed": (section("scenario", seed=-1), "scenario.seed: must be an integer >= 0, got -1"),
     "float seed": (section("scenario", seed=1.5), "scenario.seed: must be an integer >= 0, got the number 1.5"),
-    "negative duration": (section("scenario", duration=-5), "scenario.duration: must be a number > 0 s, got -5"),
+    "negative duration": (section("scenario", duration=-5), "scenario.duration: must be a number > 0 and <= "
+                                                            "1e+07 s, got -5"),
+    "endless duration": (section("scenario", duration=1e308), "scenario.duration: must be a number > 0 and <= "
+                                                              "1e+07 s, got 1e+308"),
     "zero rate": (section("rates", broadcast=0), "rates.broadcast: must be a number > 0 Hz, got 0"),
     "physics < control": (section("rates", physics=100, control=200), "rates.physics: must be >= rates.control "
                                                                        "(200 Hz)"),
