@@ -175,8 +175,9 @@ class DaskExecutor(Executor):
                 self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, **LOCAL_CLUSTER)
             self.client = Client(self.cluster, set_as_default=False)
             self.name = f"dask (LocalCluster, {n} processes)"
-        threads = sum(self.client.nthreads().values())
-        self.slots = max(8, 2 * threads)
+        nthreads = self.client.nthreads()
+        self.workers = len(nthreads)  # 0: a scheduler no worker has joined yet (the runs wait for one)
+        self.slots = max(8, 2 * sum(nthreads.values()))
 
     def submit(self, fn: Callable, *args: Any) -> Any:
         return self.client.submit(fn, *args, pure=False)

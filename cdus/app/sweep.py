@@ -572,6 +572,10 @@ def sweep(scenario: str | os.PathLike | Scenario,
     if jobs is None and clock == "lockstep" and executor == "local" and cluster is None:
         jobs = 1  # a launched fleet is already a process per vehicle
     ex = make_executor(executor, cluster, jobs, connect_timeout)  # an unreachable cluster: nothing written yet
+    if getattr(ex, "workers", None) == 0:
+        print(f"warning: the Dask scheduler at {printable(str(cluster), 200)} has no workers: the runs wait until one "
+              f"joins (start one with `dask worker {printable(str(cluster), 200)}`; Ctrl-C stops the sweep)",
+              file=stream or sys.stderr, flush=True)
     try:
         try:
             out.mkdir(parents=True, exist_ok=True)

@@ -63,3 +63,25 @@ def test_a_local_cluster_listens_on_loopback_only():
         assert http and set(http) == {"127.0.0.1"}
     finally:
         ex.close()
+
+
+def test_a_scheduler_without_workers_is_said_and_the_sweep_runs_once_one_joins(tmp_path):
+    import io
+    import threading
+    import time
+
+    with distributed.LocalCluster(n_workers=0, threads_per_worker=1, processes=True, **LOCAL_CLUSTER) as c:
+        said = io.StringIO()
+        out: dict = {}
+        t = threading.Thread(target=lambda: out.setdefault("res", sweep(
+            CONFIG, {"link.loss": [0]}, 1, tmp_path, cluster=c.scheduler_address, duration=2.0, quiet=True,
+            stream=said)), daemon=True)
+        t.start()
+        deadline = time.monotonic() + 60  # a hang limit, not a speed check
+        while "has no workers" not in said.getvalue() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert f"the Dask scheduler at {c.scheduler_address} has no workers" in said.getvalue()
+        assert t.is_alive()  # waiting for a worker
+        c.scale(1)
+        t.join(120)
+        assert not t.is_alive() and out["res"].done == 1
