@@ -210,12 +210,38 @@ def _run_lockstep(scenario: Scenario) -> dict:
         logs = Path(tmp) / "run"
         args = [sys.executable, "-m", "cdus.app.cli", "launch", str(config), "--clock", "lockstep", "-q",
                 "--rerun", "off", "--fleet", "sweep" + uuid.uuid4().hex[:8], "--logs", str(logs)]
-        proc = subprocess.run(args, capture_output=True, text=True, start_new_session=True)
+        with subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                              start_new_session=True) as proc:
+            try:
+                out, err = proc.communicate()
+            except BaseException:  # Ctrl-C (or SIGTERM) of the sweep: the fleet stops before its directory goes
+                _stop_launcher(proc)
+                raise
         path = logs / "metrics.json"
         if proc.returncode != 0 or not path.exists():
-            tail = (proc.stderr or proc.stdout).strip().splitlines()[-3:]
+            tail = (err or out).strip().splitlines()[-3:]
             raise RuntimeError(f"launch exited with {proc.returncode}: {' / '.join(tail)}")
         return json.loads(path.read_text())
+
+
+LAUNCHER_STOP_S = 20.0  # how long a stopping launcher may take to stop its fleet before it is killed
+
+
+def _stop_launcher(proc: subprocess.Popen) -> None:
+    """Stop a launched fleet as Ctrl-C would (SIGINT to the launcher's session: it stops the
+    world and the vehicles and waits for them), then kill what is left of the session."""
+    import signal
+
+    for sig, wait in ((signal.SIGINT, LAUNCHER_STOP_S), (signal.SIGKILL, 5.0)):
+        try:
+            os.killpg(proc.pid, sig)
+        except ProcessLookupError:
+            break
+        try:
+            proc.communicate(timeout=wait)
+            break
+        except subprocess.TimeoutExpired:
+            continue
 
 
 # --- statistics of the cells ---------------------------------------------------------------
