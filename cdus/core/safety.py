@@ -290,9 +290,12 @@ def _bound(u_ref: Vec, u: Vec, params: SafetyParams, info: FilterInfo, normals: 
 
 # The slack of an infeasible dynamic problem costs this much per unit (rows are normalised).
 DYN_SLACK_WEIGHT = 1.0e4
-# |Δp| - D is floored at this (m) inside D, so the requirement stays finite (the QP then
-# takes the least worst violation: the strongest separating push the inputs allow).
+# ||Δp| - D| is floored at this (m), so the requirement stays finite at D (where it cannot
+# be met the QP takes the least worst violation: the strongest push the inputs allow).
 DYN_GAP_FLOOR = 0.01
+# A USV keeps this much (m) beyond R: its sway and yaw, which τ_u does not act on, move the
+# hull by up to a few cm while it brakes side-on (tests/core/test_safety_dynamic.py).
+USV_MARGIN = 0.1
 # The braking (m/s²) a vehicle counts on along the line of sight, by plant: a share of a
 # UAV's acceleration bound; for a USV what its surge thrust leaves at full speed
 # (docs/safety.md, "The numbers").
@@ -324,6 +327,7 @@ class Point:
     alpha: float
     accel: float
     scale: Vec
+    margin: float = 0.0  # kept beyond R (m)
 
 
 @dataclass(frozen=True, slots=True)
@@ -372,7 +376,7 @@ def usv_point(x: float, y: float, psi: float, u: float, v: float, r: float, eps:
                              (USV_SPEED_RATE * (speed - u) - drift) / e3)
     accel = min(USV_NOMINAL_ACCEL, e3 * tau_u) if math.isfinite(tau_u) else USV_NOMINAL_ACCEL
     scale = (tau_u if math.isfinite(tau_u) else 1.0 / e3, tau_r if math.isfinite(tau_r) else 1.0 / e5)
-    return Point((x, y), vel, f, G, (lo_u, -tau_r), (hi_u, tau_r), math.inf, USV_BRAKING, accel, scale)
+    return Point((x, y), vel, f, G, (lo_u, -tau_r), (hi_u, tau_r), math.inf, USV_BRAKING, accel, scale, USV_MARGIN)
 
 
 def _narrow(lo: float, hi: float, a: float, b: float) -> tuple[float, float]:
@@ -395,9 +399,10 @@ def pair_demand(dp: Vec, dv: Vec, radius: float, alpha: float, gamma: float, sha
     ddot = _dot(n, dv)
     vt2 = max(0.0, _dot(dv, dv) - ddot * ddot)
     D = radius + margin_p
-    gap = max(dist - D, DYN_GAP_FLOOR)
-    root = math.sqrt(2.0 * alpha * gap)
-    h = (root if dist - D > 0.0 else -math.sqrt(2.0 * alpha * (D - dist))) + ddot - margin_v
+    # Inside D the same barrier with -sqrt(2 A (D - |Δp|)): h < 0, and ḣ ≥ -γ h drives the
+    # pair out, separating at up to sqrt(2 A (D - |Δp|)) (its derivative has the same form).
+    root = math.sqrt(2.0 * alpha * max(abs(dist - D), DYN_GAP_FLOOR))
+    h = (root if dist > D else -root) + ddot - margin_v
     rhs = -gamma * h - alpha * ddot / root - vt2 / max(dist, ESCAPE_FLOOR * radius)
     return n, max(rhs, share * rhs), h
 
@@ -421,12 +426,13 @@ def _dyn_rows(me: Point, tracks: Sequence[Track], params: SafetyParams, mid: str
         if not all(math.isfinite(x) for x in dp + dv):
             continue  # a sensor glitch constrains nothing
         dist2 = _dot(dp, dp)
-        D = params.radius + t.dp
+        D = params.radius + me.margin + t.dp
         min_h = min(min_h, dist2 - D * D)
         if dist2 <= COINCIDENT ** 2 and mid is not None and t.id is not None and t.id != mid:
             dp = _pair_direction(mid, t.id, dim)  # coincident: separate along a direction fixed by the ids
             dp = tuple(COINCIDENT * x for x in dp)
-        n, b, _ = pair_demand(dp, dv, params.radius, me.alpha / t.share, params.gamma, t.share, t.dp, t.dv)
+        n, b, _ = pair_demand(dp, dv, params.radius + me.margin, me.alpha / t.share, params.gamma, t.share, t.dp,
+                              t.dv)
         # n̂ᵀ(f + G τ) ≥ b, in z: Σ_m (n̂ᵀG)_m scale_m z_m ≥ b - n̂ᵀf
         c = tuple(sum(n[j] * me.G[j][m] for j in range(dim)) * scale[m] for m in range(len(scale)))
         norm = math.sqrt(_dot(c, c))
