@@ -301,10 +301,15 @@ USV_MARGIN = 0.1
 # (docs/safety.md, "The numbers").
 UAV_BRAKING_SHARE = 0.6
 UAV_NOMINAL_ACCEL = 6.0  # m/s²: a UAV without an acceleration limit is taken as the preset's
-USV_BRAKING = 0.5
+USV_BRAKING = 0.3
 USV_NOMINAL_ACCEL = 1.5  # m/s²: bound on a boat's acceleration (|ε3| τ_u of the preset)
 # Rate (1/s) at which the USV filter lets the surge speed approach ±its limit.
 USV_SPEED_RATE = 1.0
+# While the filter acts on a boat, its yaw rate is held within ±this (rad/s), approached at
+# USV_YAW_RATE_RATE (1/s): turning at speed makes sway (v̇ = ε6 v + ε7 u r), which the
+# surge cannot stop, and in a crowd that sway pushed boats into each other.
+USV_JAM_YAW_RATE = 0.1
+USV_YAW_RATE_RATE = 5.0
 # A UAV's |τ| ≤ accel is a ball; the QP meets it by cutting planes, at most this many.
 BALL_CUTS = 6
 
@@ -328,6 +333,7 @@ class Point:
     accel: float
     scale: Vec
     margin: float = 0.0  # kept beyond R (m)
+    yaw: tuple[float, float] | None = None  # a USV's τ_r interval while the filter acts (see usv_point)
 
 
 @dataclass(frozen=True, slots=True)
@@ -376,7 +382,10 @@ def usv_point(x: float, y: float, psi: float, u: float, v: float, r: float, eps:
                              (USV_SPEED_RATE * (speed - u) - drift) / e3)
     accel = min(USV_NOMINAL_ACCEL, e3 * tau_u) if math.isfinite(tau_u) else USV_NOMINAL_ACCEL
     scale = (tau_u if math.isfinite(tau_u) else 1.0 / e3, tau_r if math.isfinite(tau_r) else 1.0 / e5)
-    return Point((x, y), vel, f, G, (lo_u, -tau_r), (hi_u, tau_r), math.inf, USV_BRAKING, accel, scale, USV_MARGIN)
+    yaw = _narrow(-tau_r, tau_r, (-USV_YAW_RATE_RATE * (USV_JAM_YAW_RATE + r) - e4 * r) / e5,
+                  (USV_YAW_RATE_RATE * (USV_JAM_YAW_RATE - r) - e4 * r) / e5)
+    return Point((x, y), vel, f, G, (lo_u, -tau_r), (hi_u, tau_r), math.inf, USV_BRAKING, accel, scale, USV_MARGIN,
+                 yaw)
 
 
 def _narrow(lo: float, hi: float, a: float, b: float) -> tuple[float, float]:
@@ -510,6 +519,9 @@ def dynamic_filter(tau_ref: Vec, me: Point, tracks: Sequence[Track], params: Saf
     tau = _clip_ball(tau, me.ball)
     zt = tuple(v / s for v, s in zip(tau, scale))
     margins = [_dot(c, zt) - b for c, b in zip(rows, bounds)]
+    if me.yaw is not None:  # a boat the filter acts on turns slowly: its turns make sway, which τ_u cannot stop
+        lo_r, hi_r = me.yaw
+        tau = tau[:1] + (min(max(tau[1], lo_r), hi_r),) + tau[2:]
     method = "relaxed" if slack > 1e-9 else "qp"
     active = tuple(i for i, mg in enumerate(margins) if mg <= 1e-7)
     satisfied = all(mg >= -1e-7 for mg in margins)
