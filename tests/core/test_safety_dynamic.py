@@ -340,3 +340,46 @@ def test_bad_input_names_the_problem():
         dynamic_filter((0.0, 0.0, 0.0), me, [Track((1.0, 1.0), (0.0, 0.0))], P)
     with pytest.raises(ValueError, match="share"):
         dynamic_filter((0.0, 0.0, 0.0), me, [Track((1.0, 1.0, 1.0), (0.0, 0.0, 0.0), 0.0)], P)
+
+
+# --------------------------------------------------------------------------- in the vehicle
+
+
+def _boat():
+    from cdus.scenario.config import load_scenario
+    from cdus.sim.build import build_vehicle
+
+    sc = load_scenario("configs/crossing_dynamic.toml")
+    return build_vehicle(sc.vehicle("usv_a1"), sc.rates, sc.seed, sc.safety)
+
+
+def test_the_vehicle_estimates_a_contacts_velocity_from_its_two_newest_samples():
+    from cdus.core.safety import Contact
+
+    v = _boat()
+    v.guard((Contact((5.0, 0.0), "x", 0.5),), 0)
+    (_, first), = [v._tracks]
+    assert first[0][1] is None  # first sighting: no velocity yet
+    v.guard((Contact((5.0, 0.0), "x", 0.5),), 0)  # the same sample again: nothing new
+    v.guard((Contact((4.5, 0.5), "x", 0.5),), 5)  # 5 ticks = 0.1 s later
+    ts, tracks = v._tracks
+    assert ts == pytest.approx(0.1)
+    assert tracks[0][1] == pytest.approx((-5.0, 5.0)) and tracks[0][2] == pytest.approx(0.1)
+    v.guard((), 10)  # out of range for a sample...
+    v.guard((Contact((4.0, 1.0), "x", 0.5),), 50)  # ...and back 0.8 s later: too old to difference
+    assert v._tracks[1][0][1] is None
+
+
+def test_the_vehicle_filters_its_inputs_at_every_physics_step():
+    """A boat at full speed towards a contact 3 m ahead: its surge input is cut at once."""
+    from cdus.core.safety import Contact
+
+    v = _boat()
+    v.state = USVState(0.0, 0.0, 0.0, 2.0, 0.0, 0.0)
+    ahead = (3.0, 0.0)
+    v.guard((Contact(ahead, "x", 0.5),), 0)
+    v.guard((Contact(ahead, "x", 0.5),), 5)
+    before = v.interventions
+    v.advance()
+    assert v.interventions == before + 1
+    assert v.state.u < 2.0 - 0.02  # braking at more than 1 m/s² over the 20 ms
