@@ -53,7 +53,7 @@ class Telemetry:
 # For a plant other than ideal, the velocity reference is shaped by the velocity-level filter
 # with its radius this much larger (a fraction of R), so that it turns the vehicle away
 # before the dynamic filter has to hold it at R (docs/safety.md).
-SHAPER_MARGIN = 0.25
+SHAPER_MARGIN = 0.5
 # A contact's velocity is estimated from two samples at most this far apart (s); otherwise
 # (first sighting, or back in range after a while) it is taken at rest for one sample.
 MAX_VELOCITY_BASE = 0.5
