@@ -383,3 +383,21 @@ def test_the_vehicle_filters_its_inputs_at_every_physics_step():
     v.advance()
     assert v.interventions == before + 1
     assert v.state.u < 2.0 - 0.02  # braking at more than 1 m/s² over the 20 ms
+
+
+@pytest.mark.parametrize("boat_speed", [0.0, 1.0, 2.0])
+def test_a_drone_diving_at_a_boat_keeps_R_from_it_in_3d(boat_speed):
+    """Across domains: the drone sees the boat as a point on the water (x, y, 0) moving at its
+    (estimated) velocity, a contact that does not react (share 1), and takes all of it."""
+    drone = UAVState((-6.0, 0.0, 6.0), (3.0, 0.0, -3.0))
+    boat = (0.0, 0.0, 0.0)
+    vb = (-boat_speed, 0.0, 0.0)
+    dmin = math.inf
+    for n in range(int(6.0 / H)):
+        boat_now = tuple(b + v * n * H for b, v in zip(boat, vb))
+        me = _uav_me(drone)
+        tau, _ = dynamic_filter(_uav_nominal(drone, boat_now), me, [Track(boat_now, vb, 1.0, id="boat")], P, "uav")
+        assert _within_limits(me, tau)
+        drone = step_uav(drone, tau, (0.0, 0.0, 0.0), H)
+        dmin = min(dmin, math.dist(drone.q, tuple(b + v * (n + 1) * H for b, v in zip(boat, vb))))
+    assert dmin >= R - TOL, dmin
