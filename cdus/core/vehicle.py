@@ -12,7 +12,10 @@ runner; it does no I/O and reads no clock. One control period is:
    over the period and added to the reference the regulator tracks;
 4. ``advance()``: move the plant to the next control instant at the physics rate, its
    regulator tracking the guidance with ω extrapolated at the held ω̇ (and, with an
-   observer, the estimated disturbance d̂ cancelled: cdus.core.observer).
+   observer, the estimated disturbance d̂ cancelled: cdus.core.observer); with a safety
+   filter and contacts, the regulator's inputs go through the dynamic filter at every
+   physics step (cdus.core.safety.dynamic_filter), the contacts extrapolated over the
+   sample's age (docs/safety.md).
 
 With a speed limit the guidance itself is scaled (guidance.integrate_omega's σ), so ω
 does not run ahead of a vehicle that cannot keep up (docs/safety.md).
@@ -49,6 +52,7 @@ class Telemetry:
     omega: float
     omega_rate: float
     path_error: float
+
 
 # For a plant other than ideal, the velocity reference is shaped by the velocity-level filter
 # with its radius this much larger (a fraction of R), so that it turns the vehicle away
