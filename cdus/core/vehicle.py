@@ -207,22 +207,27 @@ class Vehicle:
             return None
         if not contacts:
             self.last_filter = None
-            if self.plant != "ideal":
-                self._track(contacts, self.tick if sample_tick is None else sample_tick)
-                self._tracks = None
+            self._track(contacts, self.tick if sample_tick is None else sample_tick)
+            self._tracks = None
             return None
         a = reg.clip_norm(desired_velocity(self.path, self.q, self.omega, self.k), self.limits.speed)
+        self._track(contacts, self.tick if sample_tick is None else sample_tick)
         params = self.safety
         if self.plant != "ideal":  # the reference keeps clear of R, the dynamic filter holds R
             params = replace(params, radius=params.radius * (1.0 + SHAPER_MARGIN))
-        u, info = safety_filter(a, self.q, contacts, params, self.id)
+            seen = contacts
+        else:  # where the contacts are now, at their estimated velocities (docs/safety.md)
+            ts, tracks = self._tracks
+            age = self.t - ts
+            seen = tuple(c if v is None or age <= 0.0 else
+                         Contact(tuple(x + y * age for x, y in zip(c.q, v)), c.id, c.share)
+                         for c, v, _ in tracks)
+            self._tracks = None
+        u, info = safety_filter(a, self.q, seen, params, self.id)
         self.last_filter = info
         self._guarded = info.intervened
         if info.intervened:
             self._shift = tuple(x - y for x, y in zip(u, a))
-        if self.plant != "ideal":
-            self._track(contacts, self.tick if sample_tick is None else sample_tick)
-        if info.intervened:
             self.interventions += 1
         return info
 

@@ -401,3 +401,20 @@ def test_a_drone_diving_at_a_boat_keeps_R_from_it_in_3d(boat_speed):
         drone = step_uav(drone, tau, (0.0, 0.0, 0.0), H)
         dmin = min(dmin, math.dist(drone.q, tuple(b + v * (n + 1) * H for b, v in zip(boat, vb))))
     assert dmin >= R - TOL, dmin
+
+
+def test_an_ideal_vehicle_filters_against_where_its_contacts_are_now():
+    """The velocity-level filter of an ideal plant sees each contact extrapolated from its
+    sample to the present at the velocity estimated from the two newest samples."""
+    from cdus.core.safety import Contact
+    from cdus.scenario.config import load_scenario
+    from cdus.sim.build import build_vehicle
+
+    sc = load_scenario("configs/crossing.toml")
+    v = build_vehicle(sc.vehicle("usv_a1"), sc.rates, sc.seed, sc.safety)
+    q0 = v.q
+    v.guard((Contact((q0[0] + 5.0, q0[1]), "x", 0.5),), 0)
+    assert v.last_filter.min_h == pytest.approx(25.0 - R * R)
+    v.tick, v.t = 7, 0.14  # sample 5 used 2 ticks late: 0.04 s old
+    v.guard((Contact((q0[0] + 4.5, q0[1]), "x", 0.5),), 5)  # closing at 5 m/s
+    assert v.last_filter.min_h == pytest.approx(4.3 ** 2 - R * R)

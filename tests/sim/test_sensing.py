@@ -14,7 +14,8 @@ from cdus.sim.sensing import contacts_of, sense_tick
 R = 2.0
 # The filter keeps ḣ ≥ -γh on positions sampled at 10 Hz and used one 50 Hz tick later,
 # so it can overshoot R by what the vehicles close in between samples; measured on
-# crossing.toml: 2.0036 m. The tests allow 1 cm below R.
+# crossing.toml: 2.0204 m (contacts extrapolated at their estimated velocities; 2.0036 m
+# without). The tests allow 1 cm below R.
 TOLERANCE = 0.01
 
 
@@ -51,8 +52,8 @@ def test_crossing_without_the_filter_comes_closer_than_the_radius():
 
 def test_crossing_with_the_filter_keeps_the_radius_and_the_formation_settles():
     m = run().metrics
-    assert m["min_separation_m"] >= R - TOLERANCE  # measured 2.0036 m
-    assert m["interventions"] > 0  # measured 245 control steps, all in the first 6 s
+    assert m["min_separation_m"] >= R - TOLERANCE  # measured 2.0204 m
+    assert m["interventions"] > 0  # measured 240 control steps, all in the first 6 s
     assert m["path_settle_s"] is not None and m["coord_settle_s"] is not None  # 15.2 s and 62.8 s
     assert m["final_coord_error_max"] < 0.05 and m["final_path_error_max"] < 0.1
 
