@@ -288,7 +288,7 @@ def _bound(u_ref: Vec, u: Vec, params: SafetyParams, info: FilterInfo, normals: 
 # (w = 1), the demand is still met by this one. docs/safety.md derives it and says where it
 # breaks.
 
-# The slack of an infeasible dynamic problem costs this much per unit (rows are normalised).
+# The slack of an infeasible dynamic problem costs this much per (m/s²)² (inputs per unit of full scale).
 DYN_SLACK_WEIGHT = 1.0e4
 # ||Δp| - D| is floored at this (m), so the requirement stays finite at D (where it cannot
 # be met the QP takes the least worst violation: the strongest push the inputs allow).
@@ -418,7 +418,7 @@ def pair_demand(dp: Vec, dv: Vec, radius: float, alpha: float, gamma: float, sha
 
 def _dyn_rows(me: Point, tracks: Sequence[Track], params: SafetyParams, mid: str | None
               ) -> tuple[list[Vec], list[float], float]:
-    """Per track a unit row c and bound b of c·z ≥ b (z = τ / scale), and the smallest
+    """Per track a row c and bound b (m/s²) of c·z ≥ b (z = τ / scale), and the smallest
     |Δp|² - D² (m²; negative: inside D)."""
     dim = len(me.p)
     rows: list[Vec] = []
@@ -443,12 +443,14 @@ def _dyn_rows(me: Point, tracks: Sequence[Track], params: SafetyParams, mid: str
         n, b, _ = pair_demand(dp, dv, params.radius + me.margin, me.alpha / t.share, params.gamma, t.share, t.dp,
                               t.dv)
         # n̂ᵀ(f + G τ) ≥ b, in z: Σ_m (n̂ᵀG)_m scale_m z_m ≥ b - n̂ᵀf
+        # Rows stay in m/s² (not normalised): the slack of a row then measures the missing
+        # acceleration, and a row the inputs can hardly act on (a boat side-on) cannot buy
+        # its slack down by giving up the rows they can act on.
         c = tuple(sum(n[j] * me.G[j][m] for j in range(dim)) * scale[m] for m in range(len(scale)))
-        norm = math.sqrt(_dot(c, c))
-        if norm < 1e-9:
-            continue  # no authority along n̂ (a boat side-on): the neighbour takes the demand
-        rows.append(tuple(x / norm for x in c))
-        bounds.append((b - _dot(n, me.f)) / norm)
+        if math.sqrt(_dot(c, c)) < 1e-9:
+            continue  # no authority along n̂ at all: the neighbour takes the demand
+        rows.append(c)
+        bounds.append(b - _dot(n, me.f))
     return rows, bounds, min_h
 
 
@@ -456,9 +458,10 @@ def dynamic_filter(tau_ref: Vec, me: Point, tracks: Sequence[Track], params: Saf
                    mid: str | None = None) -> tuple[Vec, FilterInfo]:
     """The inputs nearest ``tau_ref`` (each scaled by its full-scale value) that keep the
     barrier condition with every track, within the inputs' box and ball. Never raises on a
-    situation: an impossible one (inside R, or closing too fast to stop) is solved with one
-    slack relaxing every barrier row, heavily weighted: the least worst violation within the
-    inputs' bounds. Returns (τ, info); ``tau_ref`` itself, bit for bit, when it is safe."""
+    situation: an impossible one (inside R, or closing too fast to stop) is solved with a
+    slack on each barrier row, heavily weighted: the least worst violations within the
+    inputs' bounds (one slack per row, so a row the inputs can hardly act on, a boat
+    side-on, does not relax the others). Returns (τ, info); ``tau_ref`` itself, bit for bit, when it is safe."""
     tau_ref = tuple(float(x) for x in tau_ref)
     m = len(tau_ref)
     if m != len(me.lo) or m != len(me.hi) or m != len(me.scale):
@@ -473,22 +476,31 @@ def dynamic_filter(tau_ref: Vec, me: Point, tracks: Sequence[Track], params: Saf
     if all(_dot(c, z_ref) >= b - 1e-12 for c, b in zip(rows, bounds)):
         return tau_ref, FilterInfo(False, (), True, "pass", min_h=min_h)
     k = len(rows)
-    G = np.eye(m + 1)
-    G[m, m] = DYN_SLACK_WEIGHT
-    a = np.zeros(m + 1)
+    nv = m + k  # z, then one slack per row: a row that cannot be met relaxes only itself
+    G = np.eye(nv)
+    for i in range(k):
+        G[m + i, m + i] = DYN_SLACK_WEIGHT
+    a = np.zeros(nv)
     a[:m] = z_ref
-    cols: list[list[float]] = [list(c) + [1.0] for c in rows]
-    rhs: list[float] = list(bounds)
-    cols.append([0.0] * m + [1.0])  # δ ≥ 0
-    rhs.append(0.0)
+    cols: list[list[float]] = []
+    rhs: list[float] = []
+    for i, (c, b) in enumerate(zip(rows, bounds)):
+        col = list(c) + [0.0] * k
+        col[m + i] = 1.0
+        cols.append(col)
+        rhs.append(b)
+        pos = [0.0] * nv  # δ_i ≥ 0
+        pos[m + i] = 1.0
+        cols.append(pos)
+        rhs.append(0.0)
     for j in range(m):
         if math.isfinite(me.lo[j]):
-            e = [0.0] * (m + 1)
+            e = [0.0] * nv
             e[j] = 1.0
             cols.append(e)
             rhs.append(me.lo[j] / scale[j])
         if math.isfinite(me.hi[j]):
-            e = [0.0] * (m + 1)
+            e = [0.0] * nv
             e[j] = -1.0
             cols.append(e)
             rhs.append(-me.hi[j] / scale[j])
@@ -506,7 +518,7 @@ def dynamic_filter(tau_ref: Vec, me: Point, tracks: Sequence[Track], params: Saf
         if nt <= me.ball * (1.0 + 1e-6):
             break
         # the ball's tangent plane at the nearest point: ûᵀτ ≤ ball
-        cols.append([-tau[j] / nt * scale[j] for j in range(m)] + [0.0])
+        cols.append([-tau[j] / nt * scale[j] for j in range(m)] + [0.0] * k)
         rhs.append(-me.ball)
     if x is None:  # numerically degenerate: the strongest push along the worst row, in the box
         worst = max(range(k), key=lambda i: bounds[i] - _dot(rows[i], z_ref))
@@ -514,7 +526,7 @@ def dynamic_filter(tau_ref: Vec, me: Point, tracks: Sequence[Track], params: Saf
         slack = math.inf
     else:
         z = tuple(float(v) for v in x[:m])
-        slack = max(0.0, float(x[m]))
+        slack = max(0.0, max(float(v) for v in x[m:]))
     tau = tuple(min(max(zj * s, lo), hi) for zj, s, lo, hi in zip(z, scale, me.lo, me.hi))
     tau = _clip_ball(tau, me.ball)
     zt = tuple(v / s for v, s in zip(tau, scale))
