@@ -123,7 +123,7 @@ def test_crossing_dynamic_without_the_filter_comes_closer_than_the_radius(regula
 def test_crossing_dynamic_with_the_filter_keeps_the_radius_and_the_formation_settles(regulator):
     """usv_3dof boats with the preset's limits (the velocity-level filter alone kept 1.437 m):
     the dynamic filter holds R on τ_u at the physics rate, behind either regulator; the
-    formation settles (paper regulator: 2.069 m, path 23.4 s, coordination 110.1 s)."""
+    formation settles (paper regulator: 2.069 m, path 23.6 s, coordination 110.6 s)."""
     _, res = run_dynamic({"defaults.regulator": regulator})
     m = res.metrics
     assert m["min_separation_m"] >= R - TOLERANCE  # measured 2.069 m (their distance at the start)
