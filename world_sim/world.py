@@ -565,10 +565,13 @@ class World:
                 self._note(a)
 
     def _send_contacts(self, tick: int, positions: dict[int, tuple]) -> None:
-        """The proximity sensor at ``tick``: each sampled vehicle its contacts (cdus.sim.sensing)."""
+        """The proximity sensor at ``tick``: each sampled vehicle its contacts (cdus.sim.sensing);
+        a vehicle not sampled (killed, paused) stays an obstacle where it was last seen."""
         for old in [k for k in self._sample_rows if k < tick]:
             del self._sample_rows[old]
-        for j, msg in sense_tick(self.scenario, tick, positions).items():
+        with self._lock:
+            gone = {j: m.q for j, m in self.st.latest.items() if j not in positions}
+        for j, msg in sense_tick(self.scenario, tick, positions, gone).items():
             self.session.put(keys.contacts(self.fleet, self.ids[j]), encode_contacts(msg))
 
     def _sense_realtime(self) -> None:

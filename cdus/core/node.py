@@ -439,7 +439,7 @@ class VehicleNode:
             if n % self.every == 0 and n < self.last_tick:
                 out = OmegaMsg(self.index, n // self.every, v.t, v.omega, v.omega_rate)
             if v.safety is not None:
-                v.guard(self.contacts_at(n))
+                v.guard(self.contacts_at(n), self._contacts_used)
             v.advance()
         except DivergedError:
             raise

@@ -14,7 +14,9 @@ Who sees whom:
   within R of a boat, so this only acts when a UAV descends near one. A USV never sees
   UAVs.
 
-Same-domain contacts carry share 1/2 (both vehicles run the filter). Contacts are listed
+Same-domain contacts carry share 1/2 (both vehicles run the filter). A vehicle that is no
+longer live (killed, or paused: its process holds no token) stays where it was last seen,
+an obstacle the others take whole (share 1); it receives no contacts. Contacts are listed
 in id order, so the result does not depend on the order of the input.
 
 The sensor samples at its own rate: :func:`sample_every` turns it into a number of
@@ -36,11 +38,13 @@ SURFACE_Z = 0.0  # altitude of the water surface, where a UAV sees a boat
 
 @dataclass(frozen=True)
 class Body:
-    """One vehicle as the world sees it: id, domain ("usv" or "uav") and position."""
+    """One vehicle as the world sees it: id, domain ("usv" or "uav"), position, and whether
+    it is live (one that is not is an obstacle that does not react and sees nothing)."""
 
     id: str
     domain: str
     q: Vec
+    live: bool = True
 
     def __post_init__(self) -> None:
         dim = DOMAIN_DIM.get(self.domain)
@@ -73,16 +77,20 @@ def sense(bodies: Sequence[Body], sensing_range: float,
     r2 = sensing_range * sensing_range
     for i, k in _candidate_pairs([bodies[j] for j in order], sensing_range):
         a, b = bodies[order[i]], bodies[order[k]]
+        if not (a.live or b.live):
+            continue
         if a.domain == b.domain:
             if sum((x - y) ** 2 for x, y in zip(a.q, b.q)) <= r2:
-                found[a.id].append((b.id, Contact(tuple(b.q), b.id, 0.5)))
-                found[b.id].append((a.id, Contact(tuple(a.q), a.id, 0.5)))
+                share = 0.5 if a.live and b.live else 1.0
+                found[a.id].append((b.id, Contact(tuple(b.q), b.id, share)))
+                found[b.id].append((a.id, Contact(tuple(a.q), a.id, share)))
         elif cross_domain:
             uav, usv = (a, b) if a.domain == "uav" else (b, a)
             seen = _as_3d(usv)
             if sum((x - y) ** 2 for x, y in zip(uav.q, seen)) <= r2:
                 found[uav.id].append((usv.id, Contact(seen, usv.id, 1.0)))
-    return {vid: tuple(c for _, c in sorted(lst, key=lambda t: t[0])) for vid, lst in found.items()}
+    live = {b.id for b in bodies if b.live}
+    return {vid: tuple(c for _, c in sorted(lst, key=lambda t: t[0])) for vid, lst in found.items() if vid in live}
 
 
 def _candidate_pairs(bodies: Sequence[Body], cell: float):

@@ -268,3 +268,281 @@ def _bound(u_ref: Vec, u: Vec, params: SafetyParams, info: FilterInfo, normals: 
     satisfied = all(m >= -tol for m in margins)
     intervened = math.sqrt(sum((a - b) ** 2 for a, b in zip(u, u_ref))) > tol
     return u, FilterInfo(intervened, active, satisfied, info.method, info.slack, info.sidestep, info.min_h)
+
+
+# =========================================================================== on the dynamics
+#
+# The filter above is exact only for a vehicle whose velocity is its reference (the ideal
+# plant). For the others, :func:`dynamic_filter` acts on the inputs the plant takes (τ of a
+# UAV, (τ_u, τ_r) of a USV) at the physics rate, inside the regulator's step. Each vehicle
+# is a point p (its position) with p̈ = f + G τ (:class:`Point`). Between two of them, with
+# braking A along the line of sight, the barrier of Wang, Ames and Egerstedt (2017),
+#
+#     h = sqrt(2 A (|Δp| - D)) + ḋ,    ḋ = n̂ᵀΔv,  n̂ = Δp/|Δp|,
+#
+# is ≥ 0 exactly when braking at A along n̂ stops the pair before |Δp| = D. Its derivative
+# is ḣ = A ḋ / sqrt(2 A (|Δp| - D)) + n̂ᵀΔa + (|Δv|² - ḋ²)/|Δp|, and ḣ ≥ -γ h reads
+# n̂ᵀ(a_i - a_k) ≥ rhs. Vehicle i, not knowing a_k, asks n̂ᵀ a_i ≥ max(rhs, w rhs) (its
+# share w of a permission to close, the whole of a demand to brake): if both do, the pair
+# condition holds; if the other cannot act along n̂ (a boat side-on) or does not react
+# (w = 1), the demand is still met by this one. docs/safety.md derives it and says where it
+# breaks.
+
+# The slack of an infeasible dynamic problem costs this much per (m/s²)² (inputs per unit of full scale).
+DYN_SLACK_WEIGHT = 1.0e4
+# ||Δp| - D| is floored at this (m), so the requirement stays finite at D (where it cannot
+# be met the QP takes the least worst violation: the strongest push the inputs allow).
+DYN_GAP_FLOOR = 0.01
+# A USV keeps this much (m) beyond R: its sway and yaw, which τ_u does not act on, move the
+# hull by up to a few cm while it brakes side-on (tests/core/test_safety_dynamic.py).
+USV_MARGIN = 0.1
+# The braking (m/s²) a vehicle counts on along the line of sight, by plant: a share of a
+# UAV's acceleration bound; for a USV what its surge thrust leaves at full speed
+# (docs/safety.md, "The numbers").
+UAV_BRAKING_SHARE = 0.6
+UAV_NOMINAL_ACCEL = 6.0  # m/s²: a UAV without an acceleration limit is taken as the preset's
+USV_BRAKING = 0.3
+USV_NOMINAL_ACCEL = 1.5  # m/s²: bound on a boat's acceleration (|ε3| τ_u of the preset)
+# Rate (1/s) at which the USV filter lets the surge speed approach ±its limit.
+USV_SPEED_RATE = 1.0
+# While the filter acts on a boat, its yaw rate is held within ±this (rad/s), approached at
+# USV_YAW_RATE_RATE (1/s): turning at speed makes sway (v̇ = ε6 v + ε7 u r), which the
+# surge cannot stop, and in a crowd that sway pushed boats into each other.
+USV_JAM_YAW_RATE = 0.1
+USV_YAW_RATE_RATE = 5.0
+# A UAV's |τ| ≤ accel is a ball; the QP meets it by cutting planes, at most this many.
+BALL_CUTS = 6
+
+
+@dataclass(frozen=True, slots=True)
+class Point:
+    """A vehicle as the dynamic filter sees itself: its position p, velocity v over ground,
+    p̈ = f + G τ (``G`` by rows: p̈_j = f_j + Σ_m G[j][m] τ_m), the inputs' box
+    lo ≤ τ ≤ hi and ball |τ| ≤ ``ball``, the braking ``alpha`` it counts on, ``accel`` a
+    bound on |p̈| of such a vehicle (the margin its neighbours give its motion over a
+    sample's age) and ``scale``, each input's full-scale value (the QP weighs (τ_m/scale_m)²)."""
+
+    p: Vec
+    v: Vec
+    f: Vec
+    G: tuple[Vec, ...]
+    lo: Vec
+    hi: Vec
+    ball: float
+    alpha: float
+    accel: float
+    scale: Vec
+    margin: float = 0.0  # kept beyond R (m)
+    yaw: tuple[float, float] | None = None  # a USV's τ_r interval while the filter acts (see usv_point)
+
+
+@dataclass(frozen=True, slots=True)
+class Track:
+    """A neighbour as estimated now: position and velocity extrapolated from the sensor's
+    sample, its share, and the margins on position (``dp``, m) and velocity (``dv``, m/s)
+    the estimate may be off by."""
+
+    p: Vec
+    v: Vec
+    share: float = 0.5
+    dp: float = 0.0
+    dv: float = 0.0
+    id: str | None = None
+
+
+def uav_point(q: Vec, p: Vec, d: Vec, accel: float) -> Point:
+    """A UAV (q̇ = p + d, ṗ = τ, |τ| ≤ accel): p̈ = τ (d held constant)."""
+    dim = len(q)
+    a = accel if math.isfinite(accel) else UAV_NOMINAL_ACCEL
+    eye = tuple(tuple(1.0 if i == j else 0.0 for j in range(dim)) for i in range(dim))
+    inf = (math.inf,) * dim
+    return Point(tuple(q), tuple(x + y for x, y in zip(p, d)), (0.0,) * dim, eye,
+                 tuple(-x for x in inf), inf, accel, UAV_BRAKING_SHARE * a, a, (a,) * dim)
+
+
+def usv_point(x: float, y: float, psi: float, u: float, v: float, r: float, eps: tuple[float, ...],
+              d: Vec, tau_u: float, tau_r: float, speed: float) -> Point:
+    """A 3-DOF boat's position: with ṗ = R(ψ)(u, v) + d (d held constant),
+
+        p̈ = R(ψ) (ε1 u + ε2 v r - r v + ε3 τ_u,  ε6 v + ε7 u r + r u)
+
+    Only τ_u acts at this order (along the heading); τ_r acts a derivative later, through r.
+    The box is |τ_u| ≤ tau_u, narrowed so that the surge speed approaches ±``speed`` no faster
+    than exponentially (u̇ ≤ USV_SPEED_RATE (speed - u)), and |τ_r| ≤ tau_r (untouched)."""
+    e1, e2, e3, e4, e5, e6, e7 = eps
+    c, s = math.cos(psi), math.sin(psi)
+    vel = (c * u - s * v + d[0], s * u + c * v + d[1])
+    fu, fv = e1 * u + e2 * v * r - r * v, e6 * v + e7 * u * r + r * u
+    f = (c * fu - s * fv, s * fu + c * fv)
+    G = ((c * e3, 0.0), (s * e3, 0.0))
+    lo_u, hi_u = -tau_u, tau_u
+    if math.isfinite(speed):
+        drift = e1 * u + e2 * v * r
+        lo_u, hi_u = _narrow(lo_u, hi_u, (-USV_SPEED_RATE * (speed + u) - drift) / e3,
+                             (USV_SPEED_RATE * (speed - u) - drift) / e3)
+    accel = min(USV_NOMINAL_ACCEL, e3 * tau_u) if math.isfinite(tau_u) else USV_NOMINAL_ACCEL
+    scale = (tau_u if math.isfinite(tau_u) else 1.0 / e3, tau_r if math.isfinite(tau_r) else 1.0 / e5)
+    yaw = _narrow(-tau_r, tau_r, (-USV_YAW_RATE_RATE * (USV_JAM_YAW_RATE + r) - e4 * r) / e5,
+                  (USV_YAW_RATE_RATE * (USV_JAM_YAW_RATE - r) - e4 * r) / e5)
+    return Point((x, y), vel, f, G, (lo_u, -tau_r), (hi_u, tau_r), math.inf, USV_BRAKING, accel, scale, USV_MARGIN,
+                 yaw)
+
+
+def _narrow(lo: float, hi: float, a: float, b: float) -> tuple[float, float]:
+    """[lo, hi] ∩ [a, b]; if they do not meet, the end of [lo, hi] nearest [a, b]."""
+    nlo, nhi = max(lo, a), min(hi, b)
+    if nlo <= nhi:
+        return nlo, nhi
+    edge = hi if a > hi else lo
+    return edge, edge
+
+
+def pair_demand(dp: Vec, dv: Vec, radius: float, alpha: float, gamma: float, share: float,
+                margin_p: float = 0.0, margin_v: float = 0.0) -> tuple[Vec, float, float]:
+    """(n̂, b, h): vehicle i must keep n̂ᵀ a_i ≥ b for the pair with relative position
+    ``dp`` = p_i - p_k and velocity ``dv``; h is the barrier's value (negative: the pair
+    cannot stop before ``radius`` + ``margin_p`` braking at ``alpha``)."""
+    dim = len(dp)
+    dist = math.sqrt(sum(x * x for x in dp))
+    n = tuple(x / dist for x in dp) if dist > COINCIDENT else (1.0,) + (0.0,) * (dim - 1)
+    ddot = _dot(n, dv)
+    vt2 = max(0.0, _dot(dv, dv) - ddot * ddot)
+    D = radius + margin_p
+    # Inside D the same barrier with -sqrt(2 A (D - |Δp|)): h < 0, and ḣ ≥ -γ h drives the
+    # pair out, separating at up to sqrt(2 A (D - |Δp|)) (its derivative has the same form).
+    root = math.sqrt(2.0 * alpha * max(abs(dist - D), DYN_GAP_FLOOR))
+    h = (root if dist > D else -root) + ddot - margin_v
+    rhs = -gamma * h - alpha * ddot / root - vt2 / max(dist, ESCAPE_FLOOR * radius)
+    return n, max(rhs, share * rhs), h
+
+
+def _dyn_rows(me: Point, tracks: Sequence[Track], params: SafetyParams, mid: str | None
+              ) -> tuple[list[Vec], list[float], float]:
+    """Per track a row c and bound b (m/s²) of c·z ≥ b (z = τ / scale), and the smallest
+    |Δp|² - D² (m²; negative: inside D)."""
+    dim = len(me.p)
+    rows: list[Vec] = []
+    bounds: list[float] = []
+    min_h = math.inf
+    scale = me.scale
+    for t in tracks:
+        if len(t.p) != dim or len(t.v) != dim:
+            raise ValueError(f"safety: a track has {len(t.p)} coordinates, the vehicle {dim}")
+        if not 0.0 < t.share <= 1.0:
+            raise ValueError(f"safety: track share must be in (0, 1], got {t.share!r}")
+        dp = tuple(a - b for a, b in zip(me.p, t.p))
+        dv = tuple(a - b for a, b in zip(me.v, t.v))
+        if not all(math.isfinite(x) for x in dp + dv):
+            continue  # a sensor glitch constrains nothing
+        dist2 = _dot(dp, dp)
+        D = params.radius + me.margin + t.dp
+        min_h = min(min_h, dist2 - D * D)
+        if dist2 <= COINCIDENT ** 2 and mid is not None and t.id is not None and t.id != mid:
+            dp = _pair_direction(mid, t.id, dim)  # coincident: separate along a direction fixed by the ids
+            dp = tuple(COINCIDENT * x for x in dp)
+        n, b, _ = pair_demand(dp, dv, params.radius + me.margin, me.alpha / t.share, params.gamma, t.share, t.dp,
+                              t.dv)
+        # n̂ᵀ(f + G τ) ≥ b, in z: Σ_m (n̂ᵀG)_m scale_m z_m ≥ b - n̂ᵀf
+        # Rows stay in m/s² (not normalised): the slack of a row then measures the missing
+        # acceleration, and a row the inputs can hardly act on (a boat side-on) cannot buy
+        # its slack down by giving up the rows they can act on.
+        c = tuple(sum(n[j] * me.G[j][m] for j in range(dim)) * scale[m] for m in range(len(scale)))
+        if math.sqrt(_dot(c, c)) < 1e-9:
+            continue  # no authority along n̂ at all: the neighbour takes the demand
+        rows.append(c)
+        bounds.append(b - _dot(n, me.f))
+    return rows, bounds, min_h
+
+
+def dynamic_filter(tau_ref: Vec, me: Point, tracks: Sequence[Track], params: SafetyParams,
+                   mid: str | None = None) -> tuple[Vec, FilterInfo]:
+    """The inputs nearest ``tau_ref`` (each scaled by its full-scale value) that keep the
+    barrier condition with every track, within the inputs' box and ball. Never raises on a
+    situation: an impossible one (inside R, or closing too fast to stop) is solved with a
+    slack on each barrier row, heavily weighted: the least worst violations within the
+    inputs' bounds (one slack per row, so a row the inputs can hardly act on, a boat
+    side-on, does not relax the others). Returns (τ, info); ``tau_ref`` itself, bit for bit, when it is safe."""
+    tau_ref = tuple(float(x) for x in tau_ref)
+    m = len(tau_ref)
+    if m != len(me.lo) or m != len(me.hi) or m != len(me.scale):
+        raise ValueError(f"safety: tau_ref has {m} inputs, the vehicle {len(me.lo)}")
+    if not all(math.isfinite(x) for x in tau_ref + tuple(me.p) + tuple(me.v) + tuple(me.f)):
+        raise ValueError(f"safety: tau_ref and the vehicle's state must be finite, got {tau_ref}, {me}")
+    if not tracks:
+        return tau_ref, PASS
+    scale = me.scale
+    rows, bounds, min_h = _dyn_rows(me, tracks, params, mid)
+    z_ref = tuple(x / s for x, s in zip(tau_ref, scale))
+    if all(_dot(c, z_ref) >= b - 1e-12 for c, b in zip(rows, bounds)):
+        return tau_ref, FilterInfo(False, (), True, "pass", min_h=min_h)
+    k = len(rows)
+    nv = m + k  # z, then one slack per row: a row that cannot be met relaxes only itself
+    G = np.eye(nv)
+    for i in range(k):
+        G[m + i, m + i] = DYN_SLACK_WEIGHT
+    a = np.zeros(nv)
+    a[:m] = z_ref
+    cols: list[list[float]] = []
+    rhs: list[float] = []
+    for i, (c, b) in enumerate(zip(rows, bounds)):
+        col = list(c) + [0.0] * k
+        col[m + i] = 1.0
+        cols.append(col)
+        rhs.append(b)
+        pos = [0.0] * nv  # δ_i ≥ 0
+        pos[m + i] = 1.0
+        cols.append(pos)
+        rhs.append(0.0)
+    for j in range(m):
+        if math.isfinite(me.lo[j]):
+            e = [0.0] * nv
+            e[j] = 1.0
+            cols.append(e)
+            rhs.append(me.lo[j] / scale[j])
+        if math.isfinite(me.hi[j]):
+            e = [0.0] * nv
+            e[j] = -1.0
+            cols.append(e)
+            rhs.append(-me.hi[j] / scale[j])
+    x = None
+    for _ in range(BALL_CUTS + 1):
+        try:
+            x = quadprog.solve_qp(G, a, np.array(cols, dtype=float).T, np.array(rhs, dtype=float), 0)[0]
+        except ValueError:
+            x = None
+            break
+        if not math.isfinite(me.ball):
+            break
+        tau = [x[j] * scale[j] for j in range(m)]
+        nt = math.sqrt(sum(v * v for v in tau))
+        if nt <= me.ball * (1.0 + 1e-6):
+            break
+        # the ball's tangent plane at the nearest point: ûᵀτ ≤ ball
+        cols.append([-tau[j] / nt * scale[j] for j in range(m)] + [0.0] * k)
+        rhs.append(-me.ball)
+    if x is None:  # numerically degenerate: the strongest push along the worst row, in the box
+        worst = max(range(k), key=lambda i: bounds[i] - _dot(rows[i], z_ref))
+        z = tuple(zr + 1e6 * c for zr, c in zip(z_ref, rows[worst]))
+        slack = math.inf
+    else:
+        z = tuple(float(v) for v in x[:m])
+        slack = max(0.0, max(float(v) for v in x[m:]))
+    tau = tuple(min(max(zj * s, lo), hi) for zj, s, lo, hi in zip(z, scale, me.lo, me.hi))
+    tau = _clip_ball(tau, me.ball)
+    zt = tuple(v / s for v, s in zip(tau, scale))
+    margins = [_dot(c, zt) - b for c, b in zip(rows, bounds)]
+    if me.yaw is not None:  # a boat the filter acts on turns slowly: its turns make sway, which τ_u cannot stop
+        lo_r, hi_r = me.yaw
+        tau = tau[:1] + (min(max(tau[1], lo_r), hi_r),) + tau[2:]
+    method = "relaxed" if slack > 1e-9 else "qp"
+    active = tuple(i for i, mg in enumerate(margins) if mg <= 1e-7)
+    satisfied = all(mg >= -1e-7 for mg in margins)
+    intervened = tau != tau_ref
+    return tau, FilterInfo(intervened, active, satisfied, method, slack if math.isfinite(slack) else 0.0, 0.0, min_h)
+
+
+def _clip_ball(v: Vec, bound: float) -> Vec:
+    if not math.isfinite(bound):
+        return v
+    n = math.sqrt(sum(x * x for x in v))
+    return v if n <= bound else tuple(x * bound / n for x in v)

@@ -12,7 +12,10 @@ runner; it does no I/O and reads no clock. One control period is:
    over the period and added to the reference the regulator tracks;
 4. ``advance()``: move the plant to the next control instant at the physics rate, its
    regulator tracking the guidance with ω extrapolated at the held ω̇ (and, with an
-   observer, the estimated disturbance d̂ cancelled: cdus.core.observer).
+   observer, the estimated disturbance d̂ cancelled: cdus.core.observer); with a safety
+   filter and contacts, the regulator's inputs go through the dynamic filter at every
+   physics step (cdus.core.safety.dynamic_filter), the contacts extrapolated over the
+   sample's age (docs/safety.md).
 
 With a speed limit the guidance itself is scaled (guidance.integrate_omega's σ), so ω
 does not run ahead of a vehicle that cannot keep up (docs/safety.md).
@@ -21,14 +24,16 @@ does not run ahead of a vehicle that cannot keep up (docs/safety.md).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from cdus.core import regulators as reg
 from cdus.core.disturbance import Disturbance
 from cdus.core.guidance import Consensus, desired_velocity, integrate_omega, omega_law
 from cdus.core.observer import ESO, known_velocity
-from cdus.core.safety import Contact, FilterInfo, SafetyParams, safety_filter
+from cdus.core.safety import (
+    Contact, FilterInfo, Point, SafetyParams, Track, dynamic_filter, safety_filter, uav_point, usv_point,
+)
 from cdus.core.paths import Path, Vec, nearest_omega
 from cdus.core.plants import (
     PointState, UAVState, USVState, step_ideal, step_uav, step_usv,
@@ -47,6 +52,15 @@ class Telemetry:
     omega: float
     omega_rate: float
     path_error: float
+
+
+# For a plant other than ideal, the velocity reference is shaped by the velocity-level filter
+# with its radius this much larger (a fraction of R), so that it turns the vehicle away
+# before the dynamic filter has to hold it at R (docs/safety.md).
+SHAPER_MARGIN = 0.5
+# A contact's velocity is estimated from two samples at most this far apart (s); otherwise
+# (first sighting, or back in range after a while) it is taken at rest for one sample.
+MAX_VELOCITY_BASE = 0.5
 
 
 @dataclass
@@ -81,6 +95,13 @@ class Vehicle:
     interventions: int = 0  # control steps at which the safety filter changed the reference
     last_filter: FilterInfo | None = field(default=None, repr=False)
     _shift: Vec | None = field(default=None, repr=False)  # the filter's u - u_ref, held over the period
+    # The dynamic filter's view of the neighbours (docs/safety.md): the sample in use and the
+    # one before it (tick, {id: point}), and the tracks built from them at guard().
+    _sample: tuple[int, dict] | None = field(default=None, repr=False)
+    _prev_sample: tuple[int, dict] | None = field(default=None, repr=False)
+    _tracks: tuple | None = field(default=None, repr=False)
+    _guarded: bool = field(default=False, repr=False)  # the velocity layer intervened this period
+    _dyn_intervened: bool = field(default=False, repr=False)  # the dynamic layer did
     _eso: ESO | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
@@ -117,6 +138,7 @@ class Vehicle:
         half = self.path.period / 2.0 if self.path.period else 0.0
         self.omega = nearest_omega(self.path, self.q, hint - half)
         self._shift = None
+        self._sample = self._prev_sample = self._tracks = None
         if self.observer is not None:
             self._eso = ESO.start(self.q, self.observer)
 
@@ -169,23 +191,93 @@ class Vehicle:
         self.omega_rate = (w_new - self.omega) / self.control_period
         self.omega = w_new
 
-    def guard(self, contacts: tuple[Contact, ...]) -> FilterInfo | None:
+    def guard(self, contacts: tuple[Contact, ...], sample_tick: int | None = None) -> FilterInfo | None:
         """Run the safety filter on the velocity reference at this control instant (after
         :meth:`control`): its correction is what :meth:`advance` adds over the period.
-        Without a filter, nothing. Returns what the filter did."""
+        ``sample_tick``: the control tick the sensor sampled ``contacts`` at (None: now).
+        Without a filter, nothing. Returns what the filter did.
+
+        For a plant other than ``ideal`` this also prepares the dynamic filter
+        (cdus.core.safety.dynamic_filter) that :meth:`advance` runs at every physics step on
+        the regulator's inputs: each contact's velocity is estimated from the two newest
+        samples this vehicle used (docs/safety.md, "robust to the sensor")."""
         self._shift = None
+        self._tracks = None
         if self.safety is None:
             return None
         if not contacts:
             self.last_filter = None
+            self._track(contacts, self.tick if sample_tick is None else sample_tick)
+            self._tracks = None
             return None
         a = reg.clip_norm(desired_velocity(self.path, self.q, self.omega, self.k), self.limits.speed)
-        u, info = safety_filter(a, self.q, contacts, self.safety, self.id)
+        self._track(contacts, self.tick if sample_tick is None else sample_tick)
+        params = self.safety
+        if self.plant != "ideal":  # the reference keeps clear of R, the dynamic filter holds R
+            params = replace(params, radius=params.radius * (1.0 + SHAPER_MARGIN))
+            seen = contacts
+        else:  # where the contacts are now, at their estimated velocities (docs/safety.md)
+            ts, tracks = self._tracks
+            age = self.t - ts
+            seen = tuple(c if v is None or age <= 0.0 else
+                         Contact(tuple(x + y * age for x, y in zip(c.q, v)), c.id, c.share)
+                         for c, v, _ in tracks)
+            self._tracks = None
+        u, info = safety_filter(a, self.q, seen, params, self.id)
         self.last_filter = info
+        self._guarded = info.intervened
         if info.intervened:
-            self.interventions += 1
             self._shift = tuple(x - y for x, y in zip(u, a))
+            self.interventions += 1
         return info
+
+    def _track(self, contacts: tuple[Contact, ...], s: int) -> None:
+        """The contacts of sample ``s`` with velocities estimated from the sample before."""
+        if self._sample is None or self._sample[0] != s:
+            if self._sample is not None and self._sample[0] < s:
+                self._prev_sample = self._sample
+            self._sample = (s, {c.id: c.q for c in contacts if c.id is not None})
+        T = self.control_period
+        prev = self._prev_sample
+        out = []
+        for c in contacts:
+            v = None
+            dt = 0.0
+            if prev is not None and c.id is not None and c.id in prev[1] and len(prev[1][c.id]) == len(c.q) \
+                    and (s - prev[0]) * T <= MAX_VELOCITY_BASE:
+                dt = (s - prev[0]) * T
+                v = tuple((a - b) / dt for a, b in zip(c.q, prev[1][c.id]))
+            out.append((c, v, dt))
+        self._tracks = (s * T, tuple(out))
+
+    def _filtered(self, tau: Vec, t: float, d: Vec) -> Vec:
+        """The regulator's inputs ``tau`` at physics time ``t`` through the dynamic filter."""
+        ts, tracks = self._tracks
+        me = self._me(d)
+        age = max(0.0, t - ts)
+        a = me.accel
+        dim = len(me.p)
+        tr = []
+        for c, v, dt in tracks:
+            q = tuple(c.q)
+            if len(q) != dim:
+                continue
+            if v is None:
+                v = (0.0,) * dim
+            tr.append(Track(tuple(x + y * age for x, y in zip(q, v)), v, c.share,
+                            a * (0.5 * dt * age + 0.5 * age * age), a * (0.5 * dt + age), c.id))
+        out, info = dynamic_filter(tau, me, tr, self.safety, self.id)
+        if info.intervened:
+            self._dyn_intervened = True
+            self.last_filter = info
+        return out
+
+    def _me(self, d: Vec) -> Point:
+        st = self.state
+        lim = self.limits
+        if isinstance(st, USVState):
+            return usv_point(st.x, st.y, st.psi, st.u, st.v, st.r, self.eps, d, lim.tau_u, lim.tau_r, lim.speed)
+        return uav_point(st.q, st.p, d, lim.accel)
 
     def advance(self) -> None:
         """Move the plant over one control period at the physics rate."""
@@ -211,6 +303,8 @@ class Vehicle:
                         eso = eso.update(self.state.q, known_velocity(before, self.state, cmd), h)
         else:
             w0, wd = self.omega, self.omega_rate
+            guarded = self._tracks is not None and self.safety is not None
+            self._dyn_intervened = False
             for j in range(n):
                 w = w0 + wd * j * h
                 d = dist.step(h) if dist is not None else zero
@@ -218,23 +312,33 @@ class Vehicle:
                 d_hat = eso.d_hat if eso is not None else None
                 if self.plant == "uav_double_integrator":
                     tau = reg.uav_pd(st, self.path, w, wd, self.k, self.reg_gains, self.limits, d_hat, shift)
+                    if guarded:
+                        tau = self._filtered(tau, self.t + j * h, d)
                     self.state = step_uav(st, tau, d, h)
                 elif self.regulator == "paper":
                     tu, tr, self._r_ref_prev = reg.usv_paper(st, self.path, w, wd, self.k, self.eps,
                                                              self.reg_gains, self._r_ref_prev, h, self.limits,
                                                              d_hat, shift)
+                    if guarded:
+                        tu, tr = self._filtered((tu, tr), self.t + j * h, d)
                     self.state = step_usv(st, tu, tr, self.eps, d, h)
                 else:
                     tu, tr = reg.usv_heading(st, self.path, w, wd, self.k, self.eps, self.reg_gains, self.limits,
                                              d_hat, shift)
+                    if guarded:
+                        tu, tr = self._filtered((tu, tr), self.t + j * h, d)
                     self.state = step_usv(st, tu, tr, self.eps, d, h)
                 if not math.isfinite(_state_sum(self.state)):
                     raise DivergedError(f"vehicle {self.id}: its state is no longer finite at t = "
                                         f"{self.t + j * h:.2f} s (the vehicle diverged): {st}")
                 if eso is not None:
                     eso = eso.update(self.state.q, known_velocity(st, self.state), h)
+            if self._dyn_intervened and not self._guarded:
+                self.interventions += 1  # counted once per control step, whichever layer acted
         self._eso = eso
         self._shift = None
+        self._tracks = None
+        self._guarded = False
         self.tick += 1
         self.t = self.tick * T
 

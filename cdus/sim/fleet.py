@@ -163,7 +163,8 @@ class InProcessFleet:
             if out.omega is not None:
                 self._send(j, out.omega, n)
         if self.sensing is not None and n % self.sensing[0] == 0:
-            self._sense(n, {j: rows[j].q for j in stepped})
+            live = set(stepped)
+            self._sense(n, {j: rows[j].q for j in stepped}, {j: rows[j].q for j in range(len(rows)) if j not in live})
         live = [False] * len(self.nodes)
         for j in stepped:
             live[j] = True
@@ -189,10 +190,11 @@ class InProcessFleet:
             else:
                 self.nodes[dst].on_message(wire)
 
-    def _sense(self, n: int, positions: dict) -> None:
+    def _sense(self, n: int, positions: dict, gone: dict) -> None:
         """The proximity sensor at tick n, as the world runs it: contacts through the wire
-        format once, to every vehicle that stepped n (cdus.sim.sensing)."""
-        for j, msg in sense_tick(self.scenario, n, positions).items():
+        format once, to every vehicle that stepped n; the others stay obstacles where they
+        were last seen (cdus.sim.sensing)."""
+        for j, msg in sense_tick(self.scenario, n, positions, gone).items():
             wire = decode_contacts(encode_contacts(msg), len(self.ids))
             if not isinstance(wire, str):
                 self.nodes[j].on_contacts(n, contacts_of(wire, self.ids))

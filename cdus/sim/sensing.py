@@ -18,13 +18,17 @@ from cdus.scenario.model import Scenario
 from cdus.wire.messages import ContactsMsg
 
 
-def sense_tick(scenario: Scenario, tick: int, positions: Mapping[int, Vec]) -> dict[int, ContactsMsg]:
+def sense_tick(scenario: Scenario, tick: int, positions: Mapping[int, Vec],
+               gone: Mapping[int, Vec] | None = None) -> dict[int, ContactsMsg]:
     """Every sampled vehicle's contacts at ``tick`` from ``positions`` (vehicle index -> q of
-    the vehicles that stepped ``tick``), keyed by vehicle index; an empty message for a
-    vehicle that sees nobody (a deterministic runner waits for it)."""
+    the vehicles that stepped ``tick``), keyed by vehicle index; an empty message for a vehicle that sees nobody (a deterministic runner waits for it). ``gone``:
+    the vehicles that are not live, where they were last seen: obstacles the others see
+    (share 1), sent nothing."""
     vehicles = scenario.vehicles
     index = {v.id: v.index for v in vehicles}
     bodies = [Body(vehicles[j].id, vehicles[j].kind, tuple(q)) for j, q in sorted(positions.items())]
+    bodies += [Body(vehicles[j].id, vehicles[j].kind, tuple(q), live=False)
+               for j, q in sorted((gone or {}).items()) if j not in positions]
     seen = sense(bodies, scenario.safety.range, scenario.safety.cross_domain)
     return {index[vid]: ContactsMsg(tick, tuple((index[c.id], c.share, tuple(c.q)) for c in cs))
             for vid, cs in seen.items()}

@@ -70,6 +70,21 @@ def test_domains():
     assert sense(bodies, 10.0, cross_domain=False)["uav3"] == ()
 
 
+def test_a_vehicle_that_is_not_live_is_an_obstacle_taken_whole_and_sees_nothing():
+    bodies = [
+        Body("usv1", "usv", (0.0, 0.0)),
+        Body("usv2", "usv", (4.0, 0.0), live=False),   # killed here
+        Body("usv3", "usv", (6.0, 0.0), live=False),   # two dead ones do not see each other
+        Body("uav1", "uav", (4.0, 1.0, 2.0)),
+        Body("uav2", "uav", (5.0, 1.0, 2.0), live=False),
+    ]
+    seen = sense(bodies, 10.0)
+    assert set(seen) == {"usv1", "uav1"}
+    assert seen["usv1"] == (Contact((4.0, 0.0), "usv2", 1.0), Contact((6.0, 0.0), "usv3", 1.0))
+    assert seen["uav1"] == (Contact((5.0, 1.0, 2.0), "uav2", 1.0), Contact((0.0, 0.0, 0.0), "usv1", 1.0),
+                            Contact((4.0, 0.0, 0.0), "usv2", 1.0), Contact((6.0, 0.0, 0.0), "usv3", 1.0))
+
+
 def test_bad_input_names_the_problem():
     with pytest.raises(ValueError, match="unknown domain 'ugv'"):
         Body("x", "ugv", (0.0, 0.0))
