@@ -66,3 +66,11 @@ def test_an_encounter_without_the_filter_comes_within_the_radius_and_the_run_rep
     summary = mc.summarize([row, {**row, "worst_separation_m": 3.0}, {"preset": "ideal", "error": "boom"}])
     assert (summary["encounters"], summary["errors"], summary["violations"], summary["strictly_below_radius"]) == (
         3, 1, 1, 1)
+
+
+@pytest.mark.parametrize("preset", mc.ALL_PRESETS)
+def test_every_encounter_starts_with_every_pair_outside_one_and_a_half_radii(preset):
+    for enc in mc.encounters(preset, 200, seed=1):  # the benchmark's default draw
+        sc = parse_scenario(enc.scenario_data(True))
+        starts = [(v.start_position or make_path(dict(v.path)).eval(v.omega0)[0])[:2] for v in sc.vehicles]
+        assert all(math.dist(a, b) >= 1.5 * mc.RADIUS for i, a in enumerate(starts) for b in starts[i + 1:]), enc.index
