@@ -146,6 +146,22 @@ def test_a_killed_boat_stays_an_obstacle_the_others_avoid():
     assert gap.min() >= R - TOLERANCE  # measured 2.069 m
 
 
+def test_a_boat_whose_path_a_dead_boat_blocks_gets_past_it():
+    """usv_b1 dies at 0.5 s on usv_b2's circle; usv_b2 reaches it at about 25 s. It keeps R
+    from it and gets past (measured: 6.9 m beyond it at 60 s, back on its path by 70 s).
+    Before the shaper's correction was taken from the unclipped reference, usv_b2 stopped
+    2.16 m from the dead boat and stayed there for good (|Φ| growing to 3.2 m at 150 s)."""
+    data = tomllib.loads(open("configs/crossing_dynamic.toml").read())
+    data["scenario"]["duration"] = 70.0
+    data["event"] = [{"at": 0.5, "vehicle": "usv_b1", "action": "kill"}]
+    sc = parse_scenario(data, source="crossing_dynamic+kill")
+    res = InProcessFleet(sc).run()
+    t, q = res.recorder.view("t"), res.recorder.view("q")
+    gap = np.linalg.norm(q[:, 3, :2] - q[:, 1, :2], axis=1)
+    assert gap.min() >= R - TOLERANCE  # measured 2.182 m
+    assert gap[t >= 60.0].min() > 5.0  # past it (stuck: 2.16 m)
+
+
 def test_sense_tick_keeps_vehicles_that_are_gone_as_obstacles_taken_whole():
     sc = load_scenario("configs/crossing.toml")
     msgs = sense_tick(sc, 5, {0: (0.0, 0.0), 2: (1.0, 0.0)}, {1: (3.0, 4.0), 3: (40.0, 0.0)})
