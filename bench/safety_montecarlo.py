@@ -43,9 +43,9 @@ What it prints per preset and filter setting:
   median settle times;
 - solve time: every call of the filter is timed in the worker (the function the vehicle
   imported from cdus.core.safety, or if it imported none the module's public functions
-  named *filter*, wrapped with time.perf_counter at run time); µs per call
-  (median, p99) and per control step of the fleet (filter time summed over the vehicles /
-  control ticks). Also the wall time per run with and without the filter.
+  named *filter*, wrapped with time.perf_counter at run time); µs per call (the
+  mean: total filter time / calls) and per control step of the fleet (filter time summed
+  over the vehicles / control ticks). Also the wall time per run with and without the filter.
 
 It uses only the public scenario and fleet APIs, so it runs against any checkout:
 ``PYTHONPATH=/path/to/checkout python3 bench/safety_montecarlo.py`` uses that checkout's

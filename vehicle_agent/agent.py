@@ -522,6 +522,8 @@ class Agent:
             if state != "live":  # paused (or gone) by the roster: skip to where it resumes
                 back = node.resume_tick(n)
                 if back is None:
+                    if self._states:  # its last rows: the world records (and carries out a kill) only with them
+                        self.flush_states()
                     if self._stopping():
                         return
                     self._recv(never)

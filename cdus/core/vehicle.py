@@ -210,7 +210,8 @@ class Vehicle:
             self._track(contacts, self.tick if sample_tick is None else sample_tick)
             self._tracks = None
             return None
-        a = reg.clip_norm(desired_velocity(self.path, self.q, self.omega, self.k), self.limits.speed)
+        raw = desired_velocity(self.path, self.q, self.omega, self.k)
+        a = reg.clip_norm(raw, self.limits.speed)
         self._track(contacts, self.tick if sample_tick is None else sample_tick)
         params = self.safety
         if self.plant != "ideal":  # the reference keeps clear of R, the dynamic filter holds R
@@ -227,7 +228,12 @@ class Vehicle:
         self.last_filter = info
         self._guarded = info.intervened
         if info.intervened:
-            self._shift = tuple(x - y for x, y in zip(u, a))
+            # The ideal plant flies clip(a) + shift; the regulators add the shift to the
+            # unclipped reference and clip after (a - d̂ + shift), so for them it is taken from
+            # the unclipped one: both then fly u (a boat far off its path, |a| above the speed
+            # limit, otherwise tracked a reference still pointing into the contact and froze).
+            base = a if self.plant == "ideal" else raw
+            self._shift = tuple(x - y for x, y in zip(u, base))
             self.interventions += 1
         return info
 

@@ -385,6 +385,35 @@ def test_the_vehicle_filters_its_inputs_at_every_physics_step():
     assert v.state.u < 2.0 - 0.02  # braking at more than 1 m/s² over the 20 ms
 
 
+def test_off_its_path_a_boat_tracks_the_shaped_reference_the_filter_chose():
+    """Far from its path |a| = |s f' - KΦ| exceeds the speed limit. The regulators add the
+    shaper's correction to the unclipped reference and clip after (a - d̂ + shift), so the
+    correction is taken from the unclipped one and the boat tracks the filter's answer. It
+    used to be taken from the clipped one: the boat tracked a reference still pointing into
+    the contact, and one blocked by a dead boat on its path froze 2.16 m from it for good."""
+    from dataclasses import replace
+
+    from cdus.core.guidance import desired_velocity
+    from cdus.core.regulators import clip_norm
+    from cdus.core.safety import Contact, safety_filter
+    from cdus.core.vehicle import SHAPER_MARGIN
+
+    v = _boat()
+    v.state = USVState(-6.0, 14.0, 0.0, 0.0, 0.0, 0.0)  # 4 m outside its circle (radius 10)
+    raw = desired_velocity(v.path, v.q, v.omega, v.k)
+    speed = v.limits.speed
+    n = math.hypot(*raw)
+    assert n > speed  # the reference is clipped here
+    ahead = (Contact(tuple(x + 2.5 * y / n for x, y in zip(v.q, raw)), "x", 1.0),)
+    v.guard(ahead, 0)
+    assert v._shift is not None
+    tracked = clip_norm(tuple(x + y for x, y in zip(raw, v._shift)), speed)
+    shaper = replace(v.safety, radius=v.safety.radius * (1.0 + SHAPER_MARGIN))
+    u, _ = safety_filter(clip_norm(raw, speed), v.q, ahead, shaper, v.id)
+    assert tracked == pytest.approx(u, abs=1e-12)
+    assert sum(x * y for x, y in zip(tracked, raw)) < 0.0  # away from the contact, not into it
+
+
 @pytest.mark.parametrize("boat_speed", [0.0, 1.0, 2.0])
 def test_a_drone_diving_at_a_boat_keeps_R_from_it_in_3d(boat_speed):
     """Across domains: the drone sees the boat as a point on the water (x, y, 0) moving at its

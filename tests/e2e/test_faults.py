@@ -110,6 +110,31 @@ vehicle = "usv2"
     assert not fleet_processes(fleet)
 
 
+def test_a_kill_between_two_telemetry_batches_does_not_hold_the_lockstep_fleet(tmp_path, launches):
+    """A kill at 0.5 s (tick 25): the killed agent has stepped ticks 20-24, still in its
+    telemetry batch of 10, and then waits to be killed. It sends those rows first: the world
+    carries out a kill only once every live vehicle has reported the tick before it. It used
+    to wait with them unsent, and the fleet hung at tick 25 for good (the test above kills at
+    tick 7500, a batch boundary, and a restart made it flush)."""
+    text = open("configs/lake_circle.toml").read().replace("duration = 250.0", "duration = 3.0")
+    text += """
+[[event]]
+at = 0.5
+action = "kill"
+vehicle = "usv2"
+"""
+    cfg = tmp_path / "kill_only.toml"
+    cfg.write_text(text)
+    fleet = unique_fleet()
+    run = tmp_path / "run"
+    la = launches([str(cfg), "--clock", "lockstep", "--logs", str(run), "-q", "--rerun", "off"], fleet)
+    assert la.wait(timeout=120) == 0, la.output()
+    m = json.loads((run / "metrics.json").read_text())
+    assert m["completed"] and m["duration_s"] == 3.0, (m["completion"], m["duration_s"])
+    assert "usv2" not in m["live_final"] and "usv1" in m["live_final"]
+    assert not fleet_processes(fleet)
+
+
 def hostile_omega_payloads(rng: random.Random, n: int) -> list[bytes]:
     """Payloads no receiver may accept: every kind of wrong, none accidentally valid."""
     good = [1, 0, 5, 1.0, -3.0, -1.0]
