@@ -598,7 +598,9 @@ class RerunSink:
             if last is None or t - last > EPISODE_GAP + 1e-9:
                 self._set_time(t)
                 self.rec.log(bp.EVENTS, rr.TextLog(f"{recorder.ids[j]}: the safety filter intervenes "
-                                                   f"(t = {t:.2f} s)", level=rr.TextLogLevel.INFO))
+                                                   f"(first seen at t = {t:.2f} s; a fleet of processes "
+                                                   f"reports its counts about once a second)",
+                                                   level=rr.TextLogLevel.INFO))
             self._last_intervention[int(j)] = t
 
     def _send_closest(self, recorder: Any, lo: int, hi: int) -> None:
