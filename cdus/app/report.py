@@ -134,5 +134,7 @@ def closest_lines(m: dict) -> list[str]:
         if radius is not None and p["distance_m"] is not None and p["distance_m"] < radius:
             line += (f"  [NEAR COLLISION: below the safety radius {radius:g} m]" if safety.get("enabled") else
                      f"  [NEAR COLLISION: below the [safety] radius {radius:g} m; the filter is off]")
+        elif radius is not None and p["distance_m"] is not None and safety.get("enabled"):
+            line += f"  (the filter kept the {radius:g} m radius)"
         out.append(line)
     return out

@@ -92,7 +92,7 @@ def test_lines_of_every_domain_and_of_old_metrics():
         "uav-usv": {"domain": "uav-usv", "a": "b1", "b": "d1", "distance_m": 1.25, "t_s": 4.5, "a_live": False,
                     "b_live": False, "both_live": False}}}
     drones, cross = closest_lines(m)
-    assert drones == "  closest approach (drones): d1 - d2 2.500 m at t = 3.00 s, both live"
+    assert drones == "  closest approach (drones): d1 - d2 2.500 m at t = 3.00 s, both live  (the filter kept the 2 m radius)"
     assert cross == ("  closest approach (drone to boat at the surface): b1 - d1 1.250 m at t = 4.50 s, b1 and d1 "
                      "not live then (killed or paused: counted where it stopped)  "
                      "[NEAR COLLISION: below the safety radius 2 m]")
