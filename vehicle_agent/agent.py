@@ -417,9 +417,11 @@ class Agent:
     def _on_contacts(self, payload: bytes) -> None:
         """The world's proximity sensor: this vehicle's contacts of a sample tick (counted and
         dropped if malformed)."""
-        msg = decode_contacts(payload, len(self.ids))
+        msg = decode_contacts(payload, len(self.ids), self.index, self.node.vehicle.dim)
         if isinstance(msg, str):
             return self._reject("world", f"contacts_{msg}")
+        if msg.tick > self.last_tick:  # no sample is taken past the run's end: kept, it would never be freed
+            return self._reject("world", "contacts_range")
         self.node.on_contacts(msg.tick, contacts_of(msg, self.ids))
 
     def _on_roster(self, f: dict) -> None:

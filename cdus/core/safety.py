@@ -130,7 +130,7 @@ PASS = FilterInfo(False, (), True, "pass")
 
 def barrier(q: Vec, qk: Vec, radius: float) -> float:
     """h = |q - q_k|² - R²."""
-    return sum((a - b) ** 2 for a, b in zip(q, qk)) - radius * radius
+    return sum((a - b) * (a - b) for a, b in zip(q, qk)) - radius * radius  # x * x: inf, not OverflowError
 
 
 def _pair_direction(me: str, other: str, dim: int) -> Vec:
@@ -175,6 +175,7 @@ def _rows(u_ref: Vec, q: Vec, contacts: Sequence[Contact | Vec], params: SafetyP
             nu = math.sqrt(sum(x * x for x in u_ref))
             n = tuple(x / nu for x in u_ref) if nu > 0.0 else (1.0,) + (0.0,) * (dim - 1)
         eff = dist if h >= 0.0 else max(dist, ESCAPE_FLOOR * R)
+        eff = eff if eff > 0.0 else COINCIDENT  # R² underflowed (R < 1e-154 m): h = 0 at |d| = 0
         normals.append(n)
         betas.append(-share * params.gamma * h / (2.0 * eff))
     return normals, betas, min_h
@@ -266,7 +267,7 @@ def _bound(u_ref: Vec, u: Vec, params: SafetyParams, info: FilterInfo, normals: 
     margins = [_dot(n, u) - b for n, b in zip(normals, betas)]
     active = tuple(k for k, m in enumerate(margins) if m <= tol)
     satisfied = all(m >= -tol for m in margins)
-    intervened = math.sqrt(sum((a - b) ** 2 for a, b in zip(u, u_ref))) > tol
+    intervened = math.dist(u, u_ref) > tol  # (a - b) ** 2 raised OverflowError on a huge u
     return u, FilterInfo(intervened, active, satisfied, info.method, info.slack, info.sidestep, info.min_h)
 
 
@@ -432,7 +433,7 @@ def _dyn_rows(me: Point, tracks: Sequence[Track], params: SafetyParams, mid: str
             raise ValueError(f"safety: track share must be in (0, 1], got {t.share!r}")
         dp = tuple(a - b for a, b in zip(me.p, t.p))
         dv = tuple(a - b for a, b in zip(me.v, t.v))
-        if not all(math.isfinite(x) for x in dp + dv):
+        if not all(math.isfinite(x) for x in dp + dv + (t.dp, t.dv)):
             continue  # a sensor glitch constrains nothing
         dist2 = _dot(dp, dp)
         D = params.radius + me.margin + t.dp
@@ -449,8 +450,11 @@ def _dyn_rows(me: Point, tracks: Sequence[Track], params: SafetyParams, mid: str
         c = tuple(sum(n[j] * me.G[j][m] for j in range(dim)) * scale[m] for m in range(len(scale)))
         if math.sqrt(_dot(c, c)) < 1e-9:
             continue  # no authority along n̂ at all: the neighbour takes the demand
+        b -= _dot(n, me.f)
+        if math.isnan(b):
+            continue  # huge margins (inf - inf): as a glitch
         rows.append(c)
-        bounds.append(b - _dot(n, me.f))
+        bounds.append(b)
     return rows, bounds, min_h
 
 
@@ -511,10 +515,16 @@ def dynamic_filter(tau_ref: Vec, me: Point, tracks: Sequence[Track], params: Saf
         except ValueError:
             x = None
             break
+        if not all(math.isfinite(v) for v in x):  # huge bounds (a margin of 1e304 m/s): as degenerate
+            x = None
+            break
         if not math.isfinite(me.ball):
             break
-        tau = [x[j] * scale[j] for j in range(m)]
+        tau = [float(x[j]) * scale[j] for j in range(m)]  # Python floats: inf past the range, no warning
         nt = math.sqrt(sum(v * v for v in tau))
+        if not math.isfinite(nt):  # inputs past 1e154: no tangent plane to cut by
+            x = None
+            break
         if nt <= me.ball * (1.0 + 1e-6):
             break
         # the ball's tangent plane at the nearest point: ûᵀτ ≤ ball

@@ -276,6 +276,20 @@ def parse_value(text: str) -> Any:
 # --------------------------------------------------------------------------- the sections together
 
 
+def sensor_timing(p: Problems, safety: Any, duration: float) -> None:
+    """With the filter on, a sensor whose latency or sample period is the whole run would
+    leave the filter without contacts, or steering by where the vehicles were at t = 0."""
+    if not safety.enabled:
+        return
+    if safety.latency >= duration:
+        p.add("safety.latency", f"must be below scenario.duration ({duration:g} s): contacts that old never "
+                                f"reach the filter, which would never act; got {safety.latency:g} s")
+    if 1.0 / safety.rate >= duration:
+        p.add("safety.rate", f"must be above 1 / scenario.duration ({1.0 / duration:g} Hz): the sensor would "
+                             f"sample once, at t = 0, and the filter steer by those positions for the whole "
+                             f"run; got {safety.rate:g} Hz")
+
+
 def _resolve(p: Problems, data: Mapping[str, Any], source: str) -> Scenario | None:
     """Every section, checked in file order where one needs another (vehicles before the
     graph, the ids before [link] and [[event]]); None if anything is wrong."""
@@ -288,6 +302,7 @@ def _resolve(p: Problems, data: Mapping[str, Any], source: str) -> Scenario | No
     defaults = defaults_section(p, section(p, data, "defaults"))
     supervision = supervision_section(p, section(p, data, "supervision"))
     safety = safety_section(p, section(p, data, "safety"))
+    sensor_timing(p, safety, header.duration)
     disturbance = disturbance_section(p, section(p, data, "disturbance"))
     observer = observer_section(p, section(p, data, "observer"))
     fleet = vehicles_section(p, data.get("vehicle"), defaults, fleet_gains, header.seed)

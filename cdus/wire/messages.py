@@ -203,9 +203,13 @@ def encode_contacts(m: ContactsMsg) -> bytes:
     return _pack([CONTACTS_VERSION, m.tick, [[k, float(w), [float(x) for x in q]] for k, w, q in m.contacts]])
 
 
-def decode_contacts(payload: bytes, n_vehicles: int | None = None) -> ContactsMsg | str:
+def decode_contacts(payload: bytes, n_vehicles: int | None = None, receiver: int | None = None,
+                    dim: int | None = None) -> ContactsMsg | str:
     """A valid contacts message, or the reason it is rejected (``malformed``, ``version``,
-    ``type``, ``non_finite``, ``share``, ``unknown_sender``, ``oversized``); never raises."""
+    ``type``, ``non_finite``, ``share``, ``unknown_sender``, ``oversized``, and given the
+    receiving vehicle's index and dimension: ``self`` (a contact that is the receiver itself),
+    ``duplicate`` (one vehicle listed twice), ``dimension`` (a position the receiver's filter
+    cannot take: a USV is sent 2 coordinates, a UAV 3)); never raises."""
     obj = _versioned_triple(payload, 48 * MAX_CONTACTS + 16, MAX_CONTACTS, CONTACTS_VERSION)
     if isinstance(obj, str):
         return obj
@@ -226,7 +230,13 @@ def decode_contacts(payload: bytes, n_vehicles: int | None = None) -> ContactsMs
             return "share"
         if k < 0 or (n_vehicles is not None and k >= n_vehicles):
             return "unknown_sender"
+        if dim is not None and len(q) != dim:
+            return "dimension"
         out.append((k, w, tuple(q)))
+    if receiver is not None and any(k == receiver for k, _, _ in out):
+        return "self"
+    if len({k for k, _, _ in out}) != len(out):
+        return "duplicate"
     return ContactsMsg(tick, tuple(out))
 
 

@@ -225,3 +225,33 @@ def test_bad_parameters_name_the_field(field, value):
     kwargs = {"radius": 2.0, field: value}
     with pytest.raises(ValueError, match=f"safety.{field}"):
         SafetyParams(**kwargs)
+
+
+# --------------------------------------------------------------------------- hostile inputs (review of issue 16)
+
+
+def test_huge_values_do_not_raise():
+    """(a - b) ** 2 raised OverflowError on a huge u (γ = 1e300 inside R, or a huge u_ref); a radius
+    whose square underflows divided by zero at a coincident contact."""
+    cs = [Contact((1.0, 0.0), "b"), Contact((-1.0, 0.1), "c")]
+    u, info = safety_filter((1.0, 0.0), (0.0, 0.0), cs, SafetyParams(2.0, gamma=1e300), "a")
+    assert info.intervened and len(u) == 2
+    u, info = safety_filter((1e300, 0.0), (0.0, 0.0), cs, SafetyParams(2.0), "a")
+    assert len(u) == 2
+    u, info = safety_filter((1.0, 0.0), (5.0, 5.0), [Contact((5.0, 5.0), "b")], SafetyParams(1e-300), "a")
+    assert all(math.isfinite(x) for x in u)
+    assert barrier((1e300, 0.0), (-1e300, 0.0), 1.0) == math.inf
+
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+
+@settings(max_examples=400, deadline=None)
+@given(u=st.tuples(st.floats(-1e300, 1e300), st.floats(-1e300, 1e300)),
+       q=st.tuples(st.floats(-1e300, 1e300), st.floats(-1e300, 1e300)),
+       cs=st.lists(st.builds(Contact, st.tuples(st.floats(), st.floats()), st.sampled_from(("a", "b", None, "me")),
+                             st.floats(1e-9, 1.0)), max_size=8),
+       gamma=st.floats(1e-300, 1e300), radius=st.floats(1e-300, 1e300))
+def test_hostile_contacts_and_parameters_never_raise(u, q, cs, gamma, radius):
+    out, info = safety_filter(u, q, cs, SafetyParams(radius, gamma), "me")
+    assert len(out) == 2 and info.method in ("pass", "projection", "qp", "relaxed")

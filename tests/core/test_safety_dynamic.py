@@ -447,3 +447,44 @@ def test_an_ideal_vehicle_filters_against_where_its_contacts_are_now():
     v.tick, v.t = 7, 0.14  # sample 5 used 2 ticks late: 0.04 s old
     v.guard((Contact((q0[0] + 4.5, q0[1]), "x", 0.5),), 5)  # closing at 5 m/s
     assert v.last_filter.min_h == pytest.approx(4.3 ** 2 - R * R)
+
+
+# --------------------------------------------------------------------------- hostile inputs (review of issue 16)
+
+anyf = st.floats(allow_nan=True, allow_infinity=True)
+huge = st.floats(-1e300, 1e300)
+
+
+@pytest.mark.parametrize("track", [
+    Track((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 1.0, 0.0, 3e307, "a"),  # a margin of 3e307 m/s: NaN out
+    Track((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 1.0, math.inf, 0.0, "a"),
+    Track((3.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.5, math.nan, 0.0, "a"),
+])
+def test_absurd_track_margins_give_finite_inputs(track):
+    me = _uav_me(UAVState((0.0, 0.0, 0.0), (0.0, 0.0, 0.0)))
+    out, info = dynamic_filter((1.0, 0.0, 0.0), me, [track], P, "me")
+    assert all(math.isfinite(x) for x in out) and _within_limits(me, out)
+    boat = _usv_me(USVState(0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+    out, info = dynamic_filter((1.0, 0.1), boat, [Track(track.p[:2], track.v[:2], 1.0, track.dp, track.dv)], P)
+    assert all(math.isfinite(x) for x in out) and _within_limits(boat, out)
+
+
+@settings(max_examples=400, deadline=None)
+@given(q=st.tuples(huge, huge, huge), p=st.tuples(speed, speed, speed),
+       tracks=st.lists(st.builds(Track, st.tuples(anyf, anyf, anyf), st.tuples(anyf, anyf, anyf),
+                                 st.floats(1e-9, 1.0), anyf, anyf, st.sampled_from(("a", "b", None, "me"))),
+                       max_size=8))
+def test_uav_hostile_tracks_never_raise_and_give_finite_inputs(q, p, tracks):
+    me = _uav_me(UAVState(q, p))
+    out, info = dynamic_filter((1.0, 0.0, 0.0), me, tracks, P, "me")
+    assert all(math.isfinite(x) for x in out) and _within_limits(me, out)
+
+
+@settings(max_examples=400, deadline=None)
+@given(x=huge, y=huge, psi=huge, u=st.floats(-1e3, 1e3),
+       tracks=st.lists(st.builds(Track, st.tuples(anyf, anyf), st.tuples(anyf, anyf), st.floats(1e-9, 1.0), anyf,
+                                 anyf), max_size=8))
+def test_usv_hostile_tracks_never_raise_and_give_finite_inputs(x, y, psi, u, tracks):
+    me = _usv_me(USVState(x, y, psi, u, 0.0, 0.0))
+    out, info = dynamic_filter((1.0, 0.1), me, tracks, P, "me")
+    assert all(math.isfinite(z) for z in out) and _within_limits(me, out)

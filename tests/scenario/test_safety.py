@@ -39,6 +39,21 @@ def test_bad_safety_names_the_field_and_the_fix(table, text):
     assert text in problems(data)
 
 
+@pytest.mark.parametrize("table, text", [
+    # both were accepted: a latency past the run left the filter silently off (0 interventions,
+    # 1.218 m with R = 2 m in crossing_dynamic), a rate below 1 / duration steered by t = 0's positions
+    ({"enabled": True, "latency": 1e9}, "safety.latency: must be below scenario.duration (100 s)"),
+    ({"enabled": True, "rate": 0.01}, "safety.rate: must be above 1 / scenario.duration (0.01 Hz)"),
+])
+def test_a_sensor_slower_than_the_run_is_an_error(table, text):
+    data = base()
+    data["scenario"]["duration"] = 100.0
+    data["safety"] = table
+    assert text in problems(data)
+    data["safety"] = {**table, "enabled": False}  # no filter, no sensor: nothing to say
+    assert parse_scenario(data).safety.enabled is False
+
+
 def test_fleet_disturbance_goes_to_its_kind_unless_a_vehicle_sets_its_own():
     data = base()
     data["disturbance"] = {"current": {"constant": [0.3, 0.1], "gust": 0.05},

@@ -23,6 +23,12 @@ def agent():
     (msgpack.packb([1, 0, [[1, 0.5, [1.0, float("nan")]]]]), "contacts_non_finite"),
     (msgpack.packb([1, 0, [[9, 0.5, [1.0, 2.0]]]]), "contacts_unknown_sender"),
     (msgpack.packb([1, 0, [[1, 0.0, [1.0, 2.0]]]]), "contacts_share"),
+    # a boat's filter takes 2 coordinates: a 3-D contact raised in guard() and killed the agent
+    # as "diverged" (review of issue 16)
+    (msgpack.packb([1, 0, [[1, 0.5, [1.0, 2.0, 3.0]]]]), "contacts_dimension"),
+    (msgpack.packb([1, 0, [[0, 0.5, [1.0, 2.0]]]]), "contacts_self"),  # usv_a1 is vehicle 0
+    (msgpack.packb([1, 0, [[1, 0.5, [1.0, 2.0]], [1, 0.5, [9.0, 2.0]]]]), "contacts_duplicate"),
+    (msgpack.packb([1, 2**62, [[1, 0.5, [1.0, 2.0]]]]), "contacts_range"),  # past the run: never freed
 ])
 def test_a_malformed_contacts_message_is_counted_and_dropped(agent, payload, reason):
     agent._on_contacts(payload)
@@ -34,3 +40,15 @@ def test_a_malformed_contacts_message_is_counted_and_dropped(agent, payload, rea
     (c,) = agent.node.contacts_at(1)
     assert (c.id, c.share, c.q) == ("usv_b1", 0.5, (1.0, 2.0))
     assert agent.rejected == {reason: 1}
+
+
+def test_a_contact_of_the_wrong_dimension_does_not_stop_the_vehicle():
+    """A forged (or buggy) 3-D contact for a boat is dropped; the boat steps on."""
+    sc = load_scenario("configs/crossing_dynamic.toml")
+    a = Agent(sc, "usv_a1", "tunit", Transport(), clock="lockstep", log=lambda s: None)
+    a._on_contacts(msgpack.packb([1, 0, [[1, 0.5, [1.0, 2.0, 3.0]]]]))
+    assert a.rejected == {"contacts_dimension": 1}
+    a._on_contacts(encode_contacts(ContactsMsg(0, ((1, 0.5, (1.0, 2.0)),))))
+    for n in range(3):
+        a.node.step(n)
+    assert a.node.tick == 3

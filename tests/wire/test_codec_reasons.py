@@ -141,7 +141,7 @@ def test_states_bounds():
 
 
 def test_contacts_bounds_and_share():
-    full = ContactsMsg(4, tuple((k % 200, 0.5, (1.0, 2.0, 3.0)) for k in range(MAX_CONTACTS)))
+    full = ContactsMsg(4, tuple((k, 0.5, (1.0, 2.0, 3.0)) for k in range(MAX_CONTACTS)))
     assert decode_contacts(encode_contacts(full)) == full
     assert len(encode_contacts(full)) <= 48 * MAX_CONTACTS + 16
     assert decode_contacts(b"\x00" * (48 * MAX_CONTACTS + 17)) == "oversized"
@@ -217,3 +217,14 @@ def test_control_size_bound_is_inclusive():
     assert isinstance(decode_control(sized(MAX_CONTROL_PAYLOAD), COMMAND_OPS), Control)
     assert len(sized(MAX_CONTROL_PAYLOAD + 1)) == MAX_CONTROL_PAYLOAD + 1
     assert decode_control(sized(MAX_CONTROL_PAYLOAD + 1), COMMAND_OPS) == "oversized"
+
+
+def test_contacts_checked_against_the_receiver():
+    """Given the receiving vehicle's index and dimension, a contact that is the receiver, one vehicle
+    listed twice, or a position of the other domain's dimension is rejected, by reason."""
+    two = ContactsMsg(4, ((1, 0.5, (0.0, 0.0)), (2, 1.0, (3.0, 1.0))))
+    assert decode_contacts(encode_contacts(two), 5, receiver=0, dim=2) == two
+    assert decode_contacts(encode_contacts(two), 5, receiver=1, dim=2) == "self"
+    assert decode_contacts(encode_contacts(two), 5, receiver=0, dim=3) == "dimension"
+    dup = ContactsMsg(4, ((1, 0.5, (0.0, 0.0)), (1, 0.5, (3.0, 1.0))))
+    assert decode_contacts(encode_contacts(dup), 5, receiver=0, dim=2) == "duplicate"
