@@ -14,6 +14,9 @@ from cdus.core.observer import DEFAULT_BANDWIDTH
 from cdus.scenario.checks import Problems
 from cdus.scenario.model import DEFAULT_SAFETY, Safety, VehicleSpec
 
+# γ of ḣ ≥ -γh, at most: faster than any control loop can act on (1e300 was accepted and made
+# the filter ask for speeds of 1e300, which ended the run as a "diverged" vehicle)
+MAX_GAMMA = 1000.0
 SAFETY_UNITS = {"radius": " m", "gamma": " 1/s", "range": " m", "rate": " Hz"}
 #: [disturbance] sub-table -> the vehicle kind it pushes and its dimension
 DISTURBANCE_KINDS = {"current": ("usv", 2), "wind": ("uav", 3)}
@@ -31,7 +34,8 @@ def safety_section(p: Problems, sf: Mapping[str, Any]) -> Safety:
             out[key] = DEFAULT_SAFETY[key] if got is None else got
     for key, unit in SAFETY_UNITS.items():
         if key in sf:
-            out[key] = p.number(sf[key], f"safety.{key}", gt=0, unit=unit) or DEFAULT_SAFETY[key]
+            out[key] = p.number(sf[key], f"safety.{key}", gt=0, le=MAX_GAMMA if key == "gamma" else None,
+                                unit=unit) or DEFAULT_SAFETY[key]
     if "latency" in sf:
         got = p.number(sf["latency"], "safety.latency", ge=0,
                        unit=" s (contacts are used from the next control tick at the earliest)")

@@ -91,3 +91,9 @@ def test_limits_preset_starts_from_the_plant_preset():
     assert dict(uav1.limits) == {"speed": 12.0, "accel": 6.0}
     data["vehicle"][0]["limits"] = {"preset": "yes"}
     assert "vehicle[0] (id \"usv1\").limits.preset: must be true" in problems(data)
+
+
+def test_a_huge_gamma_is_refused_naming_its_bound():
+    data = base()
+    data["safety"] = {"enabled": True, "gamma": 1e300}
+    assert "safety.gamma: must be a number > 0 and <= 1000 1/s, got 1e+300" in problems(data)
