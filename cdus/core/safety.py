@@ -185,6 +185,18 @@ def _dot(a: Vec, b: Vec) -> float:
     return sum(x * y for x, y in zip(a, b))
 
 
+def _solve_qp(G: np.ndarray, a: np.ndarray, C: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """quadprog's min ½xᵀGx - aᵀx s.t. Cᵀx ≥ b, solved on the problem scaled to O(1): x = s x'
+    with s = max(1, |a|∞, |b|∞), so a' = a/s, b' = b/s and the minimiser is s x'. Unscaled,
+    the dual active-set iterations never ended on rows of 1e33 (found by Hypothesis: a freeze
+    inside the compiled solver, which no timeout can stop). ValueError for non-finite data
+    (as quadprog's own for an infeasible problem: the callers relax or fall back)."""
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b)) and np.all(np.isfinite(C))):
+        raise ValueError("safety: non-finite QP data")
+    s = max(1.0, float(np.max(np.abs(a), initial=0.0)), float(np.max(np.abs(b), initial=0.0)))
+    return quadprog.solve_qp(G, a / s, C, b / s, 0)[0] * s
+
+
 def _solve(u_ref: Vec, normals: list[Vec], betas: list[float], tol: float) -> tuple[Vec, str, float]:
     """min |u - u_ref|² s.t. n̂ᵀu ≥ β, cheapest first; never raises."""
     viol = [b - _dot(n, u_ref) for n, b in zip(normals, betas)]
@@ -200,7 +212,7 @@ def _solve(u_ref: Vec, normals: list[Vec], betas: list[float], tol: float) -> tu
     B = np.array([betas[k] for k in rows], dtype=float)
     dim = len(u_ref)
     try:
-        x = quadprog.solve_qp(np.eye(dim), np.array(u_ref, dtype=float), np.ascontiguousarray(N.T), B, 0)[0]
+        x = _solve_qp(np.eye(dim), np.array(u_ref, dtype=float), np.ascontiguousarray(N.T), B)
         return tuple(float(v) for v in x), "qp", 0.0
     except ValueError:
         pass  # infeasible: relax below
@@ -215,7 +227,7 @@ def _solve(u_ref: Vec, normals: list[Vec], betas: list[float], tol: float) -> tu
     b = np.zeros(m + 1)
     b[:m] = B
     try:
-        x = quadprog.solve_qp(G, a, C, b, 0)[0]
+        x = _solve_qp(G, a, C, b)
         return tuple(float(v) for v in x[:dim]), "relaxed", float(x[dim])
     except ValueError:  # numerically degenerate: the most violated constraint alone
         return u, "relaxed", max(0.0, max(b - _dot(nk, u) for nk, b in zip(normals, betas)))
@@ -511,7 +523,7 @@ def dynamic_filter(tau_ref: Vec, me: Point, tracks: Sequence[Track], params: Saf
     x = None
     for _ in range(BALL_CUTS + 1):
         try:
-            x = quadprog.solve_qp(G, a, np.array(cols, dtype=float).T, np.array(rhs, dtype=float), 0)[0]
+            x = _solve_qp(G, a, np.array(cols, dtype=float).T, np.array(rhs, dtype=float))
         except ValueError:
             x = None
             break

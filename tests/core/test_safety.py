@@ -255,3 +255,20 @@ from hypothesis import given, settings, strategies as st  # noqa: E402
 def test_hostile_contacts_and_parameters_never_raise(u, q, cs, gamma, radius):
     out, info = safety_filter(u, q, cs, SafetyParams(radius, gamma), "me")
     assert len(out) == 2 and info.method in ("pass", "projection", "qp", "relaxed")
+
+
+def test_the_qp_on_rows_of_1e33_returns_instead_of_freezing():
+    """Found by the Hypothesis test above in a full-suite run: two equal rows needing 1.8e33 m/s
+    and a reference of 1e300 m/s kept quadprog's compiled loop going for good (no timeout can
+    stop it); the QP is now solved scaled to O(1). Run in a child process so that a
+    regression fails here instead of hanging the suite."""
+    import subprocess
+    import sys
+
+    code = ("from cdus.core.safety import _solve\n"
+            "n = (-2.881622306653057e-15, -1.0)\n"
+            "u, how, _ = _solve((1e300, 0.0), [n, n], [1.7770838288765542e33] * 2, 1e-6)\n"
+            "assert how == 'qp' and u[0] == 1e300 and u[1] < -2.88e285, u  # n.u >= 1.8e33 within rounding\n"
+            "print('ok')\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.stdout.strip() == "ok", out.stderr
