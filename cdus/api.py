@@ -277,8 +277,9 @@ class Event:
     @classmethod
     def from_dict(cls, d: Any, where: str) -> "Event":
         d = _table(d, where.rstrip("."))
+        # vehicle, link, origin: absent when they do not apply (as FleetEvent.as_dict writes them), never null
         return cls(_num(d, "t", where), _str(d, "kind", where), _str(d, "text", where), _str(d, "severity", where),
-                   *(_str(d, k, where, null=True) for k in ("vehicle", "link", "origin")))
+                   *(_str(d, k, where) if k in d else None for k in ("vehicle", "link", "origin")))
 
     def to_dict(self) -> dict[str, Any]:
         return {f.name: getattr(self, f.name) for f in fields(self) if getattr(self, f.name) is not None}

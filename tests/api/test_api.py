@@ -395,3 +395,14 @@ def test_a_sweep_through_the_api_gives_its_table(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "pandas", None)
     rows = cdus.sweep(LAKE, {}, out=tmp_path / "plain", seeds=[3], duration=2, jobs=1)
     assert isinstance(rows, list) and rows[0]["seed"] == 3 and rows[0]["status"] == "ok"
+
+
+def test_an_event_field_that_does_not_apply_is_absent_never_null():
+    """Found by the Hypothesis test above in CI: ``"link": null`` was read as absent and written
+    back without the key (not "kept whole"); FleetEvent.as_dict never writes a null."""
+    d = json.loads(json.dumps(BASE))
+    d["events"] = [{"t": 1.0, "kind": "fault", "text": "x", "severity": "warn", "vehicle": "usv1"}]
+    assert Metrics.from_dict(d).to_dict() == d
+    d["events"][0]["link"] = None
+    with pytest.raises(ValueError, match=r"metrics: events\[0\]\.link: expected a string"):
+        Metrics.from_dict(d)
