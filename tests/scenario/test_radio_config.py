@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import pathlib
+import re
 import tomllib
 
 import pytest
@@ -221,3 +223,17 @@ def test_any_table_gives_a_config_error_or_a_working_spec(table, positions):
         assert d.p == p and (d.delivered or d.cause in ("range", "fading", "collision", "queue"))
         assert d.delay >= 0.0 and math.isfinite(d.delay)
     assert ch.utilisation(geo) >= 0.0
+
+
+def test_the_documented_examples_and_keys():
+    docs = pathlib.Path(__file__).resolve().parents[2] / "docs"
+    for name in ("radio.md", "config.md"):
+        text = (docs / name).read_text()
+        blocks = [b for b in re.findall(r"```toml\n(.*?)```", text, re.S) if b.lstrip().startswith("[radio]")]
+        assert blocks, name
+        for b in blocks:
+            data = base()
+            data["radio"] = tomllib.loads(re.sub(r"#.*", "", b))["radio"]
+            assert parse_scenario(data).radio.topology == "station"
+    table = (docs / "config.md").read_text().split("### `[radio]`")[1].split("###")[0]
+    assert {k for k in re.findall(r"^\| `(\w+)` \|", table, re.M)} == set(RADIO_KEYS)
