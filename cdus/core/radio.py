@@ -157,19 +157,17 @@ def two_ray_loss_db(d: float, ht: float, hr: float, frequency: float, eps: compl
     with r1 = √(d² + (ht - hr)²) the direct path, r2 = √(d² + (ht + hr)²) the reflected one,
     k = 2π/λ, ψ the grazing angle (sin ψ = (ht + hr)/r2) and Γ the Fresnel coefficient of the
     surface. d (m) is the horizontal distance, ht, hr (m) the heights above the surface
-    (at least MIN_HEIGHT); r1 is taken at least ``d_min`` (the near field). Far beyond the
+    (at least MIN_HEIGHT); with r1 < ``d_min`` (the near field) it is evaluated at the
+    horizontal distance where r1 = d_min. Far beyond the
     crossover 4π ht hr / λ, Γ -> -1 and PL -> 40 log10 d - 20 log10(ht hr).
     """
     ht, hr = max(ht, MIN_HEIGHT), max(hr, MIN_HEIGHT)
     lam = C_LIGHT / frequency
     r1 = math.hypot(d, ht - hr)
     r2 = math.hypot(d, ht + hr)
-    if r1 < d_min:  # inside the reference distance: both paths scaled out to it
-        scale = d_min / r1 if r1 > 0.0 else math.inf
-        if math.isinf(scale):
-            return free_space_db(d_min, frequency)
-        d, ht, hr = d * scale, ht * scale, hr * scale
-        r1, r2 = d_min, r2 * scale
+    if r1 < d_min:  # inside the near field: evaluated where the direct path is d_min long
+        d = math.sqrt(d_min * d_min - (ht - hr) ** 2)
+        r1, r2 = d_min, math.hypot(d, ht + hr)
     dr = 4.0 * ht * hr / (r1 + r2)  # r2 - r1 without cancellation
     gamma = reflection_coefficient((ht + hr) / r2, d / r2, eps, polarization)
     k = 2.0 * math.pi / lam
@@ -205,7 +203,9 @@ def per_from_snr(snr_db: float, size_bytes: int, modulation: str = "bpsk", bandw
                  rate: float = 6.0e6) -> float:
     """Packet error rate: 1 - (1 - BER)^(8 · size), BER at Eb/N0 = SNR · bandwidth / rate (the
     SNR is measured over ``bandwidth``, the bits come at ``rate``)."""
-    ebn0 = 10.0 ** (snr_db / 10.0) * bandwidth / rate
+    if not snr_db > -300.0:  # also nan: no signal
+        return 1.0 if size_bytes > 0 else 0.0
+    ebn0 = 10.0 ** (min(snr_db, 300.0) / 10.0) * bandwidth / rate
     b = ber(ebn0, modulation)
     if b <= 0.0:
         return 0.0
@@ -231,7 +231,7 @@ def _q_vec(x: np.ndarray) -> np.ndarray:
 
 def per_curve(snr_db: np.ndarray, size_bytes: int, modulation: str, bandwidth: float, rate: float) -> np.ndarray:
     """:func:`per_from_snr` over an array of SNRs (dB)."""
-    ebn0 = 10.0 ** (snr_db / 10.0) * bandwidth / rate
+    ebn0 = 10.0 ** (np.clip(np.nan_to_num(snr_db, nan=-300.0), -300.0, 300.0) / 10.0) * bandwidth / rate
     if modulation in ("bpsk", "qpsk"):
         b = _q_vec(np.sqrt(2.0 * ebn0))
     else:
@@ -353,8 +353,7 @@ class ShadowField:
         for i in range(FEATURES):
             for j in range(4):
                 z[i, 2 * j], z[i, 2 * j + 1] = normal_pair(uniform(key, 8 * i + 2 * j), uniform(key, 8 * i + 2 * j + 1))
-        g = np.abs(z[:, 7])
-        g[g < 1e-300] = 1e-300
+        g = np.maximum(np.abs(z[:, 7]), 1e-12)  # |w| < 1e13: w · x stays finite (P(|g| < 1e-12) ~ 1e-12)
         self.w = z[:, :7] / g[:, None]
         self.phi = np.array([2.0 * math.pi * uniform(key, 8 * FEATURES + i) for i in range(FEATURES)])
         self.amp = sigma * math.sqrt(2.0 / FEATURES)

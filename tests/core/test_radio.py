@@ -434,3 +434,14 @@ def test_counters_by_cause_and_update_epochs():
     ch.update(3.0, station=(1.0, 2.0))
     assert ch.epochs[-1] == (3.0, -10.0, (1.0, 2.0, 0.0))
     assert replace(RadioSpec(), tx_power=1.0).tx_power == 1.0
+
+
+def test_two_ray_near_field_is_evaluated_where_the_direct_path_is_d0():
+    f = 5.18e9
+    eps = water_permittivity(80.0, 0.01, f)
+    at_d0 = two_ray_loss_db(1.0, 1.0, 1.0, f, eps)
+    assert two_ray_loss_db(0.0, 1.0, 1.0, f, eps) == at_d0 == two_ray_loss_db(1e-300, 1.0, 1.0, f, eps)
+    assert two_ray_loss_db(0.2, 1.0, 1.5, f, eps) == pytest.approx(two_ray_reference(math.sqrt(0.75), 1.0, 1.5, f, 80.0,
+                                                                                     0.01, "vertical"), abs=1e-9)
+    assert math.isfinite(per_from_snr(float("nan"), 10)) and per_from_snr(float("nan"), 10) == 1.0
+    assert per_from_snr(1e6, 10) == 0.0
