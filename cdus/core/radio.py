@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import bisect
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, fields
 from typing import Iterable, Sequence
 
 import numpy as np
@@ -46,6 +46,7 @@ KINDS = ("usv", "uav")
 MIN_HEIGHT = 0.01  # m: an antenna at or below the water is taken 1 cm above it (two-ray needs h > 0)
 FEATURES = 64  # random Fourier features of the shadowing field
 DEFAULT_RATE = 50.0  # Hz: the default [rates] broadcast
+MAX_CACHED = 8192  # legs (link x epoch x geometry) kept before the cache is emptied
 
 
 def omega_size(n_vehicles: int) -> int:
@@ -483,7 +484,7 @@ class RadioChannel:
         self._epochs: list[_Epoch] = [_Epoch(spec.tx_power, spec.station)]
         self._keys: dict[tuple[str, str, str], int] = {}
         self._fields: dict[tuple[int, int], ShadowField] = {}
-        self._legs: dict[tuple[int, int], tuple] = {}  # (a, b) -> (epoch, geo, _Leg): the newest
+        self._legs: dict[tuple[int, int, int, int], tuple[Geometry, _Leg | None]] = {}
         self._media: tuple = (None, None)
         self._links: dict[tuple[int, int], RadioCounters] = {}
         if tick_period is not None and not (tick_period > 0.0 and math.isfinite(tick_period)):
@@ -623,9 +624,12 @@ class RadioChannel:
     # ---- one leg
 
     def _leg(self, a: int, b: int, geo: Geometry, epoch: int) -> _Leg | None:
-        cached = self._legs.get((a, b))
-        if cached is not None and cached[0] == epoch and (cached[1] is geo or cached[1] == geo):
-            return cached[2]
+        # cached per (link, epoch, geometry object): the cache holds the geometry, so its id is
+        # not reused while cached; an equal geometry in a new object is computed again (same value)
+        key = (a, b, epoch, id(geo))
+        cached = self._legs.get(key)
+        if cached is not None and cached[0] is geo:
+            return cached[1]
         pa, pb = self.antenna(a, geo, epoch), self.antenna(b, geo, epoch)
         if pa is None or pb is None:
             leg = None
@@ -643,7 +647,9 @@ class RadioChannel:
             m = self.medium(geo)
             own = self.rate * (m.live if a == len(self.ids) else 1)  # the station relays everyone's
             leg = _Leg(snr, per, success, self._collision(m, own))
-        self._legs[(a, b)] = (epoch, geo, leg)
+        if len(self._legs) >= MAX_CACHED:
+            self._legs.clear()
+        self._legs[key] = (geo, leg)
         return leg
 
     def _through(self, leg: _Leg, a: int, b: int, seq: int, tag: str) -> str | None:
