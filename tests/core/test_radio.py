@@ -465,3 +465,10 @@ def test_channel_shadowing_follows_the_configured_distance_and_time():
     for j in (1, 2):
         r = np.corrcoef(v[:, 0], v[:, j])[0, 1]
         assert abs(math.atanh(r) - math.atanh(math.exp(-1.0))) <= z / math.sqrt(n - 3), (j, r)
+
+
+def test_without_fading_a_reception_loss_is_always_range():
+    ch = chan(shadowing_sigma=0.0)
+    geo = Geometry.of(0, [(0.0, 0.0), (530.0, 0.0)])
+    causes = [ch.decide(0, 1, s, 0.0, geo).cause for s in range(3000)]
+    assert "range" in causes and None in causes and "fading" not in causes
