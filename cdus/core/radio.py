@@ -16,7 +16,9 @@ link's end positions and the sample time (random Fourier features of the exponen
 kernel), so a decision is a pure function of (seed, src, dst, seq, geometry, the epoch in
 force at t_send). Caches hold values of pure functions only.
 
-Pure: no I/O, no clocks; numpy for the field and the fading average.
+Pure: no I/O, no clocks. Everything a decision depends on is plain float arithmetic and
+``math`` (the same bits in every process); numpy only averages the fading for the delivery
+probability.
 """
 
 from __future__ import annotations
@@ -350,17 +352,25 @@ class ShadowField:
     __slots__ = ("w", "phi", "amp")
 
     def __init__(self, key: int, sigma: float):
-        z = np.empty((FEATURES, 8))
+        w = []
         for i in range(FEATURES):
+            z = []
             for j in range(4):
-                z[i, 2 * j], z[i, 2 * j + 1] = normal_pair(uniform(key, 8 * i + 2 * j), uniform(key, 8 * i + 2 * j + 1))
-        g = np.maximum(np.abs(z[:, 7]), 1e-12)  # |w| < 1e13: w · x stays finite (P(|g| < 1e-12) ~ 1e-12)
-        self.w = z[:, :7] / g[:, None]
-        self.phi = np.array([2.0 * math.pi * uniform(key, 8 * FEATURES + i) for i in range(FEATURES)])
+                z.extend(normal_pair(uniform(key, 8 * i + 2 * j), uniform(key, 8 * i + 2 * j + 1)))
+            g = max(abs(z[7]), 1e-12)  # |w| < 1e13: w · x stays finite (P(|g| < 1e-12) ~ 1e-12)
+            w.append(tuple(zk / g for zk in z[:7]))
+        self.w = tuple(w)
+        self.phi = tuple(2.0 * math.pi * uniform(key, 8 * FEATURES + i) for i in range(FEATURES))
         self.amp = sigma * math.sqrt(2.0 / FEATURES)
 
-    def __call__(self, x: np.ndarray) -> float:
-        return float(self.amp * np.cos(self.w @ x + self.phi).sum())
+    def __call__(self, x: Sequence[float]) -> float:
+        """S(x), in plain float arithmetic and math.cos (no BLAS, no SIMD paths: the same bits
+        in every process)."""
+        x0, x1, x2, x3, x4, x5, x6 = (float(v) for v in x)
+        total = 0.0
+        for (w0, w1, w2, w3, w4, w5, w6), phi in zip(self.w, self.phi):
+            total += math.cos(w0 * x0 + w1 * x1 + w2 * x2 + w3 * x3 + w4 * x4 + w5 * x5 + w6 * x6 + phi)
+        return self.amp * total
 
 
 # --------------------------------------------------------------------------- geometry and decisions
@@ -572,10 +582,9 @@ class RadioChannel:
         if f is None:
             f = self._fields[(lo, hi)] = ShadowField(self._key(self._name(lo), self._name(hi), "shadow"),
                                                      s.shadowing_sigma)
-        x = np.zeros(7)
+        x = [0.0] * 7
         if math.isfinite(s.shadowing_distance):
-            x[:3] = np.asarray(pa) / s.shadowing_distance
-            x[3:6] = np.asarray(pb) / s.shadowing_distance
+            x[:6] = [c / s.shadowing_distance for c in (*pa, *pb)]
         if math.isfinite(s.shadowing_time):
             t = geo.t
             if t is None:
