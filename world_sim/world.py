@@ -416,7 +416,12 @@ class World:
         self._next_ref += 1
         waiting = len(self._waiting) < MAX_WAITING
         try:
-            op, by, verdict = self._command(sender, payload, ref if waiting else None)
+            if sender != keys.GROUND:  # the launcher puts; by query, only ground stations command
+                self._reject(sender, "sender")
+                op, by, verdict = "?", "", Verdict.no(f"commands by query are asked as {keys.GROUND!r} "
+                                                      f"({keys.world_command(self.fleet, keys.GROUND)})")
+            else:
+                op, by, verdict = self._command(sender, payload, ref if waiting else None)
         except Exception as e:  # a bug of ours: the asker hears it, the run goes on
             self._reject(sender, "internal", f"{type(e).__name__}: {e}")
             op, by, verdict = "?", sender, Verdict.no(f"internal error in the world: {type(e).__name__}")

@@ -154,6 +154,14 @@ def test_only_the_launcher_reports_a_fault_done_and_unreadable_commands_are_answ
     assert w.st.rejects["sender"] == 1 and w.st.rejects["malformed"] == 2 and w.st.rejects["name"] == 1
 
 
+def test_by_query_only_ground_stations_command_not_a_launcher_or_a_vehicle():
+    w = started(world())
+    for sender in (keys.LAUNCHER, "usv1", "bad name"):
+        r = ask(w, "stop", sender=sender).answer
+        assert r.status == "rejected" and "asked as 'gs'" in r.reason
+    assert not w.stop_requested and w.st.rejects["sender"] == 3
+
+
 def test_the_put_path_still_carries_commands_out():
     """The launcher's commands and older clients put on to/+world+/cmd/<from>: no answer, same effect."""
     from tests.fakes import Sample
