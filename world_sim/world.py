@@ -98,6 +98,7 @@ class Verdict:
 
 LATER = Verdict(True, "decided when its tick comes")  # a sentinel: never sent as it is
 MAX_WAITING = 1024  # queries held for a lockstep fault's decision; beyond, answered at once
+MAX_QUEUED_QUERIES = 256  # command queries waiting for the main thread; beyond, answered busy at once
 
 
 @dataclass
@@ -182,6 +183,7 @@ class World:
         self._queries: deque[Any] = deque()  # command queries -> main thread
         self._waiting: dict[int, tuple[Any, str, str]] = {}  # ref -> (query, op, by): lockstep faults
         self._next_ref = 0
+        self._busy = self._busy_counted = 0  # command queries answered busy (a flood)
         self._command_ref: int | None = None  # the ref of the command being handled, if it asked
         self._current_op = ""  # the op of the command being handled
         #: op -> handler(fields, by) -> Verdict | reason str | None | LATER (see Verdict); other
@@ -263,7 +265,12 @@ class World:
                 query.reply(keys.world_last(self.fleet, v), encode_states([m]))
 
     def _on_command_query(self, query: Any) -> None:
-        """A command as a query (Zenoh's thread): handed to the main thread, which answers it."""
+        """A command as a query (Zenoh's thread): handed to the main thread, which answers it; past
+        MAX_QUEUED_QUERIES waiting (a flood), answered at once: rejected, busy."""
+        if len(self._queries) >= MAX_QUEUED_QUERIES:
+            self._busy += 1
+            self._reply(query, "?", "", Verdict.no("busy: too many commands waiting; try again"))
+            return
         self._queries.append(query)
         try:
             self._wake()
@@ -290,6 +297,10 @@ class World:
             self._on_alive(name, up)
         while self._queries:
             self._answer(self._queries.popleft())
+        busy = self._busy  # counted by Zenoh's thread
+        if busy > self._busy_counted:
+            self.st.rejects["busy"] += busy - self._busy_counted
+            self._busy_counted = busy
 
     def _dispatch(self, sample: Any) -> None:
         key = str(sample.key_expr)

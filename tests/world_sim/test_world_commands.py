@@ -162,6 +162,19 @@ def test_by_query_only_ground_stations_command_not_a_launcher_or_a_vehicle():
     assert not w.stop_requested and w.st.rejects["sender"] == 3
 
 
+def test_a_flood_of_queries_is_answered_busy_past_what_waits_and_counted():
+    from world_sim.world import MAX_QUEUED_QUERIES
+    w = started(world())
+    qs = [Query(keys.world_command(FLEET, keys.GROUND), encode_control("set_gains", gains={"c": 2.0}, vehicle=""))
+          for _ in range(MAX_QUEUED_QUERIES + 5)]
+    for q in qs:
+        w._on_command_query(q)  # Zenoh's thread: the main thread is busy elsewhere
+    assert all(q.answer.reason.startswith("busy") for q in qs[MAX_QUEUED_QUERIES:])
+    w._handle(_wake())
+    assert all(q.answer.applied for q in qs[:MAX_QUEUED_QUERIES])
+    assert w.st.rejects["busy"] == 5
+
+
 def test_the_put_path_still_carries_commands_out():
     """The launcher's commands and older clients put on to/+world+/cmd/<from>: no answer, same effect."""
     from tests.fakes import Sample
