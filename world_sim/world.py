@@ -499,8 +499,8 @@ class World:
             out = handler(c.fields, by)
         finally:
             self._command_ref, self._current_op = None, ""
-        if out is LATER:
-            return c.op, by, LATER if ref is not None else Verdict(True, "", None)
+        if out is LATER:  # decided later; with nobody waiting, said applied from the next tick
+            return c.op, by, LATER if ref is not None else Verdict(True, out.reason, self._effect_tick())
         if out is None:
             out = Verdict(True, "", self._effect_tick())
         elif isinstance(out, str):

@@ -127,3 +127,24 @@ def test_no_status_or_reply_breaks_the_snapshot_or_the_command(payloads, text, t
     json.dumps(gs.snapshot(), allow_nan=False)
     a = gs.command("pause", timeout=5.0)
     assert a.outcome in ("applied", "rejected", "no_answer", "denied") and a.code in (0, 1, 3, 4)
+
+
+def test_watch_writes_versioned_json_lines_and_ends_when_the_world_leaves(capsys):
+    from ground_station.__main__ import _watch
+
+    class Alive(Sample):
+        kind = "SampleKind.PUT"
+
+    class Gone(Sample):
+        kind = "SampleKind.DELETE"
+
+    gs = station([], world_up=False)
+    gs._on_alive(Alive("cdus/f/alive/world", b""))
+    gs._on_status(Sample("cdus/f/world/status", encode_status(1.0, 10.0, "realtime", [], ["usv1"], None, None, [],
+                                                              False)))
+    gs._on_event(Sample("cdus/f/world/events", encode_event(FleetEvent.of(1.0, "fleet", "fleet paused by gs:x"))))
+    gs._on_alive(Gone("cdus/f/alive/world", b""))  # the run is over
+    assert _watch(gs, 0.1) == 0
+    lines = [json.loads(ln) for ln in capsys.readouterr().out.splitlines()]
+    assert [ln["kind"] for ln in lines] == ["event", "status", "end"] and all(ln["v"] == 1 for ln in lines)
+    assert lines[0]["event"]["text"] == "fleet paused by gs:x" and lines[1]["run"] == "ended"
