@@ -2,17 +2,26 @@
 
     cdus gs --fleet lake_circle -e tcp/127.0.0.1:7447 status          # live table (Ctrl-C to leave)
     cdus gs --fleet lake_circle -e tcp/127.0.0.1:7447 status --once   # one table, for scripts
+    cdus gs ... status --json                                          # one JSON snapshot
+    cdus gs ... watch --jsonl                                          # a JSON line per status and event
+    cdus gs ... snapshot FILE                                          # the fleet's state to FILE (JSON)
     cdus gs ... pause | resume | stop                                  # the whole fleet
     cdus gs ... link loss=0.3 delay.base=0.1 [--at 120]                # link faults from sim time t
     cdus gs ... gains k=2 c=1 [--vehicle usv1]                         # guidance gains
     cdus gs ... kill usv2 | restart usv2 | pause-vehicle usv2 | resume-vehicle usv2
 
-`cdus launch` prints the router endpoint and the fleet name to attach to.
+Every command is answered by the fleet's world: "applied from tick N (t = ... s)" or
+"rejected: <reason>". Exit codes: 0 applied (or, for status/watch/snapshot, done),
+1 rejected by the world, 2 usage error (nothing sent), 3 no answer (no fleet, no world,
+or no reply within --timeout), 4 denied (the router refused: on a secured fleet, use the
+run's --zenoh-config RUN/secure/ground.json5). `cdus launch` prints the router endpoint,
+the fleet name and the credentials to attach with. docs/ground_station.md has the JSON fields.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from dataclasses import replace
@@ -23,7 +32,11 @@ from cdus.scenario.config import ConfigError, parse_value
 from cdus.scenario.link import validate_link
 from cdus.wire.keys import FLEET_RE
 from cdus.wire.transport import add_transport_args, transport_from_args, with_default_endpoint
-from ground_station.console import GroundStation, num, status_table
+from cdus.files import write_json
+from ground_station.console import (
+    COMMAND_TIMEOUT, EXIT_DENIED, EXIT_NO_ANSWER, EXIT_USAGE, Answer, GroundStation, config_endpoints, credentials_user, default_name, listening, num,
+    status_table,
+)
 
 VEHICLE_ACTIONS = {"kill": "kill", "restart": "restart", "pause-vehicle": "pause", "resume-vehicle": "resume"}
 
@@ -50,11 +63,22 @@ def build_parser(prog: str = "cdus gs") -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog=prog, allow_abbrev=False, description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--fleet", required=True, help="the fleet's name (cdus launch prints it)")
+    p.add_argument("--timeout", type=_positive, default=COMMAND_TIMEOUT,
+                   help=f"seconds to wait for the world's answer to a command (default {COMMAND_TIMEOUT:g}); "
+                        "none in time: exit 3")
+    p.add_argument("--name", default=None,
+                   help="this ground station's name in the fleet's event log (gs:NAME; default: host-pid)")
     add_transport_args(p, default_mode="client")
     sub = p.add_subparsers(dest="action", required=True, metavar="ACTION")
     st = sub.add_parser("status", help="a live table of the fleet")
     st.add_argument("--once", action="store_true", help="print one table and exit")
+    st.add_argument("--json", action="store_true", help="print one JSON snapshot (versioned) and exit")
     st.add_argument("--interval", type=_positive, default=1.0, help="seconds between refreshes")
+    wa = sub.add_parser("watch", help="a stream: one JSON line per status (every --interval s) and per event")
+    wa.add_argument("--jsonl", action="store_true", required=True, help="JSON lines on stdout (the only format)")
+    wa.add_argument("--interval", type=_positive, default=1.0, help="seconds between status lines")
+    sn = sub.add_parser("snapshot", help="save the fleet's state (the status --json object) to FILE, atomically")
+    sn.add_argument("file", metavar="FILE")
     for op in ("pause", "resume", "stop"):
         sub.add_parser(op, help=f"{op} the whole fleet")
     ln = sub.add_parser("link", help="change link faults at run time: KEY=VALUE of the [link] table")
@@ -115,16 +139,74 @@ def _check_vehicle(vid: str, ids: list) -> None:
                                                        f"{', '.join(ids)}")])
 
 
+def _report(answer: Answer, what: str) -> int:
+    """Print what became of a command; its exit code."""
+    r = answer.reply
+    if answer.outcome == "applied":
+        note = f" ({r.reason})" if r.reason else ""
+        print(f"{what}: applied from tick {r.tick} (t = {num(r.t, '.2f')} s){note}" + (f", by {r.by}" if r.by else ""))
+    elif answer.outcome == "rejected":
+        print(f"error: {what}: rejected by the fleet: {r.reason or 'no reason given'}", file=sys.stderr)
+    else:
+        print(f"error: {what}: {answer.detail}", file=sys.stderr)
+    return answer.code
+
+
+def _watch(gs: GroundStation, interval: float) -> int:
+    """JSON lines until Ctrl-C or the end of the run: a status line every ``interval`` s, a line
+    per event as it is heard, then an ``end`` line."""
+    seen = 0
+    last = 0.0
+    while True:
+        events, seen = gs.events_since(seen)
+        for e in events:
+            print(json.dumps({"v": 1, "kind": "event", "fleet": gs.fleet, "event": e.as_dict()}), flush=True)
+        now = time.monotonic()
+        if now - last >= interval:
+            last = now
+            print(json.dumps(gs.snapshot()), flush=True)
+        if gs.world_gone():
+            print(json.dumps({"v": 1, "kind": "end", "fleet": gs.fleet, "reason": "the world left: the run is over"}),
+                  flush=True)
+            return 0
+        time.sleep(0.05)
+
+
+def _unreachable(transport, e: Exception) -> int:
+    """The session could not be opened: say whether a router is there at all."""
+    eps = list(transport.connect) or config_endpoints(transport.config_file)
+    endpoints = ", ".join(eps) or "the configured endpoint"
+    up = [listening(ep) for ep in eps]
+    why = str(e).split(" at /")[0]  # not the Rust source path
+    if any(x is True for x in up):
+        user = credentials_user(transport.config_file)
+        held = (f"the credentials of {user!r} from {transport.config_file}" if user else
+                f"the settings of {transport.config_file}" if transport.config_file else "no credentials")
+        print(f"error: the fleet's router at {endpoints} is up but refused or closed this session, which "
+              f"had {held}", file=sys.stderr)
+        print("  a fleet started without --insecure takes only its own credentials: add "
+              "--zenoh-config RUN/secure/ground.json5 (the launcher prints the whole line)", file=sys.stderr)
+        return EXIT_DENIED
+    print(f"error: could not reach the fleet's router at {endpoints} within "
+          f"{GS_CONNECT_TIMEOUT_MS / 1000:g} s: {why}", file=sys.stderr)
+    if all(x is False for x in up) and up:
+        print("  nothing listens there: is the fleet running? (cdus launch prints the endpoint)", file=sys.stderr)
+    if not transport.config_file:  # fleets are secured by default: the router refuses a session without them
+        print("  a fleet started without --insecure takes only its own credentials: add "
+              "--zenoh-config RUN/secure/ground.json5 (the launcher prints the whole line)", file=sys.stderr)
+    return EXIT_NO_ANSWER
+
+
 def main(argv=None, prog: str = "python -m ground_station") -> int:
     args = build_parser(prog).parse_args(argv)
     transport = with_default_endpoint(transport_from_args(args))
     if transport.connect and not transport.config_file:
         transport = replace(transport, extra=(*transport.extra, ("connect/timeout_ms", str(GS_CONNECT_TIMEOUT_MS))))
     try:
-        gs = GroundStation(args.fleet, transport)
-    except ValueError as e:  # the fleet name
-        print(f"error: --fleet: {e}", file=sys.stderr)
-        return 2
+        gs = GroundStation(args.fleet, transport, name=args.name or default_name())
+    except ValueError as e:  # the fleet name, the ground station's
+        print(f"error: {'--fleet' if 'fleet' in str(e) else '--name'}: {e}", file=sys.stderr)
+        return EXIT_USAGE
     try:
         # what can be checked before connecting
         if args.action == "gains":
@@ -138,48 +220,47 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
             print(f"error: no status from fleet {args.fleet!r} within {STATUS_WAIT_S:g} s at "
                   f"{', '.join(transport.connect) or 'the configured endpoint'}: is it running? "
                   "(cdus launch prints the fleet name and the endpoint to attach to)", file=sys.stderr)
-            return 1
+            return EXIT_NO_ANSWER
         # the world's ids: names of the key space (letters, digits, _ and -), nothing else is trusted
         ids = [i for i in (gs.view.world or {}).get("ids") or [] if isinstance(i, str) and FLEET_RE.match(i)]
+        if args.action in ("status", "watch", "snapshot"):
+            gs.fetch_last()  # a paused fleet sends no telemetry: the world says where each vehicle is
         if args.action == "status":
+            if args.json:
+                print(json.dumps(gs.snapshot(), indent=2))
+                return 0
             if args.once:
                 print(status_table(gs.view))
                 return 0
             while True:
                 print("\033[2J\033[H" + status_table(gs.view), flush=True)
                 time.sleep(args.interval)
+        elif args.action == "watch":
+            return _watch(gs, args.interval)
+        elif args.action == "snapshot":
+            write_json(args.file, gs.snapshot())
+            print(f"fleet {args.fleet!r} saved to {args.file}")
+            return 0
         elif args.action in ("pause", "resume", "stop"):
-            gs.fleet_command(args.action)
-            print(f"{args.action} sent to fleet {args.fleet!r}")
+            return _report(gs.command(args.action, timeout=args.timeout), f"{args.action} of fleet {args.fleet!r}")
         elif args.action == "link":
             validate_link(table, ids, "command line")
-            gs.set_link(table, args.at)
-            t_now = gs.sim_time() or 0.0
-            when = ("as soon as the world can" if args.at is None else f"from t = {args.at:.2f} s"
-                    if args.at > t_now else f"now (t = {args.at:.2f} s is past; the world is at {num(t_now, '.1f')} s)")
-            print(f"link faults {table} {when}: sent to fleet {args.fleet!r}")
+            at = -1.0 if args.at is None else float(args.at)
+            return _report(gs.command("link", timeout=args.timeout, link=table, at=at), f"link faults {table}")
         elif args.action == "gains":
             if args.vehicle is not None:
                 _check_vehicle(args.vehicle, ids)
-            gs.set_gains(gains, args.vehicle)
-            print(f"gains {gains} sent to {args.vehicle or 'every vehicle'}")
+            return _report(gs.command("set_gains", timeout=args.timeout, gains=gains, vehicle=args.vehicle or ""),
+                           f"gains {gains} for {args.vehicle or 'every vehicle'}")
         else:
             _check_vehicle(args.vehicle, ids)
-            gs.vehicle_fault(VEHICLE_ACTIONS[args.action], args.vehicle)
-            print(f"{args.action} {args.vehicle} sent to fleet {args.fleet!r}")
-        time.sleep(0.2)  # let the put leave before the session closes
-        return 0
+            op = {"pause-vehicle": "pause_vehicle", "resume-vehicle": "resume_vehicle"}.get(args.action, args.action)
+            return _report(gs.command(op, timeout=args.timeout, vehicle=args.vehicle), f"{args.action} {args.vehicle}")
     except ConfigError as e:
         print(f"error: {e}", file=sys.stderr)
-        return 2
-    except zenoh.ZError as e:  # no router at the endpoint
-        why = str(e).split(" at /")[0]  # not the Rust source path
-        print(f"error: could not reach the fleet's router at {', '.join(transport.connect)} within "
-              f"{GS_CONNECT_TIMEOUT_MS / 1000:g} s: {why}", file=sys.stderr)
-        if not transport.config_file:  # fleets are secured by default: the router refuses a session without them
-            print("  a fleet started without --insecure takes only its own credentials: add "
-                  "--zenoh-config RUN/secure/ground.json5 (the launcher prints the whole line)", file=sys.stderr)
-        return 1
+        return EXIT_USAGE
+    except zenoh.ZError as e:  # no router at the endpoint, or one that refused this session
+        return _unreachable(transport, e)
     except KeyboardInterrupt:
         return 0
     finally:

@@ -9,18 +9,27 @@ time, kill, pause, resume or restart a vehicle (the launcher carries those out).
 
 from __future__ import annotations
 
+import json
 import math
+import os
+import re
+import socket
 import threading
 import time
+from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
 
 from cdus.wire import keys
-from cdus.wire.transport import Transport, open_session
+from cdus.wire.transport import Transport, endpoint_host, open_session
 from cdus.wire.messages import VEHICLE_FAULTS, StateMsg, decode_states, encode_control
-from cdus.wire.schemas import FleetEvent, decode_event, decode_status
+from cdus.wire.schemas import CommandReply, FleetEvent, decode_event, decode_reply, decode_status
 from cdus.wire.text import printable
 
+#: exit codes of `cdus gs` (docs/ground_station.md)
+EXIT_APPLIED, EXIT_REJECTED, EXIT_USAGE, EXIT_NO_ANSWER, EXIT_DENIED = 0, 1, 2, 3, 4
+COMMAND_TIMEOUT = 10.0  # s a ground station waits for the world's answer (a restart under way delays a fault)
+SNAPSHOT_VERSION = 1  # the JSON of `gs status --json`, `gs watch --jsonl`, `gs snapshot`
 MAX_NAMES = 10_000  # vehicles (telemetry, liveliness) the console tracks: names beyond are forged
 MAX_EVENTS = 1000  # events the console keeps (it shows the newest 8)
 BIG = 1e9  # numbers beyond this are shown in scientific notation, not as hundreds of digits
@@ -52,6 +61,26 @@ class FleetView:
     world: dict | None = None
     events: list[FleetEvent] = field(default_factory=list)
     rejected: int = 0
+    events_seen: int = 0  # events heard in all (``events`` keeps the newest MAX_EVENTS)
+    status_at: float | None = None  # monotonic time of the newest status
+    world_seen: bool = False  # the world's liveliness token was seen (its loss then ends the run)
+    rejected_by_reason: Counter = field(default_factory=Counter)
+
+
+@dataclass(frozen=True)
+class Answer:
+    """What became of a command: ``outcome`` ``applied`` | ``rejected`` (the world's reply in
+    ``reply``) | ``denied`` (the router's access control refused it) | ``no_answer`` (nobody
+    answered in time, or the answer could not be read); ``detail`` says it for a person."""
+
+    outcome: str
+    reply: CommandReply | None = None
+    detail: str = ""
+
+    @property
+    def code(self) -> int:
+        return {"applied": EXIT_APPLIED, "rejected": EXIT_REJECTED, "denied": EXIT_DENIED}.get(self.outcome,
+                                                                                             EXIT_NO_ANSWER)
 
 
 def status_table(view: FleetView, now: float | None = None) -> str:
@@ -68,12 +97,13 @@ def status_table(view: FleetView, now: float | None = None) -> str:
             m = view.states.get(vid)
             alive = "yes" if vid in view.alive else "NO"
             name = _text(vid, 32)
+            why = _not_live(view, vid)
             if m is None:
-                rows.append(f"{name:<10} {alive:<5} {'-':>8}")
+                rows.append(f"{name:<10} {alive:<5} {'-':>8}  ({why or 'no data yet'})")
                 continue
             pos = ", ".join(num(x, ".1f") for x in m.q)
             rows.append(f"{name:<10} {alive:<5} {num(m.t, '.2f'):>8} {num(m.path_error):>9} {num(m.omega):>11} "
-                        f"{num(m.omega_rate):>8}  ({pos})")
+                        f"{num(m.omega_rate):>8}  ({pos})" + (f"  [{why}]" if why else ""))
         if w:
             coord = w.get("coord_error_max")
             path = w.get("path_error_max")
@@ -105,9 +135,80 @@ def status_table(view: FleetView, now: float | None = None) -> str:
     return "\n".join(rows)
 
 
+def _not_live(view: FleetView, vid: str) -> str | None:
+    """Why a vehicle's values are not live ones (caller holds the lock): ``paused (fleet)``,
+    ``paused``, ``gone``, ``not alive``; None when they are."""
+    w = view.world or {}
+    roster = w.get("roster") or {}
+    if roster.get(vid) == "gone":
+        return "gone"
+    if roster.get(vid) == "paused":
+        return "paused"
+    if w.get("paused"):
+        return "paused (fleet)"
+    if vid not in view.alive:
+        return "not alive"
+    return None
+
+
+def default_name() -> str:
+    """A ground station's name in the world's event log: host and process id."""
+    host = re.sub(r"[^A-Za-z0-9_-]", "-", socket.gethostname())[:40] or "host"
+    return f"{host}-{os.getpid()}"
+
+
+def credentials_user(config_file: str | None) -> str | None:
+    """The user name of a Zenoh config file cdus wrote (JSON), None if it has none or is not one."""
+    if not config_file:
+        return None
+    try:
+        with open(config_file) as fh:
+            user = json.load(fh)["transport"]["auth"]["usrpwd"]["user"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return printable(user, 64) if isinstance(user, str) else None
+
+
+def config_endpoints(config_file: str | None) -> list[str]:
+    """The ``connect/endpoints`` of a Zenoh config file cdus wrote (JSON), [] if none."""
+    if not config_file:
+        return []
+    try:
+        with open(config_file) as fh:
+            eps = json.load(fh)["connect"]["endpoints"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return []
+    return [e for e in eps if isinstance(e, str)] if isinstance(eps, list) else []
+
+
+def listening(endpoint: str, timeout: float = 1.0) -> bool | None:
+    """Does something accept connections at a Zenoh endpoint? None: cannot tell (a protocol that
+    is not TCP-based or a unix socket)."""
+    proto, _, rest = endpoint.partition("/")
+    rest = rest.split("#", 1)[0].split("?", 1)[0]
+    try:
+        if proto in ("tcp", "tls", "quic", "ws"):
+            port = int(rest.rsplit(":", 1)[1])
+            with socket.create_connection((endpoint_host(endpoint), port), timeout=timeout):
+                return True
+        if proto == "unixsock-stream":
+            with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as sock:
+                sock.settimeout(timeout)
+                sock.connect(rest)
+                return True
+    except (OSError, ValueError, IndexError):
+        return False
+    return None
+
+
 class GroundStation:
-    def __init__(self, fleet: str, transport: Transport):
+    def __init__(self, fleet: str, transport: Transport, name: str | None = None):
+        """``name``: how the world's event log names this ground station's commands (``gs:<name>``;
+        letters, digits, ``_`` and ``-``); None: ``gs`` alone."""
         self.fleet = keys.check_fleet(fleet)
+        if name is not None and not keys.FLEET_RE.match(name):
+            raise ValueError(f"ground station name {name!r}: use 1-64 letters, digits, '_' or '-'")
+        self.name = name
         self.transport = transport
         self.view = FleetView()
         self.session = None
@@ -145,8 +246,10 @@ class GroundStation:
         with self.view.lock:
             if isinstance(st, str):
                 self.view.rejected += 1
+                self.view.rejected_by_reason[f"status_{st}"] += 1
             else:
                 self.view.world = st
+                self.view.status_at = time.monotonic()
 
     def _on_event(self, sample: Any) -> None:
         e = decode_event(sample.payload.to_bytes())
@@ -155,6 +258,7 @@ class GroundStation:
                 self.view.rejected += 1
             else:
                 self.view.events.append(e)
+                self.view.events_seen += 1
                 del self.view.events[:-MAX_EVENTS]  # a flood of events cannot grow the console without bound
 
     def _on_alive(self, sample: Any) -> None:
@@ -164,6 +268,7 @@ class GroundStation:
                 self.view.alive.discard(who)
             elif who and keys.FLEET_RE.match(who) and len(self.view.alive) < MAX_NAMES:
                 self.view.alive.add(who)
+                self.view.world_seen |= who == keys.WORLD
             else:
                 self.view.rejected += 1
 
@@ -183,9 +288,130 @@ class GroundStation:
             t = None if self.view.world is None else self.view.world.get("t")
         return float(t) if isinstance(t, (int, float)) and not isinstance(t, bool) and math.isfinite(t) else None
 
+    def fetch_last(self, timeout: float = 2.0) -> int:
+        """Ask the world for every vehicle's newest telemetry (``world/last/*``): a fleet that is
+        paused sends none, and a ground station attaching then would know nothing. Fills the
+        vehicles not heard live yet; returns how many replies were taken."""
+        taken = 0
+        for reply in self.session.get(keys.world_last(self.fleet, "*"), timeout=timeout):
+            sample = reply.ok
+            if sample is None:
+                continue
+            rows = decode_states(sample.payload.to_bytes())
+            vid = str(sample.key_expr).rsplit("/", 1)[-1]
+            with self.view.lock:
+                if isinstance(rows, str) or not keys.FLEET_RE.match(vid) \
+                        or vid not in self.view.states and len(self.view.states) >= MAX_NAMES:
+                    self.view.rejected += 1
+                    continue
+                have = self.view.states.get(vid)
+                if have is None or rows[-1].tick > have.tick:
+                    self.view.states[vid] = rows[-1]
+                    taken += 1
+        return taken
+
+    def world_up(self) -> bool:
+        """Is the world there: its liveliness token, or a status within the last 3 s?"""
+        with self.view.lock:
+            recent = self.view.status_at is not None and time.monotonic() - self.view.status_at < 3.0
+            return keys.WORLD in self.view.alive or recent
+
+    def world_gone(self) -> bool:
+        """The world was seen and its token is gone: the run is over."""
+        with self.view.lock:
+            return self.view.world_seen and keys.WORLD not in self.view.alive
+
     # ------------------------------------------------------------------ commanding
+    def command(self, op: str, timeout: float = COMMAND_TIMEOUT, **fields: Any) -> Answer:
+        """Ask the world to carry out a command (cdus.wire.messages.COMMAND_OPS) and wait, at most
+        ``timeout`` s, for its answer: applied (from a tick) or rejected (a reason). A query the
+        router's access control refuses comes back at once with no reply, as one that reaches
+        no world does: with the world up (its token or status heard) it is reported as denied."""
+        if self.name is not None:
+            fields["name"] = self.name
+        t0 = time.monotonic()
+        payload = encode_control(op, **fields)
+        problems = []
+        for r in self.session.get(keys.world_command(self.fleet, keys.GROUND), payload=payload, timeout=timeout):
+            if r.ok is None:
+                problems.append("an error reply: " + printable(r.err.payload.to_bytes().decode("utf-8", "replace"),
+                                                              200))
+                continue
+            reply = decode_reply(r.ok.payload.to_bytes())
+            if isinstance(reply, str):
+                with self.view.lock:
+                    self.view.rejected += 1
+                    self.view.rejected_by_reason[f"reply_{reply}"] += 1
+                problems.append(f"an answer that could not be read ({reply})")
+                continue
+            return Answer(reply.status, reply)
+        waited = time.monotonic() - t0
+        if problems:
+            return Answer("no_answer", None, "; ".join(problems))
+        if waited < timeout * 0.9 and self.world_up():
+            user = credentials_user(self.transport.config_file)
+            who = f" (these credentials are {user!r}'s)" if user else ""
+            return Answer("denied", None,
+                          f"denied: the fleet's router refused this command{who}; only the ground station's "
+                          "credentials may command a secured fleet: use --zenoh-config RUN/secure/ground.json5 "
+                          "(the launcher prints the whole line)")
+        if waited < timeout * 0.9:
+            return Answer("no_answer", None, "no world took the command: is the fleet still running?")
+        return Answer("no_answer", None, f"no answer from the world within {timeout:g} s")
+
+    def snapshot(self) -> dict[str, Any]:
+        """The fleet as this ground station knows it, as one versioned JSON object
+        (docs/ground_station.md): the run, then every vehicle with its newest values (or null)
+        and why they are not live ones (null when they are)."""
+        with self.view.lock:
+            w = self.view.world
+            known = [k for k in (w or {}).get("ids") or [] if isinstance(k, str)]
+            ids = sorted(set(known) | set(self.view.states) | (self.view.alive - {keys.WORLD}))
+            vehicles = []
+            for vid in ids:
+                m = self.view.states.get(vid)
+                why = _not_live(self.view, vid)
+                roster = ((w or {}).get("roster") or {}).get(vid)
+                vehicles.append({
+                    "id": vid, "alive": vid in self.view.alive, "state": roster,
+                    "telemetry": None if m is None else {
+                        "tick": m.tick, "t": _json_num(m.t), "q": [_json_num(x) for x in m.q],
+                        "heading": _json_num(m.heading), "speed": _json_num(m.speed), "omega": _json_num(m.omega),
+                        "omega_rate": _json_num(m.omega_rate), "path_error": _json_num(m.path_error)},
+                    "reason": "no data yet" if m is None else why})
+            world_gone = self.view.world_seen and keys.WORLD not in self.view.alive
+            if w is None:
+                run = "world_gone" if world_gone else "no_status"
+            elif world_gone:
+                run = "ended"
+            elif w["t"] >= w["duration"] - 1e-9:
+                run = "finishing"
+            else:
+                run = "paused" if w["paused"] else "running"
+            return {
+                "v": SNAPSHOT_VERSION, "kind": "status", "fleet": self.fleet, "wall_time": time.time(),
+                "run": run,
+                "t": None if w is None else w["t"], "duration": None if w is None else w["duration"],
+                "clock": None if w is None else w["clock"], "paused": None if w is None else w["paused"],
+                "alive": sum(1 for v in ids if v in self.view.alive),
+                "path_error_max": None if w is None else w["path_error_max"],
+                "coord_error_max": None if w is None else w["coord_error_max"],
+                "vehicles": vehicles,
+                "events": [e.as_dict() for e in self.view.events[-20:]],
+                "rejected": self.view.rejected,
+            }
+
+    def events_since(self, seen: int) -> tuple[list[FleetEvent], int]:
+        """The events heard after the first ``seen`` (and the new count); those pushed out of
+        the kept window meanwhile are skipped."""
+        with self.view.lock:
+            total = self.view.events_seen
+            new = min(total - seen, len(self.view.events))
+            return (self.view.events[len(self.view.events) - new:] if new > 0 else []), total
+
     def send(self, op: str, **fields: Any) -> None:
-        """A command to the world (cdus.wire.messages.COMMAND_OPS)."""
+        """A command to the world (cdus.wire.messages.COMMAND_OPS), put without waiting for an
+        answer (as older versions did; :meth:`command` asks and waits)."""
         self.session.put(keys.world_cmd(self.fleet, keys.GROUND), encode_control(op, **fields))
 
     def fleet_command(self, op: str) -> None:
@@ -208,3 +434,8 @@ class GroundStation:
         if op not in VEHICLE_FAULTS:
             raise ValueError(f"unknown vehicle fault {action!r}")
         self.send(op, vehicle=vehicle)
+
+
+def _json_num(x: float) -> float | None:
+    """A number for JSON: a finite float, else null (the decoders let only finite ones through)."""
+    return float(x) if isinstance(x, (int, float)) and math.isfinite(x) else None

@@ -41,7 +41,7 @@ from cdus.scenario.config import ConfigError
 from cdus.scenario.link import merge_link_tables, validate_link
 from cdus.scenario.model import Scenario
 from cdus.sim.build import metric_edges, sensor_schedule
-from cdus.sim.lockstep import CatchUp, Fault, Grant, Join, Lockstep, Roster, Sense
+from cdus.sim.lockstep import CatchUp, Decided, Fault, Grant, Join, Lockstep, Roster, Sense
 from cdus.sim.reports import ConsoleQuota, graph_event, vehicle_back, vehicle_lost
 from cdus.sim.sensing import sense_tick
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
@@ -51,7 +51,8 @@ from cdus.wire.messages import (
     COMMAND_OPS, StateMsg, decode_control, decode_states, encode_contacts, encode_control, encode_states,
 )
 from cdus.wire.schemas import (
-    ID_RE, ORIGIN_WORLD, AgentStats, FleetEvent, decode_stats, encode_event, encode_status,
+    ID_RE, ORIGIN_WORLD, AgentStats, CommandReply, FleetEvent, decode_stats, encode_event, encode_reply,
+    encode_status,
 )
 from cdus.wire.text import printable
 from cdus.wire.transport import Transport, open_session
@@ -76,6 +77,28 @@ SUSPECT_EVERY = 5.0  # s: at most one suspect event per (vehicle, reason) in thi
 OUTAGE_GRACE = 30.0
 DROP_WINDOW = 0.3  # s: liveliness losses this close together count as one (a lapsed router drops them all)
 MAX_LOGGED_REJECTS = 200  # (sender, reason) pairs logged; beyond, counted only
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """What the world made of one command: applied from ``tick`` (``t`` s of simulated time; a
+    link change's exact time), or rejected with a reason (nothing changed). A command handler
+    returns a Verdict, a reason string (rejected), None (applied from the next tick nobody has
+    stepped) or LATER (a lockstep vehicle fault: Lockstep decides it, a Decided action answers)."""
+
+    applied: bool
+    reason: str = ""
+    tick: int | None = None
+    t: float | None = None
+
+    @staticmethod
+    def no(reason: str) -> "Verdict":
+        return Verdict(False, reason)
+
+
+LATER = Verdict(True, "decided when its tick comes")  # a sentinel: never sent as it is
+MAX_WAITING = 1024  # queries held for a lockstep fault's decision; beyond, answered at once
+MAX_QUEUED_QUERIES = 256  # command queries waiting for the main thread; beyond, answered busy at once
 
 
 @dataclass
@@ -157,6 +180,20 @@ class World:
         self.completion: str | None = None  # why the run ended early (docs/metrics.md, completion)
         self.outage_grace = OUTAGE_GRACE
         self._rt_lost: set[str] = set()  # realtime: lost with nobody asking, not back
+        self._queries: deque[Any] = deque()  # command queries -> main thread
+        self._waiting: dict[int, tuple[Any, str, str]] = {}  # ref -> (query, op, by): lockstep faults
+        self._next_ref = 0
+        self._busy = self._busy_counted = 0  # command queries answered busy (a flood)
+        self._command_ref: int | None = None  # the ref of the command being handled, if it asked
+        self._current_op = ""  # the op of the command being handled
+        #: op -> handler(fields, by) -> Verdict | reason str | None | LATER (see Verdict); other
+        #: parts add theirs here (formation, path, radio)
+        self.command_handlers: dict[str, Callable[[dict, str], Any]] = {
+            "stop": self._cmd_stop, "pause": self._cmd_pause, "resume": self._cmd_resume,
+            "set_gains": self._cmd_gains, "link": self._cmd_link, "fault_done": self._cmd_fault_done,
+            "kill": self._cmd_vehicle_fault, "pause_vehicle": self._cmd_vehicle_fault,
+            "resume_vehicle": self._cmd_vehicle_fault, "restart": self._cmd_vehicle_fault,
+        }
 
     # ------------------------------------------------------------------ wiring
     def open(self) -> None:
@@ -173,6 +210,7 @@ class World:
         self._subs = [
             s.liveliness().declare_subscriber(keys.any_alive(f), self._on_alive_sample, history=True),
             s.declare_queryable(keys.world_last(f, "*"), self._on_last_query),
+            s.declare_queryable(keys.any_world_command(f), self._on_command_query),
         ]
         self.token = s.liveliness().declare_token(keys.alive(f, keys.WORLD))
         self._ticker = threading.Thread(target=self._tick_thread, daemon=True, name="ticker")
@@ -183,6 +221,7 @@ class World:
     def close(self) -> None:
         if self.session is None:
             return
+        self._answer_the_rest("the world is shutting down: the run is over")
         try:
             self.token.undeclare()
             self.session.close()
@@ -215,12 +254,28 @@ class World:
         self._wake()
 
     def _on_last_query(self, query: Any) -> None:
-        """A restarted agent asks where its vehicle was: reply with its newest telemetry."""
+        """A restarted agent asks where its vehicle was: reply with its newest telemetry. A ground
+        station asks ``world/last/*``: one reply per vehicle heard from (on its own key)."""
         vid = str(query.key_expr).rsplit("/", 1)[-1]
+        wanted = self.ids if vid in ("*", "**") else [vid] if vid in self.index else []
         with self._lock:
-            m = self.st.latest.get(self.index[vid]) if vid in self.index else None
-        if m is not None:
-            query.reply(str(query.key_expr), encode_states([m]))
+            rows = [(v, self.st.latest.get(self.index[v])) for v in wanted]
+        for v, m in rows:
+            if m is not None:
+                query.reply(keys.world_last(self.fleet, v), encode_states([m]))
+
+    def _on_command_query(self, query: Any) -> None:
+        """A command as a query (Zenoh's thread): handed to the main thread, which answers it; past
+        MAX_QUEUED_QUERIES waiting (a flood), answered at once: rejected, busy."""
+        if len(self._queries) >= MAX_QUEUED_QUERIES:
+            self._busy += 1
+            self._reply(query, "?", "", Verdict.no("busy: too many commands waiting; try again"))
+            return
+        self._queries.append(query)
+        try:
+            self._wake()
+        except zenoh.ZError:
+            pass
 
     # ------------------------------------------------------------------ receiving
     def _drain(self, block: bool) -> None:
@@ -240,6 +295,12 @@ class World:
         while self._alive_news:
             name, up = self._alive_news.popleft()
             self._on_alive(name, up)
+        while self._queries:
+            self._answer(self._queries.popleft())
+        busy = self._busy  # counted by Zenoh's thread
+        if busy > self._busy_counted:
+            self.st.rejects["busy"] += busy - self._busy_counted
+            self._busy_counted = busy
 
     def _dispatch(self, sample: Any) -> None:
         key = str(sample.key_expr)
@@ -355,66 +416,171 @@ class World:
                 self._note(FleetEvent.of(key[0], "link_state", f"link {key[1]} {key[2]} (from t = {key[0]:.2f} s)",
                                          severity="warn" if key[2] == "down" else "info", link=key[1]))
 
+    # ------------------------------------------------------------------ commands
+    def _answer(self, query: Any) -> None:
+        """A command query (main thread): decide it, answer it (a lockstep vehicle fault: once
+        Lockstep decides it, see _act), never raise."""
+        parts = str(query.key_expr).split("/")
+        sender = parts[4] if len(parts) == 5 and parts[1] == self.fleet and parts[2:4] == ["world", "cmd"] else "?"
+        payload = query.payload.to_bytes() if query.payload is not None else b""
+        ref = self._next_ref
+        self._next_ref += 1
+        waiting = len(self._waiting) < MAX_WAITING
+        try:
+            if sender != keys.GROUND:  # the launcher puts; by query, only ground stations command
+                self._reject(sender, "sender")
+                op, by, verdict = "?", "", Verdict.no(f"commands by query are asked as {keys.GROUND!r} "
+                                                      f"({keys.world_command(self.fleet, keys.GROUND)})")
+            else:
+                op, by, verdict = self._command(sender, payload, ref if waiting else None)
+        except Exception as e:  # a bug of ours: the asker hears it, the run goes on
+            self._reject(sender, "internal", f"{type(e).__name__}: {e}")
+            op, by, verdict = "?", sender, Verdict.no(f"internal error in the world: {type(e).__name__}")
+        if verdict is LATER:
+            self._waiting[ref] = (query, op, by)
+            return
+        self._reply(query, op, by, verdict)
+
+    def _reply(self, query: Any, op: str, by: str, v: Verdict) -> None:
+        t = v.t if v.t is not None else (None if v.tick is None else v.tick * self.period)
+        reply = CommandReply("applied" if v.applied else "rejected", op, printable(v.reason, 300),
+                             v.tick if v.applied else None, t if v.applied else None, by if ID_RE.match(
+                                 by.replace(":", "_", 1)) else "")
+        try:
+            query.reply(str(query.key_expr), encode_reply(reply))
+        except zenoh.ZError as e:  # the asker left (a ground station killed mid-command): nothing to tell
+            self.log(f"could not answer {by}'s {op}: {printable(str(e), 120)}")
+        finally:
+            query.drop()
+
+    def _decided(self, a: Decided) -> None:
+        """Lockstep decided a vehicle fault a ground station waits on."""
+        waiting = self._waiting.pop(a.ref, None)
+        if waiting is not None:
+            query, op, by = waiting
+            self._reply(query, op, by, Verdict(True, "", a.tick) if a.reason is None else Verdict.no(a.reason))
+
+    def _answer_the_rest(self, reason: str) -> None:
+        """At the end: every query still waiting is answered (rejected: its fault never came)."""
+        undecided = dict(self.lockstep.undecided())
+        for ref, (query, op, by) in list(self._waiting.items()):
+            tick = undecided.get(ref)
+            self._reply(query, op, by, Verdict.no(reason + ("" if tick is None else f" (before its tick {tick})")))
+        self._waiting.clear()
+        while self._queries:
+            q = self._queries.popleft()
+            self._reply(q, "?", "", Verdict.no(reason))
+
     def _on_command(self, sender: str, payload: bytes) -> None:
+        """A command put on ``to/+world+/cmd/<sender>`` (the launcher, older clients): carried out
+        as a query's would be; nobody is told the verdict (a vehicle fault is decided likewise)."""
+        self._command(sender, payload, None)
+
+    def _command(self, sender: str, payload: bytes, ref: int | None) -> tuple[str, str, Verdict]:
+        """Decide one command: (op, who sent it, verdict). Bad input is counted by reason."""
         if not ID_RE.match(sender):
-            return self._reject(sender, "key")
+            self._reject(sender, "key")
+            return "?", "", Verdict.no("the command's key names no sender")
         c = decode_control(payload, COMMAND_OPS)
         if isinstance(c, str):
-            return self._reject(sender, c)
-        op, f = c.op, c.fields
-        if op == "stop":
-            if not self.stop_requested:
-                # the launcher asks only when it was interrupted (Ctrl-C, SIGTERM); anyone else's
-                # stop is an operator's
-                interrupted = sender == keys.LAUNCHER
-                self._note(FleetEvent.of(self._sim_now(), "fleet", "fleet stopped: the launcher was interrupted"
-                                         if interrupted else f"fleet stopped by {sender}"))
-                self.completion = self.completion or ("interrupted" if interrupted else "stopped")
-            self.stop_requested = True
-        elif op == "fault_done":
-            if sender != keys.LAUNCHER:
-                return self._reject(sender, "sender")
-            if f["vehicle"] in self.index:
-                self.lockstep.on_fault_done(self.index[f["vehicle"]])
-        elif op in ("pause", "resume"):
-            self._fleet_pause(op == "pause")
-        elif op == "set_gains":
-            self._relay_gains(f["gains"], f["vehicle"], sender)
-        elif op == "link":
-            merged = merge_link_tables(self._link_table, f["link"])
-            try:  # the agents' own check, made before relaying: a table they would refuse is no change
-                validate_link(merged, self.ids, "link command")
-            except (ConfigError, ValueError) as e:
-                self._reject(sender, "link")
-                self._note(FleetEvent.of(self._sim_now(), "rejected",
-                                         f"link command from {printable(sender, 64)}: {printable(str(e), 200)}"))
-                return
-            self._link_table = merged
-            # Never before what a vehicle may already have sent (lockstep: past the grant), so
-            # every receiver applies it from the same message on; a past --at means "now".
-            earliest = ((self.lockstep.granted + 1) * self.period if self.clock == "lockstep"
-                        else self._sim_now() + self.period)
-            at = max(f["at"], earliest) if f["at"] >= 0 else max(self._sim_now() + LINK_LEAD, earliest)
-            payload = encode_control("link", link=f["link"], at=float(at))
-            self.pub_ctl.put(payload)
-            self._commands.append((None, payload))
-            self.st.link_commanded = True
-            self._note(FleetEvent.of(self._sim_now(), "link_changed",
-                                     f"link faults changed from t = {at:.2f} s by {sender}: "
-                                     f"{printable(f['link'], 200)}"))
-        elif f.get("vehicle") in self.index:  # kill | pause_vehicle | resume_vehicle | restart
-            action = {"pause_vehicle": "pause", "resume_vehicle": "resume"}.get(op, op)
-            if self.clock == "lockstep":
-                self.lockstep.vehicle_fault(action, self.index[f["vehicle"]], by=sender)
-            else:
-                self.pub_launcher.put(encode_control(op, vehicle=f["vehicle"]))
-                self._expect_news(f["vehicle"], action)
-                self._note(FleetEvent.of(self._sim_now(), "fault", f"{action} of {f['vehicle']} by {sender}",
-                                         vehicle=f["vehicle"]))
-        else:
-            self._reject(sender, "unknown_vehicle")
+            self._reject(sender, c)
+            return "?", sender, Verdict.no(f"the command could not be read: {c}")
+        by = sender if c.name is None else f"{sender}:{c.name}"
+        if c.op == "fault_done" or c.op == "stop" and sender == keys.LAUNCHER:
+            pass  # the launcher's own, whatever the run's state
+        elif self.stop_requested or self.finished:
+            return c.op, by, Verdict.no("the run is over" if self.finished else "the run is stopping")
+        handler = self.command_handlers.get(c.op)
+        if handler is None:
+            self._reject(sender, "unknown_op")
+            return c.op, by, Verdict.no(f"this world does not carry out {c.op!r}")
+        self._command_ref, self._current_op = ref, c.op
+        try:
+            out = handler(c.fields, by)
+        finally:
+            self._command_ref, self._current_op = None, ""
+        if out is LATER:  # decided later; with nobody waiting, said applied from the next tick
+            return c.op, by, LATER if ref is not None else Verdict(True, out.reason, self._effect_tick())
+        if out is None:
+            out = Verdict(True, "", self._effect_tick())
+        elif isinstance(out, str):
+            out = Verdict.no(out)
+        return c.op, by, out
 
-    def _relay_gains(self, gains: dict, vehicle: str, sender: str) -> None:
+    def _effect_tick(self) -> int:
+        """The first tick a command can change: one nobody has been granted (lockstep), the wall
+        clock's next (realtime)."""
+        return self.lockstep.granted + 1 if self.clock == "lockstep" else self._tick_now() + 1
+
+    def _cmd_stop(self, f: dict, by: str) -> Verdict | str:
+        if self.stop_requested:
+            return "the run is stopping"
+        # the launcher asks only when it was interrupted (Ctrl-C, SIGTERM); anyone else's stop is an operator's
+        interrupted = by == keys.LAUNCHER
+        self._note(FleetEvent.of(self._sim_now(), "fleet", "fleet stopped: the launcher was interrupted"
+                                 if interrupted else f"fleet stopped by {by}"))
+        self.completion = self.completion or ("interrupted" if interrupted else "stopped")
+        self.stop_requested = True
+        tick = self.next_tick if self.clock == "lockstep" else self._tick_now()
+        return Verdict(True, "the run ends here: its metrics are written", tick)
+
+    def _cmd_fault_done(self, f: dict, by: str) -> Verdict | str:
+        if by != keys.LAUNCHER:
+            self._reject(by, "sender")
+            return "only the launcher reports a fault carried out"
+        if f["vehicle"] in self.index:
+            self.lockstep.on_fault_done(self.index[f["vehicle"]])
+        return Verdict(True, "", max(0, self.lockstep.granted))
+
+    def _cmd_pause(self, f: dict, by: str) -> Verdict | str | None:
+        return self._fleet_pause(True, by)
+
+    def _cmd_resume(self, f: dict, by: str) -> Verdict | str | None:
+        return self._fleet_pause(False, by)
+
+    def _cmd_gains(self, f: dict, by: str) -> Verdict | str:
+        return self._relay_gains(f["gains"], f["vehicle"], by)
+
+    def _cmd_link(self, f: dict, by: str) -> Verdict | str:
+        merged = merge_link_tables(self._link_table, f["link"])
+        try:  # the agents' own check, made before relaying: a table they would refuse is no change
+            validate_link(merged, self.ids, "link command")
+        except (ConfigError, ValueError) as e:
+            self._reject(by, "link")
+            self._note(FleetEvent.of(self._sim_now(), "rejected",
+                                     f"link command from {printable(by, 64)}: {printable(str(e), 200)}"))
+            return printable(str(e), 280)
+        self._link_table = merged
+        # Never before what a vehicle may already have sent (lockstep: past the grant), so
+        # every receiver applies it from the same message on; a past --at means "now".
+        earliest = ((self.lockstep.granted + 1) * self.period if self.clock == "lockstep"
+                    else self._sim_now() + self.period)
+        at = max(f["at"], earliest) if f["at"] >= 0 else max(self._sim_now() + LINK_LEAD, earliest)
+        payload = encode_control("link", link=f["link"], at=float(at))
+        self.pub_ctl.put(payload)
+        self._commands.append((None, payload))
+        self.st.link_commanded = True
+        self._note(FleetEvent.of(self._sim_now(), "link_changed",
+                                 f"link faults changed from t = {at:.2f} s by {by}: {printable(f['link'], 200)}"))
+        return Verdict(True, "", max(0, math.ceil(at / self.period - 1e-9)), float(at))
+
+    def _cmd_vehicle_fault(self, f: dict, by: str) -> Verdict | str:
+        """kill | pause_vehicle | resume_vehicle | restart, by the op in the fields' command."""
+        vid = f["vehicle"]
+        if vid not in self.index:
+            self._reject(by, "unknown_vehicle")
+            return f"no vehicle {printable(vid, 64)!r} in this fleet (its vehicles: {', '.join(self.ids)})"
+        op = self._current_op
+        action = {"pause_vehicle": "pause", "resume_vehicle": "resume"}.get(op, op)
+        if self.clock == "lockstep":
+            tick = self.lockstep.vehicle_fault(action, self.index[vid], by=by, ref=self._command_ref)
+            return LATER if self._command_ref is not None else Verdict(True, "", tick)
+        self.pub_launcher.put(encode_control(op, vehicle=vid))
+        self._expect_news(vid, action)
+        self._note(FleetEvent.of(self._sim_now(), "fault", f"{action} of {vid} by {by}", vehicle=vid))
+        return Verdict(True, "realtime: the launcher carries it out now", self._tick_now())
+
+    def _relay_gains(self, gains: dict, vehicle: str, sender: str) -> Verdict | str:
         targets = self.ids if vehicle == "" else [vehicle] if vehicle in self.index else []
         problems = {gains_problem(gains, self.scenario.vehicle(v).dim, **self.scenario.gain_context(v))
                     for v in targets} - {None}
@@ -423,17 +589,19 @@ class World:
             why = f"no vehicle {printable(vehicle, 64)!r}" if not targets else printable("; ".join(sorted(problems)))
             self._note(FleetEvent.of(self._sim_now(), "rejected",
                                      f"gains {printable(gains, 120)} from {sender}: {why}"))
-            return
+            return why
         tick = self.lockstep.granted + 1 if self.clock == "lockstep" else self._tick_now() + 1
         payload = encode_control("gains", gains=gains, tick=tick)
         self.session.put(keys.ctl(self.fleet, targets), payload)
         self._commands.append((vehicle or None, payload))
         self._note(FleetEvent.of(tick * self.period, "gains_changed",
                                  f"gains {gains} for {vehicle or 'every vehicle'} from tick {tick} by {sender}"))
+        return Verdict(True, "", tick)
 
-    def _fleet_pause(self, pause: bool) -> None:
+    def _fleet_pause(self, pause: bool, by: str = "") -> Verdict | str:
         if pause == (self.lockstep.paused if self.clock == "lockstep" else self.paused_at is not None):
-            return  # already so: not news
+            return "the fleet is already paused" if pause else "the fleet is not paused"  # not news
+        tick = self._effect_tick() if self.clock == "lockstep" else self._tick_now()
         if self.clock == "lockstep":
             (self.lockstep.pause if pause else self.lockstep.resume)()
         elif pause and self.paused_at is None:
@@ -443,7 +611,9 @@ class World:
             self.t0 += time.time() - self.paused_at  # the fleet's clock stood still
             self.paused_at = None
             self.pub_ctl.put(encode_control("resume", t0=self.t0))
-        self._note(FleetEvent.of(self._sim_now(), "fleet", "fleet paused" if pause else "fleet resumed"))
+        self._note(FleetEvent.of(self._sim_now(), "fleet", ("fleet paused" if pause else "fleet resumed")
+                                 + (f" by {by}" if by else "")))
+        return Verdict(True, "", tick)
 
     def _on_alive(self, name: str, up: bool) -> None:
         st = self.st
@@ -563,6 +733,8 @@ class World:
                 self.pub_launcher.put(encode_control(a.op, vehicle=self.ids[a.vehicle]))
             elif isinstance(a, FleetEvent):
                 self._note(a)
+            elif isinstance(a, Decided):
+                self._decided(a)
 
     def _send_contacts(self, tick: int, positions: dict[int, tuple]) -> None:
         """The proximity sensor at ``tick``: each sampled vehicle its contacts (cdus.sim.sensing);
@@ -739,7 +911,14 @@ class World:
             coord = None if math.isnan(worst_coord[-1]) or not self.recorder.edges else float(worst_coord[-1])
         paused = self.lockstep.paused if self.clock == "lockstep" else self.paused_at is not None
         self.pub_status.put(encode_status(t, self.duration, self.clock, sorted(self.st.alive), self.ids, path, coord,
-                                          self.events[-10:], paused))
+                                          self.events[-10:], paused, self._roster_now()))
+
+    def _roster_now(self) -> dict[str, str]:
+        """Each vehicle's roster state at the tick the world is at (realtime: by its liveliness)."""
+        if self.clock == "lockstep":
+            n = max(0, self.next_tick)
+            return {vid: self.lockstep.state_at(j, n) for j, vid in enumerate(self.ids)}
+        return {vid: "live" if vid in self.st.alive else "gone" for vid in self.ids}
 
     def _processes(self) -> list[AgentStats]:
         """The last stats of every agent process of the run, restarted ones' included."""

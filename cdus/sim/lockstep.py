@@ -86,7 +86,17 @@ class Fault:
     vehicle: int
 
 
-Action = Grant | Join | Roster | CatchUp | Fault | Sense | FleetEvent
+@dataclass(frozen=True)
+class Decided:
+    """A ground station's vehicle fault that asked for an answer (``ref``) is decided: carried out
+    from ``tick`` (``reason`` None) or not (``reason`` says why: nothing to do)."""
+
+    ref: object
+    tick: int
+    reason: str | None = None
+
+
+Action = Grant | Join | Roster | CatchUp | Fault | Sense | FleetEvent | Decided
 
 
 @dataclass
@@ -98,6 +108,7 @@ class _Pending:
     vehicle: int
     stage: str = "due"  # due -> asked (the launcher) -> waiting_token (restart, resume) -> done
     by: str | None = None  # who commanded it (a ground station); None: the scenario's schedule
+    ref: object = None  # the answer it waits for (Decided), None: nobody asked
 
 
 @dataclass
@@ -251,10 +262,17 @@ class Lockstep:
     def resume(self) -> None:
         self.paused = False
 
-    def vehicle_fault(self, action: str, j: int, by: str = "a ground station") -> None:
-        """A ground station's kill | pause | resume | restart: at the first tick not yet granted."""
-        self._queue.append(_Pending(self.granted + 1, action, j, by=by))
+    def vehicle_fault(self, action: str, j: int, by: str = "a ground station", ref: object = None) -> int:
+        """A ground station's kill | pause | resume | restart: at the first tick not yet granted
+        (returned). With ``ref``, a Decided action says when it is carried out or found moot."""
+        tick = self.granted + 1
+        self._queue.append(_Pending(tick, action, j, by=by, ref=ref))
         self._queue.sort(key=lambda p: (p.tick, p.vehicle))
+        return tick
+
+    def undecided(self) -> list[tuple[object, int]]:
+        """(ref, tick) of the ground stations' faults still queued (at the end: never carried out)."""
+        return [(p.ref, p.tick) for p in self._queue if p.ref is not None]
 
     def give_up(self, j: int) -> None:
         """The launcher never acknowledged the fault in progress (or the new process never came):
@@ -306,9 +324,12 @@ class Lockstep:
             killed = j in self._killed
             moot = {"pause": now != "live", "resume": now == "live" or killed, "kill": killed}.get(p.action, False)
             if moot:
+                why = f"{vid} is {'killed' if killed else now} at tick {p.tick} (nothing done)"
                 self._out.append(FleetEvent.of(p.tick * self.period, "rejected",
                                                f"{p.action} of {vid} by {p.by}: it is "
                                                f"{'killed' if killed else now} (nothing done)", vehicle=vid))
+                if p.ref is not None:
+                    self._out.append(Decided(p.ref, p.tick, why))
                 return
         if p.action == "kill":
             self._killed.add(j)
@@ -333,6 +354,8 @@ class Lockstep:
         self._out.append(Fault(FAULT_OPS[p.action], j))
         self._out.append(scheduled_fault(p.tick, self.period, p.action, vid) if p.by is None
                          else commanded_fault(p.tick, self.period, p.action, vid, p.by))
+        if p.ref is not None:
+            self._out.append(Decided(p.ref, p.tick))
         p.stage = "asked"
         self._current = p
 

@@ -8,16 +8,20 @@ user name, and with TLS the same name as its certificate's common name):
                         the proximity sensor's contacts (to/+<id>+/contacts),
                         fault requests to the launcher (to/+launcher+/cmd), its status
                         and events (world/status, world/events), the liveliness token
-                        alive/world; answers world/last/<id> queries
+                        alive/world; answers world/last/<id> queries and commands
+                        (world/cmd/<from>)
     vehicle-<id>        publishes only its own keys: its ω to its listeners
                         (to/+<listeners>+/omega/<id>, the exact set of the scenario), its
                         telemetry and counters (to/+world+/state/<id>, stats/<id>), the
                         liveliness token alive/<id>, and answers its link check
                         (to/+<id>+/ping)
-    ground              a ground station: commands to the world (to/+world+/cmd/gs)
+    ground              a ground station: commands to the world, as queries the world
+                        answers (world/cmd/gs) or as puts (to/+world+/cmd/gs, no answer)
 
-Every role may subscribe to and query anything under ``cdus/<fleet>/``; nothing else may
-be published or declared there, or anywhere else (the list denies by default). The
+Every role may subscribe to and query anything under ``cdus/<fleet>/`` except the world's
+command queryable (``world/cmd/**``), which only the ground role may query (a deny rule for
+every other role: Zenoh's deny wins over an allow); nothing else may be published or
+declared there, or anywhere else (the list denies by default). The
 launcher is the router itself, so it needs no role: Zenoh checks what crosses the
 router's links, not what its own session does. Session-local keys (``to/+<id>+/wake``)
 never reach the router.
@@ -80,12 +84,18 @@ def fleet_acl(fleet: str, listeners: Mapping[str, Sequence[str]], match_certific
         _rule("world-put", ("put",), [f"{keys.prefix(f)}/to/*/ctl", f"{keys.prefix(f)}/to/*/contacts",
                                       keys.launcher_cmd(f), keys.world_status(f), keys.world_events(f)]),
         _rule("world-token", ("liveliness_token",), [keys.alive(f, keys.WORLD)]),
-        _rule("world-last", ("declare_queryable", "reply"), [keys.world_last(f, "*")]),
+        _rule("world-last", ("declare_queryable", "reply"), [keys.world_last(f, "*"), keys.any_world_command(f)]),
     ]
     policies.append({"id": "world", "rules": ["world-put", "world-token", "world-last"], "subjects": [WORLD_ROLE]})
 
     rules.append(_rule("ground-commands", ("put",), [keys.world_cmd(f, keys.GROUND)]))
-    policies.append({"id": "ground", "rules": ["ground-commands"], "subjects": [GROUND_ROLE]})
+    rules.append(_rule("ground-query", ("query",), [keys.world_command(f, keys.GROUND)]))
+    policies.append({"id": "ground", "rules": ["ground-commands", "ground-query"], "subjects": [GROUND_ROLE]})
+    # nobody else may command the world through its queryable (their READ allows any query)
+    no_commands = {**_rule("no-commands", ("query",), [f"{keys.prefix(f)}/world/cmd/**"]), "permission": "deny"}
+    rules.append(no_commands)
+    policies.append({"id": "not-ground", "rules": ["no-commands"],
+                     "subjects": [WORLD_ROLE, *(vehicle_role(v) for v in listeners)]})
 
     for vid, heard_by in listeners.items():
         role = vehicle_role(vid)

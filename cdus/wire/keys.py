@@ -18,6 +18,7 @@ through one subscription (``to/$*+<me>+$*/**``, :func:`inbox`) and waits in one 
     cdus/<fleet>/world/status           the world's status, about once a second
     cdus/<fleet>/world/events           fleet events as they happen (cdus.wire.schemas)
     cdus/<fleet>/world/last/<id>        queryable: a vehicle's newest telemetry
+    cdus/<fleet>/world/cmd/<from>       queryable: a command to the world, answered applied/rejected
 
 Anyone may listen: a ground station watches ``to/*/state/*`` and ``world/**``. Ids and
 fleet names are letters, digits, ``_`` and ``-``, so ``+`` only ever delimits a set.
@@ -122,6 +123,16 @@ def world_events(fleet: str) -> str:
 
 def world_last(fleet: str, vid: str) -> str:
     return f"cdus/{fleet}/world/last/{vid}"
+
+
+def world_command(fleet: str, sender: str) -> str:
+    """The world's command queryable as ``sender`` asks it (``gs`` for ground stations): each
+    command is a query whose payload is the command, answered with a CommandReply."""
+    return f"cdus/{fleet}/world/cmd/{sender}"
+
+
+def any_world_command(fleet: str) -> str:
+    return f"cdus/{fleet}/world/cmd/*"
 
 
 def leaf(key: str) -> tuple[str, str]:

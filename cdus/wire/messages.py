@@ -19,6 +19,7 @@ and drop without a try/except in its loop.
 from __future__ import annotations
 
 import math
+import re
 import struct
 from dataclasses import dataclass
 from typing import Any
@@ -288,6 +289,12 @@ class Control:
 
     op: str
     fields: dict
+    #: a ground station's own name (optional ``name`` of a command: several ground stations share
+    #: the ``gs`` key, the world's event log names each); None when not given
+    name: str | None = None
+
+
+_NAME_RE = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
 
 
 def encode_control(op: str, **fields) -> bytes:
@@ -318,4 +325,7 @@ def decode_control(payload: bytes, ops: dict[str, dict[str, type]]) -> Control |
         if typ is float and not math.isfinite(val):
             return "non_finite"
         out[name] = val
-    return Control(op, out)
+    who = obj.get("name")
+    if who is not None and (not isinstance(who, str) or not _NAME_RE.match(who)):
+        return "name"
+    return Control(op, out, who)

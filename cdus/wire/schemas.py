@@ -307,20 +307,28 @@ def _burst(d: Any, ids: Collection[str] | None) -> BurstReport | None:
 
 # --------------------------------------------------------------------------- world status
 
-STATUS_KEYS = ("t", "duration", "clock", "alive", "ids", "path_error_max", "coord_error_max", "events", "paused")
+STATUS_KEYS = ("t", "duration", "clock", "alive", "ids", "path_error_max", "coord_error_max", "events", "paused",
+               "roster")
+#: a vehicle's state in the world's roster (status ``roster``): stepping, paused (by a fault or a
+#: ground station), gone (killed, lost) from the tick the world is at
+ROSTER_STATES = ("live", "paused", "gone")
 
 
 def encode_status(t: float, duration: float, clock: str, alive: list[str], ids: list[str],
                   path_error_max: float | None, coord_error_max: float | None, events: list[FleetEvent],
-                  paused: bool) -> bytes:
-    return msgpack.packb({"v": SCHEMA_VERSION, "t": t, "duration": duration, "clock": clock, "alive": alive,
-                          "ids": ids, "path_error_max": _finite(path_error_max),
-                          "coord_error_max": _finite(coord_error_max), "events": [e.as_dict() for e in events],
-                          "paused": paused}, use_bin_type=True)
+                  paused: bool, roster: dict[str, str] | None = None) -> bytes:
+    d = {"v": SCHEMA_VERSION, "t": t, "duration": duration, "clock": clock, "alive": alive,
+         "ids": ids, "path_error_max": _finite(path_error_max),
+         "coord_error_max": _finite(coord_error_max), "events": [e.as_dict() for e in events],
+         "paused": paused}
+    if roster is not None:
+        d["roster"] = roster
+    return msgpack.packb(d, use_bin_type=True)
 
 
 def decode_status(payload: bytes, ids: Collection[str] | None = None) -> dict[str, Any] | str:
-    """The world's status as a dict (STATUS_KEYS; events as FleetEvent), or the reject reason.
+    """The world's status as a dict (STATUS_KEYS; events as FleetEvent; ``roster`` None when the
+    world did not send it), or the reject reason.
     Every field is checked: times finite and plausible, the clock a known one, ``alive`` a
     subset of ``ids`` (and ``ids`` the receiver's, when it knows them), errors finite or
     None, ``paused`` a bool, at most MAX_STATUS_EVENTS events, each a valid one (an invalid
@@ -345,12 +353,19 @@ def decode_status(payload: bytes, ids: Collection[str] | None = None) -> dict[st
     if len(sids) > MAX_STATUS_IDS or len(events) > MAX_STATUS_EVENTS or not all(_id(v, ids) for v in sids) \
             or not set(alive) <= set(sids):
         return "unknown_sender"
+    roster = obj.get("roster")
+    if roster is not None and (not isinstance(roster, dict)
+                               or not all(isinstance(k, str) and isinstance(x, str) for k, x in roster.items())):
+        return "type"
+    if roster is not None and (not set(roster) <= set(sids) or not set(roster.values()) <= set(ROSTER_STATES)):
+        return "roster"
     known = sids if ids is None else ids
     out = {k: obj.get(k) for k in STATUS_KEYS}
     out["t"], out["duration"] = float(t), float(duration)
     out["path_error_max"], out["coord_error_max"] = (None if x is None else float(x) for x in errors)
     out["events"] = [e for e in (event_from_dict(d, known) for d in events) if isinstance(e, FleetEvent)]
     out["paused"] = bool(obj.get("paused"))
+    out["roster"] = None if roster is None else {k: str(x) for k, x in roster.items()}
     return out
 
 
@@ -396,3 +411,80 @@ def _link(x: str, ids: Collection[str] | None) -> tuple[str, str] | None:
 
 def _finite(x: float | None) -> float | None:
     return None if x is None or not math.isfinite(x) else float(x)
+
+
+# --------------------------------------------------------------------------- command replies
+
+REPLY_VERSION = 1
+REPLY_STATUSES = ("applied", "rejected")
+OP_RE = re.compile(r"^[a-z][a-z0-9_]{0,39}$")  # a command's op name (COMMAND_OPS, and ops added later)
+MAX_REASON = 300
+REPLY_KEYS = ("v", "status", "op", "reason", "tick", "t", "by")
+
+
+@dataclass(frozen=True)
+class CommandReply:
+    """The world's answer to one command (a query on ``world/cmd/<from>``, docs/ground_station.md):
+
+    - ``status``: ``applied`` (the world accepted it and it takes effect from ``tick``, at simulated
+      time ``t``) or ``rejected`` (nothing was changed; ``reason`` says why);
+    - ``op``: the command's op (``?`` when the command could not be read);
+    - ``tick``/``t``: the simulated tick (and its time, s) the command takes effect from: a vehicle
+      fault's landing tick, a pause's first tick not stepped, a link change's time; None when rejected;
+    - ``by``: who the world recorded as the sender (as its event log names it).
+    """
+
+    status: str
+    op: str
+    reason: str = ""
+    tick: int | None = None
+    t: float | None = None
+    by: str = ""
+
+    @property
+    def applied(self) -> bool:
+        return self.status == "applied"
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"v": REPLY_VERSION, "status": self.status, "op": self.op, "reason": self.reason, "tick": self.tick,
+                "t": self.t, "by": self.by}
+
+
+def encode_reply(r: CommandReply) -> bytes:
+    return msgpack.packb(r.as_dict(), use_bin_type=True)
+
+
+def decode_reply(payload: bytes) -> CommandReply | str:
+    """A command reply, every field checked (the reason and sender escaped), or the reject reason:
+    ``oversized``, ``malformed``, ``version``, ``unknown_field``, ``type``, ``status``, ``op``,
+    ``range``, ``unknown_sender``; never raises."""
+    obj = _unpack(payload, limit=2048)
+    if isinstance(obj, str):
+        return obj
+    if obj.get("v") != REPLY_VERSION or type(obj.get("v")) is not int:
+        return "version"
+    if not set(obj) <= set(REPLY_KEYS):
+        return "unknown_field"
+    status, op, reason, tick, t, by = (obj.get(k) for k in ("status", "op", "reason", "tick", "t", "by"))
+    reason = "" if reason is None else reason
+    by = "" if by is None else by
+    if not isinstance(status, str) or not isinstance(op, str) or not isinstance(reason, str) \
+            or not isinstance(by, str) or tick is not None and type(tick) is not int \
+            or t is not None and not _number(t):
+        return "type"
+    if status not in REPLY_STATUSES:
+        return "status"
+    if op != "?" and not OP_RE.match(op):
+        return "op"
+    if tick is not None and not 0 <= tick < MAX_COUNT or t is not None and not 0 <= t <= MAX_TIME:
+        return "range"
+    if status == "applied" and tick is None:  # an applied command always says when
+        return "range"
+    if by and not SENDER_RE.match(by):
+        return "unknown_sender"
+    return CommandReply(status, op, printable(reason, MAX_REASON), tick, None if t is None else float(t), by)
+
+
+#: how the world names a command's sender: the key's sender (``gs``, ``launcher``), and a ground
+#: station's own name after a colon (``gs:alice``)
+SENDER_RE = re.compile(r"^[A-Za-z0-9_-]{1,64}(:[A-Za-z0-9_-]{1,64})?$")

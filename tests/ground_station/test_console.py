@@ -170,13 +170,40 @@ def test_forged_names_are_not_tracked():
     assert gs.view.alive == {"usv1"} and gs.view.rejected == 3
 
 
-def test_an_unreachable_router_says_that_fleets_take_credentials(capsys):
-    """Fleets are secured by default: a ground station without credentials is refused at the
-    handshake, which looks like an unreachable router; the error says what to add."""
+def test_an_unreachable_router_says_that_nothing_listens_and_that_fleets_take_credentials(capsys):
+    """Nothing listens at the endpoint: no answer (exit 3), and the hint for a secured fleet."""
     from cdus.wire.transport import free_tcp_port
     from ground_station.__main__ import main
 
     code = main(["--fleet", "nobody", "-e", f"tcp/127.0.0.1:{free_tcp_port()}", "status", "--once"])
     err = capsys.readouterr().err
-    assert code == 1 and "could not reach the fleet's router" in err
+    assert code == 3 and "could not reach the fleet's router" in err and "nothing listens there" in err
     assert "--zenoh-config RUN/secure/ground.json5" in err
+
+
+def test_a_router_that_refuses_the_session_is_reported_as_such_with_the_file_to_use(tmp_path, capsys):
+    """A secured router is up and refuses a session without credentials (or with a wrong
+    password): the ground station says so (exit 4, denied) and names ground.json5, not a bare
+    'Timeout!'."""
+    import json
+
+    from cdus.app.credentials import make_credentials
+    from cdus.wire.transport import Transport, free_tcp_port, open_session
+    from ground_station.__main__ import main
+
+    ep = f"tcp/127.0.0.1:{free_tcp_port()}"
+    cred = make_credentials(tmp_path, "f1", {"usv1": ["usv2"], "usv2": ["usv1"]}, (ep,))
+    router = open_session(Transport(mode="router", listen=cred.listen, extra=cred.router_extra()))
+    try:
+        code = main(["--fleet", "f1", "-e", ep, "status", "--once"])
+        err = capsys.readouterr().err
+        assert code == 4 and "is up but refused or closed this session, which had no credentials" in err, err
+        assert "--zenoh-config RUN/secure/ground.json5" in err and "Timeout" not in err
+        wrong = json.loads(cred.file("ground").read_text())
+        wrong["transport"]["auth"]["usrpwd"]["password"] = "guess"
+        (tmp_path / "wrong.json5").write_text(json.dumps(wrong))
+        code = main(["--fleet", "f1", "--zenoh-config", str(tmp_path / "wrong.json5"), "status", "--once"])
+        err = capsys.readouterr().err
+        assert code == 4 and "the credentials of 'ground' from" in err and "guess" not in err, err
+    finally:
+        router.close()

@@ -164,10 +164,12 @@ def test_commands_are_relayed_with_the_tick_or_time_they_apply_from():
     w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("link", link={"loss": 0.2}, at=0.1))))
     assert ctl_ops(w)[-1].fields["at"] == 41 * w.period
     assert "from t = 0.82 s by gs1" in w.events[-1].text
+    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("pause"))))
+    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("pause"))))  # already: not news
     w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("stop"))))
-    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("pause"))))
-    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("pause"))))
-    assert [e.text for e in w.events[-2:]] == ["fleet stopped by gs1", "fleet paused"]
+    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("resume"))))  # after the stop: refused
+    assert [e.text for e in w.events[-2:]] == ["fleet paused by gs1", "fleet stopped by gs1"]
+    assert w.lockstep.paused
 
 
 def test_a_rejoining_process_is_sent_the_link_and_gains_commands_it_missed():

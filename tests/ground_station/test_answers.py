@@ -1,0 +1,150 @@
+"""The ground station's side of a command (GroundStation.command) and its JSON snapshot, with a
+fake session: every answer maps to one outcome and exit code, an unreadable one is counted,
+a query that comes back empty at once from a fleet whose world is up is a denial."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import msgpack
+from hypothesis import given, settings, strategies as hs
+
+from cdus.wire.messages import StateMsg, encode_states
+from cdus.wire.schemas import CommandReply, FleetEvent, encode_event, encode_reply, encode_status
+from ground_station.console import GroundStation, _not_live, status_table
+
+from .test_console import Sample
+
+
+class Reply:
+    def __init__(self, key: str, payload: bytes | None, err: bytes | None = None):
+        self.ok = None if payload is None else Sample(key, payload)
+        self.err = None if err is None else type("E", (), {"payload": Sample(key, err).payload})()
+
+
+class Session:
+    """Answers every get with the given replies, after ``delay`` s."""
+
+    def __init__(self, replies: list[Reply], delay: float = 0.0):
+        self.replies, self.delay, self.asked = replies, delay, []
+
+    def get(self, key, payload=None, timeout=None):
+        self.asked.append((key, payload))
+        time.sleep(self.delay)
+        return iter(self.replies)
+
+
+def station(replies, delay: float = 0.0, world_up: bool = True, config_file: str | None = None) -> GroundStation:
+    from cdus.wire.transport import Transport
+    gs = GroundStation("f", Transport(config_file=config_file), name="alice")
+    gs.session = Session(replies, delay)
+    if world_up:
+        gs.view.alive.add("world")
+    return gs
+
+
+KEY = "cdus/f/world/cmd/gs"
+
+
+def test_each_answer_is_one_outcome_and_exit_code():
+    applied = CommandReply("applied", "pause", "", 12, 0.24, "gs:alice")
+    gs = station([Reply(KEY, encode_reply(applied))])
+    a = gs.command("pause")
+    assert (a.outcome, a.code, a.reply) == ("applied", 0, applied)
+    assert msgpack.unpackb(gs.session.asked[0][1])["name"] == "alice"  # the event log will name it
+    a = station([Reply(KEY, encode_reply(CommandReply("rejected", "pause", "the fleet is already paused")))]).command(
+        "pause")
+    assert (a.outcome, a.code, a.reply.reason) == ("rejected", 1, "the fleet is already paused")
+
+
+def test_an_answer_that_does_not_read_is_no_answer_and_is_counted():
+    gs = station([Reply(KEY, b"\xc1"), Reply(KEY, None, err=b"boom")])
+    a = gs.command("stop")
+    assert (a.outcome, a.code) == ("no_answer", 3) and "could not be read (malformed)" in a.detail
+    assert "an error reply: boom" in a.detail
+    assert gs.view.rejected_by_reason == {"reply_malformed": 1}
+
+
+def test_nothing_back_at_once_from_a_fleet_whose_world_is_up_is_a_denial(tmp_path):
+    cfg = tmp_path / "v.json5"
+    cfg.write_text(json.dumps({"transport": {"auth": {"usrpwd": {"user": "vehicle-usv1", "password": "pw"}}}}))
+    a = station([], config_file=str(cfg)).command("stop", timeout=5.0)
+    assert (a.outcome, a.code) == ("denied", 4)
+    assert "'vehicle-usv1'" in a.detail and "RUN/secure/ground.json5" in a.detail and "pw" not in a.detail
+    a = station([], world_up=False).command("stop", timeout=5.0)  # nobody there: not a denial
+    assert (a.outcome, a.code) == ("no_answer", 3) and "no world took the command" in a.detail
+    a = station([], delay=0.2).command("stop", timeout=0.2)  # the whole timeout: silence
+    assert (a.outcome, a.code) == ("no_answer", 3) and "within 0.2 s" in a.detail
+
+
+def row(j: int, n: int, q=(1.0, 2.0)) -> bytes:
+    return encode_states([StateMsg(j, n, n * 0.02, q, 0.0, 1.0, -0.5, -1.0, 0.25)])
+
+
+def test_a_paused_fleets_vehicles_come_from_the_worlds_last_telemetry_and_say_why():
+    gs = station([Reply("cdus/f/world/last/usv1", row(0, 40)), Reply("cdus/f/world/last/usv2", row(1, 40)),
+                  Reply("cdus/f/world/last/bad\x1bid", row(1, 40))])
+    gs._on_status(Sample("cdus/f/world/status", encode_status(0.8, 10.0, "lockstep", ["usv1", "usv2"],
+                                                              ["usv1", "usv2", "uav1"], 0.1, 0.01, [], True,
+                                                              {"usv1": "live", "usv2": "live", "uav1": "gone"})))
+    gs.view.alive |= {"usv1", "usv2"}
+    assert gs.fetch_last() == 2 and gs.view.rejected == 1
+    snap = gs.snapshot()
+    json.dumps(snap, allow_nan=False)
+    assert snap["v"] == 1 and snap["run"] == "paused" and snap["t"] == 0.8
+    by = {v["id"]: v for v in snap["vehicles"]}
+    assert by["usv1"]["reason"] == "paused (fleet)" and by["usv1"]["telemetry"]["q"] == [1.0, 2.0]
+    assert by["uav1"]["telemetry"] is None and by["uav1"]["reason"] == "no data yet" and by["uav1"]["state"] == "gone"
+    table = status_table(gs.view)
+    assert table.count("[paused (fleet)]") == 2 and "(gone)" in table
+    gs.view.world["paused"] = False
+    assert _not_live(gs.view, "usv1") is None and _not_live(gs.view, "uav1") == "gone"
+
+
+def test_events_since_hands_each_event_once():
+    gs = station([])
+    for i in range(3):
+        gs._on_event(Sample("cdus/f/world/events", encode_event(FleetEvent.of(float(i), "fleet", f"e{i}"))))
+    new, seen = gs.events_since(0)
+    assert [e.text for e in new] == ["e0", "e1", "e2"] and seen == 3
+    gs._on_event(Sample("cdus/f/world/events", encode_event(FleetEvent.of(3.0, "fleet", "e3"))))
+    new, seen = gs.events_since(seen)
+    assert [e.text for e in new] == ["e3"] and gs.events_since(seen)[0] == []
+
+
+@settings(max_examples=150, deadline=None)
+@given(payloads=hs.lists(hs.binary(max_size=120), max_size=4), text=hs.text(max_size=12),
+       t=hs.floats(allow_nan=True, allow_infinity=True))
+def test_no_status_or_reply_breaks_the_snapshot_or_the_command(payloads, text, t):
+    gs = station([Reply(KEY, p) for p in payloads])
+    for p in payloads:
+        gs._on_status(Sample("cdus/f/world/status", p))
+    gs._on_status(Sample("cdus/f/world/status", encode_status(0.0, 1.0, "lockstep", [], [], None, None, [], False,
+                                                              {text: "live"})))
+    gs._on_state(Sample("cdus/f/to/+world+/state/usv1", encode_states(
+        [StateMsg(0, 1, 0.0, (t, 0.0), t, 0.0, 0.0, 0.0, 0.0)])))
+    json.dumps(gs.snapshot(), allow_nan=False)
+    a = gs.command("pause", timeout=5.0)
+    assert a.outcome in ("applied", "rejected", "no_answer", "denied") and a.code in (0, 1, 3, 4)
+
+
+def test_watch_writes_versioned_json_lines_and_ends_when_the_world_leaves(capsys):
+    from ground_station.__main__ import _watch
+
+    class Alive(Sample):
+        kind = "SampleKind.PUT"
+
+    class Gone(Sample):
+        kind = "SampleKind.DELETE"
+
+    gs = station([], world_up=False)
+    gs._on_alive(Alive("cdus/f/alive/world", b""))
+    gs._on_status(Sample("cdus/f/world/status", encode_status(1.0, 10.0, "realtime", [], ["usv1"], None, None, [],
+                                                              False)))
+    gs._on_event(Sample("cdus/f/world/events", encode_event(FleetEvent.of(1.0, "fleet", "fleet paused by gs:x"))))
+    gs._on_alive(Gone("cdus/f/alive/world", b""))  # the run is over
+    assert _watch(gs, 0.1) == 0
+    lines = [json.loads(ln) for ln in capsys.readouterr().out.splitlines()]
+    assert [ln["kind"] for ln in lines] == ["event", "status", "end"] and all(ln["v"] == 1 for ln in lines)
+    assert lines[0]["event"]["text"] == "fleet paused by gs:x" and lines[1]["run"] == "ended"

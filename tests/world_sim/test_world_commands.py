@@ -1,0 +1,230 @@
+"""The world answers every command asked as a query (world/cmd/<from>): applied from a tick, or
+rejected with the reason; a lockstep vehicle fault once Lockstep has decided it. No network:
+fake queries record the replies."""
+
+from __future__ import annotations
+
+import msgpack
+from hypothesis import given, settings, strategies as hs
+
+from cdus.wire import keys
+from cdus.wire.messages import CTL_OPS, LAUNCHER_OPS, decode_control, encode_control
+from cdus.wire.schemas import CommandReply, decode_reply
+from tests.fakes import Payload
+from world_sim.world import LINK_LEAD
+
+from .test_world import FLEET, row, send_rows, started, world
+
+
+class Query:
+    """A command query as the world's queryable gets it; records the replies."""
+
+    def __init__(self, key: str, payload: bytes | None):
+        self.key_expr = key
+        self.payload = None if payload is None else Payload(payload)
+        self.replies: list[tuple[str, bytes]] = []
+        self.dropped = False
+
+    def reply(self, key, payload) -> None:
+        assert not self.dropped, "replied after the query was finalized"
+        self.replies.append((str(key), bytes(payload)))
+
+    def drop(self) -> None:
+        self.dropped = True
+
+    @property
+    def answer(self) -> CommandReply | None:
+        assert len(self.replies) <= 1, self.replies
+        if not self.replies:
+            return None
+        r = decode_reply(self.replies[0][1])
+        assert isinstance(r, CommandReply), r
+        assert self.replies[0][0] == self.key_expr and self.dropped
+        return r
+
+
+def ask(w, op: str, sender: str = keys.GROUND, raw: bytes | None = None, **fields) -> Query:
+    q = Query(keys.world_command(FLEET, sender), encode_control(op, **fields) if raw is None else raw)
+    w._on_command_query(q)
+    w._handle(_wake())
+    return q
+
+
+def _wake():
+    from tests.fakes import Sample
+    return Sample(keys.wake(FLEET, keys.WORLD), Payload(b""))
+
+
+def report_through(w, n: int) -> None:
+    """Every vehicle reports ticks 0..n."""
+    for j, vid in enumerate(w.ids):
+        for a in range(0, n + 1, 50):
+            send_rows(w, vid, [row(j, k) for k in range(a, min(n, a + 49) + 1)])
+
+
+def test_fleet_commands_are_applied_from_the_first_tick_not_granted_or_rejected_when_moot():
+    w = started(world())
+    g = w.lockstep.granted
+    r = ask(w, "pause", name="alice").answer
+    assert (r.status, r.op, r.tick, r.t, r.by) == ("applied", "pause", g + 1, (g + 1) * w.period, "gs:alice")
+    assert w.events[-1].text == "fleet paused by gs:alice"  # the event log names who
+    r = ask(w, "pause").answer
+    assert (r.status, r.reason, r.tick) == ("rejected", "the fleet is already paused", None)
+    assert ask(w, "resume").answer.applied
+    assert ask(w, "resume").answer.reason == "the fleet is not paused"
+    r = ask(w, "stop").answer
+    assert r.applied and r.tick == w.next_tick and w.stop_requested
+    for op, fields in [("pause", {}), ("stop", {}), ("set_gains", {"gains": {"c": 2.0}, "vehicle": ""})]:
+        r = ask(w, op, **fields).answer
+        assert (r.status, r.reason) == ("rejected", "the run is stopping"), op
+
+
+def test_gains_and_link_are_answered_with_their_tick_or_why_they_were_refused():
+    w = started(world())
+    g = w.lockstep.granted
+    r = ask(w, "set_gains", gains={"k": [1.0, 2.0, 3.0]}, vehicle="usv1").answer  # a boat has 2 axes
+    assert r.status == "rejected" and "k must be 2 numbers" in r.reason
+    r = ask(w, "set_gains", gains={"k": 1e6}, vehicle="").answer  # beyond what the controller takes
+    assert r.status == "rejected" and r.reason
+    r = ask(w, "set_gains", gains={"c": 1.0}, vehicle="nobody").answer
+    assert r.status == "rejected" and "no vehicle 'nobody'" in r.reason
+    r = ask(w, "set_gains", gains={"c": 2.0}, vehicle="").answer
+    assert (r.status, r.tick) == ("applied", g + 1)
+    assert decode_control(w.session.puts[-1][1], CTL_OPS).fields["tick"] == g + 1
+    r = ask(w, "link", link={"loss": 7.0}, at=-1.0).answer  # a table the agents would refuse
+    assert r.status == "rejected" and "loss" in r.reason
+    r = ask(w, "link", link={"loss": 0.1}, at=-1.0).answer
+    at = max(LINK_LEAD, (g + 1) * w.period)
+    assert r.applied and r.t == at and r.tick * w.period >= at - 1e-12
+    assert w.st.rejects["gains"] == 3 and w.st.rejects["link"] == 1
+
+
+def test_a_lockstep_vehicle_fault_is_answered_when_it_lands_on_its_tick():
+    w = started(world())
+    g = w.lockstep.granted
+    q = ask(w, "kill", vehicle="usv2")
+    assert q.replies == [] and not q.dropped  # held: Lockstep decides it when the fleet reaches its tick
+    assert ask(w, "kill", vehicle="nobody").answer.reason.startswith("no vehicle 'nobody' in this fleet")
+    report_through(w, g)
+    w._act(w.lockstep.poll())
+    r = q.answer
+    assert (r.status, r.op, r.tick) == ("applied", "kill", g + 1)
+    c = decode_control(w.pub_launcher.puts[-1], LAUNCHER_OPS)
+    assert (c.op, c.fields["vehicle"]) == ("kill", "usv2")
+
+
+def test_a_lockstep_vehicle_fault_with_nothing_to_do_is_answered_rejected():
+    w = started(world())
+    g = w.lockstep.granted
+    q = ask(w, "resume_vehicle", vehicle="usv3")  # it is live
+    report_through(w, g)
+    w._act(w.lockstep.poll())
+    r = q.answer
+    assert r.status == "rejected" and "usv3 is live" in r.reason and "nothing done" in r.reason
+
+
+def test_a_fault_still_waiting_at_the_end_is_answered_rejected():
+    w = started(world())
+    q = ask(w, "restart", vehicle="usv1")
+    assert q.replies == []
+    w._answer_the_rest("the run is over")
+    r = q.answer
+    assert r.status == "rejected" and r.reason.startswith("the run is over (before its tick")
+
+
+def test_realtime_vehicle_faults_are_answered_at_once():
+    w = world(clock="realtime")
+    r = ask(w, "pause_vehicle", vehicle="uav1").answer
+    assert r.applied and r.tick == 0 and "launcher" in r.reason
+    assert decode_control(w.pub_launcher.puts[-1], LAUNCHER_OPS).op == "pause_vehicle"
+
+
+def test_only_the_launcher_reports_a_fault_done_and_unreadable_commands_are_answered():
+    w = started(world())
+    r = ask(w, "fault_done", vehicle="usv1").answer
+    assert r.status == "rejected" and "only the launcher" in r.reason
+    r = ask(w, "", raw=b"\xc1").answer
+    assert (r.status, r.op, r.reason) == ("rejected", "?", "the command could not be read: malformed")
+    r = ask(w, "", raw=encode_control("pause", name="bad name!")).answer
+    assert r.reason == "the command could not be read: name"
+    q = Query(keys.world_command(FLEET, keys.GROUND), None)  # a query with no payload
+    w._on_command_query(q)
+    w._handle(_wake())
+    assert q.answer.status == "rejected"
+    assert w.st.rejects["sender"] == 1 and w.st.rejects["malformed"] == 2 and w.st.rejects["name"] == 1
+
+
+def test_by_query_only_ground_stations_command_not_a_launcher_or_a_vehicle():
+    w = started(world())
+    for sender in (keys.LAUNCHER, "usv1", "bad name"):
+        r = ask(w, "stop", sender=sender).answer
+        assert r.status == "rejected" and "asked as 'gs'" in r.reason
+    assert not w.stop_requested and w.st.rejects["sender"] == 3
+
+
+def test_a_flood_of_queries_is_answered_busy_past_what_waits_and_counted():
+    from world_sim.world import MAX_QUEUED_QUERIES
+    w = started(world())
+    qs = [Query(keys.world_command(FLEET, keys.GROUND), encode_control("set_gains", gains={"c": 2.0}, vehicle=""))
+          for _ in range(MAX_QUEUED_QUERIES + 5)]
+    for q in qs:
+        w._on_command_query(q)  # Zenoh's thread: the main thread is busy elsewhere
+    assert all(q.answer.reason.startswith("busy") for q in qs[MAX_QUEUED_QUERIES:])
+    w._handle(_wake())
+    assert all(q.answer.applied for q in qs[:MAX_QUEUED_QUERIES])
+    assert w.st.rejects["busy"] == 5
+
+
+def test_the_put_path_still_carries_commands_out():
+    """The launcher's commands and older clients put on to/+world+/cmd/<from>: no answer, same effect."""
+    from tests.fakes import Sample
+    w = started(world())
+    w._handle(Sample(keys.world_cmd(FLEET, keys.GROUND), Payload(encode_control("pause"))))
+    assert w.lockstep.paused
+    w._handle(Sample(keys.world_cmd(FLEET, keys.GROUND), Payload(encode_control("kill", vehicle="usv2"))))
+    assert w.lockstep._queue[-1].vehicle == 1 and w.lockstep._queue[-1].ref is None
+
+
+def test_new_ops_plug_into_the_handlers():
+    """Another part's op (formation, path, radio) answers with None (applied from the next tick),
+    a reason (rejected) or a Verdict."""
+    from cdus.wire import messages
+    w = started(world())
+    seen = []
+    w.command_handlers["pause"] = lambda f, by: seen.append(by) or None
+    assert ask(w, "pause").answer.tick == w.lockstep.granted + 1
+    w.command_handlers["pause"] = lambda f, by: "not today"
+    assert ask(w, "pause").answer.reason == "not today"
+    assert seen == ["gs"] and "pause" in messages.COMMAND_OPS
+
+
+ops = hs.sampled_from(["pause", "resume", "stop", "set_gains", "link", "kill", "pause_vehicle", "resume_vehicle",
+                       "restart", "fault_done", "explode", 7, None])
+values = hs.recursive(hs.none() | hs.booleans() | hs.integers(-2**63, 2**64 - 1) | hs.floats() | hs.text(max_size=20),
+                      lambda c: hs.lists(c, max_size=4) | hs.dictionaries(hs.text(max_size=8), c, max_size=4),
+                      max_leaves=12)
+
+
+@settings(max_examples=300, deadline=None)
+@given(op=ops, fields=hs.dictionaries(hs.sampled_from(["gains", "vehicle", "link", "at", "name", "k"]), values,
+                                      max_size=4),
+       sender=hs.sampled_from(["gs", "launcher", "usv1", "x" * 70, "a b"]), clock=hs.sampled_from(["lockstep",
+                                                                                                    "realtime"]),
+       junk=hs.binary(max_size=40))
+def test_every_query_is_answered_once_never_raises_and_counts_what_it_refuses(op, fields, sender, clock, junk):
+    w = world(clock=clock)
+    if clock == "lockstep":
+        started(w)
+    for payload in (msgpack.packb({"v": 1, "op": op, **fields}), junk):
+        before = w.st.rejected
+        q = Query(f"cdus/{FLEET}/world/cmd/{sender}", payload)
+        w._on_command_query(q)
+        w._handle(_wake())
+        if not q.replies:  # held: a lockstep vehicle fault, decided later
+            assert q.key_expr in {qq.key_expr for qq, _, _ in w._waiting.values()}
+            continue
+        r = q.answer
+        if r.status == "rejected" and r.reason.startswith("the command could not be read"):
+            assert w.st.rejected == before + 1
+    w._answer_the_rest("the run is over")
+    assert not w._waiting and not w._queries
