@@ -22,6 +22,7 @@ from dataclasses import replace
 
 import zenoh
 
+from cdus.core.paths import PathError, make_path
 from cdus.scenario.config import ConfigError, parse_value
 from cdus.scenario.link import validate_link
 from cdus.wire.keys import FLEET_RE
@@ -149,7 +150,6 @@ def formation_fields(settings: list[str]) -> dict:
 def path_fields(settings: list[str]) -> dict:
     """``family=circle center=[0,0,20] ...`` -> a path table, checked as the config's paths are
     (the world checks it against the vehicle's dimension)."""
-    from cdus.core.paths import PathError, make_path  # noqa: PLC0415
     table = nested(settings)
     try:
         make_path(table)
