@@ -103,8 +103,8 @@ def test_a_ground_stations_phase_and_path_change_is_settled_to_by_a_running_flee
     fleet = unique_fleet()
     port = free_tcp_port()
     run = tmp_path / "run"
-    la = launches([str(cfg), "--clock", "lockstep", "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "-q"],
-                  fleet)
+    la = launches([str(cfg), "--clock", "lockstep", "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run),
+                   "--trace-out", str(tmp_path / "trace.npz"), "-q"], fleet)
     la.wait_for("attach a ground station")
     res = gs(fleet, port, run, "formation", f"phases.usv2={math.pi / BETA!r}", "phases.uav1=0")
     assert res.returncode == 0, res.stderr
@@ -133,3 +133,18 @@ def test_a_ground_stations_phase_and_path_change_is_settled_to_by_a_running_flee
     assert m["coord_settle_s"] is not None and m["coord_settle_s"] > t_change  # it was off the new offsets first
     assert m["final_path_error"]["uav1"] < m["path_tol"]
     assert not fleet_processes(fleet)
+    # the same commands given to the in-process fleet at the ticks the world relayed them give
+    # the same run, to the bit: every agent applied them on that tick
+    sc = load_scenario(str(cfg))
+    period = 1.0 / sc.rates.control
+    ref = InProcessFleet(sc)
+    ref.set_formation({"usv2": math.pi / BETA, "uav1": 0.0}, round(changed[0]["t"] / period))
+    ref.set_path("uav1", {"family": "circle", "center": [30, 0, 20], "radius": 5, "speed": 1.0},
+                 round(changed[1]["t"] / period))
+    trace = np.load(tmp_path / "trace.npz")
+    rows = len(trace["t"])
+    for _ in range(rows):
+        ref.step()
+    for name in ("q", "omega", "path_error"):
+        assert np.array_equal(trace[name], ref.recorder.view(name)), name
+    assert np.array_equal(trace["edge_error"], ref.recorder.edge_error())
