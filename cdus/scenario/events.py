@@ -311,4 +311,8 @@ def offsets_to_phases(ids: Sequence[str], current: Sequence[float], edges: Seque
                 f"and the ones in force on the other edges) sum to {total:.6g}, not 0, so ω_i - ω_k -> Δ_ik cannot "
                 f"hold on every edge; give per-vehicle phases instead (phases = {{ id = θ, ... }}: "
                 f"Δ_ik = θ_i - θ_k always closes), or offsets on every edge of the cycle that sum to 0")
+    far = [vid for vid, theta in found.items() if not abs(theta) <= MAX_PHASE]
+    if far:  # every process takes phases within ±MAX_PHASE only
+        return (f"these offsets put the phase of {far[0]} at {found[far[0]]:.6g}, beyond ±{MAX_PHASE:g} ω units; "
+                f"give smaller offsets")
     return found

@@ -213,3 +213,11 @@ def test_bad_formation_and_path_events_name_the_field(event, field, text):
         parse_scenario(with_events({"at": 1, **event}, topology="chain"))  # usv1 - usv2 - uav1
     lines = [ln for ln in str(info.value).splitlines() if f": {field}: " in ln]
     assert any(text in ln for ln in lines), str(info.value)
+
+
+def test_offsets_that_would_put_a_phase_beyond_the_limit_are_refused():
+    """Each Δ within ±1e9, but along a chain they add up: every process takes phases within ±1e9 only."""
+    with pytest.raises(ConfigError) as info:
+        parse_scenario(with_events({"at": 1, "action": "formation", "offsets": [
+            {"i": "usv2", "k": "usv1", "delta": 9e8}, {"i": "uav1", "k": "usv2", "delta": 9e8}]}, topology="chain"))
+    assert "event[0].offsets: these offsets put the phase of uav1 at 1.8e+09, beyond ±1e+09" in str(info.value)

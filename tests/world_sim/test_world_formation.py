@@ -3,6 +3,8 @@ relayed with the tick they apply from, measured against from that tick, replayed
 
 from __future__ import annotations
 
+import math
+
 from cdus.sim.lockstep import CatchUp
 from cdus.wire import keys
 from cdus.wire.messages import CTL_OPS, decode_control, encode_control
@@ -83,3 +85,43 @@ def test_scheduled_changes_are_reported_when_their_tick_is_recorded(tmp_path):
         w.st.rows[n] = {j: row(j, n) for j in range(len(w.ids))}
         w._record(n)
     assert [(e.kind, e.t) for e in w.events] == [("path_changed", 0.02), ("formation_changed", 0.04)]
+
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+_VALUES = st.one_of(st.floats(), st.integers(-2**63, 2**64 - 1), st.booleans(), st.text(max_size=4), st.none(),
+                    st.lists(st.floats(), max_size=3), st.dictionaries(st.text(max_size=3), st.floats(), max_size=2))
+_IDS = st.sampled_from(["usv1", "usv2", "uav1", "x", "\x1b[31m", ""])
+
+
+@settings(max_examples=100, deadline=None)
+@given(data=st.data())
+def test_hostile_formation_and_path_commands_never_raise_and_are_applied_or_counted(data):
+    w = world()
+    w.lockstep.granted = data.draw(st.integers(-1, 100))
+    for _ in range(data.draw(st.integers(1, 6))):
+        if data.draw(st.booleans()):
+            offsets = data.draw(st.lists(st.one_of(_VALUES, st.fixed_dictionaries(
+                {"i": _IDS, "k": _IDS, "delta": _VALUES})), max_size=3))
+            fields = {"phases": data.draw(st.dictionaries(_IDS, _VALUES, max_size=3)), "offsets": offsets}
+            op = "formation"
+        else:
+            fields = {"vehicle": data.draw(_IDS), "path": data.draw(st.dictionaries(
+                st.sampled_from(["family", "center", "radius", "speed", "zz"]),
+                st.one_of(_VALUES, st.just("circle"), st.just([0.0, 0.0, 1.0])), max_size=4))}
+            op = "path"
+        try:
+            payload = encode_control(op, **fields)
+        except (OverflowError, TypeError, ValueError):
+            continue
+        before, n_events = w.st.rejected, len(w.events)
+        cmd_sender = data.draw(st.sampled_from(["gs1", "gs-2"]))
+        w._handle(Sample(keys.world_cmd(FLEET, cmd_sender), Payload(payload)))
+        kinds = [e.kind for e in w.events[n_events:]]
+        if w.st.rejected == before:
+            assert kinds == [f"{op}_changed"], kinds
+        else:
+            assert w.st.rejected == before + 1 and kinds in (["rejected"], []), kinds  # [] : did not decode
+    assert all("\x1b" not in e.text for e in w.events)
+    f = w.recorder.formation
+    assert all(math.isfinite(x) for x in f.phases_at(2**40))
