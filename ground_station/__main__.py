@@ -9,6 +9,9 @@
     cdus gs ... link loss=0.3 delay.base=0.1 [--at 120]                # link faults from sim time t
     cdus gs ... gains k=2 c=1 [--vehicle usv1]                         # guidance gains
     cdus gs ... kill usv2 | restart usv2 | pause-vehicle usv2 | resume-vehicle usv2
+    cdus gs ... formation phases.usv2=10.47 phases.uav1=0          # new phases (ω units), others kept
+    cdus gs ... formation offsets.usv2.usv1=2.09                   # or offsets on edges (usv2 listens to usv1)
+    cdus gs ... path --vehicle uav1 family=circle center=[0,0,20] radius=15 speed=1.5
 
 Every command is answered by the fleet's world: "applied from tick N (t = ... s)" or
 "rejected: <reason>". Exit codes: 0 applied (or, for status/watch/snapshot, done),
@@ -28,6 +31,7 @@ from dataclasses import replace
 
 import zenoh
 
+from cdus.core.paths import PathError, make_path
 from cdus.scenario.config import ConfigError, parse_value
 from cdus.scenario.link import validate_link
 from cdus.wire.keys import FLEET_RE
@@ -88,6 +92,7 @@ def build_parser(prog: str = "cdus gs") -> argparse.ArgumentParser:
     gn = sub.add_parser("gains", help="change guidance gains: k=... c=...")
     gn.add_argument("settings", nargs="+", metavar="KEY=VALUE")
     gn.add_argument("--vehicle", help="one vehicle (default: all)")
+    _change_parsers(sub)
     for name in VEHICLE_ACTIONS:
         v = sub.add_parser(name, help=f"{name.replace('-vehicle', '')} one vehicle's process (via the launcher)")
         v.add_argument("vehicle")
@@ -131,6 +136,52 @@ def check_gains(gains: dict, vehicle: str | None) -> None:
         raise ConfigError("command line", [("k", f"must be a number > 0, got {k!r}")])
     if "c" in gains and not _positive_number(gains["c"]):
         raise ConfigError("command line", [("c", f"must be a number > 0, got {gains['c']!r}")])
+
+
+def _change_parsers(sub) -> None:
+    """``formation`` and ``path``: a formation or path change at run time (docs/config.md, [[event]])."""
+    fm = sub.add_parser("formation", help="new formation: phases.ID=θ (ω units) or offsets.I.K=Δ (I listens to K)")
+    fm.add_argument("settings", nargs="+", metavar="KEY=VALUE", help="e.g. phases.usv2=10.47 or offsets.usv2.usv1=2.09")
+    pa = sub.add_parser("path", help="a new path for one vehicle: family=... and its parameters")
+    pa.add_argument("settings", nargs="+", metavar="KEY=VALUE", help="e.g. family=circle center=[0,0,20] radius=15")
+    pa.add_argument("--vehicle", required=True, help="the vehicle that follows it")
+
+
+def formation_fields(settings: list[str]) -> dict:
+    """``phases.ID=θ ...`` or ``offsets.I.K=Δ ...`` -> the ``formation`` command's fields
+    ``{"phases": {id: θ}, "offsets": [{i, k, delta}]}``, numbers checked (the world checks the
+    ids, the edges and the cycles)."""
+    table = nested(settings)
+    bad = sorted(set(table) - {"phases", "offsets"})
+    if bad or len(table) != 1:
+        raise ConfigError("command line", [(bad[0] if bad else "formation",
+                                            "give phases.ID=θ ... (ω units) or offsets.I.K=Δ ... (I listens to K), "
+                                            "not both")])
+    phases = table.get("phases", {})
+    offsets = []
+    for i, row in table.get("offsets", {}).items():
+        for k, d in (row.items() if isinstance(row, dict) else [(None, row)]):
+            if k is None:
+                raise ConfigError("command line", [(f"offsets.{i}", "write offsets.I.K=Δ (I listens to K)")])
+            offsets.append({"i": i, "k": k, "delta": d})
+    for name, v in [(f"phases.{k}", x) for k, x in phases.items()] + \
+                   [(f"offsets.{o['i']}.{o['k']}", o["delta"]) for o in offsets]:
+        if not (isinstance(v, (int, float)) and not isinstance(v, bool) and abs(v) < float("inf")):
+            raise ConfigError("command line", [(name, f"must be a finite number (ω units), got {v!r}")])
+    return {"phases": phases, "offsets": offsets}
+
+
+def path_fields(settings: list[str]) -> dict:
+    """``family=circle center=[0,0,20] ...`` -> a path table, checked as the config's paths are
+    (the world checks it against the vehicle's dimension)."""
+    table = nested(settings)
+    try:
+        make_path(table)
+    except PathError as e:
+        raise ConfigError("command line", [(e.field, e.message)]) from None
+    except (TypeError, ValueError) as e:
+        raise ConfigError("command line", [("path", f"invalid path: {e}")]) from None
+    return table
 
 
 def _check_vehicle(vid: str, ids: list) -> None:
@@ -215,6 +266,10 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
         elif args.action == "link":
             table = nested(args.settings)
             validate_link(table, None, "command line")
+        elif args.action == "formation":
+            change = formation_fields(args.settings)
+        elif args.action == "path":
+            change = path_fields(args.settings)
         gs.open(watch=True)
         if not gs.wait_for_status(STATUS_WAIT_S):
             print(f"error: no status from fleet {args.fleet!r} within {STATUS_WAIT_S:g} s at "
@@ -252,6 +307,13 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
                 _check_vehicle(args.vehicle, ids)
             return _report(gs.command("set_gains", timeout=args.timeout, gains=gains, vehicle=args.vehicle or ""),
                            f"gains {gains} for {args.vehicle or 'every vehicle'}")
+        elif args.action == "formation":
+            return _report(gs.command("formation", timeout=args.timeout, **change),
+                           f"formation {change['phases'] or change['offsets']}")
+        elif args.action == "path":
+            _check_vehicle(args.vehicle, ids)
+            return _report(gs.command("path", timeout=args.timeout, vehicle=args.vehicle, path=change),
+                           f"path {change} for {args.vehicle}")
         else:
             _check_vehicle(args.vehicle, ids)
             op = {"pause-vehicle": "pause_vehicle", "resume-vehicle": "resume_vehicle"}.get(args.action, args.action)

@@ -51,6 +51,7 @@ from cdus.core.vehicle import DivergedError
 from cdus.scenario.config import ConfigError, nesting_problem
 from cdus.scenario.model import Scenario
 from cdus.scenario.link import merge_link_tables, validate_link
+from cdus.scenario.events import check_path, check_phases
 from cdus.sim.build import build_node, link_emulator_for, listeners_of
 from cdus.sim.sensing import contacts_of
 from cdus.core.schedule import CLOCKS, total_ticks
@@ -383,6 +384,19 @@ class Agent:
             return "link_range"
         if op in ("link", "gains") and nesting_problem(f[op], MAX_COMMAND_NESTING):
             return f"{op}_range"
+        if op in ("formation", "path"):
+            return self._change_problem(op, f)
+        return None
+
+    def _change_problem(self, op: str, f: dict) -> str | None:
+        """A formation or path change's tick and shape (its contents: :meth:`_set_formation`,
+        :meth:`_set_path`)."""
+        if not 0 <= f["tick"] < 2**31:  # past the run's end it never applies: harmless
+            return f"{op}_range"
+        if nesting_problem(f[op if op == "path" else "phases"], MAX_COMMAND_NESTING):
+            return f"{op}_range"
+        if op == "path" and f["vehicle"] != self.id:
+            return "path_vehicle"  # the world sends a path to its vehicle only
         return None
 
     def _on_ctl(self, payload: bytes) -> None:
@@ -411,6 +425,10 @@ class Agent:
             self._update_link(f["link"], f["at"])
         elif op == "gains":
             self._set_gains(f["gains"], f["tick"])
+        elif op == "formation":
+            self._set_formation(f["phases"], f["tick"])
+        elif op == "path":
+            self._set_path(f["path"], f["tick"])
         elif op == "stop":
             clock.stop = True
 
@@ -459,6 +477,26 @@ class Agent:
         c = float(gains.get("c", v.c))
         self.node.set_gains(k, c, tick)
         self.log(f"gains k = {tuple(k)}, c = {c} from tick {tick}")
+
+    def _set_formation(self, phases: dict, tick: int) -> None:
+        """New phases from ``tick`` (checked as the world and the config check them)."""
+        checked = check_phases(phases, self.ids)
+        if isinstance(checked, tuple):
+            self.rejected["bad_formation_command"] += 1
+            self.log(f"formation command rejected: {printable(' '.join(checked), 200)}")
+            return
+        self.node.set_formation({self.ids.index(vid): theta for vid, theta in checked.items()}, tick)
+        self.log(f"formation phases {printable(checked, 200)} from tick {tick}")
+
+    def _set_path(self, table: dict, tick: int) -> None:
+        """A new path for this vehicle from ``tick`` (checked as the config's paths are)."""
+        path = check_path(table, self.node.vehicle.dim)
+        if isinstance(path, tuple):
+            self.rejected["bad_path_command"] += 1
+            self.log(f"path command rejected: {printable(' '.join(path), 200)}")
+            return
+        self.node.set_path(path, tick)
+        self.log(f"path {printable(table, 200)} from tick {tick}")
 
     def _recv(self, now: Callable[[], float | None]) -> None:
         """Block for the next sample, then take everything else that is waiting."""

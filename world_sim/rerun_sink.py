@@ -72,7 +72,7 @@ import rerun as rr
 
 from cdus.core.paths import for_dimension, make_path, nearest_omega
 from world_sim import blueprint as bp
-from cdus.core.metrics import closest_pairs, edge_errors
+from cdus.core.metrics import closest_pairs
 from cdus.core.link import LINK_STATES
 from cdus.scenario.model import Scenario
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
@@ -547,7 +547,7 @@ class RerunSink:
             ends[:, :, 1, 2] = -q[layout.uav, :, 2]
             columns += _strip_lists(ends.reshape(len(layout.uav), 2 * n, 3), np.full(n, 2))
         scalars = np.concatenate([recorder.path_error[lo:hi].T, recorder.omega_rate[lo:hi].T,
-                                  edge_errors(recorder.omega[lo:hi], recorder.edges).T])
+                                  recorder.edge_error(lo, hi).T])
         columns += _lists(_SCALAR, pa.array(scalars.ravel()), _rows(scalars.size), len(scalars))
         self.rec.send_record_batch(pa.RecordBatch.from_arrays(columns, schema=layout.ticks), index=bp.TIMELINE)
         first = -(-lo // UPDATE_EVERY) * UPDATE_EVERY

@@ -37,12 +37,15 @@ from cdus.core.node import gains_problem
 from cdus.core.metrics import Recorder
 from cdus.core.schedule import total_ticks
 from cdus.files import write_json
-from cdus.scenario.config import ConfigError
+from cdus.scenario.config import ConfigError, nesting_problem
 from cdus.scenario.link import merge_link_tables, validate_link
 from cdus.scenario.model import Scenario
-from cdus.sim.build import metric_edges, sensor_schedule
+from cdus.core.events import event_tick
+from cdus.core.formation import FormationChange
+from cdus.scenario.events import check_offsets, check_path, check_phases, offsets_to_phases
+from cdus.sim.build import formation_schedule, metric_edges, sensor_schedule
 from cdus.sim.lockstep import CatchUp, Decided, Fault, Grant, Join, Lockstep, Roster, Sense
-from cdus.sim.reports import ConsoleQuota, graph_event, vehicle_back, vehicle_lost
+from cdus.sim.reports import ConsoleQuota, formation_changed, graph_event, path_changed, vehicle_back, vehicle_lost
 from cdus.sim.sensing import sense_tick
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
 from cdus.sim.summary import COMPLETED, link_block, run_metrics
@@ -142,6 +145,14 @@ class World:
         self.policy = policy or scenario.link.policy
         self._link_table = scenario.link_table  # the [link] table as run-time commands have left it
         self.recorder = Recorder(self.ids, [v.dim for v in scenario.vehicles], metric_edges(scenario))
+        self.recorder.set_formation(formation_schedule(scenario), self.period)  # measured against the offsets in force
+        #: the scenario's formation and path changes, reported when their tick is recorded
+        self._change_events: dict[int, list[FleetEvent]] = {}
+        for change in scenario.changes:
+            tick = event_tick(change.at, self.period)
+            self._change_events.setdefault(tick, []).append(
+                formation_changed(tick, self.period, change.phases) if isinstance(change, FormationChange)
+                else path_changed(tick, self.period, change.vehicle, change.path))
         self.events_scheduled = scenario.events
         self.sensing = sensor_schedule(scenario)  # (every, latency) ticks, None: no proximity sensor
         self.lockstep = Lockstep(self.ids, self.period, self.last_tick, self.events_scheduled,
@@ -191,6 +202,7 @@ class World:
         self.command_handlers: dict[str, Callable[[dict, str], Any]] = {
             "stop": self._cmd_stop, "pause": self._cmd_pause, "resume": self._cmd_resume,
             "set_gains": self._cmd_gains, "link": self._cmd_link, "fault_done": self._cmd_fault_done,
+            "formation": self._relay_formation, "path": self._relay_path,
             "kill": self._cmd_vehicle_fault, "pause_vehicle": self._cmd_vehicle_fault,
             "resume_vehicle": self._cmd_vehicle_fault, "restart": self._cmd_vehicle_fault,
         }
@@ -598,6 +610,70 @@ class World:
                                  f"gains {gains} for {vehicle or 'every vehicle'} from tick {tick} by {sender}"))
         return Verdict(True, "", tick)
 
+    def _change_tick(self) -> int:
+        """The first tick a run-time change can apply from on every vehicle alike: past the grant
+        in lockstep (no vehicle may have stepped it yet), a moment ahead of the wall clock's tick
+        in realtime."""
+        if self.clock == "lockstep":
+            return self.lockstep.granted + 1
+        return self._tick_now() + max(1, math.ceil(LINK_LEAD / self.period))
+
+    def _refuse(self, sender: str, reason: str, what: str, why: str) -> str:
+        """Count and report a refused command; returns the reason (for an acknowledgement)."""
+        self._reject(sender, reason)
+        self._note(FleetEvent.of(self._sim_now(), "rejected",
+                                 f"{what} from {printable(sender, 64)}: {printable(why, 200)}"))
+        return printable(why, 200)
+
+    def _relay_formation(self, fields: dict, sender: str) -> Verdict | str:
+        """A ground station's formation change: phases ``{id: θ}`` or offsets ``[{i, k, delta}]``
+        (exactly one), checked as the config's are (offsets with the Δs in force on the other
+        edges must close around every cycle) and turned into phases, relayed to every vehicle
+        with the tick they apply from (:meth:`_change_tick`), and measured against from that
+        tick. Returns the verdict (applied from that tick), else the reason it was refused."""
+        phases, offsets = fields["phases"], fields["offsets"]
+        if bool(phases) == bool(offsets):
+            return self._refuse(sender, "formation", "formation", "give either phases or offsets (exactly one)")
+        tick = self._change_tick()
+        sc = self.scenario
+        if phases:
+            checked = check_phases(phases, self.ids)
+            if isinstance(checked, tuple):
+                return self._refuse(sender, "formation", "formation", f"phases {checked[0]}: {checked[1]}")
+        else:
+            given = check_offsets(offsets, self.ids, sc.edges, sc.directed)
+            if isinstance(given, tuple):
+                return self._refuse(sender, "formation", "formation", f"offsets{given[0]}: {given[1]}")
+            checked = offsets_to_phases(self.ids, self.recorder.formation.phases_at(tick), sc.edges, given,
+                                        sc.directed)
+            if isinstance(checked, str):
+                return self._refuse(sender, "formation", "formation", checked)
+        ordered = [(vid, checked[vid]) for vid in self.ids if vid in checked]
+        self.recorder.formation.add(tick, {self.index[vid]: theta for vid, theta in ordered})
+        for lo in range(0, len(ordered), 32):  # a control map holds at most 64 entries (decode_control)
+            payload = encode_control("formation", phases=dict(ordered[lo:lo + 32]), tick=tick)
+            self.pub_ctl.put(payload)
+            self._commands.append((None, payload))
+        self._note(formation_changed(tick, self.period, ordered, sender))
+        return Verdict(True, "", tick)
+
+    def _relay_path(self, fields: dict, sender: str) -> Verdict | str:
+        """A ground station's new path for one vehicle, checked as the config's paths are, relayed
+        to that vehicle with the tick it applies from. Returns the verdict, else the reason."""
+        vid, table = fields["vehicle"], fields["path"]
+        if vid not in self.index:
+            return self._refuse(sender, "unknown_vehicle", "path", f"no vehicle {printable(vid, 64)!r}")
+        path = "nested too deep" if nesting_problem(table, 2) else check_path(table, self.scenario.vehicle(vid).dim)
+        if isinstance(path, (tuple, str)):
+            why = path if isinstance(path, str) else f"path{'.' + path[0] if path[0] else ''}: {path[1]}"
+            return self._refuse(sender, "path", f"path of {vid}", why)
+        tick = self._change_tick()
+        payload = encode_control("path", vehicle=vid, path=table, tick=tick)
+        self.session.put(keys.ctl(self.fleet, [vid]), payload)
+        self._commands.append((vid, payload))
+        self._note(path_changed(tick, self.period, vid, sorted(table.items()), sender))
+        return Verdict(True, "", tick)
+
     def _fleet_pause(self, pause: bool, by: str = "") -> Verdict | str:
         if pause == (self.lockstep.paused if self.clock == "lockstep" else self.paused_at is not None):
             return "the fleet is already paused" if pause else "the fleet is not paused"  # not news
@@ -845,6 +921,8 @@ class World:
             self._recorded[j] = m
         self.recorder.record(n * self.period, states, self._live_at(n), self._interventions)
         self.next_tick = n + 1
+        for event in self._change_events.pop(n, ()):
+            self._note(event)
         if n % UPDATE_EVERY == 0:
             self.sink.update(self.recorder)
         return True

@@ -3,7 +3,8 @@
 (docs/metrics.md)
 - path error of vehicle i: |Φ_i| = |q_i - f_i(ω_i)|, sampled at control instants after the
   controller's update;
-- coordination error of edge (i, k): |ω_i - ω_k - Δ_ik|;
+- coordination error of edge (i, k): |ω_i - ω_k - Δ_ik|, Δ_ik the offset in force at that
+  tick (a formation change moves it: cdus.core.formation);
 - settle time: the first sample time after which the worst value stays below a tolerance
   for the rest of the run; None if it never does;
 - ω̇ final: the mean rate over the last second, (ω(T) - ω(T - 1 s)) / 1 s;
@@ -37,13 +38,14 @@ class MetricEdge:
     name: str  # "<id_i>__<id_k>", the Rerun entity name too
 
 
-def edge_errors(omega: np.ndarray, edges: Sequence[MetricEdge]) -> np.ndarray:
-    """|ω_i - ω_k - Δ_ik| for every edge; ``omega`` is (..., N)."""
+def edge_errors(omega: np.ndarray, edges: Sequence[MetricEdge], deltas: np.ndarray | None = None) -> np.ndarray:
+    """|ω_i - ω_k - Δ_ik| for every edge; ``omega`` is (..., N); ``deltas`` (..., E): the Δs in
+    force per row (default: each edge's own ``delta``)."""
     if not edges:
         return np.zeros(omega.shape[:-1] + (0,))
     i = np.array([e.i for e in edges])
     k = np.array([e.k for e in edges])
-    d = np.array([e.delta for e in edges])
+    d = np.array([e.delta for e in edges]) if deltas is None else deltas
     return np.abs(omega[..., i] - omega[..., k] - d)
 
 
@@ -83,7 +85,35 @@ class Recorder:
         #: per vehicle, control steps at which its safety filter intervened, summed over its
         #: processes, as the runner knew it when it recorded the row (docs/metrics.md)
         self.interventions = np.zeros((self._cap, n), dtype=np.int64)
+        #: the fleet's phases over ticks and the control period (set_formation); None: the edges' Δs
+        self.formation: Any = None
+        self.period = 0.0
 
+    def set_formation(self, schedule: Any, period: float) -> None:
+        """Measure coordination against the offsets of ``schedule`` (a
+        cdus.core.formation.FormationSchedule, the same object's data every runner holds), a row
+        at time t being tick round(t / ``period``)."""
+        self.formation = schedule
+        self.period = period
+
+    def deltas(self, lo: int = 0, hi: int | None = None) -> np.ndarray | None:
+        """The Δ of every edge in force at rows [lo, hi) (rows x edges), None when no formation
+        change applies to them (every edge's own ``delta``)."""
+        f = self.formation
+        hi = self._n if hi is None else min(hi, self._n)
+        if f is None or not self.edges or hi <= lo or not f.changed_by(int(round(self.t[hi - 1] / self.period))):
+            return None
+        ticks = np.rint(self.t[lo:hi] / self.period).astype(np.int64)
+        out = np.tile(np.array([e.delta for e in self.edges]), (hi - lo, 1))
+        starts = sorted(set(f.ticks))
+        for j, c in enumerate(starts):
+            rows = ticks >= c
+            if j + 1 < len(starts):
+                rows &= ticks < starts[j + 1]
+            if rows.any():
+                theta = f.phases_at(c)
+                out[rows] = [theta[e.i] - theta[e.k] for e in self.edges]
+        return out
     def __len__(self) -> int:
         return self._n
 
@@ -122,8 +152,10 @@ class Recorder:
     def view(self, name: str) -> np.ndarray:
         return getattr(self, name)[: self._n]
 
-    def edge_error(self) -> np.ndarray:
-        return edge_errors(self.view("omega"), self.edges)
+    def edge_error(self, lo: int = 0, hi: int | None = None) -> np.ndarray:
+        """|ω_i - ω_k - Δ_ik| at rows [lo, hi), against the offsets in force at each row."""
+        hi = self._n if hi is None else min(hi, self._n)
+        return edge_errors(self.omega[lo:hi], self.edges, self.deltas(lo, hi))
 
     def worst_errors(self, start: int = 0) -> tuple[np.ndarray, np.ndarray]:
         """Per instant, the worst |Φ| over the live vehicles and the worst edge error over the
@@ -136,7 +168,7 @@ class Recorder:
         worst_path = pe.max(axis=1) if pe.size else np.zeros(rows)
         nobody = ~live.any(axis=1) if live.size else np.zeros(rows, dtype=bool)
         worst_path = np.where(nobody, np.nan, worst_path)
-        ee = edge_errors(self.view("omega")[start:], self.edges)
+        ee = self.edge_error(start)
         if not ee.size:
             return worst_path, np.where(nobody, np.nan, 0.0)
         both = np.stack([live[:, e.i] & live[:, e.k] for e in self.edges], axis=1)

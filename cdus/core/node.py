@@ -24,8 +24,9 @@ Zenoh, and both therefore step the same ticks with the same inputs (docs/archite
   At tick n the safety filter uses the newest sample taken at or before n - latency
   (and not before this vehicle (re)joined); deterministic runners wait for it
   (``contacts_missing``), a realtime one uses what has arrived.
-- ``set_link(spec, at)``, ``set_policy(policy, timeout, tick)`` and ``set_gains(k, c,
-  tick)``: run-time changes, applied in simulated time so every runner applies them alike.
+- ``set_link(spec, at)``, ``set_policy(policy, timeout, tick)``, ``set_gains(k, c,
+  tick)``, ``set_formation(phases, tick)`` and ``set_path(path, tick)``: run-time changes,
+  applied in simulated time so every runner applies them alike (cdus.core.formation).
 - ``waiting_for(n)``: the neighbours whose broadcast tick ``n`` needs and has not
   arrived (deterministic runners wait for them; a realtime one does not).
 - ``step(n)``: the tick: usable messages into the neighbour table, the controller's
@@ -44,11 +45,12 @@ from collections import defaultdict
 from dataclasses import dataclass, field
 
 from cdus.core.events import RosterChange
+from cdus.core.formation import FormationSchedule
 from cdus.core.gain_bounds import gains_problem_for_rate
 from cdus.core.link import DropBursts, LinkCounters, LinkModel
 from cdus.core.linkspec import LinkSpec
 from cdus.core.neighbours import POLICIES, NeighbourLink, NeighbourTable, consensus_target
-from cdus.core.paths import Vec
+from cdus.core.paths import Path, Vec
 from cdus.core.safety import Contact
 from cdus.core.schedule import delivery_tick, last_broadcast_seq, send_tick
 from cdus.core.vehicle import DivergedError, Telemetry, Vehicle
@@ -182,6 +184,12 @@ class VehicleNode:
         self._self_changes: list[RosterChange] = []
         self._gains: list[tuple[int, tuple[float, ...], float]] = []  # (tick, k, c), by tick
         self._policies: list[tuple[int, str, float]] = []  # (tick, policy, timeout), by tick
+        self._paths: list[tuple[int, Path]] = []  # (tick, path), by tick
+        #: the fleet's phases over ticks (cdus.core.formation); None: the links' Δs never change.
+        #: Set by whoever builds the node (cdus.sim.build) with the scenario's phases in force.
+        self.formation: FormationSchedule | None = None
+        self._base_links = links
+        self._formation_at = 0  # formation updates applied to the links (those due by the last tick)
         self.state = "live"  # this vehicle's own: live | paused | gone
         self.tick = joined_at  # the next tick to step
         if sense_latency < 1:
@@ -361,6 +369,44 @@ class VehicleNode:
         self._gains.append((tick, tuple(float(x) for x in k), float(c)))
         self._gains.sort(key=lambda g: g[0])
 
+    def set_formation(self, phases: dict[int, float], tick: int) -> None:
+        """Phases ``{vehicle index: θ}`` (ω units) from tick ``tick`` (or the next tick
+        stepped); every other vehicle keeps its phase. Δ_ik becomes θ_i - θ_k on every link."""
+        if self.formation is None:  # built without the scenario's phases: derive this node's own
+            self.formation = FormationSchedule(self._local_phases())
+        self.formation.add(tick, phases)
+
+    def _local_phases(self) -> list[float]:
+        """Phases that reproduce this node's Δs, θ_i = 0 and θ_k = -Δ_ik (a node built alone)."""
+        n = max((ln.k for ln in self._base_links), default=0)
+        theta = [0.0] * (max(n, self.index) + 1)
+        for ln in self._base_links:
+            theta[ln.k] = -ln.delta
+        return theta
+
+    def set_path(self, path: Path, tick: int) -> None:
+        """A new path (of this vehicle's dimension) from tick ``tick`` (or the next tick stepped);
+        ω carries on."""
+        if path.dim != self.vehicle.dim:
+            raise ValueError(f"a {self.vehicle.dim}-D vehicle needs a {self.vehicle.dim}-D path, got {path.dim}-D")
+        self._paths.append((tick, path))
+        self._paths.sort(key=lambda g: g[0])
+
+    def _apply_changes(self, n: int) -> None:
+        """The path and formation changes due at tick ``n``."""
+        while self._paths and self._paths[0][0] <= n:
+            self.vehicle.path = self._paths.pop(0)[1]
+        f = self.formation
+        if f is None:
+            return
+        count = f.count_by(n)
+        if count == self._formation_at:
+            return
+        self._formation_at = count
+        theta = f.phases_at(n)
+        me = self.index
+        self.table.links = tuple(NeighbourLink(ln.k, ln.weight, theta[me] - theta[ln.k]) for ln in self._base_links)
+
     # ------------------------------------------------------------------ the schedule
     def live_at(self, k: int, n: int) -> bool:
         """Was (or will) neighbour ``k``, as far as this node has been told, step tick ``n``
@@ -431,6 +477,7 @@ class VehicleNode:
             self.vehicle.k, self.vehicle.c = k, c
         while self._policies and self._policies[0][0] <= n:
             _, self.table.policy, self.table.timeout = self._policies.pop(0)
+        self._apply_changes(n)
         v = self.vehicle
         try:
             v.control(self.table.consensus((n - 1) * T))
@@ -457,6 +504,7 @@ class VehicleNode:
         """Join a run under way at tick ``n`` (a restarted process, or a resumed one), at rest at
         ``q``. ω is taken near what the neighbours' consensus asks (``neighbour_omegas``) if
         any is known, else near ``omega_hint``, so it does not have to make up laps."""
+        self._apply_changes(n)  # the path and offsets in force at n
         target = consensus_target(self.table.links, neighbour_omegas or {})
         if n > 0 and self.own_state_at(n - 1)[0] == "gone":
             # Back from a pause that outlasted the lease: in a fleet of processes its session was

@@ -1,25 +1,46 @@
-"""Are the scheduled vehicle faults valid? The scenario's ``[[event]]`` tables.
+"""Are the scheduled events valid? The scenario's ``[[event]]`` tables.
 
     [[event]]
     at = 60.0            # simulated seconds
-    action = "kill"      # kill | pause | resume | restart
+    action = "kill"      # kill | pause | resume | restart | formation | path
     vehicle = "usv2"
     duration = 10.0      # optional, pause only: resume after this many seconds
 
-:func:`event_section` checks them against the vehicle ids into the
+    [[event]]            # a new formation: phases of some vehicles (the others keep theirs) ...
+    at = 80.0
+    action = "formation"
+    phases = { usv2 = 2.0944, uav1 = 4.1888 }
+    # ... or offsets on edges: offsets = [{ i = "usv2", k = "usv1", delta = 2.0944 }]
+
+    [[event]]            # a new path for one vehicle
+    at = 90.0
+    action = "path"
+    vehicle = "uav1"
+    path = { family = "circle", center = [0, 0, 20], radius = 15, speed = 1.5 }
+
+:func:`event_section` checks the vehicle faults against the vehicle ids into the
 :class:`cdus.core.events.Event` tuple that ``Scenario.events`` carries (what each action
-does is described there; docs/config.md is the user reference).
+does is described there); :func:`change_section` checks the formation and path changes
+into ``Scenario.changes`` (cdus.core.formation). docs/config.md is the user reference.
 """
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+import math
+from typing import Any, Mapping, Sequence
 
 from cdus.core.events import ACTIONS, Event
-from cdus.scenario.checks import Problems, quote
+from cdus.core.formation import MAX_PHASE, FormationChange, PathChange, phases_from_offsets
+from cdus.core.paths import FAMILIES, Path, PathError, for_dimension, make_path
+from cdus.scenario.checks import IdList, Problems, describe, is_number, quote, show
 
-EVENT_KEYS = ("at", "action", "vehicle", "duration")
+EVENT_KEYS = ("at", "action", "vehicle", "duration", "phases", "offsets", "path")
 REQUIRED = ("at", "action", "vehicle")
+#: the actions that change the formation or a path (the others are vehicle faults)
+CHANGE_ACTIONS = ("formation", "path")
+ALL_ACTIONS = ACTIONS + CHANGE_ACTIONS
+OFFSET_KEYS = ("i", "k", "delta")
+PATH_EXAMPLE = '{ family = "circle", center = [0, 0], radius = 10 }'
 
 
 def event_section(p: Problems, raw: Any, ids: Sequence[str] | None) -> tuple[Event, ...]:
@@ -27,6 +48,8 @@ def event_section(p: Problems, raw: Any, ids: Sequence[str] | None) -> tuple[Eve
     sequence per vehicle (:func:`_check_sequence`)."""
     fielded: list[tuple[Event, str]] = []
     for j, e in enumerate(p.tables(raw, "event", "event")):
+        if e.get("action") in CHANGE_ACTIONS:
+            continue  # change_section's
         evs = _event(p, e, f"event[{j}]", ids)
         # a pause's duration brings a resume, named after the duration
         fielded += [(ev, f"event[{j}]" + (".duration" if k else "")) for k, ev in enumerate(evs)]
@@ -68,6 +91,10 @@ def _event(p: Problems, e: dict, field: str, ids: Sequence[str] | None) -> list[
     """One [[event]]: its event, and the resume that ends a pause with a duration."""
     mark = len(p)
     p.unknown_keys(e, EVENT_KEYS, field)
+    for key in ("phases", "offsets", "path"):
+        if key in e:
+            p.add(f"{field}.{key}", f'only a "formation" event takes phases or offsets, and a "path" event a path '
+                                    f"(this event is a {quote(e.get('action'))}); remove it")
     missing = [key for key in REQUIRED if key not in e]
     for key in missing:
         p.missing(f"{field}.{key}", 'an event needs at, action and vehicle, e.g. at = 60.0, action = "kill", '
@@ -75,7 +102,7 @@ def _event(p: Problems, e: dict, field: str, ids: Sequence[str] | None) -> list[
     if missing:
         return []
     at = p.number(e["at"], f"{field}.at", ge=0, unit=" (s of simulated time)")
-    action = p.choice(e["action"], f"{field}.action", ACTIONS, "action")
+    action = p.choice(e["action"], f"{field}.action", ALL_ACTIONS, "action")
     vehicle = p.vehicle(e["vehicle"], f"{field}.vehicle", ids)
     duration = None
     if "duration" in e:
@@ -89,3 +116,203 @@ def _event(p: Problems, e: dict, field: str, ids: Sequence[str] | None) -> list[
     if duration is not None:
         events.append(Event(at + duration, "resume", vehicle))
     return events
+
+
+# --------------------------------------------------------------------------- formation and path changes
+
+
+def change_section(p: Problems, raw: Any, ids: Sequence[str] | None, dims: Mapping[str, int],
+                   edges: Sequence[Any], directed: bool, base: Sequence[float] | None
+                   ) -> tuple[FormationChange | PathChange, ...]:
+    """The ``formation`` and ``path`` events, sorted by time (the file's order at the same time),
+    each checked: a formation's phases name vehicles, are finite and within ±MAX_PHASE; its
+    offsets name listening pairs and, with the Δs in force on every other edge, close around
+    every cycle (resolved into phases against the scheduled formation before it: ``base`` is
+    the phases in force at the start); a path is a path table for the vehicle's dimension.
+    ``edges``: the graph's edges (.i, .k); ``ids``/``base`` None: not checkable (other problems)."""
+    if not isinstance(raw, list) or not all(isinstance(t, dict) for t in raw):
+        return ()  # event_section reported it
+    pending: list[tuple[float, int, str, dict]] = []
+    for j, e in enumerate(raw):
+        if e.get("action") not in CHANGE_ACTIONS:
+            continue
+        field = f"event[{j}]"
+        p.unknown_keys(e, EVENT_KEYS, field)
+        if "at" not in e:
+            p.missing(f"{field}.at", f'a {e["action"]} event needs at (s of simulated time), e.g. at = 60.0')
+            continue
+        at = p.number(e["at"], f"{field}.at", ge=0, unit=" (s of simulated time)")
+        if "duration" in e:
+            p.add(f"{field}.duration", f"only a pause takes a duration (this event is a {quote(e['action'])}); remove it")
+        if at is not None:
+            pending.append((at, j, field, e))
+    pending.sort(key=lambda x: (x[0], x[1]))
+    current = list(base) if base is not None else None
+    out: list[FormationChange | PathChange] = []
+    for at, _, field, e in pending:
+        if e["action"] == "path":
+            change = _path_change(p, e, field, at, ids, dims)
+        else:
+            change = _formation_change(p, e, field, at, ids, edges, directed, current)
+            if change is not None and current is not None:
+                for vid, theta in change.phases:
+                    current[ids.index(vid)] = theta
+        if change is not None:
+            out.append(change)
+    return tuple(out)
+
+
+def _path_change(p: Problems, e: dict, field: str, at: float, ids: Sequence[str] | None,
+                 dims: Mapping[str, int]) -> PathChange | None:
+    for key in ("phases", "offsets"):
+        if key in e:
+            p.add(f"{field}.{key}", f'only a "formation" event takes {key}; a "path" event takes vehicle and path')
+    for key in ("vehicle", "path"):
+        if key not in e:
+            p.missing(f"{field}.{key}", f'a path event needs vehicle and path, e.g. vehicle = "uav1", '
+                                        f"path = {PATH_EXAMPLE}")
+    if "vehicle" not in e or "path" not in e:
+        return None
+    vid = p.vehicle(e["vehicle"], f"{field}.vehicle", ids)
+    table = p.table(e["path"], f"{field}.path", PATH_EXAMPLE)
+    if vid is None or table is None or vid not in dims:
+        return None
+    checked = check_path(table, dims[vid])
+    if isinstance(checked, tuple) and isinstance(checked[0], str):
+        sub, message = checked
+        p.add(f"{field}.path" + (f".{sub}" if sub else ""), f"{message} (vehicle {vid} is {dims[vid]}-D)")
+        return None
+    return PathChange(at, vid, frozen(table))
+
+
+def check_path(table: Mapping[str, Any], dim: int) -> Path | tuple[str, str]:
+    """The path a table gives a vehicle of ``dim`` axes, checked as the config's paths are
+    (cdus.core.paths.make_path), or ``(key, message)``: the key at fault ("" for the table)
+    and what is wrong. Never raises on any data."""
+    try:
+        return for_dimension(make_path(table), dim)
+    except PathError as e:
+        if e.field == "family":
+            return "family", (f"unknown path family {show(table.get('family'))}; choose one of {', '.join(FAMILIES)}"
+                              if "family" in table else f"missing; choose one of {', '.join(FAMILIES)}")
+        return ("" if e.field == "path" else e.field), e.message
+    except (TypeError, ValueError, OverflowError, ZeroDivisionError) as e:
+        return "", f"invalid path: {e}"
+
+
+def frozen(v: Any) -> Any:
+    """Lists -> tuples, tables -> sorted pairs, recursively (hashable; ``dict()`` of it is the table)."""
+    if isinstance(v, list):
+        return tuple(frozen(x) for x in v)
+    if isinstance(v, dict):
+        return tuple(sorted((k, frozen(x)) for k, x in v.items()))
+    return v
+
+
+def _formation_change(p: Problems, e: dict, field: str, at: float, ids: Sequence[str] | None,
+                      edges: Sequence[Any], directed: bool, current: list[float] | None) -> FormationChange | None:
+    for key in ("vehicle", "path"):
+        if key in e:
+            p.add(f"{field}.{key}", 'a "formation" event changes the whole fleet\'s offsets: it takes phases '
+                                    '(or offsets), not vehicle or path; remove it')
+    given = [key for key in ("phases", "offsets") if key in e]
+    if len(given) != 1:
+        p.add(f"{field}.phases", "a formation event takes either phases = { id = θ, ... } (θ in ω units) or "
+                                 'offsets = [{ i = "usv2", k = "usv1", delta = ... }], ' +
+                                 ("not both" if given else "and has neither"))
+        return None
+    if ids is None or current is None:
+        return None
+    if given[0] == "phases":
+        phases = check_phases(e["phases"], ids)
+        if isinstance(phases, tuple):
+            p.add(f"{field}.phases" + (f".{phases[0]}" if phases[0] else ""), phases[1])
+            return None
+    else:
+        offsets = check_offsets(e["offsets"], ids, edges, directed)
+        if isinstance(offsets, tuple):
+            p.add(f"{field}.offsets" + phases_suffix(offsets[0]), offsets[1])
+            return None
+        phases = offsets_to_phases(ids, current, edges, offsets, directed)
+        if isinstance(phases, str):
+            p.add(f"{field}.offsets", phases)
+            return None
+    order = {v: j for j, v in enumerate(ids)}
+    return FormationChange(at, tuple(sorted(phases.items(), key=lambda x: order[x[0]])))
+
+
+def phases_suffix(sub: str) -> str:
+    return sub if sub.startswith("[") or not sub else f".{sub}"
+
+
+def check_phases(table: Any, ids: Sequence[str]) -> dict[str, float] | tuple[str, str]:
+    """``{id: θ}`` from a phases table, or ``(key, message)``: a table of known ids, each a
+    finite number within ±MAX_PHASE (ω units; a lap is 2π/β)."""
+    if not isinstance(table, dict) or not table:
+        return "", (f"must be a non-empty table of vehicle = phase (θ in ω units), e.g. {{ usv2 = 2.0944 }}, "
+                    f"got {describe(table)}")
+    known = ids if isinstance(ids, IdList) else IdList(ids)
+    out = {}
+    for vid, theta in table.items():
+        if not isinstance(vid, str) or vid not in known:
+            return "", f"{show(vid)} is not a vehicle; ids are {', '.join(list(ids)[:10])}"
+        if not is_number(theta) or not math.isfinite(theta) or abs(theta) > MAX_PHASE:
+            got = show(theta) if is_number(theta) else describe(theta)
+            return vid, f"must be a finite number of ω units within ±{MAX_PHASE:g} (θ; a lap is 2π/β), got {got}"
+        out[vid] = float(theta)
+    return out
+
+
+def check_offsets(raw: Any, ids: Sequence[str], edges: Sequence[Any], directed: bool
+                  ) -> dict[tuple[str, str], float] | tuple[str, str]:
+    """``{(i, k): Δ_ik}`` from a list of ``{i, k, delta}`` tables naming listening pairs (in an
+    undirected graph a pair once, either way round), or ``(where, message)``."""
+    if not isinstance(raw, list) or not raw or not all(isinstance(t, dict) for t in raw):
+        return "", (f'must be a non-empty list of {{ i = "usv2", k = "usv1", delta = ... }} tables (i listens to k, '
+                    f"Δ_ik the target of ω_i - ω_k), got {describe(raw)}")
+    known = ids if isinstance(ids, IdList) else IdList(ids)
+    pairs = {(e.i, e.k) for e in edges}
+    out: dict[tuple[str, str], float] = {}
+    for j, t in enumerate(raw):
+        where = f"[{j}]"
+        extra = sorted(str(x) for x in set(t) - set(OFFSET_KEYS))
+        if extra:
+            return f"{where}.{extra[0]}", "unknown key; valid keys here: i, k, delta"
+        for key in OFFSET_KEYS:
+            if key not in t:
+                return f"{where}.{key}", 'missing; an offset is { i = "usv2", k = "usv1", delta = ... }'
+        i, k, d = t["i"], t["k"], t["delta"]
+        for key, v in (("i", i), ("k", k)):
+            if not isinstance(v, str) or v not in known:
+                return f"{where}.{key}", f"{show(v)} is not a vehicle; ids are {', '.join(list(ids)[:10])}"
+        if not is_number(d) or not math.isfinite(d) or abs(d) > MAX_PHASE:
+            got = show(d) if is_number(d) else describe(d)
+            return f"{where}.delta", f"must be a finite number of ω units within ±{MAX_PHASE:g}, got {got}"
+        if (i, k) not in pairs:
+            return where, (f"{i} does not listen to {k} in this graph: an offset can only be set on an edge of "
+                           f"[graph] (i listens to k)")
+        key = (i, k) if directed or ids.index(i) < ids.index(k) else (k, i)
+        if key in out:
+            return where, f"the pair {i} - {k} is given twice" + ("" if directed else
+                                                                   " (the graph is undirected: one entry sets both "
+                                                                   "directions)")
+        out[key] = float(d) if key == (i, k) else -float(d)
+    return out
+
+
+def offsets_to_phases(ids: Sequence[str], current: Sequence[float], edges: Sequence[Any],
+                      offsets: Mapping[tuple[str, str], float], directed: bool) -> dict[str, float] | str:
+    """The phase updates for ``offsets`` (cdus.core.formation.phases_from_offsets), or why the
+    offsets cannot hold: the cycle around which they do not sum to 0, and the fix."""
+    found = phases_from_offsets(ids, current, [(e.i, e.k) for e in edges], offsets, directed)
+    if isinstance(found, tuple):
+        cycle, total = found
+        return (f"inconsistent formation offsets: around the cycle {' -> '.join(cycle)} the deltas (the ones given, "
+                f"and the ones in force on the other edges) sum to {total:.6g}, not 0, so ω_i - ω_k -> Δ_ik cannot "
+                f"hold on every edge; give per-vehicle phases instead (phases = {{ id = θ, ... }}: "
+                f"Δ_ik = θ_i - θ_k always closes), or offsets on every edge of the cycle that sum to 0")
+    far = [vid for vid, theta in found.items() if not abs(theta) <= MAX_PHASE]
+    if far:  # every process takes phases within ±MAX_PHASE only
+        return (f"these offsets put the phase of {far[0]} at {found[far[0]]:.6g}, beyond ±{MAX_PHASE:g} ω units; "
+                f"give smaller offsets")
+    return found

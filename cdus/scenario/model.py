@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from cdus.core.events import Event
+from cdus.core.formation import FormationChange, PathChange, base_phases
 from cdus.core.linkspec import LinkSpec
 from cdus.core.proximity import sample_every
 from cdus.core.radio import RadioSpec
@@ -136,6 +137,15 @@ class Scenario:
     raw: dict  # the overridden TOML data; parse_scenario(raw) rebuilds this scenario
     safety: Safety = Safety()  # the [safety] table
     radio: RadioSpec | None = None  # the validated [radio] table; None: absent, no radio channel
+    #: the [[event]]s that change the formation or a vehicle's path, sorted by time (the file's
+    #: order at the same time); a formation's phases are resolved (offsets turned into phases)
+    changes: tuple[FormationChange | PathChange, ...] = ()
+
+    @property
+    def phases(self) -> tuple[float, ...]:
+        """The phases in force at the start, per vehicle (cdus.core.formation.base_phases): the
+        vehicles' ``phase``, or phases solved from the graph's deltas if it gives any."""
+        return base_phases(self.ids, {v.id: v.phase for v in self.vehicles}, self.edges)
 
     def vehicle(self, vid: str) -> VehicleSpec:
         for v in self.vehicles:

@@ -10,6 +10,8 @@ from __future__ import annotations
 import math
 
 from cdus.core import regulators as reg
+from cdus.core.events import event_tick
+from cdus.core.formation import FormationChange, FormationSchedule, PathChange
 from cdus.core.disturbance import Disturbance, DisturbanceSpec
 from cdus.core.link import IdealLink, LinkEmulator, LinkModel
 from cdus.core.metrics import MetricEdge
@@ -108,13 +110,37 @@ def build_node(scenario: Scenario, vid: str, link: LinkModel, *, policy: str | N
     period = 1.0 / scenario.rates.control
     link_spec = scenario.link
     sensing = sensor_schedule(scenario)
-    return VehicleNode(spec.index, build_vehicle(spec, scenario.rates, scenario.seed, scenario.safety),
+    node = VehicleNode(spec.index, build_vehicle(spec, scenario.rates, scenario.seed, scenario.safety),
                        links_of(scenario, vid), link,
                        period=period, every=broadcast_every(scenario.rates),
                        last_tick=total_ticks(scenario.duration, period) if last_tick is None else last_tick,
                        policy=policy or link_spec.policy, timeout=link_spec.timeout if timeout is None else timeout,
                        joined_at=joined_at, sense_every=sensing[0] if sensing else None,
                        sense_latency=sensing[1] if sensing else 1)
+    node.formation = formation_schedule(scenario)
+    for change in scenario.changes:
+        if isinstance(change, PathChange) and change.vehicle == vid:
+            node.set_path(path_of(change.path, spec.dim), event_tick(change.at, period))
+    return node
+
+
+def formation_schedule(scenario: Scenario) -> FormationSchedule:
+    """The fleet's phases over ticks as the scenario schedules them: the phases in force at the
+    start and each ``formation`` event from its tick (cdus.core.formation). Every runner (each
+    node, the metrics recorder) starts from this and adds the ground stations' changes in the
+    order the world relays them."""
+    schedule = FormationSchedule(scenario.phases)
+    period = 1.0 / scenario.rates.control
+    index = {v.id: v.index for v in scenario.vehicles}
+    for change in scenario.changes:
+        if isinstance(change, FormationChange):
+            schedule.add(event_tick(change.at, period), {index[vid]: theta for vid, theta in change.phases})
+    return schedule
+
+
+def path_of(table, dim: int):
+    """A validated path table (a dict or its sorted pairs) as a vehicle of ``dim`` axes follows it."""
+    return for_dimension(make_path(dict(table)), dim)
 
 
 def sensor_schedule(scenario: Scenario) -> tuple[int, int] | None:

@@ -27,15 +27,16 @@ from dataclasses import dataclass
 from typing import Callable
 
 from cdus.core.events import RosterChange, event_tick, plan_roster
+from cdus.core.formation import FormationChange, PathChange
 from cdus.core.link import LinkEmulator, LinkModel, burst_events
 from cdus.core.metrics import Recorder
 from cdus.core.node import VehicleNode
 from cdus.core.schedule import broadcast_every, total_ticks
 from cdus.core.vehicle import Telemetry, Vehicle
 from cdus.scenario.model import Scenario
-from cdus.sim.build import build_node, link_model_for, metric_edges, sensor_schedule
+from cdus.sim.build import build_node, formation_schedule, link_model_for, metric_edges, path_of, sensor_schedule
 from cdus.sim.sensing import contacts_of, sense_tick
-from cdus.sim.reports import graph_event, scheduled_fault, vehicle_back
+from cdus.sim.reports import formation_changed, graph_event, path_changed, scheduled_fault, vehicle_back
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
 from cdus.sim.summary import link_block, run_metrics, sum_counters
 from cdus.wire.messages import decode_contacts, decode_omega, encode_contacts, encode_omega
@@ -78,6 +79,15 @@ class InProcessFleet:
             for k in node.neighbours:
                 self.listeners[k].append(dst)
         self.recorder = Recorder(self.ids, [v.dim for v in scenario.vehicles], metric_edges(scenario))
+        self.recorder.set_formation(formation_schedule(scenario), self.period)
+        #: changes to report at their tick: tick -> events (the scenario's, then set_formation/set_path's)
+        self._change_events: dict[int, list[FleetEvent]] = {}
+        self._commanded: list[tuple[str, tuple, int]] = []  # run-time changes, for restarted nodes
+        for change in scenario.changes:
+            tick = event_tick(change.at, self.period)
+            self._change_events.setdefault(tick, []).append(
+                formation_changed(tick, self.period, change.phases) if isinstance(change, FormationChange)
+                else path_changed(tick, self.period, change.vehicle, change.path))
         self.events: list[FleetEvent] = []
         self._last: list[Telemetry] = [node.vehicle.telemetry() for node in self.nodes]  # newest of each vehicle
         self._was_live = [True] * len(self.ids)
@@ -97,7 +107,40 @@ class InProcessFleet:
                           last_tick=self.end_tick, joined_at=joined_at)
         for change in self.roster:
             node.on_roster(change)
+        for kind, args, tick in getattr(self, "_commanded", ()):  # a restart hears them again, in order
+            self._apply(node, kind, args, tick)
         return node
+
+    def _apply(self, node: VehicleNode, kind: str, args: tuple, tick: int) -> None:
+        if kind == "formation":
+            node.set_formation(args[0], tick)
+        elif self.ids[node.index] == args[0]:
+            node.set_path(path_of(args[1], node.vehicle.dim), tick)
+
+    def set_formation(self, phases: dict[str, float], tick: int, by: str | None = None) -> None:
+        """New phases (θ, ω units) for the vehicles named, from ``tick`` (not before the next
+        tick stepped), on every node and in the metrics, as a ground station's change is in a
+        fleet of processes. The phases are taken as validated (cdus.scenario.events.check_phases)."""
+        tick = max(tick, self.tick)
+        index = {vid: j for j, vid in enumerate(self.ids)}
+        update = {index[vid]: float(theta) for vid, theta in phases.items()}
+        self._commanded.append(("formation", (update,), tick))
+        for node in self.nodes:
+            node.set_formation(update, tick)
+        self.recorder.formation.add(tick, update)
+        ordered = sorted(update.items())
+        self._change_events.setdefault(tick, []).append(
+            formation_changed(tick, self.period, [(self.ids[j], x) for j, x in ordered], by))
+
+    def set_path(self, vid: str, table: dict, tick: int, by: str | None = None) -> None:
+        """Vehicle ``vid`` follows the path ``table`` (validated: cdus.scenario.events.check_path)
+        from ``tick`` (not before the next tick stepped)."""
+        tick = max(tick, self.tick)
+        j = self.ids.index(vid)
+        self._commanded.append(("path", (vid, dict(table)), tick))
+        self._apply(self.nodes[j], "path", (vid, dict(table)), tick)
+        self._change_events.setdefault(tick, []).append(
+            path_changed(tick, self.period, vid, sorted(dict(table).items()), by))
 
     def _note(self, event: FleetEvent) -> None:
         self.events.append(event)
@@ -144,6 +187,8 @@ class InProcessFleet:
         n = self.tick
         if self.roster:
             self._faults_at(n)
+        for event in self._change_events.pop(n, ()):
+            self._note(event)
         rows = self._last
         stepped = []
         for node in self.nodes:  # nobody can have sent anything later than this tick

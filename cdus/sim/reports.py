@@ -68,3 +68,24 @@ class ConsoleQuota:
             return [f"(further drop bursts on {event.link or 'this link'} are not printed; the metrics' events "
                     "have them all)"]
         return []
+
+
+def formation_changed(tick: int, period: float, phases: Iterable[tuple[str, float]], by: str | None = None
+                      ) -> FleetEvent:
+    """A formation change applied from ``tick``: the new phases (θ, ω units); ``by``: the ground
+    station that asked, None for a scheduled one."""
+    t = tick * period
+    text = ", ".join(f"{vid} = {theta:.6g}" for vid, theta in phases)
+    who = f" by {by}" if by else " (scheduled)"
+    return FleetEvent.of(t, "formation_changed", f"formation phases {text} from tick {tick} (t = {t:g} s){who}")
+
+
+def path_changed(tick: int, period: float, vid: str, table: Iterable[tuple[str, object]], by: str | None = None
+                 ) -> FleetEvent:
+    """Vehicle ``vid`` follows a new path (its table as sorted pairs) from ``tick``."""
+    t = tick * period
+    spec = dict(table)
+    text = ", ".join(f"{k} = {list(v) if isinstance(v, tuple) else v}" for k, v in sorted(spec.items()))
+    who = f" by {by}" if by else " (scheduled)"
+    return FleetEvent.of(t, "path_changed", f"path of {vid}: {text} from tick {tick} (t = {t:g} s){who}",
+                         vehicle=vid)

@@ -256,6 +256,8 @@ CTL_OPS: dict[str, dict[str, type]] = {
     "resume": {"t0": float},  # realtime: carry on, the clock's origin moved by the pause
     "link": {"link": dict, "at": float},  # a [link] table merged over the current one, from sim time `at`
     "gains": {"gains": dict, "tick": int},  # k and/or c from tick `tick`
+    "formation": {"phases": dict, "tick": int},  # {id: θ} (ω units) from tick `tick`; others keep theirs
+    "path": {"vehicle": str, "path": dict, "tick": int},  # a path table for `vehicle` from tick `tick`
     "stop": {},  # end of run: finish, report, exit
 }
 
@@ -266,6 +268,9 @@ COMMAND_OPS: dict[str, dict[str, type]] = {
     "stop": {},
     "set_gains": {"gains": dict, "vehicle": str},  # vehicle "" = every vehicle
     "link": {"link": dict, "at": float},  # at < 0: as soon as possible
+    # phases {id: θ} or offsets [{i, k, delta}, ...] (exactly one non-empty); from the next tick the world can
+    "formation": {"phases": dict, "offsets": list},
+    "path": {"vehicle": str, "path": dict},  # a path table like the config's, for one vehicle
     "kill": {"vehicle": str},
     "pause_vehicle": {"vehicle": str},
     "resume_vehicle": {"vehicle": str},

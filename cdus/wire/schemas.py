@@ -41,6 +41,8 @@ EVENT_KINDS: dict[str, str] = {
     "link_burst": "warn",  # a run of consecutive drops on a link
     "link_changed": "info",  # link faults changed at run time
     "gains_changed": "info",  # guidance gains changed at run time
+    "formation_changed": "info",  # the formation's phases changed (scheduled or commanded)
+    "path_changed": "info",  # a vehicle's path changed (scheduled or commanded)
     "fleet": "info",  # the fleet paused, resumed or stopped
     "rejected": "warn",  # a command or message was rejected
     "suspect": "warn",  # a vehicle received ω that its sender cannot have sent (future, conflict, implausible)

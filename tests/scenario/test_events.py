@@ -48,9 +48,9 @@ def test_no_events():
     ({"at": "soon", "action": "kill", "vehicle": "usv1"}, "event[0].at",
      'must be a number >= 0 (s of simulated time), got the string "soon"'),
     ({"at": 1, "action": "explode", "vehicle": "usv1"}, "event[0].action",
-     'unknown action "explode"; choose one of kill, pause, resume, restart'),
+     'unknown action "explode"; choose one of kill, pause, resume, restart, formation, path'),
     ({"at": 1, "action": "kil", "vehicle": "usv1"}, "event[0].action",
-     'unknown action "kil" (did you mean "kill"?); choose one of kill, pause, resume, restart'),
+     'unknown action "kil" (did you mean "kill"?); choose one of kill, pause, resume, restart, formation, path'),
     ({"at": 1, "action": "kill", "vehicle": "usb1"}, "event[0].vehicle",
      '"usb1" is not a vehicle (did you mean "usv1"?); ids are usv1, usv2'),
     ({"at": 1, "action": "kill", "vehicle": "usv1", "duration": 3}, "event[0].duration",
@@ -58,7 +58,7 @@ def test_no_events():
     ({"at": 1, "action": "pause", "vehicle": "usv1", "duration": 0}, "event[0].duration",
      "must be a number > 0 s (then the vehicle resumes), got 0"),
     ({"at": 1, "action": "kill", "vehicle": "usv1", "when": 3}, "event[0].when",
-     "unknown key; valid keys here: at, action, vehicle, duration"),
+     "unknown key; valid keys here: at, action, vehicle, duration, phases, offsets, path"),
     ({"action": "kill", "vehicle": "usv1"}, "event[0].at",
      'missing; an event needs at, action and vehicle, e.g. at = 60.0, action = "kill", vehicle = "usv2"'),
 ])
@@ -140,3 +140,84 @@ def test_a_kill_or_restart_during_a_timed_pause_ends_it_without_its_resume():
     assert problems == []
     assert [(e.at, e.action, e.vehicle) for e in out] == [
         (10, "pause", "usv1"), (10, "pause", "usv2"), (12, "restart", "usv1"), (12, "kill", "usv2")]
+
+
+# ------------------------------------------------------------------ formation and path changes (issue 18)
+
+from cdus.core.formation import FormationChange, PathChange  # noqa: E402
+from tests.scenario.common import base  # noqa: E402
+
+
+def with_events(*evs, **graph):
+    data = base()
+    data["event"] = list(evs)
+    if graph:
+        data["graph"] = graph
+    return data
+
+
+def test_formation_and_path_events_are_resolved_into_phases_and_path_tables():
+    sc = parse_scenario(with_events(
+        {"at": 20, "action": "formation", "offsets": [{"i": "uav1", "k": "usv2", "delta": 1.0}]},
+        {"at": 10, "action": "formation", "phases": {"usv2": 2.5}},
+        {"at": 15, "action": "path", "vehicle": "uav1", "path": {"family": "circle", "center": [5, 5, 10],
+                                                                 "radius": 4}},
+        {"at": 5, "action": "kill", "vehicle": "usv1"}, topology="chain"))
+    assert [e.action for e in sc.events] == ["kill"]
+    f1, p, f2 = sc.changes
+    assert f1 == FormationChange(10.0, (("usv2", 2.5),))
+    assert p == PathChange(15.0, "uav1", (("center", (5, 5, 10)), ("family", "circle"), ("radius", 4)))
+    # the offset is resolved against the formation in force then (usv2 at 2.5): θ_uav1 = 2.5 + 1
+    assert f2.at == 20.0 and f2.phases == (("uav1", pytest.approx(3.5)),)
+
+
+def test_offsets_that_do_not_close_around_a_cycle_are_refused_naming_the_field_and_the_fix():
+    with pytest.raises(ConfigError) as info:
+        parse_scenario(with_events({"at": 1, "action": "formation",
+                                    "offsets": [{"i": "usv2", "k": "usv1", "delta": 1.0}]}))  # a ring of 3
+    text = str(info.value)
+    assert "event[0].offsets: inconsistent formation offsets: around the cycle usv1 -> " in text
+    assert "give per-vehicle phases instead" in text
+
+
+@pytest.mark.parametrize("event, field, text", [
+    ({"action": "formation", "phases": {"usv9": 1.0}}, "event[0].phases", '"usv9" is not a vehicle'),
+    ({"action": "formation", "phases": {"usv1": "x"}}, "event[0].phases.usv1", "must be a finite number"),
+    ({"action": "formation", "phases": {"usv1": 1e300}}, "event[0].phases.usv1", "within ±1e+09"),
+    ({"action": "formation", "phases": {}}, "event[0].phases", "must be a non-empty table"),
+    ({"action": "formation"}, "event[0].phases", "has neither"),
+    ({"action": "formation", "phases": {"usv1": 1.0}, "offsets": [{"i": "usv1", "k": "usv2", "delta": 1}]},
+     "event[0].phases", "not both"),
+    ({"action": "formation", "offsets": [{"i": "usv1", "k": "uav1", "delta": 1}]}, "event[0].offsets[0]",
+     "usv1 does not listen to uav1"),
+    ({"action": "formation", "offsets": [{"i": "usv1", "k": "usv2"}]}, "event[0].offsets[0].delta", "missing"),
+    ({"action": "formation", "offsets": [{"i": "usv2", "k": "usv1", "delta": 1},
+                                         {"i": "usv1", "k": "usv2", "delta": -1}]}, "event[0].offsets[1]",
+     "given twice"),
+    ({"action": "formation", "phases": {"usv1": 1.0}, "vehicle": "usv1"}, "event[0].vehicle", "not vehicle or path"),
+    ({"action": "formation", "phases": {"usv1": 1.0}, "duration": 3}, "event[0].duration", "only a pause"),
+    ({"action": "path", "vehicle": "uav1"}, "event[0].path", "missing; a path event needs vehicle and path"),
+    ({"action": "path", "vehicle": "uav9", "path": {"family": "circle", "center": [0, 0, 0], "radius": 1}},
+     "event[0].vehicle", '"uav9" is not a vehicle'),
+    ({"action": "path", "vehicle": "uav1", "path": {"family": "cirle", "center": [0, 0, 0], "radius": 1}},
+     "event[0].path.family", 'unknown path family "cirle"'),
+    ({"action": "path", "vehicle": "uav1", "path": {"family": "circle", "center": [0, 0, 0], "radius": -1}},
+     "event[0].path.radius", "must be > 0"),
+    ({"action": "path", "vehicle": "uav1", "path": {"family": "circle", "center": [0, 0], "radius": 1}},
+     "event[0].path", "a 3-D vehicle needs a 3-D path"),
+    ({"action": "path", "vehicle": "uav1", "path": "circle"}, "event[0].path", "must be a table"),
+    ({"action": "kill", "vehicle": "uav1", "phases": {"usv1": 1.0}}, "event[0].phases", 'only a "formation" event'),
+])
+def test_bad_formation_and_path_events_name_the_field(event, field, text):
+    with pytest.raises(ConfigError) as info:
+        parse_scenario(with_events({"at": 1, **event}, topology="chain"))  # usv1 - usv2 - uav1
+    lines = [ln for ln in str(info.value).splitlines() if f": {field}: " in ln]
+    assert any(text in ln for ln in lines), str(info.value)
+
+
+def test_offsets_that_would_put_a_phase_beyond_the_limit_are_refused():
+    """Each Δ within ±1e9, but along a chain they add up: every process takes phases within ±1e9 only."""
+    with pytest.raises(ConfigError) as info:
+        parse_scenario(with_events({"at": 1, "action": "formation", "offsets": [
+            {"i": "usv2", "k": "usv1", "delta": 9e8}, {"i": "uav1", "k": "usv2", "delta": 9e8}]}, topology="chain"))
+    assert "event[0].offsets: these offsets put the phase of uav1 at 1.8e+09, beyond ±1e+09" in str(info.value)

@@ -1,0 +1,44 @@
+"""`cdus gs formation` and `cdus gs path`: the arguments, checked before anything is sent."""
+
+from __future__ import annotations
+
+import pytest
+
+from cdus.scenario.config import ConfigError
+from ground_station.__main__ import build_parser, formation_fields, main, path_fields
+
+
+def test_phases_and_offsets_become_the_commands_fields():
+    assert formation_fields(["phases.usv2=1.5", "phases.uav1=0"]) == {"phases": {"usv2": 1.5, "uav1": 0}, "offsets": []}
+    assert formation_fields(["offsets.usv2.usv1=2.0"]) == {
+        "phases": {}, "offsets": [{"i": "usv2", "k": "usv1", "delta": 2.0}]}
+
+
+@pytest.mark.parametrize("settings, field", [
+    (["phases.usv2=x"], "phases.usv2"),
+    (["phases.usv2=nan"], "phases.usv2"),
+    (["phases.usv2=1", "offsets.usv2.usv1=1"], "formation"),
+    (["offsets.usv2=1"], "offsets.usv2"),
+    (["speed=3"], "speed"),
+])
+def test_bad_formation_arguments_name_the_field(settings, field):
+    with pytest.raises(ConfigError) as info:
+        formation_fields(settings)
+    assert info.value.problems[0][0] == field
+
+
+def test_a_path_is_checked_as_the_configs_paths_are():
+    assert path_fields(["family=circle", "center=[0,0,20]", "radius=15"]) == {
+        "family": "circle", "center": [0, 0, 20], "radius": 15}
+    for settings, field in ((["family=cirle"], "family"), (["family=circle", "center=[0,0]", "radius=-1"], "radius"),
+                            (["family=circle", "radius=1"], "center")):
+        with pytest.raises(ConfigError) as info:
+            path_fields(settings)
+        assert info.value.problems[0][0] == field
+
+
+def test_the_subcommands_parse_and_bad_arguments_exit_2_before_connecting(capsys):
+    args = build_parser().parse_args(["--fleet", "f", "path", "--vehicle", "uav1", "family=circle"])
+    assert args.action == "path" and args.vehicle == "uav1"
+    assert main(["--fleet", "f", "-e", "tcp/127.0.0.1:9", "formation", "phases.usv2=x"]) == 2
+    assert "phases.usv2" in capsys.readouterr().err
