@@ -21,7 +21,8 @@ def cmd(w, op, **fields):
 def test_a_phase_change_goes_to_every_vehicle_from_the_first_tick_not_granted_and_into_the_metrics():
     w = world()
     w.lockstep.granted = 40
-    assert w._relay_formation({"phases": {"usv2": 1.0, "uav1": 2.5}, "offsets": []}, "gs1") is None
+    v = w._relay_formation({"phases": {"usv2": 1.0, "uav1": 2.5}, "offsets": []}, "gs1")
+    assert v.applied and v.tick == 41
     c = ctl_ops(w)[-1]
     assert c.op == "formation" and c.fields == {"phases": {"usv2": 1.0, "uav1": 2.5}, "tick": 41}
     f = w.recorder.formation
@@ -48,7 +49,8 @@ def test_offsets_are_turned_into_phases_or_refused_with_the_cycle():
 def test_a_path_goes_to_its_vehicle_only_and_a_bad_one_is_refused_with_the_field():
     w = world()
     w.lockstep.granted = 5
-    assert w._relay_path({"vehicle": "uav1", "path": CIRCLE}, "gs1") is None
+    v = w._relay_path({"vehicle": "uav1", "path": CIRCLE}, "gs1")
+    assert v.applied and v.tick == 6
     key, payload = w.session.puts[-1]
     c = decode_control(payload, CTL_OPS)
     assert key == keys.ctl(FLEET, ["uav1"]) and c.op == "path" and c.fields == {"vehicle": "uav1", "path": CIRCLE,
