@@ -513,7 +513,12 @@ class World:
             self.pub_events.put(encode_event(event))
 
     def _check_graph(self) -> None:
-        self._note(graph_event(self._sim_now(), self.ids, self.pairs, self.st.alive))
+        """The live graph after a liveliness change, at the tick of the roster change it belongs
+        to when there is one (lockstep: a kill at 150 s is news of tick 7500, not of the newest
+        tick recorded, 7499), as the in-process fleet stamps it."""
+        news = self.lockstep.news_tick if self.clock == "lockstep" else None
+        t = self._sim_now() if news is None else news * self.period
+        self._note(graph_event(t, self.ids, self.pairs, self.st.alive))
 
     def _sim_now(self) -> float:
         """The fleet's present in simulated seconds: the newest tick recorded (lockstep), the wall
