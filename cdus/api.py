@@ -39,6 +39,8 @@ from cdus.core.vehicle import DivergedError
 from cdus.scenario.config import MAX_NESTING, ConfigError, load_scenario, nesting_problem, parse_scenario
 from cdus.scenario.model import Scenario
 from cdus.sim.fleet import InProcessFleet
+from cdus.sim.reports import ConsoleQuota
+from cdus.sim.sink import NullSink
 from cdus.wire import keys
 from world_sim.recording import parse_spec
 
@@ -696,8 +698,9 @@ def run(scenario: Scenario | str | os.PathLike, *, clock: str = "inproc", policy
     ``rerun``: where the Rerun stream goes, as ``--rerun`` (default ``off``). ``run_dir``:
     where a lockstep run keeps its logs, credentials, metrics.json and trace.npz (default: a
     temporary directory, removed after), and where ``rerun="auto"`` saves without a display.
-    ``progress``: True for progress lines on stderr (and the launcher's lines), or a callable
-    ``(t, duration)``. Lockstep only: ``secure`` (default True: credentials and the router's
+    ``progress``: True for progress lines on stderr and the fleet's events on stdout, as
+    ``cdus launch`` prints them (a lockstep run: the launcher's lines), or a callable
+    ``(t, duration)`` (progress only). Lockstep only: ``secure`` (default True: credentials and the router's
     access control, docs/security.md), ``tls``, ``fleet`` (the key prefix's name, default the
     scenario's), ``ready_timeout`` (s each process may take to come up).
 
@@ -747,6 +750,31 @@ def run(scenario: Scenario | str | os.PathLike, *, clock: str = "inproc", policy
     return _run_lockstep(scenario, name, policy, rerun, base, progress, secure, tls, float(ready_timeout))
 
 
+class _PrintingSink:
+    """A sink that prints each event's console lines (``ConsoleQuota.printed``) on stdout and
+    hands everything on to ``inner``."""
+
+    def __init__(self, inner: Any, console: ConsoleQuota):
+        self.inner, self.console = inner, console
+
+    def start(self, scenario: Scenario) -> None:
+        self.inner.start(scenario)
+
+    def update(self, recorder: Recorder) -> None:
+        self.inner.update(recorder)
+
+    def event(self, event: Any) -> None:
+        for line in self.console.printed(event):
+            print(line, flush=True)
+        self.inner.event(event)
+
+    def link_state(self, t: float, src: str, dst: str, state: str) -> None:
+        self.inner.link_state(t, src, dst, state)
+
+    def close(self) -> None:
+        self.inner.close()
+
+
 def _run_inproc(scenario: Scenario, policy: str | None, rerun: str, base: Path | None,
                 progress: bool | Callable[[float, float], None]) -> Result:
     sink = None
@@ -754,6 +782,8 @@ def _run_inproc(scenario: Scenario, policy: str | None, rerun: str, base: Path |
         from world_sim.rerun_sink import make_sink  # Rerun costs ~1 s and 55 MB to import: only when asked for
 
         sink = make_sink(rerun, base)
+    if progress is True:  # the fleet's events as they happen, in the launcher's words (cdus.sim.reports)
+        sink = _PrintingSink(sink or NullSink(), ConsoleQuota(scenario=scenario))
     fleet = InProcessFleet(scenario, policy=policy, sink=sink, clock=time.perf_counter)
     shown = Progress(scenario.name) if progress is True else None
     interrupted = False

@@ -42,7 +42,7 @@ from cdus.scenario.link import merge_link_tables, validate_link
 from cdus.scenario.model import Scenario
 from cdus.sim.build import metric_edges, sensor_schedule
 from cdus.sim.lockstep import CatchUp, Fault, Grant, Join, Lockstep, Roster, Sense
-from cdus.sim.reports import ConsoleQuota, graph_event, vehicle_back, vehicle_lost
+from cdus.sim.reports import ConsoleQuota, graph_event, link_state_event, vehicle_back, vehicle_lost
 from cdus.sim.sensing import sense_tick
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
 from cdus.sim.summary import COMPLETED, link_block, run_metrics
@@ -130,7 +130,7 @@ class World:
         self.st = WorldState()
         self.pairs = [(e.i, e.k) for e in scenario.edges]
         self._commands: list[tuple[str | None, bytes]] = []  # run-time link and gains commands, for (re)joiners
-        self._console = ConsoleQuota()
+        self._console = ConsoleQuota(scenario=scenario)
         self._rt_expect: dict[str, set[str]] = {}  # realtime: liveliness changes a fault we asked for explains
         self.log = log or (lambda s: print(f"[world] {s}", flush=True))
         self.next_tick = 0  # next tick to record
@@ -352,8 +352,7 @@ class World:
             src, _, dst = key[1].partition("->")
             self.sink.link_state(key[0], src, dst, key[2])
             if self.started:
-                self._note(FleetEvent.of(key[0], "link_state", f"link {key[1]} {key[2]} (from t = {key[0]:.2f} s)",
-                                         severity="warn" if key[2] == "down" else "info", link=key[1]))
+                self._note(link_state_event(*key))
 
     def _on_command(self, sender: str, payload: bytes) -> None:
         if not ID_RE.match(sender):

@@ -112,6 +112,18 @@ def rate_limits(fleet: str, ids: tuple[str, ...] | list[str], broadcast_hz: floa
     return [{"id": "cdus-rate-limits", "flows": ["ingress"], "messages": ["put"], "rules": omega + commands}]
 
 
+_PRINT_LOCK = threading.Lock()
+
+
+def print_line(s: str) -> None:
+    """One whole line on stdout: the launcher logs from Zenoh's threads (events) and its own
+    (faults, restarts), and print() writes the text and its newline apart, so two lines could
+    interleave ("... (t = 1 s)  fault: kill usv2")."""
+    with _PRINT_LOCK:
+        sys.stdout.write(s + "\n")
+        sys.stdout.flush()
+
+
 WORLD_LOST = "world_lost"  # the completion reason the launcher writes when the world died without metrics
 
 
@@ -246,7 +258,7 @@ class Launcher:
     run_dir: Path
     router: Transport
     opts: LaunchOptions
-    log: Callable[[str], None] = field(default=lambda s: print(s, flush=True))
+    log: Callable[[str], None] = field(default=print_line)
     clock: Callable[[], float] = time.monotonic  # for restart back-offs (a test's own clock)
 
     def __post_init__(self) -> None:
@@ -260,7 +272,8 @@ class Launcher:
         self.alive: set[str] = set()
         self.status: dict | None = None
         self.rejected: dict[str, int] = {}  # messages to the launcher dropped, by reason
-        self._console = ConsoleQuota()  # what of the events to print (drop bursts per link are capped)
+        # what of the events to print (drop bursts per link are capped, links lossy by design said once)
+        self._console = ConsoleQuota(scenario=self.scenario)
         self.children: dict[str, Child] = {}
         self.session = None
         self.stopping = False
@@ -430,8 +443,8 @@ class Launcher:
             self._reject(f"event {e}", "a malformed event")
             return
         if not self.opts.quiet:
-            for line in self._console.lines(e):
-                self.log(f"  event: {printable(line)}")
+            for line in self._console.printed(e):
+                self.log(line)
 
     def _wait_alive(self, names: list[str], timeout: float) -> list[str]:
         """Wait for every name's liveliness token; returns the missing ones (early exits end the wait)."""

@@ -151,3 +151,24 @@ def test_an_agent_that_dies_at_start_is_named_with_its_log_and_nothing_is_left(t
     assert "uav1 exited with status 3 during start-up" in text, text
     assert "boom: no radio" in text  # its log tail
     assert not fleet_processes(fleet)
+
+
+def test_launch_and_sim_print_the_same_event_lines_at_the_same_times(tmp_path, launches):
+    """One printer for both (cdus.sim.reports.ConsoleQuota.printed): the links lossy by design
+    in one line, the scheduled kill, and the graph event, stamped with the kill's tick in
+    lockstep too (it said 0.98 s for a kill at 1.00 s: the newest tick recorded)."""
+    cfg = tmp_path / "kill.toml"
+    cfg.write_text(open("configs/lake_circle.toml").read()
+                   + '\n[[event]]\nat = 1.0\naction = "kill"\nvehicle = "usv2"\n')
+    common = ["--duration", "2", "--set", "link.loss=0.1", "--rerun", "off"]
+    sim = run_cli(["sim", str(cfg), *common, "--runs-dir", str(tmp_path / "runs")])
+    assert sim.returncode == 0, sim.stderr
+    printed = sorted(ln for ln in sim.stdout.splitlines() if ln.startswith("  event: "))
+    assert printed == ["  event: t = 0.00 s: link faults from t = 0: loss 0.1 on 12 links (all)",
+                       "  event: t = 1.00 s: scheduled kill of usv2 (t = 1 s)",
+                       "  event: t = 1.00 s: the live graph (5 vehicles) still has a spanning tree"]
+    fleet = unique_fleet()
+    la = launches([str(cfg), *common, "--clock", "lockstep", "--logs", str(tmp_path / "run")], fleet)
+    assert la.wait() == 0, la.output()
+    assert sorted(ln for ln in la.output().splitlines() if ln.startswith("  event: ")) == printed, la.output()
+    assert not fleet_processes(fleet)
