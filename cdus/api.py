@@ -688,7 +688,7 @@ def _check_scenario(scenario: Any, where: str) -> Scenario:
 def run(scenario: Scenario | str | os.PathLike, *, clock: str = "inproc", policy: str | None = None,
         rerun: str = "off", run_dir: str | os.PathLike | None = None,
         progress: bool | Callable[[float, float], None] = False, secure: bool = True, tls: bool = False,
-        fleet: str | None = None, ready_timeout: float = 30.0) -> Result:
+        fleet: str | None = None, ready_timeout: float = 30.0, events: bool = False) -> Result:
     """Run a scenario to its end and return its :class:`Result`.
 
     ``clock``: ``inproc`` (``cdus sim``: every vehicle in this process, deterministic) or
@@ -698,9 +698,10 @@ def run(scenario: Scenario | str | os.PathLike, *, clock: str = "inproc", policy
     ``rerun``: where the Rerun stream goes, as ``--rerun`` (default ``off``). ``run_dir``:
     where a lockstep run keeps its logs, credentials, metrics.json and trace.npz (default: a
     temporary directory, removed after), and where ``rerun="auto"`` saves without a display.
-    ``progress``: True for progress lines on stderr and the fleet's events on stdout, as
-    ``cdus launch`` prints them (a lockstep run: the launcher's lines), or a callable
-    ``(t, duration)`` (progress only). Lockstep only: ``secure`` (default True: credentials and the router's
+    ``progress``: True for progress lines on stderr (and the launcher's lines, the fleet's
+    events among them; inproc: the events too, as ``events``), or a callable ``(t, duration)``.
+    ``events`` (inproc): True to print the fleet's events on stdout as they happen, as ``cdus
+    launch`` prints them (``cdus sim`` does; cdus.sim.reports.ConsoleQuota). Lockstep only: ``secure`` (default True: credentials and the router's
     access control, docs/security.md), ``tls``, ``fleet`` (the key prefix's name, default the
     scenario's), ``ready_timeout`` (s each process may take to come up).
 
@@ -722,8 +723,13 @@ def run(scenario: Scenario | str | os.PathLike, *, clock: str = "inproc", policy
                          ) from None
     if not (isinstance(progress, bool) or callable(progress)):
         raise _arg_error(where, "progress", f"expected True, False or a callable (t, duration), got {progress!r}")
+    if not isinstance(events, bool):
+        raise _arg_error(where, "events", f"expected True or False, got {events!r}")
     if clock == "inproc":
-        return _run_inproc(scenario, policy, rerun, base, progress)
+        return _run_inproc(scenario, policy, rerun, base, progress, events or progress is True)
+    if events:
+        raise _arg_error(where, "events", "a lockstep run prints the launcher's lines, the events among them, with "
+                                          "progress=True")
     if base is None and any(item.strip().lower() == "auto" for item in rerun.split(",")):
         raise _arg_error(where, "rerun", "'auto' may save the recording into the run directory, and a lockstep "
                                          "run's default one is temporary: give run_dir=..., or rerun='save:PATH'")
@@ -776,13 +782,13 @@ class _PrintingSink:
 
 
 def _run_inproc(scenario: Scenario, policy: str | None, rerun: str, base: Path | None,
-                progress: bool | Callable[[float, float], None]) -> Result:
+                progress: bool | Callable[[float, float], None], events: bool = False) -> Result:
     sink = None
     if parse_spec(rerun, base):
         from world_sim.rerun_sink import make_sink  # Rerun costs ~1 s and 55 MB to import: only when asked for
 
         sink = make_sink(rerun, base)
-    if progress is True:  # the fleet's events as they happen, in the launcher's words (cdus.sim.reports)
+    if events:  # the fleet's events as they happen, in the launcher's words (cdus.sim.reports)
         sink = _PrintingSink(sink or NullSink(), ConsoleQuota(scenario=scenario))
     fleet = InProcessFleet(scenario, policy=policy, sink=sink, clock=time.perf_counter)
     shown = Progress(scenario.name) if progress is True else None

@@ -34,7 +34,7 @@ from cdus.wire.transport import Transport, client_of, endpoint, exposed_endpoint
 from cdus.wire.transport import router as fleet_router
 from ground_station.__main__ import main as gs_main
 from world_sim.recording import parse_spec
-from cdus.app.report import run_dir, summary_table
+from cdus.app.report import Progress, run_dir, summary_table
 from cdus.files import write_json
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -174,13 +174,15 @@ def cmd_sim(args: argparse.Namespace) -> int:
         parse_spec(args.rerun, Path(metrics_out).parent)  # the flag's own wording for a bad --rerun
     except ValueError as e:
         raise ConfigError("command line", [("--rerun", str(e))]) from None
+    progress = Progress(f"{scenario.name}", quiet=args.quiet)
     status = EXIT_OK
     try:  # progress on stderr, the fleet's events on stdout, as `cdus launch` prints them
         result = api.run(scenario, policy=args.policy, rerun=args.rerun, run_dir=Path(metrics_out).parent,
-                         progress=not args.quiet)
+                         progress=progress, events=not args.quiet)
     except api.RunInterrupted as e:
         status = EXIT_INTERRUPTED
         result = e.result
+    progress.done()
     metrics = result.metrics.to_dict()
     write_json(metrics_out, metrics)
     if args.trace_out:
