@@ -369,6 +369,7 @@ class Metrics:
     safety: SafetyInfo
     rejected_by_reason: RejectedByReason | None = None
     interrupted: bool | None = None
+    never_up: tuple[str, ...] | None = None  # only in a run that never began (completion not_started)
     extra: dict[str, Any] = field(default_factory=dict)
 
     @classmethod
@@ -398,6 +399,9 @@ class Metrics:
             pairs = {str(k): ClosestPair.from_dict(v, f"closest_pairs.{k}.")
                      for k, v in _table(d["closest_pairs"], "closest_pairs").items()}
         closest = d.get("closest_pair")
+        never_up = d.get("never_up")
+        if never_up is not None and (not isinstance(never_up, list) or not all(isinstance(v, str) for v in never_up)):
+            raise _bad("never_up", "a list of vehicle ids", never_up)
         known = {f.name for f in fields(cls)} - {"extra"}
         return cls(
             scenario=_str(d, "scenario", w), mode=_str(d, "mode", w), seed=_int(d, "seed", w),
@@ -420,6 +424,7 @@ class Metrics:
             safety=SafetyInfo(_bool(safety, "enabled", "safety."), _num(safety, "radius_m", "safety.", null=True)),
             rejected_by_reason=rej,
             interrupted=_bool(d, "interrupted", w) if "interrupted" in d else None,
+            never_up=None if never_up is None else tuple(never_up),
             extra={k: v for k, v in d.items() if k not in known},
         )
 
@@ -457,6 +462,9 @@ class Metrics:
                     out[f.name] = None if v is None else v.to_dict()
             elif f.name in ("interrupted", "near_collision"):
                 _opt(v, out, f.name)
+            elif f.name == "never_up":
+                if v is not None:
+                    out[f.name] = list(v)
             else:
                 out[f.name] = v
         return out

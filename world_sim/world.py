@@ -540,7 +540,7 @@ class World:
                 missing = [v for v in self.ids if v not in self.st.alive]
                 raise TimeoutError(f"vehicles not up after {self.start_timeout:g} s: {', '.join(missing)}")
             self._drain(block=True)
-        self.started = True
+        self.started = not self.stop_requested  # stopped while waiting for the vehicles: never began
         self._t_start = time.perf_counter()
         cpu0 = time.process_time()
         self.sink.start(self.scenario)
@@ -777,13 +777,13 @@ class World:
     def _completion(self) -> str:
         """COMPLETED if every tick to the end was stepped by the live fleet, else why not
         (docs/metrics.md, ``completion``)."""
+        if not self.started:  # whatever stopped it (the launcher gave up waiting, a signal): nothing ran
+            return "not_started"
         if self.completion is not None:
             return self.completion
         lost = self.lockstep.lost | self.lockstep.outage if self.clock == "lockstep" else self._rt_lost
         if self.next_tick > self.last_tick and not self.stop_requested:
             return "vehicles_lost" if lost else COMPLETED
-        if not self.started:
-            return "not_started"
         return "vehicles_lost" if lost else "interrupted"
 
     def rejects_by_reason(self) -> dict[str, dict[str, int]]:
@@ -796,6 +796,8 @@ class World:
     def finish(self) -> dict:
         """Tell the agents to stop, write the metrics (and trace). Safe to call after a stop."""
         self.finished = True
+        # before the stop: the vehicles up then leave with it (a run that never began: who never came)
+        never_up = {} if self.started else {"never_up": [v for v in self.ids if v not in self.st.alive]}
         if self.session is not None:
             self.pub_ctl.put(encode_control("stop"))
             deadline = time.monotonic() + 0.3  # let the agents' last counters arrive
@@ -808,7 +810,7 @@ class World:
                               policy=self.policy, events=self.events,
                               interventions=sum(s.interventions for s in self._processes()),
                               completed=completion == COMPLETED, completion=completion,
-                              rejected_by_reason=self.rejects_by_reason())
+                              rejected_by_reason=self.rejects_by_reason(), **never_up)
         if self.metrics_out:
             write_json(self.metrics_out, metrics)
             self.log(f"metrics written to {self.metrics_out}")

@@ -525,3 +525,18 @@ def test_the_graph_event_of_a_scheduled_kill_carries_the_kills_tick_as_in_proces
     assert got == [("fault", 1.0), ("graph", 1.0)]
     ref = InProcessFleet(load_scenario(tmp_path / "ev.toml", {"scenario.duration": 1.5})).run().metrics
     assert [(e["kind"], e["t"]) for e in ref["events"] if e["kind"] in ("fault", "graph")] == got
+
+
+def test_a_run_given_up_before_its_start_names_the_vehicles_that_never_came_up():
+    """The launcher gave up waiting for two vehicles (--remote ones nobody started) and asked
+    the world to stop: not started (it said "interrupted"), and who never came up."""
+    w = world()
+    for vid in ("usv2", "usv3", "uav1", "uav3"):
+        w._on_alive(vid, True)
+    w._handle(Sample(keys.world_cmd(FLEET, keys.LAUNCHER), Payload(encode_control("stop"))))
+    w.session = None
+    m = w.finish()
+    assert m["completion"] == "not_started" and m["never_up"] == ["usv1", "uav2"]
+    w = started(world())
+    w.session = None
+    assert "never_up" not in w.finish()  # a run that started has no such field
