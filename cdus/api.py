@@ -39,6 +39,8 @@ from cdus.core.vehicle import DivergedError
 from cdus.scenario.config import MAX_NESTING, ConfigError, load_scenario, nesting_problem, parse_scenario
 from cdus.scenario.model import Scenario
 from cdus.sim.fleet import InProcessFleet
+from cdus.sim.reports import ConsoleQuota
+from cdus.sim.sink import NullSink
 from cdus.wire import keys
 from world_sim.recording import parse_spec
 
@@ -367,6 +369,7 @@ class Metrics:
     safety: SafetyInfo
     rejected_by_reason: RejectedByReason | None = None
     interrupted: bool | None = None
+    never_up: tuple[str, ...] | None = None  # only in a run that never began (completion not_started)
     extra: dict[str, Any] = field(default_factory=dict)
 
     @classmethod
@@ -396,6 +399,9 @@ class Metrics:
             pairs = {str(k): ClosestPair.from_dict(v, f"closest_pairs.{k}.")
                      for k, v in _table(d["closest_pairs"], "closest_pairs").items()}
         closest = d.get("closest_pair")
+        never_up = d.get("never_up")
+        if never_up is not None and (not isinstance(never_up, list) or not all(isinstance(v, str) for v in never_up)):
+            raise _bad("never_up", "a list of vehicle ids", never_up)
         known = {f.name for f in fields(cls)} - {"extra"}
         return cls(
             scenario=_str(d, "scenario", w), mode=_str(d, "mode", w), seed=_int(d, "seed", w),
@@ -418,6 +424,7 @@ class Metrics:
             safety=SafetyInfo(_bool(safety, "enabled", "safety."), _num(safety, "radius_m", "safety.", null=True)),
             rejected_by_reason=rej,
             interrupted=_bool(d, "interrupted", w) if "interrupted" in d else None,
+            never_up=None if never_up is None else tuple(never_up),
             extra={k: v for k, v in d.items() if k not in known},
         )
 
@@ -455,6 +462,9 @@ class Metrics:
                     out[f.name] = None if v is None else v.to_dict()
             elif f.name in ("interrupted", "near_collision"):
                 _opt(v, out, f.name)
+            elif f.name == "never_up":
+                if v is not None:
+                    out[f.name] = list(v)
             else:
                 out[f.name] = v
         return out
@@ -686,7 +696,7 @@ def _check_scenario(scenario: Any, where: str) -> Scenario:
 def run(scenario: Scenario | str | os.PathLike, *, clock: str = "inproc", policy: str | None = None,
         rerun: str = "off", run_dir: str | os.PathLike | None = None,
         progress: bool | Callable[[float, float], None] = False, secure: bool = True, tls: bool = False,
-        fleet: str | None = None, ready_timeout: float = 30.0) -> Result:
+        fleet: str | None = None, ready_timeout: float = 30.0, events: bool = False) -> Result:
     """Run a scenario to its end and return its :class:`Result`.
 
     ``clock``: ``inproc`` (``cdus sim``: every vehicle in this process, deterministic) or
@@ -696,8 +706,10 @@ def run(scenario: Scenario | str | os.PathLike, *, clock: str = "inproc", policy
     ``rerun``: where the Rerun stream goes, as ``--rerun`` (default ``off``). ``run_dir``:
     where a lockstep run keeps its logs, credentials, metrics.json and trace.npz (default: a
     temporary directory, removed after), and where ``rerun="auto"`` saves without a display.
-    ``progress``: True for progress lines on stderr (and the launcher's lines), or a callable
-    ``(t, duration)``. Lockstep only: ``secure`` (default True: credentials and the router's
+    ``progress``: True for progress lines on stderr (and the launcher's lines, the fleet's
+    events among them; inproc: the events too, as ``events``), or a callable ``(t, duration)``.
+    ``events`` (inproc): True to print the fleet's events on stdout as they happen, as ``cdus
+    launch`` prints them (``cdus sim`` does; cdus.sim.reports.ConsoleQuota). Lockstep only: ``secure`` (default True: credentials and the router's
     access control, docs/security.md), ``tls``, ``fleet`` (the key prefix's name, default the
     scenario's), ``ready_timeout`` (s each process may take to come up).
 
@@ -719,8 +731,13 @@ def run(scenario: Scenario | str | os.PathLike, *, clock: str = "inproc", policy
                          ) from None
     if not (isinstance(progress, bool) or callable(progress)):
         raise _arg_error(where, "progress", f"expected True, False or a callable (t, duration), got {progress!r}")
+    if not isinstance(events, bool):
+        raise _arg_error(where, "events", f"expected True or False, got {events!r}")
     if clock == "inproc":
-        return _run_inproc(scenario, policy, rerun, base, progress)
+        return _run_inproc(scenario, policy, rerun, base, progress, events or progress is True)
+    if events:
+        raise _arg_error(where, "events", "a lockstep run prints the launcher's lines, the events among them, with "
+                                          "progress=True")
     if base is None and any(item.strip().lower() == "auto" for item in rerun.split(",")):
         raise _arg_error(where, "rerun", "'auto' may save the recording into the run directory, and a lockstep "
                                          "run's default one is temporary: give run_dir=..., or rerun='save:PATH'")
@@ -747,13 +764,40 @@ def run(scenario: Scenario | str | os.PathLike, *, clock: str = "inproc", policy
     return _run_lockstep(scenario, name, policy, rerun, base, progress, secure, tls, float(ready_timeout))
 
 
+class _PrintingSink:
+    """A sink that prints each event's console lines (``ConsoleQuota.printed``) on stdout and
+    hands everything on to ``inner``."""
+
+    def __init__(self, inner: Any, console: ConsoleQuota):
+        self.inner, self.console = inner, console
+
+    def start(self, scenario: Scenario) -> None:
+        self.inner.start(scenario)
+
+    def update(self, recorder: Recorder) -> None:
+        self.inner.update(recorder)
+
+    def event(self, event: Any) -> None:
+        for line in self.console.printed(event):
+            print(line, flush=True)
+        self.inner.event(event)
+
+    def link_state(self, t: float, src: str, dst: str, state: str) -> None:
+        self.inner.link_state(t, src, dst, state)
+
+    def close(self) -> None:
+        self.inner.close()
+
+
 def _run_inproc(scenario: Scenario, policy: str | None, rerun: str, base: Path | None,
-                progress: bool | Callable[[float, float], None]) -> Result:
+                progress: bool | Callable[[float, float], None], events: bool = False) -> Result:
     sink = None
     if parse_spec(rerun, base):
         from world_sim.rerun_sink import make_sink  # Rerun costs ~1 s and 55 MB to import: only when asked for
 
         sink = make_sink(rerun, base)
+    if events:  # the fleet's events as they happen, in the launcher's words (cdus.sim.reports)
+        sink = _PrintingSink(sink or NullSink(), ConsoleQuota(scenario=scenario))
     fleet = InProcessFleet(scenario, policy=policy, sink=sink, clock=time.perf_counter)
     shown = Progress(scenario.name) if progress is True else None
     interrupted = False

@@ -45,7 +45,7 @@ from cdus.core.formation import FormationChange
 from cdus.scenario.events import check_offsets, check_path, check_phases, offsets_to_phases
 from cdus.sim.build import formation_schedule, metric_edges, sensor_schedule
 from cdus.sim.lockstep import CatchUp, Decided, Fault, Grant, Join, Lockstep, Roster, Sense
-from cdus.sim.reports import ConsoleQuota, formation_changed, graph_event, path_changed, vehicle_back, vehicle_lost
+from cdus.sim.reports import ConsoleQuota, formation_changed, graph_event, link_state_event, path_changed, vehicle_back, vehicle_lost
 from cdus.sim.sensing import sense_tick
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
 from cdus.sim.summary import COMPLETED, link_block, run_metrics
@@ -164,7 +164,7 @@ class World:
         self.st = WorldState()
         self.pairs = [(e.i, e.k) for e in scenario.edges]
         self._commands: list[tuple[str | None, bytes]] = []  # run-time link and gains commands, for (re)joiners
-        self._console = ConsoleQuota()
+        self._console = ConsoleQuota(scenario=scenario)
         self._rt_expect: dict[str, set[str]] = {}  # realtime: liveliness changes a fault we asked for explains
         self.log = log or (lambda s: print(f"[world] {s}", flush=True))
         self.next_tick = 0  # next tick to record
@@ -425,8 +425,7 @@ class World:
             src, _, dst = key[1].partition("->")
             self.sink.link_state(key[0], src, dst, key[2])
             if self.started:
-                self._note(FleetEvent.of(key[0], "link_state", f"link {key[1]} {key[2]} (from t = {key[0]:.2f} s)",
-                                         severity="warn" if key[2] == "down" else "info", link=key[1]))
+                self._note(link_state_event(*key))
 
     # ------------------------------------------------------------------ commands
     def _answer(self, query: Any) -> None:
@@ -759,7 +758,12 @@ class World:
             self.pub_events.put(encode_event(event))
 
     def _check_graph(self) -> None:
-        self._note(graph_event(self._sim_now(), self.ids, self.pairs, self.st.alive))
+        """The live graph after a liveliness change, at the tick of the roster change it belongs
+        to when there is one (lockstep: a kill at 150 s is news of tick 7500, not of the newest
+        tick recorded, 7499), as the in-process fleet stamps it."""
+        news = self.lockstep.news_tick if self.clock == "lockstep" else None
+        t = self._sim_now() if news is None else news * self.period
+        self._note(graph_event(t, self.ids, self.pairs, self.st.alive))
 
     def _sim_now(self) -> float:
         """The fleet's present in simulated seconds: the newest tick recorded (lockstep), the wall
@@ -782,7 +786,7 @@ class World:
                 missing = [v for v in self.ids if v not in self.st.alive]
                 raise TimeoutError(f"vehicles not up after {self.start_timeout:g} s: {', '.join(missing)}")
             self._drain(block=True)
-        self.started = True
+        self.started = not self.stop_requested  # stopped while waiting for the vehicles: never began
         self._t_start = time.perf_counter()
         cpu0 = time.process_time()
         self.sink.start(self.scenario)
@@ -1030,13 +1034,13 @@ class World:
     def _completion(self) -> str:
         """COMPLETED if every tick to the end was stepped by the live fleet, else why not
         (docs/metrics.md, ``completion``)."""
+        if not self.started:  # whatever stopped it (the launcher gave up waiting, a signal): nothing ran
+            return "not_started"
         if self.completion is not None:
             return self.completion
         lost = self.lockstep.lost | self.lockstep.outage if self.clock == "lockstep" else self._rt_lost
         if self.next_tick > self.last_tick and not self.stop_requested:
             return "vehicles_lost" if lost else COMPLETED
-        if not self.started:
-            return "not_started"
         return "vehicles_lost" if lost else "interrupted"
 
     def rejects_by_reason(self) -> dict[str, dict[str, int]]:
@@ -1049,6 +1053,8 @@ class World:
     def finish(self) -> dict:
         """Tell the agents to stop, write the metrics (and trace). Safe to call after a stop."""
         self.finished = True
+        # before the stop: the vehicles up then leave with it (a run that never began: who never came)
+        never_up = {} if self.started else {"never_up": [v for v in self.ids if v not in self.st.alive]}
         if self.session is not None:
             self.pub_ctl.put(encode_control("stop"))
             deadline = time.monotonic() + 0.3  # let the agents' last counters arrive
@@ -1061,7 +1067,7 @@ class World:
                               policy=self.policy, events=self.events,
                               interventions=sum(s.interventions for s in self._processes()),
                               completed=completion == COMPLETED, completion=completion,
-                              rejected_by_reason=self.rejects_by_reason())
+                              rejected_by_reason=self.rejects_by_reason(), **never_up)
         if self.metrics_out:
             write_json(self.metrics_out, metrics)
             self.log(f"metrics written to {self.metrics_out}")

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import signal
 import sys
 from pathlib import Path
@@ -19,7 +20,7 @@ import zenoh
 
 from cdus import api
 from cdus.app.fleet_run import secure_router
-from cdus.app.launcher import LINKS, LaunchOptions, launch
+from cdus.app.launcher import LINKS, LaunchOptions, ListenError, check_listen, launch
 from cdus.app.executors import CONNECT_TIMEOUT_S, EXECUTORS
 from cdus.app.sweep import CLOCKS, SweepInterrupted, check_grid, parse_grid, sweep
 from cdus.app.sweepstore import ROWS
@@ -29,7 +30,7 @@ from cdus.core.linkspec import POLICIES
 from cdus.scenario.model import RESTART_POLICIES, Scenario
 from cdus.wire import keys
 from cdus.wire.access import GROUND_ROLE
-from cdus.wire.transport import Transport, client_of, endpoint, exposed_endpoints
+from cdus.wire.transport import Transport, client_of, endpoint, exposed_endpoints, router_listen
 from cdus.wire.transport import router as fleet_router
 from ground_station.__main__ import main as gs_main
 from world_sim.recording import parse_spec
@@ -175,9 +176,9 @@ def cmd_sim(args: argparse.Namespace) -> int:
         raise ConfigError("command line", [("--rerun", str(e))]) from None
     progress = Progress(f"{scenario.name}", quiet=args.quiet)
     status = EXIT_OK
-    try:
+    try:  # progress on stderr, the fleet's events on stdout, as `cdus launch` prints them
         result = api.run(scenario, policy=args.policy, rerun=args.rerun, run_dir=Path(metrics_out).parent,
-                         progress=progress)
+                         progress=progress, events=not args.quiet)
     except api.RunInterrupted as e:
         status = EXIT_INTERRUPTED
         result = e.result
@@ -246,6 +247,11 @@ def cmd_launch(args: argparse.Namespace) -> int:
                                                               "run an open fleet")])
     router = fleet_router(args.listen, args.zenoh_config)
     exposed = check_exposure(args, router)
+    try:  # a busy port is a usage error, found before any directory, credential or process
+        check_listen(router_listen(router))
+    except ListenError as e:
+        raise ConfigError("command line", [("--listen" if args.listen else "--zenoh-config", str(e))]) from None
+    made = not args.logs or not Path(args.logs).exists()
     run = Path(args.logs) if args.logs else run_dir(args.runs_dir, scenario.name)
     run.mkdir(parents=True, exist_ok=True)
     cred = None
@@ -263,7 +269,12 @@ def cmd_launch(args: argparse.Namespace) -> int:
     gs_config = f" --zenoh-config {cred.file(GROUND_ROLE)}" if cred is not None else ""
     print(f"  attach a ground station: cdus gs --fleet {opts.fleet} -e "
           f"{(client_of(router).connect or ('ENDPOINT',))[0]}{gs_config} status")
-    status, la = launch(scenario, run, router, opts)
+    try:
+        status, la = launch(scenario, run, router, opts)
+    except ListenError as e:  # taken between the check and the router's start: still nothing was started
+        if made:  # only the directory this command made (credentials, an empty logs/), never the user's
+            shutil.rmtree(run, ignore_errors=True)
+        raise ConfigError("command line", [("--listen" if args.listen else "--zenoh-config", str(e))]) from None
     if la.metrics_out.exists():
         metrics = json.loads(la.metrics_out.read_text())
         print(summary_table(metrics, scenario.vehicles))

@@ -25,12 +25,14 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import errno
 import json
 import math
 import os
 import shlex
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import tempfile
@@ -110,11 +112,69 @@ def rate_limits(fleet: str, ids: tuple[str, ...] | list[str], broadcast_hz: floa
     return [{"id": "cdus-rate-limits", "flows": ["ingress"], "messages": ["put"], "rules": omega + commands}]
 
 
+_PRINT_LOCK = threading.Lock()
+
+
+def print_line(s: str) -> None:
+    """One whole line on stdout: the launcher logs from Zenoh's threads (events) and its own
+    (faults, restarts), and print() writes the text and its newline apart, so two lines could
+    interleave ("... (t = 1 s)  fault: kill usv2")."""
+    with _PRINT_LOCK:
+        sys.stdout.write(s + "\n")
+        sys.stdout.flush()
+
+
 WORLD_LOST = "world_lost"  # the completion reason the launcher writes when the world died without metrics
 
 
 class LaunchError(Exception):
     """The fleet could not be brought up; the message says who failed and why."""
+
+
+class ListenError(Exception):
+    """The router could not listen where it was asked (a busy port, an address not of this
+    host): a usage error; nothing was started."""
+
+
+_STREAM_PROTOCOLS = ("tcp", "tls", "ws")  # over TCP
+_DATAGRAM_PROTOCOLS = ("udp", "quic")  # over UDP
+
+
+def listen_problem(ep: str) -> str | None:
+    """Why the router cannot listen on ``ep`` (an IP endpoint whose address is taken or not of
+    this host), or None (free, port 0, or not an IP endpoint: Zenoh says). Binds the address as
+    Zenoh will (SO_REUSEADDR: a port in TIME_WAIT is free) and lets it go at once."""
+    proto = ep.partition("/")[0]
+    if proto not in _STREAM_PROTOCOLS + _DATAGRAM_PROTOCOLS:
+        return None
+    rest = ep.partition("/")[2].split("#", 1)[0].split("?", 1)[0]
+    host, _, port = rest.rpartition(":")
+    host = host[1:-1] if host.startswith("[") and host.endswith("]") else host
+    if not port.isdigit() or int(port) == 0:
+        return None
+    kind = socket.SOCK_STREAM if proto in _STREAM_PROTOCOLS else socket.SOCK_DGRAM
+    try:
+        infos = socket.getaddrinfo(host, int(port), type=kind)
+    except socket.gaierror as e:
+        return f"{host!r} is not an address of this host ({e.strerror})"
+    for family, socktype, protocol, _, address in infos:
+        with socket.socket(family, socktype, protocol) as s:
+            s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            try:
+                s.bind(address)
+            except OSError as e:
+                return f"{e.strerror or e} (another process is listening there?)" \
+                    if e.errno == errno.EADDRINUSE else str(e.strerror or e)
+    return None
+
+
+def check_listen(endpoints: tuple[str, ...] | list[str]) -> None:
+    """Raise ListenError naming the first endpoint the router cannot listen on."""
+    for ep in endpoints:
+        why = listen_problem(ep)
+        if why is not None:
+            raise ListenError(f"the router cannot listen on {ep}: {why}; choose another endpoint "
+                              f"(or leave out --listen for a free port on 127.0.0.1)")
 
 
 @dataclass
@@ -198,7 +258,7 @@ class Launcher:
     run_dir: Path
     router: Transport
     opts: LaunchOptions
-    log: Callable[[str], None] = field(default=lambda s: print(s, flush=True))
+    log: Callable[[str], None] = field(default=print_line)
     clock: Callable[[], float] = time.monotonic  # for restart back-offs (a test's own clock)
 
     def __post_init__(self) -> None:
@@ -212,7 +272,8 @@ class Launcher:
         self.alive: set[str] = set()
         self.status: dict | None = None
         self.rejected: dict[str, int] = {}  # messages to the launcher dropped, by reason
-        self._console = ConsoleQuota()  # what of the events to print (drop bursts per link are capped)
+        # what of the events to print (drop bursts per link are capped, links lossy by design said once)
+        self._console = ConsoleQuota(scenario=self.scenario)
         self.children: dict[str, Child] = {}
         self.session = None
         self.stopping = False
@@ -282,7 +343,11 @@ class Launcher:
 
     # ------------------------------------------------------------------ zenoh
     def _open(self) -> None:
-        s = self.session = open_session(self.router)
+        try:
+            s = self.session = open_session(self.router)
+        except zenoh.ZError as e:  # a port taken since the check (cmd_launch), or else: Zenoh's words
+            raise ListenError(f"the router cannot listen on {', '.join(self.router.listen) or 'its endpoints'}: "
+                              f"{printable(str(e).split(' at /')[0], 400)}") from None
         f = self.fleet
         self._subs = [
             s.liveliness().declare_subscriber(keys.any_alive(f), self._on_alive, history=True),
@@ -378,8 +443,8 @@ class Launcher:
             self._reject(f"event {e}", "a malformed event")
             return
         if not self.opts.quiet:
-            for line in self._console.lines(e):
-                self.log(f"  event: {printable(line)}")
+            for line in self._console.printed(e):
+                self.log(line)
 
     def _wait_alive(self, names: list[str], timeout: float) -> list[str]:
         """Wait for every name's liveliness token; returns the missing ones (early exits end the wait)."""

@@ -67,6 +67,31 @@ def _fmt(x: Any, spec: str = ".3f", none: str = "never") -> str:
     return format(x, spec)
 
 
+def _not_live(vid: str, m: dict, never_up: Sequence[str]) -> str:
+    """Why a vehicle was not live at the end, as far as the metrics say."""
+    if vid in never_up:
+        return "  (never came up)"
+    if m.get("completion") == "not_started":
+        return "  (up, waiting for the others: the run never started)"
+    return "  (not live at the end: killed or paused; left out of the worst errors)"
+
+
+def boat_offset_note(m: dict, vehicles: Sequence[VehicleSpec]) -> list[str]:
+    """A line when the path never settled because usv_3dof boats end above path_tol: they keep
+    a steady offset from their path (their crab angle), which grows with speed and turn rate."""
+    pe, tol = m.get("final_path_error") or {}, m.get("path_tol")
+    if m.get("path_settle_s") is not None or m.get("completed") is False or not isinstance(tol, (int, float)):
+        return []
+    above = [(v.id, pe[v.id]) for v in vehicles if v.plant == "usv_3dof" and isinstance(pe.get(v.id), (int, float))
+             and pe[v.id] >= tol]
+    if not above:
+        return []
+    worst = max(x for _, x in above)
+    return [f"  note: usv_3dof boats hold a steady offset from their path (crab angle; about 1.5 v²/(R k) m at v "
+            f"m/s on a turn of radius R m): {', '.join(v for v, _ in above)} ended {worst:.3f} m off, above "
+            f"path_tol {tol:g} m; set [metrics] path_tol above it (docs/config.md, [metrics])"]
+
+
 def _settle(x: float | None) -> str:
     return "never (not within the tolerance at the end)" if x is None else f"{x:.2f} s"
 
@@ -79,7 +104,11 @@ def summary_table(metrics: dict, vehicles: Sequence[VehicleSpec]) -> str:
     lines.append(
         f"{m['scenario']} ({m['mode']}, seed {m['seed']}): {m['duration_s']:.1f} s simulated in "
         f"{m['wall_s']:.1f} s wall" + (f" ({rf:.0f}x real time)" if rf else ""))
-    if m.get("completed") is False:
+    never_up = [v for v in (m.get("never_up") or ()) if isinstance(v, str)]
+    if m.get("completion") == "not_started":
+        lines.append("  NOT STARTED: " + (f"{', '.join(never_up)} never came up; " if never_up else "")
+                     + "the run did not begin, nothing below was simulated")
+    elif m.get("completed") is False:
         lines.append(f"  NOT COMPLETED ({m.get('completion', 'interrupted')}): the run ended at "
                      f"{m['duration_s']:.1f} s; the settle times and errors below are of what ran")
     head = f"  {'vehicle':<10} {'kind':<4} {'plant':<22} {'|Φ| final (m)':>14} {'ω̇ final':>10}"
@@ -92,8 +121,9 @@ def summary_table(metrics: dict, vehicles: Sequence[VehicleSpec]) -> str:
         lines.append(
             f"  {v.id:<10} {v.kind:<4} {v.plant:<22} {_fmt(pe.get(v.id), '.4f', 'n/a'):>14} "
             f"{_fmt(m['omega_rate_final'].get(v.id), '.4f', 'n/a'):>10}"
-            + ("  (not live at the end: killed or paused; left out of the worst errors)" if gone else ""))
+            + ("" if not gone else _not_live(v.id, m, never_up)))
     lines.append(f"  path settle (worst |Φ| < {m['path_tol']} m):             {_settle(m['path_settle_s'])}")
+    lines += boat_offset_note(m, vehicles)
     lines.append(f"  coordination settle (worst edge < {m['coord_tol']} rad): {_settle(m['coord_settle_s'])}")
     lines.append(f"  final worst |Φ| {_fmt(m['final_path_error_max'], '.4f', 'n/a')} m, "
                  f"final worst coordination error {_fmt(m['final_coord_error_max'], '.4f', 'n/a')} rad")

@@ -240,6 +240,36 @@ class Planar:
         return f[:2], f1[:2], f2[:2]
 
 
+RETRACE_TURNS = 20_000  # turning-point candidates tried (a period holds 2 a_1/gcd(a_k) of them)
+
+
+def turning_point(path: Path) -> float | None:
+    """An ω at which a Lissajous path, as a vehicle follows it (a USV: its x, y), stops and turns
+    back, or None if it never does (every other family: None).
+
+    f'_k(ω) = -A_k a_k β sin(a_k βω + δ_k) vanishes for every moving axis k at once exactly where
+    each a_k βω + δ_k is a multiple of π; there f(ω0 + τ) = f(ω0 - τ) for every τ: the curve runs
+    back over itself (all phases 0 do it at ω = 0: the classic degenerate Lissajous, an open
+    curve traced back and forth). Vehicles half a lap apart then meet head-on, and at ω0 the
+    path has no tangent. A path with no moving axis (a point) turns at 0."""
+    inner, dims = (path.inner, 2) if isinstance(path, Planar) else (path, path.dim)
+    if not isinstance(inner, Lissajous):
+        return None
+    b = inner.beta
+    moving = [(fr * b, ph) for amp, fr, ph in list(zip(inner.amplitude, inner.frequency, inner.phase))[:dims]
+              if amp != 0.0 and fr != 0.0]
+    if not moving:
+        return 0.0
+    (k0, d0), rest = moving[0], moving[1:]
+    period = path.period
+    turns = RETRACE_TURNS if period is None else min(RETRACE_TURNS, math.ceil(abs(k0) * period / math.pi) + 1)
+    for m in range(turns):
+        w = (m * math.pi - d0) / k0  # axis 0 is still here; are the others?
+        if all(abs(math.sin(k * w + d)) < max(1e-9, 1e-14 * abs(k * w + d)) for k, d in rest):  # float error only
+            return w
+    return None
+
+
 def _common_period(freqs: Vec, beta: float) -> float | None:
     """Smallest T > 0 with every a_k β T a multiple of 2π, if the frequencies are rational."""
     fr = [Fraction(f).limit_denominator(1000) for f in freqs if f != 0]

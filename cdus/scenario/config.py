@@ -35,7 +35,7 @@ from cdus.scenario.model import Edge, Rates, Safety, Scenario, Supervision, Vehi
 from cdus.scenario.radio import radio_section
 from cdus.scenario.safety import apply_fleet, disturbance_section, observer_section, safety_section
 from cdus.scenario.sections import (
-    gains_section, guidance_section, metrics_section, rates_section, scenario_section, section,
+    default_path_tol, gains_section, guidance_section, metrics_section, rates_section, scenario_section, section,
     supervision_section,
 )
 from cdus.scenario.vehicles import defaults_section, gain_bounds, vehicles_section
@@ -298,7 +298,8 @@ def _resolve(p: Problems, data: Mapping[str, Any], source: str) -> Scenario | No
     p.unknown_keys(data, SECTIONS, "", what="section")
     header = scenario_section(p, section(p, data, "scenario"))
     rates = rates_section(p, section(p, data, "rates"))
-    path_tol, coord_tol = metrics_section(p, section(p, data, "metrics"))
+    metrics = section(p, data, "metrics")
+    path_tol, coord_tol = metrics_section(p, metrics)
     fleet_gains = gains_section(p, section(p, data, "gains"))
     scale_omega = guidance_section(p, section(p, data, "guidance"))
     defaults = defaults_section(p, section(p, data, "defaults"))
@@ -311,6 +312,8 @@ def _resolve(p: Problems, data: Mapping[str, Any], source: str) -> Scenario | No
     fleet.specs = apply_fleet(fleet.specs, data.get("vehicle"), defaults, disturbance, observer)
     if scale_omega:
         fleet.specs = [None if s is None else replace(s, scale_omega=True) for s in fleet.specs]
+    if "path_tol" not in metrics:  # a fleet with usv_3dof boats: theirs (sections.USV_PATH_TOL)
+        path_tol = default_path_tol(fleet.specs)
     topology, directed, edges = graph_section(p, section(p, data, "graph"), fleet)
     gain_bounds(p, data.get("vehicle"), defaults, fleet_gains, fleet.specs, rates, edges)
     ids = fleet.known if fleet.complete else None

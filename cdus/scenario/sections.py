@@ -8,7 +8,7 @@ reported and replaced by its default, so the later sections can still be checked
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any, Iterable, Mapping
 
 from cdus.scenario.checks import Problems, is_number, num
 from cdus.scenario.model import (
@@ -81,6 +81,26 @@ def rates_section(p: Problems, rt: Mapping[str, Any]) -> Rates:
             p.add("rates.broadcast", f"must be <= rates.control ({control} Hz): a vehicle has a new ω at most "
                                      f"once per control step; got {num(rates['broadcast'])}")
     return Rates(**rates)
+
+
+#: The default path_tol of a fleet with usv_3dof boats, by preset (a boat given its own epsilon:
+#: cybership2's). The heading regulator leaves a boat a steady crab angle, and the GVF's -KΦ term
+#: holds it |Φ| ≈ 1.5 v² / (R k) inside a path of radius R at v m/s (measured, lake_circle_dynamic,
+#: k = 1.5, R = 10 m: 0.0997 m at 1 m/s, 0.23 at 1.5, 0.40 at 2): 0.1 m is not reached with any
+#: margin at 1 m/s. 0.15 m separates "on the path" from "still approaching" at ~1 m/s; faster
+#: boats or tighter turns need [metrics] path_tol set (docs/config.md, [metrics]).
+USV_PATH_TOL = {"cybership2": 0.15}
+USV_PATH_TOL_OTHER = USV_PATH_TOL["cybership2"]
+
+
+def default_path_tol(specs: Iterable[Any]) -> float:
+    """The path_tol of a scenario whose [metrics] does not give one: DEFAULT_METRICS', or that
+    of its usv_3dof boats' presets (USV_PATH_TOL) if larger."""
+    tol = DEFAULT_METRICS["path_tol"]
+    for v in specs:
+        if v is not None and v.plant == "usv_3dof":
+            tol = max(tol, USV_PATH_TOL.get(v.preset, USV_PATH_TOL_OTHER))
+    return tol
 
 
 def metrics_section(p: Problems, mt: Mapping[str, Any]) -> tuple[float, float]:

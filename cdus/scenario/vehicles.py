@@ -17,7 +17,7 @@ from typing import Any, Mapping, Sequence
 
 from cdus.core.gain_bounds import gains_problem_for_rate, regulator_gains_problem
 from cdus.core.limits import default_limits
-from cdus.core.paths import FAMILIES, Path, PathError, for_dimension, make_path
+from cdus.core.paths import FAMILIES, Path, PathError, for_dimension, make_path, turning_point
 from cdus.core.plants import USV_PRESETS
 from cdus.scenario.checks import IdList, Problems, describe, is_number, quote, show
 from cdus.scenario.model import Edge, Rates, VehicleSpec
@@ -339,7 +339,12 @@ def _path(p: Problems, t: _Merged, dim: int | None) -> tuple[Path | None, tuple]
         return None, ()
     try:
         built = make_path(spec)
-        return (for_dimension(built, dim) if dim is not None else None), _frozen(spec)
+        followed = for_dimension(built, dim) if dim is not None else None
+        turn = turning_point(followed) if followed is not None else None
+        if turn is not None:
+            p.add(t.field("path", "phase"), retrace_message(spec, turn, dim) + t.note("path", "phase"))
+            return None, ()
+        return followed, _frozen(spec)
     except PathError as e:
         sub = () if e.field == "path" else (e.field,)
         where, note = t.field("path", *sub), t.note("path", *sub)
@@ -350,6 +355,19 @@ def _path(p: Problems, t: _Merged, dim: int | None) -> tuple[Path | None, tuple]
     except (TypeError, ValueError) as e:  # a malformed value the path module did not anticipate
         p.add(t.field("path"), f"invalid path: {e}{t.note('path')}")
     return None, ()
+
+
+def retrace_message(spec: dict, turn: float, dim: int | None) -> str:
+    """Why a Lissajous path that runs back over itself is refused, and how to fix it."""
+    axes = "its x, y (what a usv follows)" if dim == 2 and len(spec.get("center") or ()) == 3 else "the path"
+    if all(a == 0 for a in (spec.get("amplitude") or ())[:dim or 3]) or \
+            all(f == 0 for f in (spec.get("frequency") or ())[:dim or 3]):
+        return f"{axes} does not move (every amplitude or frequency is 0): there is no path to follow"
+    return (f"this Lissajous path runs back over itself: {axes} stops at ω = {turn:.4g} (no tangent: a boat "
+            f"cannot follow it) and retraces its way (phase {list(spec.get('phase', [0] * len(spec.get('center') or ())))} "
+            "turns every moving axis there at once; all phases 0 always do), so any two vehicles on it not at the "
+            "same ω meet head-on twice a lap. Give phases that do not, e.g. phase = [0, 1.5708] for frequencies "
+            "[1, 2], a figure-eight (docs/config.md, \"Paths\")")
 
 
 def _frozen(v: Any) -> Any:

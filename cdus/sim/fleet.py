@@ -36,7 +36,7 @@ from cdus.core.vehicle import Telemetry, Vehicle
 from cdus.scenario.model import Scenario
 from cdus.sim.build import build_node, formation_schedule, link_model_for, metric_edges, path_of, sensor_schedule
 from cdus.sim.sensing import contacts_of, sense_tick
-from cdus.sim.reports import formation_changed, graph_event, path_changed, scheduled_fault, vehicle_back
+from cdus.sim.reports import formation_changed, graph_event, link_state_event, path_changed, scheduled_fault, vehicle_back
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
 from cdus.sim.summary import link_block, run_metrics, sum_counters
 from cdus.wire.messages import decode_contacts, decode_omega, encode_contacts, encode_omega
@@ -258,6 +258,7 @@ class InProcessFleet:
             return
         for t, s, d, state in changes[self._changes_seen:]:
             self.sink.link_state(t, self.ids[s], self.ids[d], state)
+            self._note(link_state_event(t, f"{self.ids[s]}->{self.ids[d]}", state))  # as the world reports them
         self._changes_seen = len(changes)
 
     def run(self, duration: float | None = None, progress: Callable[[float, float], None] | None = None

@@ -142,6 +142,10 @@ class Lockstep:
         self.pending: set[int] = set()  # liveliness lost, not decided yet (decide_drops)
         self.outage: set[int] = set()  # lost all at once with the rest of the fleet: waited for
         self.lost: set[int] = set()  # lost with nobody asking (a crash, an outage given up) and not back
+        self._fault_tick: dict[int, int] = {}  # vehicle -> the tick of its newest fault carried out
+        # the tick of the roster change the last on_alive's news belongs to (None: not one we made):
+        # events about it carry that tick, as the in-process fleet stamps them, not the tick recorded
+        self.news_tick: int | None = None
         self._lease_ticks = max(1, math.ceil(self.lease / self.period - 1e-9))
         if self.sense_every is not None and (self.sense_every < 1 or self.sense_latency < 1):
             raise ValueError(f"sense_every and sense_latency must be >= 1 tick, got {self.sense_every}, "
@@ -179,6 +183,7 @@ class Lockstep:
 
     def on_alive(self, j: int, up: bool) -> None:
         """A liveliness token appeared (``up``) or went away."""
+        self.news_tick = None
         was = j in self.alive
         if up == was:
             return
@@ -190,8 +195,9 @@ class Lockstep:
         kind = "up" if up else "down"
         if kind in self._expect.get(j, ()):
             self._expect[j].discard(kind)
+            self.news_tick = self._change_tick(j, up)
             if up:
-                self._out.append(vehicle_back(t, vid))
+                self._out.append(vehicle_back(self.news_tick * self.period, vid))
             return
         if up and (j in self.pending or j in self.outage):  # back before anything was decided: same process
             self.pending.discard(j)
@@ -209,6 +215,7 @@ class Lockstep:
             self._catch_up(j)
             self._out.append(Join(j, b))
             self.acked[j] = b - 1
+            self.news_tick = b
             self._out.append(vehicle_back(t, vid, joins_at=b))
         else:  # a crash, a kill nobody scheduled, or an outage: decide_drops tells them apart
             self.pending.add(j)
@@ -331,6 +338,7 @@ class Lockstep:
                 if p.ref is not None:
                     self._out.append(Decided(p.ref, p.tick, why))
                 return
+        self._fault_tick[j] = p.tick
         if p.action == "kill":
             self._killed.add(j)
         elif p.action == "restart":
@@ -406,6 +414,16 @@ class Lockstep:
         for ch in self.changes:
             self._out.append(Roster(ch, to=j))
         self._out.append(CatchUp(j))
+
+    def _change_tick(self, j: int, up: bool) -> int:
+        """The tick of the change a fault's liveliness news belongs to: the first one at or after
+        the fault's tick that makes vehicle j live (``up``) or gone (a pause's: when the lease
+        runs out, if planned); else the fault's own tick."""
+        since = self._fault_tick.get(j, 0)
+        want = "live" if up else "gone"
+        ticks = [c.tick for c in [*self._plan, *self._decided] if c.vehicle == j and c.tick >= since
+                 and c.state == want]
+        return min(ticks, default=since)
 
     def _frontier(self) -> int:
         return max(0, min(self.granted, self.last_tick))

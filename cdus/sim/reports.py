@@ -9,7 +9,10 @@ from __future__ import annotations
 from typing import Iterable, Sequence
 
 from cdus.core import graph as graphs
+from cdus.core.linkspec import LinkFaults
+from cdus.scenario.model import Scenario
 from cdus.wire.schemas import FleetEvent
+from cdus.wire.text import printable
 
 Pair = tuple[str, str]
 
@@ -35,6 +38,12 @@ def vehicle_back(t: float, vid: str, joins_at: int | None = None) -> FleetEvent:
     return FleetEvent.of(t, "vehicle_back", text, vehicle=vid)
 
 
+def link_state_event(t: float, link: str, state: str) -> FleetEvent:
+    """A directed link ``src->dst`` became up | lossy | down at ``t`` (its first message that saw it)."""
+    return FleetEvent.of(t, "link_state", f"link {link} {state} (from t = {t:.2f} s)",
+                         severity="warn" if state == "down" else "info", link=link)
+
+
 def graph_event(t: float, ids: Sequence[str], pairs: Iterable[Pair], alive: Iterable[str]) -> FleetEvent:
     """Whether the graph of the live vehicles still has a spanning tree (a warning if not)."""
     live = set(alive)
@@ -49,16 +58,81 @@ def graph_event(t: float, ids: Sequence[str], pairs: Iterable[Pair], alive: Iter
     return FleetEvent.of(t, "graph", f"the live graph ({len(members)} vehicles) still has a spanning tree")
 
 
-class ConsoleQuota:
-    """What to print of a stream of events: every event, but only the first ``per_link``
-    ``link_burst`` events of each link (a lossy link makes thousands), then one line saying
-    the rest are in metrics.json. Returns the lines to print for ``event`` (maybe none)."""
+#: link_state events before this simulated time that put a link in the state its [link] table
+#: gives it (lossy: it delays, drops or duplicates) are the design, not news: one line says them
+DESIGN_BEFORE_S = 1.0
 
-    def __init__(self, per_link: int = 3):
+
+def describe_faults(f: LinkFaults) -> str:
+    """A link's random faults in a few words: "loss 0.1, delay 0.05 s (uniform jitter 0.01 s)"."""
+    parts = []
+    if f.loss > 0.0:
+        parts.append(f"loss {f.loss:g}")
+    if f.burst is not None and f.burst.active:
+        parts.append(f"burst loss (p {f.burst.p:g}, r {f.burst.r:g}, about {f.burst.stationary_loss:.2g} of "
+                     "messages)")
+    if f.delay.active:
+        parts.append(f"delay {f.delay.base:g} s" + (f" ({f.delay.distribution} jitter {f.delay.jitter:g} s)"
+                                                    if f.delay.jitter > 0.0 else ""))
+    if f.duplicate > 0.0:
+        parts.append(f"duplicate {f.duplicate:g}")
+    return ", ".join(parts)
+
+
+def design_lines(scenario: Scenario) -> tuple[str, dict[str, str]]:
+    """The links lossy by design (the scenario's [link] table and overrides): one summary line,
+    "link faults from t = 0: loss 0.1 on 12 links (all)", groups of links with the same faults
+    separated by "; " (the links named when a group has at most 4), and each lossy link's
+    ``src->dst`` with its description. ("", {}) when no link is lossy by design."""
+    links = sorted({(e.k, e.i) for e in scenario.edges}, key=lambda sd: (scenario.ids.index(sd[0]),
+                                                                        scenario.ids.index(sd[1])))
+    groups: dict[str, list[str]] = {}
+    lossy: dict[str, str] = {}
+    for src, dst in links:
+        f = scenario.link.for_link(src, dst)
+        if f.active:
+            what = describe_faults(f)
+            groups.setdefault(what, []).append(f"{src}->{dst}")
+            lossy[f"{src}->{dst}"] = what
+    if not groups:
+        return "", {}
+    total = len(links)
+    parts = []
+    for what, names in groups.items():
+        n = len(names)
+        where = (f"{n} links (all)" if n == total else f"{n} of {total} links"
+                 + (f" ({', '.join(names)})" if n <= 4 else ""))
+        parts.append(f"{what} on {where}")
+    return "link faults from t = 0: " + "; ".join(parts), lossy
+
+
+class ConsoleQuota:
+    """What to print of a stream of events, the launcher's and ``cdus sim``'s alike
+    (:meth:`printed`): every event, but
+
+    - only the first ``per_link`` ``link_burst`` events of each link (a lossy link makes
+      thousands), then one line saying the rest are in metrics.json;
+    - with the ``scenario``: not a ``lossy`` line per link lossy by design as its first
+      messages go out (before DESIGN_BEFORE_S), but one line for them all, at the first
+      (:func:`design_lines`). A link's later changes (a down window, a ground station's
+      command) are printed as they come.
+
+    :meth:`lines` returns the lines to print for ``event`` (maybe none)."""
+
+    def __init__(self, per_link: int = 3, scenario: Scenario | None = None):
         self.per_link = per_link
         self.seen: dict[str | None, int] = {}
+        self.design, self._lossy = design_lines(scenario) if scenario is not None else ("", {})
+        self._design_said = False
 
     def lines(self, event: FleetEvent) -> list[str]:
+        if event.kind == "link_state" and event.link in self._lossy and event.t < DESIGN_BEFORE_S \
+                and event.text == link_state_event(event.t, event.link, "lossy").text:
+            del self._lossy[event.link]  # its first lossy line only: the design
+            if self._design_said:
+                return []
+            self._design_said = True
+            return [FleetEvent.of(event.t, "link_state", self.design).line()]
         if event.kind != "link_burst":
             return [event.line()]
         n = self.seen[event.link] = self.seen.get(event.link, 0) + 1
@@ -68,6 +142,10 @@ class ConsoleQuota:
             return [f"(further drop bursts on {event.link or 'this link'} are not printed; the metrics' events "
                     "have them all)"]
         return []
+
+    def printed(self, event: FleetEvent) -> list[str]:
+        """The console lines of ``event`` as the launcher and ``cdus sim`` print them."""
+        return [f"  event: {printable(line)}" for line in self.lines(event)]
 
 
 def formation_changed(tick: int, period: float, phases: Iterable[tuple[str, float]], by: str | None = None

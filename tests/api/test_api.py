@@ -96,6 +96,8 @@ def metric_dicts(tmp_path) -> dict[str, dict]:
     world["link"] = {k: world["link"][k] for k in ("sent", "delivered", "dropped", "duplicated", "rejected",
                                                    "latency_ms_p50", "latency_ms_p99", "missed_deadlines", "faults")}
     out["world"] = world
+    # the world's when the run never began (the launcher gave up waiting for a --remote vehicle)
+    out["not_started"] = {**world, "completed": False, "completion": "not_started", "never_up": ["uav2"]}
     return {k: json.loads(json.dumps(v)) for k, v in out.items()}  # as read back from the file
 
 
@@ -113,6 +115,7 @@ def test_metrics_read_from_any_writer_give_their_json_back_in_order(tmp_path):
     world = Metrics.from_dict(dicts["world"])
     assert world.rejected_by_reason.world == {"key": 2} and world.link.missed_deadlines == 0
     assert Metrics.from_dict(dicts["interrupted"]).interrupted is True and faults.interrupted is None
+    assert Metrics.from_dict(dicts["not_started"]).never_up == ("uav2",) and faults.never_up is None
 
 
 JSON = st.recursive(st.none() | st.booleans() | st.integers(-10, 10) | st.floats(allow_nan=False) | st.text(max_size=4),

@@ -105,6 +105,7 @@ def _started(monkeypatch):
     import cdus.app.cli as cli
 
     started = []
+    monkeypatch.setattr(cli, "check_listen", lambda eps: None)  # 7447 may be busy here; no router is opened
     monkeypatch.setattr(cli, "launch", lambda scenario, run, router, opts: (started.append((router, opts)),
                                                                              (0, _NoRun(run)))[1])
     return started
@@ -183,3 +184,30 @@ class _NoRun:
 
         self.metrics_out = Path(run) / "absent.json"
         self.logs = Path(run) / "logs"
+
+
+KILL = """
+[[event]]
+at = 1.0
+action = "kill"
+vehicle = "usv2"
+"""
+
+
+def test_sim_prints_the_fleets_events_as_launch_does(tmp_path, capsys):
+    """`cdus sim` printed no events; it prints them as the launcher does (ConsoleQuota.printed),
+    the links lossy by design in one line; -q prints none."""
+    from cdus.app.cli import main
+
+    cfg = tmp_path / "kill.toml"
+    cfg.write_text(open("configs/lake_circle.toml").read() + KILL)
+    args = ["sim", str(cfg), "--duration", "2", "--set", "link.loss=0.1", "--rerun", "off", "--runs-dir",
+            str(tmp_path / "runs")]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    events = [line for line in out.splitlines() if line.startswith("  event: ")]
+    assert events == ["  event: t = 0.00 s: link faults from t = 0: loss 0.1 on 12 links (all)",
+                      "  event: t = 1.00 s: scheduled kill of usv2 (t = 1 s)",
+                      "  event: t = 1.00 s: the live graph (5 vehicles) still has a spanning tree"]
+    assert main([*args, "-q"]) == 0
+    assert "event:" not in capsys.readouterr().out

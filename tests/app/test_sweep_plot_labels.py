@@ -45,3 +45,15 @@ def test_a_panel_with_nothing_to_show_has_no_scale(monkeypatch, tmp_path):
     fig = drawn_figure(monkeypatch, ["link.loss"], cells, tmp_path / "p.png")
     settle, error = fig.axes
     assert list(settle.get_yticks()) == [] and len(error.get_yticks()) > 0
+
+
+def test_the_x_axis_carries_its_unit_and_the_figure_says_what_the_error_bars_and_markers_are(monkeypatch, tmp_path):
+    """Paper cuts of issue 18: no unit on the x axis; error bars not named; "never" only as
+    missing points."""
+    cells = [_cell((("link.delay.base", d),), settle, [0.01, 0.02]) for d, settle in ((0.0, [10.0, 12.0]),
+                                                                                       (0.2, [11.0]))]
+    fig = drawn_figure(monkeypatch, ["link.delay.base"], cells, tmp_path / "p.png")
+    assert [ax.get_xlabel() for ax in fig.axes] == ["link.delay.base (s)"] * 2
+    assert "error bars: 95 % bootstrap CI of the mean" in fig.get_suptitle()
+    assert "▼: runs that never settled" in fig.axes[0].get_title()
+    assert "1/2 never" in [t.get_text() for t in fig.axes[0].texts]

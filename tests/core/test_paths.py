@@ -4,7 +4,7 @@ import math
 
 import pytest
 
-from cdus.core.paths import PathError, for_dimension, make_path, nearest_omega
+from cdus.core.paths import PathError, for_dimension, make_path, nearest_omega, turning_point
 
 TAU = 2.0 * math.pi
 
@@ -248,3 +248,37 @@ def test_nearest_omega_on_self_intersecting_stays_within_a_period_of_the_hint():
         w = nearest_omega(path, q, hint)
         assert abs(w - hint) <= path.period
         assert math.remainder(w - target, path.period) == pytest.approx(0.0, abs=1e-7)
+
+
+@pytest.mark.parametrize("frequency, phase, turns", [
+    ([1, 2], [0, 0], True),  # the default phases: a parabola traced back and forth
+    ([1, 2], [math.pi / 2, 0], True),  # x = -sin, y = 1 - 2x²: the same
+    ([1, 2], [0, math.pi / 2], False),  # a figure-eight
+    ([1, 1], [0, math.pi], True),  # a segment
+    ([1, 1], [0, math.pi / 2], False),  # an ellipse
+    ([2, 3], [1.0, 1.5], True),  # both axes turn at ω = -0.5/β
+    ([2, 3], [0.3, -0.2], False),
+    ([1, math.sqrt(2)], [0, 0], True),  # no period, still turns at 0
+    ([1, math.sqrt(2)], [0.3, 0.1], False),
+])
+def test_a_lissajous_turns_back_where_every_moving_axis_stops_at_once(frequency, phase, turns):
+    path = make_path({"family": "lissajous", "center": [0, 0], "amplitude": [20, 10], "frequency": frequency,
+                      "phase": phase, "beta": 0.37})
+    w = turning_point(path)
+    assert (w is not None) == turns
+    if turns:  # f' vanishes there and the curve is the same either side: vehicles meet on it
+        _, f1, _ = path.eval(w)
+        assert max(map(abs, f1)) < 1e-7
+        for tau in (0.1, 0.7, 2.3):
+            f, _, _ = path.eval(w + tau)
+            g, _, _ = path.eval(w - tau)
+            assert max(abs(a - b) for a, b in zip(f, g)) < 1e-7
+
+
+def test_only_a_lissajous_turns_back_and_a_boat_sees_its_x_y():
+    assert turning_point(make_path({"family": "circle", "center": [0, 0], "radius": 3})) is None
+    assert turning_point(make_path({"family": "self_intersecting"})) is None
+    assert turning_point(for_dimension(make_path({"family": "self_intersecting"}), 2)) is None
+    lifted = make_path({"family": "lissajous", "center": [0, 0, 5], "amplitude": [20, 10, 2],
+                        "frequency": [1, 2, 1], "phase": [0, 0, 1.0]})
+    assert turning_point(lifted) is None and turning_point(for_dimension(lifted, 2)) == 0.0

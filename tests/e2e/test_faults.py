@@ -103,6 +103,14 @@ vehicle = "usv2"
     news = ("fault", "vehicle_lost", "vehicle_back")
     assert [e for e in seen if e[0] in news] == [(e["kind"], e.get("vehicle")) for e in ref["events"]
                                                  if e["kind"] in news]
+    # at the same times: vehicle_back and the graph events of the scheduled changes carry their ticks
+    # (they said 169.98 s and 149.98 s, the newest tick recorded)
+    timed = ("fault", "vehicle_back")
+    assert [(e["kind"], e["t"]) for e in m["events"] if e["kind"] in timed] == \
+        [(e["kind"], e["t"]) for e in ref["events"] if e["kind"] in timed] == \
+        [("fault", 150.0), ("fault", 170.0), ("vehicle_back", 170.0)]
+    assert {e["t"] for e in m["events"] if e["kind"] == "graph"} == {e["t"] for e in ref["events"]
+                                                                      if e["kind"] == "graph"} == {150.0, 170.0}
     log = (run / "logs" / "usv2.log").read_text()
     assert "rejoining at tick 8500" in log, log[-2000:]  # t = 170 s exactly: the fleet waited for it
     assert m["coord_settle_s"] is not None and m["coord_settle_s"] > 170.0, m

@@ -151,3 +151,42 @@ def test_an_agent_that_dies_at_start_is_named_with_its_log_and_nothing_is_left(t
     assert "uav1 exited with status 3 during start-up" in text, text
     assert "boom: no radio" in text  # its log tail
     assert not fleet_processes(fleet)
+
+
+def test_launch_and_sim_print_the_same_event_lines_at_the_same_times(tmp_path, launches):
+    """One printer for both (cdus.sim.reports.ConsoleQuota.printed): the links lossy by design
+    in one line, the scheduled kill, and the graph event, stamped with the kill's tick in
+    lockstep too (it said 0.98 s for a kill at 1.00 s: the newest tick recorded)."""
+    cfg = tmp_path / "kill.toml"
+    cfg.write_text(open("configs/lake_circle.toml").read()
+                   + '\n[[event]]\nat = 1.0\naction = "kill"\nvehicle = "usv2"\n')
+    # 9 s after the kill: the world hears the killed process's token go (wall-clock news) before the
+    # run ends; news after the end is not reported (a 2 s run lost the graph line under load)
+    common = ["--duration", "10", "--set", "link.loss=0.1", "--rerun", "off"]
+    sim = run_cli(["sim", str(cfg), *common, "--runs-dir", str(tmp_path / "runs")])
+    assert sim.returncode == 0, sim.stderr
+    printed = sorted(ln for ln in sim.stdout.splitlines() if ln.startswith("  event: "))
+    assert printed == ["  event: t = 0.00 s: link faults from t = 0: loss 0.1 on 12 links (all)",
+                       "  event: t = 1.00 s: scheduled kill of usv2 (t = 1 s)",
+                       "  event: t = 1.00 s: the live graph (5 vehicles) still has a spanning tree"]
+    fleet = unique_fleet()
+    la = launches([str(cfg), *common, "--clock", "lockstep", "--logs", str(tmp_path / "run")], fleet)
+    assert la.wait() == 0, la.output()
+    assert sorted(ln for ln in la.output().splitlines() if ln.startswith("  event: ")) == printed, la.output()
+    assert not fleet_processes(fleet)
+
+
+def test_a_remote_vehicle_that_never_came_up_is_named_so_in_the_summary(tmp_path):
+    """It was listed as "not live at the end: killed or paused" with the run "interrupted"."""
+    run = tmp_path / "run"
+    r = run_cli(["launch", "configs/lake_circle.toml", "--remote", "uav2", "--ready-timeout", "20", "--rerun", "off",
+                 "--logs", str(run), "-q", "--fleet", unique_fleet()])
+    assert r.returncode == 1, r.stdout + r.stderr
+    assert "uav2 (started elsewhere) did not connect within 20 s" in r.stdout
+    # its neighbours' agents wait for its link before they declare themselves up: they never came up either
+    assert "NOT STARTED: uav1, uav2, uav3 never came up" in r.stdout and "killed or paused" not in r.stdout, r.stdout
+    rows = {ln.split()[0]: ln for ln in r.stdout.splitlines() if ln.startswith(("  usv", "  uav"))}
+    assert rows["uav2"].endswith("(never came up)")
+    assert rows["usv1"].endswith("(up, waiting for the others: the run never started)")
+    m = json.loads((run / "metrics.json").read_text())
+    assert m["completion"] == "not_started" and m["never_up"] == ["uav1", "uav2", "uav3"]

@@ -206,3 +206,33 @@ def test_a_section_override_is_checked_like_the_file():
         base(), {"supervision.max_restarts": -2})
     assert problems(base(), {"rates.control": -1}).startswith("x.toml: rates.control: must be a number > 0 Hz, got -1")
 
+
+
+def _lap(spec: dict, dim: int | None = None, n: int = 20000) -> tuple[float, float, float]:
+    """(lap length, min speed, max speed) at ω̇ = -1, by sampling one period."""
+    from cdus.core.paths import for_dimension
+
+    path = make_path(spec)
+    path = for_dimension(path, dim) if dim else path
+    T = path.period
+    speeds = [math.sqrt(sum(x * x for x in path.eval(T * (i + 0.5) / n)[1])) for i in range(n)]
+    return sum(speeds) * T / n, min(speeds), max(speeds)
+
+
+def test_the_path_table_of_the_user_reference_names_every_family_with_its_figures():
+    """docs/config.md, "Paths": every family, and the lap lengths and speeds it states."""
+    from cdus.core.paths import FAMILIES
+
+    doc = (pathlib.Path(__file__).parents[2] / "docs" / "config.md").read_text()
+    table = doc[doc.index("### Paths"):doc.index("**start.**")]
+    assert {f for f in FAMILIES if f"| `{f}` |" in table} == set(FAMILIES)
+    L, lo, hi = _lap({"family": "self_intersecting"})
+    assert (f"{L:.1f}", f"{lo:.2f}", f"{hi:.0f}") == ("88.1", "5.29", "10")
+    assert "88.1 m in 3-D" in table and "5.29 to 10 m/s" in table
+    L, lo, _ = _lap({"family": "self_intersecting"}, 2)
+    assert "86.1 m in x, y" in table and f"{L:.1f}" == "86.1" and f"{lo:.2f}" == "4.99"
+    L, lo, hi = _lap({"family": "trefoil", "center": [0, 0, 0]})
+    assert (f"{L:.1f}", f"{lo:.2f}", f"{hi:.2f}") == ("28.8", "3.90", "5.83") and "3.90 to 5.83 m/s" in table
+    L, _, _ = _lap({"family": "ellipse", "center": [0, 0], "a": 2, "b": 1})
+    assert f"{L:.2f}" == "9.69" and "9.69 m for a = 2, b = 1" in table
+    assert "refused" in table and "All\nphases 0 always do this" in table

@@ -129,3 +129,18 @@ def test_guidance_scaling_of_omega_is_off_unless_asked_for():
 ])
 def test_a_bad_guidance_table_names_the_field(table, fragment):
     check_bad(lambda d: d.__setitem__("guidance", table), fragment)
+
+
+def test_path_tol_defaults_by_plant_and_a_given_one_wins():
+    from cdus.scenario.config import parse_scenario
+    from tests.scenario.common import base
+
+    assert parse_scenario(base()).path_tol == 0.1  # ideal boats and drones
+    data = base()
+    data["vehicle"][0]["plant"] = "usv_3dof"
+    assert parse_scenario(data).path_tol == 0.15  # a usv_3dof boat (preset cybership2)
+    data["vehicle"][0]["epsilon"] = [-0.465, 1.310, 0.0388, -0.181, 0.362, -0.503, -0.763]
+    assert parse_scenario(data).path_tol == 0.15  # its own epsilon: cybership2's figure
+    data["metrics"] = {"path_tol": 0.05}
+    assert parse_scenario(data).path_tol == 0.05
+    assert parse_scenario(base(), overrides={"metrics.path_tol": 0.3}).path_tol == 0.3

@@ -228,3 +228,41 @@ def test_defaults_problem_says_where_it_was_set():
     data["defaults"] = {"plant": "usv_3dof", "kind": "usv"}
     assert 'vehicle[2] (id "uav1").plant: plant "usv_3dof" models a usv, not a uav (set in [defaults])' \
         in problems(data)
+
+
+def _liss(**kw) -> dict:
+    return {"family": "lissajous", "center": [0, 0], "amplitude": [20, 10], "frequency": [1, 2], **kw}
+
+
+def test_a_lissajous_path_that_runs_back_over_itself_is_refused_naming_its_phase():
+    """Zero phases (the default) make the 1:2 Lissajous a parabola traced back and forth: any
+    two vehicles on it meet head-on twice a lap. Refused, with the fix."""
+    text = problems(edit_paths(_liss()))
+    assert 'vehicle[0] (id "usv1").path.phase: this Lissajous path runs back over itself' in text
+    assert "stops at ω = 0" in text and "meet head-on twice a lap" in text and "phase = [0, 1.5708]" in text
+    assert 'vehicle[1] (id "usv2").path.phase' in text
+    # a 3-D curve that does not retrace, whose x, y (what a boat follows) does
+    three = {"family": "lissajous", "center": [0, 0, 10], "amplitude": [20, 10, 2], "frequency": [1, 2, 1],
+             "phase": [0, 0, 1.0]}
+    data = base()
+    data["vehicle"][2]["path"] = three
+    parse_scenario(data)  # the drone follows all three axes: fine
+    data["vehicle"][0]["path"] = three
+    assert "its x, y (what a usv follows) stops at ω = 0" in problems(data)
+    # one that moves on no axis a boat follows
+    data["vehicle"][0]["path"] = {**three, "amplitude": [0, 0, 2]}
+    assert "does not move (every amplitude or frequency is 0)" in problems(data)
+
+
+def test_a_figure_eight_and_the_papers_path_are_accepted():
+    s = parse_scenario(edit_paths(_liss(phase=[0, math.pi / 2])))
+    assert s.vehicle("usv1").path == s.vehicle("usv2").path
+    parse_scenario(edit_paths({"family": "self_intersecting", "d": 7}))
+
+
+def edit_paths(path: dict) -> dict:
+    data = base()
+    del data["vehicle"][2]
+    for v in data["vehicle"]:
+        v["path"] = path
+    return data

@@ -97,3 +97,40 @@ def test_lines_of_every_domain_and_of_old_metrics():
                      "not live then (killed or paused: counted where it stopped)  "
                      "[NEAR COLLISION: below the safety radius 2 m]")
     assert closest_lines({"safety": {"enabled": False, "radius_m": 2.0}}) == []  # metrics from before the field
+
+
+def test_the_summary_of_a_run_whose_remote_vehicles_never_came_up_says_so():
+    """Not "killed or paused" for vehicles that never came up (a --remote one nobody
+    started): the world's metrics name them (``never_up``), the others were up and waiting."""
+    from cdus.app.report import summary_table
+    from cdus.core.metrics import Recorder
+    from cdus.scenario.config import load_scenario
+    from cdus.sim.build import metric_edges
+    from cdus.sim.summary import run_metrics
+
+    sc = load_scenario("configs/lake_circle.toml")
+    rec = Recorder(list(sc.ids), [v.dim for v in sc.vehicles], metric_edges(sc))
+    m = run_metrics(sc, rec, mode="lockstep", link={}, wall_s=0.0, policy="hold", completed=False,
+                    completion="not_started", never_up=["usv1", "uav2"])
+    text = summary_table(m, sc.vehicles)
+    assert "killed or paused" not in text
+    assert "NOT STARTED: usv1, uav2 never came up; the run did not begin" in text
+    rows = {ln.split()[0]: ln for ln in text.splitlines()[3:9]}
+    assert rows["usv1"].endswith("(never came up)") and rows["uav2"].endswith("(never came up)")
+    assert rows["usv2"].endswith("(up, waiting for the others: the run never started)")
+
+
+def test_the_summary_says_why_usv_3dof_boats_never_settle_on_the_path():
+    from cdus.app.report import summary_table
+    from cdus.scenario.config import load_scenario
+    from cdus.sim.fleet import InProcessFleet
+
+    sc = load_scenario("configs/lake_circle_dynamic.toml", {"scenario.duration": 5.0})
+    m = InProcessFleet(sc).run().metrics
+    m.update(path_settle_s=None, path_tol=0.15,
+             final_path_error={**m["final_path_error"], "usv1": 0.1, "usv2": 0.2261, "usv3": 0.12})
+    text = summary_table(m, sc.vehicles)
+    assert "note: usv_3dof boats hold a steady offset from their path" in text
+    assert "usv2 ended 0.226 m off, above path_tol 0.15 m; set [metrics] path_tol above it" in text
+    m["final_path_error"]["usv2"] = 0.1  # the drones' errors are not the boats' offset
+    assert "note:" not in summary_table(m, sc.vehicles)

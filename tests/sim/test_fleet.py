@@ -219,3 +219,17 @@ def test_with_no_vehicle_live_nothing_is_settled():
     assert path[0] == 0.0 and np.isnan(path[1:]).all() and np.isnan(coord[1:]).all()
     m = rec.summary(scenario="x", mode="inproc", seed=1, path_tol=0.1, coord_tol=0.1, link={}, wall_s=1.0)
     assert m["path_settle_s"] is None and m["final_path_error_max"] is None and m["live_final"] == []
+
+
+def test_lake_circle_dynamic_settles_with_the_default_path_tol_and_a_margin():
+    """usv_3dof boats hold ~0.0997 m off a 10 m circle at 1 m/s (crab angle): the default 0.1 m
+    was met with 0.3 mm to spare. The file no longer sets path_tol; a fleet with such boats
+    defaults to 0.15 m, and the boats' offset sits well inside it."""
+    assert "path_tol" not in open("configs/lake_circle_dynamic.toml").read().split("[metrics]")[1].split("[")[0] \
+        .replace("# path_tol", "")
+    sc = load_scenario("configs/lake_circle_dynamic.toml", {"scenario.duration": 60.0})
+    assert sc.path_tol == 0.15
+    m = InProcessFleet(sc).run().metrics
+    boats = [m["final_path_error"][v.id] for v in sc.vehicles if v.plant == "usv_3dof"]
+    assert m["path_settle_s"] is not None and m["path_settle_s"] < 40.0
+    assert max(boats) < 0.8 * sc.path_tol and min(boats) > 0.09  # the offset is real, and inside the tolerance

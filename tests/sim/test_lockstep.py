@@ -451,3 +451,27 @@ def test_a_vehicle_back_before_its_loss_was_decided_is_the_same_process():
     assert ls.decide_drops() is None
     assert rosters(ls.poll()) == []
     assert ls.pending == set() and ls.changes == [] and ls.lost == set()
+
+
+def test_a_faults_liveliness_news_belongs_to_the_tick_of_its_roster_change():
+    """What the world stamps the news' events with (the graph event): the change's tick, not
+    the newest tick recorded (the tick before)."""
+    ls = started([Event(1.0, "restart", "b"), Event(2.0, "kill", "a"), Event(3.0, "pause", "c")])
+    step(ls)
+    ls.on_fault_done(1)
+    ls.on_alive(1, False)
+    assert ls.news_tick == 10 and ls.granted == 9
+    ls.on_alive(1, True)
+    assert ls.news_tick == 10
+    acts = step(ls)
+    assert [(e.kind, e.vehicle, e.t) for e in acts if isinstance(e, FleetEvent) and e.kind == "vehicle_back"] \
+        == [("vehicle_back", "b", 1.0)]
+    ls.on_fault_done(0)
+    ls.on_alive(0, False)
+    assert ls.news_tick == 20
+    step(ls, who=[1, 2])
+    ls.on_fault_done(2)
+    ls.on_alive(2, False)  # a paused process's token lapses: gone from the lease's end, tick 40
+    assert ls.news_tick == 40
+    ls.on_alive(0, False)  # no news: a repeat
+    assert ls.news_tick is None

@@ -508,3 +508,37 @@ def test_a_link_command_the_agents_would_refuse_is_rejected_not_relayed_or_repor
     assert not [e for e in w.events if e.kind == "link_changed"]
     w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("link", link={"loss": 0.2}, at=-1.0))))
     assert w.events[-1].kind == "link_changed"
+
+
+def test_the_graph_event_of_a_scheduled_kill_carries_the_kills_tick_as_in_process(tmp_path):
+    """A kill at 1.0 s (tick 50) is carried out once tick 49 is recorded; its liveliness news
+    used to be stamped with that newest tick (0.98 s). The in-process fleet says 1.00 s."""
+    from cdus.sim.fleet import InProcessFleet
+
+    w = started(world(tmp_path, events=EVENTS))
+    for j, vid in enumerate(w.ids):
+        send_rows(w, vid, [row(j, n) for n in range(w.lockstep.granted + 1)])
+    w._record_complete()
+    w._act(w.lockstep.poll())
+    assert w.next_tick == 50 and w._sim_now() == 0.98
+    w._handle(Sample(keys.world_cmd(FLEET, keys.LAUNCHER), Payload(encode_control("fault_done", vehicle="usv2"))))
+    w._on_alive("usv2", False)
+    got = [(e.kind, e.t) for e in w.events if e.kind in ("fault", "graph")]
+    assert got == [("fault", 1.0), ("graph", 1.0)]
+    ref = InProcessFleet(load_scenario(tmp_path / "ev.toml", {"scenario.duration": 1.5})).run().metrics
+    assert [(e["kind"], e["t"]) for e in ref["events"] if e["kind"] in ("fault", "graph")] == got
+
+
+def test_a_run_given_up_before_its_start_names_the_vehicles_that_never_came_up():
+    """The launcher gave up waiting for two vehicles (--remote ones nobody started) and asked
+    the world to stop: not started (it said "interrupted"), and who never came up."""
+    w = world()
+    for vid in ("usv2", "usv3", "uav1", "uav3"):
+        w._on_alive(vid, True)
+    w._handle(Sample(keys.world_cmd(FLEET, keys.LAUNCHER), Payload(encode_control("stop"))))
+    w.session = None
+    m = w.finish()
+    assert m["completion"] == "not_started" and m["never_up"] == ["usv1", "uav2"]
+    w = started(world())
+    w.session = None
+    assert "never_up" not in w.finish()  # a run that started has no such field

@@ -1,0 +1,62 @@
+"""The console lines of a fleet's events, the launcher's and `cdus sim`'s alike
+(cdus.sim.reports.ConsoleQuota.printed): links lossy by design are one line, not one per
+link; the in-process fleet reports link changes as the world does."""
+
+from __future__ import annotations
+
+from cdus.scenario.config import load_scenario
+from cdus.sim.fleet import InProcessFleet
+from cdus.sim.reports import ConsoleQuota, design_lines, link_state_event, scheduled_fault
+from cdus.wire.schemas import FleetEvent
+
+OVERRIDE = """
+[[link.override]]
+src = "*"
+dst = "uav1"
+loss = 0.2
+delay = { base = 0.05, jitter = 0.01 }
+"""
+
+
+def test_uniform_faults_are_one_group_of_every_link():
+    line, lossy = design_lines(load_scenario("configs/lake_circle.toml", {"link.loss": 0.1}))
+    assert line == "link faults from t = 0: loss 0.1 on 12 links (all)"
+    assert len(lossy) == 12 and set(lossy.values()) == {"loss 0.1"}
+    assert design_lines(load_scenario("configs/lake_circle.toml")) == ("", {})  # ideal: nothing by design
+
+
+def test_an_override_makes_a_group_of_its_own_with_its_links_named(tmp_path):
+    cfg = tmp_path / "o.toml"
+    cfg.write_text(open("configs/lake_circle.toml").read() + OVERRIDE)
+    line, lossy = design_lines(load_scenario(cfg))
+    assert line == ("link faults from t = 0: loss 0.2, delay 0.05 s (uniform jitter 0.01 s) on 2 of 12 links "
+                    "(usv3->uav1, uav2->uav1)")
+    assert set(lossy) == {"usv3->uav1", "uav2->uav1"}
+
+
+def test_links_lossy_by_design_are_one_console_line_and_later_changes_each_their_own():
+    sc = load_scenario("configs/lake_circle.toml", {"link.loss": 0.1})
+    console = ConsoleQuota(scenario=sc)
+    lossy = [link_state_event(0.0, f"{e.k}->{e.i}", "lossy") for e in sc.edges]
+    assert len(lossy) == 12
+    printed = [line for e in lossy for line in console.printed(e)]
+    assert printed == ["  event: t = 0.00 s: link faults from t = 0: loss 0.1 on 12 links (all)"]
+    later = [link_state_event(150.0, "usv1->usv2", "down"), link_state_event(160.0, "usv1->usv2", "lossy"),
+             scheduled_fault(7500, 0.02, "kill", "usv2")]
+    assert [line for e in later for line in console.printed(e)] == [
+        "  event: t = 150.00 s: link usv1->usv2 down (from t = 150.00 s)",
+        "  event: t = 160.00 s: link usv1->usv2 lossy (from t = 160.00 s)",
+        "  event: t = 150.00 s: scheduled kill of usv2 (t = 150 s)"]
+    # without the scenario (or for a link not lossy by design) each is its own line
+    bare = ConsoleQuota()
+    assert sum(len(bare.printed(e)) for e in lossy) == 12
+    assert ConsoleQuota(scenario=load_scenario("configs/lake_circle.toml")).printed(lossy[0]) == [
+        f"  event: t = 0.00 s: link {lossy[0].link} lossy (from t = 0.00 s)"]
+
+
+def test_the_in_process_fleet_reports_link_changes_as_events_as_the_world_does():
+    sc = load_scenario("configs/lake_circle.toml", {"link.loss": 0.1, "scenario.duration": 1.0})
+    events = [FleetEvent(**e) for e in InProcessFleet(sc).run().metrics["events"]]
+    states = [e for e in events if e.kind == "link_state"]
+    assert len(states) == 12 and {e.t for e in states} == {0.0}
+    assert states[0] == link_state_event(0.0, states[0].link, "lossy")
