@@ -31,8 +31,9 @@ from typing import Any, Mapping, Sequence
 
 from cdus.core.events import ACTIONS, Event
 from cdus.core.formation import MAX_PHASE, FormationChange, PathChange, phases_from_offsets
-from cdus.core.paths import FAMILIES, Path, PathError, for_dimension, make_path
+from cdus.core.paths import FAMILIES, Path, PathError, for_dimension, make_path, turning_point
 from cdus.scenario.checks import IdList, Problems, describe, is_number, quote, show
+from cdus.scenario.vehicles import retrace_message
 
 EVENT_KEYS = ("at", "action", "vehicle", "duration", "phases", "offsets", "path")
 REQUIRED = ("at", "action", "vehicle")
@@ -190,7 +191,11 @@ def check_path(table: Mapping[str, Any], dim: int) -> Path | tuple[str, str]:
     (cdus.core.paths.make_path), or ``(key, message)``: the key at fault ("" for the table)
     and what is wrong. Never raises on any data."""
     try:
-        return for_dimension(make_path(table), dim)
+        followed = for_dimension(make_path(table), dim)
+        turn = turning_point(followed)
+        if turn is not None:  # a retraced Lissajous, refused as the config refuses it
+            return "phase", retrace_message(dict(table), turn, dim)
+        return followed
     except PathError as e:
         if e.field == "family":
             return "family", (f"unknown path family {show(table.get('family'))}; choose one of {', '.join(FAMILIES)}"

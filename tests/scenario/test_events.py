@@ -221,3 +221,14 @@ def test_offsets_that_would_put_a_phase_beyond_the_limit_are_refused():
         parse_scenario(with_events({"at": 1, "action": "formation", "offsets": [
             {"i": "usv2", "k": "usv1", "delta": 9e8}, {"i": "uav1", "k": "usv2", "delta": 9e8}]}, topology="chain"))
     assert "event[0].offsets: these offsets put the phase of uav1 at 1.8e+09, beyond ±1e+09" in str(info.value)
+
+
+def test_a_run_time_path_that_retraces_itself_is_refused_as_the_config_refuses_it():
+    """A ground station's or an [[event]]'s new path is checked as [[vehicle]] paths are: a
+    Lissajous with all phases 0 runs back over itself (vehicles on it meet head-on)."""
+    from cdus.scenario.events import check_path
+    bad = check_path({"family": "lissajous", "center": [0, 0], "amplitude": [10, 10], "frequency": [1, 2]}, 2)
+    assert isinstance(bad, tuple) and bad[0] == "phase" and "runs back over itself" in bad[1]
+    good = check_path({"family": "lissajous", "center": [0, 0], "amplitude": [10, 10], "frequency": [1, 2],
+                       "phase": [0, 1.5708]}, 2)
+    assert not isinstance(good, tuple)
