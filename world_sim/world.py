@@ -54,7 +54,7 @@ from cdus.wire.messages import (
     COMMAND_OPS, StateMsg, decode_control, decode_states, encode_contacts, encode_control, encode_states,
 )
 from cdus.wire.schemas import (
-    ID_RE, ORIGIN_WORLD, AgentStats, CommandReply, FleetEvent, decode_stats, encode_event, encode_reply,
+    ID_RE, MAX_REASON, ORIGIN_WORLD, AgentStats, CommandReply, FleetEvent, decode_stats, encode_event, encode_reply,
     encode_status,
 )
 from cdus.wire.text import printable
@@ -454,7 +454,7 @@ class World:
 
     def _reply(self, query: Any, op: str, by: str, v: Verdict) -> None:
         t = v.t if v.t is not None else (None if v.tick is None else v.tick * self.period)
-        reply = CommandReply("applied" if v.applied else "rejected", op, printable(v.reason, 300),
+        reply = CommandReply("applied" if v.applied else "rejected", op, printable(v.reason, MAX_REASON),
                              v.tick if v.applied else None, t if v.applied else None, by if ID_RE.match(
                                  by.replace(":", "_", 1)) else "")
         try:
@@ -622,7 +622,7 @@ class World:
         self._reject(sender, reason)
         self._note(FleetEvent.of(self._sim_now(), "rejected",
                                  f"{what} from {printable(sender, 64)}: {printable(why, 200)}"))
-        return printable(why, 200)
+        return printable(why, MAX_REASON)  # the ground station's reply keeps all a reply may hold
 
     def _relay_formation(self, fields: dict, sender: str) -> Verdict | str:
         """A ground station's formation change: phases ``{id: θ}`` or offsets ``[{i, k, delta}]``
@@ -638,7 +638,8 @@ class World:
         if phases:
             checked = check_phases(phases, self.ids)
             if isinstance(checked, tuple):
-                return self._refuse(sender, "formation", "formation", f"phases {checked[0]}: {checked[1]}")
+                where = f"phases.{checked[0]}" if checked[0] else "phases"
+                return self._refuse(sender, "formation", "formation", f"{where}: {checked[1]}")
         else:
             given = check_offsets(offsets, self.ids, sc.edges, sc.directed)
             if isinstance(given, tuple):
@@ -654,7 +655,7 @@ class World:
             self.pub_ctl.put(payload)
             self._commands.append((None, payload))
         self._note(formation_changed(tick, self.period, ordered, sender))
-        return Verdict(True, "", tick)
+        return Verdict(True, "" if ordered else "no phase changed: the offsets given were in force", tick)
 
     def _relay_path(self, fields: dict, sender: str) -> Verdict | str:
         """A ground station's new path for one vehicle, checked as the config's paths are, relayed

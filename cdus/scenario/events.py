@@ -305,6 +305,10 @@ def check_offsets(raw: Any, ids: Sequence[str], edges: Sequence[Any], directed: 
     return out
 
 
+#: a cycle of more vehicles than this is shown by its ends in a refusal
+MAX_CYCLE_SHOWN = 8
+
+
 def offsets_to_phases(ids: Sequence[str], current: Sequence[float], edges: Sequence[Any],
                       offsets: Mapping[tuple[str, str], float], directed: bool) -> dict[str, float] | str:
     """The phase updates for ``offsets`` (cdus.core.formation.phases_from_offsets), or why the
@@ -312,10 +316,12 @@ def offsets_to_phases(ids: Sequence[str], current: Sequence[float], edges: Seque
     found = phases_from_offsets(ids, current, [(e.i, e.k) for e in edges], offsets, directed)
     if isinstance(found, tuple):
         cycle, total = found
-        return (f"inconsistent formation offsets: around the cycle {' -> '.join(cycle)} the deltas (the ones given, "
-                f"and the ones in force on the other edges) sum to {total:.6g}, not 0, so ω_i - ω_k -> Δ_ik cannot "
-                f"hold on every edge; give per-vehicle phases instead (phases = {{ id = θ, ... }}: "
-                f"Δ_ik = θ_i - θ_k always closes), or offsets on every edge of the cycle that sum to 0")
+        hops = " -> ".join(cycle) if len(cycle) <= MAX_CYCLE_SHOWN else (
+            f"{' -> '.join(cycle[:3])} -> ... ({len(cycle) - 5} more) -> {' -> '.join(cycle[-2:])}")
+        # the fix before the cycle: a ground station's reply (cut at 300 characters) keeps it
+        return (f"inconsistent formation offsets: with those in force on the other edges they sum to {total:.6g}, "
+                f"not 0, around a cycle; give per-vehicle phases instead (Δ_ik = θ_i - θ_k always closes) or offsets on every "
+                f"edge of the cycle that sum to 0; the cycle: {hops}")
     far = [vid for vid, theta in found.items() if not abs(theta) <= MAX_PHASE]
     if far:  # every process takes phases within ±MAX_PHASE only
         return (f"these offsets put the phase of {far[0]} at {found[far[0]]:.6g}, beyond ±{MAX_PHASE:g} ω units; "

@@ -155,7 +155,8 @@ def formation_changed(tick: int, period: float, phases: Iterable[tuple[str, floa
     t = tick * period
     text = ", ".join(f"{vid} = {theta:.6g}" for vid, theta in phases)
     who = f" by {by}" if by else " (scheduled)"
-    return FleetEvent.of(t, "formation_changed", f"formation phases {text} from tick {tick} (t = {t:g} s){who}")
+    what = f"formation phases {text}" if text else "formation unchanged (the offsets given were in force)"
+    return FleetEvent.of(t, "formation_changed", f"{what} from tick {tick} (t = {t:g} s){who}")
 
 
 def path_changed(tick: int, period: float, vid: str, table: Iterable[tuple[str, object]], by: str | None = None

@@ -176,7 +176,7 @@ def test_offsets_that_do_not_close_around_a_cycle_are_refused_naming_the_field_a
         parse_scenario(with_events({"at": 1, "action": "formation",
                                     "offsets": [{"i": "usv2", "k": "usv1", "delta": 1.0}]}))  # a ring of 3
     text = str(info.value)
-    assert "event[0].offsets: inconsistent formation offsets: around the cycle usv1 -> " in text
+    assert "event[0].offsets: inconsistent formation offsets: with those in force" in text
     assert "give per-vehicle phases instead" in text
 
 

@@ -36,7 +36,7 @@ def test_offsets_are_turned_into_phases_or_refused_with_the_cycle():
     w.lockstep.granted = 9
     ring = w.scenario  # the lake ring: a single edge's offset cannot close the 6-cycle
     why = w._relay_formation({"phases": {}, "offsets": [{"i": "usv2", "k": "usv1", "delta": 1.0}]}, "gs1")
-    assert why is not None and "inconsistent formation offsets: around the cycle" in why
+    assert why is not None and "inconsistent formation offsets: with those in force" in why and "the cycle: usv1 -> " in why
     assert w.st.rejects["formation"] == 1 and w.events[-1].kind == "rejected" and not ctl_ops(w)
     assert ring.directed is False
     for bad in ({"phases": {}, "offsets": []}, {"phases": {"usv1": 1.0}, "offsets": [{"i": "a"}]},
@@ -127,3 +127,38 @@ def test_hostile_formation_and_path_commands_never_raise_and_are_applied_or_coun
     assert all("\x1b" not in e.text for e in w.events)
     f = w.recorder.formation
     assert all(math.isfinite(x) for x in f.phases_at(2**40))
+
+
+def test_a_refused_formation_is_answered_whole_with_the_fix_and_a_no_op_says_so():
+    """Tried as a newcomer (rev18-user): the reply to inconsistent offsets was cut at 200 characters
+    before it named the fix; an unknown id read 'phases : ...'; offsets already in force logged
+    'formation phases  from tick ...'."""
+    from cdus.wire.schemas import MAX_REASON
+    w = world()
+    w.lockstep.granted = 9
+    why = w._relay_formation({"phases": {}, "offsets": [{"i": "usv2", "k": "usv1", "delta": 3.0}]}, "gs1")
+    assert isinstance(why, str) and "…" not in why  # printable(why, MAX_REASON) kept it whole
+    assert "or offsets on every edge of the cycle that sum to 0" in why and "give per-vehicle phases instead" in why
+    assert why.endswith("usv3 -> uav1 -> uav2 -> uav3 -> usv1")
+    why = w._relay_formation({"phases": {"usv9": 1.0}, "offsets": []}, "gs1")
+    assert why.startswith('phases: "usv9" is not a vehicle'), why
+    assert w._relay_formation({"phases": {"usv2": 1e300}, "offsets": []}, "gs1").startswith("phases.usv2: ")
+    in_force = w.recorder.formation.phases_at(10)
+    delta = in_force[w.ids.index("usv2")] - in_force[w.ids.index("usv1")]
+    v = w._relay_formation({"phases": {}, "offsets": [{"i": "usv2", "k": "usv1", "delta": delta}]}, "gs1")
+    assert v.applied and v.tick == 10 and "no phase changed" in v.reason
+    assert w.events[-1].kind == "formation_changed" and "formation unchanged" in w.events[-1].text
+    assert "phases  from" not in w.events[-1].text
+
+
+def test_a_long_cycle_is_shown_by_its_ends_so_the_fix_fits_a_reply():
+    from types import SimpleNamespace
+
+    from cdus.scenario.events import offsets_to_phases
+    from cdus.wire.schemas import MAX_REASON
+    from cdus.wire.text import printable
+    ids = [f"vehicle{j:03d}" for j in range(40)]
+    edges = [SimpleNamespace(i=ids[j], k=ids[(j + 1) % 40]) for j in range(40)]
+    why = offsets_to_phases(ids, [0.0] * 40, edges, {(ids[0], ids[1]): 1.0}, False)
+    assert isinstance(why, str) and "that sum to 0; the cycle" in printable(why, MAX_REASON)
+    assert "vehicle002 -> ... (36 more) -> vehicle039 -> vehicle000" in why and "that sum to 0; the cycle" in why
