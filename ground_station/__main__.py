@@ -248,8 +248,26 @@ def _unreachable(transport, e: Exception) -> int:
     return EXIT_NO_ANSWER
 
 
+def _config_problem(path: str | None) -> str | None:
+    """Why the ``--zenoh-config`` file cannot be used (missing, unreadable, not json5), else None:
+    a usage error said as such, not a router that "refused this session"."""
+    if not path:
+        return None
+    try:
+        zenoh.Config.from_file(path)
+    except (zenoh.ZError, OSError) as e:
+        why = " ".join(str(e).split(" at /")[0].split())  # one line, not the Rust source path
+        return (f"--zenoh-config {path}: cannot be read as a Zenoh config: {why}; use the credentials file "
+                "cdus launch printed (RUN/secure/ground.json5)")
+    return None
+
+
 def main(argv=None, prog: str = "python -m ground_station") -> int:
     args = build_parser(prog).parse_args(argv)
+    problem = _config_problem(args.zenoh_config)
+    if problem:
+        print(f"error: {problem}\nnothing was sent.", file=sys.stderr)
+        return EXIT_USAGE
     transport = with_default_endpoint(transport_from_args(args))
     if transport.connect and not transport.config_file:
         transport = replace(transport, extra=(*transport.extra, ("connect/timeout_ms", str(GS_CONNECT_TIMEOUT_MS))))
@@ -308,6 +326,8 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
             return _report(gs.command("set_gains", timeout=args.timeout, gains=gains, vehicle=args.vehicle or ""),
                            f"gains {gains} for {args.vehicle or 'every vehicle'}")
         elif args.action == "formation":
+            for vid in [*change["phases"], *(x for o in change["offsets"] for x in (o["i"], o["k"]))]:
+                _check_vehicle(vid, ids)
             return _report(gs.command("formation", timeout=args.timeout, **change),
                            f"formation {change['phases'] or change['offsets']}")
         elif args.action == "path":

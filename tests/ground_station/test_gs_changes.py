@@ -42,3 +42,16 @@ def test_the_subcommands_parse_and_bad_arguments_exit_2_before_connecting(capsys
     assert args.action == "path" and args.vehicle == "uav1"
     assert main(["--fleet", "f", "-e", "tcp/127.0.0.1:9", "formation", "phases.usv2=x"]) == 2
     assert "phases.usv2" in capsys.readouterr().err
+
+
+def test_a_zenoh_config_that_cannot_be_read_is_a_usage_error_naming_the_file(tmp_path, capsys):
+    """A typo in --zenoh-config said "the fleet's router ... is up but refused or closed this
+    session, which had the settings of FILE" (exit 4), or "could not reach" (exit 3) with
+    nobody there; it is the command line that is wrong (rev18-user)."""
+    bad = tmp_path / "bad.json5"
+    bad.write_text("{ not json")
+    for path, why in ((tmp_path / "missing.json5", "No such file"), (bad, "cannot be read as a Zenoh config")):
+        assert main(["--fleet", "f", "-e", "tcp/127.0.0.1:9", "--zenoh-config", str(path), "status"]) == 2
+        err = capsys.readouterr().err
+        assert f"--zenoh-config {path}" in err and why in err and "ground.json5" in err, err
+        assert "nothing was sent" in err and "refused" not in err
