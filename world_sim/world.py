@@ -166,6 +166,7 @@ class World:
         self._commands: list[tuple[str | None, bytes]] = []  # run-time link and gains commands, for (re)joiners
         self._console = ConsoleQuota(scenario=scenario)
         self._rt_expect: dict[str, set[str]] = {}  # realtime: liveliness changes a fault we asked for explains
+        self._rt_faulted: dict[str, str] = {}  # realtime: "killed" | "paused", by the faults asked for
         self.log = log or (lambda s: print(f"[world] {s}", flush=True))
         self.next_tick = 0  # next tick to record
         self.events: list[FleetEvent] = []
@@ -586,6 +587,10 @@ class World:
         if self.clock == "lockstep":
             tick = self.lockstep.vehicle_fault(action, self.index[vid], by=by, ref=self._command_ref)
             return LATER if self._command_ref is not None else Verdict(True, "", tick)
+        moot = self._rt_moot(vid, action)
+        if moot:
+            self._note(FleetEvent.of(self._sim_now(), "rejected", f"{action} of {vid} by {by}: {moot}", vehicle=vid))
+            return moot
         self.pub_launcher.put(encode_control(op, vehicle=vid))
         self._expect_news(vid, action)
         self._note(FleetEvent.of(self._sim_now(), "fault", f"{action} of {vid} by {by}", vehicle=vid))
@@ -731,6 +736,18 @@ class World:
         launcher for will cause (a paused process's token lapses with the lease)."""
         self._rt_expect[vid] = {"kill": {"down"}, "pause": {"down"}, "resume": set(),
                                 "restart": {"down"}}.get(action, set())
+        if action == "kill" or action == "pause" and self._rt_faulted.get(vid) != "killed":
+            self._rt_faulted[vid] = "killed" if action == "kill" else "paused"
+        elif action in ("resume", "restart") and (action == "restart" or self._rt_faulted.get(vid) == "paused"):
+            self._rt_faulted.pop(vid, None)
+
+    def _rt_moot(self, vid: str, action: str) -> str | None:
+        """Realtime: why a ground station's fault would do nothing (as Lockstep finds it on its
+        tick: a pause of a vehicle not live, a resume of a live or killed one, a kill of a killed
+        one), else None."""
+        now = self._rt_faulted.get(vid) or ("live" if vid in self.st.alive else "gone")
+        moot = {"pause": now != "live", "resume": now in ("live", "killed"), "kill": now == "killed"}.get(action)
+        return f"{vid} is {now} (nothing done)" if moot else None
 
     def _replay_commands(self, vid: str) -> None:
         """A (re)started or resumed process missed the ground stations' link and gains commands

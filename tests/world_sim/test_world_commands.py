@@ -134,9 +134,39 @@ def test_a_fault_still_waiting_at_the_end_is_answered_rejected():
 
 def test_realtime_vehicle_faults_are_answered_at_once():
     w = world(clock="realtime")
+    for vid in w.ids:
+        w._on_alive(vid, True)
     r = ask(w, "pause_vehicle", vehicle="uav1").answer
     assert r.applied and r.tick == 0 and "launcher" in r.reason
     assert decode_control(w.pub_launcher.puts[-1], LAUNCHER_OPS).op == "pause_vehicle"
+
+
+def test_realtime_a_fault_with_nothing_to_do_is_rejected_as_in_lockstep():
+    """Tried as a newcomer (rev18-user): in realtime a second kill of a killed vehicle, or a
+    second pause of a paused one, was answered "applied" and logged as a fault again."""
+    w = world(clock="realtime")
+    for vid in w.ids:
+        w._on_alive(vid, True)
+    asked = lambda: [(c.op, c.fields["vehicle"]) for c in (decode_control(p, LAUNCHER_OPS)
+                                                           for p in w.pub_launcher.puts)]
+    steps = [("kill", "usv2", True), ("kill", "usv2", False), ("pause_vehicle", "usv2", False),
+             ("resume_vehicle", "usv2", False), ("restart", "usv2", True),
+             ("pause_vehicle", "uav1", True), ("pause_vehicle", "uav1", False), ("kill", "uav1", True),
+             ("resume_vehicle", "usv3", False), ("restart", "uav1", True), ("pause_vehicle", "uav1", True),
+             ("resume_vehicle", "uav1", True), ("resume_vehicle", "uav1", False)]
+    for op, vid, applied in steps:
+        if op == "restart" or op == "resume_vehicle" and applied:
+            w._on_alive(vid, True)
+        r = ask(w, op, vehicle=vid).answer
+        assert r.applied == applied, (op, vid, r)
+        if not applied:
+            assert r.reason.endswith("(nothing done)") and vid in r.reason, r
+        if op in ("kill", "pause_vehicle") and applied:
+            w._on_alive(vid, False)  # the token lapses
+    assert asked() == [(op, vid) for op, vid, applied in steps if applied]
+    assert ask(w, "kill", vehicle="usv2").answer.applied  # restarted: live again
+    assert ask(w, "kill", vehicle="usv2").answer.reason == "usv2 is killed (nothing done)"
+    assert [e.kind for e in w.events if e.kind in ("fault", "rejected")].count("rejected") == 7
 
 
 def test_only_the_launcher_reports_a_fault_done_and_unreadable_commands_are_answered():
