@@ -574,7 +574,9 @@ class World:
         self.st.link_commanded = True
         self._note(FleetEvent.of(self._sim_now(), "link_changed",
                                  f"link faults changed from t = {at:.2f} s by {by}: {printable(f['link'], 200)}"))
-        return Verdict(True, "", max(0, math.ceil(at / self.period - 1e-9)), float(at))
+        late = (f"t = {f['at']:g} s asked had passed: from the first time every receiver can take it"
+                if 0 <= f["at"] < at else "")
+        return Verdict(True, late, max(0, math.ceil(at / self.period - 1e-9)), float(at))
 
     def _cmd_vehicle_fault(self, f: dict, by: str) -> Verdict | str:
         """kill | pause_vehicle | resume_vehicle | restart, by the op in the fields' command."""

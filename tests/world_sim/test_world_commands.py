@@ -95,7 +95,12 @@ def test_gains_and_link_are_answered_with_their_tick_or_why_they_were_refused():
     assert r.status == "rejected" and "loss" in r.reason
     r = ask(w, "link", link={"loss": 0.1}, at=-1.0).answer
     at = max(LINK_LEAD, (g + 1) * w.period)
-    assert r.applied and r.t == at and r.tick * w.period >= at - 1e-12
+    assert r.applied and r.t == at and r.tick * w.period >= at - 1e-12 and r.reason == ""
+    # an --at already past is moved, and the answer says so (it said nothing: rev18-user)
+    r = ask(w, "link", link={"loss": 0.2}, at=0.0).answer
+    assert r.applied and r.t > 0 and r.reason.startswith("t = 0 s asked had passed"), r
+    r = ask(w, "link", link={"loss": 0.2}, at=1000.0).answer
+    assert r.applied and r.t == 1000.0 and r.reason == ""
     assert w.st.rejects["gains"] == 3 and w.st.rejects["link"] == 1
 
 
