@@ -554,6 +554,10 @@ class World:
         return self._relay_gains(f["gains"], f["vehicle"], by)
 
     def _cmd_link(self, f: dict, by: str) -> Verdict | str:
+        if f["at"] >= self.duration:  # it would be answered "applied" and never apply
+            return self._refuse(by, "link", "link command",
+                                f"--at {f['at']:g} s is not before the end of the run ({self.duration:g} s): "
+                                "it would change nothing; give a time within the run")
         merged = merge_link_tables(self._link_table, f["link"])
         try:  # the agents' own check, made before relaying: a table they would refuse is no change
             validate_link(merged, self.ids, "link command")

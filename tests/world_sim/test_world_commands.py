@@ -99,9 +99,12 @@ def test_gains_and_link_are_answered_with_their_tick_or_why_they_were_refused():
     # an --at already past is moved, and the answer says so (it said nothing: rev18-user)
     r = ask(w, "link", link={"loss": 0.2}, at=0.0).answer
     assert r.applied and r.t > 0 and r.reason.startswith("t = 0 s asked had passed"), r
-    r = ask(w, "link", link={"loss": 0.2}, at=1000.0).answer
-    assert r.applied and r.t == 1000.0 and r.reason == ""
-    assert w.st.rejects["gains"] == 3 and w.st.rejects["link"] == 1
+    r = ask(w, "link", link={"loss": 0.2}, at=w.duration - 1).answer
+    assert r.applied and r.t == w.duration - 1 and r.reason == ""
+    # one at or past the end would never apply: refused, not "applied" (rev18-user)
+    r = ask(w, "link", link={"loss": 0.3}, at=w.duration).answer
+    assert r.status == "rejected" and "not before the end of the run" in r.reason, r
+    assert w.st.rejects["gains"] == 3 and w.st.rejects["link"] == 2
 
 
 def test_a_lockstep_vehicle_fault_is_answered_when_it_lands_on_its_tick():
