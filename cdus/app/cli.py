@@ -289,8 +289,8 @@ def cmd_launch(args: argparse.Namespace) -> int:
 
 
 INSECURE_ALLOWS = ("anyone who reaches {eps} can, without any credential: stop, pause or resume the fleet; change "
-                   "its gains and link faults; have the launcher kill, pause or restart any vehicle; publish "
-                   "any vehicle's ω and telemetry (steering the formation, forging results); forge the world's clock "
+                   "its gains, link faults, formation and paths; have the launcher kill, pause or restart any "
+                   "vehicle; publish any vehicle's ω and telemetry (steering the formation, forging results); forge the world's clock "
                    "and roster (a lockstep run can be made to stop or hang); flood any key (docs/security.md)")
 
 

@@ -146,6 +146,7 @@ def test_insecure_runs_open_on_loopback_and_says_what_it_allows(tmp_path, capsys
     out, err = capsys.readouterr()
     assert "WARNING: --insecure: anyone who reaches this router (tcp/127.0.0.1:" in err
     assert "any process of this host) can, without any credential: stop" in err
+    assert "change its gains, link faults, formation and paths" in err  # issue 18's commands too
     assert "--zenoh-config" not in out and "secured" not in out
 
 
