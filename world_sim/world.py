@@ -1024,7 +1024,8 @@ class World:
         if self.clock == "lockstep":
             n = max(0, self.next_tick)
             return {vid: self.lockstep.state_at(j, n) for j, vid in enumerate(self.ids)}
-        return {vid: "live" if vid in self.st.alive else "gone" for vid in self.ids}
+        return {vid: "live" if vid in self.st.alive else "paused" if self._rt_faulted.get(vid) == "paused" else "gone"
+                for vid in self.ids}  # a vehicle a fault paused says so (its token lapsed: it was shown "gone")
 
     def _processes(self) -> list[AgentStats]:
         """The last stats of every agent process of the run, restarted ones' included."""
