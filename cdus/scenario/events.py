@@ -318,10 +318,11 @@ def offsets_to_phases(ids: Sequence[str], current: Sequence[float], edges: Seque
         cycle, total = found
         hops = " -> ".join(cycle) if len(cycle) <= MAX_CYCLE_SHOWN else (
             f"{' -> '.join(cycle[:3])} -> ... ({len(cycle) - 5} more) -> {' -> '.join(cycle[-2:])}")
+        rounded = " (rounded numbers? give them to full precision)" if abs(total) < 1e-3 else ""
         # the fix before the cycle: a ground station's reply (cut at 300 characters) keeps it
         return (f"inconsistent formation offsets: with those in force on the other edges they sum to {total:.6g}, "
-                f"not 0, around a cycle; give per-vehicle phases instead (Δ_ik = θ_i - θ_k always closes) or offsets on every "
-                f"edge of the cycle that sum to 0; the cycle: {hops}")
+                f"not 0{rounded}, around a cycle; give per-vehicle phases instead (Δ_ik = θ_i - θ_k always "
+                f"closes) or offsets on every edge of the cycle that sum to 0; the cycle: {hops}")
     far = [vid for vid, theta in found.items() if not abs(theta) <= MAX_PHASE]
     if far:  # every process takes phases within ±MAX_PHASE only
         return (f"these offsets put the phase of {far[0]} at {found[far[0]]:.6g}, beyond ±{MAX_PHASE:g} ω units; "

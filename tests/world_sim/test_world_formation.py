@@ -162,3 +162,18 @@ def test_a_long_cycle_is_shown_by_its_ends_so_the_fix_fits_a_reply():
     why = offsets_to_phases(ids, [0.0] * 40, edges, {(ids[0], ids[1]): 1.0}, False)
     assert isinstance(why, str) and "that sum to 0; the cycle" in printable(why, MAX_REASON)
     assert "vehicle002 -> ... (36 more) -> vehicle039 -> vehicle000" in why and "that sum to 0; the cycle" in why
+
+
+def test_offsets_off_by_a_rounding_say_so():
+    """`offsets.usv2.usv1=3.1416 offsets.usv3.usv2=1.0472` on lake_circle (in force: 2π/3 on each)
+    sum to -9.8e-06 around the ring: refused, and the answer says to give full digits."""
+    w = world()
+    w.lockstep.granted = 9
+    why = w._relay_formation({"phases": {}, "offsets": [{"i": "usv2", "k": "usv1", "delta": 3.1416},
+                                                        {"i": "usv3", "k": "usv2", "delta": 1.0472}]}, "gs1")
+    assert isinstance(why, str) and "not 0 (rounded numbers? give them to full precision)" in why, why
+    v = w._relay_formation({"phases": {}, "offsets": [{"i": "usv2", "k": "usv1", "delta": math.pi},
+                                                      {"i": "usv3", "k": "usv2", "delta": math.pi / 3}]}, "gs1")
+    assert v.applied, v
+    why = w._relay_formation({"phases": {}, "offsets": [{"i": "usv2", "k": "usv1", "delta": 3.0}]}, "gs1")
+    assert "rounded" not in why
