@@ -350,7 +350,7 @@ class GroundStation:
             return Answer("no_answer", None, "; ".join(problems))
         if waited < timeout * 0.9 and self.world_up():
             user = credentials_user(self.transport.config_file)
-            who = f" (these credentials are {user!r}'s)" if user else ""
+            who = f" (these are the credentials of {user!r})" if user else ""
             return Answer("denied", None,
                           f"denied: the fleet's router refused this command{who}; only the ground station's "
                           "credentials may command a secured fleet: use --zenoh-config RUN/secure/ground.json5 "

@@ -71,7 +71,8 @@ def test_nothing_back_at_once_from_a_fleet_whose_world_is_up_is_a_denial(tmp_pat
     cfg.write_text(json.dumps({"transport": {"auth": {"usrpwd": {"user": "vehicle-usv1", "password": "pw"}}}}))
     a = station([], config_file=str(cfg)).command("stop", timeout=5.0)
     assert (a.outcome, a.code) == ("denied", 4)
-    assert "'vehicle-usv1'" in a.detail and "RUN/secure/ground.json5" in a.detail and "pw" not in a.detail
+    assert "(these are the credentials of 'vehicle-usv1')" in a.detail  # was "are 'vehicle-usv1''s"
+    assert "RUN/secure/ground.json5" in a.detail and "pw" not in a.detail
     a = station([], world_up=False).command("stop", timeout=5.0)  # nobody there: not a denial
     assert (a.outcome, a.code) == ("no_answer", 3) and "no world took the command" in a.detail
     a = station([], delay=0.2).command("stop", timeout=0.2)  # the whole timeout: silence
