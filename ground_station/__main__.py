@@ -1,7 +1,8 @@
 """python -m ground_station (or `cdus gs`): watch and command a running fleet.
 
-    cdus gs --fleet lake_circle -e tcp/127.0.0.1:7447 status          # live table (Ctrl-C to leave)
-    cdus gs --fleet lake_circle -e tcp/127.0.0.1:7447 status --once   # one table, for scripts
+    cdus gs --fleet lake_circle -e tcp/127.0.0.1:7447 --zenoh-config RUN/secure/ground.json5 status
+                                                                       # live table (Ctrl-C to leave)
+    cdus gs ... status --once                                          # one table, for scripts
     cdus gs ... status --json                                          # one JSON snapshot
     cdus gs ... watch --jsonl                                          # a JSON line per status and event
     cdus gs ... snapshot FILE                                          # the fleet's state to FILE (JSON)
@@ -9,8 +10,9 @@
     cdus gs ... link loss=0.3 delay.base=0.1 [--at 120]                # link faults from sim time t
     cdus gs ... gains k=2 c=1 [--vehicle usv1]                         # guidance gains
     cdus gs ... kill usv2 | restart usv2 | pause-vehicle usv2 | resume-vehicle usv2
-    cdus gs ... formation phases.usv2=10.47 phases.uav1=0          # new phases (ω units), others kept
-    cdus gs ... formation offsets.usv2.usv1=2.09                   # or offsets on edges (usv2 listens to usv1)
+    cdus gs ... formation phases.usv2=3.1416 phases.uav2=3.1416      # new phases (ω units), others kept
+    cdus gs ... formation offsets.usv2.usv1=3.141592653589793 offsets.usv3.usv2=1.0471975511965976
+                                # or offsets on edges (usv2 listens to usv1), closing every cycle to 1e-9
     cdus gs ... path --vehicle uav1 family=circle center=[0,0,20] radius=15 speed=1.5
 
 Every command is answered by the fleet's world: "applied from tick N (t = ... s)" or
