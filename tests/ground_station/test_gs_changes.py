@@ -55,3 +55,10 @@ def test_a_zenoh_config_that_cannot_be_read_is_a_usage_error_naming_the_file(tmp
         err = capsys.readouterr().err
         assert f"--zenoh-config {path}" in err and why in err and "ground.json5" in err, err
         assert "nothing was sent" in err and "refused" not in err
+
+
+def test_a_snapshot_into_a_directory_is_a_usage_error_before_connecting(tmp_path, capsys):
+    """It connected, then died with IsADirectoryError's traceback (rev18-user)."""
+    assert main(["--fleet", "f", "-e", "tcp/127.0.0.1:9", "snapshot", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "is a directory; give a file name" in err and "Traceback" not in err
