@@ -238,8 +238,13 @@ def _unreachable(transport, e: Exception) -> int:
                 f"the settings of {transport.config_file}" if transport.config_file else "no credentials")
         print(f"error: the fleet's router at {endpoints} is up but refused or closed this session, which "
               f"had {held}", file=sys.stderr)
-        print("  a fleet started without --insecure takes only its own credentials: add "
-              "--zenoh-config RUN/secure/ground.json5 (the launcher prints the whole line)", file=sys.stderr)
+        if transport.config_file:  # a file was given: not this run's ground credentials
+            print("  each run makes its own credentials, and a fleet started without --insecure takes only "
+                  "its own: use the ground.json5 of this run (the launcher prints the whole line: "
+                  "--zenoh-config RUN/secure/ground.json5)", file=sys.stderr)
+        else:
+            print("  a fleet started without --insecure takes only its own credentials: add "
+                  "--zenoh-config RUN/secure/ground.json5 (the launcher prints the whole line)", file=sys.stderr)
         return EXIT_DENIED
     print(f"error: could not reach the fleet's router at {endpoints} within "
           f"{GS_CONNECT_TIMEOUT_MS / 1000:g} s: {why}", file=sys.stderr)

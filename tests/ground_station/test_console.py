@@ -205,5 +205,6 @@ def test_a_router_that_refuses_the_session_is_reported_as_such_with_the_file_to_
         code = main(["--fleet", "f1", "--zenoh-config", str(tmp_path / "wrong.json5"), "status", "--once"])
         err = capsys.readouterr().err
         assert code == 4 and "the credentials of 'ground' from" in err and "guess" not in err, err
+        assert "use the ground.json5 of this run" in err and "add --zenoh-config" not in err, err  # one was given
     finally:
         router.close()
