@@ -54,7 +54,7 @@ from cdus.scenario.link import merge_link_tables, validate_link
 from cdus.sim.build import build_node, link_emulator_for, listeners_of
 from cdus.sim.sensing import contacts_of
 from cdus.core.schedule import CLOCKS, total_ticks
-from cdus.sim.lockstep import GRANT_WINDOW
+from cdus.sim.lockstep import GRANT_WINDOW, MAX_GRANT_WINDOW
 from cdus.wire.text import printable
 from cdus.wire import keys
 from cdus.wire.messages import (
@@ -64,7 +64,11 @@ from cdus.wire.messages import (
 from cdus.wire.schemas import AgentStats, encode_stats
 from cdus.wire.transport import Transport, open_session
 
-STATE_BATCH = {"lockstep": 10, "realtime": 5}  # telemetry rows per message
+#: telemetry rows per message. Lockstep: at most GRANT_WINDOW, the least grant window: a vehicle
+#: waiting for a neighbour's ω holds fewer unsent rows than the window, so that neighbour is
+#: always granted its tick (and one waiting for a grant sends what it holds at once)
+STATE_BATCH = {"lockstep": 50, "realtime": 5}
+assert STATE_BATCH["lockstep"] <= GRANT_WINDOW
 STATS_PERIOD = 1.0  # s of wall time between counter reports
 BURSTS_PER_STATS = 100  # drop bursts one report carries; a report goes early once half as many wait
 STALL_TICKS = 10  # realtime: this many periods late means the process was frozen, not just slow
@@ -72,8 +76,8 @@ END_WAIT = 10.0  # s to wait for the world's stop after the last tick
 INBOX_CAPACITY = 4096  # samples; when full, Zenoh's delivery to this session waits (nothing grows)
 OMEGA_RING = 16  # realtime: ω samples kept per neighbour between drains (<= MAX_NAP apart), newest first
 #: lockstep: a neighbour may have a grant this agent has not received yet; one grant moves at
-#: most GRANT_WINDOW past the slowest live vehicle's acknowledged tick, which is <= ours
-LOCKSTEP_SEQ_MARGIN = 2 * GRANT_WINDOW
+#: most MAX_GRANT_WINDOW past the slowest live vehicle's acknowledged tick, which is <= ours
+LOCKSTEP_SEQ_MARGIN = 2 * MAX_GRANT_WINDOW
 REALTIME_SLACK = 0.25  # s: a realtime ω may be stamped this far past this agent's wall-clock tick
 T0_PAST = 86400.0  # s: a realtime t0 (start, resume) older than the run's duration plus this is not ours
 T0_AHEAD = 60.0  # s: ... nor one further in the future than this

@@ -41,7 +41,7 @@ from cdus.scenario.config import ConfigError
 from cdus.scenario.link import merge_link_tables, validate_link
 from cdus.scenario.model import Scenario
 from cdus.sim.build import metric_edges, sensor_schedule
-from cdus.sim.lockstep import CatchUp, Fault, Grant, Join, Lockstep, Roster, Sense
+from cdus.sim.lockstep import CatchUp, Fault, Grant, Join, Lockstep, Roster, Sense, horizon_window
 from cdus.sim.reports import ConsoleQuota, graph_event, vehicle_back, vehicle_lost
 from cdus.sim.sensing import sense_tick
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
@@ -74,6 +74,11 @@ SUSPECT_EVERY = 5.0  # s: at most one suspect event per (vehicle, reason) in thi
 #: frozen or restarted comes back in seconds, and the agents' sessions reconnect every <= 0.5 s
 #: (cdus.wire.transport), so 30 s covers that with room; a fleet gone longer is not coming back.
 OUTAGE_GRACE = 30.0
+#: lockstep: the grant window is about this much wall time at the fleet's speed (measured every
+#: HORIZON_EVERY s), so the vehicles rarely meet a grant, and a command that applies past every
+#: grant (an operator's kill, link or gains) lands this soon
+HORIZON_S = 0.25
+HORIZON_EVERY = 0.25
 DROP_WINDOW = 0.3  # s: liveliness losses this close together count as one (a lapsed router drops them all)
 MAX_LOGGED_REJECTS = 200  # (sender, reason) pairs logged; beyond, counted only
 
@@ -596,10 +601,13 @@ class World:
         ls.start()
         self._last_grant = 0.0
         last_status = 0.0
+        mark = (time.monotonic(), self.next_tick)
         while self.next_tick <= self.last_tick and not self.stop_requested:
             self._act(ls.poll())
             self._record_complete()
             now = time.monotonic()
+            if now - mark[0] >= HORIZON_EVERY:
+                mark = self._widen_horizon(now, mark)
             if self._supervise_outage(now):
                 break
             if now - self._last_grant > GRANT_RESEND and ls.granted >= 0:  # for anyone who missed it
@@ -615,6 +623,14 @@ class World:
                 self._publish_status()
             if self.next_tick <= self.last_tick:
                 self._drain(block=True)
+
+    def _widen_horizon(self, now: float, mark: tuple[float, int]) -> tuple[float, int]:
+        """Lockstep: size the grant window to the fleet's speed since ``mark`` (wall s, next tick
+        to record then); a grant moves by a quarter window at a time. Returns the new mark."""
+        ls = self.lockstep
+        ls.window = horizon_window((self.next_tick - mark[1]) / (now - mark[0]), HORIZON_S)
+        ls.grant_step = max(1, ls.window // 4)
+        return now, self.next_tick
 
     def _supervise_outage(self, now: float) -> bool:
         """Decide liveliness losses once those of the moment are in (DROP_WINDOW); wait for a fleet
