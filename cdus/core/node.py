@@ -405,7 +405,9 @@ class VehicleNode:
         floors = self._floors.get(k)
         if floors is None:
             floors = self._floors[k] = self._link_floors(k)
-        if len(floors) == 1 and floors[0][1] == 0.0:  # no delay: everything sent before n
+        if n >= self.last_tick or len(floors) == 1 and floors[0][1] == 0.0:
+            # everything sent before n: no delay, or the run's last tick (so every message is
+            # decided, and the link's counters are the in-process run's)
             return -1 if n <= 0 else (n - 1) // self.every
         return needed_seq(n, self.every, self.period, floors)
 

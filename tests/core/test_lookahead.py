@@ -162,7 +162,9 @@ def lockstep_in_any_order(sc, rng: random.Random, change: tuple[int, dict] | Non
                 wire = decode_omega(encode_omega(out.omega))
                 for dst in listeners[j]:
                     flight[(j, dst)].append(wire)
-    return omega, q, lead
+    counters = [(nd.counters.sent, nd.counters.delivered, nd.counters.dropped, nd.counters.duplicated)
+                for nd in nodes]
+    return omega, q, lead, counters
 
 
 def in_process(sc, change: tuple[int, dict] | None = None):
@@ -172,10 +174,12 @@ def in_process(sc, change: tuple[int, dict] | None = None):
             fleet.step()
         fleet.link.update(validate_link(change[1], list(sc.ids), "change"), change[0] * fleet.period)
     res = fleet.run()
+    counters = [(nd.counters.sent, nd.counters.delivered, nd.counters.dropped, nd.counters.duplicated)
+                for nd in fleet.nodes]
     ref_q = np.full(res.recorder.view("q").shape[:2] + (3,), np.nan)
     for j, v in enumerate(sc.vehicles):
         ref_q[:, j, :v.dim] = res.recorder.view("q")[:, j, :v.dim]
-    return res.recorder.view("omega"), ref_q
+    return res.recorder.view("omega"), ref_q, counters
 
 
 CASES = {
@@ -196,9 +200,10 @@ CASES = {
 def test_a_fleet_stepping_in_any_order_the_lookahead_allows_equals_the_in_process_run(case):
     settings_, change = CASES[case]
     sc = load_scenario("configs/lake_circle.toml", {"scenario.duration": 3.0, **settings_})
-    ref_omega, ref_q = in_process(sc, change)
+    ref_omega, ref_q, ref_counters = in_process(sc, change)
     for seed in range(3):
-        omega, q, lead = lockstep_in_any_order(sc, random.Random(seed), change)
+        omega, q, lead, counters = lockstep_in_any_order(sc, random.Random(seed), change)
+        assert counters == ref_counters, (case, seed)  # every message decided, as in process
         assert np.array_equal(omega, ref_omega), (case, seed)
         assert np.array_equal(q, ref_q, equal_nan=True), (case, seed)
     if case != "broadcast = control":
