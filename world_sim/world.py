@@ -293,20 +293,26 @@ class World:
         if any(m.tick > limit for m in rows):  # the whole batch: it cannot all be genuine
             return self._reject(vid, "future", f"tick {max(m.tick for m in rows)} > {limit}")
         st = self.st
+        by_tick, first, every = st.rows, self.next_tick, self.sensing[0] if self.sensing is not None else 0
+        newest = None  # the batch's newest row taken: latest, acked and the report once per batch
         for m in rows:
-            if m.tick >= self.next_tick:
-                have = st.rows.setdefault(m.tick, {}).setdefault(j, m)
-                if have != m:  # a second, different row for a tick: the first stands
+            if m.tick >= first:
+                have = by_tick.setdefault(m.tick, {}).setdefault(j, m)
+                if have is not m and have != m:  # a second, different row for a tick: the first stands
                     self._reject(vid, "conflict", f"tick {m.tick}")
                     continue
-            if self.sensing is not None and m.tick % self.sensing[0] == 0 and m.tick > self.lockstep.sensed:
+            if every and m.tick % every == 0 and m.tick > self.lockstep.sensed:
                 self._sample_rows.setdefault(m.tick, {}).setdefault(j, m.q)
-            prev = st.latest.get(j)
-            if prev is None or m.tick >= prev.tick:
-                with self._lock:
-                    st.latest[j] = m
-            st.acked[j] = max(st.acked.get(j, -1), m.tick)
-            self.lockstep.on_report(j, m.tick)
+            if newest is None or m.tick >= newest.tick:
+                newest = m
+        if newest is None:
+            return
+        prev = st.latest.get(j)
+        if prev is None or newest.tick >= prev.tick:
+            with self._lock:
+                st.latest[j] = newest
+        st.acked[j] = max(st.acked.get(j, -1), newest.tick)
+        self.lockstep.on_report(j, newest.tick)
 
     def _on_stats(self, vid: str, payload: bytes) -> None:
         if vid not in self.index:
