@@ -11,6 +11,10 @@ In ONE run, interleaved so the machine's load affects all alike, each round runs
   as is     `cdus launch CONFIG --clock lockstep` (broadcast = control for lake_circle);
   10 Hz     the same with `--set rates.broadcast=10` (the lookahead: 5 ticks a broadcast).
 
+Every process (the ring's and the launcher's router included) runs the launcher's Zenoh
+runtime (ZENOH_RUNTIME, one worker thread) unless ZENOH_RUNTIME is set; the lockstep runs
+record no Rerun stream unless --rerun says so (the ring records nothing either).
+
 Each lockstep figure is the metrics' wall_s (the world's clock from every vehicle up to the
 metrics) as ticks/s and x real time; "of ring" divides its ticks/s by the mean of the ring
 runs just before and after it. Each case's trace (--trace-out) and metrics are compared with
@@ -59,13 +63,15 @@ def reference(config: str, duration: float, extra: list[str], out: Path) -> tupl
     return trace, json.loads(metrics.read_text())
 
 
-def lockstep(config: str, duration: float, extra: list[str], out: Path, links: str) -> tuple[float, Path, dict]:
+def lockstep(config: str, duration: float, extra: list[str], out: Path, links: str, rerun: str
+             ) -> tuple[float, Path, dict]:
     """(run wall s, trace, metrics) of one `cdus launch --clock lockstep`."""
     out.mkdir()
     trace, metrics = out / "trace.npz", out / "metrics.json"
     fleet = f"bench_ls_{os.getpid()}_{out.name}"
     args = ["launch", config, "--clock", "lockstep", "--duration", f"{duration:g}", "-q", "--fleet", fleet,
-            "--logs", str(out), "--links", links, "--trace-out", str(trace), "--metrics-out", str(metrics), *extra]
+            "--logs", str(out), "--links", links, "--trace-out", str(trace), "--metrics-out", str(metrics),
+            "--rerun", rerun, *extra]
     if links == "direct":
         args.append("--insecure")  # direct links skip the router's access control
     with Launch(args, fleet=fleet) as la:
@@ -93,6 +99,9 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=60.0, help="simulated seconds")
     ap.add_argument("--repeat", type=int, default=3, help="rounds (ring, as is, 10 Hz)")
     ap.add_argument("--ring-ticks", type=int, default=3000)
+    ap.add_argument("--rerun", default="off",
+                    help="the world's Rerun recording in the lockstep runs (default off: the ring records nothing; "
+                         "`auto`, launch's default, saves a .rrd: about 40 %% of the world's CPU)")
     ap.add_argument("--links", choices=("router", "direct"), default="router",
                     help="lockstep links; the ring runs the matching topology (router | peer)")
     args = ap.parse_args()
@@ -104,7 +113,8 @@ def main() -> None:
     os.environ.setdefault("ZENOH_RUNTIME", raw_ring.RUNTIME)  # the launcher's default too
     print(load_line())
     print(f"{sc.name}: {n} vehicles, control {sc.rates.control:g} Hz, broadcast {sc.rates.broadcast:g} Hz, "
-          f"{args.duration:g} s simulated ({ticks} ticks), {args.repeat} rounds, links {args.links}; "
+          f"{args.duration:g} s simulated ({ticks} ticks), {args.repeat} rounds, links {args.links}, "
+          f"rerun {args.rerun}; "
           f"ring: {n} processes, {args.ring_ticks} ticks, {ring_mode}")
     results: dict[str, list[tuple[float, float, str]]] = {c: [] for c in CASES}  # (ticks/s, ratio, load)
     rings: list[float] = []
@@ -117,7 +127,8 @@ def main() -> None:
         for r in range(args.repeat):
             runs = {}
             for k, (case, extra) in enumerate(CASES.items()):
-                wall, trace, m = lockstep(config, args.duration, extra, work / f"r{r}c{k}", args.links)
+                wall, trace, m = lockstep(config, args.duration, extra, work / f"r{r}c{k}", args.links,
+                                            args.rerun)
                 runs[case] = (ticks / wall, load(), identical(trace, m, *refs[case]))
             rings.append(raw_ring.run(n, args.ring_ticks, ring_mode)["ticks_per_s"])
             ceiling = 0.5 * (rings[-2] + rings[-1])
