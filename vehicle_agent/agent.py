@@ -9,9 +9,12 @@ flood on one key is cut by Zenoh before it costs Python anything. It publishes i
 it, its telemetry in batches and its counters to the world, and declares a liveliness
 token once it is ready.
 
-- lockstep: it steps tick n once the world has granted it and it holds every live
-  neighbour's newest broadcast sent before n (cdus.core.node.VehicleNode.waiting_for), so
-  the run is deterministic and equal to the in-process one, whatever the scheduling.
+- lockstep: it steps tick n once the world has granted it (a grant is a horizon, often
+  hundreds of ticks) and it holds every live neighbour's newest broadcast that tick n can
+  use (cdus.core.node.VehicleNode.waiting_for: with broadcasts slower than the control loop
+  or a least link delay, several ticks ahead of what the neighbours have sent), so each
+  vehicle steps as far as its inputs allow, and the run is deterministic and equal to the
+  in-process one, whatever the scheduling.
   Scheduled faults are the roster every runner derives from the scenario; the world
   relays the unscheduled ones (a crash, a ground station's kill) with their tick.
 - realtime: it steps on the wall clock from the world's start time t0, tick n at
