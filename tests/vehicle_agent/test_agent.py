@@ -478,8 +478,8 @@ def test_a_restarted_agent_takes_omega_from_a_run_under_way_before_it_knows_wher
     omega_from(s, a, "usv2", 300)  # far past any window of a process that has not joined yet
     a._drain(lambda: None)
     assert not a.rejected and a.node.seen_seq[a.ids.index("usv2")] == 300
-    b, s, lines = fake(duration=10.0)  # a first start: tick 300 is beyond what anyone was granted
-    omega_from(s, b, "usv2", 300)
+    b, s, lines = fake(duration=100.0)  # a first start: a tick beyond what anyone can have been granted
+    omega_from(s, b, "usv2", agent_module.LOCKSTEP_SEQ_MARGIN + 1)
     b._drain(lambda: None)
     assert b.rejected == {"future": 1}
 
