@@ -120,7 +120,8 @@ def main() -> None:
     rings: list[float] = []
     with tempfile.TemporaryDirectory(prefix="cdus-ls-") as tmp:
         work = Path(tmp)
-        refs = {c: reference(config, args.duration, extra, work / f"ref{k}") for k, (c, extra) in enumerate(CASES.items())}
+        refs = {c: reference(config, args.duration, extra, work / f"ref{k}")
+                for k, (c, extra) in enumerate(CASES.items())}
         rings.append(raw_ring.run(n, args.ring_ticks, ring_mode)["ticks_per_s"])
         print(f"  ring            {rings[-1]:7.0f} ticks/s = {rings[-1] / sc.rates.control:5.1f}x real time  "
               f"({load()})", flush=True)
