@@ -95,7 +95,10 @@ LOG_WAIT = 5.0  # s of waiting before saying what for
 #: came back: a router frozen or restarted, a network cut), what was in flight may be lost and
 #: the fleet would wait for it: the agent says its newest ω and telemetry again (receivers take
 #: what they missed and drop what they have as a duplicate)
-RESEND_OMEGAS = 16  # the newest ω said again: more than a sender can run ahead of its listeners
+#: the newest ω said again, at least: a sender runs ahead of what a listener holds by up to its
+#: lookahead (a least link delay of D ticks lets it step D ticks past its neighbours' newest ω) and,
+#: on a one-way link, a grant window; the agent keeps 2 x MAX_GRANT_WINDOW ticks' worth (Agent.__init__)
+RESEND_OMEGAS = 16
 #: said again every RESEND_EVERY s while stuck, for RESEND_FOR s after the world's token came back:
 #: the token can arrive before the router knows the neighbours' subscriptions again, and what is
 #: said before that is lost too
@@ -206,8 +209,11 @@ class Agent:
         self._resend_until = 0.0  # lockstep, monotonic s: back from an outage, say recent messages again till then
         self._resent_at = 0.0
         self._world_seen = None
-        self._last_omegas: deque[bytes] = deque(maxlen=RESEND_OMEGAS)  # lockstep: said again after an outage
-        self._recent: deque[StateMsg] = deque(maxlen=MAX_STATE_ROWS)  # telemetry sent, newest last
+        self._last_omegas: deque[bytes] = deque(  # lockstep: said again after an outage
+            maxlen=max(RESEND_OMEGAS, 2 * MAX_GRANT_WINDOW // self.node.every + 2))
+        #: telemetry sent, newest last: as much as the world can lack after an outage (this vehicle
+        #: runs up to a grant window past the world's newest row of the slowest vehicle)
+        self._recent: deque[StateMsg] = deque(maxlen=MAX_GRANT_WINDOW + MAX_STATE_ROWS)
         self.missed_deadlines = 0
         self.ticks_done = 0
         self._lat_sent = 0
@@ -650,8 +656,9 @@ class Agent:
             return
         for wire in self._last_omegas:
             self.pub_omega.put(wire)
-        if self._recent:
-            self.pub_state.put(encode_states(list(self._recent)))
+        rows = list(self._recent)
+        for first in range(0, len(rows), MAX_STATE_ROWS):  # in messages the world takes
+            self.pub_state.put(encode_states(rows[first:first + MAX_STATE_ROWS]))
 
     def stats(self) -> AgentStats:
         node, c = self.node, self.node.counters
