@@ -9,9 +9,12 @@ flood on one key is cut by Zenoh before it costs Python anything. It publishes i
 it, its telemetry in batches and its counters to the world, and declares a liveliness
 token once it is ready.
 
-- lockstep: it steps tick n once the world has granted it and it holds every live
-  neighbour's newest broadcast sent before n (cdus.core.node.VehicleNode.waiting_for), so
-  the run is deterministic and equal to the in-process one, whatever the scheduling.
+- lockstep: it steps tick n once the world has granted it (a grant is a horizon, often
+  hundreds of ticks) and it holds every live neighbour's newest broadcast that tick n can
+  use (cdus.core.node.VehicleNode.waiting_for: with broadcasts slower than the control loop
+  or a least link delay, several ticks ahead of what the neighbours have sent), so each
+  vehicle steps as far as its inputs allow, and the run is deterministic and equal to the
+  in-process one, whatever the scheduling.
   Scheduled faults are the roster every runner derives from the scenario; the world
   relays the unscheduled ones (a crash, a ground station's kill) with their tick.
 - realtime: it steps on the wall clock from the world's start time t0, tick n at
@@ -55,7 +58,7 @@ from cdus.scenario.events import check_path, check_phases
 from cdus.sim.build import build_node, link_emulator_for, listeners_of
 from cdus.sim.sensing import contacts_of
 from cdus.core.schedule import CLOCKS, total_ticks
-from cdus.sim.lockstep import GRANT_WINDOW
+from cdus.sim.lockstep import GRANT_WINDOW, MAX_GRANT_WINDOW
 from cdus.wire.text import printable
 from cdus.wire import keys
 from cdus.wire.messages import (
@@ -65,7 +68,11 @@ from cdus.wire.messages import (
 from cdus.wire.schemas import AgentStats, encode_stats
 from cdus.wire.transport import Transport, open_session
 
-STATE_BATCH = {"lockstep": 10, "realtime": 5}  # telemetry rows per message
+#: telemetry rows per message. Lockstep: at most GRANT_WINDOW, the least grant window: a vehicle
+#: waiting for a neighbour's ω holds fewer unsent rows than the window, so that neighbour is
+#: always granted its tick (and one waiting for a grant sends what it holds at once)
+STATE_BATCH = {"lockstep": 50, "realtime": 5}
+assert STATE_BATCH["lockstep"] <= GRANT_WINDOW
 STATS_PERIOD = 1.0  # s of wall time between counter reports
 BURSTS_PER_STATS = 100  # drop bursts one report carries; a report goes early once half as many wait
 STALL_TICKS = 10  # realtime: this many periods late means the process was frozen, not just slow
@@ -73,8 +80,8 @@ END_WAIT = 10.0  # s to wait for the world's stop after the last tick
 INBOX_CAPACITY = 4096  # samples; when full, Zenoh's delivery to this session waits (nothing grows)
 OMEGA_RING = 16  # realtime: ω samples kept per neighbour between drains (<= MAX_NAP apart), newest first
 #: lockstep: a neighbour may have a grant this agent has not received yet; one grant moves at
-#: most GRANT_WINDOW past the slowest live vehicle's acknowledged tick, which is <= ours
-LOCKSTEP_SEQ_MARGIN = 2 * GRANT_WINDOW
+#: most MAX_GRANT_WINDOW past the slowest live vehicle's acknowledged tick, which is <= ours
+LOCKSTEP_SEQ_MARGIN = 2 * MAX_GRANT_WINDOW
 REALTIME_SLACK = 0.25  # s: a realtime ω may be stamped this far past this agent's wall-clock tick
 T0_PAST = 86400.0  # s: a realtime t0 (start, resume) older than the run's duration plus this is not ours
 T0_AHEAD = 60.0  # s: ... nor one further in the future than this
@@ -89,7 +96,10 @@ LOG_WAIT = 5.0  # s of waiting before saying what for
 #: came back: a router frozen or restarted, a network cut), what was in flight may be lost and
 #: the fleet would wait for it: the agent says its newest ω and telemetry again (receivers take
 #: what they missed and drop what they have as a duplicate)
-RESEND_OMEGAS = 16  # the newest ω said again: more than a sender can run ahead of its listeners
+#: the newest ω said again, at least: a sender runs ahead of what a listener holds by up to its
+#: lookahead (a least link delay of D ticks lets it step D ticks past its neighbours' newest ω) and,
+#: on a one-way link, a grant window; the agent keeps 2 x MAX_GRANT_WINDOW ticks' worth (Agent.__init__)
+RESEND_OMEGAS = 16
 #: said again every RESEND_EVERY s while stuck, for RESEND_FOR s after the world's token came back:
 #: the token can arrive before the router knows the neighbours' subscriptions again, and what is
 #: said before that is lost too
@@ -200,8 +210,11 @@ class Agent:
         self._resend_until = 0.0  # lockstep, monotonic s: back from an outage, say recent messages again till then
         self._resent_at = 0.0
         self._world_seen = None
-        self._last_omegas: deque[bytes] = deque(maxlen=RESEND_OMEGAS)  # lockstep: said again after an outage
-        self._recent: deque[StateMsg] = deque(maxlen=MAX_STATE_ROWS)  # telemetry sent, newest last
+        self._last_omegas: deque[bytes] = deque(  # lockstep: said again after an outage
+            maxlen=max(RESEND_OMEGAS, 2 * MAX_GRANT_WINDOW // self.node.every + 2))
+        #: telemetry sent, newest last: as much as the world can lack after an outage (this vehicle
+        #: runs up to a grant window past the world's newest row of the slowest vehicle)
+        self._recent: deque[StateMsg] = deque(maxlen=MAX_GRANT_WINDOW + MAX_STATE_ROWS)
         self.missed_deadlines = 0
         self.ticks_done = 0
         self._lat_sent = 0
@@ -681,8 +694,9 @@ class Agent:
             return
         for wire in self._last_omegas:
             self.pub_omega.put(wire)
-        if self._recent:
-            self.pub_state.put(encode_states(list(self._recent)))
+        rows = list(self._recent)
+        for first in range(0, len(rows), MAX_STATE_ROWS):  # in messages the world takes
+            self.pub_state.put(encode_states(rows[first:first + MAX_STATE_ROWS]))
 
     def stats(self) -> AgentStats:
         node, c = self.node, self.node.counters

@@ -44,7 +44,7 @@ from cdus.core.events import event_tick
 from cdus.core.formation import FormationChange
 from cdus.scenario.events import check_offsets, check_path, check_phases, offsets_to_phases
 from cdus.sim.build import formation_schedule, metric_edges, sensor_schedule
-from cdus.sim.lockstep import CatchUp, Decided, Fault, Grant, Join, Lockstep, Roster, Sense
+from cdus.sim.lockstep import CatchUp, Decided, Fault, Grant, Join, Lockstep, Roster, Sense, horizon_window
 from cdus.sim.reports import ConsoleQuota, formation_changed, graph_event, link_state_event, path_changed, vehicle_back, vehicle_lost
 from cdus.sim.sensing import sense_tick
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
@@ -78,6 +78,11 @@ SUSPECT_EVERY = 5.0  # s: at most one suspect event per (vehicle, reason) in thi
 #: frozen or restarted comes back in seconds, and the agents' sessions reconnect every <= 0.5 s
 #: (cdus.wire.transport), so 30 s covers that with room; a fleet gone longer is not coming back.
 OUTAGE_GRACE = 30.0
+#: lockstep: the grant window is about this much wall time at the fleet's speed (measured every
+#: HORIZON_EVERY s), so the vehicles rarely meet a grant, and a command that applies past every
+#: grant (an operator's kill, link or gains) lands this soon
+HORIZON_S = 0.25
+HORIZON_EVERY = 0.25
 DROP_WINDOW = 0.3  # s: liveliness losses this close together count as one (a lapsed router drops them all)
 MAX_LOGGED_REJECTS = 200  # (sender, reason) pairs logged; beyond, counted only
 
@@ -361,20 +366,26 @@ class World:
         if any(m.tick > limit for m in rows):  # the whole batch: it cannot all be genuine
             return self._reject(vid, "future", f"tick {max(m.tick for m in rows)} > {limit}")
         st = self.st
+        by_tick, first, every = st.rows, self.next_tick, self.sensing[0] if self.sensing is not None else 0
+        newest = None  # the batch's newest row taken: latest, acked and the report once per batch
         for m in rows:
-            if m.tick >= self.next_tick:
-                have = st.rows.setdefault(m.tick, {}).setdefault(j, m)
-                if have != m:  # a second, different row for a tick: the first stands
+            if m.tick >= first:
+                have = by_tick.setdefault(m.tick, {}).setdefault(j, m)
+                if have is not m and have != m:  # a second, different row for a tick: the first stands
                     self._reject(vid, "conflict", f"tick {m.tick}")
                     continue
-            if self.sensing is not None and m.tick % self.sensing[0] == 0 and m.tick > self.lockstep.sensed:
+            if every and m.tick % every == 0 and m.tick > self.lockstep.sensed:
                 self._sample_rows.setdefault(m.tick, {}).setdefault(j, m.q)
-            prev = st.latest.get(j)
-            if prev is None or m.tick >= prev.tick:
-                with self._lock:
-                    st.latest[j] = m
-            st.acked[j] = max(st.acked.get(j, -1), m.tick)
-            self.lockstep.on_report(j, m.tick)
+            if newest is None or m.tick >= newest.tick:
+                newest = m
+        if newest is None:
+            return
+        prev = st.latest.get(j)
+        if prev is None or newest.tick >= prev.tick:
+            with self._lock:
+                st.latest[j] = newest
+        st.acked[j] = max(st.acked.get(j, -1), newest.tick)
+        self.lockstep.on_report(j, newest.tick)
 
     def _on_stats(self, vid: str, payload: bytes) -> None:
         if vid not in self.index:
@@ -848,10 +859,13 @@ class World:
         ls.start()
         self._last_grant = 0.0
         last_status = 0.0
+        mark = (time.monotonic(), self.next_tick)
         while self.next_tick <= self.last_tick and not self.stop_requested:
             self._act(ls.poll())
             self._record_complete()
             now = time.monotonic()
+            if now - mark[0] >= HORIZON_EVERY:
+                mark = self._widen_horizon(now, mark)
             if self._supervise_outage(now):
                 break
             if now - self._last_grant > GRANT_RESEND and ls.granted >= 0:  # for anyone who missed it
@@ -867,6 +881,14 @@ class World:
                 self._publish_status()
             if self.next_tick <= self.last_tick:
                 self._drain(block=True)
+
+    def _widen_horizon(self, now: float, mark: tuple[float, int]) -> tuple[float, int]:
+        """Lockstep: size the grant window to the fleet's speed since ``mark`` (wall s, next tick
+        to record then); a grant moves by a quarter window at a time. Returns the new mark."""
+        ls = self.lockstep
+        ls.window = horizon_window((self.next_tick - mark[1]) / (now - mark[0]), HORIZON_S)
+        ls.grant_step = max(1, ls.window // 4)
+        return now, self.next_tick
 
     def _supervise_outage(self, now: float) -> bool:
         """Decide liveliness losses once those of the moment are in (DROP_WINDOW); wait for a fleet
