@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 from cdus.core.events import RosterChange, event_tick, plan_roster
-from cdus.core.link import LinkEmulator, LinkModel, burst_events
+from cdus.core.link import LinkModel, burst_events
 from cdus.core.metrics import Recorder
 from cdus.core.node import VehicleNode
 from cdus.core.schedule import broadcast_every, total_ticks

@@ -19,10 +19,13 @@ acknowledgements (``on_fault_done``) and operator commands (``pause``, ``resume`
 - :class:`Sense`: sample the proximity sensor at tick ``tick`` (every vehicle live at it
   has reported it) and send every vehicle its contacts (cdus.sim.sensing). Only with the
   safety filter on (``sense_every``).
+- :class:`RadioSample`: with ``[radio]``, sample the radio geometry at ``tick`` once every
+  vehicle live at it has reported it, and send it to every vehicle (cdus.sim.radio).
 - :class:`Grant`: vehicles may step up to ``until``: at most ``window`` ticks ahead of the
   slowest vehicle that is due to report, and, with the sensor, not past s + latency - 1
   for the next sample tick s whose contacts have not been sent (a vehicle uses the
-  contacts of s from s + latency on, so it must have them by then).
+  contacts of s from s + latency on, so it must have them by then); with ``[radio]``, not
+  past s + lag for the next radio sample s not sent (:meth:`Lockstep.radio_limit`).
 - a :class:`FleetEvent` for the record.
 
 A tick is complete (:meth:`recordable`) once every vehicle live at it has reported it.
@@ -61,6 +64,14 @@ class Sense:
 
 
 @dataclass(frozen=True)
+class RadioSample:
+    """Sample the radio geometry at tick ``tick`` (every vehicle live at it has reported it) and
+    send it to every vehicle (cdus.sim.radio). Only with ``[radio]`` (``radio_every``)."""
+
+    tick: int
+
+
+@dataclass(frozen=True)
 class Join:
     vehicle: int
     tick: int
@@ -86,7 +97,7 @@ class Fault:
     vehicle: int
 
 
-Action = Grant | Join | Roster | CatchUp | Fault | Sense | FleetEvent
+Action = Grant | Join | Roster | CatchUp | Fault | Sense | RadioSample | FleetEvent
 
 
 @dataclass
@@ -116,6 +127,9 @@ class Lockstep:
     sense_every: int | None = None  # ticks between proximity samples; None: no sensor
     sense_latency: int = 1  # ticks from a sample to its first use (>= 1)
     sensed: int = -1  # the newest sample tick whose contacts were sent
+    radio_every: int | None = None  # ticks between radio geometry samples; None: no [radio]
+    radio_lag: int = 1  # ticks from a radio sample to the first send tick it is in force at (>= 1)
+    radioed: int = -1  # the newest radio sample tick sent
 
     def __post_init__(self) -> None:
         self._plan = list(plan_roster(self.events, self.ids, self.period, self.lease))
@@ -272,6 +286,7 @@ class Lockstep:
         if self.started:
             self._faults()
             self._sense()
+            self._radio()
             self._grant()
         out, self._out = self._out, []
         return out
@@ -348,6 +363,27 @@ class Lockstep:
             self.sensed = s
             self._out.append(Sense(s))
 
+    def next_radio(self) -> int | None:
+        """The next radio sample tick not sent yet (None: no [radio], or past the end)."""
+        if self.radio_every is None:
+            return None
+        s = 0 if self.radioed < 0 else self.radioed + self.radio_every
+        return s if s <= self.last_tick else None
+
+    def _radio(self) -> None:
+        while (s := self.next_radio()) is not None and s <= self.granted and self.recordable(s):
+            self.radioed = s
+            self._out.append(RadioSample(s))
+
+    def radio_limit(self) -> int | None:
+        """The newest tick that may be granted before the next radio sample is sent: a tick n
+        decides the messages sent before it with the sample in force at n - 1, and sample s is
+        in force from s + lag (sample 0 from the start), so not past s + lag (0 for s = 0)."""
+        s = self.next_radio()
+        if s is None:
+            return None
+        return s + self.radio_lag if s > 0 else 0
+
     def _grant(self) -> None:
         if self.paused:
             return
@@ -356,6 +392,9 @@ class Lockstep:
         s = self.next_sample()
         if s is not None:
             want = min(want, s + self.sense_latency - 1)
+        r = self.radio_limit()
+        if r is not None:
+            want = min(want, r)
         if self._current is not None:
             want = min(want, self._current.tick - 1)
         if self._queue:

@@ -82,6 +82,7 @@ class RadioWatch:
         self.whole: bool | None = None  # has the communication graph a spanning tree (None: no sample yet)
         self.splits = 0
         self.station: tuple[float, float, float] | None = None
+        self.points: dict[str, tuple[float, float, float]] = {}  # the newest sample's positions, by id
 
     def observe(self, msg: GeometryMsg) -> list[FleetEvent]:
         """Watch one (decoded) sample; the events it gives (a split or a rejoin)."""
@@ -91,6 +92,7 @@ class RadioWatch:
         geo = Geometry.of(msg.tick, tuple(None if q is None else as_point(q) for q in msg.positions), None)
         self.utilisation.append((t, float(self.channel.utilisation(geo))))
         self.station = getattr(geo, "station", None)
+        self.points = {v: as_point(q) for v, q in zip(self.ids, msg.positions) if q is not None}
         live = [v for v, q in zip(self.ids, msg.positions) if q is not None]
         alive = set(live)
         links = {}
