@@ -9,7 +9,7 @@ starts anything; the only I/O is reading the file.
 
 One module per part of the file: :mod:`.sections` ([scenario], [rates], [metrics],
 [gains], [supervision]), :mod:`.vehicles` ([defaults], [[vehicle]]), :mod:`.graph`,
-:mod:`.link`, :mod:`.events`, :mod:`.safety` ([safety], [disturbance], [observer]);
+:mod:`.link`, :mod:`.radio`, :mod:`.events`, :mod:`.safety` ([safety], [disturbance], [observer]);
 all word their problems with :mod:`.checks`; the result
 is the dataclasses of :mod:`.model`.
 """
@@ -31,6 +31,7 @@ from cdus.scenario.events import event_section
 from cdus.scenario.graph import graph_section
 from cdus.scenario.link import link_section
 from cdus.scenario.model import Edge, Rates, Safety, Scenario, Supervision, VehicleSpec
+from cdus.scenario.radio import radio_section
 from cdus.scenario.safety import apply_fleet, disturbance_section, observer_section, safety_section
 from cdus.scenario.sections import (
     gains_section, guidance_section, metrics_section, rates_section, scenario_section, section,
@@ -45,7 +46,7 @@ __all__ = [
 ]
 
 SECTIONS = ("scenario", "rates", "metrics", "gains", "guidance", "defaults", "supervision", "safety", "disturbance",
-            "observer", "graph", "link", "event", "vehicle")
+            "observer", "graph", "link", "radio", "event", "vehicle")
 
 
 # --------------------------------------------------------------------------- entry points
@@ -313,6 +314,7 @@ def _resolve(p: Problems, data: Mapping[str, Any], source: str) -> Scenario | No
     gain_bounds(p, data.get("vehicle"), defaults, fleet_gains, fleet.specs, rates, edges)
     ids = fleet.known if fleet.complete else None
     link = link_section(p, data.get("link", {}), ids)
+    radio = radio_section(p, data["radio"], ids) if "radio" in data else None
     events = event_section(p, data.get("event", []), ids)
     if p or link is None:
         return None
@@ -320,5 +322,5 @@ def _resolve(p: Problems, data: Mapping[str, Any], source: str) -> Scenario | No
         name=header.name, description=header.description, source=source, duration=header.duration,
         seed=header.seed, rates=rates, path_tol=path_tol, coord_tol=coord_tol, topology=topology,
         directed=directed, vehicles=tuple(v for v in fleet.specs if v is not None), edges=edges, link=link,
-        events=events, supervision=supervision, raw=dict(data), safety=safety,
+        events=events, supervision=supervision, raw=dict(data), safety=safety, radio=radio,
     )

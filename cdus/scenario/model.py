@@ -14,6 +14,7 @@ from typing import Any
 from cdus.core.events import Event
 from cdus.core.linkspec import LinkSpec
 from cdus.core.proximity import sample_every
+from cdus.core.radio import RadioSpec
 
 #: What the launcher does when a vehicle's process exits during the run (docs/config.md, [supervision]).
 RESTART_POLICIES = ("never", "on-failure", "always")
@@ -134,6 +135,7 @@ class Scenario:
     supervision: Supervision
     raw: dict  # the overridden TOML data; parse_scenario(raw) rebuilds this scenario
     safety: Safety = Safety()  # the [safety] table
+    radio: RadioSpec | None = None  # the validated [radio] table; None: absent, no radio channel
 
     def vehicle(self, vid: str) -> VehicleSpec:
         for v in self.vehicles:
@@ -160,6 +162,11 @@ class Scenario:
     def link_seed(self) -> int:
         """``link.seed`` if given, else the scenario's seed."""
         return self.link.seed if self.link.seed is not None else self.seed
+
+    @property
+    def radio_seed(self) -> int:
+        """``radio.seed`` if given, else the link seed (``link.seed``, else the scenario's)."""
+        return self.radio.seed if self.radio is not None and self.radio.seed is not None else self.link_seed
 
     def neighbours(self, vid: str) -> tuple[Edge, ...]:
         """The edges vehicle ``vid`` listens on (e.i == vid)."""
