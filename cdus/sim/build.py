@@ -160,12 +160,11 @@ def radio_schedule(scenario: Scenario) -> tuple[int, int] | None:
 
 def radio_channel_for(scenario: Scenario):
     """The scenario's radio channel (cdus.core.radio.RadioChannel), seeded with ``radio.seed``
-    if it has one, else the link seed."""
+    if it has one, else the link seed; every vehicle broadcasts ω at the scenario's rate."""
     from cdus.core.radio import RadioChannel
-    spec = scenario.radio
-    seed = getattr(spec, "seed", None)
-    return RadioChannel(spec, scenario.ids, [v.kind for v in scenario.vehicles],
-                        scenario.link_seed if seed is None else seed)
+    period = 1.0 / scenario.rates.control
+    return RadioChannel(scenario.radio, scenario.ids, [v.kind for v in scenario.vehicles], scenario.radio_seed,
+                        rate=1.0 / (broadcast_every(scenario.rates) * period), tick_period=period)
 
 
 def link_faults_of(link: LinkModel) -> LinkEmulator | None:

@@ -17,19 +17,19 @@ for messages sent from ``at`` on.
 
 from __future__ import annotations
 
-import math
 from typing import Any, Iterable, Mapping, Sequence
 
 from cdus.core import graph as graphs
+from cdus.scenario.errors import ConfigError
+from cdus.scenario.radio import validate_radio_update
 from cdus.wire.messages import GeometryMsg
 from cdus.wire.schemas import FleetEvent
 
 #: a link whose delivery probability is below this is out of the communication graph
 SPLIT_P = 0.5
-RADIO_CHANGE_KEYS = ("tx_power", "station")
-MAX_STATION = 1.0e6  # m: a station position's coordinates (a run-time change) stay within this
-MAX_TX_POWER = 60.0  # dBm: 1 kW; a run-time change beyond is a typo
-MIN_TX_POWER = -60.0
+#: s a split (or a rejoin) must last before it is reported (stamped at its first sample): a link
+#: at the edge of the range flickers with the shadowing, and one event per crossing is the news
+SPLIT_HOLD = 2.0
 
 
 def geometry_sample(tick: int, positions: Mapping[int, Sequence[float]], n: int) -> GeometryMsg:
@@ -38,31 +38,20 @@ def geometry_sample(tick: int, positions: Mapping[int, Sequence[float]], n: int)
 
 
 def radio_change_problem(change: Any) -> str | None:
-    """What is wrong with a run-time radio change ``{"tx_power": dBm, "station": [x, y, z]}``
-    (at least one of the two), or None."""
-    if not isinstance(change, dict) or not change:
-        return "a radio change is a table with tx_power and/or station"
-    extra = sorted(str(k) for k in change if k not in RADIO_CHANGE_KEYS)
-    if extra:
-        return f"unknown radio key(s) {', '.join(extra)}: use tx_power (dBm) and/or station ([x, y, z] m)"
-    p = change.get("tx_power")
-    if "tx_power" in change and (not isinstance(p, (int, float)) or isinstance(p, bool) or not math.isfinite(p)
-                                 or not MIN_TX_POWER <= p <= MAX_TX_POWER):
-        return f"tx_power must be a number of dBm in [{MIN_TX_POWER:g}, {MAX_TX_POWER:g}], got {p!r}"
-    st = change.get("station")
-    if "station" in change and (not isinstance(st, (list, tuple)) or len(st) != 3
-                                or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
-                                           and math.isfinite(x) and abs(x) <= MAX_STATION for x in st)):
-        return f"station must be [x, y, z] in m (|x| <= {MAX_STATION:g}), got {st!r}"
+    """What is wrong with a run-time radio change ``{"tx_power": dBm, "station": [x, y(, z)]}``
+    (either or both; cdus.scenario.radio.validate_radio_update), or None."""
+    try:
+        validate_radio_update(change, "radio command")
+    except ConfigError as e:
+        return str(e)
     return None
 
 
 def apply_radio_change(channel: Any, change: dict, at: float) -> None:
-    """A checked change (:func:`radio_change_problem`) into ``channel`` from send time ``at`` on."""
-    p = change.get("tx_power")
-    st = change.get("station")
-    channel.update(at, tx_power_dbm=None if p is None else float(p),
-                   station=None if st is None else tuple(float(x) for x in st))
+    """A change (checked again here: :func:`radio_change_problem`) into ``channel`` for messages
+    sent from ``at`` on."""
+    tx, station = validate_radio_update(change, "radio command")
+    channel.update(at, tx_power_dbm=tx, station=station)
 
 
 class RadioWatch:
@@ -70,13 +59,15 @@ class RadioWatch:
     delivery probabilities, splits and rejoins of the communication graph (module docstring)."""
 
     def __init__(self, ids: Sequence[str], pairs: Iterable[tuple[str, str]], channel: Any, period: float,
-                 threshold: float = SPLIT_P):
+                 threshold: float = SPLIT_P, hold: float = SPLIT_HOLD):
         self.ids = list(ids)
         self.index = {v: j for j, v in enumerate(self.ids)}
         self.pairs = [(i, k) for i, k in pairs]  # (listener, sender): i hears k
         self.channel = channel
         self.period = period
         self.threshold = threshold
+        self.hold = hold
+        self._pending: tuple[float, bool, list[str], int] | None = None  # (t, whole, cut, live) not reported yet
         self.utilisation: list[tuple[float, float]] = []  # (t of the sample, utilisation)
         self.links: dict[tuple[str, str], float] = {}  # (src, dst) -> delivery probability at the newest sample
         self.whole: bool | None = None  # has the communication graph a spanning tree (None: no sample yet)
@@ -91,7 +82,8 @@ class RadioWatch:
         t = msg.tick * self.period
         geo = Geometry.of(msg.tick, tuple(None if q is None else as_point(q) for q in msg.positions), None)
         self.utilisation.append((t, float(self.channel.utilisation(geo))))
-        self.station = getattr(geo, "station", None)
+        if self.channel.spec.topology == "station":  # the station in force at the sample
+            self.station = [st for start, _, st in self.channel.epochs if start <= t][-1]
         self.points = {v: as_point(q) for v, q in zip(self.ids, msg.positions) if q is not None}
         live = [v for v, q in zip(self.ids, msg.positions) if q is not None]
         alive = set(live)
@@ -99,23 +91,39 @@ class RadioWatch:
         edges = []
         for i, k in self.pairs:
             if i in alive and k in alive:
-                p = float(self.channel.delivery_probability(self.index[k], self.index[i], geo))
+                p = float(self.channel.delivery_probability(self.index[k], self.index[i], geo, t))
                 links[(k, i)] = p
                 if p >= self.threshold:
                     edges.append((i, k))
         self.links = links
         cut = graphs.unreachable(live, edges) if live else []
-        out = []
-        if cut and self.whole is not False:
+        whole = not cut
+        if self.whole is None:  # the first sample: a fleet split from the start says so at once
+            self.whole = whole
+            if not whole:
+                self.splits += 1
+                return [self._event(t, whole, cut, len(live))]
+            return []
+        if whole == self.whole:
+            self._pending = None
+            return []
+        if self._pending is None or self._pending[1] != whole:
+            self._pending = (t, whole, cut, len(live))
+        t0, _, cut0, n0 = self._pending
+        if t - t0 < self.hold - 1e-9:
+            return []
+        self._pending = None
+        self.whole = whole
+        if not whole:
             self.splits += 1
-            out.append(FleetEvent.of(t, "radio_split", f"radio: the communication graph split (links with delivery "
-                                                       f"probability < {self.threshold:g} removed): "
-                                                       f"{', '.join(cut)} cut off"))
-        elif not cut and self.whole is False:
-            out.append(FleetEvent.of(t, "radio_joined", f"radio: the communication graph is whole again "
-                                                        f"({len(live)} live vehicles)"))
-        self.whole = not cut
-        return out
+        return [self._event(t0, whole, cut0, n0)]
+
+    def _event(self, t: float, whole: bool, cut: list[str], live: int) -> FleetEvent:
+        if whole:
+            return FleetEvent.of(t, "radio_joined", f"radio: the communication graph is whole again ({live} live "
+                                                    f"vehicles)")
+        return FleetEvent.of(t, "radio_split", f"radio: the communication graph split (links with delivery probability "
+                                               f"< {self.threshold:g} removed): {', '.join(cut)} cut off")
 
     def summary(self) -> dict:
         """``utilisation`` of the metrics' ``radio`` block: mean and max over the samples."""
