@@ -32,6 +32,7 @@ from cdus.core.link import stream_key, uniform
 from cdus.wire.messages import OmegaMsg, encode_omega
 
 C_LIGHT = 299_792_458.0  # m/s
+EPSILON_0 = 8.8541878128e-12  # F/m
 THERMAL_DBM_HZ = -174.0  # kT at 290 K, dBm/Hz
 STATION = "station"  # the base station's name in the random streams and the counters
 CAUSES = ("range", "fading", "collision", "queue")
@@ -143,8 +144,8 @@ def reflection_coefficient(sin_psi: float, cos_psi: float, eps: complex, polariz
 
 
 def water_permittivity(permittivity: float, conductivity: float, frequency: float) -> complex:
-    """ε_c = ε_r - j σ / (ω ε0) = ε_r - j 60 σ λ."""
-    return complex(permittivity, -60.0 * conductivity * C_LIGHT / frequency)
+    """ε_c = ε_r - j σ / (2π f ε0) (≈ ε_r - j 60 σ λ)."""
+    return complex(permittivity, -conductivity / (2.0 * math.pi * frequency * EPSILON_0))
 
 
 def two_ray_loss_db(d: float, ht: float, hr: float, frequency: float, eps: complex,
@@ -318,7 +319,8 @@ def _fading_weights(fading: str, k_factor: float, m: float) -> np.ndarray:
         kk = k_factor
         z = 2.0 * np.sqrt(kk * (kk + 1.0) * g)
         # ln I0(z) = z + ln(i0e(z)); numpy's i0 overflows past ~700, so use the scaled form
-        log_i0 = np.where(z < 700.0, np.log(np.i0(np.minimum(z, 700.0))), z - 0.5 * np.log(2.0 * np.pi * z))
+        big = np.maximum(z, 700.0)
+        log_i0 = np.where(z < 700.0, np.log(np.i0(np.minimum(z, 700.0))), big - 0.5 * np.log(2.0 * np.pi * big))
         logpdf = math.log(kk + 1.0) - kk - (kk + 1.0) * g + log_i0
     else:
         logpdf = m * math.log(m) - math.lgamma(m) + (m - 1.0) * np.log(g) - m * g
@@ -485,10 +487,10 @@ class RadioChannel:
         self._legs: dict[tuple[int, int], tuple] = {}  # (a, b) -> (epoch, geo, _Leg): the newest
         self._media: tuple = (None, None)
         self._links: dict[tuple[int, int], RadioCounters] = {}
-        if spec.shadowing_sigma > 0.0 and math.isfinite(spec.shadowing_time) and tick_period is None:
-            self._need_t = True
-        else:
-            self._need_t = False
+        if tick_period is not None and not (tick_period > 0.0 and math.isfinite(tick_period)):
+            raise ValueError(f"tick_period must be a finite number > 0 s, got {tick_period!r}")
+        #: the shadowing changes with time, so a geometry without ``t`` needs tick_period
+        self.timed = spec.shadowing_sigma > 0.0 and math.isfinite(spec.shadowing_time)
 
     # ---- run-time changes
 

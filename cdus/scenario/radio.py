@@ -14,7 +14,7 @@ import math
 from typing import Any, Mapping, Sequence
 
 from cdus.core.radio import (
-    ACCESSES, FADINGS, KINDS, MODULATIONS, POLARIZATIONS, PROPAGATIONS, TOPOLOGIES, RadioSpec,
+    ACCESSES, FADINGS, KINDS, MODULATIONS, POLARIZATIONS, PROPAGATIONS, TOPOLOGIES, RadioChannel, RadioSpec,
 )
 from cdus.scenario.checks import IdList, Problems, describe, is_number, show
 from cdus.scenario.errors import ConfigError
@@ -170,6 +170,15 @@ def _overrides(p: Problems, v: Any, ids: Ids) -> tuple[tuple[str, float], ...]:
         if got is not None and height is not None:
             out.append((got, height))
     return tuple(sorted(out))
+
+
+def channel_for(scenario: Any) -> RadioChannel | None:
+    """The scenario's radio channel (None without [radio]): its vehicles and kinds, the radio
+    seed, the broadcast rate, Geometry.tick counted in control ticks (tick_period = 1 / control)."""
+    if scenario.radio is None:
+        return None
+    return RadioChannel(scenario.radio, scenario.ids, [v.kind for v in scenario.vehicles], scenario.radio_seed,
+                        rate=scenario.rates.broadcast, tick_period=1.0 / scenario.rates.control)
 
 
 def radio_table(raw: Mapping[str, Any]) -> dict | None:
