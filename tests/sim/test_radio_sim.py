@@ -110,3 +110,23 @@ def test_a_radio_change_changes_delivery_from_its_time_on():
         weak.set_radio({"tx_power": "loud"}, 3.0)
     assert radio_change_problem({"station": [1.0, 2.0]}) is None
     assert "tx_power" in radio_change_problem({"tx_power": 1e6})
+
+
+def test_the_metrics_radio_block_is_typed_in_the_api_and_printed():
+    """Metrics.from_dict takes the radio block into RadioMetrics; to_dict gives the JSON back,
+    equal and in the same key order; the end-of-run table prints it."""
+    from cdus.api import Metrics, RadioMetrics
+    from cdus.app.report import summary_table
+
+    sc = load_scenario("configs/lake_radio.toml", {"scenario.duration": 1.0})
+    m = InProcessFleet(sc).run().metrics
+    typed = Metrics.from_dict(m)
+    assert isinstance(typed.radio, RadioMetrics) and "radio" not in typed.extra
+    assert typed.radio.utilisation["samples"] == 6 and typed.radio.dropped_by["collision"] >= 0
+    assert typed.to_dict() == m and list(typed.to_dict()) == list(m)
+    assert "radio:" in summary_table(m, sc.vehicles) and "channel utilisation mean 0.107" in summary_table(m, sc.vehicles)
+    with pytest.raises(ValueError, match="radio.utilisation"):
+        Metrics.from_dict({**m, "radio": {**m["radio"], "utilisation": 3}})
+    plain = InProcessFleet(load_scenario("configs/lake_circle.toml", {"scenario.duration": 0.2})).run().metrics
+    assert "radio" not in plain and Metrics.from_dict(plain).radio is None
+    assert "radio:" not in summary_table(plain, sc.vehicles)
