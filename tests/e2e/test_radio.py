@@ -6,6 +6,7 @@ the utilisation and the split/rejoin events."""
 from __future__ import annotations
 
 import json
+import time
 
 import numpy as np
 import pytest
@@ -45,4 +46,56 @@ def test_lockstep_with_the_radio_reproduces_the_in_process_run(tmp_path, launche
     if "range_out" in config:
         assert [k for _, k, _ in ours] == ["radio_split"]
         assert radio["dropped_by"]["range"] > 0
+    assert not fleet_processes(fleet)
+
+
+def _world_log_value(path, text: str, number: bool = True, timeout: float = 60.0):
+    """The number after ``text`` in the first line of the world's log that has it (waits)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        lines = [ln for ln in (path.read_text().splitlines() if path.exists() else []) if text in ln]
+        if lines:
+            return float(lines[0].split(text)[1].split()[0]) if number else lines[0]
+        time.sleep(0.2)
+    raise AssertionError(f"no {text!r} in {path} within {timeout} s")
+
+
+def test_a_ground_station_radio_command_changes_delivery_from_its_time_on(tmp_path, launches):
+    """`cdus gs ... radio tx_power=-30 --at 0` on a lockstep lake_radio fleet: the world moves
+    the change past its grant, relays it, and from then on the shore station hears nobody
+    (range drops); the run up to the stop equals the in-process run given the same change at
+    the same time (InProcessFleet.set_radio), to the bit."""
+    from cdus.wire.transport import free_tcp_port
+
+    from .test_ground_station import gs
+
+    fleet = unique_fleet()
+    port = free_tcp_port()
+    run = tmp_path / "run"
+    la = launches(["configs/lake_radio.toml", "--clock", "lockstep", "--duration", "3000",
+                   "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run),
+                   "--trace-out", str(tmp_path / "trace.npz"), "-q"], fleet)
+    la.wait_for(f"fleet '{fleet}' up")
+    assert gs(fleet, port, run, "radio", "tx_power=-300").returncode == 2  # refused before sending
+    res = gs(fleet, port, run, "radio", "tx_power=-30", "--at", "0")
+    assert res.returncode == 0, res.stderr
+    at_text = _world_log_value(run / "logs" / "world.log", "radio changed from t =")
+    period = 1.0 / 50.0
+    at = round(at_text / period) * period  # the world moved it to the tick after its grant
+    _world_log_value(run / "logs" / "world.log", "communication graph split", number=False)  # the station hears nobody
+    assert gs(fleet, port, run, "stop").returncode == 0
+    assert la.wait(timeout=60) == 0, la.output()
+    metrics = json.loads((run / "metrics.json").read_text())
+    kinds = [e["kind"] for e in metrics["events"]]
+    assert "radio_changed" in kinds
+    assert metrics["radio"]["dropped_by"]["range"] > 0
+    trace = np.load(tmp_path / "trace.npz")
+    sc = load_scenario("configs/lake_radio.toml")
+    ref = InProcessFleet(sc)
+    ref.set_radio({"tx_power": -30.0}, at)
+    out = ref.run(metrics["duration_s"])
+    n = len(trace["t"])
+    assert n == len(out.recorder) and n * period > at + 0.5
+    for name in ("q", "omega"):
+        assert np.array_equal(trace[name], out.recorder.view(name)), name
     assert not fleet_processes(fleet)
