@@ -1,0 +1,101 @@
+"""The radio in Rerun: each link at each geometry sample, coloured by its delivery probability,
+the station, the channel utilisation as a time series; nothing of it without [radio]."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cdus.scenario.config import load_scenario
+from cdus.sim.fleet import InProcessFleet
+from world_sim import blueprint as bp
+from world_sim.rerun_sink import make_sink, probability_colour
+
+from .test_recording import ROOT, Recording
+
+
+def _record(tmp_path, config, duration):
+    path = tmp_path / "run.rrd"
+    sc = load_scenario(ROOT / config, {"scenario.duration": duration})
+    sink = make_sink(f"save:{path}")
+    res = InProcessFleet(sc, sink=sink).run()
+    sink.close()
+    return sc, res, Recording(path)
+
+
+def test_probability_colours_run_from_red_through_yellow_to_green():
+    assert probability_colour(0.0) == (220, 0, 40)
+    assert probability_colour(0.5) == (220, 200, 40)
+    assert probability_colour(1.0) == (0, 200, 40)
+    assert probability_colour(7.0) == probability_colour(1.0) and probability_colour(-1.0) == probability_colour(0.0)
+
+
+def test_the_radio_is_drawn_at_every_geometry_sample(tmp_path):
+    sc, res, rec = _record(tmp_path, "configs/lake_radio.toml", 2.0)
+    samples = res.metrics["radio"]["utilisation"]["samples"]
+    assert samples == 11  # every 0.2 s over 2 s
+    times, strips = rec.column(bp.RADIO_LINKS, "LineStrips3D:strips")
+    assert len(times) == samples and times[1] == 200_000_000
+    assert all(len(s) == 12 for s in strips)  # the ring of six, both directions
+    _, colours = rec.column(bp.RADIO_LINKS, "LineStrips3D:colors")
+    assert all(len(c) == 12 for c in colours)
+    _, station = rec.column(bp.RADIO_STATION, "Points3D:positions")
+    assert np.allclose(station[0], [[0.0, 0.0, 0.0]])
+    _, u = rec.column(bp.UTILISATION, "Scalars:scalars")
+    assert np.allclose(np.ravel(u), res.metrics["radio"]["utilisation"]["mean"])
+    assert bp.UTILISATION in rec.static
+
+
+def test_nothing_of_the_radio_without_it(tmp_path):
+    _, _, rec = _record(tmp_path, "configs/lake_circle.toml", 1.0)
+    assert not rec.rows(bp.RADIO_LINKS) and not rec.rows(bp.UTILISATION) and bp.UTILISATION not in rec.static
+
+
+def _radio_world():
+    from cdus.scenario.config import load_scenario as load
+    from cdus.wire.transport import Transport
+    from world_sim.world import World
+
+    from .test_world import FLEET, Pub, Session
+
+    w = World(load(ROOT / "configs/lake_radio.toml"), FLEET, Transport(), clock="lockstep", log=lambda s: None)
+    w.session = Session()
+    w.pub_ctl, w.pub_launcher, w.pub_status, w.pub_events, w.pub_radio = Pub(), Pub(), Pub(), Pub(), Pub()
+    w._wake = lambda payload=b"": None
+    return w
+
+
+def test_the_world_samples_the_geometry_once_a_tick_is_reported_and_grants_no_further():
+    from cdus.wire.messages import decode_geometry
+
+    from .test_world import row, send_rows, started
+
+    w = started(_radio_world())
+    assert w.lockstep.granted == 0  # sample 0 is needed from tick 1
+    for j, vid in enumerate(w.ids[:-1]):
+        send_rows(w, vid, [row(j, 0)])
+    w._act(w.lockstep.poll())
+    assert w.pub_radio.puts == [] and w.lockstep.granted == 0  # uav3 has not reported tick 0
+    send_rows(w, w.ids[-1], [row(5, 0)])
+    w._act(w.lockstep.poll())
+    (payload,) = w.pub_radio.puts
+    msg = decode_geometry(payload, 6)
+    assert msg.tick == 0 and msg.positions[0] == (0.0, 0.0) and msg.positions[5] == (0.0, 0.0, 20.0)
+    assert w.lockstep.granted == 20  # the next sample, 10, is in force from 20
+    assert w.radio_watch.utilisation == [(0.0, w.radio_watch.utilisation[0][1])]
+
+
+def test_the_world_relays_a_radio_change_or_says_why_not():
+    from cdus.wire.messages import CTL_OPS, decode_control
+
+    from .test_world import started, world
+
+    w = started(_radio_world())
+    assert "tx_power" in w._relay_radio({"radio": {"tx_power": "loud"}, "at": -1.0}, "gs")
+    assert "power" in w._relay_radio({"radio": {"power": 3}, "at": -1.0}, "gs")
+    assert w._relay_radio({"radio": {"tx_power": 3.0, "station": [1.0, 2.0]}, "at": -1.0}, "gs") is None
+    (c,) = [decode_control(p, CTL_OPS) for p in w.pub_ctl.puts if decode_control(p, CTL_OPS).op == "radio"]
+    assert c.fields["radio"] == {"tx_power": 3.0, "station": [1.0, 2.0]} and c.fields["at"] >= 0.02
+    assert w.radio_watch.channel.epochs[-1][1:] == (3.0, (1.0, 2.0, 0.0))
+    assert [e.kind for e in w.events][-1] == "radio_changed"
+    plain = started(world())
+    assert "no [radio]" in plain._relay_radio({"radio": {"tx_power": 3.0}, "at": -1.0}, "gs")
