@@ -647,17 +647,19 @@ class World:
 
     def _radio_realtime(self) -> None:
         """Realtime: once the clock has passed a radio sample tick, sample the newest telemetry of
-        the vehicles alive under that tick."""
+        the vehicles alive under that tick (once each of them has sent some; never past the run)."""
         if self.radio is None or self.t0 is None or self.paused_at is not None:
             return
         n = self._tick_now()
-        if n < self._next_radio:
+        if n < self._next_radio or n > self.last_tick:
             return
         every = self.radio[0]
-        self._next_radio = (n // every + 1) * every
         alive = {self.index[v] for v in self.st.alive}
         with self._lock:
             positions = {j: m.q for j, m in self.st.latest.items() if j in alive}
+        if not self.st.latest or len(positions) < len(alive):
+            return  # a live vehicle not heard from yet (the start): it would look out of range
+        self._next_radio = (n // every + 1) * every
         self._send_geometry(n // every * every, positions)
 
     def _sense_realtime(self) -> None:
