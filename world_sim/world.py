@@ -34,6 +34,7 @@ import zenoh
 from cdus.core.events import RosterChange
 from cdus.core.link import LinkCounters, merge_link_summaries
 from cdus.core.node import gains_problem
+from cdus.core.radiolink import RadioCounters
 from cdus.core.metrics import Recorder
 from cdus.core.schedule import total_ticks
 from cdus.files import write_json
@@ -864,7 +865,6 @@ class World:
         the utilisation and splits the world saw."""
         if self.radio is None or self.radio_watch is None:
             return {}
-        from cdus.core.radiolink import RadioCounters
         total = RadioCounters()
         for s in self._processes():
             if isinstance(s.radio, dict):

@@ -14,6 +14,8 @@ from cdus.core.disturbance import Disturbance, DisturbanceSpec
 from cdus.core.link import IdealLink, LinkEmulator, LinkModel
 from cdus.core.metrics import MetricEdge
 from cdus.core.neighbours import NeighbourLink
+from cdus.core.radio import RadioChannel
+from cdus.core.radiolink import RadioLink
 from cdus.core.node import VehicleNode
 from cdus.core.schedule import broadcast_every, total_ticks
 from cdus.core.paths import for_dimension, make_path, nearest_omega
@@ -141,7 +143,6 @@ def with_radio(scenario: Scenario, inner: LinkModel) -> LinkModel:
     schedule = radio_schedule(scenario)
     if schedule is None:
         return inner
-    from cdus.core.radiolink import RadioLink  # only with [radio]: nothing changes without it
     return RadioLink(inner, radio_channel_for(scenario), period=1.0 / scenario.rates.control,
                      every=schedule[0], lag=schedule[1])
 
@@ -158,10 +159,9 @@ def radio_schedule(scenario: Scenario) -> tuple[int, int] | None:
     return every, every
 
 
-def radio_channel_for(scenario: Scenario):
+def radio_channel_for(scenario: Scenario) -> RadioChannel:
     """The scenario's radio channel (cdus.core.radio.RadioChannel), seeded with ``radio.seed``
     if it has one, else the link seed; every vehicle broadcasts ω at the scenario's rate."""
-    from cdus.core.radio import RadioChannel
     period = 1.0 / scenario.rates.control
     return RadioChannel(scenario.radio, scenario.ids, [v.kind for v in scenario.vehicles], scenario.radio_seed,
                         rate=1.0 / (broadcast_every(scenario.rates) * period), tick_period=period)

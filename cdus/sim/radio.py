@@ -20,6 +20,8 @@ from __future__ import annotations
 from typing import Any, Iterable, Mapping, Sequence
 
 from cdus.core import graph as graphs
+from cdus.core.radio import Geometry
+from cdus.core.radiolink import RadioCounters, as_point
 from cdus.scenario.errors import ConfigError
 from cdus.scenario.radio import validate_radio_update
 from cdus.wire.messages import GeometryMsg
@@ -77,8 +79,6 @@ class RadioWatch:
 
     def observe(self, msg: GeometryMsg) -> list[FleetEvent]:
         """Watch one (decoded) sample; the events it gives (a split or a rejoin)."""
-        from cdus.core.radio import Geometry
-        from cdus.core.radiolink import as_point
         t = msg.tick * self.period
         geo = Geometry.of(msg.tick, tuple(None if q is None else as_point(q) for q in msg.positions), None)
         self.utilisation.append((t, float(self.channel.utilisation(geo))))
@@ -132,7 +132,7 @@ class RadioWatch:
                 "samples": len(us)}
 
 
-def radio_block(counters: Any, watch: RadioWatch) -> dict:
+def radio_block(counters: RadioCounters, watch: RadioWatch) -> dict:
     """The metrics JSON's ``radio`` block (docs/metrics.md): messages decided on the radio path,
     drops by cause (``fault``: the hand-set [link] fault; range, fading, collision, queue: the
     channel), channel utilisation (mean, max over the geometry samples) and the number of
