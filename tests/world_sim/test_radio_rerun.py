@@ -99,3 +99,37 @@ def test_the_world_relays_a_radio_change_or_says_why_not():
     assert [e.kind for e in w.events][-1] == "radio_changed"
     plain = started(world())
     assert "no [radio]" in plain._relay_radio({"radio": {"tx_power": 3.0}, "at": -1.0}, "gs")
+
+
+def test_hostile_radio_commands_never_raise_and_are_refused_or_relayed():
+    """Any radio command a ground station can send (decoded by COMMAND_OPS: a table and a time)
+    is relayed or refused with a reason and a `rejected` event; nothing escapes, and the world's
+    channel only ever takes what it relays."""
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    from cdus.wire import keys
+    from cdus.wire.messages import encode_control
+    from tests.fakes import Payload, Sample
+
+    from .test_world import FLEET, started
+
+    values = st.none() | st.booleans() | st.floats() | st.integers(-2**63, 2**63) | st.text(max_size=5) \
+        | st.lists(st.floats() | st.integers(-10**6, 10**6), max_size=4)
+    tables = st.dictionaries(st.sampled_from(["tx_power", "station", "x", ""]) | st.text(max_size=4), values,
+                             max_size=3)
+
+    @settings(max_examples=200, deadline=None)
+    @given(table=tables, at=st.floats(allow_nan=False, allow_infinity=False, min_value=-1e12, max_value=1e12))
+    def check(table, at):
+        w = started(_radio_world())
+        before = len(w.radio_watch.channel.epochs)
+        w._handle(Sample(keys.world_cmd(FLEET, "gs"), Payload(encode_control("radio", radio=table, at=at))))
+        relayed = [e for e in w.events if e.kind == "radio_changed"]
+        refused = [e for e in w.events if e.kind == "rejected"]
+        assert len(relayed) + len(refused) == 1
+        assert len(w.radio_watch.channel.epochs) == before + len(relayed)
+        assert w.st.rejects.get("internal", 0) == 0
+        assert w.st.rejects.get("radio", 0) == len(refused)
+
+    check()
