@@ -311,7 +311,8 @@ class World:
                     continue
             if self.sensing is not None and m.tick % self.sensing[0] == 0 and m.tick > self.lockstep.sensed:
                 self._sample_rows.setdefault(m.tick, {}).setdefault(j, m.q)
-            if self.radio is not None and m.tick % self.radio[0] == 0 and m.tick > self.lockstep.radioed:
+            if (self.radio is not None and self.clock == "lockstep" and m.tick % self.radio[0] == 0
+                    and m.tick > self.lockstep.radioed):  # realtime samples from the newest telemetry
                 self._radio_rows.setdefault(m.tick, {}).setdefault(j, m.q)
             prev = st.latest.get(j)
             if prev is None or m.tick >= prev.tick:
