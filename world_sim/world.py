@@ -452,6 +452,10 @@ class World:
         earliest = ((self.lockstep.granted + 1) * self.period if self.clock == "lockstep"
                     else self._sim_now() + self.period)
         at = max(fields["at"], earliest) if fields["at"] >= 0 else max(self._sim_now() + LINK_LEAD, earliest)
+        later = self.radio_watch.channel.epochs[-1][0] if self.radio_watch is not None else -math.inf
+        if at < later:  # changes apply in time order (epochs): a scheduled or earlier command's comes later
+            return (f"a radio change from t = {later:g} s is already in force later (scheduled or commanded); "
+                    f"give --at {later:g} or later")
         payload = encode_control("radio", radio=change, at=float(at))
         self.pub_ctl.put(payload)
         self._commands.append((None, payload))

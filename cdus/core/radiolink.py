@@ -60,6 +60,16 @@ class RadioCounters:
                    **{c: d["dropped_by"][c] for c in RADIO_CAUSES})
 
 
+@dataclass(frozen=True)
+class RadioEvent:
+    """A scheduled radio change (``[[event]] action = "radio"``): from send time ``at`` on, the
+    transmit power (dBm) and/or the station position; None leaves it as it is."""
+
+    at: float
+    tx_power: float | None = None
+    station: tuple[float, float, float] | None = None
+
+
 def as_point(q: Sequence[float]) -> tuple[float, float, float]:
     """A position as (x, y, z): a 2D vehicle (a boat) is at z = 0 (its antenna height is the
     channel's, by kind)."""

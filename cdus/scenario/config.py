@@ -27,7 +27,7 @@ from dataclasses import replace
 
 from cdus.scenario.checks import Problems, describe, quote
 from cdus.scenario.errors import ConfigError
-from cdus.scenario.events import event_section
+from cdus.scenario.events import event_section, radio_event_section
 from cdus.scenario.graph import graph_section
 from cdus.scenario.link import link_section
 from cdus.scenario.model import Edge, Rates, Safety, Scenario, Supervision, VehicleSpec
@@ -316,6 +316,7 @@ def _resolve(p: Problems, data: Mapping[str, Any], source: str) -> Scenario | No
     link = link_section(p, data.get("link", {}), ids)
     radio = radio_section(p, data["radio"], ids) if "radio" in data else None
     events = event_section(p, data.get("event", []), ids)
+    radio_events = radio_event_section(p, data.get("event", []), "radio" in data)
     if p or link is None:
         return None
     return Scenario(
@@ -323,4 +324,5 @@ def _resolve(p: Problems, data: Mapping[str, Any], source: str) -> Scenario | No
         seed=header.seed, rates=rates, path_tol=path_tol, coord_tol=coord_tol, topology=topology,
         directed=directed, vehicles=tuple(v for v in fleet.specs if v is not None), edges=edges, link=link,
         events=events, supervision=supervision, raw=dict(data), safety=safety, radio=radio,
+        radio_events=radio_events,
     )

@@ -6,6 +6,12 @@
     vehicle = "usv2"
     duration = 10.0      # optional, pause only: resume after this many seconds
 
+    [[event]]
+    at = 60.0
+    action = "radio"     # with [radio]: a scheduled radio change, for messages sent from `at` on
+    tx_power = 5.0       # dBm, and/or
+    station = [0.0, -80.0]
+
 :func:`event_section` checks them against the vehicle ids into the
 :class:`cdus.core.events.Event` tuple that ``Scenario.events`` carries (what each action
 does is described there; docs/config.md is the user reference).
@@ -16,7 +22,10 @@ from __future__ import annotations
 from typing import Any, Sequence
 
 from cdus.core.events import ACTIONS, Event
+from cdus.core.radiolink import RadioEvent
 from cdus.scenario.checks import Problems, quote
+from cdus.scenario.errors import ConfigError
+from cdus.scenario.radio import validate_radio_update
 
 EVENT_KEYS = ("at", "action", "vehicle", "duration")
 REQUIRED = ("at", "action", "vehicle")
@@ -27,6 +36,8 @@ def event_section(p: Problems, raw: Any, ids: Sequence[str] | None) -> tuple[Eve
     sequence per vehicle (:func:`_check_sequence`)."""
     fielded: list[tuple[Event, str]] = []
     for j, e in enumerate(p.tables(raw, "event", "event")):
+        if e.get("action") == "radio":
+            continue  # radio_event_section's
         evs = _event(p, e, f"event[{j}]", ids)
         # a pause's duration brings a resume, named after the duration
         fielded += [(ev, f"event[{j}]" + (".duration" if k else "")) for k, ev in enumerate(evs)]
@@ -89,3 +100,38 @@ def _event(p: Problems, e: dict, field: str, ids: Sequence[str] | None) -> list[
     if duration is not None:
         events.append(Event(at + duration, "resume", vehicle))
     return events
+
+
+RADIO_EVENT_KEYS = ("at", "action", "tx_power", "station")
+
+
+def radio_event_section(p: Problems, raw: Any, has_radio: bool) -> tuple[RadioEvent, ...]:
+    """The ``action = "radio"`` events, sorted by time (a stable sort: the file's order at one
+    time, the later one wins): ``at`` and ``tx_power`` and/or ``station``, as a ground station's
+    ``radio`` command takes them (cdus.scenario.radio.validate_radio_update); only with [radio]."""
+    out: list[RadioEvent] = []
+    if not isinstance(raw, list):
+        return ()  # event_section reports it
+    for j, e in enumerate(raw):
+        if not isinstance(e, dict) or e.get("action") != "radio":
+            continue
+        field = f"event[{j}]"
+        mark = len(p)
+        p.unknown_keys(e, RADIO_EVENT_KEYS, field)
+        if not has_radio:
+            p.add(f"{field}.action", "a radio event needs a [radio] table (docs/radio.md); add one or remove the event")
+        if "at" not in e:
+            p.missing(f"{field}.at", 'a radio event needs at, and tx_power and/or station, e.g. at = 60.0, '
+                                     'action = "radio", tx_power = 5.0')
+        at = p.number(e["at"], f"{field}.at", ge=0, unit=" (s of simulated time)") if "at" in e else None
+        try:
+            tx, station = validate_radio_update({k: v for k, v in e.items() if k in ("tx_power", "station")},
+                                                f"{field}")
+        except ConfigError as err:
+            for name, message in err.problems:
+                p.add(f"{field}.{name.removeprefix('radio.')}" if name != "radio" else field, message)
+            continue
+        if not p.since(mark) and at is not None:
+            out.append(RadioEvent(at, tx, station))
+    out.sort(key=lambda ev: ev.at)
+    return tuple(out)

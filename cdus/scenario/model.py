@@ -15,6 +15,7 @@ from cdus.core.events import Event
 from cdus.core.linkspec import LinkSpec
 from cdus.core.proximity import sample_every
 from cdus.core.radio import RadioSpec
+from cdus.core.radiolink import RadioEvent
 
 #: What the launcher does when a vehicle's process exits during the run (docs/config.md, [supervision]).
 RESTART_POLICIES = ("never", "on-failure", "always")
@@ -136,6 +137,7 @@ class Scenario:
     raw: dict  # the overridden TOML data; parse_scenario(raw) rebuilds this scenario
     safety: Safety = Safety()  # the [safety] table
     radio: RadioSpec | None = None  # the validated [radio] table; None: absent, no radio channel
+    radio_events: tuple[RadioEvent, ...] = ()  # [[event]] action = "radio": scheduled changes, by time
 
     def vehicle(self, vid: str) -> VehicleSpec:
         for v in self.vehicles:

@@ -161,10 +161,14 @@ def radio_schedule(scenario: Scenario) -> tuple[int, int] | None:
 
 def radio_channel_for(scenario: Scenario) -> RadioChannel:
     """The scenario's radio channel (cdus.core.radio.RadioChannel), seeded with ``radio.seed``
-    if it has one, else the link seed; every vehicle broadcasts ω at the scenario's rate."""
+    if it has one, else the link seed; every vehicle broadcasts ω at the scenario's rate; the
+    scheduled radio events (``[[event]] action = "radio"``) are its epochs from the start."""
     period = 1.0 / scenario.rates.control
-    return RadioChannel(scenario.radio, scenario.ids, [v.kind for v in scenario.vehicles], scenario.radio_seed,
-                        rate=1.0 / (broadcast_every(scenario.rates) * period), tick_period=period)
+    channel = RadioChannel(scenario.radio, scenario.ids, [v.kind for v in scenario.vehicles], scenario.radio_seed,
+                           rate=1.0 / (broadcast_every(scenario.rates) * period), tick_period=period)
+    for ev in scenario.radio_events:  # scheduled changes: every runner knows them up front
+        channel.update(ev.at, tx_power_dbm=ev.tx_power, station=ev.station)
+    return channel
 
 
 def link_faults_of(link: LinkModel) -> LinkEmulator | None:

@@ -14,6 +14,10 @@ from cdus.sim.lockstep import Grant, Lockstep, RadioSample
 from cdus.sim.radio import RadioWatch, radio_change_problem
 from cdus.wire.messages import GeometryMsg
 
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
 
 def test_lockstep_grants_no_further_than_the_radio_sample_allows():
     ls = Lockstep(["a", "b"], 0.05, 100, radio_every=4, radio_lag=4)
@@ -130,3 +134,39 @@ def test_the_metrics_radio_block_is_typed_in_the_api_and_printed():
     plain = InProcessFleet(load_scenario("configs/lake_circle.toml", {"scenario.duration": 0.2})).run().metrics
     assert "radio" not in plain and Metrics.from_dict(plain).radio is None
     assert "radio:" not in summary_table(plain, sc.vehicles)
+
+
+RADIO_EVENT = """
+[[event]]
+at = 2.0
+action = "radio"
+tx_power = -30.0
+"""
+
+
+def test_a_scheduled_radio_event_is_the_same_change_as_a_ground_stations(tmp_path):
+    """[[event]] action = "radio" at 2 s gives the run that set_radio (the path of a ground
+    station's command) gives, to the bit; it is checked like the command."""
+    from cdus.core.radiolink import RadioEvent
+    from cdus.scenario.config import ConfigError
+
+    base = (ROOT / "configs/lake_radio.toml").read_text()
+    cfg = tmp_path / "ev.toml"
+    cfg.write_text(base + RADIO_EVENT)
+    sc = load_scenario(cfg, {"scenario.duration": 3.0})
+    assert sc.radio_events == (RadioEvent(2.0, -30.0, None),) and sc.events == ()
+    scheduled = InProcessFleet(sc).run()
+    plain = load_scenario("configs/lake_radio.toml", {"scenario.duration": 3.0})
+    commanded = InProcessFleet(plain)
+    commanded.set_radio({"tx_power": -30.0}, 2.0)
+    ref = commanded.run()
+    assert np.array_equal(scheduled.recorder.view("q"), ref.recorder.view("q"))
+    assert scheduled.metrics["radio"] == ref.metrics["radio"] and ref.metrics["radio"]["dropped_by"]["range"] > 0
+    for bad, field in [("tx_power = 900.0", "event[0].tx_power"), ('station = "x"', "event[0].station"),
+                       ("vehicle = \"usv1\"", "event[0].vehicle")]:
+        cfg.write_text(base + '\n[[event]]\nat = 2.0\naction = "radio"\n' + bad + "\n")
+        with pytest.raises(ConfigError, match=field.replace("[", r"\[").replace("]", r"\]")):
+            load_scenario(cfg)
+    cfg.write_text((ROOT / "configs/lake_circle.toml").read_text() + RADIO_EVENT)
+    with pytest.raises(ConfigError, match=r"event\[0\]\.action: a radio event needs a \[radio\] table"):
+        load_scenario(cfg)

@@ -133,3 +133,24 @@ def test_hostile_radio_commands_never_raise_and_are_refused_or_relayed():
         assert w.st.rejects.get("radio", 0) == len(refused)
 
     check()
+
+
+def test_a_command_before_a_scheduled_radio_change_is_refused(tmp_path):
+    from cdus.scenario.config import load_scenario as load
+    from cdus.wire.transport import Transport
+    from world_sim.world import World
+
+    from .test_world import FLEET, Pub, Session, started
+
+    cfg = tmp_path / "ev.toml"
+    cfg.write_text((ROOT / "configs/lake_radio.toml").read_text()
+                   + '\n[[event]]\nat = 100.0\naction = "radio"\ntx_power = 5.0\n')
+    w = World(load(cfg), FLEET, Transport(), clock="lockstep", log=lambda s: None)
+    w.session = Session()
+    w.pub_ctl, w.pub_launcher, w.pub_status, w.pub_events, w.pub_radio = Pub(), Pub(), Pub(), Pub(), Pub()
+    w._wake = lambda payload=b"": None
+    started(w)
+    assert w.radio_watch.channel.epochs[-1][:2] == (100.0, 5.0)  # the world's channel knows it up front
+    assert "--at 100 or later" in w._relay_radio({"radio": {"tx_power": 3.0}, "at": -1.0}, "gs")
+    assert w._relay_radio({"radio": {"tx_power": 3.0}, "at": 150.0}, "gs") is None
+    assert "--at 150 or later" in w._relay_radio({"radio": {"tx_power": 9.0}, "at": 120.0}, "gs")
