@@ -64,6 +64,11 @@ def predicted(n: int, topology: str, rate: float, size: int) -> float:
     return ch.delivery_probability(0, 1, geo)
 
 
+def utilisation(n: int, topology: str, rate: float, size: int) -> float:
+    ch, geo = fleet(n, topology, rate, size)
+    return ch.utilisation(geo)
+
+
 def smallest(pred, lo: int = 2, hi: int = 4096) -> int | None:
     """The smallest n in [lo, hi] with pred(n) (pred monotone in n), None if none."""
     if not pred(hi):
@@ -95,12 +100,12 @@ def main() -> None:
                     rho, wait, p, got = row(n, topology, rate, size, args.messages)
                     print(f"  {n:>4} {rate:>8g} {size:>9} {rho:>8.3f} {wait * 1e3:>8.3f} {p:>8.3f} {got:>8.3f}")
     print("\n2. saturation point: the smallest fleet with ρ >= 1, and with delivery probability < 0.9")
-    print(f"  {'topology':>8} {'rate Hz':>8} {'payload B':>9} {'N at ρ>=1':>10} {'N at p<0.9':>10} {'N·rate at ρ=1':>14}")
+    print(f"  {'topology':>8} {'rate Hz':>8} {'payload B':>9} {'N at ρ>=1':>10} {'N at p<0.9':>10} "
+          f"{'N·rate at ρ=1':>14}")
     for topology in ("adhoc", "station"):
         for size in SIZES:
             for rate in RATES:
-                n_sat = smallest(lambda n: fleet(n, topology, rate, size)[0].utilisation(
-                    fleet(n, topology, rate, size)[1]) >= 1.0)
+                n_sat = smallest(lambda n: utilisation(n, topology, rate, size) >= 1.0)
                 n_90 = smallest(lambda n: predicted(n, topology, rate, size) < 0.9)
                 ch, _ = fleet(2, topology, rate, size)
                 per_s = 1.0 / (ch.air * (2 if topology == "station" else 1))

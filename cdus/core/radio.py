@@ -16,14 +16,16 @@ link's end positions and the sample time (random Fourier features of the exponen
 kernel), so a decision is a pure function of (seed, src, dst, seq, geometry, the epoch in
 force at t_send). Caches hold values of pure functions only.
 
-Pure: no I/O, no clocks; numpy for the field and the fading average.
+Pure: no I/O, no clocks. Everything a decision depends on is plain float arithmetic and
+``math`` (the same bits in every process); numpy only averages the fading for the delivery
+probability.
 """
 
 from __future__ import annotations
 
 import bisect
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, fields
 from typing import Iterable, Sequence
 
 import numpy as np
@@ -46,6 +48,7 @@ KINDS = ("usv", "uav")
 MIN_HEIGHT = 0.01  # m: an antenna at or below the water is taken 1 cm above it (two-ray needs h > 0)
 FEATURES = 64  # random Fourier features of the shadowing field
 DEFAULT_RATE = 50.0  # Hz: the default [rates] broadcast
+MAX_CACHED = 8192  # legs (link x epoch x geometry) kept before the cache is emptied
 
 
 def omega_size(n_vehicles: int) -> int:
@@ -157,19 +160,17 @@ def two_ray_loss_db(d: float, ht: float, hr: float, frequency: float, eps: compl
     with r1 = √(d² + (ht - hr)²) the direct path, r2 = √(d² + (ht + hr)²) the reflected one,
     k = 2π/λ, ψ the grazing angle (sin ψ = (ht + hr)/r2) and Γ the Fresnel coefficient of the
     surface. d (m) is the horizontal distance, ht, hr (m) the heights above the surface
-    (at least MIN_HEIGHT); r1 is taken at least ``d_min`` (the near field). Far beyond the
+    (at least MIN_HEIGHT); with r1 < ``d_min`` (the near field) it is evaluated at the
+    horizontal distance where r1 = d_min. Far beyond the
     crossover 4π ht hr / λ, Γ -> -1 and PL -> 40 log10 d - 20 log10(ht hr).
     """
     ht, hr = max(ht, MIN_HEIGHT), max(hr, MIN_HEIGHT)
     lam = C_LIGHT / frequency
     r1 = math.hypot(d, ht - hr)
     r2 = math.hypot(d, ht + hr)
-    if r1 < d_min:  # inside the reference distance: both paths scaled out to it
-        scale = d_min / r1 if r1 > 0.0 else math.inf
-        if math.isinf(scale):
-            return free_space_db(d_min, frequency)
-        d, ht, hr = d * scale, ht * scale, hr * scale
-        r1, r2 = d_min, r2 * scale
+    if r1 < d_min:  # inside the near field: evaluated where the direct path is d_min long
+        d = math.sqrt(d_min * d_min - (ht - hr) ** 2)
+        r1, r2 = d_min, math.hypot(d, ht + hr)
     dr = 4.0 * ht * hr / (r1 + r2)  # r2 - r1 without cancellation
     gamma = reflection_coefficient((ht + hr) / r2, d / r2, eps, polarization)
     k = 2.0 * math.pi / lam
@@ -205,7 +206,9 @@ def per_from_snr(snr_db: float, size_bytes: int, modulation: str = "bpsk", bandw
                  rate: float = 6.0e6) -> float:
     """Packet error rate: 1 - (1 - BER)^(8 · size), BER at Eb/N0 = SNR · bandwidth / rate (the
     SNR is measured over ``bandwidth``, the bits come at ``rate``)."""
-    ebn0 = 10.0 ** (snr_db / 10.0) * bandwidth / rate
+    if not snr_db > -300.0:  # also nan: no signal
+        return 1.0 if size_bytes > 0 else 0.0
+    ebn0 = 10.0 ** (min(snr_db, 300.0) / 10.0) * bandwidth / rate
     b = ber(ebn0, modulation)
     if b <= 0.0:
         return 0.0
@@ -231,7 +234,7 @@ def _q_vec(x: np.ndarray) -> np.ndarray:
 
 def per_curve(snr_db: np.ndarray, size_bytes: int, modulation: str, bandwidth: float, rate: float) -> np.ndarray:
     """:func:`per_from_snr` over an array of SNRs (dB)."""
-    ebn0 = 10.0 ** (snr_db / 10.0) * bandwidth / rate
+    ebn0 = 10.0 ** (np.clip(np.nan_to_num(snr_db, nan=-300.0), -300.0, 300.0) / 10.0) * bandwidth / rate
     if modulation in ("bpsk", "qpsk"):
         b = _q_vec(np.sqrt(2.0 * ebn0))
     else:
@@ -349,18 +352,25 @@ class ShadowField:
     __slots__ = ("w", "phi", "amp")
 
     def __init__(self, key: int, sigma: float):
-        z = np.empty((FEATURES, 8))
+        w = []
         for i in range(FEATURES):
+            z = []
             for j in range(4):
-                z[i, 2 * j], z[i, 2 * j + 1] = normal_pair(uniform(key, 8 * i + 2 * j), uniform(key, 8 * i + 2 * j + 1))
-        g = np.abs(z[:, 7])
-        g[g < 1e-300] = 1e-300
-        self.w = z[:, :7] / g[:, None]
-        self.phi = np.array([2.0 * math.pi * uniform(key, 8 * FEATURES + i) for i in range(FEATURES)])
+                z.extend(normal_pair(uniform(key, 8 * i + 2 * j), uniform(key, 8 * i + 2 * j + 1)))
+            g = max(abs(z[7]), 1e-12)  # |w| < 1e13: w · x stays finite (P(|g| < 1e-12) ~ 1e-12)
+            w.append(tuple(zk / g for zk in z[:7]))
+        self.w = tuple(w)
+        self.phi = tuple(2.0 * math.pi * uniform(key, 8 * FEATURES + i) for i in range(FEATURES))
         self.amp = sigma * math.sqrt(2.0 / FEATURES)
 
-    def __call__(self, x: np.ndarray) -> float:
-        return float(self.amp * np.cos(self.w @ x + self.phi).sum())
+    def __call__(self, x: Sequence[float]) -> float:
+        """S(x), in plain float arithmetic and math.cos (no BLAS, no SIMD paths: the same bits
+        in every process)."""
+        x0, x1, x2, x3, x4, x5, x6 = (float(v) for v in x)
+        total = 0.0
+        for (w0, w1, w2, w3, w4, w5, w6), phi in zip(self.w, self.phi):
+            total += math.cos(w0 * x0 + w1 * x1 + w2 * x2 + w3 * x3 + w4 * x4 + w5 * x5 + w6 * x6 + phi)
+        return self.amp * total
 
 
 # --------------------------------------------------------------------------- geometry and decisions
@@ -484,7 +494,7 @@ class RadioChannel:
         self._epochs: list[_Epoch] = [_Epoch(spec.tx_power, spec.station)]
         self._keys: dict[tuple[str, str, str], int] = {}
         self._fields: dict[tuple[int, int], ShadowField] = {}
-        self._legs: dict[tuple[int, int], tuple] = {}  # (a, b) -> (epoch, geo, _Leg): the newest
+        self._legs: dict[tuple[int, int, int, int], tuple[Geometry, _Leg | None]] = {}
         self._media: tuple = (None, None)
         self._links: dict[tuple[int, int], RadioCounters] = {}
         if tick_period is not None and not (tick_period > 0.0 and math.isfinite(tick_period)):
@@ -572,10 +582,9 @@ class RadioChannel:
         if f is None:
             f = self._fields[(lo, hi)] = ShadowField(self._key(self._name(lo), self._name(hi), "shadow"),
                                                      s.shadowing_sigma)
-        x = np.zeros(7)
+        x = [0.0] * 7
         if math.isfinite(s.shadowing_distance):
-            x[:3] = np.asarray(pa) / s.shadowing_distance
-            x[3:6] = np.asarray(pb) / s.shadowing_distance
+            x[:6] = [c / s.shadowing_distance for c in (*pa, *pb)]
         if math.isfinite(s.shadowing_time):
             t = geo.t
             if t is None:
@@ -624,9 +633,12 @@ class RadioChannel:
     # ---- one leg
 
     def _leg(self, a: int, b: int, geo: Geometry, epoch: int) -> _Leg | None:
-        cached = self._legs.get((a, b))
-        if cached is not None and cached[0] == epoch and (cached[1] is geo or cached[1] == geo):
-            return cached[2]
+        # cached per (link, epoch, geometry object): the cache holds the geometry, so its id is
+        # not reused while cached; an equal geometry in a new object is computed again (same value)
+        key = (a, b, epoch, id(geo))
+        cached = self._legs.get(key)
+        if cached is not None and cached[0] is geo:
+            return cached[1]
         pa, pb = self.antenna(a, geo, epoch), self.antenna(b, geo, epoch)
         if pa is None or pb is None:
             leg = None
@@ -644,7 +656,9 @@ class RadioChannel:
             m = self.medium(geo)
             own = self.rate * (m.live if a == len(self.ids) else 1)  # the station relays everyone's
             leg = _Leg(snr, per, success, self._collision(m, own))
-        self._legs[(a, b)] = (epoch, geo, leg)
+        if len(self._legs) >= MAX_CACHED:
+            self._legs.clear()
+        self._legs[key] = (geo, leg)
         return leg
 
     def _through(self, leg: _Leg, a: int, b: int, seq: int, tag: str) -> str | None:

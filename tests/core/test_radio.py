@@ -434,3 +434,41 @@ def test_counters_by_cause_and_update_epochs():
     ch.update(3.0, station=(1.0, 2.0))
     assert ch.epochs[-1] == (3.0, -10.0, (1.0, 2.0, 0.0))
     assert replace(RadioSpec(), tx_power=1.0).tx_power == 1.0
+
+
+def test_two_ray_near_field_is_evaluated_where_the_direct_path_is_d0():
+    f = 5.18e9
+    eps = water_permittivity(80.0, 0.01, f)
+    at_d0 = two_ray_loss_db(1.0, 1.0, 1.0, f, eps)
+    assert two_ray_loss_db(0.0, 1.0, 1.0, f, eps) == at_d0 == two_ray_loss_db(1e-300, 1.0, 1.0, f, eps)
+    assert two_ray_loss_db(0.2, 1.0, 1.5, f, eps) == pytest.approx(two_ray_reference(math.sqrt(0.75), 1.0, 1.5, f, 80.0,
+                                                                                     0.01, "vertical"), abs=1e-9)
+    assert math.isfinite(per_from_snr(float("nan"), 10)) and per_from_snr(float("nan"), 10) == 1.0
+    assert per_from_snr(1e6, 10) == 0.0
+
+
+def test_channel_shadowing_follows_the_configured_distance_and_time():
+    """Through the channel: one boat moving shadowing_distance decorrelates the link to
+    exp(-1); shadowing_time later, to exp(-1) too; the variance is shadowing_sigma²."""
+    n, sigma, dist, tau = 1500, 5.0, 40.0, 3.0
+    g0 = Geometry.of(0, [(0.0, 0.0), (200.0, 0.0)])
+    g_moved = Geometry.of(0, [(0.0, 0.0), (200.0, dist)])
+    g_later = Geometry.of(150, [(0.0, 0.0), (200.0, 0.0)])  # 150 ticks x 0.02 s = 3 s
+    v = np.empty((n, 3))
+    for i in range(n):
+        ch = chan(seed=i, shadowing_sigma=sigma, shadowing_distance=dist, shadowing_time=tau, tick_period=0.02)
+        for j, g in enumerate((g0, g_moved, g_later)):
+            v[i, j] = ch.shadowing(0, 1, ch.antenna(0, g, 0), ch.antenna(1, g, 0), g)
+    z = z_bound(3)
+    m4 = np.mean((v[:, 0] - v[:, 0].mean()) ** 4)
+    assert abs(v[:, 0].var() - sigma ** 2) <= z * math.sqrt((m4 - v[:, 0].var() ** 2) / n)
+    for j in (1, 2):
+        r = np.corrcoef(v[:, 0], v[:, j])[0, 1]
+        assert abs(math.atanh(r) - math.atanh(math.exp(-1.0))) <= z / math.sqrt(n - 3), (j, r)
+
+
+def test_without_fading_a_reception_loss_is_always_range():
+    ch = chan(shadowing_sigma=0.0)
+    geo = Geometry.of(0, [(0.0, 0.0), (530.0, 0.0)])
+    causes = [ch.decide(0, 1, s, 0.0, geo).cause for s in range(3000)]
+    assert "range" in causes and None in causes and "fading" not in causes
