@@ -50,14 +50,14 @@ def test_nothing_of_the_radio_without_it(tmp_path):
     assert not rec.rows(bp.RADIO_LINKS) and not rec.rows(bp.UTILISATION) and bp.UTILISATION not in rec.static
 
 
-def _radio_world():
+def _radio_world(clock="lockstep"):
     from cdus.scenario.config import load_scenario as load
     from cdus.wire.transport import Transport
     from world_sim.world import World
 
     from .test_world import FLEET, Pub, Session
 
-    w = World(load(ROOT / "configs/lake_radio.toml"), FLEET, Transport(), clock="lockstep", log=lambda s: None)
+    w = World(load(ROOT / "configs/lake_radio.toml"), FLEET, Transport(), clock=clock, log=lambda s: None)
     w.session = Session()
     w.pub_ctl, w.pub_launcher, w.pub_status, w.pub_events, w.pub_radio = Pub(), Pub(), Pub(), Pub(), Pub()
     w._wake = lambda payload=b"": None
@@ -154,3 +154,31 @@ def test_a_command_before_a_scheduled_radio_change_is_refused(tmp_path):
     assert "--at 100 or later" in w._relay_radio({"radio": {"tx_power": 3.0}, "at": -1.0}, "gs")
     assert w._relay_radio({"radio": {"tx_power": 3.0}, "at": 150.0}, "gs") is None
     assert "--at 150 or later" in w._relay_radio({"radio": {"tx_power": 9.0}, "at": 120.0}, "gs")
+
+
+def test_realtime_samples_once_every_live_vehicle_has_reported_and_never_past_the_end():
+    import time
+
+    from cdus.wire.messages import decode_geometry
+
+    from .test_world import row
+
+    w = _radio_world("realtime")
+    w.st.alive = set(w.ids)
+    w.t0 = time.time() - 1.01  # tick 50 at 50 Hz
+    w._radio_realtime()
+    assert w.pub_radio.puts == []  # nobody heard from yet: all would look out of range
+    for j in range(5):
+        w.st.latest[j] = row(j, 49)
+    w._radio_realtime()
+    assert w.pub_radio.puts == []  # uav3 not yet
+    w.st.latest[5] = row(5, 49)
+    w._radio_realtime()
+    (payload,) = w.pub_radio.puts
+    msg = decode_geometry(payload, 6)
+    assert msg.tick == 50 and all(q is not None for q in msg.positions)
+    w._radio_realtime()
+    assert len(w.pub_radio.puts) == 1  # the next one at tick 60
+    w.t0 = time.time() - (w.last_tick + 5) * w.period
+    w._radio_realtime()
+    assert len(w.pub_radio.puts) == 1  # past the run's end: the agents would refuse it (radio_range)
