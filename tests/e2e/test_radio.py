@@ -59,12 +59,18 @@ vehicle = "uav2"
 at = 5.0
 action = "restart"
 vehicle = "uav2"
+
+[[event]]
+at = 7.0
+action = "radio"
+tx_power = -10.0
 """
 
 
 def test_a_restarted_vehicle_gets_the_geometry_in_force_and_the_run_stays_equal(tmp_path, launches):
-    """range_out for 10 s with uav2 killed at 3 s and restarted at 5 s: the new process is sent
-    the newest geometry samples with its catch-up, waits for the one in force, and the fleet
+    """range_out for 10 s with uav2 killed at 3 s and restarted at 5 s, and a scheduled radio
+    change at 7 s (-10 dBm: the station hears nobody): the new process is sent the newest
+    geometry samples with its catch-up, waits for the one in force, and the fleet
     of processes still equals the in-process run to the bit (the trajectories; the radio
     counters too, but for what the killed process decided since its last report)."""
     config = tmp_path / "range_out_restart.toml"
@@ -84,6 +90,7 @@ def test_a_restarted_vehicle_gets_the_geometry_in_force_and_the_run_stays_equal(
     # a process killed before its first stats report (about 1 s of wall time) takes its counts
     # along (docs/metrics.md: counts are equal when no process was killed)
     assert 0 < radio["sent"] <= expected["sent"] and radio["sent"] >= expected["sent"] - 3 * 2 * 10
+    assert radio["dropped_by"]["range"] == expected["dropped_by"]["range"] > 0  # after 7 s, every process
     assert [e["kind"] for e in metrics["events"] if e["kind"] == "vehicle_back"] == ["vehicle_back"]
     assert not fleet_processes(fleet)
 
