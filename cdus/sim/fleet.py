@@ -33,7 +33,9 @@ from cdus.core.node import VehicleNode
 from cdus.core.schedule import broadcast_every, total_ticks
 from cdus.core.vehicle import Telemetry, Vehicle
 from cdus.scenario.model import Scenario
-from cdus.sim.build import build_node, link_faults_of, link_model_for, metric_edges, radio_schedule, sensor_schedule
+from cdus.sim.build import (
+    build_node, link_faults_of, link_model_for, metric_edges, radio_schedule, sensor_schedule, with_radio,
+)
 from cdus.sim.sensing import contacts_of, sense_tick
 from cdus.sim.reports import graph_event, scheduled_fault, vehicle_back
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
@@ -61,7 +63,8 @@ class InProcessFleet:
         self.scenario = scenario
         self.mode = mode
         self.sink = sink or NullSink()
-        self.link = link or link_model_for(scenario)
+        self.link = link_model_for(scenario) if link is None else (
+            link if hasattr(link, "on_geometry") else with_radio(scenario, link))  # a given model under [radio]
         spec = scenario.link
         self.policy = policy or spec.policy
         self.timeout = spec.timeout if timeout is None else timeout

@@ -87,3 +87,14 @@ def test_a_run_time_link_change_reaches_the_emulator_under_the_radio():
     at = node.set_link(dataclasses.replace(sc.link, loss=0.5), 3.0)
     assert at == 3.0 and [s for s, _ in link.inner.epochs] == [float("-inf"), 3.0]
     assert isinstance(sc.link, LinkSpec)
+
+
+def test_a_link_model_given_to_a_radio_fleet_goes_under_the_radio():
+    from cdus.sim.fleet import InProcessFleet
+
+    sc = load_scenario("configs/lake_radio.toml", {"scenario.duration": 0.5})
+    emulator = LinkEmulator(validate_link({"loss": 0.5}, sc.ids, "t"), sc.ids, 1)
+    fleet = InProcessFleet(sc, link=emulator)
+    assert isinstance(fleet.link, RadioLink) and fleet.link.inner is emulator
+    m = fleet.run().metrics
+    assert m["radio"]["dropped_by"]["fault"] == m["link"]["faults"]["total"]["dropped"] > 0
