@@ -44,8 +44,8 @@ from world_sim.recording import parse_spec
 
 __all__ = [
     "CLOCKS", "ConfigError", "DivergedError", "DroppedBy", "Event", "FaultCounters", "LinkFaults", "LinkMetrics",
-    "LinkStateChange", "Metrics", "RadioMetrics", "RejectedByReason", "Result", "RunError", "RunInterrupted", "SafetyInfo",
-    "Scenario", "Trace", "load", "override", "run", "sweep",
+    "LinkStateChange", "Metrics", "RadioMetrics", "RejectedByReason", "Result", "RunError", "RunInterrupted",
+    "SafetyInfo", "Scenario", "Trace", "load", "override", "run", "sweep",
 ]
 
 CLOCKS = ("inproc", "lockstep")  # how run() runs a scenario: `cdus sim`, `cdus launch --clock lockstep`

@@ -128,7 +128,8 @@ def test_the_metrics_radio_block_is_typed_in_the_api_and_printed():
     assert isinstance(typed.radio, RadioMetrics) and "radio" not in typed.extra
     assert typed.radio.utilisation["samples"] == 6 and typed.radio.dropped_by["collision"] >= 0
     assert typed.to_dict() == m and list(typed.to_dict()) == list(m)
-    assert "radio:" in summary_table(m, sc.vehicles) and "channel utilisation mean 0.107" in summary_table(m, sc.vehicles)
+    table = summary_table(m, sc.vehicles)
+    assert "radio:" in table and "channel utilisation mean 0.107" in table
     with pytest.raises(ValueError, match="radio.utilisation"):
         Metrics.from_dict({**m, "radio": {**m["radio"], "utilisation": 3}})
     plain = InProcessFleet(load_scenario("configs/lake_circle.toml", {"scenario.duration": 0.2})).run().metrics
