@@ -8,6 +8,7 @@
     cdus gs ... pause | resume | stop                                  # the whole fleet
     cdus gs ... link loss=0.3 delay.base=0.1 [--at 120]                # link faults from sim time t
     cdus gs ... gains k=2 c=1 [--vehicle usv1]                         # guidance gains
+    cdus gs ... radio tx_power=20 station=[0,-60,10] [--at 120]        # [radio]: power (dBm), station (m)
     cdus gs ... kill usv2 | restart usv2 | pause-vehicle usv2 | resume-vehicle usv2
     cdus gs ... formation phases.usv2=10.47 phases.uav1=0          # new phases (ω units), others kept
     cdus gs ... formation offsets.usv2.usv1=2.09                   # or offsets on edges (usv2 listens to usv1)
@@ -34,6 +35,7 @@ import zenoh
 from cdus.core.paths import PathError, make_path
 from cdus.scenario.config import ConfigError, parse_value
 from cdus.scenario.link import validate_link
+from cdus.sim.radio import radio_change_problem
 from cdus.wire.keys import FLEET_RE
 from cdus.wire.transport import add_transport_args, transport_from_args, with_default_endpoint
 from cdus.files import write_json
@@ -89,6 +91,10 @@ def build_parser(prog: str = "cdus gs") -> argparse.ArgumentParser:
     ln.add_argument("settings", nargs="+", metavar="KEY=VALUE", help="e.g. loss=0.3 delay.base=0.1 policy=extrapolate")
     ln.add_argument("--at", type=_sim_time,
                     help="simulated time from which they apply (default: now + 0.5 s; a past time means now)")
+    rd = sub.add_parser("radio", help="change the radio at run time ([radio] scenarios): tx_power=DBM station=[x,y,z]")
+    rd.add_argument("settings", nargs="+", metavar="KEY=VALUE", help="e.g. tx_power=20 station=[0,-60,10]")
+    rd.add_argument("--at", type=_sim_time,
+                    help="simulated time from which it applies (default: now + 0.5 s; a past time means now)")
     gn = sub.add_parser("gains", help="change guidance gains: k=... c=...")
     gn.add_argument("settings", nargs="+", metavar="KEY=VALUE")
     gn.add_argument("--vehicle", help="one vehicle (default: all)")
@@ -270,6 +276,11 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
             change = formation_fields(args.settings)
         elif args.action == "path":
             change = path_fields(args.settings)
+        elif args.action == "radio":
+            change = nested(args.settings)
+            problem = radio_change_problem(change)
+            if problem is not None:
+                raise ConfigError("command line", [("radio", problem)])
         gs.open(watch=True)
         if not gs.wait_for_status(STATUS_WAIT_S):
             print(f"error: no status from fleet {args.fleet!r} within {STATUS_WAIT_S:g} s at "
@@ -302,6 +313,9 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
             validate_link(table, ids, "command line")
             at = -1.0 if args.at is None else float(args.at)
             return _report(gs.command("link", timeout=args.timeout, link=table, at=at), f"link faults {table}")
+        elif args.action == "radio":
+            at = -1.0 if args.at is None else float(args.at)
+            return _report(gs.command("radio", timeout=args.timeout, radio=change, at=at), f"radio {change}")
         elif args.action == "gains":
             if args.vehicle is not None:
                 _check_vehicle(args.vehicle, ids)

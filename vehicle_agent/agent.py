@@ -48,22 +48,23 @@ from typing import Any, Callable
 import zenoh
 
 from cdus.core.events import RosterChange, event_tick, plan_roster
-from cdus.core.link import LinkEmulator, burst_events
+from cdus.core.link import burst_events
 from cdus.core.node import VehicleNode, gains_problem
 from cdus.core.vehicle import DivergedError
 from cdus.scenario.config import ConfigError, nesting_problem
 from cdus.scenario.model import Scenario
 from cdus.scenario.link import merge_link_tables, validate_link
 from cdus.scenario.events import check_path, check_phases
-from cdus.sim.build import build_node, link_emulator_for, listeners_of
+from cdus.sim.build import build_node, link_emulator_for, link_faults_of, listeners_of, with_radio
+from cdus.sim.radio import apply_radio_change, radio_change_problem
 from cdus.sim.sensing import contacts_of
 from cdus.core.schedule import CLOCKS, total_ticks
 from cdus.sim.lockstep import GRANT_WINDOW, MAX_GRANT_WINDOW
 from cdus.wire.text import printable
 from cdus.wire import keys
 from cdus.wire.messages import (
-    CTL_OPS, MAX_STATE_ROWS, StateMsg, decode_contacts, decode_control, decode_omega, decode_states, encode_omega,
-    encode_states,
+    CTL_OPS, MAX_STATE_ROWS, StateMsg, decode_contacts, decode_control, decode_geometry, decode_omega, decode_states,
+    encode_omega, encode_states,
 )
 from cdus.wire.schemas import AgentStats, encode_stats
 from cdus.wire.transport import Transport, open_session
@@ -193,8 +194,8 @@ class Agent:
         self.index = self.ids.index(vid)
         self.period = 1.0 / scenario.rates.control
         self.last_tick = total_ticks(scenario.duration if duration is None else duration, self.period)
-        self.node: VehicleNode = build_node(scenario, vid, link_emulator_for(scenario), policy=policy,
-                                            last_tick=self.last_tick)
+        link = with_radio(scenario, link_emulator_for(scenario))  # [radio]: the channel under the link faults
+        self.node: VehicleNode = build_node(scenario, vid, link, policy=policy, last_tick=self.last_tick)
         if clock == "lockstep":  # scheduled faults land on their ticks; realtime hears of them by liveliness
             for change in plan_roster(scenario.events, self.ids, self.period):
                 self.node.on_roster(change)
@@ -371,6 +372,8 @@ class Agent:
             return self._on_ctl(sample.payload.to_bytes())
         if key.endswith("/contacts"):
             return self._on_contacts(sample.payload.to_bytes())
+        if key.endswith("/radio"):
+            return self._on_geometry(sample.payload.to_bytes())
         if key.endswith("/wake"):
             return
         kind, src = keys.leaf(key)
@@ -393,9 +396,9 @@ class Agent:
             now = time.time()
             if not now - T0_PAST - last * self.period <= f["t0"] <= now + T0_AHEAD:
                 return "t0_range"
-        if op == "link" and not 0.0 <= f["at"] <= MAX_LINK_AT:
-            return "link_range"
-        if op in ("link", "gains") and nesting_problem(f[op], MAX_COMMAND_NESTING):
+        if op in ("link", "radio") and not 0.0 <= f["at"] <= MAX_LINK_AT:
+            return f"{op}_range"
+        if op in ("link", "gains", "radio") and nesting_problem(f[op], MAX_COMMAND_NESTING):
             return f"{op}_range"
         if op in ("formation", "path"):
             return self._change_problem(op, f)
@@ -442,6 +445,8 @@ class Agent:
             self._set_formation(f["phases"], f["tick"])
         elif op == "path":
             self._set_path(f["path"], f["tick"])
+        elif op == "radio":
+            self._update_radio(f["radio"], f["at"])
         elif op == "stop":
             clock.stop = True
 
@@ -454,6 +459,37 @@ class Agent:
         if msg.tick > self.last_tick:  # no sample is taken past the run's end: kept, it would never be freed
             return self._reject("world", "contacts_range")
         self.node.on_contacts(msg.tick, contacts_of(msg, self.ids))
+
+    def _on_geometry(self, payload: bytes) -> None:
+        """The world's radio geometry sample (cdus.sim.radio): counted and dropped if malformed, out
+        of the run, not on the sample schedule, without [radio], or a second one for its tick
+        (the first stands)."""
+        radio = self.node.radio
+        if radio is None:
+            return self._reject("world", "radio_unexpected")
+        msg = decode_geometry(payload, len(self.ids))
+        if isinstance(msg, str):
+            return self._reject("world", f"radio_{msg}")
+        if msg.tick > self.last_tick:
+            return self._reject("world", "radio_range")
+        if msg.tick % radio.every:
+            return self._reject("world", "radio_tick")
+        if not self.node.on_geometry(msg.tick, msg.positions):
+            self._reject("world", "radio_stale")
+
+    def _update_radio(self, change: dict, at: float) -> None:
+        """A run-time radio change (tx_power, station) for messages sent from ``at`` on."""
+        problem = "this scenario has no [radio] table" if self.node.radio is None else radio_change_problem(change)
+        if problem is None:
+            try:
+                apply_radio_change(self.node.radio.channel, change, at)
+            except ValueError as e:
+                problem = str(e)
+        if problem is not None:
+            self.rejected["bad_radio_command"] += 1
+            self.log(f"radio command rejected: {printable(problem, 200)}")
+            return
+        self.log(f"radio changed from t = {at:.2f} s: {printable(change, 200)}")
 
     def _on_roster(self, f: dict) -> None:
         j = self.ids.index(f["vehicle"])
@@ -586,7 +622,7 @@ class Agent:
                 self.log(f"paused from tick {n}; resuming at tick {back} where the vehicle was")
                 n = back
                 continue
-            while clock.granted < n or node.waiting_for(n) or node.contacts_missing(n):
+            while clock.granted < n or node.waiting_for(n) or self._samples_missing(n):
                 if self._stopping():
                     return
                 if self._states and clock.granted < n:  # the world may be waiting for these rows to grant
@@ -600,13 +636,21 @@ class Agent:
                     waited_since = time.monotonic()
                     missing = node.waiting_for(n)
                     why = ("the world's grant" if clock.granted < n else f"ω from {[self.ids[k] for k in missing]}"
-                           if missing else "the proximity sensor's contacts")
+                           if missing else "the world's samples (proximity contacts, radio geometry)")
                     self.log(f"tick {n}: still waiting for {why}")
             if self._stopping():
                 return
             self._tick(n)
             waited_since = time.monotonic()
             n += 1
+
+    def _samples_missing(self, n: int) -> bool:
+        """Lockstep: does tick ``n`` need a sample of the world's that has not arrived? The proximity
+        sensor's contacts in force at n, the radio geometry in force at n - 1 (the messages
+        decided at n were sent before it). The world sends both before it grants that far, so
+        this never waits on the world for the tick at hand (docs/radio.md, "Integration")."""
+        node = self.node
+        return node.contacts_missing(n) or node.geometry_missing(n)
 
     def _run_realtime(self) -> None:
         clock, node, T = self.clock, self.node, self.period
@@ -703,7 +747,8 @@ class Agent:
         by_reason = dict(self.rejected)
         if node.rejected["gone"]:  # counted by the node when a message is offered (in c.rejected)
             by_reason["gone"] = node.rejected["gone"]
-        faults = node.link.counters_summary() if isinstance(node.link, LinkEmulator) else None
+        emulator = link_faults_of(node.link)
+        faults = emulator.counters_summary() if emulator is not None else None
         if faults is not None:
             faults["state_changes"] = faults["state_changes"][-50:]  # the newest; the world keeps the history
         new = c.latencies[min(self._lat_sent, len(c.latencies)):]  # the sample list may have been thinned
@@ -715,7 +760,8 @@ class Agent:
             rejected_by_reason=by_reason, missed_deadlines=self.missed_deadlines, joined_at=node.joined_at,
             latencies_ms=tuple(x * 1000.0 for x in new[::step][:100]), faults=faults,
             bursts=tuple(e.as_dict() for e in burst_events(node.bursts, self.ids)[-BURSTS_PER_STATS:]),
-            interventions=node.vehicle.interventions, incarnation=self.incarnation)
+            interventions=node.vehicle.interventions, incarnation=self.incarnation,
+            radio=None if node.radio is None else node.radio.counters.as_dict())
 
     def publish_stats(self) -> None:
         if self.session is not None:

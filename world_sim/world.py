@@ -34,6 +34,7 @@ import zenoh
 from cdus.core.events import RosterChange
 from cdus.core.link import LinkCounters, merge_link_summaries
 from cdus.core.node import gains_problem
+from cdus.core.radiolink import RadioCounters
 from cdus.core.metrics import Recorder
 from cdus.core.schedule import total_ticks
 from cdus.files import write_json
@@ -43,15 +44,17 @@ from cdus.scenario.model import Scenario
 from cdus.core.events import event_tick
 from cdus.core.formation import FormationChange
 from cdus.scenario.events import check_offsets, check_path, check_phases, offsets_to_phases
-from cdus.sim.build import formation_schedule, metric_edges, sensor_schedule
-from cdus.sim.lockstep import CatchUp, Decided, Fault, Grant, Join, Lockstep, Roster, Sense, horizon_window
+from cdus.sim.build import formation_schedule, metric_edges, radio_channel_for, radio_schedule, sensor_schedule
+from cdus.sim.lockstep import CatchUp, Decided, Fault, Grant, Join, Lockstep, RadioSample, Roster, Sense, horizon_window
 from cdus.sim.reports import ConsoleQuota, formation_changed, graph_event, link_state_event, path_changed, vehicle_back, vehicle_lost
+from cdus.sim.radio import RadioWatch, apply_radio_change, geometry_sample, radio_block, radio_change_problem
 from cdus.sim.sensing import sense_tick
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
 from cdus.sim.summary import COMPLETED, link_block, run_metrics
 from cdus.wire import keys
 from cdus.wire.messages import (
-    COMMAND_OPS, StateMsg, decode_control, decode_states, encode_contacts, encode_control, encode_states,
+    COMMAND_OPS, StateMsg, decode_control, decode_geometry, decode_states, encode_contacts, encode_control,
+    encode_geometry, encode_states,
 )
 from cdus.wire.schemas import (
     ID_RE, ORIGIN_WORLD, AgentStats, CommandReply, FleetEvent, decode_stats, encode_event, encode_reply,
@@ -67,6 +70,7 @@ JOIN_TIMEOUT = 30.0  # s a restarted process may take to come up
 GRANT_RESEND = 0.5  # s: grants and start times are said again for processes that missed them
 LINK_LEAD = 0.5  # s of simulated time between a link command and when it applies, if not given
 INBOX_CAPACITY = 8192
+RADIO_KEEP = 8  # radio geometry samples kept to send a (re)joining vehicle (it needs those in force from its join)
 #: realtime: telemetry may be this far (s) ahead of the world's own clock (clock skew between
 #: hosts, a batch sent at once); beyond it, a row is from a tick nobody can have stepped yet
 REALTIME_SLACK = 1.0
@@ -160,9 +164,18 @@ class World:
                 else path_changed(tick, self.period, change.vehicle, change.path))
         self.events_scheduled = scenario.events
         self.sensing = sensor_schedule(scenario)  # (every, latency) ticks, None: no proximity sensor
+        self.radio = radio_schedule(scenario)  # (every, lag) ticks, None: no [radio]
+        self._radio_rows: dict[int, dict[int, tuple]] = {}  # radio sample tick -> vehicle -> q (lockstep)
+        self._radio_sent: deque[tuple[int, bytes]] = deque(maxlen=RADIO_KEEP)  # newest samples, for joiners
+        self._next_radio = 0  # realtime: the next radio sample tick
+        #: the world's own channel: utilisation, link probabilities and splits of each sample
+        self.radio_watch = None if self.radio is None else RadioWatch(
+            self.ids, [(e.i, e.k) for e in scenario.edges], radio_channel_for(scenario), self.period)
         self.lockstep = Lockstep(self.ids, self.period, self.last_tick, self.events_scheduled,
                                  sense_every=self.sensing[0] if self.sensing else None,
-                                 sense_latency=self.sensing[1] if self.sensing else 1)
+                                 sense_latency=self.sensing[1] if self.sensing else 1,
+                                 radio_every=self.radio[0] if self.radio else None,
+                                 radio_lag=self.radio[1] if self.radio else 1)
         self._sample_rows: dict[int, dict[int, tuple]] = {}  # sample tick -> vehicle -> q (lockstep)
         self._next_sample = 0  # realtime: the next sample tick
         self._realtime_faults = list(scenario.events)  # realtime: carried out when their time comes
@@ -207,7 +220,7 @@ class World:
         self.command_handlers: dict[str, Callable[[dict, str], Any]] = {
             "stop": self._cmd_stop, "pause": self._cmd_pause, "resume": self._cmd_resume,
             "set_gains": self._cmd_gains, "link": self._cmd_link, "fault_done": self._cmd_fault_done,
-            "formation": self._relay_formation, "path": self._relay_path,
+            "formation": self._relay_formation, "path": self._relay_path, "radio": self._cmd_radio,
             "kill": self._cmd_vehicle_fault, "pause_vehicle": self._cmd_vehicle_fault,
             "resume_vehicle": self._cmd_vehicle_fault, "restart": self._cmd_vehicle_fault,
         }
@@ -219,6 +232,8 @@ class World:
         self.inbox = s.declare_subscriber(keys.inbox(f, keys.WORLD), zenoh.handlers.FifoChannel(INBOX_CAPACITY))
         self.pub_ctl = s.declare_publisher(keys.ctl(f, self.ids), congestion_control=zenoh.CongestionControl.BLOCK)
         self.pub_launcher = s.declare_publisher(keys.launcher_cmd(f))
+        self.pub_radio = (s.declare_publisher(keys.radio(f, self.ids), congestion_control=zenoh.CongestionControl.BLOCK)
+                          if self.radio is not None else None)
         self.pub_status = s.declare_publisher(keys.world_status(f))
         self.pub_events = s.declare_publisher(keys.world_events(f))
         wake = s.declare_publisher(keys.wake(f, keys.WORLD), allowed_destination=zenoh.Locality.SESSION_LOCAL)
@@ -376,6 +391,9 @@ class World:
                     continue
             if every and m.tick % every == 0 and m.tick > self.lockstep.sensed:
                 self._sample_rows.setdefault(m.tick, {}).setdefault(j, m.q)
+            if (self.radio is not None and self.clock == "lockstep" and m.tick % self.radio[0] == 0
+                    and m.tick > self.lockstep.radioed):  # realtime samples from the newest telemetry
+                self._radio_rows.setdefault(m.tick, {}).setdefault(j, m.q)
             if newest is None or m.tick >= newest.tick:
                 newest = m
         if newest is None:
@@ -602,6 +620,43 @@ class World:
         self._note(FleetEvent.of(self._sim_now(), "fault", f"{action} of {vid} by {by}", vehicle=vid))
         return Verdict(True, "realtime: the launcher carries it out now", self._tick_now())
 
+    def _relay_radio(self, fields: dict, sender: str) -> Verdict | str | None:
+        """A ground station's radio change ``{"radio": {tx_power, station}, "at": s}``: checked,
+        then relayed to every vehicle with the send time it applies from, never before what a
+        vehicle may already have sent (lockstep: past the grant; a past ``at`` means as soon as
+        possible), like a link command. The verdict (applied from that time), else why it was not."""
+        change = fields["radio"]
+        if self.radio is None:
+            return "this scenario has no [radio] table"
+        problem = radio_change_problem(change)
+        if problem is not None:
+            return problem
+        earliest = ((self.lockstep.granted + 1) * self.period if self.clock == "lockstep"
+                    else self._sim_now() + self.period)
+        at = max(fields["at"], earliest) if fields["at"] >= 0 else max(self._sim_now() + LINK_LEAD, earliest)
+        later = self.radio_watch.channel.epochs[-1][0] if self.radio_watch is not None else -math.inf
+        if at < later:  # changes apply in time order (epochs): a scheduled or earlier command's comes later
+            return (f"a radio change from t = {later:g} s is already in force later (scheduled or commanded); "
+                    f"give --at {later:g} or later")
+        payload = encode_control("radio", radio=change, at=float(at))
+        self.pub_ctl.put(payload)
+        self._commands.append((None, payload))
+        if self.radio_watch is not None:
+            apply_radio_change(self.radio_watch.channel, change, float(at))
+        self._note(FleetEvent.of(self._sim_now(), "radio_changed",
+                                 f"radio changed from t = {at:.2f} s by {printable(sender, 64)}: "
+                                 f"{printable(change, 200)}"))
+        return Verdict(True, "", max(0, math.ceil(at / self.period - 1e-9)), float(at))
+
+    def _cmd_radio(self, f: dict, by: str) -> Verdict | str:
+        """The ``radio`` command: relayed (:meth:`_relay_radio`) or refused, counted and reported."""
+        out = self._relay_radio(f, by)
+        if isinstance(out, str):
+            self._reject(by, "radio")
+            self._note(FleetEvent.of(self._sim_now(), "rejected",
+                                     f"radio command from {printable(by, 64)}: {printable(out, 200)}"))
+        return out
+
     def _relay_gains(self, gains: dict, vehicle: str, sender: str) -> Verdict | str:
         targets = self.ids if vehicle == "" else [vehicle] if vehicle in self.index else []
         problems = {gains_problem(gains, self.scenario.vehicle(v).dim, **self.scenario.gain_context(v))
@@ -817,8 +872,11 @@ class World:
                 self.session.put(keys.ctl(self.fleet, [self.ids[a.vehicle]]), encode_control("join", tick=a.tick))
             elif isinstance(a, CatchUp):
                 self._replay_commands(self.ids[a.vehicle])
+                self._replay_geometry(self.ids[a.vehicle])
             elif isinstance(a, Sense):
                 self._send_contacts(a.tick, self._sample_rows.pop(a.tick, {}))
+            elif isinstance(a, RadioSample):
+                self._send_geometry(a.tick, self._radio_rows.pop(a.tick, {}))
             elif isinstance(a, Fault):
                 self._fault_since = time.monotonic()
                 self.pub_launcher.put(encode_control(a.op, vehicle=self.ids[a.vehicle]))
@@ -836,6 +894,45 @@ class World:
             gone = {j: m.q for j, m in self.st.latest.items() if j not in positions}
         for j, msg in sense_tick(self.scenario, tick, positions, gone).items():
             self.session.put(keys.contacts(self.fleet, self.ids[j]), encode_contacts(msg))
+
+    def _send_geometry(self, tick: int, positions: dict[int, tuple]) -> None:
+        """The radio geometry at ``tick`` (cdus.sim.radio), as the in-process fleet samples it: the
+        positions of the vehicles that stepped it, to every vehicle, then watched (events, views)."""
+        for old in [k for k in self._radio_rows if k < tick]:
+            del self._radio_rows[old]
+        payload = encode_geometry(geometry_sample(tick, positions, len(self.ids)))
+        self.pub_radio.put(payload)
+        self._radio_sent.append((tick, payload))
+        msg = decode_geometry(payload, len(self.ids))  # what the vehicles read: the same numbers
+        if isinstance(msg, str) or self.radio_watch is None:
+            return
+        for ev in self.radio_watch.observe(msg):
+            self._note(ev)
+        view = getattr(self.sink, "radio", None)
+        if view is not None:
+            view(tick * self.period, self.radio_watch)
+
+    def _replay_geometry(self, vid: str) -> None:
+        """A (re)joining process needs the radio samples in force from its join on: the newest ones."""
+        for _, payload in self._radio_sent:
+            self.session.put(keys.radio(self.fleet, [vid]), payload)
+
+    def _radio_realtime(self) -> None:
+        """Realtime: once the clock has passed a radio sample tick, sample the newest telemetry of
+        the vehicles alive under that tick (once each of them has sent some; never past the run)."""
+        if self.radio is None or self.t0 is None or self.paused_at is not None:
+            return
+        n = self._tick_now()
+        if n < self._next_radio or n > self.last_tick:
+            return
+        every = self.radio[0]
+        alive = {self.index[v] for v in self.st.alive}
+        with self._lock:
+            positions = {j: m.q for j, m in self.st.latest.items() if j in alive}
+        if not self.st.latest or len(positions) < len(alive):
+            return  # a live vehicle not heard from yet (the start): it would look out of range
+        self._next_radio = (n // every + 1) * every
+        self._send_geometry(n // every * every, positions)
 
     def _sense_realtime(self) -> None:
         """Realtime: once the clock has passed a sample tick, sample the newest telemetry of the
@@ -968,6 +1065,7 @@ class World:
         while self.next_tick <= self.last_tick and not self.stop_requested:
             self._drain(block=True)
             self._sense_realtime()
+            self._radio_realtime()
             now = time.monotonic()
             if now - last_start > STATUS_PERIOD:  # again, for late joiners
                 last_start = now
@@ -1053,6 +1151,17 @@ class World:
                                            for t, link, state in sorted(self.st.link_changes)]
         return link_block(total, merged, missed_deadlines=missed)
 
+    def _radio_metrics(self) -> dict:
+        """``radio`` of the metrics JSON (with [radio] only): every process's radio counters summed,
+        the utilisation and splits the world saw."""
+        if self.radio is None or self.radio_watch is None:
+            return {}
+        total = RadioCounters()
+        for s in self._processes():
+            if isinstance(s.radio, dict):
+                total.add(RadioCounters.from_dict(s.radio))
+        return {"radio": radio_block(total, self.radio_watch)}
+
     def _completion(self) -> str:
         """COMPLETED if every tick to the end was stepped by the live fleet, else why not
         (docs/metrics.md, ``completion``)."""
@@ -1089,7 +1198,7 @@ class World:
                               policy=self.policy, events=self.events,
                               interventions=sum(s.interventions for s in self._processes()),
                               completed=completion == COMPLETED, completion=completion,
-                              rejected_by_reason=self.rejects_by_reason(), **never_up)
+                              rejected_by_reason=self.rejects_by_reason(), **never_up, **self._radio_metrics())
         if self.metrics_out:
             write_json(self.metrics_out, metrics)
             self.log(f"metrics written to {self.metrics_out}")

@@ -24,6 +24,9 @@ Zenoh, and both therefore step the same ticks with the same inputs (docs/archite
   At tick n the safety filter uses the newest sample taken at or before n - latency
   (and not before this vehicle (re)joined); deterministic runners wait for it
   (``contacts_missing``), a realtime one uses what has arrived.
+- ``on_geometry(tick, positions)``: with ``[radio]``, the world's radio geometry sample of
+  tick ``tick`` (cdus.core.radiolink: the link model is then a RadioLink); a deterministic
+  runner waits for the sample a tick's decisions need (``geometry_missing``).
 - ``set_link(spec, at)``, ``set_policy(policy, timeout, tick)``, ``set_gains(k, c,
   tick)``, ``set_formation(phases, tick)`` and ``set_path(path, tick)``: run-time changes,
   applied in simulated time so every runner applies them alike (cdus.core.formation).
@@ -199,6 +202,8 @@ class VehicleNode:
         self._contacts: dict[int, tuple[Contact, ...]] = {}  # by sample tick, not yet superseded
         self._contacts_used = -1  # newest sample tick used (older ones are dropped)
         self._floors: dict[int, tuple[tuple[int, float], ...]] = {}  # per neighbour: (first seq, least delay)
+        #: with [radio], the link model is a cdus.core.radiolink.RadioLink: it holds the geometry samples
+        self.radio = link if hasattr(link, "on_geometry") else None
 
     # ------------------------------------------------------------------ inputs
     def on_message(self, msg: OmegaMsg, arrival: float | None = None) -> str | None:
@@ -343,6 +348,17 @@ class VehicleNode:
         for old in [k for k in self._contacts if k < s]:
             del self._contacts[old]
         return self._contacts[s]
+
+    def on_geometry(self, tick: int, positions) -> bool:
+        """The radio geometry sample of ``tick`` (every vehicle's position, None if not live);
+        False if there is no radio or it was not taken (not a sample tick, or already held)."""
+        return self.radio is not None and self.radio.on_geometry(tick, positions)
+
+    def geometry_missing(self, n: int) -> bool:
+        """Does stepping tick ``n`` need a radio geometry sample that has not arrived? The messages
+        decided at ``n`` were sent before it, so the sample in force at ``n - 1`` (deterministic
+        runners wait for it; the world sends it before granting past it)."""
+        return self.radio is not None and n - 1 >= self.joined_at and self.radio.missing(n - 1)
 
     def set_link(self, spec: LinkSpec, at: float) -> float:
         """New link faults for messages sent from simulated time ``at`` on (not before the

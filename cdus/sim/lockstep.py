@@ -19,8 +19,11 @@ acknowledgements (``on_fault_done``) and operator commands (``pause``, ``resume`
 - :class:`Sense`: sample the proximity sensor at tick ``tick`` (every vehicle live at it
   has reported it) and send every vehicle its contacts (cdus.sim.sensing). Only with the
   safety filter on (``sense_every``).
+- :class:`RadioSample`: with ``[radio]``, sample the radio geometry at ``tick`` once every
+  vehicle live at it has reported it, and send it to every vehicle (cdus.sim.radio).
 - :class:`Grant`: vehicles may step up to ``until``, a horizon: the run's last tick, the
-  tick before the next vehicle fault, and, with the sensor, s + latency - 1 for the next
+  tick before the next vehicle fault, with ``[radio]`` s + lag for the next radio sample s
+  not sent (:meth:`Lockstep.radio_limit`), and, with the sensor, s + latency - 1 for the next
   sample tick s whose contacts have not been sent (a vehicle uses the contacts of s from
   s + latency on, so it must have them by then); and at most ``window`` ticks ahead of the
   slowest vehicle that is due to report (the world's memory of unrecorded rows). A grant
@@ -76,6 +79,14 @@ class Sense:
 
 
 @dataclass(frozen=True)
+class RadioSample:
+    """Sample the radio geometry at tick ``tick`` (every vehicle live at it has reported it) and
+    send it to every vehicle (cdus.sim.radio). Only with ``[radio]`` (``radio_every``)."""
+
+    tick: int
+
+
+@dataclass(frozen=True)
 class Join:
     vehicle: int
     tick: int
@@ -111,7 +122,7 @@ class Decided:
     reason: str | None = None
 
 
-Action = Grant | Join | Roster | CatchUp | Fault | Sense | FleetEvent | Decided
+Action = Grant | Join | Roster | CatchUp | Fault | Sense | RadioSample | FleetEvent | Decided
 
 
 @dataclass
@@ -145,6 +156,9 @@ class Lockstep:
     #: the least move of a grant worth a message (fewer ctl messages with a wide window); a grant
     #: up to a limit (a fault, a sensor sample, the last tick) goes at once
     grant_step: int = 1
+    radio_every: int | None = None  # ticks between radio geometry samples; None: no [radio]
+    radio_lag: int = 1  # ticks from a radio sample to the first send tick it is in force at (>= 1)
+    radioed: int = -1  # the newest radio sample tick sent
 
     def __post_init__(self) -> None:
         self._plan = list(plan_roster(self.events, self.ids, self.period, self.lease))
@@ -327,6 +341,7 @@ class Lockstep:
         if self.started:
             self._faults()
             self._sense()
+            self._radio()
             self._grant()
         out, self._out = self._out, []
         return out
@@ -409,6 +424,27 @@ class Lockstep:
             self.sensed = s
             self._out.append(Sense(s))
 
+    def next_radio(self) -> int | None:
+        """The next radio sample tick not sent yet (None: no [radio], or past the end)."""
+        if self.radio_every is None:
+            return None
+        s = 0 if self.radioed < 0 else self.radioed + self.radio_every
+        return s if s <= self.last_tick else None
+
+    def _radio(self) -> None:
+        while (s := self.next_radio()) is not None and s <= self.granted and self.recordable(s):
+            self.radioed = s
+            self._out.append(RadioSample(s))
+
+    def radio_limit(self) -> int | None:
+        """The newest tick that may be granted before the next radio sample is sent: a tick n
+        decides the messages sent before it with the sample in force at n - 1, and sample s is
+        in force from s + lag (sample 0 from the start), so not past s + lag (0 for s = 0)."""
+        s = self.next_radio()
+        if s is None:
+            return None
+        return s + self.radio_lag if s > 0 else 0
+
     def _grant(self) -> None:
         if self.paused:
             return
@@ -417,6 +453,9 @@ class Lockstep:
         s = self.next_sample()
         if s is not None:
             limit = min(limit, s + self.sense_latency - 1)
+        r = self.radio_limit()
+        if r is not None:
+            limit = min(limit, r)
         if self._current is not None:
             limit = min(limit, self._current.tick - 1)
         if self._queue:

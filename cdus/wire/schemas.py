@@ -46,6 +46,9 @@ EVENT_KINDS: dict[str, str] = {
     "fleet": "info",  # the fleet paused, resumed or stopped
     "rejected": "warn",  # a command or message was rejected
     "suspect": "warn",  # a vehicle received ω that its sender cannot have sent (future, conflict, implausible)
+    "radio_split": "warn",  # [radio]: the communication graph (links likely to deliver) lost its spanning tree
+    "radio_joined": "info",  # ... and has one again
+    "radio_changed": "info",  # [radio]: transmit power or the station changed at run time
 }
 MAX_TEXT = 300
 MAX_ID = 64
@@ -65,6 +68,8 @@ CLOCKS = ("lockstep", "realtime")
 #: tests/wire/test_schemas.py checks that they agree)
 FAULT_COUNTERS = ("sent", "dropped", "duplicated", "delayed")
 DROP_CAUSES = ("loss", "burst", "down", "partition")
+#: the radio path's drop causes (cdus.core.radiolink.RADIO_CAUSES; tests/wire/test_schemas.py checks them)
+RADIO_CAUSES = ("fault", "range", "fading", "collision", "queue")
 LINK_STATES = ("up", "lossy", "down")
 ORIGIN_WORLD = "world"
 ORIGINS = (ORIGIN_WORLD, "launcher")  # the processes that are not vehicles and report events
@@ -182,6 +187,9 @@ class AgentStats:
     bursts: tuple[Any, ...] = ()
     interventions: int = 0  # control steps at which the safety filter changed the velocity reference
     incarnation: int = 0  # drawn at random when the process starts: a new value is a new process (a restart)
+    #: with [radio]: its RadioLink's counters ({sent, delivered, dropped, dropped_by: {fault, range,
+    #: fading, collision, queue}, no_geometry}; cdus.core.radiolink.RadioCounters.as_dict); None without
+    radio: dict | None = None
 
     def as_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -192,7 +200,7 @@ class AgentStats:
 
 _STAT_INTS = ("tick", "sent_to_me", "delivered", "dropped", "duplicated", "rejected", "missed_deadlines", "joined_at",
               "interventions", "incarnation")
-_STAT_FIELDS = {"v", "id", "rejected_by_reason", "latencies_ms", "faults", "bursts", *_STAT_INTS}
+_STAT_FIELDS = {"v", "id", "rejected_by_reason", "latencies_ms", "faults", "bursts", "radio", *_STAT_INTS}
 
 
 def encode_stats(s: AgentStats) -> bytes:
@@ -244,8 +252,27 @@ def decode_stats(payload: bytes, ids: Collection[str] | None = None) -> AgentSta
     reports = tuple(_burst(b, ids) for b in bursts)
     if not all(reports):
         return "bursts"
+    radio = obj.get("radio")
+    if radio is not None:
+        radio = _radio_counters(radio)
+        if radio is None:
+            return "radio"
     return AgentStats(vid, rejected_by_reason={k: int(x) for k, x in by.items()},
-                      latencies_ms=tuple(float(x) for x in lat), faults=checked, bursts=reports, **ints)
+                      latencies_ms=tuple(float(x) for x in lat), faults=checked, bursts=reports, radio=radio, **ints)
+
+
+def _radio_counters(d: Any) -> dict | None:
+    """A RadioLink's counters block, checked and rebuilt, or None."""
+    if not isinstance(d, dict) or set(d) != {"sent", "delivered", "dropped", "dropped_by", "no_geometry"}:
+        return None
+    by = d["dropped_by"]
+    if not isinstance(by, dict) or set(by) != set(RADIO_CAUSES):
+        return None
+    nums = [d["sent"], d["delivered"], d["dropped"], d["no_geometry"], *(by[c] for c in RADIO_CAUSES)]
+    if not all(type(x) is int and 0 <= x < MAX_COUNT for x in nums):
+        return None
+    return {"sent": d["sent"], "delivered": d["delivered"], "dropped": d["dropped"],
+            "dropped_by": {c: by[c] for c in RADIO_CAUSES}, "no_geometry": d["no_geometry"]}
 
 
 def _counter_block(d: Any) -> dict | None:
