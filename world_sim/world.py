@@ -51,7 +51,7 @@ from cdus.wire.messages import (
     COMMAND_OPS, StateMsg, decode_control, decode_states, encode_contacts, encode_control, encode_states,
 )
 from cdus.wire.schemas import (
-    ID_RE, ORIGIN_WORLD, AgentStats, FleetEvent, decode_stats, encode_event, encode_status,
+    ID_RE, ORIGIN_WORLD, AgentStats, FleetEvent, StatusExtra, decode_stats, encode_event, encode_status,
 )
 from cdus.wire.text import printable
 from cdus.wire.transport import Transport, open_session
@@ -739,7 +739,49 @@ class World:
             coord = None if math.isnan(worst_coord[-1]) or not self.recorder.edges else float(worst_coord[-1])
         paused = self.lockstep.paused if self.clock == "lockstep" else self.paused_at is not None
         self.pub_status.put(encode_status(t, self.duration, self.clock, sorted(self.st.alive), self.ids, path, coord,
-                                          self.events[-10:], paused))
+                                          self.events[-10:], paused, self._status_extra()))
+
+    def _status_extra(self) -> StatusExtra:
+        """What a live console shows beyond the summary (cdus.wire.schemas.STATUS_EXTRA), at the
+        newest recorded tick: each vehicle's kind and roster state, each edge's error, each
+        emulated link's counters, each vehicle's received and dropped ω, the [safety] radius and
+        the closest pair of live vehicles of one kind."""
+        rec, n = self.recorder, len(self.recorder)
+        kinds = [v.kind for v in self.scenario.vehicles]
+        tick = max(0, self.next_tick - 1)
+        if self.clock == "lockstep":
+            states = [self.lockstep.state_at(j, tick) for j in range(len(self.ids))]
+        else:
+            states = ["live" if vid in self.st.alive else "gone" for vid in self.ids]
+        edges = closest = path_errors = None
+        if n:
+            omega, live, q = rec.omega[n - 1], rec.live[n - 1], rec.q[n - 1]
+            path_errors = [float(x) if live[j] else None for j, x in enumerate(rec.path_error[n - 1])]
+            edges = [(self.ids[e.i], self.ids[e.k],
+                      float(abs(omega[e.i] - omega[e.k] - e.delta)) if live[e.i] and live[e.k] else None)
+                     for e in rec.edges]
+            best = None
+            for a in range(len(self.ids)):
+                for b in range(a + 1, len(self.ids)):
+                    if not (live[a] and live[b]) or kinds[a] != kinds[b]:
+                        continue
+                    axes = 2 if kinds[a] == "usv" else 3
+                    d = float(math.dist(q[a][:axes], q[b][:axes]))
+                    if math.isfinite(d) and (best is None or d < best[2]):
+                        best = (self.ids[a], self.ids[b], d)
+            closest = best
+        links: dict[tuple[str, str], tuple] = {}
+        for s in self.st.stats.values():
+            if isinstance(s.faults, dict):
+                last_state = {c["link"]: c["state"] for c in s.faults["state_changes"]}
+                for name, c in s.faults["links"].items():
+                    src, _, dst = name.partition("->")
+                    links[(src, dst)] = (src, dst, c["sent"], min(c["dropped"], c["sent"]), last_state.get(name))
+        rx = [None if (s := self.st.stats.get(vid)) is None else (s.sent_to_me, min(s.dropped, s.sent_to_me))
+              for vid in self.ids]
+        return StatusExtra(kinds=kinds, states=states, edges=edges, links=[links[k] for k in sorted(links)], rx=rx,
+                           safety_radius=self.scenario.safety.radius, closest=closest, path_errors=path_errors,
+                           directed=self.scenario.directed)
 
     def _processes(self) -> list[AgentStats]:
         """The last stats of every agent process of the run, restarted ones' included."""
