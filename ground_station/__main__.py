@@ -2,6 +2,7 @@
 
     cdus gs --fleet lake_circle -e tcp/127.0.0.1:7447 status          # live table (Ctrl-C to leave)
     cdus gs --fleet lake_circle -e tcp/127.0.0.1:7447 status --once   # one table, for scripts
+    cdus gs --fleet lake_circle -e tcp/127.0.0.1:7447 console         # the live console (docs/console.md)
     cdus gs ... pause | resume | stop                                  # the whole fleet
     cdus gs ... link loss=0.3 delay.base=0.1 [--at 120]                # link faults from sim time t
     cdus gs ... gains k=2 c=1 [--vehicle usv1]                         # guidance gains
@@ -55,6 +56,8 @@ def build_parser(prog: str = "cdus gs") -> argparse.ArgumentParser:
     st = sub.add_parser("status", help="a live table of the fleet")
     st.add_argument("--once", action="store_true", help="print one table and exit")
     st.add_argument("--interval", type=_positive, default=1.0, help="seconds between refreshes")
+    sub.add_parser("console", help="the live console: vehicles, edges, links, alarms; keys to pause, resume, "
+                                   "kill and restart a vehicle or pause and resume the fleet (docs/console.md)")
     for op in ("pause", "resume", "stop"):
         sub.add_parser(op, help=f"{op} the whole fleet")
     ln = sub.add_parser("link", help="change link faults at run time: KEY=VALUE of the [link] table")
@@ -141,6 +144,11 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
             return 1
         # the world's ids: names of the key space (letters, digits, _ and -), nothing else is trusted
         ids = [i for i in (gs.view.world or {}).get("ids") or [] if isinstance(i, str) and FLEET_RE.match(i)]
+        if args.action == "console":
+            from ground_station.tui import ConsoleApp  # Textual only for the console
+
+            ConsoleApp(gs).run()
+            return 0
         if args.action == "status":
             if args.once:
                 print(status_table(gs.view))

@@ -31,7 +31,7 @@ from cdus.core import graph as graphs
 KINDS = ("vehicle_lost", "no_spanning_tree", "error_growing", "separation")
 GROW_S = 3.0  # s of simulated time an error must grow for
 GROW_FACTOR = 1.5  # ... to at least this times its value when it started growing
-GROW_MIN = 0.05  # ... and by at least this much (m or rad)
+GROW_MIN = 0.1  # ... and by at least this much (m or rad): a settled formation wobbles by less
 NO_RADIUS = "separation: the world's status does not carry the [safety] radius, so no separation alarm"
 
 

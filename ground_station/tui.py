@@ -67,14 +67,15 @@ def vehicle_state(vid: str, world: dict | None, alive: set[str]) -> str:
             st = states[ids.index(vid)]
     if alive and vid not in alive or st == "gone":
         return "lost"
-    return st or ("live" if vid in alive else "lost")
+    st = st or ("live" if vid in alive else "lost")
+    return "paused" if st == "live" and world and world.get("paused") else st
 
 
 def snapshot(view: Any) -> dict[str, Any]:
     """What the screen shows, read once under the view's lock: plain values, no widgets
     (tested without a terminal)."""
     with view.lock:
-        w = dict(view.world) if view.world else None
+        w = view.world  # replaced whole by each status, never changed in place
         states = dict(view.states)
         alive = set(view.alive) - {keys.WORLD, keys.GROUND, "launcher"}
         events = list(view.events[-200:])
@@ -143,8 +144,8 @@ class ConsoleApp(App):
     TITLE = "cdus console"
     CSS = """
     #header { height: 1; background: $primary-background; }
-    #vehicles { height: 2fr; }
-    #middle { height: 1fr; }
+    #vehicles { height: auto; max-height: 50%; }
+    #middle { height: 1fr; min-height: 6; }
     #edges, #links { width: 1fr; }
     #alarms { height: auto; max-height: 8; border-top: solid $error; }
     #log { height: 1fr; border-top: solid $secondary; }
@@ -204,12 +205,16 @@ class ConsoleApp(App):
         self.query_one("#header", Static).update(Text(f"fleet {self.gs.fleet}   {snap['header']}"))
         _fill(self.query_one("#vehicles", DataTable), snap["rows"])
         _fill(self.query_one("#edges", DataTable),
-              [(f"{a}-{b}", num(e, ".4f", none="(an end down)")) for a, b, e in snap["edges"]])
+              [(f"{a}-{b}", num(e, ".4f", none="end down")) for a, b, e in snap["edges"]])
         links = [(f"{s}->{d}", str(n), str(x), st or "-") for s, d, n, x, st in snap["links"]]
         if not links and w:  # no emulated link faults: what each vehicle received
             links = [(f"-> {v}", str(r[0]), str(r[1]), "") for v, r in zip(w.get("ids") or [], w.get("rx") or [])
                      if r is not None]
         _fill(self.query_one("#links", DataTable), links)
+        if w is not None and self._status_seen is None:  # what happened before the console came
+            for e in w.get("events") or []:
+                if isinstance(e, FleetEvent) and e.kind != "link_burst":
+                    self.log_line(f"event (before) {e.line()}")
         if w is not None and w is not self._status_seen:
             self._status_seen = w
             for ch in self.alarms.update(w):
