@@ -401,6 +401,11 @@ def decode_status(payload: bytes, ids: Collection[str] | None = None) -> dict[st
     return out
 
 
+def _in(x: Any, allowed: Collection[str]) -> bool:
+    """A string among ``allowed`` (a value off the wire may be unhashable)."""
+    return isinstance(x, str) and x in allowed
+
+
 def _count(x: Any) -> bool:
     return type(x) is int and 0 <= x < MAX_COUNT
 
@@ -413,7 +418,7 @@ def _status_extra(obj: dict, sids: list[str]) -> dict[str, Any] | str:
     for name in ("kinds", "states"):
         if name in obj:
             x, allowed = obj[name], VEHICLE_KINDS if name == "kinds" else ROSTER_STATES
-            if not _strings(x) or len(x) != n or not all(s in allowed for s in x):
+            if not _strings(x) or len(x) != n or not all(_in(s, allowed) for s in x):
                 return "extra"
             out[name] = [str(s) for s in x]
     if "edges" in obj:
@@ -422,7 +427,7 @@ def _status_extra(obj: dict, sids: list[str]) -> dict[str, Any] | str:
             return "extra"
         edges = []
         for e in x:
-            if not (isinstance(e, list) and len(e) == 3 and e[0] in known and e[1] in known and e[0] != e[1]
+            if not (isinstance(e, list) and len(e) == 3 and _in(e[0], known) and _in(e[1], known) and e[0] != e[1]
                     and (e[2] is None or _number(e[2]) and e[2] >= 0)):
                 return "extra"
             edges.append((str(e[0]), str(e[1]), None if e[2] is None else float(e[2])))
@@ -433,8 +438,8 @@ def _status_extra(obj: dict, sids: list[str]) -> dict[str, Any] | str:
             return "extra"
         links = []
         for e in x:
-            if not (isinstance(e, list) and len(e) == 5 and e[0] in known and e[1] in known and e[0] != e[1]
-                    and _count(e[2]) and _count(e[3]) and e[3] <= e[2] and (e[4] is None or e[4] in LINK_STATES)):
+            if not (isinstance(e, list) and len(e) == 5 and _in(e[0], known) and _in(e[1], known) and e[0] != e[1]
+                    and _count(e[2]) and _count(e[3]) and e[3] <= e[2] and (e[4] is None or _in(e[4], LINK_STATES))):
                 return "extra"
             links.append((str(e[0]), str(e[1]), int(e[2]), int(e[3]), None if e[4] is None else str(e[4])))
         out["links"] = links
@@ -452,7 +457,7 @@ def _status_extra(obj: dict, sids: list[str]) -> dict[str, Any] | str:
         out["safety_radius"] = float(r)
     if "closest" in obj:
         c = obj["closest"]
-        if not (isinstance(c, list) and len(c) == 3 and c[0] in known and c[1] in known and c[0] != c[1]
+        if not (isinstance(c, list) and len(c) == 3 and _in(c[0], known) and _in(c[1], known) and c[0] != c[1]
                 and _number(c[2]) and 0 <= c[2] <= MAX_TIME):
             return "extra"
         out["closest"] = (str(c[0]), str(c[1]), float(c[2]))
