@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import asyncio
 
-from textual.widgets import DataTable, RichLog, Static
+from textual.widgets import DataTable, RichLog
 
 from cdus.wire.messages import StateMsg
 from cdus.wire.schemas import FleetEvent
