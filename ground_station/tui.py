@@ -35,8 +35,11 @@ from ground_station.alarms import AlarmChange, Alarms
 from ground_station.console import _text, num
 
 REFRESH_S = 0.5
-VEHICLE_COLUMNS = ("vehicle", "kind", "state", "t (s)", "x (m)", "y (m)", "z (m)", "ω", "ω̇", "|Φ| (m)",
-                   "edge err", "rx ω", "dropped")
+#: (title, width): fixed widths, so a longer value later (paused, lost) is never cut
+VEHICLE_COLUMNS = (("vehicle", 12), ("kind", 4), ("state", 6), ("t (s)", 9), ("x (m)", 8), ("y (m)", 8),
+                   ("z (m)", 6), ("ω", 10), ("ω̇", 7), ("|Φ| (m)", 8), ("edge err", 9), ("rx ω", 8), ("dropped", 7))
+EDGE_COLUMNS = (("edge", 25), ("error (rad)", 11))
+LINK_COLUMNS = (("link / receiver", 27), ("sent", 9), ("dropped", 8), ("state", 6))
 
 
 def send_command(gs: Any, op: str, vehicle: str | None = None) -> tuple[bool, str]:
@@ -103,11 +106,12 @@ def snapshot(view: Any) -> dict[str, Any]:
     if w:
         n_alive = sum(1 for v in ids if vehicle_state(v, w, alive) != "lost")
         header = (f"t = {num(w.get('t'), '.1f')} / {num(w.get('duration'), '.0f')} s  ({_text(w.get('clock'), 16)})"
-                  f"   {n_alive}/{len(ids)} vehicles alive   worst |Φ| {num(w.get('path_error_max'))} m"
-                  f"   worst edge error {num(w.get('coord_error_max'), '.4f')} rad"
+                  f"   {n_alive}/{len(ids)} vehicles alive" + ("   FLEET PAUSED" if w.get("paused") else "")
+                  + f"\nworst |Φ| {num(w.get('path_error_max'))} m   worst edge error "
+                  f"{num(w.get('coord_error_max'), '.4f')} rad"
                   + ("   closest {} - {} {} m".format(*w["closest"][:2], num(w["closest"][2], ".2f"))
                      if w.get("closest") else "")
-                  + ("   FLEET PAUSED" if w.get("paused") else ""))
+                  + (f" (safety radius {num(w['safety_radius'], 'g')} m)" if w.get("safety_radius") else ""))
     else:
         header = "no status from the world yet"
     if rejected:
@@ -143,7 +147,7 @@ class ConsoleApp(App):
 
     TITLE = "cdus console"
     CSS = """
-    #header { height: 1; background: $primary-background; }
+    #header { height: auto; background: $primary-background; }
     #vehicles { height: auto; max-height: 50%; }
     #middle { height: 1fr; min-height: 6; }
     #edges, #links { width: 1fr; }
@@ -181,9 +185,10 @@ class ConsoleApp(App):
         yield Footer()
 
     def on_mount(self) -> None:
-        self.query_one("#vehicles", DataTable).add_columns(*VEHICLE_COLUMNS)
-        self.query_one("#edges", DataTable).add_columns("edge", "error (rad)")
-        self.query_one("#links", DataTable).add_columns("link / receiver", "sent", "dropped", "state")
+        for table, columns in (("#vehicles", VEHICLE_COLUMNS), ("#edges", EDGE_COLUMNS), ("#links", LINK_COLUMNS)):
+            t = self.query_one(table, DataTable)
+            for title, width in columns:
+                t.add_column(title, width=width)
         self.query_one("#vehicles", DataTable).focus()
         self.refresh_view()
         self.set_interval(self.refresh_s, self.refresh_view)
