@@ -19,6 +19,7 @@ through :func:`send_command`, the one place the console sends.
 
 from __future__ import annotations
 
+import time
 from typing import Any, Callable
 
 import zenoh
@@ -35,6 +36,7 @@ from ground_station.alarms import AlarmChange, Alarms
 from ground_station.console import _text, num
 
 REFRESH_S = 0.5
+STALE_S = 3.0  # the world publishes its status every second: this long without one is news
 #: (title, width): fixed widths, so a longer value later (paused, lost) is never cut
 VEHICLE_COLUMNS = (("vehicle", 12), ("kind", 4), ("state", 6), ("t (s)", 9), ("x (m)", 8), ("y (m)", 8),
                    ("z (m)", 6), ("ω", 10), ("ω̇", 7), ("|Φ| (m)", 8), ("edge err", 9), ("rx ω", 8), ("dropped", 7))
@@ -171,6 +173,7 @@ class ConsoleApp(App):
         self.send = send
         self.alarms = Alarms()
         self._status_seen: Any = None
+        self._status_at = time.monotonic()
         self._events_seen = 0
         self.history: list[AlarmChange] = []
 
@@ -207,7 +210,14 @@ class ConsoleApp(App):
     def refresh_view(self) -> None:
         snap = snapshot(self.gs.view)
         w = snap["world"]
-        self.query_one("#header", Static).update(Text(f"fleet {self.gs.fleet}   {snap['header']}"))
+        now = time.monotonic()
+        if w is not None and w is not self._status_seen:
+            self._status_at = now
+        quiet = now - self._status_at
+        stale = (f"   NO STATUS for {quiet:.0f} s (the world ended or the link to the router is down)"
+                 if quiet > STALE_S else "")
+        head, _, rest = snap["header"].partition("\n")
+        self.query_one("#header", Static).update(Text(f"fleet {self.gs.fleet}   {head}{stale}\n{rest}".rstrip()))
         _fill(self.query_one("#vehicles", DataTable), snap["rows"])
         _fill(self.query_one("#edges", DataTable),
               [(f"{a}-{b}", num(e, ".4f", none="end down")) for a, b, e in snap["edges"]])

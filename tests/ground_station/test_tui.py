@@ -189,3 +189,21 @@ def test_links_fall_back_to_what_each_vehicle_received():
             links = text_of(app, "#links")
             assert "-> usv1 100 1" in links and "-> usv2 90 2" in links
     run(go())
+
+
+def test_a_world_that_falls_silent_is_said_so(monkeypatch):
+    import ground_station.tui as tui
+
+    monkeypatch.setattr(tui, "STALE_S", 0.3)
+
+    async def go():
+        gs = FakeGS()
+        app = ConsoleApp(gs, refresh_s=0.05)
+        async with app.run_test(size=(160, 50)) as pilot:
+            await pilot.pause(0.1)
+            assert "NO STATUS" not in text_of(app, "#header")
+            await settle(pilot, lambda: "NO STATUS for" in text_of(app, "#header"), "the silence")
+            with gs.view.lock:
+                gs.view.world = world(5.0)
+            await settle(pilot, lambda: "NO STATUS" not in text_of(app, "#header"), "a status again")
+    run(go())
