@@ -29,6 +29,7 @@ from collections import Counter, deque
 from dataclasses import dataclass, field, replace
 from typing import Any, Callable
 
+import numpy as np
 import zenoh
 
 from cdus.core.events import RosterChange
@@ -76,6 +77,26 @@ SUSPECT_EVERY = 5.0  # s: at most one suspect event per (vehicle, reason) in thi
 OUTAGE_GRACE = 30.0
 DROP_WINDOW = 0.3  # s: liveliness losses this close together count as one (a lapsed router drops them all)
 MAX_LOGGED_REJECTS = 200  # (sender, reason) pairs logged; beyond, counted only
+
+
+def closest_live_pair(q: np.ndarray, live: np.ndarray, kinds: list[str], ids: list[str]) -> tuple | None:
+    """(a, b, distance) of the closest pair of live vehicles of one kind at one instant (boats on
+    the water in x, y; drones in 3-D, as cdus.core.metrics.min_separation), None without a pair
+    at a finite distance. ``q``: (vehicles, 3) positions, ``live``: (vehicles,) bools."""
+    best = None
+    for kind, axes in (("usv", 2), ("uav", 3)):
+        idx = [j for j, k in enumerate(kinds) if k == kind and live[j]]
+        if len(idx) < 2:
+            continue
+        p = np.asarray(q, dtype=float)[idx, :axes]
+        with np.errstate(invalid="ignore", over="ignore"):
+            d = np.sqrt(((p[:, None, :] - p[None, :, :]) ** 2).sum(axis=-1))
+        d[np.tril_indices(len(idx))] = np.inf  # each pair once, never a vehicle with itself
+        d[~np.isfinite(d)] = np.inf
+        a, b = np.unravel_index(int(np.argmin(d)), d.shape)
+        if math.isfinite(d[a, b]) and (best is None or d[a, b] < best[2]):
+            best = (ids[idx[a]], ids[idx[b]], float(d[a, b]))
+    return best
 
 
 @dataclass
@@ -760,16 +781,7 @@ class World:
             edges = [(self.ids[e.i], self.ids[e.k],
                       float(abs(omega[e.i] - omega[e.k] - e.delta)) if live[e.i] and live[e.k] else None)
                      for e in rec.edges]
-            best = None
-            for a in range(len(self.ids)):
-                for b in range(a + 1, len(self.ids)):
-                    if not (live[a] and live[b]) or kinds[a] != kinds[b]:
-                        continue
-                    axes = 2 if kinds[a] == "usv" else 3
-                    d = float(math.dist(q[a][:axes], q[b][:axes]))
-                    if math.isfinite(d) and (best is None or d < best[2]):
-                        best = (self.ids[a], self.ids[b], d)
-            closest = best
+            closest = closest_live_pair(q, live, kinds, self.ids)
         links: dict[tuple[str, str], tuple] = {}
         for s in self.st.stats.values():
             if isinstance(s.faults, dict):
