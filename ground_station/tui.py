@@ -27,6 +27,7 @@ from rich.text import Text
 from textual.app import App, ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal
+from textual.css.query import NoMatches
 from textual.screen import ModalScreen
 from textual.widgets import DataTable, Footer, RichLog, Static
 
@@ -64,12 +65,14 @@ def send_command(gs: Any, op: str, vehicle: str | None = None) -> tuple[bool, st
 
 def vehicle_state(vid: str, world: dict | None, alive: set[str]) -> str:
     """live / paused / lost: the world's roster where its status has it, else its liveliness;
-    a vehicle whose liveliness token is gone is lost whatever the roster still says."""
+    a vehicle whose liveliness token is gone is lost unless the roster says it is paused."""
     st = None
     if world:
         ids, states = world.get("ids") or [], world.get("states")
         if isinstance(states, list) and len(states) == len(ids) and vid in ids:
             st = states[ids.index(vid)]
+    if st == "paused":  # a stopped process's token lapses with the lease: paused still, as the operator asked
+        return "paused"
     if alive and vid not in alive or st == "gone":
         return "lost"
     st = st or ("live" if vid in alive else "lost")
@@ -198,7 +201,10 @@ class ConsoleApp(App):
 
     # ------------------------------------------------------------------ the screen
     def log_line(self, line: str) -> None:
-        self.query_one("#log", RichLog).write(Text(line))
+        try:
+            self.query_one("#log", RichLog).write(Text(line))
+        except NoMatches:  # an outcome that comes back as the console closes
+            pass
 
     def selected(self) -> str | None:
         table = self.query_one("#vehicles", DataTable)
@@ -208,6 +214,12 @@ class ConsoleApp(App):
         return str(row[0]) if row else None
 
     def refresh_view(self) -> None:
+        try:
+            self._refresh_view()
+        except NoMatches:  # a refresh due while the screen is being set up or torn down
+            pass
+
+    def _refresh_view(self) -> None:
         snap = snapshot(self.gs.view)
         w = snap["world"]
         now = time.monotonic()

@@ -153,6 +153,7 @@ class World:
         self._commands: list[tuple[str | None, bytes]] = []  # run-time link and gains commands, for (re)joiners
         self._console = ConsoleQuota()
         self._rt_expect: dict[str, set[str]] = {}  # realtime: liveliness changes a fault we asked for explains
+        self._rt_paused: set[str] = set()  # realtime: vehicles we asked the launcher to pause and not since to resume
         self.log = log or (lambda s: print(f"[world] {s}", flush=True))
         self.next_tick = 0  # next tick to record
         self.events: list[FleetEvent] = []
@@ -486,6 +487,7 @@ class World:
             n = self._tick_now()
             if up:
                 self._rt_lost.discard(name)
+                self._rt_paused.discard(name)  # a stopped process declares nothing: this one runs
                 self._send_roster(RosterChange(n, j, "live", fresh=True))
                 self.pub_ctl.put(encode_control("start", t0=self.t0))
                 self._replay_commands(name)
@@ -506,6 +508,10 @@ class World:
         launcher for will cause (a paused process's token lapses with the lease)."""
         self._rt_expect[vid] = {"kill": {"down"}, "pause": {"down"}, "resume": set(),
                                 "restart": {"down"}}.get(action, set())
+        if action == "pause":
+            self._rt_paused.add(vid)
+        else:
+            self._rt_paused.discard(vid)
 
     def _replay_commands(self, vid: str) -> None:
         """A (re)started or resumed process missed the ground stations' link and gains commands
@@ -773,7 +779,8 @@ class World:
         if self.clock == "lockstep":
             states = [self.lockstep.state_at(j, tick) for j in range(len(self.ids))]
         else:
-            states = ["live" if vid in self.st.alive else "gone" for vid in self.ids]
+            states = ["paused" if vid in self._rt_paused else "live" if vid in self.st.alive else "gone"
+                      for vid in self.ids]
         edges = closest = path_errors = None
         if n:
             omega, live, q = rec.omega[n - 1], rec.live[n - 1], rec.q[n - 1]

@@ -57,8 +57,8 @@ def text_of(app, selector: str) -> str:
     return str(w.render())
 
 
-async def settle(pilot, until, what: str, tries: int = 100) -> None:
-    """Pause until ``until()`` holds (commands go through a worker thread)."""
+async def settle(pilot, until, what: str, tries: int = 400) -> None:
+    """Pause until ``until()`` holds (commands go through a worker thread), at least 20 s on a busy machine."""
     for _ in range(tries):
         await pilot.pause(0.05)
         if until():
@@ -199,11 +199,19 @@ def test_a_world_that_falls_silent_is_said_so(monkeypatch):
     async def go():
         gs = FakeGS()
         app = ConsoleApp(gs, refresh_s=0.05)
-        async with app.run_test(size=(160, 50)) as pilot:
-            await pilot.pause(0.1)
-            assert "NO STATUS" not in text_of(app, "#header")
-            await settle(pilot, lambda: "NO STATUS for" in text_of(app, "#header"), "the silence")
+        t = [3.0]
+
+        def talking() -> bool:
+            """A new status each time it is asked; True once the header shows no silence."""
+            if not app.query("#header"):  # not mounted yet
+                return False
+            t[0] += 0.1
             with gs.view.lock:
-                gs.view.world = world(5.0)
-            await settle(pilot, lambda: "NO STATUS" not in text_of(app, "#header"), "a status again")
+                gs.view.world = world(t[0])
+            return "NO STATUS" not in text_of(app, "#header") and f"t = {t[0] - 0.1:.1f}" in text_of(app, "#header")
+
+        async with app.run_test(size=(160, 50)) as pilot:
+            await settle(pilot, talking, "a world that talks")
+            await settle(pilot, lambda: "NO STATUS for" in text_of(app, "#header"), "the silence")
+            await settle(pilot, talking, "a status again")
     run(go())

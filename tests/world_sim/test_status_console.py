@@ -9,7 +9,7 @@ import numpy as np
 from hypothesis import given, settings, strategies as hs
 
 from cdus.wire import keys
-from cdus.wire.messages import StateMsg, encode_states
+from cdus.wire.messages import StateMsg, encode_control, encode_states
 from cdus.wire.schemas import AgentStats, decode_status, encode_stats
 from tests.fakes import Payload, Sample
 from tests.world_sim.test_world import EVENTS, FLEET, started, world
@@ -85,3 +85,28 @@ def test_the_closest_live_pair_is_min_separation_over_the_live_vehicles(vehicles
         assert got is not None and math.isclose(got[2], want, rel_tol=1e-9, abs_tol=1e-9)
         a, b = ids.index(got[0]), ids.index(got[1])
         assert live[a] and live[b] and kinds[a] == kinds[b] and a < b
+
+
+def test_realtime_a_vehicle_paused_by_a_ground_station_is_paused_until_resumed_even_once_its_token_lapses():
+    w = world(clock="realtime")
+    for vid in w.ids:
+        w._on_alive(vid, True)
+    w.started = True
+    w.t0 = 0.0
+    w.paused_at = 2.0
+
+    def states() -> list[str]:
+        w._publish_status()
+        return decode_status(w.pub_status.puts[-1])["states"]
+
+    assert states() == ["live"] * 6
+    w._handle(Sample(keys.world_cmd(FLEET, "gs"), Payload(encode_control("pause_vehicle", vehicle="uav1"))))
+    assert states()[3] == "paused"
+    w._on_alive("uav1", False)  # SIGSTOPped: its token lapses with the lease
+    assert states()[3] == "paused"
+    w._handle(Sample(keys.world_cmd(FLEET, "gs"), Payload(encode_control("resume_vehicle", vehicle="uav1"))))
+    assert states()[3] == "gone"  # resumed, its token not back yet
+    w._on_alive("uav1", True)
+    assert states()[3] == "live"
+    w._on_alive("usv2", False)  # nobody asked: lost
+    assert states()[1] == "gone"
