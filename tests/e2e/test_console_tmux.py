@@ -139,6 +139,14 @@ def test_the_console_shows_a_live_fleet_and_its_keys_act_on_it(tmp_path, launche
     tm.wait_for(lambda s: re.search(r"cleared: vehicle usv2 lost", s) and re.search(r"\busv2\s+usv\s+live",
                                                                                    row(s, "usv2")),
                 "usv2 back and its alarm cleared", timeout=60)
+
+    # pause and resume one vehicle: uav1, two rows down
+    tm.keys("Down", "Down", "p")
+    tm.wait_for(lambda s: "pause uav1: sent" in s and re.search(r"\buav1\s+uav\s+paused", row(s, "uav1")),
+                "uav1 paused", timeout=30)
+    tm.keys("r")
+    tm.wait_for(lambda s: "resume uav1: sent" in s and re.search(r"\buav1\s+uav\s+live", row(s, "uav1")),
+                "uav1 resumed", timeout=60)
     (tmp_path / "console.txt").write_text(tm.screen())
 
     tm.keys("q")
