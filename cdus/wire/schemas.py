@@ -352,13 +352,23 @@ class StatusExtra:
         return {k: v for k, v in d.items() if v is not None}
 
 
+STATUS_LIMIT = 1 << 16  # bytes: decode_status takes no bigger status
+
+
 def encode_status(t: float, duration: float, clock: str, alive: list[str], ids: list[str],
                   path_error_max: float | None, coord_error_max: float | None, events: list[FleetEvent],
                   paused: bool, extra: StatusExtra | None = None) -> bytes:
-    return msgpack.packb({"v": SCHEMA_VERSION, "t": t, "duration": duration, "clock": clock, "alive": alive,
-                          "ids": ids, "path_error_max": _finite(path_error_max),
-                          "coord_error_max": _finite(coord_error_max), "events": [e.as_dict() for e in events],
-                          "paused": paused, **(extra.as_dict() if extra else {})}, use_bin_type=True)
+    """The status; the ``extra`` fields only as far as they fit in STATUS_LIMIT (a fleet of
+    thousands: first the edges and links are left out, then the rest), never the summary."""
+    base = {"v": SCHEMA_VERSION, "t": t, "duration": duration, "clock": clock, "alive": alive, "ids": ids,
+            "path_error_max": _finite(path_error_max), "coord_error_max": _finite(coord_error_max),
+            "events": [e.as_dict() for e in events], "paused": paused}
+    more = extra.as_dict() if extra else {}
+    for fields in (more, {k: v for k, v in more.items() if k not in ("edges", "links")}, {}):
+        out = msgpack.packb({**base, **fields}, use_bin_type=True)
+        if len(out) <= STATUS_LIMIT:
+            break
+    return out
 
 
 def decode_status(payload: bytes, ids: Collection[str] | None = None) -> dict[str, Any] | str:
@@ -368,7 +378,7 @@ def decode_status(payload: bytes, ids: Collection[str] | None = None) -> dict[st
     knows them), errors finite or None, ``paused`` a bool, at most MAX_STATUS_EVENTS events,
     each a valid one (an invalid event is left out); the optional fields as STATUS_EXTRA says
     (``extra``: the reason when one is not)."""
-    obj = _unpack(payload, limit=1 << 16)
+    obj = _unpack(payload, limit=STATUS_LIMIT)
     if isinstance(obj, str):
         return obj
     if obj.get("v") != SCHEMA_VERSION:

@@ -97,3 +97,24 @@ def test_any_console_fields_decode_or_are_rejected_never_raise(fields):
     d = msgpack.unpackb(status(None), raw=False)
     out = decode_status(msgpack.packb({**d, **fields}))
     assert out == "extra" or isinstance(out, dict) and set(out) == set(STATUS_KEYS) | set(fields)
+
+
+def test_a_fleet_of_thousands_still_gets_its_status_with_what_fits():
+    def big(n: int) -> dict:
+        ids = [f"vehicle{j:05d}" for j in range(n)]
+        ex = StatusExtra(kinds=["usv"] * n, states=["live"] * n,
+                         edges=[(ids[j], ids[j + 1], 0.123456789) for j in range(min(n - 1, 512))],
+                         links=[(ids[j], ids[j + 1], 10**9, 10**6, "lossy") for j in range(min(n - 1, 512))],
+                         rx=[(10**9, 10**6)] * n, safety_radius=2.0, closest=(ids[0], ids[1], 1.0),
+                         path_errors=[0.123456789] * n, directed=False)
+        payload = encode_status(3.0, 100.0, "lockstep", ids, ids, 0.3, 0.25, [], False, ex)
+        assert len(payload) <= 1 << 16
+        st = decode_status(payload)
+        assert isinstance(st, dict), st
+        return st
+
+    assert {"edges", "links", "kinds"} <= set(big(300))  # everything fits
+    st = big(800)  # the edges and links do not: left out, the rest kept
+    assert "edges" not in st and "links" not in st and len(st["states"]) == 800
+    st = big(3000)  # only the summary fits
+    assert set(st) == set(STATUS_KEYS) and len(st["ids"]) == 3000
