@@ -88,8 +88,9 @@ def snapshot(view: Any) -> dict[str, Any]:
         alive = set(view.alive) - {keys.WORLD, keys.GROUND, "launcher"}
         events = list(view.events[-200:])
         rejected = view.rejected
-    ids = [v for v in (w or {}).get("ids") or [] if isinstance(v, str)]
-    ids += sorted((set(states) | alive) - set(ids))
+    # the world's ids when it has spoken (other names on the fleet's keys are not vehicles of the run:
+    # ground stations' tokens, forgeries); before that, whoever sends telemetry or holds a token
+    ids = [v for v in (w or {}).get("ids") or [] if isinstance(v, str)] or sorted(set(states) | alive)
     kinds = dict(zip((w or {}).get("ids") or [], (w or {}).get("kinds") or []))
     rx = dict(zip((w or {}).get("ids") or [], (w or {}).get("rx") or []))
     edges = (w or {}).get("edges") or []

@@ -80,6 +80,15 @@ def test_snapshot_shows_every_vehicle_with_its_state_kind_and_values():
     assert [r[2] for r in snap["rows"]] == ["paused", "lost", "paused"] and "FLEET PAUSED" in snap["header"]
 
 
+def test_names_that_are_not_the_worlds_vehicles_are_not_rows():
+    gs = FakeGS()
+    gs.view.alive |= {"gs-operator2", "launcher"}
+    gs.view.states["forged"] = gs.view.states["usv1"]
+    assert [r[0] for r in snapshot(gs.view)["rows"]] == IDS
+    gs.view.world = None  # before the world's first status: whoever is heard
+    assert [r[0] for r in snapshot(gs.view)["rows"]] == sorted({*IDS, "forged", "gs-operator2"})
+
+
 def test_a_vehicle_without_a_liveliness_token_is_lost_whatever_the_roster_says():
     w = world(1.0)
     assert vehicle_state("usv2", w, {"usv1", "uav1"}) == "lost"
