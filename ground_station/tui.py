@@ -33,7 +33,7 @@ from textual.widgets import DataTable, Footer, RichLog, Static
 
 from cdus.wire import keys
 from cdus.wire.schemas import FleetEvent
-from ground_station.alarms import AlarmChange, Alarms
+from ground_station.alarms import Alarms
 from ground_station.console import _text, num
 
 REFRESH_S = 0.5
@@ -178,8 +178,7 @@ class ConsoleApp(App):
         self.alarms = Alarms()
         self._status_seen: Any = None
         self._status_at = time.monotonic()
-        self._events_seen = 0
-        self.history: list[AlarmChange] = []
+        self._last_event: FleetEvent | None = None  # the newest event already in the log (by identity)
 
     def compose(self) -> ComposeResult:
         yield Static(Text(f"fleet {self.gs.fleet}"), id="header")
@@ -246,16 +245,16 @@ class ConsoleApp(App):
         if w is not None and w is not self._status_seen:
             self._status_seen = w
             for ch in self.alarms.update(w):
-                self.history.append(ch)
                 self.log_line(ch.line())
         self._show_alarms()
         events = snap["events"]
-        if len(events) < self._events_seen:
-            self._events_seen = 0
-        for e in events[self._events_seen:]:
+        # the events after the newest one logged (the view keeps its newest MAX_EVENTS: count by identity)
+        start = next((i + 1 for i in range(len(events) - 1, -1, -1) if events[i] is self._last_event), 0)
+        for e in events[start:]:
             if isinstance(e, FleetEvent) and e.kind != "link_burst":
                 self.log_line(f"event {e.line()}" + (f"  [{e.severity.upper()}]" if e.severity != "info" else ""))
-        self._events_seen = len(events)
+        if events:
+            self._last_event = events[-1]
 
     def _show_alarms(self) -> None:
         active = sorted(self.alarms.active.values(), key=lambda a: a.t)

@@ -224,3 +224,20 @@ def test_a_world_that_falls_silent_is_said_so(monkeypatch):
             await settle(pilot, lambda: "NO STATUS for" in text_of(app, "#header"), "the silence")
             await settle(pilot, talking, "a status again")
     run(go())
+
+
+def test_events_keep_coming_into_the_log_once_the_view_holds_hundreds():
+    async def go():
+        gs = FakeGS()
+        with gs.view.lock:
+            gs.view.events += [FleetEvent.of(0.1 * j, "fleet", f"old {j}") for j in range(300)]
+        app = ConsoleApp(gs, refresh_s=0.05)
+        async with app.run_test(size=(160, 50)) as pilot:
+            await settle(pilot, lambda: "old 299" in text_of(app, "#log"), "the events heard before")
+            for j in range(3):
+                with gs.view.lock:
+                    gs.view.events.append(FleetEvent.of(40.0 + j, "fleet", f"new {j}"))
+                    del gs.view.events[:-1000]
+                await settle(pilot, lambda: f"new {j}" in text_of(app, "#log"), f"new event {j}")
+            assert text_of(app, "#log").count("new 0") == 1  # each once
+    run(go())
