@@ -71,11 +71,12 @@ def vehicle_state(vid: str, world: dict | None, alive: set[str]) -> str:
         ids, states = world.get("ids") or [], world.get("states")
         if isinstance(states, list) and len(states) == len(ids) and vid in ids:
             st = states[ids.index(vid)]
+    tokens = alive or set((world or {}).get("alive") or [])  # ours, or the world's before ours come in
     if st == "paused":  # a stopped process's token lapses with the lease: paused still, as the operator asked
         return "paused"
-    if alive and vid not in alive or st == "gone":
+    if tokens and vid not in tokens or st == "gone":
         return "lost"
-    st = st or ("live" if vid in alive else "lost")
+    st = st or ("live" if vid in tokens else "lost")
     return "paused" if st == "live" and world and world.get("paused") else st
 
 
@@ -123,7 +124,17 @@ def snapshot(view: Any) -> dict[str, Any]:
     if rejected:
         header += f"   ({rejected} malformed messages ignored)"
     return {"world": w, "header": header, "rows": rows, "edges": edges, "links": (w or {}).get("links") or [],
-            "events": events}
+            "events": events, "alive": alive}
+
+
+def alarm_status(world: dict, alive: set[str]) -> dict:
+    """The world's status as the alarms read it: each vehicle's roster state, but ``gone`` as
+    soon as its liveliness token is (a killed process's token goes at once, the status comes
+    once a second), as the vehicle table shows it."""
+    calm = {**world, "paused": False}  # the fleet's pause is not a vehicle's state
+    ids = [v for v in world.get("ids") or [] if isinstance(v, str)]
+    states = [vehicle_state(v, calm, alive) for v in ids]
+    return {**world, "states": ["gone" if x == "lost" else x for x in states]}
 
 
 class ConfirmKill(ModalScreen[bool]):
@@ -242,9 +253,9 @@ class ConsoleApp(App):
             for e in w.get("events") or []:
                 if isinstance(e, FleetEvent) and e.kind != "link_burst":
                     self.log_line(f"event (before) {e.line()}")
-        if w is not None and w is not self._status_seen:
+        if w is not None:  # every refresh: a vehicle's token going is news before the next status
             self._status_seen = w
-            for ch in self.alarms.update(w):
+            for ch in self.alarms.update(alarm_status(w, snap["alive"])):
                 self.log_line(ch.line())
         self._show_alarms()
         events = snap["events"]

@@ -94,6 +94,9 @@ def test_a_vehicle_without_a_liveliness_token_is_lost_whatever_the_roster_says()
     assert vehicle_state("usv2", w, {"usv1", "uav1"}) == "lost"
     assert vehicle_state("usv2", w, {"usv1", "usv2", "uav1"}) == "live"
     assert vehicle_state("usv2", None, {"usv2"}) == "live" and vehicle_state("usv2", None, set()) == "lost"
+    old = {k: v for k, v in world(1.0).items() if k != "states"}  # a world without roster states
+    assert vehicle_state("usv2", old, set()) == "live"  # before our tokens come in: the world's alive
+    assert vehicle_state("usv2", {**old, "alive": ["usv1"]}, set()) == "lost"
     assert vehicle_state("usv2", world(1.0, states=("live", "paused", "live")), {"usv2"}) == "paused"
 
 
@@ -240,4 +243,21 @@ def test_events_keep_coming_into_the_log_once_the_view_holds_hundreds():
                     del gs.view.events[:-1000]
                 await settle(pilot, lambda: f"new {j}" in text_of(app, "#log"), f"new event {j}")
             assert text_of(app, "#log").count("new 0") == 1  # each once
+    run(go())
+
+
+def test_a_vehicle_whose_token_goes_is_lost_before_the_next_status():
+    async def go():
+        gs = FakeGS()
+        app = ConsoleApp(gs, refresh_s=0.05)
+        async with app.run_test(size=(160, 50)) as pilot:
+            await settle(pilot, lambda: "usv2 usv live" in text_of(app, "#vehicles"), "usv2 live")
+            with gs.view.lock:
+                gs.view.alive.discard("usv2")  # killed: the world's status (t = 3.00 s) does not know yet
+            await settle(pilot, lambda: "ALARM t = 3.00 s: vehicle usv2 lost" in text_of(app, "#alarms"), "alarm")
+            assert "usv2 usv lost" in text_of(app, "#vehicles")
+            with gs.view.lock:
+                gs.view.world = world(5.0, states=("live", "gone", "live"))
+            await pilot.pause(0.3)
+            assert text_of(app, "#log").count("vehicle usv2 lost") == 1  # the status saying so raises nothing again
     run(go())
