@@ -16,8 +16,9 @@ once when it ends:
   scenario's [safety] radius. A status without the radius cannot say: :attr:`Alarms.notes`
   says so, and no separation alarm is raised.
 
-Statuses whose time does not advance (a paused fleet, the same status twice) change no
-growth; a time going back (another run) starts the growth over.
+Statuses whose time does not advance (a paused fleet) or whose value is the same as the
+last (the same status read again at a later time) change no growth; a time going back
+(another run) starts the growth over.
 """
 
 from __future__ import annotations
@@ -154,7 +155,7 @@ class Alarms:
         if g is None or t < g.t:  # new, or time went back
             self._growth[name] = _Growth(t, x, t, x)
             return None
-        if t == g.t:  # no news
+        if t == g.t or x == g.x:  # no news (the same status again, read at a later time)
             return g if g.t > g.t0 else None
         if x > g.x:
             g.t, g.x = t, x

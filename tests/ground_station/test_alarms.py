@@ -80,6 +80,12 @@ def test_growth_needs_time_a_real_rise_and_advancing_statuses():
     b = Alarms(grow_s=3.0)
     for t in range(10):
         assert b.update(status(float(t), path_errors=(0.001 * (t + 1), 0.01, 0.01))) == []
+    # the same status read again at later times (the console's clock ahead of the status) is no news
+    e = Alarms(grow_s=3.0)
+    out = []
+    for t, x in [(0, 0.1), (0.5, 0.1), (1, 0.2), (1.5, 0.2), (2, 0.4), (2.5, 0.4), (3, 0.8), (3.5, 0.8)]:
+        out += [(t, *k) for k in kinds(e.update(status(float(t), path_errors=(x, 0.01, 0.01))))]
+    assert out == [(3, True, "error_growing", "|Φ| usv1")]
     # a paused fleet (time standing still) changes nothing, however often it is said
     c = Alarms(grow_s=3.0)
     for _ in range(10):

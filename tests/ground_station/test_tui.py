@@ -249,11 +249,13 @@ def test_events_keep_coming_into_the_log_once_the_view_holds_hundreds():
 def test_a_vehicle_whose_token_goes_is_lost_before_the_next_status():
     async def go():
         gs = FakeGS()
+        gs.view.world = world(2.5)  # the world's status lags its vehicles' telemetry (t = 3 s)
         app = ConsoleApp(gs, refresh_s=0.05)
         async with app.run_test(size=(160, 50)) as pilot:
             await settle(pilot, lambda: "usv2 usv live" in text_of(app, "#vehicles"), "usv2 live")
             with gs.view.lock:
-                gs.view.alive.discard("usv2")  # killed: the world's status (t = 3.00 s) does not know yet
+                gs.view.alive.discard("usv2")  # killed: the world's status does not know yet
+            # stamped with the newest time the console knows, not the older status's
             await settle(pilot, lambda: "ALARM t = 3.00 s: vehicle usv2 lost" in text_of(app, "#alarms"), "alarm")
             assert "usv2 usv lost" in text_of(app, "#vehicles")
             with gs.view.lock:
