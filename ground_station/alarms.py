@@ -82,7 +82,9 @@ class Alarms:
     _t: float | None = None
 
     def update(self, status: dict[str, Any]) -> list[AlarmChange]:
-        """The alarms this status raises and clears (cleared ones first)."""
+        """The alarms this status raises and clears (cleared ones first), stamped with its time
+        ``t``; a lost vehicle with the time it was last heard of, when ``last_heard`` (vehicle ->
+        the time of its newest telemetry) has an earlier one."""
         t = _num(status.get("t"))
         if t is None:
             return []
@@ -95,9 +97,14 @@ class Alarms:
             state = {v: "live" if v in alive else "gone" for v in ids}
         live = [v for v in ids if state.get(v) == "live"]
         want: dict[tuple[str, str], str] = {}
+        since: dict[tuple[str, str], float] = {}  # an alarm's time when known better than the status's
+        heard = status.get("last_heard") if isinstance(status.get("last_heard"), dict) else {}
         for v in ids:
             if state.get(v) == "gone":
                 want[("vehicle_lost", v)] = f"vehicle {v} lost"
+                last = _num(heard.get(v))
+                if last is not None and last < t:  # its newest telemetry: when it was last heard of alive
+                    since[("vehicle_lost", v)] = last
         edges = [e for e in status.get("edges") or [] if isinstance(e, tuple) and len(e) == 3]
         if edges and live:
             pairs = [(a, b) for a, b, _ in edges]
@@ -130,8 +137,9 @@ class Alarms:
             del self.active[k]
         for k, text in want.items():
             if k not in self.active:
-                self.active[k] = Alarm(k[0], k[1], text, t)
-                changes.append(AlarmChange(True, self.active[k], t))
+                when = since.get(k, t)
+                self.active[k] = Alarm(k[0], k[1], text, when)
+                changes.append(AlarmChange(True, self.active[k], when))
         return changes
 
     @staticmethod

@@ -124,25 +124,27 @@ def snapshot(view: Any) -> dict[str, Any]:
         header = "no status from the world yet"
     if rejected:
         header += f"   ({rejected} malformed messages ignored)"
-    now = max((m.t for v, m in states.items() if v in ids and isinstance(m.t, float) and math.isfinite(m.t)),
-              default=None)
+    heard = {v: m.t for v, m in states.items() if v in ids and isinstance(m.t, float) and math.isfinite(m.t)}
+    now = max(heard.values(), default=None)
     return {"world": w, "header": header, "rows": rows, "edges": edges, "links": (w or {}).get("links") or [],
-            "events": events, "alive": alive, "now": now}
+            "events": events, "alive": alive, "now": now, "heard": heard}
 
 
-def alarm_status(world: dict, alive: set[str], now: float | None = None) -> dict:
+def alarm_status(world: dict, alive: set[str], now: float | None = None,
+                 heard: dict[str, float] | None = None) -> dict:
     """The world's status as the alarms read it: each vehicle's roster state, but ``gone`` as
     soon as its liveliness token is (a killed process's token goes at once, the status comes
     once a second), as the vehicle table shows it; its time the newest the console knows
     (``now``: the newest telemetry's, ahead of the status's), so an alarm is not stamped
-    before what it reports."""
+    before what it reports); ``heard``: each vehicle's newest telemetry time, when a lost one
+    was last heard of."""
     calm = {**world, "paused": False}  # the fleet's pause is not a vehicle's state
     ids = [v for v in world.get("ids") or [] if isinstance(v, str)]
     states = [vehicle_state(v, calm, alive) for v in ids]
     t = world.get("t")
     if now is not None and isinstance(t, float) and now > t:
         t = now
-    return {**world, "t": t, "states": ["gone" if x == "lost" else x for x in states]}
+    return {**world, "t": t, "states": ["gone" if x == "lost" else x for x in states], "last_heard": heard or {}}
 
 
 class ConfirmKill(ModalScreen[bool]):
@@ -263,7 +265,7 @@ class ConsoleApp(App):
                     self.log_line(f"event (before) {e.line()}")
         if w is not None:  # every refresh: a vehicle's token going is news before the next status
             self._status_seen = w
-            for ch in self.alarms.update(alarm_status(w, snap["alive"], snap["now"])):
+            for ch in self.alarms.update(alarm_status(w, snap["alive"], snap["now"], snap["heard"])):
                 self.log_line(ch.line())
         self._show_alarms()
         events = snap["events"]

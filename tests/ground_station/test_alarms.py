@@ -34,6 +34,15 @@ def test_a_lost_vehicle_is_raised_once_with_its_time_and_cleared_when_it_is_back
     assert not a.active
 
 
+def test_a_lost_vehicle_is_stamped_with_when_it_was_last_heard_of_when_that_is_known():
+    a = Alarms()
+    ch = a.update(status(9.0, states=("live", "gone", "live"), last_heard={"usv2": 7.25, "usv1": 9.0}))
+    assert kinds(ch) == [(True, "vehicle_lost", "usv2")] and ch[0].t == 7.25 and ch[0].alarm.t == 7.25
+    assert ch[0].line().startswith("t = 7.25 s ALARM")
+    b = Alarms()  # a time after the status's is not taken
+    assert b.update(status(9.0, states=("live", "gone", "live"), last_heard={"usv2": 12.0}))[0].t == 9.0
+
+
 def test_without_roster_states_a_vehicle_not_alive_is_lost():
     a = Alarms()
     ch = a.update({"t": 1.0, "ids": IDS, "alive": ["usv1", "usv3"]})
@@ -120,6 +129,7 @@ _status = hs.fixed_dictionaries({
     "radius": hs.one_of(hs.none(), hs.floats(min_value=0.1, max_value=10)),
     "closest": hs.one_of(hs.none(), hs.tuples(hs.sampled_from(IDS), hs.sampled_from(IDS), _err)),
     "directed": hs.booleans(),
+    "last_heard": hs.dictionaries(hs.sampled_from(IDS), hs.one_of(hs.floats(), hs.none(), hs.text(max_size=2))),
 })
 
 
@@ -130,7 +140,7 @@ def test_any_status_sequence_raises_and_clears_consistently(seq):
     active: set = set()
     for s in seq:
         st = status(s["t"], states=s["states"], edges=s["edges"], path_errors=s["path_errors"], radius=s["radius"],
-                    closest=s["closest"], directed=s["directed"])
+                    closest=s["closest"], directed=s["directed"], last_heard=s["last_heard"])
         for ch in a.update(st):
             key = ch.alarm.key
             if ch.raised:
@@ -139,7 +149,7 @@ def test_any_status_sequence_raises_and_clears_consistently(seq):
             else:
                 assert key in active  # only what was raised is cleared
                 active.remove(key)
-            assert ch.t == st["t"]
+            assert ch.t == st["t"] or ch.raised and ch.alarm.kind == "vehicle_lost" and ch.t < st["t"]
         assert active == set(a.active)
         lost = {(k, v) for k, v in active if k == "vehicle_lost"}
         if isinstance(s["t"], float):

@@ -4,6 +4,7 @@ with Textual's own pilot (App.run_test): no fleet, no terminal."""
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 
 from textual.widgets import DataTable, RichLog
 
@@ -163,14 +164,15 @@ def test_kill_asks_first_and_a_lost_vehicle_raises_its_alarm():
             await pilot.press("k", "y")
             await settle(pilot, lambda: gs.sent == [("kill", "usv2")], "kill usv2")
             assert "alarms: none" in text_of(app, "#alarms")
-            # the world says it is gone: the alarm, with the simulated time
+            # the world says it is gone: the alarm, with a simulated time
             with gs.view.lock:
                 gs.view.world = world(4.25, states=("live", "gone", "live"))
                 gs.view.alive.discard("usv2")
-            await settle(pilot, lambda: "ALARM t = 4.25 s: vehicle usv2 lost" in text_of(app, "#alarms"), "alarm")
+            # stamped with when it was last heard of: its newest telemetry (3 s), before this status (4.25 s)
+            await settle(pilot, lambda: "ALARM t = 3.00 s: vehicle usv2 lost" in text_of(app, "#alarms"), "alarm")
             assert "usv2 usv lost" in text_of(app, "#vehicles")
             assert "end down" in text_of(app, "#edges")
-            assert "t = 4.25 s ALARM: vehicle usv2 lost" in text_of(app, "#log")
+            assert "t = 3.00 s ALARM: vehicle usv2 lost" in text_of(app, "#log")
             with gs.view.lock:
                 gs.view.world = world(9.0)
                 gs.view.alive.add("usv2")
@@ -255,7 +257,10 @@ def test_a_vehicle_whose_token_goes_is_lost_before_the_next_status():
             await settle(pilot, lambda: "usv2 usv live" in text_of(app, "#vehicles"), "usv2 live")
             with gs.view.lock:
                 gs.view.alive.discard("usv2")  # killed: the world's status does not know yet
-            # stamped with the newest time the console knows, not the older status's
+            with gs.view.lock:  # the others carry on
+                for vid in ("usv1", "uav1"):
+                    gs.view.states[vid] = dataclasses.replace(gs.view.states[vid], t=4.0)
+            # stamped with when it was last heard of (its telemetry, 3 s), not the older status's 2.5 s
             await settle(pilot, lambda: "ALARM t = 3.00 s: vehicle usv2 lost" in text_of(app, "#alarms"), "alarm")
             assert "usv2 usv lost" in text_of(app, "#vehicles")
             with gs.view.lock:
