@@ -50,7 +50,7 @@ class Tmux:
             self.tmux(["send-keys", k])
             time.sleep(0.2)  # one key at a time, as a person types
 
-    def wait_for(self, check, what: str, timeout: float = 60.0) -> str:
+    def wait_for(self, check, what: str, timeout: float = 120.0) -> str:
         """The screen once ``check(screen)`` holds, polled up to ``timeout`` s."""
         deadline = time.monotonic() + timeout
         while True:
@@ -67,7 +67,7 @@ class Tmux:
         return out[:1] == ["1"], out[1] if len(out) > 1 else ""
 
     def kill(self) -> None:
-        subprocess.run(["tmux", "-S", self.sock, "kill-server"], capture_output=True, timeout=30)
+        subprocess.run(["tmux", "-S", self.sock, "kill-server"], capture_output=True, timeout=90)
         shutil.rmtree(self.dir, ignore_errors=True)
 
 
@@ -125,28 +125,28 @@ def test_the_console_shows_a_live_fleet_and_its_keys_act_on_it(tmp_path, launche
     tm.keys("y")
     tm.wait_for(lambda s: re.search(r"ALARM t = \d+\.\d\d s: vehicle usv2 lost", s)
                 and re.search(r"\busv2\s+usv\s+lost", row(s, "usv2")) and "kill usv2: sent" in s
-                and "5/6 vehicles alive" in s, "the vehicle lost alarm", timeout=30)
+                and "5/6 vehicles alive" in s, "the vehicle lost alarm", timeout=90)
 
     # the fleet paused and resumed
     tm.keys("P")
     tm.wait_for(lambda s: "FLEET PAUSED" in s and "fleet paused" in s
-                and re.search(r"\busv1\s+usv\s+paused", row(s, "usv1")), "the fleet paused", timeout=30)
+                and re.search(r"\busv1\s+usv\s+paused", row(s, "usv1")), "the fleet paused", timeout=90)
     tm.keys("R")
-    tm.wait_for(lambda s: "FLEET PAUSED" not in s and "fleet resumed" in s, "the fleet resumed", timeout=30)
+    tm.wait_for(lambda s: "FLEET PAUSED" not in s and "fleet resumed" in s, "the fleet resumed", timeout=90)
 
     # restart usv2: back, the alarm cleared
     tm.keys("t")
     tm.wait_for(lambda s: re.search(r"cleared: vehicle usv2 lost", s) and re.search(r"\busv2\s+usv\s+live",
                                                                                    row(s, "usv2")),
-                "usv2 back and its alarm cleared", timeout=60)
+                "usv2 back and its alarm cleared", timeout=120)
 
     # pause and resume one vehicle: uav1, two rows down
     tm.keys("Down", "Down", "p")
     tm.wait_for(lambda s: "pause uav1: sent" in s and re.search(r"\buav1\s+uav\s+paused", row(s, "uav1")),
-                "uav1 paused", timeout=30)
+                "uav1 paused", timeout=90)
     tm.keys("r")
     tm.wait_for(lambda s: "resume uav1: sent" in s and re.search(r"\buav1\s+uav\s+live", row(s, "uav1")),
-                "uav1 resumed", timeout=60)
+                "uav1 resumed", timeout=120)
     (tmp_path / "console.txt").write_text(tm.screen())
 
     tm.keys("q")
