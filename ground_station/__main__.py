@@ -5,6 +5,7 @@
     cdus gs ... status --json                                          # one JSON snapshot
     cdus gs ... watch --jsonl                                          # a JSON line per status and event
     cdus gs ... snapshot FILE                                          # the fleet's state to FILE (JSON)
+    cdus gs --fleet lake_circle -e tcp/127.0.0.1:7447 console         # the live console (docs/console.md)
     cdus gs ... pause | resume | stop                                  # the whole fleet
     cdus gs ... link loss=0.3 delay.base=0.1 [--at 120]                # link faults from sim time t
     cdus gs ... gains k=2 c=1 [--vehicle usv1]                         # guidance gains
@@ -85,6 +86,8 @@ def build_parser(prog: str = "cdus gs") -> argparse.ArgumentParser:
     wa.add_argument("--interval", type=_positive, default=1.0, help="seconds between status lines")
     sn = sub.add_parser("snapshot", help="save the fleet's state (the status --json object) to FILE, atomically")
     sn.add_argument("file", metavar="FILE")
+    sub.add_parser("console", help="the live console: vehicles, edges, links, alarms; keys to pause, resume, "
+                                   "kill and restart a vehicle or pause and resume the fleet (docs/console.md)")
     for op in ("pause", "resume", "stop"):
         sub.add_parser(op, help=f"{op} the whole fleet")
     ln = sub.add_parser("link", help="change link faults at run time: KEY=VALUE of the [link] table")
@@ -289,6 +292,11 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
             return EXIT_NO_ANSWER
         # the world's ids: names of the key space (letters, digits, _ and -), nothing else is trusted
         ids = [i for i in (gs.view.world or {}).get("ids") or [] if isinstance(i, str) and FLEET_RE.match(i)]
+        if args.action == "console":
+            from ground_station.tui import ConsoleApp  # Textual only for the console
+
+            ConsoleApp(gs).run()
+            return 0
         if args.action in ("status", "watch", "snapshot"):
             gs.fetch_last()  # a paused fleet sends no telemetry: the world says where each vehicle is
         if args.action == "status":

@@ -29,6 +29,7 @@ from collections import Counter, deque
 from dataclasses import dataclass, field, replace
 from typing import Any, Callable
 
+import numpy as np
 import zenoh
 
 from cdus.core.events import RosterChange
@@ -57,8 +58,8 @@ from cdus.wire.messages import (
     encode_geometry, encode_states,
 )
 from cdus.wire.schemas import (
-    ID_RE, ORIGIN_WORLD, AgentStats, CommandReply, FleetEvent, decode_stats, encode_event, encode_reply,
-    encode_status,
+    ID_RE, ORIGIN_WORLD, AgentStats, CommandReply, FleetEvent, StatusExtra, decode_stats, encode_event,
+    encode_reply, encode_status,
 )
 from cdus.wire.text import printable
 from cdus.wire.transport import Transport, open_session
@@ -111,6 +112,26 @@ class Verdict:
 LATER = Verdict(True, "decided when its tick comes")  # a sentinel: never sent as it is
 MAX_WAITING = 1024  # queries held for a lockstep fault's decision; beyond, answered at once
 MAX_QUEUED_QUERIES = 256  # command queries waiting for the main thread; beyond, answered busy at once
+
+
+def closest_live_pair(q: np.ndarray, live: np.ndarray, kinds: list[str], ids: list[str]) -> tuple | None:
+    """(a, b, distance) of the closest pair of live vehicles of one kind at one instant (boats on
+    the water in x, y; drones in 3-D, as cdus.core.metrics.min_separation), None without a pair
+    at a finite distance. ``q``: (vehicles, 3) positions, ``live``: (vehicles,) bools."""
+    best = None
+    for kind, axes in (("usv", 2), ("uav", 3)):
+        idx = [j for j, k in enumerate(kinds) if k == kind and live[j]]
+        if len(idx) < 2:
+            continue
+        p = np.asarray(q, dtype=float)[idx, :axes]
+        with np.errstate(invalid="ignore", over="ignore"):
+            d = np.sqrt(((p[:, None, :] - p[None, :, :]) ** 2).sum(axis=-1))
+        d[np.tril_indices(len(idx))] = np.inf  # each pair once, never a vehicle with itself
+        d[~np.isfinite(d)] = np.inf
+        a, b = np.unravel_index(int(np.argmin(d)), d.shape)
+        if math.isfinite(d[a, b]) and (best is None or d[a, b] < best[2]):
+            best = (ids[idx[a]], ids[idx[b]], float(d[a, b]))
+    return best
 
 
 @dataclass
@@ -184,6 +205,7 @@ class World:
         self._commands: list[tuple[str | None, bytes]] = []  # run-time link and gains commands, for (re)joiners
         self._console = ConsoleQuota(scenario=scenario)
         self._rt_expect: dict[str, set[str]] = {}  # realtime: liveliness changes a fault we asked for explains
+        self._rt_paused: set[str] = set()  # realtime: vehicles we asked the launcher to pause and not since to resume
         self.log = log or (lambda s: print(f"[world] {s}", flush=True))
         self.next_tick = 0  # next tick to record
         self.events: list[FleetEvent] = []
@@ -776,6 +798,7 @@ class World:
             n = self._tick_now()
             if up:
                 self._rt_lost.discard(name)
+                self._rt_paused.discard(name)  # a stopped process declares nothing: this one runs
                 self._send_roster(RosterChange(n, j, "live", fresh=True))
                 self.pub_ctl.put(encode_control("start", t0=self.t0))
                 self._replay_commands(name)
@@ -796,6 +819,10 @@ class World:
         launcher for will cause (a paused process's token lapses with the lease)."""
         self._rt_expect[vid] = {"kill": {"down"}, "pause": {"down"}, "resume": set(),
                                 "restart": {"down"}}.get(action, set())
+        if action == "pause":
+            self._rt_paused.add(vid)
+        else:
+            self._rt_paused.discard(vid)
 
     def _replay_commands(self, vid: str) -> None:
         """A (re)started or resumed process missed the ground stations' link and gains commands
@@ -1112,15 +1139,43 @@ class World:
             path = None if math.isnan(worst_path[-1]) else float(worst_path[-1])
             coord = None if math.isnan(worst_coord[-1]) or not self.recorder.edges else float(worst_coord[-1])
         paused = self.lockstep.paused if self.clock == "lockstep" else self.paused_at is not None
+        extra = self._status_extra()
         self.pub_status.put(encode_status(t, self.duration, self.clock, sorted(self.st.alive), self.ids, path, coord,
-                                          self.events[-10:], paused, self._roster_now()))
+                                          self.events[-10:], paused, roster=dict(zip(self.ids, extra.states)), extra=extra))
 
-    def _roster_now(self) -> dict[str, str]:
-        """Each vehicle's roster state at the tick the world is at (realtime: by its liveliness)."""
+    def _status_extra(self) -> StatusExtra:
+        """What a live console shows beyond the summary (cdus.wire.schemas.STATUS_EXTRA), at the
+        newest recorded tick: each vehicle's kind and roster state, each edge's error, each
+        emulated link's counters, each vehicle's received and dropped ω, the [safety] radius and
+        the closest pair of live vehicles of one kind."""
+        rec, n = self.recorder, len(self.recorder)
+        kinds = [v.kind for v in self.scenario.vehicles]
+        tick = max(0, self.next_tick - 1)
         if self.clock == "lockstep":
-            n = max(0, self.next_tick)
-            return {vid: self.lockstep.state_at(j, n) for j, vid in enumerate(self.ids)}
-        return {vid: "live" if vid in self.st.alive else "gone" for vid in self.ids}
+            states = [self.lockstep.state_at(j, tick) for j in range(len(self.ids))]
+        else:
+            states = ["paused" if vid in self._rt_paused else "live" if vid in self.st.alive else "gone"
+                      for vid in self.ids]
+        edges = closest = path_errors = None
+        if n:
+            omega, live, q = rec.omega[n - 1], rec.live[n - 1], rec.q[n - 1]
+            path_errors = [float(x) if live[j] else None for j, x in enumerate(rec.path_error[n - 1])]
+            edges = [(self.ids[e.i], self.ids[e.k],
+                      float(abs(omega[e.i] - omega[e.k] - e.delta)) if live[e.i] and live[e.k] else None)
+                     for e in rec.edges]
+            closest = closest_live_pair(q, live, kinds, self.ids)
+        links: dict[tuple[str, str], tuple] = {}
+        for s in self.st.stats.values():
+            if isinstance(s.faults, dict):
+                last_state = {c["link"]: c["state"] for c in s.faults["state_changes"]}
+                for name, c in s.faults["links"].items():
+                    src, _, dst = name.partition("->")
+                    links[(src, dst)] = (src, dst, c["sent"], min(c["dropped"], c["sent"]), last_state.get(name))
+        rx = [None if (s := self.st.stats.get(vid)) is None else (s.sent_to_me, min(s.dropped, s.sent_to_me))
+              for vid in self.ids]
+        return StatusExtra(kinds=kinds, states=states, edges=edges, links=[links[k] for k in sorted(links)], rx=rx,
+                           safety_radius=self.scenario.safety.radius, closest=closest, path_errors=path_errors,
+                           directed=self.scenario.directed)
 
     def _processes(self) -> list[AgentStats]:
         """The last stats of every agent process of the run, restarted ones' included."""

@@ -338,36 +338,87 @@ def _burst(d: Any, ids: Collection[str] | None) -> BurstReport | None:
 
 STATUS_KEYS = ("t", "duration", "clock", "alive", "ids", "path_error_max", "coord_error_max", "events", "paused",
                "roster")
-#: a vehicle's state in the world's roster (status ``roster``): stepping, paused (by a fault or a
-#: ground station), gone (killed, lost) from the tick the world is at
-ROSTER_STATES = ("live", "paused", "gone")
+#: optional fields (added within version 1; a status without them is still valid, and decodes
+#: with them absent): what a live console shows and raises alarms on (docs/console.md)
+#: - kinds: each vehicle's kind ("usv" | "uav"), in ``ids`` order
+#: - states: each vehicle's state in the world's roster ("live" | "paused" | "gone"), in ``ids`` order
+#: - edges: [a, b, error (rad) or None when an end is not live] per coordination edge, at the newest tick
+#: - links: [src, dst, sent, dropped, state] per directed link the link emulator decides (a link with faults)
+#: - rx: [ω messages addressed to the vehicle, dropped] per vehicle (None before its first counters)
+#: - safety_radius: the scenario's [safety] radius R (m, its default when the table is absent)
+#: - closest: [a, b, distance (m)]: the closest pair of live vehicles of one kind at the newest tick
+#: - path_errors: each vehicle's |Φ| (m) at the newest tick, None where it is not live, in ``ids`` order
+#: - directed: whether the graph is directed (``edges`` then go i -> k as the scenario's; else each pair once)
+STATUS_EXTRA = ("kinds", "states", "edges", "links", "rx", "safety_radius", "closest", "path_errors", "directed")
+VEHICLE_KINDS = ("usv", "uav")
+#: a vehicle's state in the world's roster (status ``roster`` {id: state}, and ``states`` in ids
+#: order): stepping, paused (by a fault or a ground station), gone (killed, lost) at the world's tick
+ROSTER_STATES = ("live", "paused", "gone")  # cdus.core.events.STATES
+MAX_STATUS_EDGES = 512
+MAX_STATUS_LINKS = 512
+
+
+@dataclass(frozen=True)
+class StatusExtra:
+    """The optional status fields the world fills in (see STATUS_EXTRA)."""
+
+    kinds: list[str] | None = None
+    states: list[str] | None = None
+    edges: list[tuple[str, str, float | None]] | None = None
+    links: list[tuple[str, str, int, int, str | None]] | None = None
+    rx: list[tuple[int, int] | None] | None = None
+    safety_radius: float | None = None
+    closest: tuple[str, str, float] | None = None
+    path_errors: list[float | None] | None = None
+    directed: bool | None = None
+
+    def as_dict(self) -> dict[str, Any]:
+        d = {"kinds": self.kinds, "states": self.states,
+             "edges": None if self.edges is None else [[a, b, _finite(e)] for a, b, e in self.edges[:MAX_STATUS_EDGES]],
+             "links": None if self.links is None else [list(x) for x in self.links[:MAX_STATUS_LINKS]],
+             "rx": None if self.rx is None else [None if r is None else list(r) for r in self.rx],
+             "safety_radius": _finite(self.safety_radius),
+             "closest": None if self.closest is None or _finite(self.closest[2]) is None else list(self.closest),
+             "path_errors": None if self.path_errors is None else [_finite(x) for x in self.path_errors],
+             "directed": self.directed}
+        return {k: v for k, v in d.items() if v is not None}
+
+
+STATUS_LIMIT = 1 << 16  # bytes: decode_status takes no bigger status
 
 
 def encode_status(t: float, duration: float, clock: str, alive: list[str], ids: list[str],
                   path_error_max: float | None, coord_error_max: float | None, events: list[FleetEvent],
-                  paused: bool, roster: dict[str, str] | None = None) -> bytes:
-    d = {"v": SCHEMA_VERSION, "t": t, "duration": duration, "clock": clock, "alive": alive,
-         "ids": ids, "path_error_max": _finite(path_error_max),
-         "coord_error_max": _finite(coord_error_max), "events": [e.as_dict() for e in events],
-         "paused": paused}
+                  paused: bool, roster: dict[str, str] | None = None,
+                  extra: StatusExtra | None = None) -> bytes:
+    """The status; the ``extra`` fields only as far as they fit in STATUS_LIMIT (a fleet of
+    thousands: first the edges and links are left out, then the rest), never the summary."""
+    base = {"v": SCHEMA_VERSION, "t": t, "duration": duration, "clock": clock, "alive": alive, "ids": ids,
+            "path_error_max": _finite(path_error_max), "coord_error_max": _finite(coord_error_max),
+            "events": [e.as_dict() for e in events], "paused": paused}
     if roster is not None:
-        d["roster"] = roster
-    return msgpack.packb(d, use_bin_type=True)
+        base["roster"] = roster
+    more = extra.as_dict() if extra else {}
+    for fields in (more, {k: v for k, v in more.items() if k not in ("edges", "links")}, {}):
+        out = msgpack.packb({**base, **fields}, use_bin_type=True)
+        if len(out) <= STATUS_LIMIT:
+            break
+    return out
 
 
 def decode_status(payload: bytes, ids: Collection[str] | None = None) -> dict[str, Any] | str:
-    """The world's status as a dict (STATUS_KEYS; events as FleetEvent; ``roster`` None when the
-    world did not send it), or the reject reason.
-    Every field is checked: times finite and plausible, the clock a known one, ``alive`` a
-    subset of ``ids`` (and ``ids`` the receiver's, when it knows them), errors finite or
-    None, ``paused`` a bool, at most MAX_STATUS_EVENTS events, each a valid one (an invalid
-    event is left out)."""
-    obj = _unpack(payload, limit=1 << 16)
+    """The world's status as a dict (STATUS_KEYS, and those of STATUS_EXTRA it carries; events
+    as FleetEvent; ``roster`` None when the world did not send it), or the reject reason. Every field is checked: times finite and plausible,
+    the clock a known one, ``alive`` a subset of ``ids`` (and ``ids`` the receiver's, when it
+    knows them), errors finite or None, ``paused`` a bool, at most MAX_STATUS_EVENTS events,
+    each a valid one (an invalid event is left out); the optional fields as STATUS_EXTRA says
+    (``extra``: the reason when one is not)."""
+    obj = _unpack(payload, limit=STATUS_LIMIT)
     if isinstance(obj, str):
         return obj
     if obj.get("v") != SCHEMA_VERSION:
         return "version"
-    if not set(obj) <= {"v", *STATUS_KEYS}:
+    if not set(obj) <= {"v", *STATUS_KEYS, *STATUS_EXTRA}:
         return "unknown_field"
     t, duration, alive, sids, events = obj.get("t"), obj.get("duration"), obj.get("alive"), obj.get("ids"), \
         obj.get("events")
@@ -395,6 +446,82 @@ def decode_status(payload: bytes, ids: Collection[str] | None = None) -> dict[st
     out["events"] = [e for e in (event_from_dict(d, known) for d in events) if isinstance(e, FleetEvent)]
     out["paused"] = bool(obj.get("paused"))
     out["roster"] = None if roster is None else {k: str(x) for k, x in roster.items()}
+    extra = _status_extra(obj, list(sids))
+    if isinstance(extra, str):
+        return extra
+    out.update(extra)
+    return out
+
+
+def _in(x: Any, allowed: Collection[str]) -> bool:
+    """A string among ``allowed`` (a value off the wire may be unhashable)."""
+    return isinstance(x, str) and x in allowed
+
+
+def _count(x: Any) -> bool:
+    return type(x) is int and 0 <= x < MAX_COUNT
+
+
+def _status_extra(obj: dict, sids: list[str]) -> dict[str, Any] | str:
+    """The optional status fields present in ``obj``, checked against the status's own ``ids``
+    and rebuilt, or ``extra`` (one of them is not what STATUS_EXTRA says)."""
+    out: dict[str, Any] = {}
+    n, known = len(sids), set(sids)
+    for name in ("kinds", "states"):
+        if name in obj:
+            x, allowed = obj[name], VEHICLE_KINDS if name == "kinds" else ROSTER_STATES
+            if not _strings(x) or len(x) != n or not all(_in(s, allowed) for s in x):
+                return "extra"
+            out[name] = [str(s) for s in x]
+    if "edges" in obj:
+        x = obj["edges"]
+        if not isinstance(x, list) or len(x) > MAX_STATUS_EDGES:
+            return "extra"
+        edges = []
+        for e in x:
+            if not (isinstance(e, list) and len(e) == 3 and _in(e[0], known) and _in(e[1], known) and e[0] != e[1]
+                    and (e[2] is None or _number(e[2]) and e[2] >= 0)):
+                return "extra"
+            edges.append((str(e[0]), str(e[1]), None if e[2] is None else float(e[2])))
+        out["edges"] = edges
+    if "links" in obj:
+        x = obj["links"]
+        if not isinstance(x, list) or len(x) > MAX_STATUS_LINKS:
+            return "extra"
+        links = []
+        for e in x:
+            if not (isinstance(e, list) and len(e) == 5 and _in(e[0], known) and _in(e[1], known) and e[0] != e[1]
+                    and _count(e[2]) and _count(e[3]) and e[3] <= e[2] and (e[4] is None or _in(e[4], LINK_STATES))):
+                return "extra"
+            links.append((str(e[0]), str(e[1]), int(e[2]), int(e[3]), None if e[4] is None else str(e[4])))
+        out["links"] = links
+    if "rx" in obj:
+        x = obj["rx"]
+        if not isinstance(x, list) or len(x) != n or not all(
+                r is None or isinstance(r, list) and len(r) == 2 and _count(r[0]) and _count(r[1]) and r[1] <= r[0]
+                for r in x):
+            return "extra"
+        out["rx"] = [None if r is None else (int(r[0]), int(r[1])) for r in x]
+    if "safety_radius" in obj:
+        r = obj["safety_radius"]
+        if not _number(r) or not 0 < r <= MAX_TIME:
+            return "extra"
+        out["safety_radius"] = float(r)
+    if "closest" in obj:
+        c = obj["closest"]
+        if not (isinstance(c, list) and len(c) == 3 and _in(c[0], known) and _in(c[1], known) and c[0] != c[1]
+                and _number(c[2]) and 0 <= c[2] <= MAX_TIME):
+            return "extra"
+        out["closest"] = (str(c[0]), str(c[1]), float(c[2]))
+    if "path_errors" in obj:
+        x = obj["path_errors"]
+        if not isinstance(x, list) or len(x) != n or not all(e is None or _number(e) and e >= 0 for e in x):
+            return "extra"
+        out["path_errors"] = [None if e is None else float(e) for e in x]
+    if "directed" in obj:
+        if type(obj["directed"]) is not bool:
+            return "extra"
+        out["directed"] = obj["directed"]
     return out
 
 

@@ -92,7 +92,8 @@ def test_the_world_relays_a_radio_change_or_says_why_not():
     w = started(_radio_world())
     assert "tx_power" in w._relay_radio({"radio": {"tx_power": "loud"}, "at": -1.0}, "gs")
     assert "power" in w._relay_radio({"radio": {"power": 3}, "at": -1.0}, "gs")
-    assert w._relay_radio({"radio": {"tx_power": 3.0, "station": [1.0, 2.0]}, "at": -1.0}, "gs") is None
+    v = w._relay_radio({"radio": {"tx_power": 3.0, "station": [1.0, 2.0]}, "at": -1.0}, "gs")
+    assert v.applied and v.t == 0.5 and v.tick == 25  # the answer says when it applies
     (c,) = [decode_control(p, CTL_OPS) for p in w.pub_ctl.puts if decode_control(p, CTL_OPS).op == "radio"]
     assert c.fields["radio"] == {"tx_power": 3.0, "station": [1.0, 2.0]} and c.fields["at"] >= 0.02
     assert w.radio_watch.channel.epochs[-1][1:] == (3.0, (1.0, 2.0, 0.0))
@@ -152,7 +153,8 @@ def test_a_command_before_a_scheduled_radio_change_is_refused(tmp_path):
     started(w)
     assert w.radio_watch.channel.epochs[-1][:2] == (100.0, 5.0)  # the world's channel knows it up front
     assert "--at 100 or later" in w._relay_radio({"radio": {"tx_power": 3.0}, "at": -1.0}, "gs")
-    assert w._relay_radio({"radio": {"tx_power": 3.0}, "at": 150.0}, "gs") is None
+    v = w._relay_radio({"radio": {"tx_power": 3.0}, "at": 150.0}, "gs")
+    assert v.applied and v.t == 150.0
     assert "--at 150 or later" in w._relay_radio({"radio": {"tx_power": 9.0}, "at": 120.0}, "gs")
 
 
