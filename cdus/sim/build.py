@@ -12,7 +12,7 @@ import math
 from cdus.core import regulators as reg
 from cdus.core.disturbance import Disturbance, DisturbanceSpec
 from cdus.core.link import IdealLink, LinkEmulator, LinkModel
-from cdus.core.metrics import MetricEdge
+from cdus.core.graph import MetricEdge
 from cdus.core.neighbours import NeighbourLink
 from cdus.core.node import VehicleNode
 from cdus.core.schedule import broadcast_every, total_ticks
