@@ -167,6 +167,32 @@ def open_session(t: Transport):
     return zenoh.open(zenoh_config(t))
 
 
+# Zenoh's runtime (its thread pools) is configured per process, by the ZENOH_RUNTIME environment
+# variable, read once when the process first needs the runtime. Zenoh's default suits a process
+# that has cores to itself: here dozens share two, and every idle pool thread is a wake-up.
+#: every process the launcher starts (world, agents): one worker thread, the network tasks
+#: (accept, receive, transmit) handed over to it (measured: lockstep lake_circle 13x -> 17x
+#: real time on 2 cores; 6 threads per agent, 3 of them Zenoh's)
+CHILD_RUNTIME = "(app: (worker_threads: 1), acc: (handover: app), rx: (handover: app), tx: (handover: app))"
+#: the launcher's own session, the fleet's router (it relays every message of the fleet): the
+#: same single worker. Left at Zenoh's default (rx-0, rx-1, tx-0, acc-0, app-0, net-0 threads),
+#: a 64-vehicle realtime ring missed more deadlines (bench/realtime_capacity.py --router-runtime)
+ROUTER_RUNTIME = CHILD_RUNTIME
+RUNTIME_ENV = "ZENOH_RUNTIME"
+#: names the launcher's own runtime ("default": Zenoh's; a bench compares them); ZENOH_RUNTIME, if set, wins
+ROUTER_RUNTIME_ENV = "CDUS_ROUTER_RUNTIME"
+
+
+def use_runtime(spec: str, env=None) -> str:
+    """Give this process (``env``: os.environ) Zenoh runtime ``spec`` unless the user set
+    ZENOH_RUNTIME; returns the one in force. Only effective before the process's first Zenoh
+    session (Zenoh reads the variable once)."""
+    import os
+
+    env = os.environ if env is None else env
+    return env.setdefault(RUNTIME_ENV, spec)
+
+
 def with_default_endpoint(t: Transport) -> Transport:
     """``t``, connecting to (client, peer) or listening on (router) DEFAULT_ENDPOINT if it names no
     endpoint and no config file."""

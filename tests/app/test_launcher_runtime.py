@@ -1,0 +1,67 @@
+"""The launcher's own Zenoh session (the fleet's router) runs on cdus's small runtime, not on
+Zenoh's default pools: the runtime setting used to reach only the child processes
+(bench/realtime_capacity.py --router-runtime one,default)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from cdus.wire.transport import CHILD_RUNTIME, ROUTER_RUNTIME, RUNTIME_ENV, use_runtime
+
+REPO = Path(__file__).resolve().parents[2]
+
+PROBE = textwrap.dedent("""
+    import json, os, sys, tempfile
+    from pathlib import Path
+    from cdus.app.launcher import LaunchOptions, Launcher
+    from cdus.scenario.config import load_scenario
+    from cdus.wire.transport import router
+    sc = load_scenario("configs/lake_circle.toml")
+    with tempfile.TemporaryDirectory() as tmp:
+        la = Launcher(sc, Path(tmp) / "run", router(), LaunchOptions(fleet="rt"), log=lambda s: None)
+        la._open()
+        names = sorted(open(f"/proc/self/task/{t}/comm").read().strip() for t in os.listdir("/proc/self/task"))
+        child = la.env.get("ZENOH_RUNTIME")
+        la.close_router()
+    print(json.dumps({"threads": names, "env": os.environ.get("ZENOH_RUNTIME"), "child": child}))
+""")
+
+
+def _probe(**env: str) -> dict:
+    base = {k: v for k, v in os.environ.items() if k not in (RUNTIME_ENV, "CDUS_ROUTER_RUNTIME")}
+    out = subprocess.run([sys.executable, "-c", PROBE], cwd=REPO, capture_output=True, text=True, timeout=120,
+                         env={**base, "PYTHONPATH": str(REPO), **env})
+    assert out.returncode == 0, out.stderr[-2000:]
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="thread names from /proc")
+def test_the_router_session_runs_on_one_worker_thread():
+    got = _probe()
+    assert got["env"] == ROUTER_RUNTIME and got["child"] == CHILD_RUNTIME
+    zenoh = [t for t in got["threads"] if t.split("-")[0] in ("app", "rx", "tx", "acc", "net")]
+    assert not [t for t in zenoh if t.startswith(("rx-", "tx-", "acc-"))], zenoh  # handed over to app
+    assert [t for t in zenoh if t.startswith("app-")] == ["app-0"], zenoh
+    # Zenoh's default, as the launcher ran before, has pools of its own for the network tasks
+    default = _probe(CDUS_ROUTER_RUNTIME="default")["threads"]
+    # (its rx/tx threads start with the first link; its accept pool at once)
+    assert [t for t in default if t.startswith("acc-")], default
+
+
+def test_a_users_zenoh_runtime_wins():
+    mine = "(app: (worker_threads: 2))"
+    got = _probe(ZENOH_RUNTIME=mine)
+    assert got["env"] == mine and got["child"] == mine
+
+
+def test_use_runtime_sets_only_what_is_unset():
+    env: dict[str, str] = {}
+    assert use_runtime("(a)", env) == "(a)" and env == {RUNTIME_ENV: "(a)"}
+    assert use_runtime("(b)", env) == "(a)"
