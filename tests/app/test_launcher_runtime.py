@@ -43,12 +43,14 @@ def _probe(**env: str) -> dict:
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="thread names from /proc")
-def test_the_router_session_runs_on_one_worker_thread():
+def test_the_router_session_routes_on_one_worker_thread():
     got = _probe()
     assert got["env"] == ROUTER_RUNTIME and got["child"] == CHILD_RUNTIME
     zenoh = [t for t in got["threads"] if t.split("-")[0] in ("app", "rx", "tx", "acc", "net")]
-    assert not [t for t in zenoh if t.startswith(("rx-", "tx-", "acc-"))], zenoh  # handed over to app
+    assert not [t for t in zenoh if t.startswith(("rx-", "acc-"))], zenoh  # handed over to app
     assert [t for t in zenoh if t.startswith("app-")] == ["app-0"], zenoh
+    # transmit keeps a thread of its own (it starts with the first link): a router that waits for
+    # room in a link's queue on its one worker would never empty that queue
     # Zenoh's default, as the launcher ran before, has pools of its own for the network tasks
     default = _probe(CDUS_ROUTER_RUNTIME="default")["threads"]
     # (its rx/tx threads start with the first link; its accept pool at once)
