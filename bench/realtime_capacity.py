@@ -36,13 +36,13 @@ from _fleet import Launch, cpu_seconds, ctx_switches, load_line, role, rss_mb, w
 from sim_speed import ring
 
 from cdus.core.schedule import total_ticks
-from cdus.wire.transport import ROUTER_RUNTIME, ROUTER_RUNTIME_ENV
+from cdus.wire.transport import CHILD_RUNTIME, ROUTER_RUNTIME, ROUTER_RUNTIME_ENV
 
 CPU_WINDOW = 4.0  # s of the run's middle over which CPU use is measured
 DONE_RE = re.compile(r"done after (\d+) ticks; missed deadlines (\d+)")
 
 
-RUNTIMES = {"one": ROUTER_RUNTIME, "default": "default"}
+RUNTIMES = {"one": ROUTER_RUNTIME, "default": "default", "single": CHILD_RUNTIME}  # single: tx on the one worker too
 
 
 def threads_cpu(pids: list[int]) -> dict[tuple[int, str], float]:
@@ -156,7 +156,8 @@ def main() -> None:
                     help="how ω travels between neighbours (cdus launch --links; default router, as cdus launch)")
     ap.add_argument("--router-runtime", default="one",
                     help="the launcher's own Zenoh runtime, comma-separated variants run interleaved: one (cdus's "
-                         "ROUTER_RUNTIME), default (Zenoh's pools) or a ZENOH_RUNTIME string")
+                         "ROUTER_RUNTIME), default (Zenoh's pools), single (the children's: everything on one "
+                         "thread, which can hang a flooded router) or a ZENOH_RUNTIME string")
     ap.add_argument("--repeat", type=int, default=1, help="runs of each size and variant")
     args = ap.parse_args()
     variants = [v for v in args.router_runtime.split(",") if v] if "(" not in args.router_runtime else \
