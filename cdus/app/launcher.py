@@ -54,8 +54,8 @@ from cdus.wire.messages import CTL_OPS, LAUNCHER_OPS, decode_control, encode_con
 from cdus.wire.schemas import FleetEvent, decode_event, decode_status, encode_event
 from cdus.wire.text import printable
 from cdus.wire.transport import (
-    CHILD_RUNTIME, DEFAULT_LEASE_MS, ROUTER_RUNTIME, ROUTER_RUNTIME_ENV, Transport, client_of, open_session,
-    use_runtime,
+    CHILD_RUNTIME, DEFAULT_LEASE_MS, ROUTER_RUNTIME, ROUTER_RUNTIME_ENV, Transport, children_runtime, client_of,
+    open_session, use_runtime,
 )
 
 LINKS = ("direct", "router")  # how ω travels between neighbours (docs/architecture.md)
@@ -222,7 +222,7 @@ class Launcher:
         self.finished = False
         self.requests: list[tuple[str, str]] = []  # scheduled faults asked for by the world
         self.env = dict(os.environ)
-        self.env.setdefault("ZENOH_RUNTIME", ZENOH_RUNTIME)
+        self.env["ZENOH_RUNTIME"] = children_runtime()  # the user's, else CHILD_RUNTIME (not the router's)
         self.env["PYTHONUNBUFFERED"] = "1"
         if self.opts.links == "direct" and (self.opts.remote or self.opts.zenoh_configs):
             raise ValueError("direct links are unix sockets on this host that skip the router: "

@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import ipaddress
 import json
+import os
 import socket
 from dataclasses import dataclass, field
 from typing import Sequence
@@ -192,10 +193,24 @@ def use_runtime(spec: str, env=None) -> str:
     """Give this process (``env``: os.environ) Zenoh runtime ``spec`` unless the user set
     ZENOH_RUNTIME; returns the one in force. Only effective before the process's first Zenoh
     session (Zenoh reads the variable once)."""
-    import os
-
-    env = os.environ if env is None else env
+    global _OWN_RUNTIME
+    if env is None:
+        env = os.environ
+        if RUNTIME_ENV not in env:
+            _OWN_RUNTIME = spec
     return env.setdefault(RUNTIME_ENV, spec)
+
+
+_OWN_RUNTIME: str | None = None  # what use_runtime gave this process (not the user's choice)
+
+
+def children_runtime(env=None) -> str:
+    """The ZENOH_RUNTIME for the processes this one starts: the user's, else CHILD_RUNTIME (not
+    the router's that :func:`use_runtime` may have given this process: a program that launches
+    one fleet after another would pass it on)."""
+    env = os.environ if env is None else env
+    mine = env.get(RUNTIME_ENV)
+    return CHILD_RUNTIME if mine is None or mine == _OWN_RUNTIME else mine
 
 
 def with_default_endpoint(t: Transport) -> Transport:

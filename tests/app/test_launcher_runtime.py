@@ -30,7 +30,10 @@ PROBE = textwrap.dedent("""
         names = sorted(open(f"/proc/self/task/{t}/comm").read().strip() for t in os.listdir("/proc/self/task"))
         child = la.env.get("ZENOH_RUNTIME")
         la.close_router()
-    print(json.dumps({"threads": names, "env": os.environ.get("ZENOH_RUNTIME"), "child": child}))
+        # a second fleet from the same program: its children still get theirs, not the router's
+        la2 = Launcher(sc, Path(tmp) / "run2", router(), LaunchOptions(fleet="rt2"), log=lambda s: None)
+        child2 = la2.env.get("ZENOH_RUNTIME")
+    print(json.dumps({"threads": names, "env": os.environ.get("ZENOH_RUNTIME"), "child": child, "child2": child2}))
 """)
 
 
@@ -45,7 +48,7 @@ def _probe(**env: str) -> dict:
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="thread names from /proc")
 def test_the_router_session_routes_on_one_worker_thread():
     got = _probe()
-    assert got["env"] == ROUTER_RUNTIME and got["child"] == CHILD_RUNTIME
+    assert got["env"] == ROUTER_RUNTIME and got["child"] == got["child2"] == CHILD_RUNTIME
     zenoh = [t for t in got["threads"] if t.split("-")[0] in ("app", "rx", "tx", "acc", "net")]
     assert not [t for t in zenoh if t.startswith(("rx-", "acc-"))], zenoh  # handed over to app
     assert [t for t in zenoh if t.startswith("app-")] == ["app-0"], zenoh
@@ -60,7 +63,7 @@ def test_the_router_session_routes_on_one_worker_thread():
 def test_a_users_zenoh_runtime_wins():
     mine = "(app: (worker_threads: 2))"
     got = _probe(ZENOH_RUNTIME=mine)
-    assert got["env"] == mine and got["child"] == mine
+    assert got["env"] == mine and got["child"] == got["child2"] == mine
 
 
 def test_use_runtime_sets_only_what_is_unset():
