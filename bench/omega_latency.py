@@ -209,7 +209,8 @@ def run_bench(args) -> int:
 
     print(load_line())
     if args.zenoh_runtime == "launcher":
-        use_runtime(ROUTER_RUNTIME)  # this process is the router, on the launcher's runtime
+        if ROUTER_RUNTIME != "default":
+            use_runtime(ROUTER_RUNTIME)  # this process is the router, on the launcher's runtime
     router = local_router()
     session = open_session(router)
     connect = client_of(router).connect[0]

@@ -12,8 +12,8 @@ reads link.missed_deadlines (summed over the agents by the world) from metrics.j
 Miss rate = missed / (N x ticks per agent). The sweep stops after a size above 5%.
 Per process it also reads its threads and, per thread, CPU: an agent's Python main thread
 apart from Zenoh's threads, the launcher's (the router's) total. Variants of the launcher's
-own Zenoh runtime (--router-runtime: ``one``, cdus's ROUTER_RUNTIME; ``default``, Zenoh's
-pools; or a ZENOH_RUNTIME string) run interleaved, size by size, --repeat times, so they
+own Zenoh runtime (--router-runtime: ``default``, Zenoh's pools, as cdus launch runs;
+``small``, ``single``, fewer threads; or a ZENOH_RUNTIME string) run interleaved, size by size, --repeat times, so they
 see the same load. The last line says what limits: the CPU the run used out of the
 machine's, and who used it.
 Targets (issue 20): 64 vehicles under 1% missed control deadlines, <= 60 MB RSS per
@@ -36,13 +36,13 @@ from _fleet import Launch, cpu_seconds, ctx_switches, load_line, role, rss_mb, w
 from sim_speed import ring
 
 from cdus.core.schedule import total_ticks
-from cdus.wire.transport import CHILD_RUNTIME, ROUTER_RUNTIME, ROUTER_RUNTIME_ENV
+from cdus.wire.transport import CHILD_RUNTIME, ROUTER_RUNTIME, ROUTER_RUNTIME_ENV, SMALL_ROUTER_RUNTIME
 
 CPU_WINDOW = 4.0  # s of the run's middle over which CPU use is measured
 DONE_RE = re.compile(r"done after (\d+) ticks; missed deadlines (\d+)")
 
 
-RUNTIMES = {"one": ROUTER_RUNTIME, "default": "default", "single": CHILD_RUNTIME}  # single: tx on the one worker too
+RUNTIMES = {"default": "default", "small": SMALL_ROUTER_RUNTIME, "single": CHILD_RUNTIME}
 
 
 def threads_cpu(pids: list[int]) -> dict[tuple[int, str], float]:
@@ -69,7 +69,7 @@ def threads_cpu(pids: list[int]) -> dict[tuple[int, str], float]:
     return out
 
 
-def run_size(n: int, duration: float, work: Path, links: str = "router", runtime: str = "one") -> dict:
+def run_size(n: int, duration: float, work: Path, links: str = "router", runtime: str = ROUTER_RUNTIME) -> dict:
     sc = ring(n, duration)
     path = write_json(work / f"ring{n}.json", sc.raw)
     tag = "".join(c for c in runtime if c.isalnum())[:12]
@@ -154,10 +154,11 @@ def main() -> None:
     ap.add_argument("--keep", action="store_true", help="keep the run directories (logs, metrics)")
     ap.add_argument("--links", choices=("direct", "router"), default="router",
                     help="how ω travels between neighbours (cdus launch --links; default router, as cdus launch)")
-    ap.add_argument("--router-runtime", default="one",
-                    help="the launcher's own Zenoh runtime, comma-separated variants run interleaved: one (cdus's "
-                         "ROUTER_RUNTIME), default (Zenoh's pools), single (the children's: everything on one "
-                         "thread, which can hang a flooded router) or a ZENOH_RUNTIME string")
+    ap.add_argument("--router-runtime", default=ROUTER_RUNTIME,
+                    help="the launcher's own Zenoh runtime, comma-separated variants run interleaved: default "
+                         "(Zenoh's pools, as cdus launch runs), small (one routing thread, transmit on another), "
+                         "single (the children's: one thread) or a ZENOH_RUNTIME string. small and single cost "
+                         "less CPU but stall every link behind a congested one (cdus.wire.transport)")
     ap.add_argument("--repeat", type=int, default=1, help="runs of each size and variant")
     args = ap.parse_args()
     variants = [v for v in args.router_runtime.split(",") if v] if "(" not in args.router_runtime else \

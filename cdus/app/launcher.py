@@ -61,9 +61,10 @@ from cdus.wire.transport import (
 LINKS = ("direct", "router")  # how ω travels between neighbours (docs/architecture.md)
 GRACE_S = 5.0
 LOG_TAIL = 15
-# Fewer Zenoh runtime threads per process (cdus.wire.transport.CHILD_RUNTIME, ROUTER_RUNTIME):
-# on a small machine running many processes the default thread pools cost more in context
-# switches than they give. A user's own ZENOH_RUNTIME wins, for every process.
+# Fewer Zenoh runtime threads per child process (cdus.wire.transport.CHILD_RUNTIME; the router,
+# this process, keeps Zenoh's: ROUTER_RUNTIME): on a small machine running many processes the
+# default thread pools cost more in context switches than they give. A user's own ZENOH_RUNTIME
+# wins, for every process.
 ZENOH_RUNTIME = CHILD_RUNTIME
 
 
@@ -285,9 +286,10 @@ class Launcher:
 
     # ------------------------------------------------------------------ zenoh
     def _open(self) -> None:
-        # the router's own runtime, before its session starts Zenoh's (the children's is in self.env)
+        # the router's own runtime (ROUTER_RUNTIME: Zenoh's default pools, see there), before its
+        # session starts Zenoh's; the children's is in self.env
         own = os.environ.get(ROUTER_RUNTIME_ENV) or ROUTER_RUNTIME
-        if own != "default":  # "default": Zenoh's own pools (a bench's comparison)
+        if own != "default":
             use_runtime(own)
         s = self.session = open_session(self.router)
         f = self.fleet

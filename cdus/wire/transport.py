@@ -175,15 +175,18 @@ def open_session(t: Transport):
 #: (accept, receive, transmit) handed over to it (measured: lockstep lake_circle 13x -> 17x
 #: real time on 2 cores; 6 threads per agent, 3 of them Zenoh's)
 CHILD_RUNTIME = "(app: (worker_threads: 1), acc: (handover: app), rx: (handover: app), tx: (handover: app))"
-#: the launcher's own session, the fleet's router (it relays every message of the fleet): one
-#: worker for routing (accept and receive handed over to it), and the transmit tasks on a thread
-#: of their own. Not all on one thread: the router forwards a message sent with congestion
-#: control BLOCK by waiting for room in the outgoing link's queue, and on a single thread the
-#: task that would empty that queue can never run; under a flood the link is closed after
-#: wait_before_close (a lockstep fleet under attack hung: tests/e2e/test_hostile.py). Left at
-#: Zenoh's default (rx-0, rx-1, tx-0, acc-0, app-0, net-0 threads), a 64-vehicle realtime ring
-#: missed more deadlines (bench/realtime_capacity.py --router-runtime)
-ROUTER_RUNTIME = "(app: (worker_threads: 1), acc: (handover: app), rx: (handover: app), tx: (worker_threads: 1))"
+#: the launcher's own session, the fleet's router, keeps Zenoh's default pools ("default": the
+#: launcher sets nothing; rx-0, rx-1, tx-0, acc-0, app-0, net-0). Fewer routing threads cost
+#: less CPU (SMALL_ROUTER_RUNTIME: router 17 -> 10 % of a core on the 64-vehicle realtime ring)
+#: but are not safe: the router forwards a message sent with congestion control BLOCK by
+#: waiting for room in the outgoing link's queue (up to wait_before_close, 1 s), on the thread
+#: that routes. On one routing thread that stalls every link: a partitioned vehicle's link
+#: stalled the others' (a boat lost and back, a UAV noticed 10 s late:
+#: tests/e2e/test_multihost.py, partition), and with transmit on that thread too a flooded
+#: lockstep fleet hung (tests/e2e/test_hostile.py). bench/realtime_capacity.py
+#: --router-runtime default,small,single compares them.
+ROUTER_RUNTIME = "default"
+SMALL_ROUTER_RUNTIME = "(app: (worker_threads: 1), acc: (handover: app), rx: (handover: app), tx: (worker_threads: 1))"
 RUNTIME_ENV = "ZENOH_RUNTIME"
 #: names the launcher's own runtime ("default": Zenoh's; a bench compares them); ZENOH_RUNTIME, if set, wins
 ROUTER_RUNTIME_ENV = "CDUS_ROUTER_RUNTIME"

@@ -1,6 +1,6 @@
-"""The launcher's own Zenoh session (the fleet's router) runs on cdus's small runtime, not on
-Zenoh's default pools: the runtime setting used to reach only the child processes
-(bench/realtime_capacity.py --router-runtime one,default)."""
+"""Zenoh's runtime per process: the launcher's children get cdus's small runtime, the launcher's
+own session (the fleet's router) keeps Zenoh's pools unless told otherwise (a router on fewer
+threads stalls every link behind a congested one: cdus.wire.transport.ROUTER_RUNTIME)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from cdus.wire.transport import CHILD_RUNTIME, ROUTER_RUNTIME, RUNTIME_ENV, use_runtime
+from cdus.wire.transport import CHILD_RUNTIME, ROUTER_RUNTIME, RUNTIME_ENV, SMALL_ROUTER_RUNTIME, use_runtime
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -46,18 +46,21 @@ def _probe(**env: str) -> dict:
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="thread names from /proc")
-def test_the_router_session_routes_on_one_worker_thread():
+def test_the_router_keeps_zenohs_pools_and_the_children_get_the_small_runtime():
+    # the router on fewer threads stalls every link behind a congested one (ROUTER_RUNTIME's note)
     got = _probe()
-    assert got["env"] == ROUTER_RUNTIME and got["child"] == got["child2"] == CHILD_RUNTIME
+    assert ROUTER_RUNTIME == "default" and got["env"] is None
+    assert got["child"] == got["child2"] == CHILD_RUNTIME
+    assert [t for t in got["threads"] if t.startswith("acc-")], got["threads"]  # Zenoh's accept pool
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="thread names from /proc")
+def test_the_routers_runtime_can_be_chosen_and_never_reaches_the_children():
+    got = _probe(CDUS_ROUTER_RUNTIME=SMALL_ROUTER_RUNTIME)
+    assert got["env"] == SMALL_ROUTER_RUNTIME and got["child"] == got["child2"] == CHILD_RUNTIME
     zenoh = [t for t in got["threads"] if t.split("-")[0] in ("app", "rx", "tx", "acc", "net")]
     assert not [t for t in zenoh if t.startswith(("rx-", "acc-"))], zenoh  # handed over to app
     assert [t for t in zenoh if t.startswith("app-")] == ["app-0"], zenoh
-    # transmit keeps a thread of its own (it starts with the first link): a router that waits for
-    # room in a link's queue on its one worker would never empty that queue
-    # Zenoh's default, as the launcher ran before, has pools of its own for the network tasks
-    default = _probe(CDUS_ROUTER_RUNTIME="default")["threads"]
-    # (its rx/tx threads start with the first link; its accept pool at once)
-    assert [t for t in default if t.startswith("acc-")], default
 
 
 def test_a_users_zenoh_runtime_wins():
