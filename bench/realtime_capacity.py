@@ -91,10 +91,10 @@ def run_size(n: int, duration: float, work: Path, links: str = "router", runtime
         threads = {p.pid: p.num_threads() for p in procs + [launcher] if p.is_running()}
         pids = [p.pid for p in procs]
         cpu0, cs0, t0 = cpu_seconds(procs + [launcher]), ctx_switches(list(roles)), time.perf_counter()
-        th0, box0 = threads_cpu(pids), _machine_cpu()
+        th0, box0, u0 = threads_cpu(pids), _machine_cpu(), time.perf_counter()
         time.sleep(CPU_WINDOW)
         cpu1, cs1, t1 = cpu_seconds(procs + [launcher]), ctx_switches(list(roles)), time.perf_counter()
-        th1, box1 = threads_cpu(pids), _machine_cpu()
+        th1, box1, u1 = threads_cpu(pids), _machine_cpu(), time.perf_counter()  # own window: reading takes time
         load1 = os.getloadavg()[0]
         rc = la.wait(timeout=duration + 120)
     cpu = {pid: 100 * (cpu1[pid] - cpu0[pid]) / (t1 - t0) for pid in cpu1 if pid in cpu0}
@@ -110,9 +110,9 @@ def run_size(n: int, duration: float, work: Path, links: str = "router", runtime
                switches=statistics.median(cs[p] for p in agents if p in cs) if agents else 0.0,
                threads=statistics.median(threads[p] for p in agents if p in threads) if agents else 0,
                threads_world=threads.get(world[0], 0) if world else 0, threads_launcher=threads.get(la.proc.pid, 0),
-               cpu_agents_main=sum(100 * (th1[k] - th0.get(k, 0.0)) / (t1 - t0) for k in th1
+               cpu_agents_main=sum(100 * (th1[k] - th0.get(k, 0.0)) / (u1 - u0) for k in th1
                                    if k[1] == "main" and k[0] in agents),
-               cpu_agents_zenoh=sum(100 * (th1[k] - th0.get(k, 0.0)) / (t1 - t0) for k in th1
+               cpu_agents_zenoh=sum(100 * (th1[k] - th0.get(k, 0.0)) / (u1 - u0) for k in th1
                                     if k[1] == "zenoh" and k[0] in agents),
                cpu_machine=100 * (box1[0] - box0[0]) / max(1e-9, box1[1] - box0[1]) * (os.cpu_count() or 1),
                load=load1, runtime=runtime)
