@@ -109,6 +109,9 @@ RESEND_FOR = 10.0
 MAX_NAP = 0.05  # s: realtime sleeps at most this long between checks for a stop or a pause
 PING_TIMEOUT = 1.0  # s for a link check's reply (it is immediate when nobody answers)
 PING_RETRY = 0.02  # s between link checks
+#: the ω publisher's express flag (Zenoh: sent at once, never held for a batch); compared in the
+#: same run by bench/omega_latency.py
+OMEGA_EXPRESS = False
 
 
 @dataclass
@@ -203,7 +206,7 @@ class Agent:
         self.clock = Clock()
         self.state_batch = STATE_BATCH[clock]
         self.rejected: Counter = Counter()  # by reason, every reject (the node's ω ones too, but "gone")
-        self._rings: list[Any] = []  # realtime: one ω subscription per neighbour (ring channels)
+        self._rings: list[tuple[int, Any]] = []  # realtime: (neighbour, its ω subscription: a ring channel)
         self._bucket: dict[int, tuple[float, float]] = {}  # realtime ω rate per neighbour: (tokens, when)
         self._rate = RATE_MARGIN * scenario.rates.broadcast  # ω per s a neighbour may send
         self._logged: set[tuple[str, str]] = set()
@@ -243,15 +246,15 @@ class Agent:
             # flood on one key costs this process at most OMEGA_RING samples per drain, not one
             # Python wake-up per message (the newest ω is the one that matters).
             self.inbox = s.declare_subscriber(keys.inbox(f, me)[:-2] + "*", zenoh.handlers.FifoChannel(INBOX_CAPACITY))
-            self._rings = [s.declare_subscriber(key, zenoh.handlers.RingChannel(OMEGA_RING))
-                           for key in self._omega_from]
+            self._rings = [(k, s.declare_subscriber(key, zenoh.handlers.RingChannel(OMEGA_RING)))
+                           for key, k in self._omega_from.items()]
         # declared after the subscriptions, on the same session: whoever gets a reply holds them
         self.pinged = s.declare_queryable(keys.ping(f, me), lambda q: q.reply(keys.ping(f, me), b""))
         # Block rather than drop under congestion: losses are the link emulator's job, and a
         # lockstep neighbour waits for every broadcast.
         block = zenoh.CongestionControl.BLOCK
         self.pub_omega = s.declare_publisher(keys.omega(f, me, listeners_of(self.scenario, me)),
-                                             congestion_control=block)
+                                             congestion_control=block, express=OMEGA_EXPRESS)
         self.pub_state = s.declare_publisher(keys.state(f, me), congestion_control=block)
         self.pub_stats = s.declare_publisher(keys.stats(f, me))
         wake = s.declare_publisher(keys.wake(f, me), allowed_destination=zenoh.Locality.SESSION_LOCAL)
@@ -355,19 +358,7 @@ class Agent:
         key = str(sample.key_expr)
         k = self._omega_from.get(key)
         if k is not None:
-            if self._over_rate(k):  # before decoding: a flood costs a lookup and a subtraction
-                return self._reject(self.ids[k], "rate")
-            msg = decode_omega(sample.payload.to_bytes(), expected_sender=k, n_vehicles=len(self.ids))
-            if isinstance(msg, str):
-                return self._reject(self.ids[k], msg)
-            self.node.horizon = self._horizon()
-            reason = self.node.on_message(msg, now)
-            if reason is not None:
-                self._reject(self.ids[k], reason)
-            elif k in self._bucket:  # only what is rejected spends a sender's budget
-                tokens, when = self._bucket[k]
-                self._bucket[k] = (min(float(RATE_BURST), tokens + 1.0), when)
-            return
+            return self._omega(k, sample, now)
         if key.endswith("/ctl"):
             return self._on_ctl(sample.payload.to_bytes())
         if key.endswith("/contacts"):
@@ -378,6 +369,21 @@ class Agent:
             return
         kind, src = keys.leaf(key)
         self._reject(src or key, "unexpected_" + (kind if kind in _KINDS else "key"))
+
+    def _omega(self, k: int, sample: Any, now: float | None) -> None:
+        """An ω sample on neighbour ``k``'s key (the inbox's, or its realtime ring's)."""
+        if self._over_rate(k):  # before decoding: a flood costs a lookup and a subtraction
+            return self._reject(self.ids[k], "rate")
+        msg = decode_omega(sample.payload.to_bytes(), expected_sender=k, n_vehicles=len(self.ids))
+        if isinstance(msg, str):
+            return self._reject(self.ids[k], msg)
+        self.node.horizon = self._horizon()
+        reason = self.node.on_message(msg, now)
+        if reason is not None:
+            self._reject(self.ids[k], reason)
+        elif k in self._bucket:  # only what is rejected spends a sender's budget
+            tokens, when = self._bucket[k]
+            self._bucket[k] = (min(float(RATE_BURST), tokens + 1.0), when)
 
     def _ctl_problem(self, op: str, f: dict) -> str | None:
         """What is out of range in a control message from the world (None: nothing): ticks within
@@ -556,11 +562,12 @@ class Agent:
     def _drain(self, now: Callable[[], float | None]) -> None:
         while (sample := self.inbox.try_recv()) is not None:
             self._handle(sample, now())
-        for ring in self._rings:  # realtime ω: at most OMEGA_RING each
+        omega = self._omega
+        for k, ring in self._rings:  # realtime ω: at most OMEGA_RING each, the sender known by its ring
             for _ in range(OMEGA_RING):
                 if (sample := ring.try_recv()) is None:
                     break
-                self._handle(sample, now())
+                omega(k, sample, now())
 
     def _stopping(self) -> bool:
         return self.clock.stop or self.stop_requested
@@ -672,14 +679,17 @@ class Agent:
             target = clock.t0 + n * T
             # Sleep to the tick, then take what arrived: one wake-up per tick, not one per
             # message (arrivals are stamped when taken, so within one period of the truth).
+            drained = False  # the drain after the last nap is the tick's: no second one at once
             while (rest := target - time.time()) > 0 and not self._stopping() and not clock.paused:
                 time.sleep(min(rest, MAX_NAP))
                 self._drain(arrival)
+                drained = True
             if self._stopping():
                 return
             if clock.paused:
                 continue
-            self._drain(arrival)
+            if not drained:  # late: no nap before this tick
+                self._drain(arrival)
             late = time.time() - target
             if late > STALL_TICKS * T:  # frozen (SIGSTOP) or starved: skip to now, where we were
                 n = math.ceil((time.time() - clock.t0) / T)

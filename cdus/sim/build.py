@@ -14,7 +14,7 @@ from cdus.core.events import event_tick
 from cdus.core.formation import FormationChange, FormationSchedule, PathChange
 from cdus.core.disturbance import Disturbance, DisturbanceSpec
 from cdus.core.link import IdealLink, LinkEmulator, LinkModel
-from cdus.core.metrics import MetricEdge
+from cdus.core.graph import MetricEdge
 from cdus.core.neighbours import NeighbourLink
 from cdus.core.radio import RadioChannel
 from cdus.core.radiolink import RadioLink

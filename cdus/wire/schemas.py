@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from typing import Any, Collection
 
 import msgpack
@@ -192,10 +192,27 @@ class AgentStats:
     radio: dict | None = None
 
     def as_dict(self) -> dict[str, Any]:
-        d = asdict(self)
+        """A plain map of every field (containers copied): what encode_stats packs. Built field
+        by field: dataclasses.asdict deep-copied every leaf, 88 µs of the 139 µs an agent spent
+        on its once-a-second report (bench/realtime_capacity.py)."""
+        d = {name: getattr(self, name) for name in _STAT_NAMES}
+        d["rejected_by_reason"] = dict(self.rejected_by_reason)
         d["latencies_ms"] = list(self.latencies_ms)
+        d["faults"] = _copy_tree(self.faults)
         d["bursts"] = [b.event().as_dict() if isinstance(b, BurstReport) else b for b in self.bursts]
         return d
+
+
+def _copy_tree(x: Any) -> Any:
+    """A copy of nested dicts, lists and tuples (their leaves, numbers and strings, shared)."""
+    if isinstance(x, dict):
+        return {k: _copy_tree(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return type(x)(_copy_tree(v) for v in x)
+    return x
+
+
+_STAT_NAMES = tuple(f.name for f in fields(AgentStats))
 
 
 _STAT_INTS = ("tick", "sent_to_me", "delivered", "dropped", "duplicated", "rejected", "missed_deadlines", "joined_at",
