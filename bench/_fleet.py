@@ -50,8 +50,10 @@ def role(p: psutil.Process) -> str:
 class Launch:
     """``with Launch(args) as la:`` runs ``cdus <args>`` and cleans up after it."""
 
-    def __init__(self, args: list[str], fleet: str | None = None, cwd: Path = REPO, track_cpu: bool = False):
+    def __init__(self, args: list[str], fleet: str | None = None, cwd: Path = REPO, track_cpu: bool = False,
+                 env: dict[str, str] | None = None):
         self.argv = cdus_argv() + args
+        self.env = env  # the launcher's environment (None: this process's)
         self.fleet = fleet
         self.cwd = cwd
         self.proc: subprocess.Popen | None = None
@@ -65,7 +67,7 @@ class Launch:
     def __enter__(self) -> "Launch":
         self.t_start = time.perf_counter()
         self.proc = subprocess.Popen(self.argv, cwd=self.cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                     stdin=subprocess.DEVNULL, start_new_session=True, text=True)
+                                     stdin=subprocess.DEVNULL, start_new_session=True, text=True, env=self.env)
         threading.Thread(target=self._read, daemon=True).start()
         if self.track_cpu:
             threading.Thread(target=self._sample_cpu, daemon=True).start()

@@ -46,8 +46,8 @@ from world_sim.recording import parse_spec
 
 __all__ = [
     "CLOCKS", "ConfigError", "DivergedError", "DroppedBy", "Event", "FaultCounters", "LinkFaults", "LinkMetrics",
-    "LinkStateChange", "Metrics", "RejectedByReason", "Result", "RunError", "RunInterrupted", "SafetyInfo",
-    "Scenario", "Trace", "load", "override", "run", "sweep",
+    "LinkStateChange", "Metrics", "RadioMetrics", "RejectedByReason", "Result", "RunError", "RunInterrupted",
+    "SafetyInfo", "Scenario", "Trace", "load", "override", "run", "sweep",
 ]
 
 CLOCKS = ("inproc", "lockstep")  # how run() runs a scenario: `cdus sim`, `cdus launch --clock lockstep`
@@ -231,6 +231,37 @@ LINK_COUNTS = ("sent", "delivered", "dropped", "duplicated", "rejected")
 
 
 @dataclass(frozen=True)
+class RadioMetrics:
+    """The metrics' ``radio`` block (with ``[radio]`` only; docs/metrics.md): messages decided on
+    the radio path, drops by cause (``fault``: the hand-set [link] fault, which decides first;
+    ``range``, ``fading``, ``collision``, ``queue``: the channel), the channel utilisation over
+    the geometry samples (``mean``, ``max``, ``samples``) and the communication-graph splits."""
+
+    sent: int
+    delivered: int
+    dropped: int
+    dropped_by: dict[str, int]
+    no_geometry: int
+    utilisation: dict[str, Any]
+    splits: int
+
+    @classmethod
+    def from_dict(cls, d: Any, where: str = "radio.") -> "RadioMetrics":
+        d = _table(d, where.rstrip("."))
+        u = _table(d["utilisation"] if "utilisation" in d else _missing(where, "utilisation"), f"{where}utilisation")
+        w = f"{where}utilisation."
+        return cls(_int(d, "sent", where), _int(d, "delivered", where), _int(d, "dropped", where),
+                   _counts(d.get("dropped_by"), f"{where}dropped_by"), _int(d, "no_geometry", where),
+                   {"mean": _num(u, "mean", w, null=True), "max": _num(u, "max", w, null=True),
+                    "samples": _int(u, "samples", w)}, _int(d, "splits", where))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"sent": self.sent, "delivered": self.delivered, "dropped": self.dropped,
+                "dropped_by": dict(self.dropped_by), "no_geometry": self.no_geometry,
+                "utilisation": dict(self.utilisation), "splits": self.splits}
+
+
+@dataclass(frozen=True)
 class LinkMetrics:
     """The metrics' ``link`` block: what the links did, counted at the receivers (docs/metrics.md)."""
 
@@ -368,6 +399,7 @@ class Metrics:
     interventions: int
     safety: SafetyInfo
     rejected_by_reason: RejectedByReason | None = None
+    radio: RadioMetrics | None = None  # with [radio] only
     interrupted: bool | None = None
     never_up: tuple[str, ...] | None = None  # only in a run that never began (completion not_started)
     extra: dict[str, Any] = field(default_factory=dict)
@@ -423,6 +455,7 @@ class Metrics:
             interventions=_int(d, "interventions", w),
             safety=SafetyInfo(_bool(safety, "enabled", "safety."), _num(safety, "radius_m", "safety.", null=True)),
             rejected_by_reason=rej,
+            radio=RadioMetrics.from_dict(d["radio"]) if "radio" in d else None,
             interrupted=_bool(d, "interrupted", w) if "interrupted" in d else None,
             never_up=None if never_up is None else tuple(never_up),
             extra={k: v for k, v in d.items() if k not in known},
@@ -465,6 +498,9 @@ class Metrics:
             elif f.name == "never_up":
                 if v is not None:
                     out[f.name] = list(v)
+            elif f.name == "radio":
+                if v is not None:
+                    out[f.name] = v.to_dict()
             else:
                 out[f.name] = v
         return out

@@ -6,9 +6,11 @@
     cdus gs ... status --json                                          # one JSON snapshot
     cdus gs ... watch --jsonl                                          # a JSON line per status and event
     cdus gs ... snapshot FILE                                          # the fleet's state to FILE (JSON)
+    cdus gs --fleet lake_circle -e tcp/127.0.0.1:7447 console         # the live console (docs/console.md)
     cdus gs ... pause | resume | stop                                  # the whole fleet
     cdus gs ... link loss=0.3 delay.base=0.1 [--at 120]                # link faults from sim time t
     cdus gs ... gains k=2 c=1 [--vehicle usv1]                         # guidance gains
+    cdus gs ... radio tx_power=20 station=[0,-60,10] [--at 120]        # [radio]: power (dBm), station (m)
     cdus gs ... kill usv2 | restart usv2 | pause-vehicle usv2 | resume-vehicle usv2
     cdus gs ... formation phases.usv2=3.1416 phases.uav2=3.1416      # new phases (ω units), others kept
     cdus gs ... formation offsets.usv2.usv1=3.141592653589793 offsets.usv3.usv2=1.0471975511965976
@@ -37,6 +39,7 @@ import zenoh
 from cdus.core.paths import PathError, make_path
 from cdus.scenario.config import ConfigError, parse_value
 from cdus.scenario.link import validate_link
+from cdus.sim.radio import radio_change_problem
 from cdus.wire.keys import FLEET_RE
 from cdus.wire.transport import add_transport_args, transport_from_args, with_default_endpoint
 from cdus.files import write_json
@@ -86,12 +89,18 @@ def build_parser(prog: str = "cdus gs") -> argparse.ArgumentParser:
     wa.add_argument("--interval", type=_positive, default=1.0, help="seconds between status lines")
     sn = sub.add_parser("snapshot", help="save the fleet's state (the status --json object) to FILE, atomically")
     sn.add_argument("file", metavar="FILE")
+    sub.add_parser("console", help="the live console: vehicles, edges, links, alarms; keys to pause, resume, "
+                                   "kill and restart a vehicle or pause and resume the fleet (docs/console.md)")
     for op in ("pause", "resume", "stop"):
         sub.add_parser(op, help=f"{op} the whole fleet")
     ln = sub.add_parser("link", help="change link faults at run time: KEY=VALUE of the [link] table")
     ln.add_argument("settings", nargs="+", metavar="KEY=VALUE", help="e.g. loss=0.3 delay.base=0.1 policy=extrapolate")
     ln.add_argument("--at", type=_sim_time,
                     help="simulated time from which they apply (default: now + 0.5 s; a past time means now)")
+    rd = sub.add_parser("radio", help="change the radio at run time ([radio] scenarios): tx_power=DBM station=[x,y,z]")
+    rd.add_argument("settings", nargs="+", metavar="KEY=VALUE", help="e.g. tx_power=20 station=[0,-60,10]")
+    rd.add_argument("--at", type=_sim_time,
+                    help="simulated time from which it applies (default: now + 0.5 s; a past time means now)")
     gn = sub.add_parser("gains", help="change guidance gains: k=... c=...")
     gn.add_argument("settings", nargs="+", metavar="KEY=VALUE")
     gn.add_argument("--vehicle", help="one vehicle (default: all)")
@@ -299,6 +308,11 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
         elif args.action == "snapshot" and os.path.isdir(args.file):
             raise ConfigError("command line", [("snapshot", f"{args.file} is a directory; give a file name, "
                                                             f"e.g. {os.path.join(args.file, 'state.json')}")])
+        elif args.action == "radio":
+            change = nested(args.settings)
+            problem = radio_change_problem(change)
+            if problem is not None:
+                raise ConfigError("command line", [("radio", problem)])
         gs.open(watch=True)
         if not gs.wait_for_status(STATUS_WAIT_S):
             print(f"error: no status from fleet {args.fleet!r} within {STATUS_WAIT_S:g} s at "
@@ -307,6 +321,11 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
             return EXIT_NO_ANSWER
         # the world's ids: names of the key space (letters, digits, _ and -), nothing else is trusted
         ids = [i for i in (gs.view.world or {}).get("ids") or [] if isinstance(i, str) and FLEET_RE.match(i)]
+        if args.action == "console":
+            from ground_station.tui import ConsoleApp  # Textual only for the console
+
+            ConsoleApp(gs).run()
+            return 0
         if args.action in ("status", "watch", "snapshot"):
             gs.fetch_last()  # a paused fleet sends no telemetry: the world says where each vehicle is
         if args.action == "status":
@@ -335,6 +354,9 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
             validate_link(table, ids, "command line")
             at = -1.0 if args.at is None else float(args.at)
             return _report(gs.command("link", timeout=args.timeout, link=table, at=at), f"link faults {table}")
+        elif args.action == "radio":
+            at = -1.0 if args.at is None else float(args.at)
+            return _report(gs.command("radio", timeout=args.timeout, radio=change, at=at), f"radio {change}")
         elif args.action == "gains":
             if args.vehicle is not None:
                 _check_vehicle(args.vehicle, ids)

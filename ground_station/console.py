@@ -425,6 +425,13 @@ class GroundStation:
             raise ValueError("at must be a finite time >= 0 s")
         self.send("link", link=table, at=-1.0 if at is None else float(at))
 
+    def set_radio(self, change: dict, at: float | None = None) -> None:
+        """Change the radio (``{"tx_power": dBm, "station": [x, y, z]}``) from simulated time ``at``
+        (default: as soon as the world can)."""
+        if at is not None and not (math.isfinite(at) and at >= 0):
+            raise ValueError("at must be a finite time >= 0 s")
+        self.send("radio", radio=change, at=-1.0 if at is None else float(at))
+
     def set_gains(self, gains: dict, vehicle: str | None = None) -> None:
         self.send("set_gains", gains=gains, vehicle=vehicle or "")
 

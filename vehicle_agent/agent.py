@@ -9,9 +9,12 @@ flood on one key is cut by Zenoh before it costs Python anything. It publishes i
 it, its telemetry in batches and its counters to the world, and declares a liveliness
 token once it is ready.
 
-- lockstep: it steps tick n once the world has granted it and it holds every live
-  neighbour's newest broadcast sent before n (cdus.core.node.VehicleNode.waiting_for), so
-  the run is deterministic and equal to the in-process one, whatever the scheduling.
+- lockstep: it steps tick n once the world has granted it (a grant is a horizon, often
+  hundreds of ticks) and it holds every live neighbour's newest broadcast that tick n can
+  use (cdus.core.node.VehicleNode.waiting_for: with broadcasts slower than the control loop
+  or a least link delay, several ticks ahead of what the neighbours have sent), so each
+  vehicle steps as far as its inputs allow, and the run is deterministic and equal to the
+  in-process one, whatever the scheduling.
   Scheduled faults are the roster every runner derives from the scenario; the world
   relays the unscheduled ones (a crash, a ground station's kill) with their tick.
 - realtime: it steps on the wall clock from the world's start time t0, tick n at
@@ -45,27 +48,32 @@ from typing import Any, Callable
 import zenoh
 
 from cdus.core.events import RosterChange, event_tick, plan_roster
-from cdus.core.link import LinkEmulator, burst_events
+from cdus.core.link import burst_events
 from cdus.core.node import VehicleNode, gains_problem
 from cdus.core.vehicle import DivergedError
 from cdus.scenario.config import ConfigError, nesting_problem
 from cdus.scenario.model import Scenario
 from cdus.scenario.link import merge_link_tables, validate_link
 from cdus.scenario.events import check_path, check_phases
-from cdus.sim.build import build_node, link_emulator_for, listeners_of
+from cdus.sim.build import build_node, link_emulator_for, link_faults_of, listeners_of, with_radio
+from cdus.sim.radio import apply_radio_change, radio_change_problem
 from cdus.sim.sensing import contacts_of
 from cdus.core.schedule import CLOCKS, total_ticks
-from cdus.sim.lockstep import GRANT_WINDOW
+from cdus.sim.lockstep import GRANT_WINDOW, MAX_GRANT_WINDOW
 from cdus.wire.text import printable
 from cdus.wire import keys
 from cdus.wire.messages import (
-    CTL_OPS, MAX_STATE_ROWS, StateMsg, decode_contacts, decode_control, decode_omega, decode_states, encode_omega,
-    encode_states,
+    CTL_OPS, MAX_STATE_ROWS, StateMsg, decode_contacts, decode_control, decode_geometry, decode_omega, decode_states,
+    encode_omega, encode_states,
 )
 from cdus.wire.schemas import AgentStats, encode_stats
 from cdus.wire.transport import Transport, open_session
 
-STATE_BATCH = {"lockstep": 10, "realtime": 5}  # telemetry rows per message
+#: telemetry rows per message. Lockstep: at most GRANT_WINDOW, the least grant window: a vehicle
+#: waiting for a neighbour's ω holds fewer unsent rows than the window, so that neighbour is
+#: always granted its tick (and one waiting for a grant sends what it holds at once)
+STATE_BATCH = {"lockstep": 50, "realtime": 5}
+assert STATE_BATCH["lockstep"] <= GRANT_WINDOW
 STATS_PERIOD = 1.0  # s of wall time between counter reports
 BURSTS_PER_STATS = 100  # drop bursts one report carries; a report goes early once half as many wait
 STALL_TICKS = 10  # realtime: this many periods late means the process was frozen, not just slow
@@ -73,8 +81,8 @@ END_WAIT = 10.0  # s to wait for the world's stop after the last tick
 INBOX_CAPACITY = 4096  # samples; when full, Zenoh's delivery to this session waits (nothing grows)
 OMEGA_RING = 16  # realtime: ω samples kept per neighbour between drains (<= MAX_NAP apart), newest first
 #: lockstep: a neighbour may have a grant this agent has not received yet; one grant moves at
-#: most GRANT_WINDOW past the slowest live vehicle's acknowledged tick, which is <= ours
-LOCKSTEP_SEQ_MARGIN = 2 * GRANT_WINDOW
+#: most MAX_GRANT_WINDOW past the slowest live vehicle's acknowledged tick, which is <= ours
+LOCKSTEP_SEQ_MARGIN = 2 * MAX_GRANT_WINDOW
 REALTIME_SLACK = 0.25  # s: a realtime ω may be stamped this far past this agent's wall-clock tick
 T0_PAST = 86400.0  # s: a realtime t0 (start, resume) older than the run's duration plus this is not ours
 T0_AHEAD = 60.0  # s: ... nor one further in the future than this
@@ -89,7 +97,10 @@ LOG_WAIT = 5.0  # s of waiting before saying what for
 #: came back: a router frozen or restarted, a network cut), what was in flight may be lost and
 #: the fleet would wait for it: the agent says its newest ω and telemetry again (receivers take
 #: what they missed and drop what they have as a duplicate)
-RESEND_OMEGAS = 16  # the newest ω said again: more than a sender can run ahead of its listeners
+#: the newest ω said again, at least: a sender runs ahead of what a listener holds by up to its
+#: lookahead (a least link delay of D ticks lets it step D ticks past its neighbours' newest ω) and,
+#: on a one-way link, a grant window; the agent keeps 2 x MAX_GRANT_WINDOW ticks' worth (Agent.__init__)
+RESEND_OMEGAS = 16
 #: said again every RESEND_EVERY s while stuck, for RESEND_FOR s after the world's token came back:
 #: the token can arrive before the router knows the neighbours' subscriptions again, and what is
 #: said before that is lost too
@@ -98,6 +109,9 @@ RESEND_FOR = 10.0
 MAX_NAP = 0.05  # s: realtime sleeps at most this long between checks for a stop or a pause
 PING_TIMEOUT = 1.0  # s for a link check's reply (it is immediate when nobody answers)
 PING_RETRY = 0.02  # s between link checks
+#: the ω publisher's express flag (Zenoh: sent at once, never held for a batch); compared in the
+#: same run by bench/omega_latency.py
+OMEGA_EXPRESS = False
 
 
 @dataclass
@@ -183,8 +197,8 @@ class Agent:
         self.index = self.ids.index(vid)
         self.period = 1.0 / scenario.rates.control
         self.last_tick = total_ticks(scenario.duration if duration is None else duration, self.period)
-        self.node: VehicleNode = build_node(scenario, vid, link_emulator_for(scenario), policy=policy,
-                                            last_tick=self.last_tick)
+        link = with_radio(scenario, link_emulator_for(scenario))  # [radio]: the channel under the link faults
+        self.node: VehicleNode = build_node(scenario, vid, link, policy=policy, last_tick=self.last_tick)
         if clock == "lockstep":  # scheduled faults land on their ticks; realtime hears of them by liveliness
             for change in plan_roster(scenario.events, self.ids, self.period):
                 self.node.on_roster(change)
@@ -192,7 +206,7 @@ class Agent:
         self.clock = Clock()
         self.state_batch = STATE_BATCH[clock]
         self.rejected: Counter = Counter()  # by reason, every reject (the node's ω ones too, but "gone")
-        self._rings: list[Any] = []  # realtime: one ω subscription per neighbour (ring channels)
+        self._rings: list[tuple[int, Any]] = []  # realtime: (neighbour, its ω subscription: a ring channel)
         self._bucket: dict[int, tuple[float, float]] = {}  # realtime ω rate per neighbour: (tokens, when)
         self._rate = RATE_MARGIN * scenario.rates.broadcast  # ω per s a neighbour may send
         self._logged: set[tuple[str, str]] = set()
@@ -200,8 +214,11 @@ class Agent:
         self._resend_until = 0.0  # lockstep, monotonic s: back from an outage, say recent messages again till then
         self._resent_at = 0.0
         self._world_seen = None
-        self._last_omegas: deque[bytes] = deque(maxlen=RESEND_OMEGAS)  # lockstep: said again after an outage
-        self._recent: deque[StateMsg] = deque(maxlen=MAX_STATE_ROWS)  # telemetry sent, newest last
+        self._last_omegas: deque[bytes] = deque(  # lockstep: said again after an outage
+            maxlen=max(RESEND_OMEGAS, 2 * MAX_GRANT_WINDOW // self.node.every + 2))
+        #: telemetry sent, newest last: as much as the world can lack after an outage (this vehicle
+        #: runs up to a grant window past the world's newest row of the slowest vehicle)
+        self._recent: deque[StateMsg] = deque(maxlen=MAX_GRANT_WINDOW + MAX_STATE_ROWS)
         self.missed_deadlines = 0
         self.ticks_done = 0
         self._lat_sent = 0
@@ -229,15 +246,15 @@ class Agent:
             # flood on one key costs this process at most OMEGA_RING samples per drain, not one
             # Python wake-up per message (the newest ω is the one that matters).
             self.inbox = s.declare_subscriber(keys.inbox(f, me)[:-2] + "*", zenoh.handlers.FifoChannel(INBOX_CAPACITY))
-            self._rings = [s.declare_subscriber(key, zenoh.handlers.RingChannel(OMEGA_RING))
-                           for key in self._omega_from]
+            self._rings = [(k, s.declare_subscriber(key, zenoh.handlers.RingChannel(OMEGA_RING)))
+                           for key, k in self._omega_from.items()]
         # declared after the subscriptions, on the same session: whoever gets a reply holds them
         self.pinged = s.declare_queryable(keys.ping(f, me), lambda q: q.reply(keys.ping(f, me), b""))
         # Block rather than drop under congestion: losses are the link emulator's job, and a
         # lockstep neighbour waits for every broadcast.
         block = zenoh.CongestionControl.BLOCK
         self.pub_omega = s.declare_publisher(keys.omega(f, me, listeners_of(self.scenario, me)),
-                                             congestion_control=block)
+                                             congestion_control=block, express=OMEGA_EXPRESS)
         self.pub_state = s.declare_publisher(keys.state(f, me), congestion_control=block)
         self.pub_stats = s.declare_publisher(keys.stats(f, me))
         wake = s.declare_publisher(keys.wake(f, me), allowed_destination=zenoh.Locality.SESSION_LOCAL)
@@ -341,27 +358,32 @@ class Agent:
         key = str(sample.key_expr)
         k = self._omega_from.get(key)
         if k is not None:
-            if self._over_rate(k):  # before decoding: a flood costs a lookup and a subtraction
-                return self._reject(self.ids[k], "rate")
-            msg = decode_omega(sample.payload.to_bytes(), expected_sender=k, n_vehicles=len(self.ids))
-            if isinstance(msg, str):
-                return self._reject(self.ids[k], msg)
-            self.node.horizon = self._horizon()
-            reason = self.node.on_message(msg, now)
-            if reason is not None:
-                self._reject(self.ids[k], reason)
-            elif k in self._bucket:  # only what is rejected spends a sender's budget
-                tokens, when = self._bucket[k]
-                self._bucket[k] = (min(float(RATE_BURST), tokens + 1.0), when)
-            return
+            return self._omega(k, sample, now)
         if key.endswith("/ctl"):
             return self._on_ctl(sample.payload.to_bytes())
         if key.endswith("/contacts"):
             return self._on_contacts(sample.payload.to_bytes())
+        if key.endswith("/radio"):
+            return self._on_geometry(sample.payload.to_bytes())
         if key.endswith("/wake"):
             return
         kind, src = keys.leaf(key)
         self._reject(src or key, "unexpected_" + (kind if kind in _KINDS else "key"))
+
+    def _omega(self, k: int, sample: Any, now: float | None) -> None:
+        """An ω sample on neighbour ``k``'s key (the inbox's, or its realtime ring's)."""
+        if self._over_rate(k):  # before decoding: a flood costs a lookup and a subtraction
+            return self._reject(self.ids[k], "rate")
+        msg = decode_omega(sample.payload.to_bytes(), expected_sender=k, n_vehicles=len(self.ids))
+        if isinstance(msg, str):
+            return self._reject(self.ids[k], msg)
+        self.node.horizon = self._horizon()
+        reason = self.node.on_message(msg, now)
+        if reason is not None:
+            self._reject(self.ids[k], reason)
+        elif k in self._bucket:  # only what is rejected spends a sender's budget
+            tokens, when = self._bucket[k]
+            self._bucket[k] = (min(float(RATE_BURST), tokens + 1.0), when)
 
     def _ctl_problem(self, op: str, f: dict) -> str | None:
         """What is out of range in a control message from the world (None: nothing): ticks within
@@ -380,9 +402,9 @@ class Agent:
             now = time.time()
             if not now - T0_PAST - last * self.period <= f["t0"] <= now + T0_AHEAD:
                 return "t0_range"
-        if op == "link" and not 0.0 <= f["at"] <= MAX_LINK_AT:
-            return "link_range"
-        if op in ("link", "gains") and nesting_problem(f[op], MAX_COMMAND_NESTING):
+        if op in ("link", "radio") and not 0.0 <= f["at"] <= MAX_LINK_AT:
+            return f"{op}_range"
+        if op in ("link", "gains", "radio") and nesting_problem(f[op], MAX_COMMAND_NESTING):
             return f"{op}_range"
         if op in ("formation", "path"):
             return self._change_problem(op, f)
@@ -429,6 +451,8 @@ class Agent:
             self._set_formation(f["phases"], f["tick"])
         elif op == "path":
             self._set_path(f["path"], f["tick"])
+        elif op == "radio":
+            self._update_radio(f["radio"], f["at"])
         elif op == "stop":
             clock.stop = True
 
@@ -441,6 +465,37 @@ class Agent:
         if msg.tick > self.last_tick:  # no sample is taken past the run's end: kept, it would never be freed
             return self._reject("world", "contacts_range")
         self.node.on_contacts(msg.tick, contacts_of(msg, self.ids))
+
+    def _on_geometry(self, payload: bytes) -> None:
+        """The world's radio geometry sample (cdus.sim.radio): counted and dropped if malformed, out
+        of the run, not on the sample schedule, without [radio], or a second one for its tick
+        (the first stands)."""
+        radio = self.node.radio
+        if radio is None:
+            return self._reject("world", "radio_unexpected")
+        msg = decode_geometry(payload, len(self.ids))
+        if isinstance(msg, str):
+            return self._reject("world", f"radio_{msg}")
+        if msg.tick > self.last_tick:
+            return self._reject("world", "radio_range")
+        if msg.tick % radio.every:
+            return self._reject("world", "radio_tick")
+        if not self.node.on_geometry(msg.tick, msg.positions):
+            self._reject("world", "radio_stale")
+
+    def _update_radio(self, change: dict, at: float) -> None:
+        """A run-time radio change (tx_power, station) for messages sent from ``at`` on."""
+        problem = "this scenario has no [radio] table" if self.node.radio is None else radio_change_problem(change)
+        if problem is None:
+            try:
+                apply_radio_change(self.node.radio.channel, change, at)
+            except ValueError as e:
+                problem = str(e)
+        if problem is not None:
+            self.rejected["bad_radio_command"] += 1
+            self.log(f"radio command rejected: {printable(problem, 200)}")
+            return
+        self.log(f"radio changed from t = {at:.2f} s: {printable(change, 200)}")
 
     def _on_roster(self, f: dict) -> None:
         j = self.ids.index(f["vehicle"])
@@ -507,11 +562,12 @@ class Agent:
     def _drain(self, now: Callable[[], float | None]) -> None:
         while (sample := self.inbox.try_recv()) is not None:
             self._handle(sample, now())
-        for ring in self._rings:  # realtime ω: at most OMEGA_RING each
+        omega = self._omega
+        for k, ring in self._rings:  # realtime ω: at most OMEGA_RING each, the sender known by its ring
             for _ in range(OMEGA_RING):
                 if (sample := ring.try_recv()) is None:
                     break
-                self._handle(sample, now())
+                omega(k, sample, now())
 
     def _stopping(self) -> bool:
         return self.clock.stop or self.stop_requested
@@ -573,7 +629,7 @@ class Agent:
                 self.log(f"paused from tick {n}; resuming at tick {back} where the vehicle was")
                 n = back
                 continue
-            while clock.granted < n or node.waiting_for(n) or node.contacts_missing(n):
+            while clock.granted < n or node.waiting_for(n) or self._samples_missing(n):
                 if self._stopping():
                     return
                 if self._states and clock.granted < n:  # the world may be waiting for these rows to grant
@@ -587,13 +643,21 @@ class Agent:
                     waited_since = time.monotonic()
                     missing = node.waiting_for(n)
                     why = ("the world's grant" if clock.granted < n else f"ω from {[self.ids[k] for k in missing]}"
-                           if missing else "the proximity sensor's contacts")
+                           if missing else "the world's samples (proximity contacts, radio geometry)")
                     self.log(f"tick {n}: still waiting for {why}")
             if self._stopping():
                 return
             self._tick(n)
             waited_since = time.monotonic()
             n += 1
+
+    def _samples_missing(self, n: int) -> bool:
+        """Lockstep: does tick ``n`` need a sample of the world's that has not arrived? The proximity
+        sensor's contacts in force at n, the radio geometry in force at n - 1 (the messages
+        decided at n were sent before it). The world sends both before it grants that far, so
+        this never waits on the world for the tick at hand (docs/radio.md, "Integration")."""
+        node = self.node
+        return node.contacts_missing(n) or node.geometry_missing(n)
 
     def _run_realtime(self) -> None:
         clock, node, T = self.clock, self.node, self.period
@@ -615,14 +679,17 @@ class Agent:
             target = clock.t0 + n * T
             # Sleep to the tick, then take what arrived: one wake-up per tick, not one per
             # message (arrivals are stamped when taken, so within one period of the truth).
+            drained = False  # the drain after the last nap is the tick's: no second one at once
             while (rest := target - time.time()) > 0 and not self._stopping() and not clock.paused:
                 time.sleep(min(rest, MAX_NAP))
                 self._drain(arrival)
+                drained = True
             if self._stopping():
                 return
             if clock.paused:
                 continue
-            self._drain(arrival)
+            if not drained:  # late: no nap before this tick
+                self._drain(arrival)
             late = time.time() - target
             if late > STALL_TICKS * T:  # frozen (SIGSTOP) or starved: skip to now, where we were
                 n = math.ceil((time.time() - clock.t0) / T)
@@ -681,15 +748,17 @@ class Agent:
             return
         for wire in self._last_omegas:
             self.pub_omega.put(wire)
-        if self._recent:
-            self.pub_state.put(encode_states(list(self._recent)))
+        rows = list(self._recent)
+        for first in range(0, len(rows), MAX_STATE_ROWS):  # in messages the world takes
+            self.pub_state.put(encode_states(rows[first:first + MAX_STATE_ROWS]))
 
     def stats(self) -> AgentStats:
         node, c = self.node, self.node.counters
         by_reason = dict(self.rejected)
         if node.rejected["gone"]:  # counted by the node when a message is offered (in c.rejected)
             by_reason["gone"] = node.rejected["gone"]
-        faults = node.link.counters_summary() if isinstance(node.link, LinkEmulator) else None
+        emulator = link_faults_of(node.link)
+        faults = emulator.counters_summary() if emulator is not None else None
         if faults is not None:
             faults["state_changes"] = faults["state_changes"][-50:]  # the newest; the world keeps the history
         new = c.latencies[min(self._lat_sent, len(c.latencies)):]  # the sample list may have been thinned
@@ -701,7 +770,8 @@ class Agent:
             rejected_by_reason=by_reason, missed_deadlines=self.missed_deadlines, joined_at=node.joined_at,
             latencies_ms=tuple(x * 1000.0 for x in new[::step][:100]), faults=faults,
             bursts=tuple(e.as_dict() for e in burst_events(node.bursts, self.ids)[-BURSTS_PER_STATS:]),
-            interventions=node.vehicle.interventions, incarnation=self.incarnation)
+            interventions=node.vehicle.interventions, incarnation=self.incarnation,
+            radio=None if node.radio is None else node.radio.counters.as_dict())
 
     def publish_stats(self) -> None:
         if self.session is not None:

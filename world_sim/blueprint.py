@@ -20,6 +20,9 @@ PATH_ERROR = "metrics/path_error"
 COORD_ERROR = "metrics/coord_error"
 OMEGA_RATE = "metrics/omega_rate"
 LINKS = "comms/links"
+RADIO_LINKS = "world/radio/links"  # [radio]: each link coloured by its delivery probability
+RADIO_STATION = "world/radio/station"
+UTILISATION = "metrics/radio_utilisation"
 EVENTS = "comms/events"
 TIMELINE = "sim_time"
 
@@ -35,8 +38,9 @@ def camera(points: np.ndarray) -> tuple[Sequence[float], Sequence[float]]:
     return eye.tolist(), target.tolist()
 
 
-def blueprint(scene_points: np.ndarray | None = None) -> rrb.Blueprint:
-    """The layout; ``scene_points`` (paths and starts) place the 3-D camera."""
+def blueprint(scene_points: np.ndarray | None = None, radio: bool = False) -> rrb.Blueprint:
+    """The layout; ``scene_points`` (paths and starts) place the 3-D camera; ``radio``: a
+    scenario with [radio] gets the channel utilisation's plot too."""
     eye = None
     if scene_points is not None and len(scene_points):
         position, target = camera(scene_points)
@@ -53,6 +57,8 @@ def blueprint(scene_points: np.ndarray | None = None) -> rrb.Blueprint:
         rrb.TimeSeriesView(origin=COORD_ERROR, name="Coordination error |ω_i − ω_k − Δ_ik|", plot_legend=top_right,
                            axis_x=whole_run),
         rrb.TimeSeriesView(origin=OMEGA_RATE, name="ω̇", plot_legend=bottom_right, axis_x=whole_run),
+        *([rrb.TimeSeriesView(origin=UTILISATION, name="Radio channel utilisation", axis_x=whole_run)]
+          if radio else []),
     )
     left = rrb.Vertical(world, rrb.Horizontal(links, events, column_shares=[3, 2]), row_shares=[3, 1])
     return rrb.Blueprint(

@@ -29,11 +29,13 @@ from collections import Counter, deque
 from dataclasses import dataclass, field, replace
 from typing import Any, Callable
 
+import numpy as np
 import zenoh
 
 from cdus.core.events import RosterChange
 from cdus.core.link import LinkCounters, merge_link_summaries
 from cdus.core.node import gains_problem
+from cdus.core.radiolink import RadioCounters
 from cdus.core.metrics import Recorder
 from cdus.core.schedule import total_ticks
 from cdus.files import write_json
@@ -43,19 +45,21 @@ from cdus.scenario.model import Scenario
 from cdus.core.events import event_tick
 from cdus.core.formation import FormationChange
 from cdus.scenario.events import check_offsets, check_path, check_phases, offsets_to_phases
-from cdus.sim.build import formation_schedule, metric_edges, sensor_schedule
-from cdus.sim.lockstep import CatchUp, Decided, Fault, Grant, Join, Lockstep, Roster, Sense
+from cdus.sim.build import formation_schedule, metric_edges, radio_channel_for, radio_schedule, sensor_schedule
+from cdus.sim.lockstep import CatchUp, Decided, Fault, Grant, Join, Lockstep, RadioSample, Roster, Sense, horizon_window
 from cdus.sim.reports import ConsoleQuota, formation_changed, graph_event, link_state_event, path_changed, vehicle_back, vehicle_lost
+from cdus.sim.radio import RadioWatch, apply_radio_change, geometry_sample, radio_block, radio_change_problem
 from cdus.sim.sensing import sense_tick
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
 from cdus.sim.summary import COMPLETED, link_block, run_metrics
 from cdus.wire import keys
 from cdus.wire.messages import (
-    COMMAND_OPS, StateMsg, decode_control, decode_states, encode_contacts, encode_control, encode_states,
+    COMMAND_OPS, StateMsg, decode_control, decode_geometry, decode_states, encode_contacts, encode_control,
+    encode_geometry, encode_states,
 )
 from cdus.wire.schemas import (
-    ID_RE, MAX_REASON, ORIGIN_WORLD, AgentStats, CommandReply, FleetEvent, decode_stats, encode_event, encode_reply,
-    encode_status,
+    ID_RE, MAX_REASON, ORIGIN_WORLD, AgentStats, CommandReply, FleetEvent, StatusExtra, decode_stats,
+    encode_event, encode_reply, encode_status,
 )
 from cdus.wire.text import printable
 from cdus.wire.transport import Transport, open_session
@@ -67,6 +71,7 @@ JOIN_TIMEOUT = 30.0  # s a restarted process may take to come up
 GRANT_RESEND = 0.5  # s: grants and start times are said again for processes that missed them
 LINK_LEAD = 0.5  # s of simulated time between a link command and when it applies, if not given
 INBOX_CAPACITY = 8192
+RADIO_KEEP = 8  # radio geometry samples kept to send a (re)joining vehicle (it needs those in force from its join)
 #: realtime: telemetry may be this far (s) ahead of the world's own clock (clock skew between
 #: hosts, a batch sent at once); beyond it, a row is from a tick nobody can have stepped yet
 REALTIME_SLACK = 1.0
@@ -78,6 +83,11 @@ SUSPECT_EVERY = 5.0  # s: at most one suspect event per (vehicle, reason) in thi
 #: frozen or restarted comes back in seconds, and the agents' sessions reconnect every <= 0.5 s
 #: (cdus.wire.transport), so 30 s covers that with room; a fleet gone longer is not coming back.
 OUTAGE_GRACE = 30.0
+#: lockstep: the grant window is about this much wall time at the fleet's speed (measured every
+#: HORIZON_EVERY s), so the vehicles rarely meet a grant, and a command that applies past every
+#: grant (an operator's kill, link or gains) lands this soon
+HORIZON_S = 0.25
+HORIZON_EVERY = 0.25
 DROP_WINDOW = 0.3  # s: liveliness losses this close together count as one (a lapsed router drops them all)
 MAX_LOGGED_REJECTS = 200  # (sender, reason) pairs logged; beyond, counted only
 
@@ -102,6 +112,26 @@ class Verdict:
 LATER = Verdict(True, "decided when its tick comes")  # a sentinel: never sent as it is
 MAX_WAITING = 1024  # queries held for a lockstep fault's decision; beyond, answered at once
 MAX_QUEUED_QUERIES = 256  # command queries waiting for the main thread; beyond, answered busy at once
+
+
+def closest_live_pair(q: np.ndarray, live: np.ndarray, kinds: list[str], ids: list[str]) -> tuple | None:
+    """(a, b, distance) of the closest pair of live vehicles of one kind at one instant (boats on
+    the water in x, y; drones in 3-D, as cdus.core.metrics.min_separation), None without a pair
+    at a finite distance. ``q``: (vehicles, 3) positions, ``live``: (vehicles,) bools."""
+    best = None
+    for kind, axes in (("usv", 2), ("uav", 3)):
+        idx = [j for j, k in enumerate(kinds) if k == kind and live[j]]
+        if len(idx) < 2:
+            continue
+        p = np.asarray(q, dtype=float)[idx, :axes]
+        with np.errstate(invalid="ignore", over="ignore"):
+            d = np.sqrt(((p[:, None, :] - p[None, :, :]) ** 2).sum(axis=-1))
+        d[np.tril_indices(len(idx))] = np.inf  # each pair once, never a vehicle with itself
+        d[~np.isfinite(d)] = np.inf
+        a, b = np.unravel_index(int(np.argmin(d)), d.shape)
+        if math.isfinite(d[a, b]) and (best is None or d[a, b] < best[2]):
+            best = (ids[idx[a]], ids[idx[b]], float(d[a, b]))
+    return best
 
 
 @dataclass
@@ -155,9 +185,18 @@ class World:
                 else path_changed(tick, self.period, change.vehicle, change.path))
         self.events_scheduled = scenario.events
         self.sensing = sensor_schedule(scenario)  # (every, latency) ticks, None: no proximity sensor
+        self.radio = radio_schedule(scenario)  # (every, lag) ticks, None: no [radio]
+        self._radio_rows: dict[int, dict[int, tuple]] = {}  # radio sample tick -> vehicle -> q (lockstep)
+        self._radio_sent: deque[tuple[int, bytes]] = deque(maxlen=RADIO_KEEP)  # newest samples, for joiners
+        self._next_radio = 0  # realtime: the next radio sample tick
+        #: the world's own channel: utilisation, link probabilities and splits of each sample
+        self.radio_watch = None if self.radio is None else RadioWatch(
+            self.ids, [(e.i, e.k) for e in scenario.edges], radio_channel_for(scenario), self.period)
         self.lockstep = Lockstep(self.ids, self.period, self.last_tick, self.events_scheduled,
                                  sense_every=self.sensing[0] if self.sensing else None,
-                                 sense_latency=self.sensing[1] if self.sensing else 1)
+                                 sense_latency=self.sensing[1] if self.sensing else 1,
+                                 radio_every=self.radio[0] if self.radio else None,
+                                 radio_lag=self.radio[1] if self.radio else 1)
         self._sample_rows: dict[int, dict[int, tuple]] = {}  # sample tick -> vehicle -> q (lockstep)
         self._next_sample = 0  # realtime: the next sample tick
         self._realtime_faults = list(scenario.events)  # realtime: carried out when their time comes
@@ -203,7 +242,7 @@ class World:
         self.command_handlers: dict[str, Callable[[dict, str], Any]] = {
             "stop": self._cmd_stop, "pause": self._cmd_pause, "resume": self._cmd_resume,
             "set_gains": self._cmd_gains, "link": self._cmd_link, "fault_done": self._cmd_fault_done,
-            "formation": self._relay_formation, "path": self._relay_path,
+            "formation": self._relay_formation, "path": self._relay_path, "radio": self._cmd_radio,
             "kill": self._cmd_vehicle_fault, "pause_vehicle": self._cmd_vehicle_fault,
             "resume_vehicle": self._cmd_vehicle_fault, "restart": self._cmd_vehicle_fault,
         }
@@ -215,6 +254,8 @@ class World:
         self.inbox = s.declare_subscriber(keys.inbox(f, keys.WORLD), zenoh.handlers.FifoChannel(INBOX_CAPACITY))
         self.pub_ctl = s.declare_publisher(keys.ctl(f, self.ids), congestion_control=zenoh.CongestionControl.BLOCK)
         self.pub_launcher = s.declare_publisher(keys.launcher_cmd(f))
+        self.pub_radio = (s.declare_publisher(keys.radio(f, self.ids), congestion_control=zenoh.CongestionControl.BLOCK)
+                          if self.radio is not None else None)
         self.pub_status = s.declare_publisher(keys.world_status(f))
         self.pub_events = s.declare_publisher(keys.world_events(f))
         wake = s.declare_publisher(keys.wake(f, keys.WORLD), allowed_destination=zenoh.Locality.SESSION_LOCAL)
@@ -362,20 +403,29 @@ class World:
         if any(m.tick > limit for m in rows):  # the whole batch: it cannot all be genuine
             return self._reject(vid, "future", f"tick {max(m.tick for m in rows)} > {limit}")
         st = self.st
+        by_tick, first, every = st.rows, self.next_tick, self.sensing[0] if self.sensing is not None else 0
+        newest = None  # the batch's newest row taken: latest, acked and the report once per batch
         for m in rows:
-            if m.tick >= self.next_tick:
-                have = st.rows.setdefault(m.tick, {}).setdefault(j, m)
-                if have != m:  # a second, different row for a tick: the first stands
+            if m.tick >= first:
+                have = by_tick.setdefault(m.tick, {}).setdefault(j, m)
+                if have is not m and have != m:  # a second, different row for a tick: the first stands
                     self._reject(vid, "conflict", f"tick {m.tick}")
                     continue
-            if self.sensing is not None and m.tick % self.sensing[0] == 0 and m.tick > self.lockstep.sensed:
+            if every and m.tick % every == 0 and m.tick > self.lockstep.sensed:
                 self._sample_rows.setdefault(m.tick, {}).setdefault(j, m.q)
-            prev = st.latest.get(j)
-            if prev is None or m.tick >= prev.tick:
-                with self._lock:
-                    st.latest[j] = m
-            st.acked[j] = max(st.acked.get(j, -1), m.tick)
-            self.lockstep.on_report(j, m.tick)
+            if (self.radio is not None and self.clock == "lockstep" and m.tick % self.radio[0] == 0
+                    and m.tick > self.lockstep.radioed):  # realtime samples from the newest telemetry
+                self._radio_rows.setdefault(m.tick, {}).setdefault(j, m.q)
+            if newest is None or m.tick >= newest.tick:
+                newest = m
+        if newest is None:
+            return
+        prev = st.latest.get(j)
+        if prev is None or newest.tick >= prev.tick:
+            with self._lock:
+                st.latest[j] = newest
+        st.acked[j] = max(st.acked.get(j, -1), newest.tick)
+        self.lockstep.on_report(j, newest.tick)
 
     def _on_stats(self, vid: str, payload: bytes) -> None:
         if vid not in self.index:
@@ -602,6 +652,43 @@ class World:
         self._note(FleetEvent.of(self._sim_now(), "fault", f"{action} of {vid} by {by}", vehicle=vid))
         return Verdict(True, "realtime: the launcher carries it out now", self._tick_now())
 
+    def _relay_radio(self, fields: dict, sender: str) -> Verdict | str | None:
+        """A ground station's radio change ``{"radio": {tx_power, station}, "at": s}``: checked,
+        then relayed to every vehicle with the send time it applies from, never before what a
+        vehicle may already have sent (lockstep: past the grant; a past ``at`` means as soon as
+        possible), like a link command. The verdict (applied from that time), else why it was not."""
+        change = fields["radio"]
+        if self.radio is None:
+            return "this scenario has no [radio] table"
+        problem = radio_change_problem(change)
+        if problem is not None:
+            return problem
+        earliest = ((self.lockstep.granted + 1) * self.period if self.clock == "lockstep"
+                    else self._sim_now() + self.period)
+        at = max(fields["at"], earliest) if fields["at"] >= 0 else max(self._sim_now() + LINK_LEAD, earliest)
+        later = self.radio_watch.channel.epochs[-1][0] if self.radio_watch is not None else -math.inf
+        if at < later:  # changes apply in time order (epochs): a scheduled or earlier command's comes later
+            return (f"a radio change from t = {later:g} s is already in force later (scheduled or commanded); "
+                    f"give --at {later:g} or later")
+        payload = encode_control("radio", radio=change, at=float(at))
+        self.pub_ctl.put(payload)
+        self._commands.append((None, payload))
+        if self.radio_watch is not None:
+            apply_radio_change(self.radio_watch.channel, change, float(at))
+        self._note(FleetEvent.of(self._sim_now(), "radio_changed",
+                                 f"radio changed from t = {at:.2f} s by {printable(sender, 64)}: "
+                                 f"{printable(change, 200)}"))
+        return Verdict(True, "", max(0, math.ceil(at / self.period - 1e-9)), float(at))
+
+    def _cmd_radio(self, f: dict, by: str) -> Verdict | str:
+        """The ``radio`` command: relayed (:meth:`_relay_radio`) or refused, counted and reported."""
+        out = self._relay_radio(f, by)
+        if isinstance(out, str):
+            self._reject(by, "radio")
+            self._note(FleetEvent.of(self._sim_now(), "rejected",
+                                     f"radio command from {printable(by, 64)}: {printable(out, 200)}"))
+        return out
+
     def _relay_gains(self, gains: dict, vehicle: str, sender: str) -> Verdict | str:
         targets = self.ids if vehicle == "" else [vehicle] if vehicle in self.index else []
         problems = {gains_problem(gains, self.scenario.vehicle(v).dim, **self.scenario.gain_context(v))
@@ -722,6 +809,8 @@ class World:
             n = self._tick_now()
             if up:
                 self._rt_lost.discard(name)
+                if self._rt_faulted.get(name) == "paused":  # a stopped process declares nothing: this one runs
+                    del self._rt_faulted[name]
                 self._send_roster(RosterChange(n, j, "live", fresh=True))
                 self.pub_ctl.put(encode_control("start", t0=self.t0))
                 self._replay_commands(name)
@@ -830,8 +919,11 @@ class World:
                 self.session.put(keys.ctl(self.fleet, [self.ids[a.vehicle]]), encode_control("join", tick=a.tick))
             elif isinstance(a, CatchUp):
                 self._replay_commands(self.ids[a.vehicle])
+                self._replay_geometry(self.ids[a.vehicle])
             elif isinstance(a, Sense):
                 self._send_contacts(a.tick, self._sample_rows.pop(a.tick, {}))
+            elif isinstance(a, RadioSample):
+                self._send_geometry(a.tick, self._radio_rows.pop(a.tick, {}))
             elif isinstance(a, Fault):
                 self._fault_since = time.monotonic()
                 self.pub_launcher.put(encode_control(a.op, vehicle=self.ids[a.vehicle]))
@@ -849,6 +941,45 @@ class World:
             gone = {j: m.q for j, m in self.st.latest.items() if j not in positions}
         for j, msg in sense_tick(self.scenario, tick, positions, gone).items():
             self.session.put(keys.contacts(self.fleet, self.ids[j]), encode_contacts(msg))
+
+    def _send_geometry(self, tick: int, positions: dict[int, tuple]) -> None:
+        """The radio geometry at ``tick`` (cdus.sim.radio), as the in-process fleet samples it: the
+        positions of the vehicles that stepped it, to every vehicle, then watched (events, views)."""
+        for old in [k for k in self._radio_rows if k < tick]:
+            del self._radio_rows[old]
+        payload = encode_geometry(geometry_sample(tick, positions, len(self.ids)))
+        self.pub_radio.put(payload)
+        self._radio_sent.append((tick, payload))
+        msg = decode_geometry(payload, len(self.ids))  # what the vehicles read: the same numbers
+        if isinstance(msg, str) or self.radio_watch is None:
+            return
+        for ev in self.radio_watch.observe(msg):
+            self._note(ev)
+        view = getattr(self.sink, "radio", None)
+        if view is not None:
+            view(tick * self.period, self.radio_watch)
+
+    def _replay_geometry(self, vid: str) -> None:
+        """A (re)joining process needs the radio samples in force from its join on: the newest ones."""
+        for _, payload in self._radio_sent:
+            self.session.put(keys.radio(self.fleet, [vid]), payload)
+
+    def _radio_realtime(self) -> None:
+        """Realtime: once the clock has passed a radio sample tick, sample the newest telemetry of
+        the vehicles alive under that tick (once each of them has sent some; never past the run)."""
+        if self.radio is None or self.t0 is None or self.paused_at is not None:
+            return
+        n = self._tick_now()
+        if n < self._next_radio or n > self.last_tick:
+            return
+        every = self.radio[0]
+        alive = {self.index[v] for v in self.st.alive}
+        with self._lock:
+            positions = {j: m.q for j, m in self.st.latest.items() if j in alive}
+        if not self.st.latest or len(positions) < len(alive):
+            return  # a live vehicle not heard from yet (the start): it would look out of range
+        self._next_radio = (n // every + 1) * every
+        self._send_geometry(n // every * every, positions)
 
     def _sense_realtime(self) -> None:
         """Realtime: once the clock has passed a sample tick, sample the newest telemetry of the
@@ -872,10 +1003,13 @@ class World:
         ls.start()
         self._last_grant = 0.0
         last_status = 0.0
+        mark = (time.monotonic(), self.next_tick)
         while self.next_tick <= self.last_tick and not self.stop_requested:
             self._act(ls.poll())
             self._record_complete()
             now = time.monotonic()
+            if now - mark[0] >= HORIZON_EVERY:
+                mark = self._widen_horizon(now, mark)
             if self._supervise_outage(now):
                 break
             if now - self._last_grant > GRANT_RESEND and ls.granted >= 0:  # for anyone who missed it
@@ -891,6 +1025,14 @@ class World:
                 self._publish_status()
             if self.next_tick <= self.last_tick:
                 self._drain(block=True)
+
+    def _widen_horizon(self, now: float, mark: tuple[float, int]) -> tuple[float, int]:
+        """Lockstep: size the grant window to the fleet's speed since ``mark`` (wall s, next tick
+        to record then); a grant moves by a quarter window at a time. Returns the new mark."""
+        ls = self.lockstep
+        ls.window = horizon_window((self.next_tick - mark[1]) / (now - mark[0]), HORIZON_S)
+        ls.grant_step = max(1, ls.window // 4)
+        return now, self.next_tick
 
     def _supervise_outage(self, now: float) -> bool:
         """Decide liveliness losses once those of the moment are in (DROP_WINDOW); wait for a fleet
@@ -970,6 +1112,7 @@ class World:
         while self.next_tick <= self.last_tick and not self.stop_requested:
             self._drain(block=True)
             self._sense_realtime()
+            self._radio_realtime()
             now = time.monotonic()
             if now - last_start > STATUS_PERIOD:  # again, for late joiners
                 last_start = now
@@ -1016,16 +1159,43 @@ class World:
             path = None if math.isnan(worst_path[-1]) else float(worst_path[-1])
             coord = None if math.isnan(worst_coord[-1]) or not self.recorder.edges else float(worst_coord[-1])
         paused = self.lockstep.paused if self.clock == "lockstep" else self.paused_at is not None
+        extra = self._status_extra()
         self.pub_status.put(encode_status(t, self.duration, self.clock, sorted(self.st.alive), self.ids, path, coord,
-                                          self.events[-10:], paused, self._roster_now()))
+                                          self.events[-10:], paused, roster=dict(zip(self.ids, extra.states)), extra=extra))
 
-    def _roster_now(self) -> dict[str, str]:
-        """Each vehicle's roster state at the tick the world is at (realtime: by its liveliness)."""
+    def _status_extra(self) -> StatusExtra:
+        """What a live console shows beyond the summary (cdus.wire.schemas.STATUS_EXTRA), at the
+        newest recorded tick: each vehicle's kind and roster state, each edge's error, each
+        emulated link's counters, each vehicle's received and dropped ω, the [safety] radius and
+        the closest pair of live vehicles of one kind."""
+        rec, n = self.recorder, len(self.recorder)
+        kinds = [v.kind for v in self.scenario.vehicles]
+        tick = max(0, self.next_tick - 1)
         if self.clock == "lockstep":
-            n = max(0, self.next_tick)
-            return {vid: self.lockstep.state_at(j, n) for j, vid in enumerate(self.ids)}
-        return {vid: "live" if vid in self.st.alive else "paused" if self._rt_faulted.get(vid) == "paused" else "gone"
-                for vid in self.ids}  # a vehicle a fault paused says so (its token lapsed: it was shown "gone")
+            states = [self.lockstep.state_at(j, tick) for j in range(len(self.ids))]
+        else:
+            states = ["paused" if self._rt_faulted.get(vid) == "paused" else "live" if vid in self.st.alive
+                      else "gone" for vid in self.ids]
+        edges = closest = path_errors = None
+        if n:
+            omega, live, q = rec.omega[n - 1], rec.live[n - 1], rec.q[n - 1]
+            path_errors = [float(x) if live[j] else None for j, x in enumerate(rec.path_error[n - 1])]
+            edges = [(self.ids[e.i], self.ids[e.k],
+                      float(abs(omega[e.i] - omega[e.k] - e.delta)) if live[e.i] and live[e.k] else None)
+                     for e in rec.edges]
+            closest = closest_live_pair(q, live, kinds, self.ids)
+        links: dict[tuple[str, str], tuple] = {}
+        for s in self.st.stats.values():
+            if isinstance(s.faults, dict):
+                last_state = {c["link"]: c["state"] for c in s.faults["state_changes"]}
+                for name, c in s.faults["links"].items():
+                    src, _, dst = name.partition("->")
+                    links[(src, dst)] = (src, dst, c["sent"], min(c["dropped"], c["sent"]), last_state.get(name))
+        rx = [None if (s := self.st.stats.get(vid)) is None else (s.sent_to_me, min(s.dropped, s.sent_to_me))
+              for vid in self.ids]
+        return StatusExtra(kinds=kinds, states=states, edges=edges, links=[links[k] for k in sorted(links)], rx=rx,
+                           safety_radius=self.scenario.safety.radius, closest=closest, path_errors=path_errors,
+                           directed=self.scenario.directed)
 
     def _processes(self) -> list[AgentStats]:
         """The last stats of every agent process of the run, restarted ones' included."""
@@ -1055,6 +1225,17 @@ class World:
                 merged["state_changes"] = [{"t": t, "link": link, "state": state}
                                            for t, link, state in sorted(self.st.link_changes)]
         return link_block(total, merged, missed_deadlines=missed)
+
+    def _radio_metrics(self) -> dict:
+        """``radio`` of the metrics JSON (with [radio] only): every process's radio counters summed,
+        the utilisation and splits the world saw."""
+        if self.radio is None or self.radio_watch is None:
+            return {}
+        total = RadioCounters()
+        for s in self._processes():
+            if isinstance(s.radio, dict):
+                total.add(RadioCounters.from_dict(s.radio))
+        return {"radio": radio_block(total, self.radio_watch)}
 
     def _completion(self) -> str:
         """COMPLETED if every tick to the end was stepped by the live fleet, else why not
@@ -1092,7 +1273,7 @@ class World:
                               policy=self.policy, events=self.events,
                               interventions=sum(s.interventions for s in self._processes()),
                               completed=completion == COMPLETED, completion=completion,
-                              rejected_by_reason=self.rejects_by_reason(), **never_up)
+                              rejected_by_reason=self.rejects_by_reason(), **never_up, **self._radio_metrics())
         if self.metrics_out:
             write_json(self.metrics_out, metrics)
             self.log(f"metrics written to {self.metrics_out}")

@@ -55,15 +55,19 @@ from cdus.wire import keys
 from cdus.wire.messages import CTL_OPS, LAUNCHER_OPS, decode_control, encode_control
 from cdus.wire.schemas import FleetEvent, decode_event, decode_status, encode_event
 from cdus.wire.text import printable
-from cdus.wire.transport import DEFAULT_LEASE_MS, Transport, client_of, open_session
+from cdus.wire.transport import (
+    CHILD_RUNTIME, DEFAULT_LEASE_MS, ROUTER_RUNTIME, ROUTER_RUNTIME_ENV, Transport, children_runtime, client_of,
+    open_session, use_runtime,
+)
 
 LINKS = ("direct", "router")  # how ω travels between neighbours (docs/architecture.md)
 GRACE_S = 5.0
 LOG_TAIL = 15
-# Fewer Zenoh runtime threads per process: on a small machine running many processes the
-# default thread pools cost more in context switches than they give (measured: lockstep
-# lake_circle 13x -> 17x real time on 2 cores). A user's own ZENOH_RUNTIME wins.
-ZENOH_RUNTIME = "(app: (worker_threads: 1), acc: (handover: app), rx: (handover: app), tx: (handover: app))"
+# Fewer Zenoh runtime threads per child process (cdus.wire.transport.CHILD_RUNTIME; the router,
+# this process, keeps Zenoh's: ROUTER_RUNTIME): on a small machine running many processes the
+# default thread pools cost more in context switches than they give. A user's own ZENOH_RUNTIME
+# wins, for every process.
+ZENOH_RUNTIME = CHILD_RUNTIME
 
 
 # Children die with the launcher: prctl(PR_SET_PDEATHSIG, SIGTERM) in the child between fork
@@ -280,7 +284,7 @@ class Launcher:
         self.finished = False
         self.requests: list[tuple[str, str]] = []  # scheduled faults asked for by the world
         self.env = dict(os.environ)
-        self.env.setdefault("ZENOH_RUNTIME", ZENOH_RUNTIME)
+        self.env["ZENOH_RUNTIME"] = children_runtime()  # the user's, else CHILD_RUNTIME (not the router's)
         self.env["PYTHONUNBUFFERED"] = "1"
         if self.opts.links == "direct" and (self.opts.remote or self.opts.zenoh_configs):
             raise ValueError("direct links are unix sockets on this host that skip the router: "
@@ -343,6 +347,11 @@ class Launcher:
 
     # ------------------------------------------------------------------ zenoh
     def _open(self) -> None:
+        # the router's own runtime (ROUTER_RUNTIME: Zenoh's default pools, see there), before its
+        # session starts Zenoh's; the children's is in self.env
+        own = os.environ.get(ROUTER_RUNTIME_ENV) or ROUTER_RUNTIME
+        if own != "default":
+            use_runtime(own)
         try:
             s = self.session = open_session(self.router)
         except zenoh.ZError as e:  # a port taken since the check (cmd_launch), or else: Zenoh's words

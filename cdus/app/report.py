@@ -141,7 +141,22 @@ def summary_table(metrics: dict, vehicles: Sequence[VehicleSpec]) -> str:
     if link:
         lines.append(f"  link: {link.get('sent', 0)} sent, {link.get('delivered', 0)} delivered, "
                      f"{link.get('dropped', 0)} dropped, {link.get('rejected', 0)} rejected")
+    lines += radio_lines(m)
     return "\n".join(lines)
+
+
+def radio_lines(m: dict) -> list[str]:
+    """With [radio]: what the radio path did (drops by cause, the hand-set fault first), the
+    channel utilisation (mean, max over the geometry samples) and the communication-graph splits."""
+    r = m.get("radio")
+    if not isinstance(r, dict):
+        return []
+    by = r.get("dropped_by") or {}
+    causes = ", ".join(f"{k} {v}" for k, v in by.items() if v) or "none"
+    u = r.get("utilisation") or {}
+    return [f"  radio: {r.get('sent', 0)} decided, {r.get('delivered', 0)} delivered, {r.get('dropped', 0)} dropped "
+            f"({causes}); channel utilisation mean {_fmt(u.get('mean'), '.3f', 'n/a')}, "
+            f"max {_fmt(u.get('max'), '.3f', 'n/a')}; {r.get('splits', 0)} graph split(s)"]
 
 
 #: how the summary names a closest pair's domain (cdus.core.metrics.closest_pairs)

@@ -333,7 +333,9 @@ def explain() -> str:
 
 UNITS = {"scenario.duration": "s", "link.timeout": "s", "metrics.path_tol": "m", "metrics.coord_tol": "rad",
          "safety.radius": "m", "safety.range": "m", "safety.rate": "Hz", "safety.latency": "s",
-         "safety.gamma": "1/s", "supervision.backoff_s": "s"}
+         "safety.gamma": "1/s", "supervision.backoff_s": "s", "radio.tx_power": "dBm", "radio.sample_period": "s",
+         "radio.shadowing_sigma": "dB", "radio.frequency": "Hz", "radio.capacity": "bit/s", "radio.noise_floor": "dBm",
+         "radio.relay_delay": "s"}
 SUFFIX_UNITS = {".loss": "fraction", ".duplicate": "fraction", ".bad_loss": "fraction", ".good_loss": "fraction",
                 ".burst.p": "probability", ".burst.r": "probability", ".delay.base": "s", ".delay.jitter": "s",
                 ".phase": "ω units"}

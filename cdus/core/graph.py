@@ -15,11 +15,22 @@ Two facts the controller needs from the graph:
 from __future__ import annotations
 
 from collections import deque
+from dataclasses import dataclass
 from typing import Any, Iterable, Sequence
 
 TOPOLOGIES = ("ring", "chain", "complete", "star", "explicit")
 
 Pair = tuple[str, str]
+
+
+@dataclass(frozen=True)
+class MetricEdge:
+    """An edge whose coordination error the metrics record (cdus.core.metrics)."""
+
+    i: int
+    k: int
+    delta: float
+    name: str  # "<id_i>__<id_k>", the Rerun entity name too
 
 
 def build_pairs(topology: str, ids: Sequence[str], directed: bool, hub: str | None = None,

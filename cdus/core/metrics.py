@@ -23,19 +23,13 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 
+from cdus.core.graph import MetricEdge  # noqa: F401 (defined there: building a node needs no numpy)
+
 METRICS_FIELDS = (
     "scenario", "mode", "seed", "duration_s", "path_tol", "coord_tol", "path_settle_s",
     "coord_settle_s", "final_path_error_max", "final_coord_error_max", "omega_rate_final",
     "link", "wall_s", "realtime_factor",
 )
-
-
-@dataclass(frozen=True)
-class MetricEdge:
-    i: int
-    k: int
-    delta: float
-    name: str  # "<id_i>__<id_k>", the Rerun entity name too
 
 
 def edge_errors(omega: np.ndarray, edges: Sequence[MetricEdge], deltas: np.ndarray | None = None) -> np.ndarray:

@@ -24,6 +24,9 @@ Zenoh, and both therefore step the same ticks with the same inputs (docs/archite
   At tick n the safety filter uses the newest sample taken at or before n - latency
   (and not before this vehicle (re)joined); deterministic runners wait for it
   (``contacts_missing``), a realtime one uses what has arrived.
+- ``on_geometry(tick, positions)``: with ``[radio]``, the world's radio geometry sample of
+  tick ``tick`` (cdus.core.radiolink: the link model is then a RadioLink); a deterministic
+  runner waits for the sample a tick's decisions need (``geometry_missing``).
 - ``set_link(spec, at)``, ``set_policy(policy, timeout, tick)``, ``set_gains(k, c,
   tick)``, ``set_formation(phases, tick)`` and ``set_path(path, tick)``: run-time changes,
   applied in simulated time so every runner applies them alike (cdus.core.formation).
@@ -52,7 +55,7 @@ from cdus.core.linkspec import LinkSpec
 from cdus.core.neighbours import POLICIES, NeighbourLink, NeighbourTable, consensus_target
 from cdus.core.paths import Path, Vec
 from cdus.core.safety import Contact
-from cdus.core.schedule import delivery_tick, last_broadcast_seq, send_tick
+from cdus.core.schedule import delay_floor, delivery_tick, first_seq_at, needed_seq, send_tick
 from cdus.core.vehicle import DivergedError, Telemetry, Vehicle
 from cdus.wire.messages import OmegaMsg
 
@@ -198,6 +201,9 @@ class VehicleNode:
         self.sense_latency = sense_latency
         self._contacts: dict[int, tuple[Contact, ...]] = {}  # by sample tick, not yet superseded
         self._contacts_used = -1  # newest sample tick used (older ones are dropped)
+        self._floors: dict[int, tuple[tuple[int, float], ...]] = {}  # per neighbour: (first seq, least delay)
+        #: with [radio], the link model is a cdus.core.radiolink.RadioLink: it holds the geometry samples
+        self.radio = link if hasattr(link, "on_geometry") else None
 
     # ------------------------------------------------------------------ inputs
     def on_message(self, msg: OmegaMsg, arrival: float | None = None) -> str | None:
@@ -343,6 +349,17 @@ class VehicleNode:
             del self._contacts[old]
         return self._contacts[s]
 
+    def on_geometry(self, tick: int, positions) -> bool:
+        """The radio geometry sample of ``tick`` (every vehicle's position, None if not live);
+        False if there is no radio or it was not taken (not a sample tick, or already held)."""
+        return self.radio is not None and self.radio.on_geometry(tick, positions)
+
+    def geometry_missing(self, n: int) -> bool:
+        """Does stepping tick ``n`` need a radio geometry sample that has not arrived? The messages
+        decided at ``n`` were sent before it, so the sample in force at ``n - 1`` (deterministic
+        runners wait for it; the world sends it before granting past it)."""
+        return self.radio is not None and n - 1 >= self.joined_at and self.radio.missing(n - 1)
+
     def set_link(self, spec: LinkSpec, at: float) -> float:
         """New link faults for messages sent from simulated time ``at`` on (not before the
         newest change). Returns the time they apply from."""
@@ -351,6 +368,7 @@ class VehicleNode:
             raise ValueError("this vehicle's link model cannot change at run time")
         at = max(at, epochs[-1][0])
         self.link.update(spec, at)
+        self._floors.clear()  # the lookahead's delay bounds (waiting_for)
         return at
 
     def set_policy(self, policy: str, timeout: float, tick: int) -> None:
@@ -422,20 +440,52 @@ class VehicleNode:
         return state == "live" and n >= since
 
     def waiting_for(self, n: int) -> list[int]:
-        """The neighbours whose newest broadcast before tick ``n`` has not arrived yet, though
-        they were live when they should have sent it (and after this vehicle joined)."""
-        seq = last_broadcast_seq(n - 1, self.every)
-        if seq < 0:
-            return []
-        sent = seq * self.every
-        if sent < self.joined_at:
-            return []
-        return [k for k in self.neighbours if (self.seen_seq.get(k, -1) < seq and self.live_at(k, sent))
-                or self._peers[k].missing and self._gap_before(k, n)]
+        """The neighbours whose newest broadcast that tick ``n`` can use has not arrived yet,
+        though they were live when they should have sent it (and after this vehicle joined).
 
-    def _gap_before(self, k: int, n: int) -> bool:
-        """Is a broadcast of ``k`` sent before tick ``n``, while it was live, skipped (lost in flight)?"""
-        return any(self.joined_at <= g * self.every < n and g * self.every >= self._deaf_before
+        The lookahead: tick n needs of neighbour k only its broadcasts sent before n that the
+        link k -> this vehicle can have delivered by n, given the link's least delay in force at
+        their send time (:meth:`needed_seq`). Broadcasts every ``every`` ticks, or a least delay
+        of D ticks, let a vehicle step that many ticks with what it holds. Every message a tick
+        uses is among those waited for, so the run is the in-process one whatever the timing."""
+        out = []
+        seen = self.seen_seq
+        for k in self.neighbours:
+            seq = self.needed_seq(k, n)
+            if seq < 0:
+                continue
+            sent = seq * self.every
+            if sent < self.joined_at:
+                continue
+            if (seen.get(k, -1) < seq and self.live_at(k, sent)) or self._peers[k].missing and self._gap_before(k, seq):
+                out.append(k)
+        return out
+
+    def needed_seq(self, k: int, n: int) -> int:
+        """The newest broadcast seq of neighbour ``k`` that tick ``n`` can use (-1: none):
+        cdus.core.schedule.needed_seq over the link's epochs (run-time changes included)."""
+        floors = self._floors.get(k)
+        if floors is None:
+            floors = self._floors[k] = self._link_floors(k)
+        if n >= self.last_tick or len(floors) == 1 and floors[0][1] == 0.0:
+            # everything sent before n: no delay, or the run's last tick (so every message is
+            # decided, and the link's counters are the in-process run's)
+            return -1 if n <= 0 else (n - 1) // self.every
+        return needed_seq(n, self.every, self.period, floors)
+
+    def _link_floors(self, k: int) -> tuple[tuple[int, float], ...]:
+        """The link k -> this vehicle per epoch: (first seq sent under it, least delay s)."""
+        epochs = getattr(self.link, "epochs", None)
+        ids = getattr(self.link, "ids", None)
+        if epochs is None or ids is None:  # a model without a spec (IdealLink): no delay
+            return ((0, 0.0),)
+        src, dst = ids[k], ids[self.index]
+        return tuple((first_seq_at(at, self.every, self.period), delay_floor(spec.for_link(src, dst).delay))
+                     for at, spec in epochs)
+
+    def _gap_before(self, k: int, seq: int) -> bool:
+        """Is a broadcast of ``k`` up to ``seq``, sent while it was live, skipped (lost in flight)?"""
+        return any(g <= seq and self.joined_at <= g * self.every and g * self.every >= self._deaf_before
                    and self.live_at(k, g * self.every) for g in self._peers[k].missing)
 
     def own_state_at(self, n: int) -> tuple[str, bool]:

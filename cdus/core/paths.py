@@ -440,12 +440,33 @@ def nearest_omega(path: Path, q: Vec, hint: float = 0.0, samples: int = 720) -> 
         w = hint
     else:
         best, w = math.inf, hint
-        for j in range(samples):
-            cand = hint + period * j / samples
-            f, _, _ = path.eval(cand)
-            d = sum((a - b) ** 2 for a, b in zip(f, q))
-            if d < best:
-                best, w = d, cand
+        ev = path.eval
+        # the squared distance written out for 2-D and 3-D: the same sums, in the same order, as
+        # sum((a - b) ** 2 ...) (which starts from 0, exactly), so the same ω to the bit, 2x faster
+        # (a realtime agent calls this when it resumes after a stall: bench/realtime_capacity.py)
+        if len(q) == 2:
+            q0, q1 = q
+            for j in range(samples):
+                cand = hint + period * j / samples
+                f = ev(cand)[0]
+                d = (f[0] - q0) ** 2 + (f[1] - q1) ** 2
+                if d < best:
+                    best, w = d, cand
+        elif len(q) == 3:
+            q0, q1, q2 = q
+            for j in range(samples):
+                cand = hint + period * j / samples
+                f = ev(cand)[0]
+                d = (f[0] - q0) ** 2 + (f[1] - q1) ** 2 + (f[2] - q2) ** 2
+                if d < best:
+                    best, w = d, cand
+        else:
+            for j in range(samples):
+                cand = hint + period * j / samples
+                f, _, _ = ev(cand)
+                d = sum((a - b) ** 2 for a, b in zip(f, q))
+                if d < best:
+                    best, w = d, cand
     for _ in range(30):
         f, f1, f2 = path.eval(w)
         e = [a - b for a, b in zip(f, q)]

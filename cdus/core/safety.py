@@ -46,12 +46,14 @@ from __future__ import annotations
 import math
 import zlib
 from dataclasses import dataclass
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
-import numpy as np
-import quadprog
-
+# numpy and quadprog are imported where a QP is solved, not here: a vehicle process whose filter
+# never needs one (or that has none) does not load them (numpy is ~14 MB of RSS per process)
 from cdus.core.paths import Vec
+
+if TYPE_CHECKING:
+    import numpy as np
 
 SOLVER = "quadprog (Goldfarb-Idnani dual active set)"
 # Inside R the required separation speed uses |d| ≥ ESCAPE_FLOOR · R.
@@ -191,6 +193,8 @@ def _solve_qp(G: np.ndarray, a: np.ndarray, C: np.ndarray, b: np.ndarray) -> np.
     the dual active-set iterations never ended on rows of 1e33 (found by Hypothesis: a freeze
     inside the compiled solver, which no timeout can stop). ValueError for non-finite data
     (as quadprog's own for an infeasible problem: the callers relax or fall back)."""
+    import numpy as np
+    import quadprog
     if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b)) and np.all(np.isfinite(C))):
         raise ValueError("safety: non-finite QP data")
     s = max(1.0, float(np.max(np.abs(a), initial=0.0)), float(np.max(np.abs(b), initial=0.0)))
@@ -207,6 +211,8 @@ def _solve(u_ref: Vec, normals: list[Vec], betas: list[float], tol: float) -> tu
     u = tuple(x + viol[worst] * y for x, y in zip(u_ref, n))
     if all(_dot(nk, u) >= bk - tol for nk, bk in zip(normals, betas)):
         return u, "projection", 0.0
+    import numpy as np
+
     rows = [k for k, b in enumerate(betas) if b > -math.inf]
     N = np.array([normals[k] for k in rows], dtype=float)
     B = np.array([betas[k] for k in rows], dtype=float)
@@ -493,6 +499,8 @@ def dynamic_filter(tau_ref: Vec, me: Point, tracks: Sequence[Track], params: Saf
         return tau_ref, FilterInfo(False, (), True, "pass", min_h=min_h)
     k = len(rows)
     nv = m + k  # z, then one slack per row: a row that cannot be met relaxes only itself
+    import numpy as np
+
     G = np.eye(nv)
     for i in range(k):
         G[m + i, m + i] = DYN_SLACK_WEIGHT

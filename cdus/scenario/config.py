@@ -28,7 +28,7 @@ from dataclasses import replace
 from cdus.scenario.checks import Problems, describe, quote
 from cdus.scenario.errors import ConfigError
 from cdus.core.formation import base_phases
-from cdus.scenario.events import change_section, event_section
+from cdus.scenario.events import change_section, event_section, radio_event_section
 from cdus.scenario.graph import graph_section
 from cdus.scenario.link import link_section
 from cdus.scenario.model import Edge, Rates, Safety, Scenario, Supervision, VehicleSpec
@@ -323,6 +323,7 @@ def _resolve(p: Problems, data: Mapping[str, Any], source: str) -> Scenario | No
     specs = [v for v in fleet.specs if v is not None]
     base = base_phases(ids, {v.id: v.phase for v in specs}, edges) if ids is not None and not p else None
     changes = change_section(p, data.get("event", []), ids, {v.id: v.dim for v in specs}, edges, directed, base)
+    radio_events = radio_event_section(p, data.get("event", []), "radio" in data)
     if p or link is None:
         return None
     return Scenario(
@@ -330,5 +331,5 @@ def _resolve(p: Problems, data: Mapping[str, Any], source: str) -> Scenario | No
         seed=header.seed, rates=rates, path_tol=path_tol, coord_tol=coord_tol, topology=topology,
         directed=directed, vehicles=tuple(v for v in fleet.specs if v is not None), edges=edges, link=link,
         events=events, supervision=supervision, raw=dict(data), safety=safety, radio=radio,
-        changes=changes,
+        changes=changes, radio_events=radio_events,
     )

@@ -18,7 +18,13 @@
     vehicle = "uav1"
     path = { family = "circle", center = [0, 0, 20], radius = 15, speed = 1.5 }
 
-:func:`event_section` checks the vehicle faults against the vehicle ids into the
+    [[event]]
+    at = 60.0
+    action = "radio"     # with [radio]: a scheduled radio change, for messages sent from `at` on
+    tx_power = 5.0       # dBm, and/or
+    station = [0.0, -80.0]
+
+:func:`event_section` checks them against the vehicle ids into the
 :class:`cdus.core.events.Event` tuple that ``Scenario.events`` carries (what each action
 does is described there); :func:`change_section` checks the formation and path changes
 into ``Scenario.changes`` (cdus.core.formation). docs/config.md is the user reference.
@@ -34,6 +40,9 @@ from cdus.core.formation import MAX_PHASE, FormationChange, PathChange, phases_f
 from cdus.core.paths import FAMILIES, Path, PathError, for_dimension, make_path, turning_point
 from cdus.scenario.checks import IdList, Problems, describe, is_number, quote, show
 from cdus.scenario.vehicles import retrace_message
+from cdus.core.radiolink import RadioEvent
+from cdus.scenario.errors import ConfigError
+from cdus.scenario.radio import validate_radio_update
 
 EVENT_KEYS = ("at", "action", "vehicle", "duration", "phases", "offsets", "path")
 REQUIRED = ("at", "action", "vehicle")
@@ -51,6 +60,8 @@ def event_section(p: Problems, raw: Any, ids: Sequence[str] | None) -> tuple[Eve
     for j, e in enumerate(p.tables(raw, "event", "event")):
         if e.get("action") in CHANGE_ACTIONS:
             continue  # change_section's
+        if e.get("action") == "radio":
+            continue  # radio_event_section's
         evs = _event(p, e, f"event[{j}]", ids)
         # a pause's duration brings a resume, named after the duration
         fielded += [(ev, f"event[{j}]" + (".duration" if k else "")) for k, ev in enumerate(evs)]
@@ -328,3 +339,38 @@ def offsets_to_phases(ids: Sequence[str], current: Sequence[float], edges: Seque
         return (f"these offsets put the phase of {far[0]} at {found[far[0]]:.6g}, beyond ±{MAX_PHASE:g} ω units; "
                 f"give smaller offsets")
     return found
+
+
+RADIO_EVENT_KEYS = ("at", "action", "tx_power", "station")
+
+
+def radio_event_section(p: Problems, raw: Any, has_radio: bool) -> tuple[RadioEvent, ...]:
+    """The ``action = "radio"`` events, sorted by time (a stable sort: the file's order at one
+    time, the later one wins): ``at`` and ``tx_power`` and/or ``station``, as a ground station's
+    ``radio`` command takes them (cdus.scenario.radio.validate_radio_update); only with [radio]."""
+    out: list[RadioEvent] = []
+    if not isinstance(raw, list):
+        return ()  # event_section reports it
+    for j, e in enumerate(raw):
+        if not isinstance(e, dict) or e.get("action") != "radio":
+            continue
+        field = f"event[{j}]"
+        mark = len(p)
+        p.unknown_keys(e, RADIO_EVENT_KEYS, field)
+        if not has_radio:
+            p.add(f"{field}.action", "a radio event needs a [radio] table (docs/radio.md); add one or remove the event")
+        if "at" not in e:
+            p.missing(f"{field}.at", 'a radio event needs at, and tx_power and/or station, e.g. at = 60.0, '
+                                     'action = "radio", tx_power = 5.0')
+        at = p.number(e["at"], f"{field}.at", ge=0, unit=" (s of simulated time)") if "at" in e else None
+        try:
+            tx, station = validate_radio_update({k: v for k, v in e.items() if k in ("tx_power", "station")},
+                                                f"{field}")
+        except ConfigError as err:
+            for name, message in err.problems:
+                p.add(f"{field}.{name.removeprefix('radio.')}" if name != "radio" else field, message)
+            continue
+        if not p.since(mark) and at is not None:
+            out.append(RadioEvent(at, tx, station))
+    out.sort(key=lambda ev: ev.at)
+    return tuple(out)

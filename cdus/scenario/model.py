@@ -16,6 +16,7 @@ from cdus.core.formation import FormationChange, PathChange, base_phases
 from cdus.core.linkspec import LinkSpec
 from cdus.core.proximity import sample_every
 from cdus.core.radio import RadioSpec
+from cdus.core.radiolink import RadioEvent
 
 #: What the launcher does when a vehicle's process exits during the run (docs/config.md, [supervision]).
 RESTART_POLICIES = ("never", "on-failure", "always")
@@ -146,6 +147,7 @@ class Scenario:
         """The phases in force at the start, per vehicle (cdus.core.formation.base_phases): the
         vehicles' ``phase``, or phases solved from the graph's deltas if it gives any."""
         return base_phases(self.ids, {v.id: v.phase for v in self.vehicles}, self.edges)
+    radio_events: tuple[RadioEvent, ...] = ()  # [[event]] action = "radio": scheduled changes, by time
 
     def vehicle(self, vid: str) -> VehicleSpec:
         for v in self.vehicles:

@@ -14,8 +14,10 @@ from cdus.core.events import event_tick
 from cdus.core.formation import FormationChange, FormationSchedule, PathChange
 from cdus.core.disturbance import Disturbance, DisturbanceSpec
 from cdus.core.link import IdealLink, LinkEmulator, LinkModel
-from cdus.core.metrics import MetricEdge
+from cdus.core.graph import MetricEdge
 from cdus.core.neighbours import NeighbourLink
+from cdus.core.radio import RadioChannel
+from cdus.core.radiolink import RadioLink
 from cdus.core.node import VehicleNode
 from cdus.core.schedule import broadcast_every, total_ticks
 from cdus.core.paths import for_dimension, make_path, nearest_omega
@@ -155,10 +157,50 @@ def sensor_schedule(scenario: Scenario) -> tuple[int, int] | None:
 
 def link_model_for(scenario: Scenario) -> LinkModel:
     """:class:`IdealLink` when the ``[link]`` table has no faults, else a :class:`LinkEmulator`
-    (seeded with ``link.seed``, else ``scenario.seed``)."""
-    if scenario.link.is_ideal:
-        return IdealLink()
-    return link_emulator_for(scenario)
+    (seeded with ``link.seed``, else ``scenario.seed``); with ``[radio]``, either under the
+    radio channel (:func:`with_radio`)."""
+    inner: LinkModel = IdealLink() if scenario.link.is_ideal else link_emulator_for(scenario)
+    return with_radio(scenario, inner)
+
+
+def with_radio(scenario: Scenario, inner: LinkModel) -> LinkModel:
+    """``inner`` as it is without ``[radio]``; with it, a RadioLink: the hand-set faults of
+    ``inner`` first, then the radio channel (cdus.core.radiolink)."""
+    schedule = radio_schedule(scenario)
+    if schedule is None:
+        return inner
+    return RadioLink(inner, radio_channel_for(scenario), period=1.0 / scenario.rates.control,
+                     every=schedule[0], lag=schedule[1])
+
+
+def radio_schedule(scenario: Scenario) -> tuple[int, int] | None:
+    """(ticks between radio geometry samples, ticks from a sample to the first send tick it is
+    in force at) with ``[radio]``, else None (nothing is sampled, sent or waited for). The lag
+    is one sample period: the sample of tick k is in force from k + every, so a lockstep
+    vehicle never waits for the world on the tick at hand and the grants keep a window."""
+    spec = getattr(scenario, "radio", None)
+    if spec is None:
+        return None
+    every = max(1, round(spec.sample_period * scenario.rates.control))
+    return every, every
+
+
+def radio_channel_for(scenario: Scenario) -> RadioChannel:
+    """The scenario's radio channel (cdus.core.radio.RadioChannel), seeded with ``radio.seed``
+    if it has one, else the link seed; every vehicle broadcasts ω at the scenario's rate; the
+    scheduled radio events (``[[event]] action = "radio"``) are its epochs from the start."""
+    period = 1.0 / scenario.rates.control
+    channel = RadioChannel(scenario.radio, scenario.ids, [v.kind for v in scenario.vehicles], scenario.radio_seed,
+                           rate=1.0 / (broadcast_every(scenario.rates) * period), tick_period=period)
+    for ev in scenario.radio_events:  # scheduled changes: every runner knows them up front
+        channel.update(ev.at, tx_power_dbm=ev.tx_power, station=ev.station)
+    return channel
+
+
+def link_faults_of(link: LinkModel) -> LinkEmulator | None:
+    """The link emulator inside ``link`` (under a radio channel or not), if any."""
+    inner = getattr(link, "inner", link)
+    return inner if isinstance(inner, LinkEmulator) else None
 
 
 def link_emulator_for(scenario: Scenario) -> LinkEmulator:

@@ -34,12 +34,18 @@ from cdus.core.node import VehicleNode
 from cdus.core.schedule import broadcast_every, total_ticks
 from cdus.core.vehicle import Telemetry, Vehicle
 from cdus.scenario.model import Scenario
-from cdus.sim.build import build_node, formation_schedule, link_model_for, metric_edges, path_of, sensor_schedule
+from cdus.sim.build import (
+    build_node, formation_schedule, link_faults_of, link_model_for, metric_edges, path_of, radio_schedule,
+    sensor_schedule, with_radio,
+)
 from cdus.sim.sensing import contacts_of, sense_tick
 from cdus.sim.reports import formation_changed, graph_event, link_state_event, path_changed, scheduled_fault, vehicle_back
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
 from cdus.sim.summary import link_block, run_metrics, sum_counters
-from cdus.wire.messages import decode_contacts, decode_omega, encode_contacts, encode_omega
+from cdus.sim.radio import RadioWatch, apply_radio_change, geometry_sample, radio_block, radio_change_problem
+from cdus.wire.messages import (
+    decode_contacts, decode_geometry, decode_omega, encode_contacts, encode_geometry, encode_omega,
+)
 from cdus.wire.schemas import FleetEvent
 
 
@@ -59,7 +65,8 @@ class InProcessFleet:
         self.scenario = scenario
         self.mode = mode
         self.sink = sink or NullSink()
-        self.link = link or link_model_for(scenario)
+        self.link = link_model_for(scenario) if link is None else (
+            link if hasattr(link, "on_geometry") else with_radio(scenario, link))  # a given model under [radio]
         spec = scenario.link
         self.policy = policy or spec.policy
         self.timeout = spec.timeout if timeout is None else timeout
@@ -73,6 +80,9 @@ class InProcessFleet:
         self._pairs = [(e.i, e.k) for e in scenario.edges]
         self._alive = set(self.ids)  # whose process would hold a liveliness token (a lapsed pause does not)
         self.sensing = sensor_schedule(scenario)  # (every, latency) ticks, None: no proximity sensor
+        self.radio = radio_schedule(scenario)  # (every, lag) ticks, None: no [radio]
+        self.radio_watch = None if self.radio is None else RadioWatch(
+            self.ids, [(e.i, e.k) for e in scenario.edges], self.link.channel, self.period)
         self.nodes = [self._node(j) for j in range(len(self.ids))]
         self.listeners: list[list[int]] = [[] for _ in self.ids]
         for dst, node in enumerate(self.nodes):
@@ -210,6 +220,8 @@ class InProcessFleet:
         if self.sensing is not None and n % self.sensing[0] == 0:
             live = set(stepped)
             self._sense(n, {j: rows[j].q for j in stepped}, {j: rows[j].q for j in range(len(rows)) if j not in live})
+        if self.radio is not None and n % self.radio[0] == 0:
+            self._radio_sample(n, {j: rows[j].q for j in stepped})
         live = [False] * len(self.nodes)
         for j in stepped:
             live[j] = True
@@ -244,6 +256,27 @@ class InProcessFleet:
             if not isinstance(wire, str):
                 self.nodes[j].on_contacts(n, contacts_of(wire, self.ids))
 
+    def _radio_sample(self, n: int, positions: dict) -> None:
+        """The radio geometry of tick n, as the world samples it (cdus.sim.radio): through the wire
+        format once, into the shared RadioLink (in force from n + lag), and watched (events)."""
+        wire = decode_geometry(encode_geometry(geometry_sample(n, positions, len(self.ids))), len(self.ids))
+        if isinstance(wire, str):  # a diverged vehicle's position (non-finite): the step raises first
+            return
+        self.link.on_geometry(wire.tick, wire.positions)
+        for ev in self.radio_watch.observe(wire):
+            self._note(ev)
+        radio_view = getattr(self.sink, "radio", None)
+        if radio_view is not None:
+            radio_view(n * self.period, self.radio_watch)
+
+    def set_radio(self, change: dict, at: float) -> None:
+        """A run-time radio change (tx_power, station) for messages sent from ``at`` on, as a
+        ground station's relayed by the world (a scheduled ``radio`` event)."""
+        problem = radio_change_problem(change)
+        if problem is not None or self.radio is None:
+            raise ValueError(problem or "this scenario has no [radio] table")
+        apply_radio_change(self.link.channel, change, at)
+
     @property
     def interventions(self) -> int:
         """Control steps at which a safety filter changed a velocity reference, over the fleet."""
@@ -253,7 +286,7 @@ class InProcessFleet:
         for node in self.nodes:
             for ev in burst_events(node.bursts, self.ids):
                 self._note(ev)
-        changes = getattr(self.link, "state_changes", None)
+        changes = getattr(link_faults_of(self.link), "state_changes", None)
         if not changes or len(changes) == self._changes_seen:
             return
         for t, s, d, state in changes[self._changes_seen:]:
@@ -284,7 +317,10 @@ class InProcessFleet:
     def partial_metrics(self, **extra) -> dict:
         """The metrics JSON of what has run so far (also after an interruption)."""
         counters = sum_counters(node.counters for node in [*self._retired, *self.nodes])
-        faults = self.link.counters_summary() if isinstance(self.link, LinkEmulator) else None
+        emulator = link_faults_of(self.link)
+        faults = emulator.counters_summary() if emulator is not None else None
+        if self.radio is not None:
+            extra["radio"] = radio_block(self.link.counters, self.radio_watch)
         return run_metrics(self.scenario, self.recorder, mode=self.mode, link=link_block(counters, faults),
                            wall_s=self.clock() - self._t0, policy=self.policy, events=self.events,
                            completed=self.tick > self.end_tick, interventions=self.interventions, **extra)

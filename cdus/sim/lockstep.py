@@ -19,10 +19,16 @@ acknowledgements (``on_fault_done``) and operator commands (``pause``, ``resume`
 - :class:`Sense`: sample the proximity sensor at tick ``tick`` (every vehicle live at it
   has reported it) and send every vehicle its contacts (cdus.sim.sensing). Only with the
   safety filter on (``sense_every``).
-- :class:`Grant`: vehicles may step up to ``until``: at most ``window`` ticks ahead of the
-  slowest vehicle that is due to report, and, with the sensor, not past s + latency - 1
-  for the next sample tick s whose contacts have not been sent (a vehicle uses the
-  contacts of s from s + latency on, so it must have them by then).
+- :class:`RadioSample`: with ``[radio]``, sample the radio geometry at ``tick`` once every
+  vehicle live at it has reported it, and send it to every vehicle (cdus.sim.radio).
+- :class:`Grant`: vehicles may step up to ``until``, a horizon: the run's last tick, the
+  tick before the next vehicle fault, with ``[radio]`` s + lag for the next radio sample s
+  not sent (:meth:`Lockstep.radio_limit`), and, with the sensor, s + latency - 1 for the next
+  sample tick s whose contacts have not been sent (a vehicle uses the contacts of s from
+  s + latency on, so it must have them by then); and at most ``window`` ticks ahead of the
+  slowest vehicle that is due to report (the world's memory of unrecorded rows). A grant
+  below the horizon is sent only once it moves by ``grant_step`` or more. Roster changes up
+  to the new grant are sent before it.
 - a :class:`FleetEvent` for the record.
 
 A tick is complete (:meth:`recordable`) once every vehicle live at it has reported it.
@@ -46,8 +52,20 @@ from cdus.core.events import LEASE_S, Event, RosterChange, event_tick, plan_rost
 from cdus.sim.reports import commanded_fault, scheduled_fault, vehicle_back, vehicle_lost
 from cdus.wire.schemas import FleetEvent
 
-GRANT_WINDOW = 50  # ticks the fastest vehicle may run ahead of the slowest
+GRANT_WINDOW = 100  # ticks the fastest vehicle may run ahead of the slowest, at the least
+#: ... and at the most: the world widens its window with the fleet's speed (a horizon of about
+#: world_sim.world.HORIZON_S of wall time, so an operator's command, which applies past every
+#: grant, still lands soon); a vehicle's ω seq check allows twice this (vehicle_agent.agent)
+MAX_GRANT_WINDOW = 2000
 FAULT_OPS = {"kill": "kill", "pause": "pause_vehicle", "resume": "resume_vehicle", "restart": "restart"}
+
+
+def horizon_window(ticks_per_s: float, horizon_s: float) -> int:
+    """The grant window for a fleet recording ``ticks_per_s``: about ``horizon_s`` of its wall
+    time, within [GRANT_WINDOW, MAX_GRANT_WINDOW]."""
+    if not ticks_per_s > 0:
+        return GRANT_WINDOW
+    return max(GRANT_WINDOW, min(MAX_GRANT_WINDOW, int(ticks_per_s * horizon_s)))
 
 
 @dataclass(frozen=True)
@@ -57,6 +75,14 @@ class Grant:
 
 @dataclass(frozen=True)
 class Sense:
+    tick: int
+
+
+@dataclass(frozen=True)
+class RadioSample:
+    """Sample the radio geometry at tick ``tick`` (every vehicle live at it has reported it) and
+    send it to every vehicle (cdus.sim.radio). Only with ``[radio]`` (``radio_every``)."""
+
     tick: int
 
 
@@ -96,7 +122,7 @@ class Decided:
     reason: str | None = None
 
 
-Action = Grant | Join | Roster | CatchUp | Fault | Sense | FleetEvent | Decided
+Action = Grant | Join | Roster | CatchUp | Fault | Sense | RadioSample | FleetEvent | Decided
 
 
 @dataclass
@@ -127,10 +153,17 @@ class Lockstep:
     sense_every: int | None = None  # ticks between proximity samples; None: no sensor
     sense_latency: int = 1  # ticks from a sample to its first use (>= 1)
     sensed: int = -1  # the newest sample tick whose contacts were sent
+    #: the least move of a grant worth a message (fewer ctl messages with a wide window); a grant
+    #: up to a limit (a fault, a sensor sample, the last tick) goes at once
+    grant_step: int = 1
+    radio_every: int | None = None  # ticks between radio geometry samples; None: no [radio]
+    radio_lag: int = 1  # ticks from a radio sample to the first send tick it is in force at (>= 1)
+    radioed: int = -1  # the newest radio sample tick sent
 
     def __post_init__(self) -> None:
         self._plan = list(plan_roster(self.events, self.ids, self.period, self.lease))
         self._decided: list[RosterChange] = []  # changes decided here (crashes, a ground station's faults)
+        self._changes_by: dict[int, list[RosterChange]] | None = None  # cache of _by_vehicle
         self.changes: list[RosterChange] = []  # every change sent so far, in order
         self._queue: list[_Pending] = sorted((_Pending(event_tick(e.at, self.period), e.action, self.ids.index(e.vehicle))
                                               for e in self.events), key=lambda p: (p.tick, p.vehicle))
@@ -155,10 +188,21 @@ class Lockstep:
     def state_at(self, j: int, n: int) -> str:
         """Vehicle j's state at tick n, from the changes sent so far and the plan."""
         state = "live"
-        for ch in sorted([*self._plan, *self._decided], key=lambda c: c.tick):  # stable: same tick, given order
-            if ch.vehicle == j and ch.tick <= n:
-                state = ch.state
+        for ch in self._by_vehicle().get(j, ()):
+            if ch.tick > n:
+                break
+            state = ch.state
         return state
+
+    def _by_vehicle(self) -> dict[int, list[RosterChange]]:
+        """The plan's and the decided changes per vehicle, by tick (stable: same tick, given
+        order); rebuilt only when a change is decided (state_at is on the world's per-tick path)."""
+        if self._changes_by is None:
+            by: dict[int, list[RosterChange]] = {}
+            for ch in sorted([*self._plan, *self._decided], key=lambda c: c.tick):
+                by.setdefault(ch.vehicle, []).append(ch)
+            self._changes_by = by
+        return self._changes_by
 
     def _due(self, j: int) -> bool:
         """Is vehicle j due to report its next tick?"""
@@ -297,6 +341,7 @@ class Lockstep:
         if self.started:
             self._faults()
             self._sense()
+            self._radio()
             self._grant()
         out, self._out = self._out, []
         return out
@@ -379,18 +424,45 @@ class Lockstep:
             self.sensed = s
             self._out.append(Sense(s))
 
+    def next_radio(self) -> int | None:
+        """The next radio sample tick not sent yet (None: no [radio], or past the end)."""
+        if self.radio_every is None:
+            return None
+        s = 0 if self.radioed < 0 else self.radioed + self.radio_every
+        return s if s <= self.last_tick else None
+
+    def _radio(self) -> None:
+        while (s := self.next_radio()) is not None and s <= self.granted and self.recordable(s):
+            self.radioed = s
+            self._out.append(RadioSample(s))
+
+    def radio_limit(self) -> int | None:
+        """The newest tick that may be granted before the next radio sample is sent: a tick n
+        decides the messages sent before it with the sample in force at n - 1, and sample s is
+        in force from s + lag (sample 0 from the start), so not past s + lag (0 for s = 0)."""
+        s = self.next_radio()
+        if s is None:
+            return None
+        return s + self.radio_lag if s > 0 else 0
+
     def _grant(self) -> None:
         if self.paused:
             return
         due = [self.acked.get(j, -1) for j in range(len(self.ids)) if self._due(j)]
-        want = min(self.last_tick, min(due) + self.window) if due else self.last_tick
+        limit = self.last_tick  # the horizon: the end, the next sample the vehicles wait for, a fault
         s = self.next_sample()
         if s is not None:
-            want = min(want, s + self.sense_latency - 1)
+            limit = min(limit, s + self.sense_latency - 1)
+        r = self.radio_limit()
+        if r is not None:
+            limit = min(limit, r)
         if self._current is not None:
-            want = min(want, self._current.tick - 1)
+            limit = min(limit, self._current.tick - 1)
         if self._queue:
-            want = min(want, self._queue[0].tick - 1)
+            limit = min(limit, self._queue[0].tick - 1)
+        want = min(limit, min(due) + self.window) if due else limit
+        if want < limit and want - self.granted < self.grant_step:
+            return  # a small move: not worth a message yet (the vehicles are far from the grant)
         for j, since in list(self._paused_by_hand.items()):  # a ground station's pause lapses with the lease
             if want >= since + self._lease_ticks and self.state_at(j, since + self._lease_ticks) == "paused":
                 self._send(RosterChange(since + self._lease_ticks, j, "gone"))
@@ -406,6 +478,7 @@ class Lockstep:
     def _send(self, change: RosterChange, planned: bool = False) -> None:
         if not planned:
             self._decided.append(change)
+            self._changes_by = None
         self.changes.append(change)
         self._out.append(Roster(change))
 

@@ -4,7 +4,8 @@ The in-process fleet and the world process call a sink as they record:
 ``start(scenario)`` once, ``update(recorder)`` every ``UPDATE_EVERY`` ticks with the
 Recorder (the sink logs whatever rows are new since its last call, batched),
 ``event(e)`` for things a person should read (a :class:`FleetEvent`), ``link_state(t, src, dst, state)``
-for link changes, and ``close()`` at the end, also after Ctrl-C, so a recording is
+for link changes, optionally ``radio(t, watch)`` at each radio geometry sample
+(cdus.sim.radio.RadioWatch: link delivery probabilities, the station, utilisation), and ``close()`` at the end, also after Ctrl-C, so a recording is
 always complete. The Rerun sink lives in the world process (:mod:`world_sim.rerun_sink`).
 """
 

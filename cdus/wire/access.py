@@ -82,6 +82,7 @@ def fleet_acl(fleet: str, listeners: Mapping[str, Sequence[str]], match_certific
 
     rules += [
         _rule("world-put", ("put",), [f"{keys.prefix(f)}/to/*/ctl", f"{keys.prefix(f)}/to/*/contacts",
+                                      f"{keys.prefix(f)}/to/*/radio",
                                       keys.launcher_cmd(f), keys.world_status(f), keys.world_events(f)]),
         _rule("world-token", ("liveliness_token",), [keys.alive(f, keys.WORLD)]),
         _rule("world-last", ("declare_queryable", "reply"), [keys.world_last(f, "*"), keys.any_world_command(f)]),

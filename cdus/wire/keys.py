@@ -8,6 +8,7 @@ through one subscription (``to/$*+<me>+$*/**``, :func:`inbox`) and waits in one 
     cdus/<fleet>/to/<set>/omega/<src>   ω of vehicle <src> to the vehicles listening to it
     cdus/<fleet>/to/<set>/ctl           the world's clock, roster and relayed commands
     cdus/<fleet>/to/+<id>+/contacts     the world's proximity sensor: what vehicle <id> sees
+    cdus/<fleet>/to/<set>/radio         the world's radio geometry samples (every vehicle's position)
     cdus/<fleet>/to/+world+/state/<src> telemetry batches of vehicle <src>
     cdus/<fleet>/to/+world+/stats/<src> its counters, about once a second
     cdus/<fleet>/to/+world+/cmd/<from>  commands to the world (ground stations, the launcher)
@@ -66,6 +67,11 @@ def ctl(fleet: str, ids: Iterable[str]) -> str:
 
 def contacts(fleet: str, vid: str) -> str:
     return f"cdus/{fleet}/to/+{vid}+/contacts"
+
+
+def radio(fleet: str, ids: Iterable[str]) -> str:
+    """The radio geometry samples the world sends to the vehicles ``ids`` (docs/radio.md)."""
+    return f"cdus/{fleet}/to/{recipients(ids)}/radio"
 
 
 def state(fleet: str, src: str) -> str:

@@ -241,6 +241,55 @@ def decode_contacts(payload: bytes, n_vehicles: int | None = None, receiver: int
     return ContactsMsg(tick, tuple(out))
 
 
+# --------------------------------------------------------------------------- radio geometry
+
+GEOMETRY_VERSION = 1
+MAX_GEOMETRY_VEHICLES = 4096
+MAX_COORDINATE = 1.0e7  # m: a position further out than this is not a vehicle's (10,000 km)
+
+
+@dataclass(frozen=True)
+class GeometryMsg:
+    """The world's radio geometry sample (docs/radio.md, "Integration"): every vehicle's
+    position at control tick ``tick``, indexed like the scenario's vehicles; None for a
+    vehicle that did not step that tick (not live). 2D vehicles are sent 2 coordinates."""
+
+    tick: int
+    positions: tuple[tuple[float, ...] | None, ...]
+
+
+def encode_geometry(m: GeometryMsg) -> bytes:
+    """[version, tick, [[x, y(, z)] | nil, ...]] in msgpack, every float as float64."""
+    return _pack([GEOMETRY_VERSION, m.tick, [None if q is None else [float(x) for x in q] for q in m.positions]])
+
+
+def decode_geometry(payload: bytes, n_vehicles: int | None = None) -> GeometryMsg | str:
+    """A valid geometry sample, or the reason it is rejected (``oversized``, ``malformed``,
+    ``version``, ``type``, ``non_finite``, ``range`` (a coordinate beyond
+    :data:`MAX_COORDINATE`), ``count`` (not one entry per vehicle of the fleet)); never raises."""
+    obj = _versioned_triple(payload, 30 * MAX_GEOMETRY_VEHICLES + 32, MAX_GEOMETRY_VEHICLES, GEOMETRY_VERSION)
+    if isinstance(obj, str):
+        return obj
+    tick, rows = obj
+    if type(tick) is not int or tick < 0 or not isinstance(rows, list):
+        return "type"
+    out: list[tuple[float, ...] | None] = []
+    for q in rows:
+        if q is None:
+            out.append(None)
+            continue
+        if not isinstance(q, list) or len(q) not in (2, 3) or not all(type(x) is float for x in q):
+            return "type"
+        if not all(math.isfinite(x) for x in q):
+            return "non_finite"
+        if not all(abs(x) <= MAX_COORDINATE for x in q):
+            return "range"
+        out.append(tuple(q))
+    if n_vehicles is not None and len(out) != n_vehicles:
+        return "count"
+    return GeometryMsg(tick, tuple(out))
+
+
 # --------------------------------------------------------------------------- control maps
 
 CONTROL_VERSION = 1
@@ -258,6 +307,7 @@ CTL_OPS: dict[str, dict[str, type]] = {
     "gains": {"gains": dict, "tick": int},  # k and/or c from tick `tick`
     "formation": {"phases": dict, "tick": int},  # {id: θ} (ω units) from tick `tick`; others keep theirs
     "path": {"vehicle": str, "path": dict, "tick": int},  # a path table for `vehicle` from tick `tick`
+    "radio": {"radio": dict, "at": float},  # radio changes (tx_power, station) for messages sent from `at`
     "stop": {},  # end of run: finish, report, exit
 }
 
@@ -271,6 +321,7 @@ COMMAND_OPS: dict[str, dict[str, type]] = {
     # phases {id: θ} or offsets [{i, k, delta}, ...] (exactly one non-empty); from the next tick the world can
     "formation": {"phases": dict, "offsets": list},
     "path": {"vehicle": str, "path": dict},  # a path table like the config's, for one vehicle
+    "radio": {"radio": dict, "at": float},  # {tx_power, station}; at < 0: as soon as possible
     "kill": {"vehicle": str},
     "pause_vehicle": {"vehicle": str},
     "resume_vehicle": {"vehicle": str},

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from typing import Any, Collection
 
 import msgpack
@@ -46,6 +46,9 @@ EVENT_KINDS: dict[str, str] = {
     "fleet": "info",  # the fleet paused, resumed or stopped
     "rejected": "warn",  # a command or message was rejected
     "suspect": "warn",  # a vehicle received ω that its sender cannot have sent (future, conflict, implausible)
+    "radio_split": "warn",  # [radio]: the communication graph (links likely to deliver) lost its spanning tree
+    "radio_joined": "info",  # ... and has one again
+    "radio_changed": "info",  # [radio]: transmit power or the station changed at run time
 }
 MAX_TEXT = 300
 MAX_ID = 64
@@ -65,6 +68,8 @@ CLOCKS = ("lockstep", "realtime")
 #: tests/wire/test_schemas.py checks that they agree)
 FAULT_COUNTERS = ("sent", "dropped", "duplicated", "delayed")
 DROP_CAUSES = ("loss", "burst", "down", "partition")
+#: the radio path's drop causes (cdus.core.radiolink.RADIO_CAUSES; tests/wire/test_schemas.py checks them)
+RADIO_CAUSES = ("fault", "range", "fading", "collision", "queue")
 LINK_STATES = ("up", "lossy", "down")
 ORIGIN_WORLD = "world"
 ORIGINS = (ORIGIN_WORLD, "launcher")  # the processes that are not vehicles and report events
@@ -182,17 +187,37 @@ class AgentStats:
     bursts: tuple[Any, ...] = ()
     interventions: int = 0  # control steps at which the safety filter changed the velocity reference
     incarnation: int = 0  # drawn at random when the process starts: a new value is a new process (a restart)
+    #: with [radio]: its RadioLink's counters ({sent, delivered, dropped, dropped_by: {fault, range,
+    #: fading, collision, queue}, no_geometry}; cdus.core.radiolink.RadioCounters.as_dict); None without
+    radio: dict | None = None
 
     def as_dict(self) -> dict[str, Any]:
-        d = asdict(self)
+        """A plain map of every field (containers copied): what encode_stats packs. Built field
+        by field: dataclasses.asdict deep-copied every leaf, 88 µs of the 139 µs an agent spent
+        on its once-a-second report (bench/realtime_capacity.py)."""
+        d = {name: getattr(self, name) for name in _STAT_NAMES}
+        d["rejected_by_reason"] = dict(self.rejected_by_reason)
         d["latencies_ms"] = list(self.latencies_ms)
+        d["faults"] = _copy_tree(self.faults)
         d["bursts"] = [b.event().as_dict() if isinstance(b, BurstReport) else b for b in self.bursts]
         return d
 
 
+def _copy_tree(x: Any) -> Any:
+    """A copy of nested dicts, lists and tuples (their leaves, numbers and strings, shared)."""
+    if isinstance(x, dict):
+        return {k: _copy_tree(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return type(x)(_copy_tree(v) for v in x)
+    return x
+
+
+_STAT_NAMES = tuple(f.name for f in fields(AgentStats))
+
+
 _STAT_INTS = ("tick", "sent_to_me", "delivered", "dropped", "duplicated", "rejected", "missed_deadlines", "joined_at",
               "interventions", "incarnation")
-_STAT_FIELDS = {"v", "id", "rejected_by_reason", "latencies_ms", "faults", "bursts", *_STAT_INTS}
+_STAT_FIELDS = {"v", "id", "rejected_by_reason", "latencies_ms", "faults", "bursts", "radio", *_STAT_INTS}
 
 
 def encode_stats(s: AgentStats) -> bytes:
@@ -244,8 +269,27 @@ def decode_stats(payload: bytes, ids: Collection[str] | None = None) -> AgentSta
     reports = tuple(_burst(b, ids) for b in bursts)
     if not all(reports):
         return "bursts"
+    radio = obj.get("radio")
+    if radio is not None:
+        radio = _radio_counters(radio)
+        if radio is None:
+            return "radio"
     return AgentStats(vid, rejected_by_reason={k: int(x) for k, x in by.items()},
-                      latencies_ms=tuple(float(x) for x in lat), faults=checked, bursts=reports, **ints)
+                      latencies_ms=tuple(float(x) for x in lat), faults=checked, bursts=reports, radio=radio, **ints)
+
+
+def _radio_counters(d: Any) -> dict | None:
+    """A RadioLink's counters block, checked and rebuilt, or None."""
+    if not isinstance(d, dict) or set(d) != {"sent", "delivered", "dropped", "dropped_by", "no_geometry"}:
+        return None
+    by = d["dropped_by"]
+    if not isinstance(by, dict) or set(by) != set(RADIO_CAUSES):
+        return None
+    nums = [d["sent"], d["delivered"], d["dropped"], d["no_geometry"], *(by[c] for c in RADIO_CAUSES)]
+    if not all(type(x) is int and 0 <= x < MAX_COUNT for x in nums):
+        return None
+    return {"sent": d["sent"], "delivered": d["delivered"], "dropped": d["dropped"],
+            "dropped_by": {c: by[c] for c in RADIO_CAUSES}, "no_geometry": d["no_geometry"]}
 
 
 def _counter_block(d: Any) -> dict | None:
@@ -311,36 +355,87 @@ def _burst(d: Any, ids: Collection[str] | None) -> BurstReport | None:
 
 STATUS_KEYS = ("t", "duration", "clock", "alive", "ids", "path_error_max", "coord_error_max", "events", "paused",
                "roster")
-#: a vehicle's state in the world's roster (status ``roster``): stepping, paused (by a fault or a
-#: ground station), gone (killed, lost) from the tick the world is at
-ROSTER_STATES = ("live", "paused", "gone")
+#: optional fields (added within version 1; a status without them is still valid, and decodes
+#: with them absent): what a live console shows and raises alarms on (docs/console.md)
+#: - kinds: each vehicle's kind ("usv" | "uav"), in ``ids`` order
+#: - states: each vehicle's state in the world's roster ("live" | "paused" | "gone"), in ``ids`` order
+#: - edges: [a, b, error (rad) or None when an end is not live] per coordination edge, at the newest tick
+#: - links: [src, dst, sent, dropped, state] per directed link the link emulator decides (a link with faults)
+#: - rx: [ω messages addressed to the vehicle, dropped] per vehicle (None before its first counters)
+#: - safety_radius: the scenario's [safety] radius R (m, its default when the table is absent)
+#: - closest: [a, b, distance (m)]: the closest pair of live vehicles of one kind at the newest tick
+#: - path_errors: each vehicle's |Φ| (m) at the newest tick, None where it is not live, in ``ids`` order
+#: - directed: whether the graph is directed (``edges`` then go i -> k as the scenario's; else each pair once)
+STATUS_EXTRA = ("kinds", "states", "edges", "links", "rx", "safety_radius", "closest", "path_errors", "directed")
+VEHICLE_KINDS = ("usv", "uav")
+#: a vehicle's state in the world's roster (status ``roster`` {id: state}, and ``states`` in ids
+#: order): stepping, paused (by a fault or a ground station), gone (killed, lost) at the world's tick
+ROSTER_STATES = ("live", "paused", "gone")  # cdus.core.events.STATES
+MAX_STATUS_EDGES = 512
+MAX_STATUS_LINKS = 512
+
+
+@dataclass(frozen=True)
+class StatusExtra:
+    """The optional status fields the world fills in (see STATUS_EXTRA)."""
+
+    kinds: list[str] | None = None
+    states: list[str] | None = None
+    edges: list[tuple[str, str, float | None]] | None = None
+    links: list[tuple[str, str, int, int, str | None]] | None = None
+    rx: list[tuple[int, int] | None] | None = None
+    safety_radius: float | None = None
+    closest: tuple[str, str, float] | None = None
+    path_errors: list[float | None] | None = None
+    directed: bool | None = None
+
+    def as_dict(self) -> dict[str, Any]:
+        d = {"kinds": self.kinds, "states": self.states,
+             "edges": None if self.edges is None else [[a, b, _finite(e)] for a, b, e in self.edges[:MAX_STATUS_EDGES]],
+             "links": None if self.links is None else [list(x) for x in self.links[:MAX_STATUS_LINKS]],
+             "rx": None if self.rx is None else [None if r is None else list(r) for r in self.rx],
+             "safety_radius": _finite(self.safety_radius),
+             "closest": None if self.closest is None or _finite(self.closest[2]) is None else list(self.closest),
+             "path_errors": None if self.path_errors is None else [_finite(x) for x in self.path_errors],
+             "directed": self.directed}
+        return {k: v for k, v in d.items() if v is not None}
+
+
+STATUS_LIMIT = 1 << 16  # bytes: decode_status takes no bigger status
 
 
 def encode_status(t: float, duration: float, clock: str, alive: list[str], ids: list[str],
                   path_error_max: float | None, coord_error_max: float | None, events: list[FleetEvent],
-                  paused: bool, roster: dict[str, str] | None = None) -> bytes:
-    d = {"v": SCHEMA_VERSION, "t": t, "duration": duration, "clock": clock, "alive": alive,
-         "ids": ids, "path_error_max": _finite(path_error_max),
-         "coord_error_max": _finite(coord_error_max), "events": [e.as_dict() for e in events],
-         "paused": paused}
+                  paused: bool, roster: dict[str, str] | None = None,
+                  extra: StatusExtra | None = None) -> bytes:
+    """The status; the ``extra`` fields only as far as they fit in STATUS_LIMIT (a fleet of
+    thousands: first the edges and links are left out, then the rest), never the summary."""
+    base = {"v": SCHEMA_VERSION, "t": t, "duration": duration, "clock": clock, "alive": alive, "ids": ids,
+            "path_error_max": _finite(path_error_max), "coord_error_max": _finite(coord_error_max),
+            "events": [e.as_dict() for e in events], "paused": paused}
     if roster is not None:
-        d["roster"] = roster
-    return msgpack.packb(d, use_bin_type=True)
+        base["roster"] = roster
+    more = extra.as_dict() if extra else {}
+    for fields in (more, {k: v for k, v in more.items() if k not in ("edges", "links")}, {}):
+        out = msgpack.packb({**base, **fields}, use_bin_type=True)
+        if len(out) <= STATUS_LIMIT:
+            break
+    return out
 
 
 def decode_status(payload: bytes, ids: Collection[str] | None = None) -> dict[str, Any] | str:
-    """The world's status as a dict (STATUS_KEYS; events as FleetEvent; ``roster`` None when the
-    world did not send it), or the reject reason.
-    Every field is checked: times finite and plausible, the clock a known one, ``alive`` a
-    subset of ``ids`` (and ``ids`` the receiver's, when it knows them), errors finite or
-    None, ``paused`` a bool, at most MAX_STATUS_EVENTS events, each a valid one (an invalid
-    event is left out)."""
-    obj = _unpack(payload, limit=1 << 16)
+    """The world's status as a dict (STATUS_KEYS, and those of STATUS_EXTRA it carries; events
+    as FleetEvent; ``roster`` None when the world did not send it), or the reject reason. Every field is checked: times finite and plausible,
+    the clock a known one, ``alive`` a subset of ``ids`` (and ``ids`` the receiver's, when it
+    knows them), errors finite or None, ``paused`` a bool, at most MAX_STATUS_EVENTS events,
+    each a valid one (an invalid event is left out); the optional fields as STATUS_EXTRA says
+    (``extra``: the reason when one is not)."""
+    obj = _unpack(payload, limit=STATUS_LIMIT)
     if isinstance(obj, str):
         return obj
     if obj.get("v") != SCHEMA_VERSION:
         return "version"
-    if not set(obj) <= {"v", *STATUS_KEYS}:
+    if not set(obj) <= {"v", *STATUS_KEYS, *STATUS_EXTRA}:
         return "unknown_field"
     t, duration, alive, sids, events = obj.get("t"), obj.get("duration"), obj.get("alive"), obj.get("ids"), \
         obj.get("events")
@@ -368,6 +463,82 @@ def decode_status(payload: bytes, ids: Collection[str] | None = None) -> dict[st
     out["events"] = [e for e in (event_from_dict(d, known) for d in events) if isinstance(e, FleetEvent)]
     out["paused"] = bool(obj.get("paused"))
     out["roster"] = None if roster is None else {k: str(x) for k, x in roster.items()}
+    extra = _status_extra(obj, list(sids))
+    if isinstance(extra, str):
+        return extra
+    out.update(extra)
+    return out
+
+
+def _in(x: Any, allowed: Collection[str]) -> bool:
+    """A string among ``allowed`` (a value off the wire may be unhashable)."""
+    return isinstance(x, str) and x in allowed
+
+
+def _count(x: Any) -> bool:
+    return type(x) is int and 0 <= x < MAX_COUNT
+
+
+def _status_extra(obj: dict, sids: list[str]) -> dict[str, Any] | str:
+    """The optional status fields present in ``obj``, checked against the status's own ``ids``
+    and rebuilt, or ``extra`` (one of them is not what STATUS_EXTRA says)."""
+    out: dict[str, Any] = {}
+    n, known = len(sids), set(sids)
+    for name in ("kinds", "states"):
+        if name in obj:
+            x, allowed = obj[name], VEHICLE_KINDS if name == "kinds" else ROSTER_STATES
+            if not _strings(x) or len(x) != n or not all(_in(s, allowed) for s in x):
+                return "extra"
+            out[name] = [str(s) for s in x]
+    if "edges" in obj:
+        x = obj["edges"]
+        if not isinstance(x, list) or len(x) > MAX_STATUS_EDGES:
+            return "extra"
+        edges = []
+        for e in x:
+            if not (isinstance(e, list) and len(e) == 3 and _in(e[0], known) and _in(e[1], known) and e[0] != e[1]
+                    and (e[2] is None or _number(e[2]) and e[2] >= 0)):
+                return "extra"
+            edges.append((str(e[0]), str(e[1]), None if e[2] is None else float(e[2])))
+        out["edges"] = edges
+    if "links" in obj:
+        x = obj["links"]
+        if not isinstance(x, list) or len(x) > MAX_STATUS_LINKS:
+            return "extra"
+        links = []
+        for e in x:
+            if not (isinstance(e, list) and len(e) == 5 and _in(e[0], known) and _in(e[1], known) and e[0] != e[1]
+                    and _count(e[2]) and _count(e[3]) and e[3] <= e[2] and (e[4] is None or _in(e[4], LINK_STATES))):
+                return "extra"
+            links.append((str(e[0]), str(e[1]), int(e[2]), int(e[3]), None if e[4] is None else str(e[4])))
+        out["links"] = links
+    if "rx" in obj:
+        x = obj["rx"]
+        if not isinstance(x, list) or len(x) != n or not all(
+                r is None or isinstance(r, list) and len(r) == 2 and _count(r[0]) and _count(r[1]) and r[1] <= r[0]
+                for r in x):
+            return "extra"
+        out["rx"] = [None if r is None else (int(r[0]), int(r[1])) for r in x]
+    if "safety_radius" in obj:
+        r = obj["safety_radius"]
+        if not _number(r) or not 0 < r <= MAX_TIME:
+            return "extra"
+        out["safety_radius"] = float(r)
+    if "closest" in obj:
+        c = obj["closest"]
+        if not (isinstance(c, list) and len(c) == 3 and _in(c[0], known) and _in(c[1], known) and c[0] != c[1]
+                and _number(c[2]) and 0 <= c[2] <= MAX_TIME):
+            return "extra"
+        out["closest"] = (str(c[0]), str(c[1]), float(c[2]))
+    if "path_errors" in obj:
+        x = obj["path_errors"]
+        if not isinstance(x, list) or len(x) != n or not all(e is None or _number(e) and e >= 0 for e in x):
+            return "extra"
+        out["path_errors"] = [None if e is None else float(e) for e in x]
+    if "directed" in obj:
+        if type(obj["directed"]) is not bool:
+            return "extra"
+        out["directed"] = obj["directed"]
     return out
 
 

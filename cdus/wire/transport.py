@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import ipaddress
 import json
+import os
 import socket
 from dataclasses import dataclass, field
 from typing import Sequence
@@ -165,6 +166,54 @@ def zenoh_config(t: Transport):
 
 def open_session(t: Transport):
     return zenoh.open(zenoh_config(t))
+
+
+# Zenoh's runtime (its thread pools) is configured per process, by the ZENOH_RUNTIME environment
+# variable, read once when the process first needs the runtime. Zenoh's default suits a process
+# that has cores to itself: here dozens share two, and every idle pool thread is a wake-up.
+#: every process the launcher starts (world, agents): one worker thread, the network tasks
+#: (accept, receive, transmit) handed over to it (measured: lockstep lake_circle 13x -> 17x
+#: real time on 2 cores; 6 threads per agent, 3 of them Zenoh's)
+CHILD_RUNTIME = "(app: (worker_threads: 1), acc: (handover: app), rx: (handover: app), tx: (handover: app))"
+#: the launcher's own session, the fleet's router, keeps Zenoh's default pools ("default": the
+#: launcher sets nothing; rx-0, rx-1, tx-0, acc-0, app-0, net-0). Fewer routing threads cost
+#: less CPU (SMALL_ROUTER_RUNTIME: router 17 -> 10 % of a core on the 64-vehicle realtime ring)
+#: but are not safe: the router forwards a message sent with congestion control BLOCK by
+#: waiting for room in the outgoing link's queue (up to wait_before_close, 1 s), on the thread
+#: that routes. On one routing thread that stalls every link: a partitioned vehicle's link
+#: stalled the others' (a boat lost and back, a UAV noticed 10 s late:
+#: tests/e2e/test_multihost.py, partition), and with transmit on that thread too a flooded
+#: lockstep fleet hung (tests/e2e/test_hostile.py). bench/realtime_capacity.py
+#: --router-runtime default,small,single compares them.
+ROUTER_RUNTIME = "default"
+SMALL_ROUTER_RUNTIME = "(app: (worker_threads: 1), acc: (handover: app), rx: (handover: app), tx: (worker_threads: 1))"
+RUNTIME_ENV = "ZENOH_RUNTIME"
+#: names the launcher's own runtime ("default": Zenoh's; a bench compares them); ZENOH_RUNTIME, if set, wins
+ROUTER_RUNTIME_ENV = "CDUS_ROUTER_RUNTIME"
+
+
+def use_runtime(spec: str, env=None) -> str:
+    """Give this process (``env``: os.environ) Zenoh runtime ``spec`` unless the user set
+    ZENOH_RUNTIME; returns the one in force. Only effective before the process's first Zenoh
+    session (Zenoh reads the variable once)."""
+    global _OWN_RUNTIME
+    if env is None:
+        env = os.environ
+        if RUNTIME_ENV not in env:
+            _OWN_RUNTIME = spec
+    return env.setdefault(RUNTIME_ENV, spec)
+
+
+_OWN_RUNTIME: str | None = None  # what use_runtime gave this process (not the user's choice)
+
+
+def children_runtime(env=None) -> str:
+    """The ZENOH_RUNTIME for the processes this one starts: the user's, else CHILD_RUNTIME (not
+    the router's that :func:`use_runtime` may have given this process: a program that launches
+    one fleet after another would pass it on)."""
+    env = os.environ if env is None else env
+    mine = env.get(RUNTIME_ENV)
+    return CHILD_RUNTIME if mine is None or mine == _OWN_RUNTIME else mine
 
 
 def with_default_endpoint(t: Transport) -> Transport:

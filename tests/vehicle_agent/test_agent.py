@@ -478,8 +478,8 @@ def test_a_restarted_agent_takes_omega_from_a_run_under_way_before_it_knows_wher
     omega_from(s, a, "usv2", 300)  # far past any window of a process that has not joined yet
     a._drain(lambda: None)
     assert not a.rejected and a.node.seen_seq[a.ids.index("usv2")] == 300
-    b, s, lines = fake(duration=10.0)  # a first start: tick 300 is beyond what anyone was granted
-    omega_from(s, b, "usv2", 300)
+    b, s, lines = fake(duration=100.0)  # a first start: a tick beyond what anyone can have been granted
+    omega_from(s, b, "usv2", agent_module.LOCKSTEP_SEQ_MARGIN + 1)
     b._drain(lambda: None)
     assert b.rejected == {"future": 1}
 
@@ -499,3 +499,31 @@ def test_gains_past_the_bound_for_the_rate_are_refused_by_the_agent_too(fake):
     a._drain(lambda: None)
     assert a.rejected["bad_gains_command"] == 1 and not a.node._gains
     assert any("too large" in ln for ln in lines)
+
+
+def test_after_an_outage_an_agent_says_again_every_omega_its_lookahead_can_have_run_ahead(fake):
+    """With a least link delay of 0.5 s (25 ticks) a sender steps 25 ticks past its neighbours'
+    newest ω, so more than 16 of its messages can be lost in flight when the router goes: it
+    says again (far) more than that."""
+    a, s, lines = fake(duration=2.0, **{"link.delay.base": 0.5})
+    a.clock.begun, a.clock.granted = True, a.last_tick
+    for n in range(40):
+        a._tick(n)
+    sent = list(a.pub_omega.puts)
+    a.pub_omega.puts.clear()
+    a._resend()
+    assert a.pub_omega.puts == sent  # all 40, in order
+
+
+def test_after_an_outage_an_agent_says_again_the_telemetry_a_grant_window_can_hold(fake):
+    """A vehicle runs up to a grant window (hundreds of ticks) past the world's newest row of the
+    slowest vehicle: rows lost in flight then are said again, in messages the world takes."""
+    a, s, lines = fake(duration=10.0)
+    a.clock.begun, a.clock.granted = True, a.last_tick
+    for n in range(300):
+        a._tick(n)
+    a.flush_states()
+    a.pub_state.puts.clear()
+    a._resend()
+    rows = [r for p in a.pub_state.puts for r in decode_states(p, len(a.ids))]
+    assert [r.tick for r in rows] == list(range(300))

@@ -342,3 +342,28 @@ def test_an_event_text_from_the_wire_comes_out_escaped():
     assert decode_event(pack({**GOOD_EVENT, "vehicle": "usv9"}), IDS) == "unknown_sender"
     assert decode_event(pack({**GOOD_EVENT, "t": 1e308})) == "range"
     assert decode_status(status(t=1e308)) == "range"
+
+
+def test_agent_stats_as_dict_is_asdict_with_its_containers_copied():
+    # as_dict is built field by field (dataclasses.asdict deep-copied every leaf: the most of an
+    # agent's once-a-second report); it must give what asdict gave, and share no container
+    import dataclasses
+
+    from cdus.wire.schemas import AgentStats
+
+    faults = {"total": {"sent": 3, "dropped_by": {"loss": 1}}, "links": {"a->b": {"sent": 3}},
+              "state_changes": [{"t": 0.5, "link": "a->b", "state": "down"}]}
+    burst = {"t": 1.0, "kind": "link_burst", "text": "x"}
+    s = AgentStats(id="a", tick=7, rejected_by_reason={"stale": 2}, latencies_ms=(1.0, 2.5), faults=faults,
+                   bursts=(burst,), interventions=1, incarnation=9)
+    d = s.as_dict()
+    ref = dataclasses.asdict(s)
+    ref["latencies_ms"] = list(s.latencies_ms)
+    ref["bursts"] = [burst]
+    assert d == ref and list(d) == list(ref)
+    d["rejected_by_reason"]["stale"] = 99
+    d["faults"]["total"]["dropped_by"]["loss"] = 99
+    d["faults"]["state_changes"].append({})
+    assert s.rejected_by_reason == {"stale": 2} and faults["total"]["dropped_by"]["loss"] == 1
+    assert len(faults["state_changes"]) == 1
+    assert AgentStats(id="b", tick=0).as_dict()["faults"] is None

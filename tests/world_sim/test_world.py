@@ -329,7 +329,8 @@ def test_telemetry_for_ticks_not_granted_is_rejected_and_never_recorded():
     w._record_complete()
     assert len(w.recorder) == 0
     for j, vid in enumerate(w.ids):  # the genuine rows still count
-        send_rows(w, vid, [row(j, n) for n in range(granted + 1)])
+        for first in range(0, granted + 1, 50):  # in batches (at most MAX_STATE_ROWS a message)
+            send_rows(w, vid, [row(j, n) for n in range(first, min(first + 50, granted + 1))])
     w._record_complete()
     assert w.next_tick == granted + 1 and (w.recorder.view("path_error") == 0.5).all()
 

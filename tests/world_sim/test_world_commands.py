@@ -176,7 +176,8 @@ def test_realtime_a_fault_with_nothing_to_do_is_rejected_as_in_lockstep():
     w._on_alive("usv3", False)  # its token lapses: the status says paused, not gone
     ask(w, "kill", vehicle="usv1")
     w._on_alive("usv1", False)
-    assert w._roster_now() == {**{vid: "live" for vid in w.ids}, "usv3": "paused", "usv1": "gone"}
+    states = dict(zip(w.ids, w._status_extra().states))
+    assert states == {**{vid: "live" for vid in w.ids}, "usv3": "paused", "usv1": "gone"}
     assert ask(w, "kill", vehicle="usv2").answer.applied  # restarted: live again
     assert ask(w, "kill", vehicle="usv2").answer.reason == "usv2 is killed (nothing done)"
     assert [e.kind for e in w.events if e.kind in ("fault", "rejected")].count("rejected") == 7

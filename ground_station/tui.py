@@ -1,0 +1,334 @@
+"""`cdus gs ... console`: the live console, a terminal UI (Textual) on a GroundStation.
+
+It shows, refreshed twice a second from what the ground station hears (the world's status,
+each vehicle's telemetry and liveliness, the fleet's events):
+
+- a header: the fleet, the world's simulated time and clock, vehicles alive, the worst
+  errors, PAUSED while the fleet is;
+- the vehicle table: id, kind, state (live / paused / lost), its telemetry's time,
+  position, ω, ω̇, |Φ|, the worst error of its coordination edges, the ω messages
+  addressed to it and how many its link dropped;
+- the edges and their errors; the links the emulator decides, with sent and dropped counts;
+- the alarms (ground_station.alarms), active ones and a history stamped with simulated time;
+- a log: the outcome of each command and the fleet's events.
+
+Keys (docs/console.md): ↑/↓ select a vehicle; p / r pause / resume it, k kill it (asks
+y/n first), t restart it; P / R pause / resume the fleet; q quit. Every command goes
+through :func:`send_command`, the one place the console sends (an acknowledged command).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any, Callable
+
+import zenoh
+from rich.text import Text
+from textual.app import App, ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal
+from textual.css.query import NoMatches
+from textual.screen import ModalScreen
+from textual.widgets import DataTable, Footer, RichLog, Static
+
+from cdus.wire import keys
+from cdus.wire.schemas import FleetEvent
+from ground_station.alarms import Alarms
+from ground_station.console import _text, num
+
+REFRESH_S = 0.5
+STALE_S = 3.0  # the world publishes its status every second: this long without one is news
+#: (title, width): fixed widths, so a longer value later (paused, lost) is never cut
+VEHICLE_COLUMNS = (("vehicle", 12), ("kind", 4), ("state", 6), ("t (s)", 9), ("x (m)", 8), ("y (m)", 8),
+                   ("z (m)", 6), ("ω", 10), ("ω̇", 7), ("|Φ| (m)", 8), ("edge err", 9), ("rx ω", 8), ("dropped", 7))
+EDGE_COLUMNS = (("edge", 25), ("error (rad)", 11))
+LINK_COLUMNS = (("link / receiver", 27), ("sent", 9), ("dropped", 8), ("state", 6))
+
+
+def send_command(gs: Any, op: str, vehicle: str | None = None) -> tuple[bool, str]:
+    """Send one operator command, wait for the world's answer and say what became of it: (ok, a
+    line for the log). ``op``: pause | resume (the fleet, without ``vehicle``) or pause | resume |
+    kill | restart (one vehicle). Runs off the UI thread: the answer can take the command's
+    timeout (GroundStation.command: applied from a tick, rejected with the reason, denied, or no
+    answer)."""
+    what = f"{op} {vehicle}" if vehicle else f"{op} fleet"
+    wire = {"pause": "pause_vehicle", "resume": "resume_vehicle"}.get(op, op) if vehicle else op
+    try:
+        answer = gs.command(wire, **({"vehicle": vehicle} if vehicle else {}))
+    except (zenoh.ZError, ValueError, RuntimeError, AttributeError) as e:
+        return False, f"{what}: FAILED, {_text(str(e), 200)}"
+    r = answer.reply
+    if answer.outcome == "applied" and r is not None:
+        when = f"tick {r.tick}" + (f" (t = {r.t:.2f} s)" if isinstance(r.t, float) else "")
+        return True, f"{what}: applied from {when}"
+    if answer.outcome == "rejected" and r is not None:
+        return False, f"{what}: REJECTED, {_text(r.reason or 'no reason given', 200)}"
+    return False, f"{what}: {answer.outcome.replace('_', ' ').upper()}, {_text(answer.detail, 200)}"
+
+
+def vehicle_state(vid: str, world: dict | None, alive: set[str]) -> str:
+    """live / paused / lost: the world's roster where its status has it, else its liveliness;
+    a vehicle whose liveliness token is gone is lost unless the roster says it is paused."""
+    st = None
+    if world:
+        ids, states = world.get("ids") or [], world.get("states")
+        if isinstance(states, list) and len(states) == len(ids) and vid in ids:
+            st = states[ids.index(vid)]
+    tokens = alive or set((world or {}).get("alive") or [])  # ours, or the world's before ours come in
+    if st == "paused":  # a stopped process's token lapses with the lease: paused still, as the operator asked
+        return "paused"
+    if tokens and vid not in tokens or st == "gone":
+        return "lost"
+    st = st or ("live" if vid in tokens else "lost")
+    return "paused" if st == "live" and world and world.get("paused") else st
+
+
+def snapshot(view: Any) -> dict[str, Any]:
+    """What the screen shows, read once under the view's lock: plain values, no widgets
+    (tested without a terminal)."""
+    with view.lock:
+        w = view.world  # replaced whole by each status, never changed in place
+        states = dict(view.states)
+        alive = set(view.alive) - {keys.WORLD, keys.GROUND, "launcher"}
+        events = list(view.events[-200:])
+        rejected = view.rejected
+    # the world's ids when it has spoken (other names on the fleet's keys are not vehicles of the run:
+    # ground stations' tokens, forgeries); before that, whoever sends telemetry or holds a token
+    ids = [v for v in (w or {}).get("ids") or [] if isinstance(v, str)] or sorted(set(states) | alive)
+    kinds = dict(zip((w or {}).get("ids") or [], (w or {}).get("kinds") or []))
+    rx = dict(zip((w or {}).get("ids") or [], (w or {}).get("rx") or []))
+    edges = (w or {}).get("edges") or []
+    worst_edge: dict[str, float] = {}
+    for a, b, e in edges:
+        if e is not None:
+            for v in (a, b):
+                worst_edge[v] = max(worst_edge.get(v, 0.0), e)
+    rows = []
+    for vid in ids:
+        m = states.get(vid)
+        q = list(m.q) + [None] * 3 if m is not None else [None] * 3
+        r = rx.get(vid)
+        rows.append((vid, kinds.get(vid, "?"), vehicle_state(vid, w, alive),
+                     num(m.t if m else None, ".2f"), num(q[0], ".1f"), num(q[1], ".1f"),
+                     num(q[2], ".1f") if m is not None and len(m.q) > 2 else "",
+                     num(m.omega if m else None), num(m.omega_rate if m else None), num(m.path_error if m else None),
+                     num(worst_edge.get(vid), ".4f"), "-" if r is None else str(r[0]), "-" if r is None else str(r[1])))
+    if w:
+        n_alive = sum(1 for v in ids if vehicle_state(v, w, alive) != "lost")
+        header = (f"t = {num(w.get('t'), '.1f')} / {num(w.get('duration'), '.0f')} s  ({_text(w.get('clock'), 16)})"
+                  f"   {n_alive}/{len(ids)} vehicles alive" + ("   FLEET PAUSED" if w.get("paused") else "")
+                  + f"\nworst |Φ| {num(w.get('path_error_max'))} m   worst edge error "
+                  f"{num(w.get('coord_error_max'), '.4f')} rad"
+                  + ("   closest {} - {} {} m".format(*w["closest"][:2], num(w["closest"][2], ".2f"))
+                     if w.get("closest") else "")
+                  + (f" (safety radius {num(w['safety_radius'], 'g')} m)" if w.get("safety_radius") else ""))
+    else:
+        header = "no status from the world yet"
+    if rejected:
+        header += f"   ({rejected} malformed messages ignored)"
+    heard = {v: m.t for v, m in states.items() if v in ids and isinstance(m.t, float) and math.isfinite(m.t)}
+    now = max(heard.values(), default=None)
+    return {"world": w, "header": header, "rows": rows, "edges": edges, "links": (w or {}).get("links") or [],
+            "events": events, "alive": alive, "now": now, "heard": heard}
+
+
+def alarm_status(world: dict, alive: set[str], now: float | None = None,
+                 heard: dict[str, float] | None = None) -> dict:
+    """The world's status as the alarms read it: each vehicle's roster state, but ``gone`` as
+    soon as its liveliness token is (a killed process's token goes at once, the status comes
+    once a second), as the vehicle table shows it; its time the newest the console knows
+    (``now``: the newest telemetry's, ahead of the status's), so an alarm is not stamped
+    before what it reports); ``heard``: each vehicle's newest telemetry time, when a lost one
+    was last heard of."""
+    calm = {**world, "paused": False}  # the fleet's pause is not a vehicle's state
+    ids = [v for v in world.get("ids") or [] if isinstance(v, str)]
+    states = [vehicle_state(v, calm, alive) for v in ids]
+    t = world.get("t")
+    if now is not None and isinstance(t, float) and now > t:
+        t = now
+    return {**world, "t": t, "states": ["gone" if x == "lost" else x for x in states], "last_heard": heard or {}}
+
+
+class ConfirmKill(ModalScreen[bool]):
+    """Kill <vehicle>? y / n."""
+
+    BINDINGS = [Binding("y", "answer(True)", "yes, kill"), Binding("n", "answer(False)", "no"),
+                Binding("escape", "answer(False)", "no")]
+    DEFAULT_CSS = """
+    ConfirmKill { align: center middle; }
+    ConfirmKill > Static { width: 60; height: 5; border: thick $error; padding: 1 2; background: $surface; }
+    """
+
+    def __init__(self, vehicle: str):
+        super().__init__()
+        self.vehicle = vehicle
+
+    def compose(self) -> ComposeResult:
+        yield Static(Text(f"Kill {self.vehicle}'s process?  y: kill   n / Esc: keep it"))
+
+    def action_answer(self, yes: bool) -> None:
+        self.dismiss(yes)
+
+
+class ConsoleApp(App):
+    """The live console on ground station ``gs`` (anything with ``fleet``, ``view`` (a
+    FleetView), ``fleet_command`` and ``vehicle_fault``)."""
+
+    TITLE = "cdus console"
+    CSS = """
+    #header { height: auto; background: $primary-background; }
+    #vehicles { height: auto; max-height: 50%; }
+    #middle { height: 1fr; min-height: 6; }
+    #edges, #links { width: 1fr; }
+    #alarms { height: auto; max-height: 8; border-top: solid $error; }
+    #log { height: 1fr; border-top: solid $secondary; }
+    """
+    BINDINGS = [
+        Binding("p", "vehicle('pause')", "pause vehicle"),
+        Binding("r", "vehicle('resume')", "resume vehicle"),
+        Binding("k", "kill", "kill vehicle"),
+        Binding("t", "vehicle('restart')", "restart vehicle"),
+        Binding("P", "fleet('pause')", "pause fleet"),
+        Binding("R", "fleet('resume')", "resume fleet"),
+        Binding("q", "quit", "quit"),
+    ]
+
+    def __init__(self, gs: Any, refresh_s: float = REFRESH_S, send: Callable = send_command):
+        super().__init__()
+        self.gs = gs
+        self.refresh_s = refresh_s
+        self.send = send
+        self.alarms = Alarms()
+        self._status_seen: Any = None
+        self._status_at = time.monotonic()
+        self._last_event: FleetEvent | None = None  # the newest event already in the log (by identity)
+
+    def compose(self) -> ComposeResult:
+        yield Static(Text(f"fleet {self.gs.fleet}"), id="header")
+        yield DataTable(id="vehicles", cursor_type="row", zebra_stripes=True)
+        with Horizontal(id="middle"):
+            yield DataTable(id="edges", cursor_type="none")
+            yield DataTable(id="links", cursor_type="none")
+        yield Static(Text("alarms: none"), id="alarms")
+        yield RichLog(id="log", max_lines=500, markup=False, wrap=True)
+        yield Footer()
+
+    def on_mount(self) -> None:
+        for table, columns in (("#vehicles", VEHICLE_COLUMNS), ("#edges", EDGE_COLUMNS), ("#links", LINK_COLUMNS)):
+            t = self.query_one(table, DataTable)
+            for title, width in columns:
+                t.add_column(title, width=width)
+        self.query_one("#vehicles", DataTable).focus()
+        self.refresh_view()
+        self.set_interval(self.refresh_s, self.refresh_view)
+
+    # ------------------------------------------------------------------ the screen
+    def log_line(self, line: str) -> None:
+        try:
+            self.query_one("#log", RichLog).write(Text(line))
+        except NoMatches:  # an outcome that comes back as the console closes
+            pass
+
+    def selected(self) -> str | None:
+        table = self.query_one("#vehicles", DataTable)
+        if not table.row_count:
+            return None
+        row = table.get_row_at(table.cursor_coordinate.row)
+        return str(row[0]) if row else None
+
+    def refresh_view(self) -> None:
+        try:
+            self._refresh_view()
+        except NoMatches:  # a refresh due while the screen is being set up or torn down
+            pass
+
+    def _refresh_view(self) -> None:
+        snap = snapshot(self.gs.view)
+        w = snap["world"]
+        now = time.monotonic()
+        if w is not None and w is not self._status_seen:
+            self._status_at = now
+        quiet = now - self._status_at
+        stale = (f"   NO STATUS for {quiet:.0f} s (the world ended or the link to the router is down)"
+                 if quiet > STALE_S else "")
+        head, _, rest = snap["header"].partition("\n")
+        self.query_one("#header", Static).update(Text(f"fleet {self.gs.fleet}   {head}{stale}\n{rest}".rstrip()))
+        _fill(self.query_one("#vehicles", DataTable), snap["rows"])
+        _fill(self.query_one("#edges", DataTable),
+              [(f"{a}-{b}", num(e, ".4f", none="end down")) for a, b, e in snap["edges"]])
+        links = [(f"{s}->{d}", str(n), str(x), st or "-") for s, d, n, x, st in snap["links"]]
+        if not links and w:  # no emulated link faults: what each vehicle received
+            links = [(f"-> {v}", str(r[0]), str(r[1]), "") for v, r in zip(w.get("ids") or [], w.get("rx") or [])
+                     if r is not None]
+        _fill(self.query_one("#links", DataTable), links)
+        if w is not None and self._status_seen is None:  # what happened before the console came
+            for e in w.get("events") or []:
+                if isinstance(e, FleetEvent) and e.kind != "link_burst":
+                    self.log_line(f"event (before) {e.line()}")
+        if w is not None:  # every refresh: a vehicle's token going is news before the next status
+            self._status_seen = w
+            for ch in self.alarms.update(alarm_status(w, snap["alive"], snap["now"], snap["heard"])):
+                self.log_line(ch.line())
+        self._show_alarms()
+        events = snap["events"]
+        # the events after the newest one logged (the view keeps its newest MAX_EVENTS: count by identity)
+        start = next((i + 1 for i in range(len(events) - 1, -1, -1) if events[i] is self._last_event), 0)
+        for e in events[start:]:
+            if isinstance(e, FleetEvent) and e.kind != "link_burst":
+                self.log_line(f"event {e.line()}" + (f"  [{e.severity.upper()}]" if e.severity != "info" else ""))
+        if events:
+            self._last_event = events[-1]
+
+    def _show_alarms(self) -> None:
+        active = sorted(self.alarms.active.values(), key=lambda a: a.t)
+        lines = [f"ALARM t = {a.t:.2f} s: {a.text}" for a in active] or ["alarms: none"]
+        lines += self.alarms.notes
+        self.query_one("#alarms", Static).update(Text("\n".join(lines)))
+
+    # ------------------------------------------------------------------ commands
+    def _dispatch(self, op: str, vehicle: str | None) -> None:
+        what = f"{op} {vehicle}" if vehicle else f"{op} fleet"
+        self.log_line(f"> {what}")
+        self.run_worker(lambda: self.call_from_thread(self.log_line, self.send(self.gs, op, vehicle)[1]),
+                        thread=True, exclusive=False, group="commands")
+
+    def action_vehicle(self, op: str) -> None:
+        vid = self.selected()
+        if vid is None:
+            self.log_line(f"{op}: no vehicle selected")
+            return
+        self._dispatch(op, vid)
+
+    def action_fleet(self, op: str) -> None:
+        self._dispatch(op, None)
+
+    def action_kill(self) -> None:
+        vid = self.selected()
+        if vid is None:
+            self.log_line("kill: no vehicle selected")
+            return
+
+        def answered(yes: bool | None) -> None:
+            if yes:
+                self._dispatch("kill", vid)
+            else:
+                self.log_line(f"kill {vid}: cancelled")
+
+        self.push_screen(ConfirmKill(vid), answered)
+
+
+def _fill(table: DataTable, rows: list[tuple]) -> None:
+    """Show ``rows`` (first cell: the row's key) in ``table``, keeping its cursor where it is."""
+    keys_now = [str(r[0]) for r in rows]
+    if [k.value for k in table.rows] != keys_now:
+        cursor = table.cursor_coordinate
+        table.clear()
+        for r in rows:
+            table.add_row(*(Text(str(c)) for c in r), key=str(r[0]))
+        if table.row_count:
+            table.move_cursor(row=min(cursor.row, table.row_count - 1))
+        return
+    for r in rows:
+        for col, c in zip(table.columns, r):
+            table.update_cell(str(r[0]), col, Text(str(c)))

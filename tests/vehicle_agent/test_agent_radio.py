@@ -1,0 +1,125 @@
+"""The agent's receive path for the world's radio geometry and radio commands, without a
+Zenoh session: every hostile sample is counted by reason and dropped, never crashes the
+agent, never changes what it decides (Hypothesis)."""
+
+import math
+
+import msgpack
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from cdus.scenario.config import load_scenario
+from cdus.wire.messages import GeometryMsg, decode_geometry, encode_control, encode_geometry
+from cdus.wire.transport import Transport
+from tests.fakes import Payload, Sample
+from vehicle_agent.agent import Agent
+
+SC = load_scenario("configs/range_out.toml")
+N = len(SC.ids)
+GOOD = GeometryMsg(0, ((50.0, 0.0, 30.0), (52.0, 0.0, 30.0), (57.0, 0.0, 30.0), None))
+KEY = "cdus/tunit/to/+uav1+uav2+uav3+uav4+/radio"
+
+
+def make_agent(sc=SC, vid="uav1"):
+    return Agent(sc, vid, "tunit", Transport(), clock="lockstep", log=lambda s: None)
+
+
+@pytest.fixture
+def agent():
+    return make_agent()
+
+
+def test_a_geometry_sample_round_trips_and_is_what_tick_1_waits_for(agent):
+    assert decode_geometry(encode_geometry(GOOD), N) == GOOD
+    node = agent.node
+    assert not node.geometry_missing(0)  # tick 0 decides nothing
+    assert node.geometry_missing(1)  # tick 1 decides what tick 0 sent: sample 0 is in force then
+    agent._omega_from = {}  # open() sets it (the ω keys): none here
+    agent._handle(Sample(KEY, Payload(encode_geometry(GOOD))), None)
+    assert not node.geometry_missing(1)
+    every, lag = node.radio.every, node.radio.lag
+    assert not node.geometry_missing(every + lag)  # sent at every + lag - 1: still sample 0
+    assert node.geometry_missing(every + lag + 1)  # sent at every + lag: sample `every` is in force
+    assert agent._samples_missing(every + lag + 1)
+    assert agent.rejected == {}
+
+
+@pytest.mark.parametrize("payload, reason", [
+    (b"\xc1", "radio_malformed"),
+    (msgpack.packb([2, 0, [None] * N]), "radio_version"),
+    (msgpack.packb([1, -1, [None] * N]), "radio_type"),
+    (msgpack.packb([1, 0, [[1.0, 2]] + [None] * (N - 1)]), "radio_type"),
+    (msgpack.packb([1, 0, [[1.0, float("nan"), 3.0]] + [None] * (N - 1)]), "radio_non_finite"),
+    (msgpack.packb([1, 0, [[1.0, 1e300, 3.0]] + [None] * (N - 1)]), "radio_range"),
+    (msgpack.packb([1, 0, [None] * (N + 1)]), "radio_count"),
+    (msgpack.packb([1, 0, [[1.0, 2.0, 3.0]] * 5000]), "radio_oversized"),
+    (msgpack.packb([1, 0, [None] * 5000]), "radio_malformed"),  # more entries than a fleet can have
+    (encode_geometry(GeometryMsg(2**40, (None,) * N)), "radio_range"),  # past the run: kept, never freed
+    (encode_geometry(GeometryMsg(1, (None,) * N)), "radio_tick"),  # not a sample tick
+], ids=lambda x: x if isinstance(x, str) else None)
+def test_a_malformed_geometry_sample_is_counted_and_dropped(agent, payload, reason):
+    agent._on_geometry(payload)
+    assert agent.rejected == {reason: 1}
+    assert agent.stats().rejected == 1
+    assert agent.node.geometry_missing(1)  # nothing was taken
+    agent._on_geometry(encode_geometry(GOOD))
+    assert not agent.node.geometry_missing(1)
+    agent._on_geometry(encode_geometry(GeometryMsg(0, ((0.0, 0.0, 1.0),) * N)))  # a second one: the first stands
+    assert agent.rejected == {reason: 1, "radio_stale": 1}
+    assert agent.node.radio.geometry_at(0).positions[0] == (50.0, 0.0, 30.0)
+
+
+def test_a_geometry_sample_without_radio_is_counted_and_dropped():
+    a = make_agent(load_scenario("configs/crossing.toml"), "usv_a1")
+    a._on_geometry(encode_geometry(GeometryMsg(0, (None,) * 4)))
+    assert a.rejected == {"radio_unexpected": 1}
+    assert a.node.radio is None and not a.node.geometry_missing(5)
+
+
+floats = st.floats(allow_nan=True, allow_infinity=True) | st.integers(-2**63, 2**64 - 1)
+rows = st.none() | st.lists(floats, max_size=4) | st.text(max_size=3) | floats
+junk = st.recursive(st.none() | st.booleans() | floats | st.text(max_size=4) | st.binary(max_size=4),
+                    lambda c: st.lists(c, max_size=6) | st.dictionaries(st.text(max_size=3), c, max_size=3),
+                    max_leaves=30)
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(payload=st.one_of(
+    st.binary(max_size=200),
+    st.builds(lambda v, t, r: msgpack.packb([v, t, r]), st.integers(0, 3), st.integers(-5, 2**64 - 1) | floats,
+              st.lists(rows, max_size=6)),
+    st.builds(lambda j: msgpack.packb(j), junk)))
+def test_hostile_geometry_never_raises_and_every_reject_is_counted(payload):
+    a = make_agent()
+    before = a.node.radio.newest
+    a._on_geometry(payload)
+    msg = decode_geometry(payload, N)
+    taken = a.node.radio.newest != before
+    if isinstance(msg, str):
+        assert not taken and sum(a.rejected.values()) == 1 and list(a.rejected)[0].startswith("radio_")
+    else:
+        assert taken == (msg.tick % a.node.radio.every == 0 and msg.tick <= a.last_tick)
+        assert sum(a.rejected.values()) == (0 if taken else 1)
+        for q in msg.positions:
+            assert q is None or all(math.isfinite(x) for x in q)
+
+
+@pytest.mark.parametrize("change, taken", [
+    ({"tx_power": 5.0}, True), ({"station": [10.0, 20.0, 0.0]}, True), ({"tx_power": 1e9}, False),
+    ({"station": "x"}, False), ({"power": 3}, False), ({}, False),
+])
+def test_a_radio_command_applies_from_its_time_or_is_counted(agent, change, taken):
+    agent._on_ctl(encode_control("radio", radio=change, at=2.0))
+    epochs = agent.node.radio.channel.epochs
+    if taken:
+        assert len(epochs) == 2 and epochs[1][0] == 2.0 and agent.rejected == {}
+    else:
+        assert len(epochs) == 1 and agent.rejected == {"bad_radio_command": 1}
+
+
+def test_a_radio_command_out_of_range_is_rejected_before_it_applies(agent):
+    agent._on_ctl(encode_control("radio", radio={"tx_power": 5.0}, at=-1.0))
+    agent._on_ctl(encode_control("radio", radio={"a": {"b": {"c": {}}}}, at=1.0))
+    assert agent.rejected == {"radio_range": 2}
+    assert len(agent.node.radio.channel.epochs) == 1

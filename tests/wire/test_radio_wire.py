@@ -1,0 +1,45 @@
+"""The radio on the wire: the geometry key, the agent stats' radio counters (checked, rebuilt,
+counted as ``radio`` when bad), the radio command ops."""
+
+from __future__ import annotations
+
+import msgpack
+import pytest
+
+from cdus.core.radiolink import RADIO_CAUSES, RadioCounters
+from cdus.wire import keys, schemas
+from cdus.wire.access import fleet_acl
+from cdus.wire.messages import COMMAND_OPS, CTL_OPS, decode_control, encode_control
+from cdus.wire.schemas import AgentStats, decode_stats, encode_stats
+
+
+def test_the_geometry_key_reaches_every_addressed_vehicle_and_the_world_may_put_it():
+    key = keys.radio("f", ["usv1", "uav1"])
+    assert key == "cdus/f/to/+usv1+uav1+/radio" and keys.leaf(key) == ("radio", "")
+    acl = fleet_acl("f", {"usv1": ("uav1",), "uav1": ("usv1",)})
+    world_put = next(r for r in acl["rules"] if r["id"] == "world-put")
+    assert "cdus/f/to/*/radio" in world_put["key_exprs"]
+
+
+def test_the_radio_causes_on_the_wire_are_the_cores():
+    assert schemas.RADIO_CAUSES == RADIO_CAUSES
+
+
+def test_agent_stats_carry_the_radio_counters_checked():
+    c = RadioCounters(sent=10, delivered=6, fault=1, range=2, collision=1, no_geometry=3)
+    s = AgentStats("usv1", 5, radio=c.as_dict())
+    back = decode_stats(encode_stats(s), ["usv1"])
+    assert back.radio == c.as_dict() and RadioCounters.from_dict(back.radio) == c
+    assert decode_stats(encode_stats(AgentStats("usv1", 5)), ["usv1"]).radio is None
+    d = {"v": 1, **AgentStats("usv1", 5).as_dict()}
+    for bad in ({**c.as_dict(), "extra": 1}, {**c.as_dict(), "sent": -1}, {**c.as_dict(), "sent": 1.5},
+                {**c.as_dict(), "dropped_by": {"range": 1}}, [1, 2], "x", {**c.as_dict(), "no_geometry": 2**60}):
+        assert decode_stats(msgpack.packb({**d, "radio": bad}), ["usv1"]) == "radio", bad
+
+
+@pytest.mark.parametrize("ops", [CTL_OPS, COMMAND_OPS])
+def test_the_radio_op_decodes_with_its_table_and_time(ops):
+    c = decode_control(encode_control("radio", radio={"tx_power": 3}, at=2), ops)
+    assert c.op == "radio" and c.fields == {"radio": {"tx_power": 3}, "at": 2.0}
+    assert decode_control(encode_control("radio", radio=[1], at=2.0), ops) == "type"
+    assert decode_control(encode_control("radio", radio={}, at=float("inf")), ops) == "non_finite"

@@ -1,0 +1,120 @@
+"""The world status's optional console fields (cdus.wire.schemas.STATUS_EXTRA): they round-trip,
+a status without them is still valid, and every malformed one is rejected as ``extra``."""
+
+from __future__ import annotations
+
+import math
+
+import msgpack
+import pytest
+from hypothesis import given, settings, strategies as hs
+
+from cdus.wire.schemas import STATUS_EXTRA, STATUS_KEYS, StatusExtra, decode_status, encode_status
+
+IDS = ["usv1", "usv2", "uav1"]
+
+
+def extra(**over) -> StatusExtra:
+    d = dict(kinds=["usv", "usv", "uav"], states=["live", "gone", "paused"],
+             edges=[("usv1", "usv2", None), ("usv1", "uav1", 0.25)],
+             links=[("usv1", "usv2", 100, 7, "lossy"), ("usv2", "usv1", 90, 0, None)],
+             rx=[(100, 7), None, (50, 0)], safety_radius=2.0, closest=("usv1", "usv2", 1.5),
+             path_errors=[0.1, None, 0.3], directed=False)
+    d.update(over)
+    return StatusExtra(**d)
+
+
+def status(ex: StatusExtra | None) -> bytes:
+    return encode_status(3.0, 100.0, "lockstep", ["usv1", "uav1"], IDS, 0.3, 0.25, [], False, extra=ex)
+
+
+def test_the_console_fields_round_trip():
+    st = decode_status(status(extra()))
+    assert set(st) == {*STATUS_KEYS, *STATUS_EXTRA}
+    assert st["kinds"] == ["usv", "usv", "uav"] and st["states"] == ["live", "gone", "paused"]
+    assert st["edges"] == [("usv1", "usv2", None), ("usv1", "uav1", 0.25)]
+    assert st["links"] == [("usv1", "usv2", 100, 7, "lossy"), ("usv2", "usv1", 90, 0, None)]
+    assert st["rx"] == [(100, 7), None, (50, 0)]
+    assert st["safety_radius"] == 2.0 and st["closest"] == ("usv1", "usv2", 1.5)
+    assert st["path_errors"] == [0.1, None, 0.3] and st["directed"] is False
+
+
+def test_a_status_without_them_is_still_valid_and_non_finite_values_are_left_out():
+    assert set(decode_status(status(None))) == set(STATUS_KEYS)
+    st = decode_status(status(extra(safety_radius=math.nan, closest=("usv1", "usv2", math.inf),
+                                    edges=[("usv1", "usv2", math.nan)], path_errors=[math.inf, 0.0, None])))
+    assert "safety_radius" not in st and "closest" not in st
+    assert st["edges"] == [("usv1", "usv2", None)] and st["path_errors"] == [None, 0.0, None]
+
+
+@pytest.mark.parametrize("field, value", [
+    ("kinds", ["usv", "usv"]),  # not one per id
+    ("kinds", ["usv", "boat", "uav"]),
+    ("states", ["live", "dead", "live"]),
+    ("edges", [["usv1", "nobody", 0.1]]),
+    ("edges", [["usv1", "usv1", 0.1]]),
+    ("edges", [["usv1", "usv2", -1.0]]),
+    ("edges", [["usv1", "usv2"]]),
+    ("edges", "usv1-usv2"),
+    ("links", [["usv1", "usv2", 5, 6, None]]),  # more dropped than sent
+    ("links", [["usv1", "usv2", 5, 1, "flaky"]]),
+    ("links", [["usv1", "usv2", -5, 0, None]]),
+    ("links", [["usv1", "usv2", 5.0, 0, None]]),
+    ("rx", [[1, 0], [1, 2], None]),
+    ("rx", [[1, 0]]),
+    ("safety_radius", 0.0),
+    ("safety_radius", "2"),
+    ("closest", ["usv1", "x", 1.0]),
+    ("closest", ["usv1", "usv2", -1.0]),
+    ("path_errors", [0.1, -0.1, None]),
+    ("path_errors", [0.1]),
+    ("directed", 1),
+])
+def test_a_malformed_console_field_is_rejected(field, value):
+    d = msgpack.unpackb(status(extra()), raw=False)
+    d[field] = value
+    assert decode_status(msgpack.packb(d)) == "extra"
+
+
+def test_too_many_edges_or_links_are_rejected():
+    d = msgpack.unpackb(status(extra()), raw=False)
+    assert decode_status(msgpack.packb({**d, "edges": [["usv1", "usv2", 0.1]] * 513})) == "extra"
+    assert decode_status(msgpack.packb({**d, "links": [["usv1", "usv2", 1, 0, None]] * 513})) == "extra"
+    # the world sends at most as many as the decoder takes
+    many = extra(edges=[("usv1", "usv2", 0.1)] * 600, links=[("usv1", "usv2", 1, 0, None)] * 600)
+    st = decode_status(status(many))
+    assert len(st["edges"]) == 512 and len(st["links"]) == 512
+
+
+_values = hs.recursive(hs.one_of(hs.none(), hs.booleans(), hs.integers(-2**63, 2**64 - 1), hs.floats(),
+                                 hs.sampled_from(IDS + ["usv", "uav", "live", "gone", "lossy", "x"])),
+                       lambda inner: hs.lists(inner, max_size=4), max_leaves=20)
+
+
+@settings(max_examples=300, deadline=None)
+@given(hs.dictionaries(hs.sampled_from(STATUS_EXTRA), _values, max_size=len(STATUS_EXTRA)))
+def test_any_console_fields_decode_or_are_rejected_never_raise(fields):
+    d = msgpack.unpackb(status(None), raw=False)
+    out = decode_status(msgpack.packb({**d, **fields}))
+    assert out == "extra" or isinstance(out, dict) and set(out) == set(STATUS_KEYS) | set(fields)
+
+
+def test_a_fleet_of_thousands_still_gets_its_status_with_what_fits():
+    def big(n: int) -> dict:
+        ids = [f"vehicle{j:05d}" for j in range(n)]
+        ex = StatusExtra(kinds=["usv"] * n, states=["live"] * n,
+                         edges=[(ids[j], ids[j + 1], 0.123456789) for j in range(min(n - 1, 512))],
+                         links=[(ids[j], ids[j + 1], 10**9, 10**6, "lossy") for j in range(min(n - 1, 512))],
+                         rx=[(10**9, 10**6)] * n, safety_radius=2.0, closest=(ids[0], ids[1], 1.0),
+                         path_errors=[0.123456789] * n, directed=False)
+        payload = encode_status(3.0, 100.0, "lockstep", ids, ids, 0.3, 0.25, [], False, extra=ex)
+        assert len(payload) <= 1 << 16
+        st = decode_status(payload)
+        assert isinstance(st, dict), st
+        return st
+
+    assert {"edges", "links", "kinds"} <= set(big(300))  # everything fits
+    st = big(800)  # the edges and links do not: left out, the rest kept
+    assert "edges" not in st and "links" not in st and len(st["states"]) == 800
+    st = big(2000)  # only the summary fits (ids and alive take most of it)
+    assert set(st) == set(STATUS_KEYS) and len(st["ids"]) == 2000

@@ -1,0 +1,186 @@
+"""The radio in Rerun: each link at each geometry sample, coloured by its delivery probability,
+the station, the channel utilisation as a time series; nothing of it without [radio]."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cdus.scenario.config import load_scenario
+from cdus.sim.fleet import InProcessFleet
+from world_sim import blueprint as bp
+from world_sim.rerun_sink import make_sink, probability_colour
+
+from .test_recording import ROOT, Recording
+
+
+def _record(tmp_path, config, duration):
+    path = tmp_path / "run.rrd"
+    sc = load_scenario(ROOT / config, {"scenario.duration": duration})
+    sink = make_sink(f"save:{path}")
+    res = InProcessFleet(sc, sink=sink).run()
+    sink.close()
+    return sc, res, Recording(path)
+
+
+def test_probability_colours_run_from_red_through_yellow_to_green():
+    assert probability_colour(0.0) == (220, 0, 40)
+    assert probability_colour(0.5) == (220, 200, 40)
+    assert probability_colour(1.0) == (0, 200, 40)
+    assert probability_colour(7.0) == probability_colour(1.0) and probability_colour(-1.0) == probability_colour(0.0)
+
+
+def test_the_radio_is_drawn_at_every_geometry_sample(tmp_path):
+    sc, res, rec = _record(tmp_path, "configs/lake_radio.toml", 2.0)
+    samples = res.metrics["radio"]["utilisation"]["samples"]
+    assert samples == 11  # every 0.2 s over 2 s
+    times, strips = rec.column(bp.RADIO_LINKS, "LineStrips3D:strips")
+    assert len(times) == samples and times[1] == 200_000_000
+    assert all(len(s) == 12 for s in strips)  # the ring of six, both directions
+    _, colours = rec.column(bp.RADIO_LINKS, "LineStrips3D:colors")
+    assert all(len(c) == 12 for c in colours)
+    _, station = rec.column(bp.RADIO_STATION, "Points3D:positions")
+    assert np.allclose(station[0], [[0.0, 0.0, 0.0]])
+    _, u = rec.column(bp.UTILISATION, "Scalars:scalars")
+    assert np.allclose(np.ravel(u), res.metrics["radio"]["utilisation"]["mean"])
+    assert bp.UTILISATION in rec.static
+
+
+def test_nothing_of_the_radio_without_it(tmp_path):
+    _, _, rec = _record(tmp_path, "configs/lake_circle.toml", 1.0)
+    assert not rec.rows(bp.RADIO_LINKS) and not rec.rows(bp.UTILISATION) and bp.UTILISATION not in rec.static
+
+
+def _radio_world(clock="lockstep"):
+    from cdus.scenario.config import load_scenario as load
+    from cdus.wire.transport import Transport
+    from world_sim.world import World
+
+    from .test_world import FLEET, Pub, Session
+
+    w = World(load(ROOT / "configs/lake_radio.toml"), FLEET, Transport(), clock=clock, log=lambda s: None)
+    w.session = Session()
+    w.pub_ctl, w.pub_launcher, w.pub_status, w.pub_events, w.pub_radio = Pub(), Pub(), Pub(), Pub(), Pub()
+    w._wake = lambda payload=b"": None
+    return w
+
+
+def test_the_world_samples_the_geometry_once_a_tick_is_reported_and_grants_no_further():
+    from cdus.wire.messages import decode_geometry
+
+    from .test_world import row, send_rows, started
+
+    w = started(_radio_world())
+    assert w.lockstep.granted == 0  # sample 0 is needed from tick 1
+    for j, vid in enumerate(w.ids[:-1]):
+        send_rows(w, vid, [row(j, 0)])
+    w._act(w.lockstep.poll())
+    assert w.pub_radio.puts == [] and w.lockstep.granted == 0  # uav3 has not reported tick 0
+    send_rows(w, w.ids[-1], [row(5, 0)])
+    w._act(w.lockstep.poll())
+    (payload,) = w.pub_radio.puts
+    msg = decode_geometry(payload, 6)
+    assert msg.tick == 0 and msg.positions[0] == (0.0, 0.0) and msg.positions[5] == (0.0, 0.0, 20.0)
+    assert w.lockstep.granted == 20  # the next sample, 10, is in force from 20
+    assert w.radio_watch.utilisation == [(0.0, w.radio_watch.utilisation[0][1])]
+
+
+def test_the_world_relays_a_radio_change_or_says_why_not():
+    from cdus.wire.messages import CTL_OPS, decode_control
+
+    from .test_world import started, world
+
+    w = started(_radio_world())
+    assert "tx_power" in w._relay_radio({"radio": {"tx_power": "loud"}, "at": -1.0}, "gs")
+    assert "power" in w._relay_radio({"radio": {"power": 3}, "at": -1.0}, "gs")
+    v = w._relay_radio({"radio": {"tx_power": 3.0, "station": [1.0, 2.0]}, "at": -1.0}, "gs")
+    assert v.applied and v.t == 0.5 and v.tick == 25  # the answer says when it applies
+    (c,) = [decode_control(p, CTL_OPS) for p in w.pub_ctl.puts if decode_control(p, CTL_OPS).op == "radio"]
+    assert c.fields["radio"] == {"tx_power": 3.0, "station": [1.0, 2.0]} and c.fields["at"] >= 0.02
+    assert w.radio_watch.channel.epochs[-1][1:] == (3.0, (1.0, 2.0, 0.0))
+    assert [e.kind for e in w.events][-1] == "radio_changed"
+    plain = started(world())
+    assert "no [radio]" in plain._relay_radio({"radio": {"tx_power": 3.0}, "at": -1.0}, "gs")
+
+
+def test_hostile_radio_commands_never_raise_and_are_refused_or_relayed():
+    """Any radio command a ground station can send (decoded by COMMAND_OPS: a table and a time)
+    is relayed or refused with a reason and a `rejected` event; nothing escapes, and the world's
+    channel only ever takes what it relays."""
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    from cdus.wire import keys
+    from cdus.wire.messages import encode_control
+    from tests.fakes import Payload, Sample
+
+    from .test_world import FLEET, started
+
+    values = st.none() | st.booleans() | st.floats() | st.integers(-2**63, 2**63) | st.text(max_size=5) \
+        | st.lists(st.floats() | st.integers(-10**6, 10**6), max_size=4)
+    tables = st.dictionaries(st.sampled_from(["tx_power", "station", "x", ""]) | st.text(max_size=4), values,
+                             max_size=3)
+
+    @settings(max_examples=200, deadline=None)
+    @given(table=tables, at=st.floats(allow_nan=False, allow_infinity=False, min_value=-1e12, max_value=1e12))
+    def check(table, at):
+        w = started(_radio_world())
+        before = len(w.radio_watch.channel.epochs)
+        w._handle(Sample(keys.world_cmd(FLEET, "gs"), Payload(encode_control("radio", radio=table, at=at))))
+        relayed = [e for e in w.events if e.kind == "radio_changed"]
+        refused = [e for e in w.events if e.kind == "rejected"]
+        assert len(relayed) + len(refused) == 1
+        assert len(w.radio_watch.channel.epochs) == before + len(relayed)
+        assert w.st.rejects.get("internal", 0) == 0
+        assert w.st.rejects.get("radio", 0) == len(refused)
+
+    check()
+
+
+def test_a_command_before_a_scheduled_radio_change_is_refused(tmp_path):
+    from cdus.scenario.config import load_scenario as load
+    from cdus.wire.transport import Transport
+    from world_sim.world import World
+
+    from .test_world import FLEET, Pub, Session, started
+
+    cfg = tmp_path / "ev.toml"
+    cfg.write_text((ROOT / "configs/lake_radio.toml").read_text()
+                   + '\n[[event]]\nat = 100.0\naction = "radio"\ntx_power = 5.0\n')
+    w = World(load(cfg), FLEET, Transport(), clock="lockstep", log=lambda s: None)
+    w.session = Session()
+    w.pub_ctl, w.pub_launcher, w.pub_status, w.pub_events, w.pub_radio = Pub(), Pub(), Pub(), Pub(), Pub()
+    w._wake = lambda payload=b"": None
+    started(w)
+    assert w.radio_watch.channel.epochs[-1][:2] == (100.0, 5.0)  # the world's channel knows it up front
+    assert "--at 100 or later" in w._relay_radio({"radio": {"tx_power": 3.0}, "at": -1.0}, "gs")
+    v = w._relay_radio({"radio": {"tx_power": 3.0}, "at": 150.0}, "gs")
+    assert v.applied and v.t == 150.0
+    assert "--at 150 or later" in w._relay_radio({"radio": {"tx_power": 9.0}, "at": 120.0}, "gs")
+
+
+def test_realtime_samples_once_every_live_vehicle_has_reported_and_never_past_the_end():
+    import time
+
+    from cdus.wire.messages import decode_geometry
+
+    from .test_world import row
+
+    w = _radio_world("realtime")
+    w.st.alive = set(w.ids)
+    w.t0 = time.time() - 1.01  # tick 50 at 50 Hz
+    w._radio_realtime()
+    assert w.pub_radio.puts == []  # nobody heard from yet: all would look out of range
+    for j in range(5):
+        w.st.latest[j] = row(j, 49)
+    w._radio_realtime()
+    assert w.pub_radio.puts == []  # uav3 not yet
+    w.st.latest[5] = row(5, 49)
+    w._radio_realtime()
+    (payload,) = w.pub_radio.puts
+    msg = decode_geometry(payload, 6)
+    assert msg.tick == 50 and all(q is not None for q in msg.positions)
+    w._radio_realtime()
+    assert len(w.pub_radio.puts) == 1  # the next one at tick 60
+    w.t0 = time.time() - (w.last_tick + 5) * w.period
+    w._radio_realtime()
+    assert len(w.pub_radio.puts) == 1  # past the run's end: the agents would refuse it (radio_range)

@@ -1,0 +1,112 @@
+"""What the world's status carries for the live console (cdus.wire.schemas.STATUS_EXTRA),
+from the world's own state: no network."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from hypothesis import given, settings, strategies as hs
+
+from cdus.wire import keys
+from cdus.wire.messages import StateMsg, encode_control, encode_states
+from cdus.wire.schemas import AgentStats, decode_status, encode_stats
+from tests.fakes import Payload, Sample
+from tests.world_sim.test_world import EVENTS, FLEET, started, world
+from world_sim.world import closest_live_pair
+
+
+def at(j: int, n: int, q: tuple, omega: float, path_error: float) -> StateMsg:
+    return StateMsg(j, n, n * 0.02, q, 0.0, 1.0, omega, -1.0, path_error)
+
+
+def test_the_status_carries_kinds_states_edges_links_radius_and_the_closest_pair():
+    w = started(world())
+    # lake_circle: usv1..3 then uav1..3, a ring; usv1 and usv3 1 m apart, the drones far
+    qs = [(0.0, 0.0), (30.0, 0.0), (0.0, 1.0), (0.0, 0.0, 20.0), (50.0, 0.0, 20.0), (0.0, 50.0, 20.0)]
+    for j, vid in enumerate(w.ids):
+        w._handle(Sample(keys.state(FLEET, vid), Payload(encode_states([at(j, 0, qs[j], 0.1 * j, 0.01 * (j + 1))]))))
+    w._record_complete()
+    s = AgentStats(id="usv1", tick=1, sent_to_me=20, dropped=3)
+    w._handle(Sample(keys.stats(FLEET, "usv1"), Payload(encode_stats(s))))
+    w._publish_status()
+    st = decode_status(w.pub_status.puts[-1])
+    assert st["kinds"] == ["usv"] * 3 + ["uav"] * 3 and st["states"] == ["live"] * 6
+    assert st["safety_radius"] == w.scenario.safety.radius and st["directed"] is False
+    assert st["closest"][:2] == ("usv1", "usv3") and st["closest"][2] == 1.0
+    assert st["rx"][0] == (20, 3) and st["rx"][1:] == [None] * 5
+    assert st["path_errors"] == [0.01 * (j + 1) for j in range(6)]
+    edges = {(a, b): e for a, b, e in st["edges"]}
+    omega = dict(zip(w.ids, (0.1 * j for j in range(6))))
+    for e in w.recorder.edges:
+        a, b = w.ids[e.i], w.ids[e.k]
+        assert math.isclose(edges[(a, b)], abs(omega[a] - omega[b] - e.delta), abs_tol=1e-12)
+    assert len(edges) == len(w.recorder.edges)
+
+
+def test_a_vehicle_gone_in_the_roster_is_gone_in_the_status_and_its_edges_have_no_error(tmp_path):
+    w = started(world(tmp_path, events=EVENTS))  # usv2 killed at 1 s (tick 50), uav1 paused at 2 s
+    rows = [at(j, 60, (float(j), 0.0) if j < 3 else (float(j), 0.0, 20.0), 0.1 * j, 0.2) for j in range(6)]
+    live = [vid != "usv2" for vid in w.ids]
+    w.recorder.record(60 * w.period, rows, live)
+    w.next_tick = 61
+    w._publish_status()
+    st = decode_status(w.pub_status.puts[-1])
+    assert st["states"] == ["live", "gone", "live", "live", "live", "live"]
+    assert [a + b for a, b, e in st["edges"] if e is None] == [a + b for a, b, _ in st["edges"] if "usv2" in (a, b)]
+    assert st["path_errors"][1] is None and st["path_errors"][0] == 0.2
+    assert "usv2" not in st["closest"][:2]
+    w.next_tick = 160  # past the pause of uav1 (and its lease)
+    w._publish_status()
+    assert decode_status(w.pub_status.puts[-1])["states"][3] in ("paused", "gone")
+
+
+@settings(max_examples=200, deadline=None)
+@given(hs.lists(hs.tuples(hs.sampled_from(["usv", "uav"]), hs.booleans(),
+                          hs.tuples(*[hs.floats(-1e6, 1e6) | hs.just(math.nan) | hs.just(math.inf)] * 3)),
+                min_size=0, max_size=8))
+def test_the_closest_live_pair_is_min_separation_over_the_live_vehicles(vehicles):
+    kinds = [k for k, _, _ in vehicles]
+    live = np.array([x for _, x, _ in vehicles], dtype=bool)
+    q = np.array([p for _, _, p in vehicles], dtype=float).reshape(len(vehicles), 3)
+    ids = [f"v{j}" for j in range(len(vehicles))]
+    got = closest_live_pair(q, live, kinds, ids)
+    want = None
+    for a in range(len(vehicles)):
+        for b in range(a + 1, len(vehicles)):
+            if live[a] and live[b] and kinds[a] == kinds[b]:
+                axes = 2 if kinds[a] == "usv" else 3
+                d = math.dist(q[a][:axes], q[b][:axes])
+                if math.isfinite(d) and (want is None or d < want):
+                    want = d
+    if want is None:
+        assert got is None
+    else:
+        assert got is not None and math.isclose(got[2], want, rel_tol=1e-9, abs_tol=1e-9)
+        a, b = ids.index(got[0]), ids.index(got[1])
+        assert live[a] and live[b] and kinds[a] == kinds[b] and a < b
+
+
+def test_realtime_a_vehicle_paused_by_a_ground_station_is_paused_until_resumed_even_once_its_token_lapses():
+    w = world(clock="realtime")
+    for vid in w.ids:
+        w._on_alive(vid, True)
+    w.started = True
+    w.t0 = 0.0
+    w.paused_at = 2.0
+
+    def states() -> list[str]:
+        w._publish_status()
+        return decode_status(w.pub_status.puts[-1])["states"]
+
+    assert states() == ["live"] * 6
+    w._handle(Sample(keys.world_cmd(FLEET, "gs"), Payload(encode_control("pause_vehicle", vehicle="uav1"))))
+    assert states()[3] == "paused"
+    w._on_alive("uav1", False)  # SIGSTOPped: its token lapses with the lease
+    assert states()[3] == "paused"
+    w._handle(Sample(keys.world_cmd(FLEET, "gs"), Payload(encode_control("resume_vehicle", vehicle="uav1"))))
+    assert states()[3] == "gone"  # resumed, its token not back yet
+    w._on_alive("uav1", True)
+    assert states()[3] == "live"
+    w._on_alive("usv2", False)  # nobody asked: lost
+    assert states()[1] == "gone"
