@@ -205,7 +205,7 @@ class World:
         self._commands: list[tuple[str | None, bytes]] = []  # run-time link and gains commands, for (re)joiners
         self._console = ConsoleQuota(scenario=scenario)
         self._rt_expect: dict[str, set[str]] = {}  # realtime: liveliness changes a fault we asked for explains
-        self._rt_faulted: dict[str, str] = {}  # realtime: "killed" | "paused", by the faults asked for
+        self._faulted: dict[str, str] = {}  # "killed" | "paused", by the faults carried out (both clocks)
         self.log = log or (lambda s: print(f"[world] {s}", flush=True))
         self.next_tick = 0  # next tick to record
         self.events: list[FleetEvent] = []
@@ -809,8 +809,8 @@ class World:
             n = self._tick_now()
             if up:
                 self._rt_lost.discard(name)
-                if self._rt_faulted.get(name) == "paused":  # a stopped process declares nothing: this one runs
-                    del self._rt_faulted[name]
+                if self._faulted.get(name) == "paused":  # a stopped process declares nothing: this one runs
+                    del self._faulted[name]
                 self._send_roster(RosterChange(n, j, "live", fresh=True))
                 self.pub_ctl.put(encode_control("start", t0=self.t0))
                 self._replay_commands(name)
@@ -831,16 +831,22 @@ class World:
         launcher for will cause (a paused process's token lapses with the lease)."""
         self._rt_expect[vid] = {"kill": {"down"}, "pause": {"down"}, "resume": set(),
                                 "restart": {"down"}}.get(action, set())
-        if action == "kill" or action == "pause" and self._rt_faulted.get(vid) != "killed":
-            self._rt_faulted[vid] = "killed" if action == "kill" else "paused"
-        elif action in ("resume", "restart") and (action == "restart" or self._rt_faulted.get(vid) == "paused"):
-            self._rt_faulted.pop(vid, None)
+        self._note_fault(vid, action)
+
+    def _note_fault(self, vid: str, action: str) -> None:
+        """Keep which vehicles a fault killed or paused (realtime: asked of the launcher; lockstep:
+        landed on its tick): realtime decides moot faults by it, and the status shows a vehicle
+        paused by a fault as paused after its token lapses (the lockstep roster says gone then)."""
+        if action == "kill" or action == "pause" and self._faulted.get(vid) != "killed":
+            self._faulted[vid] = "killed" if action == "kill" else "paused"
+        elif action in ("resume", "restart") and (action == "restart" or self._faulted.get(vid) == "paused"):
+            self._faulted.pop(vid, None)
 
     def _rt_moot(self, vid: str, action: str) -> str | None:
         """Realtime: why a ground station's fault would do nothing (as Lockstep finds it on its
         tick: a pause of a vehicle not live, a resume of a live or killed one, a kill of a killed
         one), else None."""
-        now = self._rt_faulted.get(vid) or ("live" if vid in self.st.alive else "gone")
+        now = self._faulted.get(vid) or ("live" if vid in self.st.alive else "gone")
         moot = {"pause": now != "live", "resume": now in ("live", "killed"), "kill": now == "killed"}.get(action)
         return f"{vid} is {now} (nothing done)" if moot else None
 
@@ -926,6 +932,8 @@ class World:
                 self._send_geometry(a.tick, self._radio_rows.pop(a.tick, {}))
             elif isinstance(a, Fault):
                 self._fault_since = time.monotonic()
+                self._note_fault(self.ids[a.vehicle], {"pause_vehicle": "pause", "resume_vehicle": "resume"}.get(
+                    a.op, a.op))
                 self.pub_launcher.put(encode_control(a.op, vehicle=self.ids[a.vehicle]))
             elif isinstance(a, FleetEvent):
                 self._note(a)
@@ -1173,8 +1181,11 @@ class World:
         tick = max(0, self.next_tick - 1)
         if self.clock == "lockstep":
             states = [self.lockstep.state_at(j, tick) for j in range(len(self.ids))]
+            # a vehicle a fault paused is gone from the roster once its lease lapses: still paused to an operator
+            states = ["paused" if st == "gone" and self._faulted.get(vid) == "paused" else st
+                      for vid, st in zip(self.ids, states)]
         else:
-            states = ["paused" if self._rt_faulted.get(vid) == "paused" else "live" if vid in self.st.alive
+            states = ["paused" if self._faulted.get(vid) == "paused" else "live" if vid in self.st.alive
                       else "gone" for vid in self.ids]
         edges = closest = path_errors = None
         if n:

@@ -272,3 +272,31 @@ def test_every_query_is_answered_once_never_raises_and_counts_what_it_refuses(op
             assert w.st.rejected == before + 1
     w._answer_the_rest("the run is over")
     assert not w._waiting and not w._queries
+
+
+def test_lockstep_a_vehicle_paused_by_a_fault_stays_paused_in_the_status_after_its_lease():
+    """The lockstep roster says gone once a paused process's token lapses; `gs status` and the
+    console showed the vehicle the operator paused as gone / lost, with a "vehicle lost" alarm
+    (rev18-user). The status says paused until it is resumed, killed or restarted."""
+    w = started(world())
+    g = w.lockstep.granted
+    q = ask(w, "pause_vehicle", vehicle="usv3")
+    report_through(w, g)
+    w._act(w.lockstep.poll())
+    assert q.answer.applied
+    j = w.ids.index("usv3")
+    from tests.fakes import Sample
+    w._handle(Sample(keys.world_cmd(FLEET, keys.LAUNCHER), Payload(encode_control("fault_done", vehicle="usv3"))))
+    w._on_alive("usv3", False)  # the token lapses
+    for n in range(g + 50, g + 400, 50):  # the others step on: past the lease the roster makes it gone
+        for k, vid in enumerate(w.ids):
+            if vid != "usv3":
+                send_rows(w, vid, [row(k, m) for m in range(max(0, n - 49), n + 1)])
+        w._act(w.lockstep.poll())
+    later = w.lockstep.granted
+    assert w.lockstep.state_at(j, later) == "gone", (later, g)
+    w.next_tick = later + 1
+    states = dict(zip(w.ids, w._status_extra().states))
+    assert states["usv3"] == "paused" and states["usv1"] == "live", states
+    w._note_fault("usv3", "kill")  # a kill of the paused vehicle: gone
+    assert dict(zip(w.ids, w._status_extra().states))["usv3"] == "gone"
