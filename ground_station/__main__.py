@@ -6,7 +6,7 @@
     cdus gs ... status --json                                          # one JSON snapshot
     cdus gs ... watch --jsonl                                          # a JSON line per status and event
     cdus gs ... snapshot FILE                                          # the fleet's state to FILE (JSON)
-    cdus gs --fleet lake_circle -e tcp/127.0.0.1:7447 console         # the live console (docs/console.md)
+    cdus gs ... console                                                # the live console (docs/console.md)
     cdus gs ... pause | resume | stop                                  # the whole fleet
     cdus gs ... link loss=0.3 delay.base=0.1 [--at 120]                # link faults from sim time t
     cdus gs ... gains k=2 c=1 [--vehicle usv1]                         # guidance gains
