@@ -51,7 +51,7 @@ from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
 from cdus.sim.summary import COMPLETED, link_block, run_metrics
 from cdus.wire import keys
 from cdus.wire.messages import (
-    COMMAND_OPS, StateMsg, decode_control, decode_states, encode_contacts, encode_control, encode_states,
+    COMMAND_OPS, MAX_LINK_AT, StateMsg, decode_control, decode_states, encode_contacts, encode_control, encode_states,
 )
 from cdus.wire.schemas import (
     ID_RE, ORIGIN_WORLD, AgentStats, CommandReply, FleetEvent, decode_stats, encode_event, encode_reply,
@@ -554,7 +554,10 @@ class World:
 
     def _cmd_link(self, f: dict, by: str) -> Verdict | str:
         merged = merge_link_tables(self._link_table, f["link"])
-        try:  # the agents' own check, made before relaying: a table they would refuse is no change
+        try:  # the agents' own checks, made before relaying: a change they would refuse is no change
+            if f["at"] > MAX_LINK_AT:
+                raise ValueError(f"link command: at = {f['at']:.6g} s is beyond the latest time a link change "
+                                 f"may name ({MAX_LINK_AT:g} s of simulated time)")
             validate_link(merged, self.ids, "link command")
         except (ConfigError, ValueError) as e:
             self._reject(by, "link")
