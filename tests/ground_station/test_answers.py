@@ -148,3 +148,27 @@ def test_watch_writes_versioned_json_lines_and_ends_when_the_world_leaves(capsys
     lines = [json.loads(ln) for ln in capsys.readouterr().out.splitlines()]
     assert [ln["kind"] for ln in lines] == ["event", "status", "end"] and all(ln["v"] == 1 for ln in lines)
     assert lines[0]["event"]["text"] == "fleet paused by gs:x" and lines[1]["run"] == "ended"
+
+
+def test_a_snapshot_to_a_path_it_cannot_write_is_a_clear_error_not_a_traceback(tmp_path, monkeypatch, capsys):
+    """`gs snapshot DIR` raised IsADirectoryError, `gs snapshot /proc/version` FileNotFoundError
+    (its temp file), both as tracebacks after connecting. Now: exit 2 and what is wrong; a
+    directory is refused before connecting."""
+    from ground_station import __main__ as cli
+
+    opened = []
+    monkeypatch.setattr(cli.GroundStation, "open", lambda self, watch=True: opened.append(1))
+    monkeypatch.setattr(cli.GroundStation, "wait_for_status", lambda self, timeout: True)
+    monkeypatch.setattr(cli.GroundStation, "fetch_last", lambda self, timeout=2.0: 0)
+    monkeypatch.setattr(cli.GroundStation, "close", lambda self: None)
+    base = ["--fleet", "f", "-e", "tcp/127.0.0.1:1", "snapshot"]
+    assert cli.main([*base, str(tmp_path)]) == cli.EXIT_USAGE and not opened
+    assert f"{tmp_path} is a directory" in capsys.readouterr().err
+    blocker = tmp_path / "a-file"
+    blocker.write_text("x")
+    assert cli.main([*base, str(blocker / "state.json")]) == cli.EXIT_USAGE and opened
+    err = capsys.readouterr().err
+    assert f"could not write the snapshot to {blocker / 'state.json'}" in err and "Traceback" not in err
+    assert blocker.read_text() == "x"
+    assert cli.main([*base, str(tmp_path / "ok.json")]) == 0
+    assert json.loads((tmp_path / "ok.json").read_text())["v"] == 1
