@@ -252,3 +252,28 @@ def test_a_link_change_at_any_time_is_relayed_as_the_agents_take_it_or_refused_w
         assert at > MAX_LINK_AT and "beyond the latest time" in r.reason and w.st.rejects["link"] == 1
         assert not relayed and len(w.session.puts) + len(w.pub_ctl.puts) == puts and w._link_table == table
         assert not [e for e in w.events if e.kind == "link_changed"]
+
+
+def test_a_flood_of_refused_commands_is_answered_and_counted_but_not_amplified_into_as_many_events():
+    """Every refused gains/link/formation/path command was also a 'rejected' event: published
+    on world/events, a line of world.log, an entry of metrics.json. 5000 bad queries from a
+    ground station made 5000 of each (world.log grew by 1 MB in a second). Now every one is
+    answered and counted, the event log takes a burst then one a second, and the next one
+    logged says how many it left out."""
+    import world_sim.world as ws
+
+    w = started(world())
+    for _ in range(500):
+        r = ask(w, "set_gains", gains={"k": -1.0}, vehicle="").answer
+        assert r.status == "rejected" and "k must be" in r.reason
+    assert w.st.rejects["gains"] == 500
+    logged = [e for e in w.events if e.kind == "rejected"]
+    assert ws.REJECTED_EVENTS_BURST <= len(logged) <= ws.REJECTED_EVENTS_BURST + 2
+    w._rejected_at -= 1.0 / ws.REJECTED_EVENTS_PER_S  # a second later: one more, saying what was left out
+    ask(w, "set_gains", gains={"k": -2.0}, vehicle="")
+    last = w.events[-1]
+    assert last.kind == "rejected" and "-2.0" in last.text and "refused commands since the last one logged" in last.text
+    assert len(last.text) <= 300
+    assert w.st.rejects["gains"] == 501
+    # an applied command is an event as ever
+    assert ask(w, "set_gains", gains={"c": 2.0}, vehicle="").answer.applied and w.events[-1].kind == "gains_changed"
