@@ -42,6 +42,11 @@ CHANGE_ACTIONS = ("formation", "path")
 ALL_ACTIONS = ACTIONS + CHANGE_ACTIONS
 OFFSET_KEYS = ("i", "k", "delta")
 PATH_EXAMPLE = '{ family = "circle", center = [0, 0], radius = 10 }'
+#: every number of a path given as an [[event]] or by a ground station (metres, or a rate): a
+#: circle of radius 1e308 or a Lissajous of frequency 1e300 overflowed the vehicle that took it
+#: (its process ended: DivergedError) after the world had answered "applied"
+MAX_PATH_NUMBER = 1e6
+PROBE_OMEGAS = (0.0, 1.0, -1.0, 1e3, -1e3, 1e6, -1e6, MAX_PHASE, -MAX_PHASE)
 
 
 def event_section(p: Problems, raw: Any, ids: Sequence[str] | None) -> tuple[Event, ...]:
@@ -190,8 +195,17 @@ def check_path(table: Mapping[str, Any], dim: int) -> Path | tuple[str, str]:
     """The path a table gives a vehicle of ``dim`` axes, checked as the config's paths are
     (cdus.core.paths.make_path), or ``(key, message)``: the key at fault ("" for the table)
     and what is wrong. Never raises on any data."""
+    for key, value in table.items():
+        big = [x for x in (value if isinstance(value, (list, tuple)) else [value])
+               if is_number(x) and not abs(x) <= MAX_PATH_NUMBER]
+        if big:
+            return str(key), (f"must be within ±{MAX_PATH_NUMBER:g} (metres, or a rate), got {show(big[0])}: a vehicle "
+                              f"cannot follow such a path (its numbers overflow)")
     try:
         followed = for_dimension(make_path(table), dim)
+        for w in PROBE_OMEGAS:  # the numbers every vehicle will compute from it stay finite
+            if not all(math.isfinite(x) for v in followed.eval(w) for x in v):
+                return "", f"its values are not finite numbers at ω = {w:g}: a vehicle cannot follow it"
         turn = turning_point(followed)
         if turn is not None:  # a retraced Lissajous, refused as the config refuses it
             return "phase", retrace_message(dict(table), turn, dim)
