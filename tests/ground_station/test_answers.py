@@ -5,6 +5,7 @@ a query that comes back empty at once from a fleet whose world is up is a denial
 from __future__ import annotations
 
 import json
+import threading
 import time
 
 import msgpack
@@ -73,7 +74,7 @@ def test_nothing_back_at_once_from_a_fleet_whose_world_is_up_is_a_denial(tmp_pat
     assert (a.outcome, a.code) == ("denied", 4)
     assert "'vehicle-usv1'" in a.detail and "RUN/secure/ground.json5" in a.detail and "pw" not in a.detail
     a = station([], world_up=False).command("stop", timeout=5.0)  # nobody there: not a denial
-    assert (a.outcome, a.code) == ("no_answer", 3) and "no world took the command" in a.detail
+    assert (a.outcome, a.code) == ("no_answer", 3) and "no world took the command" in a.detail, a
     a = station([], delay=0.2).command("stop", timeout=0.2)  # the whole timeout: silence
     assert (a.outcome, a.code) == ("no_answer", 3) and "within 0.2 s" in a.detail
 
@@ -172,3 +173,28 @@ def test_a_snapshot_to_a_path_it_cannot_write_is_a_clear_error_not_a_traceback(t
     assert blocker.read_text() == "x"
     assert cli.main([*base, str(tmp_path / "ok.json")]) == 0
     assert json.loads((tmp_path / "ok.json").read_text())["v"] == 1
+
+
+def test_a_world_that_dies_holding_the_query_is_no_answer_not_a_denial(tmp_path):
+    """The world SIGKILLed while it held a ground station's vehicle fault (a restart under way):
+    the query ended at once with no reply while the world's status was a second old, and the
+    ground station said "denied: ... use --zenoh-config RUN/secure/ground.json5" (exit 4) to an
+    operator holding ground.json5 (seen on a live lockstep fleet). The ground role may always
+    ask: no reply to it is silence, and a world whose token goes away left before answering."""
+    ground = tmp_path / "ground.json5"
+    ground.write_text(json.dumps({"transport": {"auth": {"usrpwd": {"user": "ground", "password": "pw"}}}}))
+    gs = station([], config_file=str(ground))
+    gs.view.world_seen = True
+
+    class Leaving(Session):  # the world's token goes as its session closes, a moment after the query ended
+        def get(self, key, payload=None, timeout=None):
+            threading.Timer(0.1, lambda: gs.view.alive.discard("world")).start()
+            return iter([])
+
+    gs.session = Leaving([])
+    a = gs.command("pause_vehicle", vehicle="usv1", timeout=5.0)
+    assert (a.outcome, a.code) == ("no_answer", 3) and "the world left before answering" in a.detail, a
+    a = station([], config_file=str(ground)).command("stop", timeout=5.0)  # up, no reply, ground: not denied
+    assert (a.outcome, a.code) == ("no_answer", 3) and "denied" not in a.detail, a
+    a = station([]).command("stop", timeout=5.0)  # no credentials: a fleet with no access control
+    assert (a.outcome, a.code) == ("no_answer", 3), a
