@@ -20,6 +20,8 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
 
+import zenoh
+
 from cdus.wire import keys
 from cdus.wire.access import GROUND_ROLE
 from cdus.wire.transport import Transport, endpoint_host, open_session
@@ -33,6 +35,9 @@ COMMAND_TIMEOUT = 10.0  # s a ground station waits for the world's answer (a res
 SNAPSHOT_VERSION = 1  # the JSON of `gs status --json`, `gs watch --jsonl`, `gs snapshot`
 MAX_NAMES = 10_000  # vehicles (telemetry, liveliness) the console tracks: names beyond are forged
 MAX_EVENTS = 1000  # events the console keeps (it shows the newest 8)
+#: replies to a command are not consolidated (Zenoh keeps one per key by default, so a forged
+#: one could hide the world's): every one is read
+_ALL_REPLIES = zenoh.ConsolidationMode.NONE
 WORLD_LEFT_WAIT = 1.0  # s: a query that ended with no reply waits this long for news of the world leaving
 BIG = 1e9  # numbers beyond this are shown in scientific notation, not as hundreds of digits
 
@@ -347,8 +352,12 @@ class GroundStation:
             fields["name"] = self.name
         t0 = time.monotonic()
         payload = encode_control(op, **fields)
-        problems = []
-        for r in self.session.get(keys.world_command(self.fleet, keys.GROUND), payload=payload, timeout=timeout):
+        problems: list[str] = []
+        answers: list[CommandReply] = []
+        # every reply until the query ends: the world's is one, and more than one that differ means
+        # something else answers on the command key (a fleet run with --insecure lets anyone)
+        for r in self.session.get(keys.world_command(self.fleet, keys.GROUND), payload=payload, timeout=timeout,
+                                  consolidation=_ALL_REPLIES):
             if r.ok is None:
                 problems.append("an error reply: " + printable(r.err.payload.to_bytes().decode("utf-8", "replace"),
                                                               200))
@@ -360,7 +369,19 @@ class GroundStation:
                     self.view.rejected_by_reason[f"reply_{reply}"] += 1
                 problems.append(f"an answer that could not be read ({reply})")
                 continue
-            return Answer(reply.status, reply)
+            if reply not in answers:
+                answers.append(reply)
+        if len(answers) == 1:
+            return Answer(answers[0].status, answers[0])
+        if answers:
+            said = "; ".join(f"{a.status}" + (f" ({a.reason})" if a.reason else "") + (f" by {a.by}" if a.by else "")
+                             for a in answers[:4])
+            with self.view.lock:
+                self.view.rejected_by_reason["reply_conflict"] += 1
+            return Answer("no_answer", None, f"{len(answers)} different answers came back ({printable(said, 300)}): "
+                                             "something besides the fleet's world answers on its command key (a fleet "
+                                             "run with --insecure lets anyone); check the run's event log for what "
+                                             "the world did")
         waited = time.monotonic() - t0
         if problems:
             return Answer("no_answer", None, "; ".join(problems))

@@ -30,8 +30,9 @@ class Session:
     def __init__(self, replies: list[Reply], delay: float = 0.0):
         self.replies, self.delay, self.asked = replies, delay, []
 
-    def get(self, key, payload=None, timeout=None):
+    def get(self, key, payload=None, timeout=None, consolidation=None):
         self.asked.append((key, payload))
+        self.consolidation = consolidation
         time.sleep(self.delay)
         return iter(self.replies)
 
@@ -187,7 +188,7 @@ def test_a_world_that_dies_holding_the_query_is_no_answer_not_a_denial(tmp_path)
     gs.view.world_seen = True
 
     class Leaving(Session):  # the world's token goes as its session closes, a moment after the query ended
-        def get(self, key, payload=None, timeout=None):
+        def get(self, key, payload=None, timeout=None, consolidation=None):
             threading.Timer(0.1, lambda: gs.view.alive.discard("world")).start()
             return iter([])
 
@@ -198,3 +199,24 @@ def test_a_world_that_dies_holding_the_query_is_no_answer_not_a_denial(tmp_path)
     assert (a.outcome, a.code) == ("no_answer", 3) and "denied" not in a.detail, a
     a = station([]).command("stop", timeout=5.0)  # no credentials: a fleet with no access control
     assert (a.outcome, a.code) == ("no_answer", 3), a
+
+
+def test_a_second_different_answer_on_the_command_key_is_not_taken_for_the_worlds():
+    """On a fleet run with --insecure anyone may answer on world/cmd/gs: a forger's "applied"
+    came first and `cdus gs resume` printed "applied ... by gs:forger" and exited 0 while the
+    world had rejected it (seen live). Every reply is read now: one answer (or the same one
+    twice) is taken; different ones are no answer, with what each said."""
+    world = CommandReply("rejected", "resume", "the fleet is not paused", None, None, "gs:alice")
+    forged = CommandReply("applied", "resume", "FORGED", 1, 0.02, "gs:forger")
+    import zenoh
+
+    gs = station([Reply(KEY, encode_reply(forged)), Reply(KEY, encode_reply(world))])
+    a = gs.command("resume")
+    # Zenoh's default consolidation keeps one reply per key: the forger's could hide the world's
+    assert gs.session.consolidation == zenoh.ConsolidationMode.NONE
+    assert (a.outcome, a.code) == ("no_answer", 3) and "2 different answers" in a.detail
+    assert "FORGED" in a.detail and "the fleet is not paused" in a.detail and "--insecure" in a.detail
+    a = station([Reply(KEY, encode_reply(world)), Reply(KEY, encode_reply(world))]).command("resume")
+    assert (a.outcome, a.code, a.reply) == ("rejected", 1, world)
+    a = station([Reply(KEY, encode_reply(world)), Reply(KEY, b"\xc1")]).command("resume")  # junk beside it: counted
+    assert (a.outcome, a.reply) == ("rejected", world)
