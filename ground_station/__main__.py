@@ -305,14 +305,14 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
             change = formation_fields(args.settings)
         elif args.action == "path":
             change = path_fields(args.settings)
-        elif args.action == "snapshot" and os.path.isdir(args.file):
-            raise ConfigError("command line", [("snapshot", f"{args.file} is a directory; give a file name, "
-                                                            f"e.g. {os.path.join(args.file, 'state.json')}")])
         elif args.action == "radio":
             change = nested(args.settings)
             problem = radio_change_problem(change)
             if problem is not None:
                 raise ConfigError("command line", [("radio", problem)])
+        elif args.action == "snapshot" and os.path.isdir(args.file):
+            raise ConfigError("command line", [("FILE", f"{args.file} is a directory: name the file to write, "
+                                                        f"e.g. {os.path.join(args.file, 'state.json')}")])
         gs.open(watch=True)
         if not gs.wait_for_status(STATUS_WAIT_S):
             print(f"error: no status from fleet {args.fleet!r} within {STATUS_WAIT_S:g} s at "
@@ -343,8 +343,9 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
         elif args.action == "snapshot":
             try:
                 write_json(args.file, gs.snapshot())
-            except OSError as e:
-                print(f"error: snapshot: could not write {args.file}: {e}", file=sys.stderr)
+            except OSError as e:  # a directory that cannot be made or written, a read-only file system
+                print(f"error: could not write the snapshot to {args.file}: {e.strerror or e}"
+                      + (f" ({e.filename})" if e.filename and str(e.filename) != args.file else ""), file=sys.stderr)
                 return EXIT_USAGE
             print(f"fleet {args.fleet!r} saved to {args.file}")
             return 0

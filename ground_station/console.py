@@ -20,7 +20,10 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
 
+import zenoh
+
 from cdus.wire import keys
+from cdus.wire.access import GROUND_ROLE
 from cdus.wire.transport import Transport, endpoint_host, open_session
 from cdus.wire.messages import VEHICLE_FAULTS, StateMsg, decode_states, encode_control
 from cdus.wire.schemas import CommandReply, FleetEvent, decode_event, decode_reply, decode_status
@@ -32,6 +35,10 @@ COMMAND_TIMEOUT = 10.0  # s a ground station waits for the world's answer (a res
 SNAPSHOT_VERSION = 1  # the JSON of `gs status --json`, `gs watch --jsonl`, `gs snapshot`
 MAX_NAMES = 10_000  # vehicles (telemetry, liveliness) the console tracks: names beyond are forged
 MAX_EVENTS = 1000  # events the console keeps (it shows the newest 8)
+#: replies to a command are not consolidated (Zenoh keeps one per key by default, so a forged
+#: one could hide the world's): every one is read
+_ALL_REPLIES = zenoh.ConsolidationMode.NONE
+WORLD_LEFT_WAIT = 1.0  # s: a query that ended with no reply waits this long for news of the world leaving
 BIG = 1e9  # numbers beyond this are shown in scientific notation, not as hundreds of digits
 
 
@@ -316,6 +323,20 @@ class GroundStation:
             recent = self.view.status_at is not None and time.monotonic() - self.view.status_at < 3.0
             return keys.WORLD in self.view.alive or recent
 
+    def _world_left(self, wait: float) -> bool:
+        """Was the world seen and is its liveliness token gone now, or within ``wait`` s (its
+        session closing ends the queries it held a moment before the router says it left)?"""
+        deadline = time.monotonic() + wait
+        while True:
+            with self.view.lock:
+                if not self.view.world_seen:
+                    return False
+                if keys.WORLD not in self.view.alive:
+                    return True
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(0.02)
+
     def world_gone(self) -> bool:
         """The world was seen and its token is gone: the run is over."""
         with self.view.lock:
@@ -331,8 +352,12 @@ class GroundStation:
             fields["name"] = self.name
         t0 = time.monotonic()
         payload = encode_control(op, **fields)
-        problems = []
-        for r in self.session.get(keys.world_command(self.fleet, keys.GROUND), payload=payload, timeout=timeout):
+        problems: list[str] = []
+        answers: list[CommandReply] = []
+        # every reply until the query ends: the world's is one, and more than one that differ means
+        # something else answers on the command key (a fleet run with --insecure lets anyone)
+        for r in self.session.get(keys.world_command(self.fleet, keys.GROUND), payload=payload, timeout=timeout,
+                                  consolidation=_ALL_REPLIES):
             if r.ok is None:
                 problems.append("an error reply: " + printable(r.err.payload.to_bytes().decode("utf-8", "replace"),
                                                               200))
@@ -344,19 +369,38 @@ class GroundStation:
                     self.view.rejected_by_reason[f"reply_{reply}"] += 1
                 problems.append(f"an answer that could not be read ({reply})")
                 continue
-            return Answer(reply.status, reply)
+            if reply not in answers:
+                answers.append(reply)
+        if len(answers) == 1:
+            return Answer(answers[0].status, answers[0])
+        if answers:
+            said = "; ".join(f"{a.status}" + (f" ({a.reason})" if a.reason else "") + (f" by {a.by}" if a.by else "")
+                             for a in answers[:4])
+            with self.view.lock:
+                self.view.rejected_by_reason["reply_conflict"] += 1
+            return Answer("no_answer", None, f"{len(answers)} different answers came back ({printable(said, 300)}): "
+                                             "something besides the fleet's world answers on its command key (a fleet "
+                                             "run with --insecure lets anyone); check the run's event log for what "
+                                             "the world did")
         waited = time.monotonic() - t0
         if problems:
             return Answer("no_answer", None, "; ".join(problems))
-        if waited < timeout * 0.9 and self.world_up():
-            user = credentials_user(self.transport.config_file)
+        user = credentials_user(self.transport.config_file)
+        if waited < timeout * 0.9 and self._world_left(WORLD_LEFT_WAIT):
+            return Answer("no_answer", None, "the world left before answering (its process ended or the run is "
+                                             "over): the command may or may not have been carried out; see the "
+                                             "run's summary and event log")
+        # the ground role may ask: no reply to it is not the router's access control (nor on a
+        # fleet without credentials, which has none)
+        if waited < timeout * 0.9 and self.world_up() and user is not None and user != GROUND_ROLE:
             who = f" (these are the credentials of {user!r})" if user else ""
             return Answer("denied", None,
                           f"denied: the fleet's router refused this command{who}; only the ground station's "
                           "credentials may command a secured fleet: use --zenoh-config RUN/secure/ground.json5 "
                           "(the launcher prints the whole line)")
         if waited < timeout * 0.9:
-            return Answer("no_answer", None, "no world took the command: is the fleet still running?")
+            return Answer("no_answer", None, "the query ended with no answer: no world took the command "
+                                             "(is the fleet still running?)")
         return Answer("no_answer", None, f"no answer from the world within {timeout:g} s")
 
     def snapshot(self) -> dict[str, Any]:

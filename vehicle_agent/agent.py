@@ -63,8 +63,8 @@ from cdus.sim.lockstep import GRANT_WINDOW, MAX_GRANT_WINDOW
 from cdus.wire.text import printable
 from cdus.wire import keys
 from cdus.wire.messages import (
-    CTL_OPS, MAX_STATE_ROWS, StateMsg, decode_contacts, decode_control, decode_geometry, decode_omega, decode_states,
-    encode_omega, encode_states,
+    CTL_OPS, MAX_LINK_AT, MAX_STATE_ROWS, StateMsg, decode_contacts, decode_control, decode_geometry, decode_omega,
+    decode_states, encode_omega, encode_states,
 )
 from cdus.wire.schemas import AgentStats, encode_stats
 from cdus.wire.transport import Transport, open_session
@@ -90,7 +90,6 @@ RATE_MARGIN = 4.0  # realtime: a sender's ω rate allowed, in multiples of its b
 RATE_BURST = 64  # realtime: ω a sender may send back to back (a stall's catch-up is < STALL_TICKS)
 _KINDS = ("omega", "state", "stats", "ctl", "contacts", "cmd", "wake", "last")  # named in a reject reason
 MAX_LOGGED = 256  # (sender, reason) pairs logged; past that, rejects are only counted
-MAX_LINK_AT = 1e9  # s: a link change's time (past the run's end it never applies)
 MAX_COMMAND_NESTING = 2  # a link or gains table nests its containers at most this deep (delay = {...})
 LOG_WAIT = 5.0  # s of waiting before saying what for
 #: lockstep: when this session was cut off from the router (the world's liveliness token went and

@@ -54,12 +54,12 @@ from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
 from cdus.sim.summary import COMPLETED, link_block, run_metrics
 from cdus.wire import keys
 from cdus.wire.messages import (
-    COMMAND_OPS, StateMsg, decode_control, decode_geometry, decode_states, encode_contacts, encode_control,
-    encode_geometry, encode_states,
+    COMMAND_OPS, MAX_LINK_AT, StateMsg, decode_control, decode_geometry, decode_states, encode_contacts,
+    encode_control, encode_geometry, encode_states,
 )
 from cdus.wire.schemas import (
-    ID_RE, MAX_REASON, ORIGIN_WORLD, AgentStats, CommandReply, FleetEvent, StatusExtra, decode_stats,
-    encode_event, encode_reply, encode_status,
+    ID_RE, MAX_REASON, MAX_TEXT as MAX_EVENT_TEXT, ORIGIN_WORLD, AgentStats, CommandReply, FleetEvent,
+    StatusExtra, decode_stats, encode_event, encode_reply, encode_status,
 )
 from cdus.wire.text import printable
 from cdus.wire.transport import Transport, open_session
@@ -112,6 +112,11 @@ class Verdict:
 LATER = Verdict(True, "decided when its tick comes")  # a sentinel: never sent as it is
 MAX_WAITING = 1024  # queries held for a lockstep fault's decision; beyond, answered at once
 MAX_QUEUED_QUERIES = 256  # command queries waiting for the main thread; beyond, answered busy at once
+#: refused commands go to the event log (published, logged, kept in metrics.json) at most this
+#: many at once, then REJECTED_EVENTS_PER_S: a flood of bad commands (each answered, each counted
+#: in the rejects) is not amplified into as many events; the next one logged says how many were not
+REJECTED_EVENTS_BURST = 20
+REJECTED_EVENTS_PER_S = 1.0
 
 
 def closest_live_pair(q: np.ndarray, live: np.ndarray, kinds: list[str], ids: list[str]) -> tuple | None:
@@ -235,6 +240,9 @@ class World:
         self._waiting: dict[int, tuple[Any, str, str]] = {}  # ref -> (query, op, by): lockstep faults
         self._next_ref = 0
         self._busy = self._busy_counted = 0  # command queries answered busy (a flood)
+        self._rejected_tokens = float(REJECTED_EVENTS_BURST)  # 'rejected' events that may go out now
+        self._rejected_at = time.monotonic()
+        self._rejected_quiet = 0  # 'rejected' events not logged since the last one that was
         self._command_ref: int | None = None  # the ref of the command being handled, if it asked
         self._current_op = ""  # the op of the command being handled
         #: op -> handler(fields, by) -> Verdict | reason str | None | LATER (see Verdict); other
@@ -609,7 +617,10 @@ class World:
                                 f"--at {f['at']:g} s is not before the end of the run ({self.duration:g} s): "
                                 "it would change nothing; give a time within the run")
         merged = merge_link_tables(self._link_table, f["link"])
-        try:  # the agents' own check, made before relaying: a table they would refuse is no change
+        try:  # the agents' own checks, made before relaying: a change they would refuse is no change
+            if f["at"] > MAX_LINK_AT:
+                raise ValueError(f"link command: at = {f['at']:.6g} s is beyond the latest time a link change "
+                                 f"may name ({MAX_LINK_AT:g} s of simulated time)")
             validate_link(merged, self.ids, "link command")
         except (ConfigError, ValueError) as e:
             self._reject(by, "link")
@@ -869,6 +880,20 @@ class World:
         """An event the world built (from validated fields only), marked with its origin."""
         if event.origin is None:
             event = replace(event, origin=ORIGIN_WORLD)
+        if event.kind == "rejected":
+            now = time.monotonic()
+            self._rejected_tokens = min(float(REJECTED_EVENTS_BURST), self._rejected_tokens
+                                        + (now - self._rejected_at) * REJECTED_EVENTS_PER_S)
+            self._rejected_at = now
+            if self._rejected_tokens < 1.0:
+                self._rejected_quiet += 1
+                return
+            self._rejected_tokens -= 1.0
+            if self._rejected_quiet:
+                more = (f" ({self._rejected_quiet} refused commands since the last one logged were not: "
+                        f"a flood; each was answered and counted in the world's rejects)")
+                event = replace(event, text=event.text[:MAX_EVENT_TEXT - len(more)] + more)
+                self._rejected_quiet = 0
         self.events.append(event)
         self.sink.event(event)
         for line in self._console.lines(event):

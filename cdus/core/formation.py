@@ -102,6 +102,18 @@ class FormationSchedule:
                 theta[j] = x
         return tuple(theta)
 
+    def epochs(self) -> list[tuple[int, tuple[float, ...]]]:
+        """``(tick, phases in force from it)`` for each distinct tick a change applies at, in
+        order, built in one pass (phases_at for each would cost the square of the changes)."""
+        theta = list(self.base)
+        out = []
+        for idx, (tick, items) in enumerate(zip(self._ticks, self._updates)):
+            for j, x in items:
+                theta[j] = x
+            if idx + 1 == len(self._ticks) or self._ticks[idx + 1] != tick:
+                out.append((tick, tuple(theta)))
+        return out
+
     def offset(self, i: int, k: int, base_delta: float, n: int) -> float:
         """Δ_ik in force at tick ``n``: the scenario's ``base_delta`` before any change, θ_i - θ_k after."""
         if not self.changed_by(n):

@@ -17,6 +17,7 @@ Pure: arrays in, numbers out. The recorder grows NumPy arrays row by row.
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
 from typing import Any, Iterable, Sequence
@@ -99,13 +100,18 @@ class Recorder:
             return None
         ticks = np.rint(self.t[lo:hi] / self.period).astype(np.int64)
         out = np.tile(np.array([e.delta for e in self.edges]), (hi - lo, 1))
-        starts = sorted(set(f.ticks))
-        for j, c in enumerate(starts):
+        epochs = f.epochs()
+        starts = [c for c, _ in epochs]
+        # only the epochs the rows [lo, hi) fall in (rows are in tick order): the world's status
+        # asks for its newest row every second, whatever the number of changes a ground station made
+        first = max(0, bisect.bisect_right(starts, int(ticks.min())) - 1)
+        last = bisect.bisect_right(starts, int(ticks.max()))
+        for j in range(first, last):
+            c, theta = epochs[j]
             rows = ticks >= c
             if j + 1 < len(starts):
                 rows &= ticks < starts[j + 1]
             if rows.any():
-                theta = f.phases_at(c)
                 out[rows] = [theta[e.i] - theta[e.k] for e in self.edges]
         return out
     def __len__(self) -> int:

@@ -28,10 +28,24 @@ import math
 from dataclasses import dataclass, fields
 from typing import Iterable, Sequence
 
-import numpy as np
+from functools import lru_cache
 
 from cdus.core.link import stream_key, uniform
 from cdus.wire.messages import OmegaMsg, encode_omega
+
+
+class _Numpy:
+    """numpy, imported on first use: a vehicle process whose channel has no fading never loads it
+    (the agent's footprint, tests/vehicle_agent/test_footprint.py)."""
+
+    def __getattr__(self, name: str):
+        import numpy
+
+        globals()["np"] = numpy
+        return getattr(numpy, name)
+
+
+np = _Numpy()
 
 C_LIGHT = 299_792_458.0  # m/s
 EPSILON_0 = 8.8541878128e-12  # F/m
@@ -308,7 +322,17 @@ def fading_mean(f: np.ndarray, fading: str, k_factor: float, m: float) -> float:
     return float(np.dot(w, f))
 
 
-FADING_GRID = np.exp(np.linspace(math.log(1e-12), math.log(60.0), 3001))
+@lru_cache(maxsize=1)
+def fading_grid() -> np.ndarray:
+    """The power gains g the fading integrals are taken over (``FADING_GRID``): 3001 points
+    evenly spaced in ln g from 1e-12 to 60."""
+    return np.exp(np.linspace(math.log(1e-12), math.log(60.0), 3001))
+
+
+def __getattr__(name: str):
+    if name == "FADING_GRID":  # built (and numpy loaded) on first use
+        return fading_grid()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 _WEIGHTS: dict[tuple, np.ndarray] = {}
 
 
@@ -317,7 +341,7 @@ def _fading_weights(fading: str, k_factor: float, m: float) -> np.ndarray:
     w = _WEIGHTS.get(key)
     if w is not None:
         return w
-    g = FADING_GRID
+    g = fading_grid()
     if fading == "rician":
         kk = k_factor
         z = 2.0 * np.sqrt(kk * (kk + 1.0) * g)
@@ -650,7 +674,7 @@ class RadioChannel:
             if s.fading == "none":
                 success = 1.0 - per
             else:
-                curve = per_curve(snr + 10.0 * np.log10(FADING_GRID), self.bytes, s.modulation, s.bandwidth,
+                curve = per_curve(snr + 10.0 * np.log10(fading_grid()), self.bytes, s.modulation, s.bandwidth,
                                   s.capacity)
                 success = fading_mean(1.0 - curve, s.fading, s.rician_k, s.nakagami_m)
             m = self.medium(geo)

@@ -51,6 +51,14 @@ CHANGE_ACTIONS = ("formation", "path")
 ALL_ACTIONS = ACTIONS + CHANGE_ACTIONS
 OFFSET_KEYS = ("i", "k", "delta")
 PATH_EXAMPLE = '{ family = "circle", center = [0, 0], radius = 10 }'
+#: every number of a path given as an [[event]] or by a ground station (metres, or a rate): a
+#: circle of radius 1e308 or a Lissajous of frequency 1e300 overflowed the vehicle that took it
+#: (its process ended: DivergedError) after the world had answered "applied"
+MAX_PATH_NUMBER = 1e6
+#: ω units: how far a formation's given offsets may be from the ones its phases give (float64
+#: sums along the graph's tree round; a lap is 2π/β, ~30 ω units at β = 0.2)
+OFFSET_TOL = 1e-6
+PROBE_OMEGAS = (0.0, 1.0, -1.0, 1e3, -1e3, 1e6, -1e6, MAX_PHASE, -MAX_PHASE)
 
 
 def event_section(p: Problems, raw: Any, ids: Sequence[str] | None) -> tuple[Event, ...]:
@@ -201,8 +209,17 @@ def check_path(table: Mapping[str, Any], dim: int) -> Path | tuple[str, str]:
     """The path a table gives a vehicle of ``dim`` axes, checked as the config's paths are
     (cdus.core.paths.make_path), or ``(key, message)``: the key at fault ("" for the table)
     and what is wrong. Never raises on any data."""
+    for key, value in table.items():
+        big = [x for x in (value if isinstance(value, (list, tuple)) else [value])
+               if is_number(x) and not abs(x) <= MAX_PATH_NUMBER]
+        if big:
+            return str(key), (f"must be within ±{MAX_PATH_NUMBER:g} (metres, or a rate), got {show(big[0])}: a vehicle "
+                              f"cannot follow such a path (its numbers overflow)")
     try:
         followed = for_dimension(make_path(table), dim)
+        for w in PROBE_OMEGAS:  # the numbers every vehicle will compute from it stay finite
+            if not all(math.isfinite(x) for v in followed.eval(w) for x in v):
+                return "", f"its values are not finite numbers at ω = {w:g}: a vehicle cannot follow it"
         turn = turning_point(followed)
         if turn is not None:  # a retraced Lissajous, refused as the config refuses it
             return "phase", retrace_message(dict(table), turn, dim)
@@ -334,6 +351,17 @@ def offsets_to_phases(ids: Sequence[str], current: Sequence[float], edges: Seque
         return (f"inconsistent formation offsets: with those in force on the other edges they sum to {total:.6g}, "
                 f"not 0{rounded}, around a cycle; give per-vehicle phases instead (Δ_ik = θ_i - θ_k always "
                 f"closes) or offsets on every edge of the cycle that sum to 0; the cycle: {hops}")
+    # the cycle check's tolerance is relative (1e-9 of the largest value): offsets near ±1e9 that
+    # miss closing by up to ~1 ω unit passed it, and the phases solved along the tree then gave
+    # one edge a Δ other than the one asked. Every given Δ must come out as asked.
+    theta = dict(zip(ids, current)) | found
+    tol = OFFSET_TOL + 1e-15 * len(ids) * max([1.0, *(abs(x) for x in theta.values())])
+    for (i, k), d in offsets.items():
+        miss = (theta[i] - theta[k]) - d
+        if not abs(miss) <= tol:
+            return (f"inconsistent formation offsets: they miss closing around a cycle through {i} - {k} by "
+                    f"{-miss:.6g} ω units (the deltas given and the ones in force on the other edges must sum "
+                    f"to 0 within {tol:.2g}); give per-vehicle phases instead (phases = {{ id = θ, ... }})")
     far = [vid for vid, theta in found.items() if not abs(theta) <= MAX_PHASE]
     if far:  # every process takes phases within ±MAX_PHASE only
         return (f"these offsets put the phase of {far[0]} at {found[far[0]]:.6g}, beyond ±{MAX_PHASE:g} ω units; "

@@ -294,6 +294,7 @@ def decode_geometry(payload: bytes, n_vehicles: int | None = None) -> GeometryMs
 
 CONTROL_VERSION = 1
 MAX_CONTROL_PAYLOAD = 4096
+MAX_LINK_AT = 1e9  # s: a link change's latest time (the agents refuse a later one; past the run's end it never applies)
 
 #: world -> vehicles (``ctl``), per op the fields it carries (name -> type)
 CTL_OPS: dict[str, dict[str, type]] = {

@@ -133,3 +133,34 @@ def test_build_node_applies_the_scenarios_scheduled_changes():
         assert (node.vehicle.path.center == (1.0, 2.0)) == (n >= 1), n
     assert formation_schedule(sc).phases_at(3) == (0.0, 4.0)
     assert np.isfinite(node.vehicle.omega)
+
+
+from hypothesis import given, settings, strategies as hst  # noqa: E402
+
+
+class _Row:
+    def __init__(self, w):
+        self.q, self.heading, self.omega, self.omega_rate, self.path_error = (0.0, 0.0), 0.0, w, -1.0, 0.0
+
+
+@settings(max_examples=80, deadline=None)
+@given(changes=hst.lists(hst.tuples(hst.integers(0, 12), hst.integers(0, 2), hst.floats(-5, 5)), max_size=8),
+       lo=hst.integers(0, 12), width=hst.integers(1, 13))
+def test_the_deltas_of_any_rows_are_those_of_the_phases_in_force_at_each_row(changes, lo, width):
+    ids = ["a", "b", "c"]
+    edges = [MetricEdge(0, 1, 1.0, "a__b"), MetricEdge(2, 1, -0.5, "c__b")]
+    rec = Recorder(ids, [2, 2, 2], edges)
+    f = FormationSchedule([1.0, 0.0, -0.5])
+    rec.set_formation(f, 0.1)
+    for tick, j, theta in changes:
+        f.add(tick, {j: theta})
+    for n in range(12):
+        rec.record(n * 0.1, [_Row(0.0)] * 3)
+    got = rec.deltas(lo, lo + width)
+    if got is None:
+        assert not f.changed_by(min(12, lo + width) - 1) or lo >= 12
+        return
+    for r, n in enumerate(range(lo, min(12, lo + width))):
+        want = [f.offset(e.i, e.k, e.delta, n) for e in edges]
+        assert list(got[r]) == want, (n, list(got[r]), want)
+

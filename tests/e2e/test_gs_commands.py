@@ -93,7 +93,7 @@ def test_every_command_is_answered_and_the_ground_station_exits_by_the_answer(tm
     snap = json.loads((tmp_path / "snap.json").read_text())
     assert snap["run"] == "paused" and all(v["reason"] == "paused (fleet)" and v["telemetry"] for v in snap["vehicles"])
     res = gs("snapshot", str(tmp_path / "snap.json" / "x.json"))  # cannot be written: said, no traceback
-    assert res.returncode == 2 and "snapshot: could not write" in res.stderr and "Traceback" not in res.stderr, res
+    assert res.returncode == 2 and "could not write the snapshot to" in res.stderr and "Traceback" not in res.stderr, res
     assert gs("resume").returncode == 0
 
     # gains: beyond what a vehicle takes is refused with the world's reason (it said "sent" before)

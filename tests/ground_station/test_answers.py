@@ -5,6 +5,7 @@ a query that comes back empty at once from a fleet whose world is up is a denial
 from __future__ import annotations
 
 import json
+import threading
 import time
 
 import msgpack
@@ -29,8 +30,9 @@ class Session:
     def __init__(self, replies: list[Reply], delay: float = 0.0):
         self.replies, self.delay, self.asked = replies, delay, []
 
-    def get(self, key, payload=None, timeout=None):
+    def get(self, key, payload=None, timeout=None, consolidation=None):
         self.asked.append((key, payload))
+        self.consolidation = consolidation
         time.sleep(self.delay)
         return iter(self.replies)
 
@@ -74,7 +76,7 @@ def test_nothing_back_at_once_from_a_fleet_whose_world_is_up_is_a_denial(tmp_pat
     assert "(these are the credentials of 'vehicle-usv1')" in a.detail  # was "are 'vehicle-usv1''s"
     assert "RUN/secure/ground.json5" in a.detail and "pw" not in a.detail
     a = station([], world_up=False).command("stop", timeout=5.0)  # nobody there: not a denial
-    assert (a.outcome, a.code) == ("no_answer", 3) and "no world took the command" in a.detail
+    assert (a.outcome, a.code) == ("no_answer", 3) and "no world took the command" in a.detail, a
     a = station([], delay=0.2).command("stop", timeout=0.2)  # the whole timeout: silence
     assert (a.outcome, a.code) == ("no_answer", 3) and "within 0.2 s" in a.detail
 
@@ -149,3 +151,73 @@ def test_watch_writes_versioned_json_lines_and_ends_when_the_world_leaves(capsys
     lines = [json.loads(ln) for ln in capsys.readouterr().out.splitlines()]
     assert [ln["kind"] for ln in lines] == ["event", "status", "end"] and all(ln["v"] == 1 for ln in lines)
     assert lines[0]["event"]["text"] == "fleet paused by gs:x" and lines[1]["run"] == "ended"
+
+
+def test_a_snapshot_to_a_path_it_cannot_write_is_a_clear_error_not_a_traceback(tmp_path, monkeypatch, capsys):
+    """`gs snapshot DIR` raised IsADirectoryError, `gs snapshot /proc/version` FileNotFoundError
+    (its temp file), both as tracebacks after connecting. Now: exit 2 and what is wrong; a
+    directory is refused before connecting."""
+    from ground_station import __main__ as cli
+
+    opened = []
+    monkeypatch.setattr(cli.GroundStation, "open", lambda self, watch=True: opened.append(1))
+    monkeypatch.setattr(cli.GroundStation, "wait_for_status", lambda self, timeout: True)
+    monkeypatch.setattr(cli.GroundStation, "fetch_last", lambda self, timeout=2.0: 0)
+    monkeypatch.setattr(cli.GroundStation, "close", lambda self: None)
+    base = ["--fleet", "f", "-e", "tcp/127.0.0.1:1", "snapshot"]
+    assert cli.main([*base, str(tmp_path)]) == cli.EXIT_USAGE and not opened
+    assert f"{tmp_path} is a directory" in capsys.readouterr().err
+    blocker = tmp_path / "a-file"
+    blocker.write_text("x")
+    assert cli.main([*base, str(blocker / "state.json")]) == cli.EXIT_USAGE and opened
+    err = capsys.readouterr().err
+    assert f"could not write the snapshot to {blocker / 'state.json'}" in err and "Traceback" not in err
+    assert blocker.read_text() == "x"
+    assert cli.main([*base, str(tmp_path / "ok.json")]) == 0
+    assert json.loads((tmp_path / "ok.json").read_text())["v"] == 1
+
+
+def test_a_world_that_dies_holding_the_query_is_no_answer_not_a_denial(tmp_path):
+    """The world SIGKILLed while it held a ground station's vehicle fault (a restart under way):
+    the query ended at once with no reply while the world's status was a second old, and the
+    ground station said "denied: ... use --zenoh-config RUN/secure/ground.json5" (exit 4) to an
+    operator holding ground.json5 (seen on a live lockstep fleet). The ground role may always
+    ask: no reply to it is silence, and a world whose token goes away left before answering."""
+    ground = tmp_path / "ground.json5"
+    ground.write_text(json.dumps({"transport": {"auth": {"usrpwd": {"user": "ground", "password": "pw"}}}}))
+    gs = station([], config_file=str(ground))
+    gs.view.world_seen = True
+
+    class Leaving(Session):  # the world's token goes as its session closes, a moment after the query ended
+        def get(self, key, payload=None, timeout=None, consolidation=None):
+            threading.Timer(0.1, lambda: gs.view.alive.discard("world")).start()
+            return iter([])
+
+    gs.session = Leaving([])
+    a = gs.command("pause_vehicle", vehicle="usv1", timeout=5.0)
+    assert (a.outcome, a.code) == ("no_answer", 3) and "the world left before answering" in a.detail, a
+    a = station([], config_file=str(ground)).command("stop", timeout=5.0)  # up, no reply, ground: not denied
+    assert (a.outcome, a.code) == ("no_answer", 3) and "denied" not in a.detail, a
+    a = station([]).command("stop", timeout=5.0)  # no credentials: a fleet with no access control
+    assert (a.outcome, a.code) == ("no_answer", 3), a
+
+
+def test_a_second_different_answer_on_the_command_key_is_not_taken_for_the_worlds():
+    """On a fleet run with --insecure anyone may answer on world/cmd/gs: a forger's "applied"
+    came first and `cdus gs resume` printed "applied ... by gs:forger" and exited 0 while the
+    world had rejected it (seen live). Every reply is read now: one answer (or the same one
+    twice) is taken; different ones are no answer, with what each said."""
+    world = CommandReply("rejected", "resume", "the fleet is not paused", None, None, "gs:alice")
+    forged = CommandReply("applied", "resume", "FORGED", 1, 0.02, "gs:forger")
+    import zenoh
+
+    gs = station([Reply(KEY, encode_reply(forged)), Reply(KEY, encode_reply(world))])
+    a = gs.command("resume")
+    # Zenoh's default consolidation keeps one reply per key: the forger's could hide the world's
+    assert gs.session.consolidation == zenoh.ConsolidationMode.NONE
+    assert (a.outcome, a.code) == ("no_answer", 3) and "2 different answers" in a.detail
+    assert "FORGED" in a.detail and "the fleet is not paused" in a.detail and "--insecure" in a.detail
+    a = station([Reply(KEY, encode_reply(world)), Reply(KEY, encode_reply(world))]).command("resume")
+    assert (a.outcome, a.code, a.reply) == ("rejected", 1, world)
+    a = station([Reply(KEY, encode_reply(world)), Reply(KEY, b"\xc1")]).command("resume")  # junk beside it: counted
+    assert (a.outcome, a.reply) == ("rejected", world)

@@ -232,3 +232,66 @@ def test_a_run_time_path_that_retraces_itself_is_refused_as_the_config_refuses_i
     good = check_path({"family": "lissajous", "center": [0, 0], "amplitude": [10, 10], "frequency": [1, 2],
                        "phase": [0, 1.5708]}, 2)
     assert not isinstance(good, tuple)
+
+
+from hypothesis import given, settings, strategies as hst  # noqa: E402
+
+_MAG = hst.one_of(hst.floats(-1e6, 1e6), hst.sampled_from([1e300, -1e308, 1e-308, 1e7, 1e6, -1e6, 0.5, 3.0]))
+
+
+def _path_table(draw, dim: int) -> dict:
+    family = draw(hst.sampled_from(["circle", "ellipse", "lissajous", "line"] + (["trefoil", "self_intersecting"]
+                                                                                 if dim == 3 else [])))
+    vec = lambda: [draw(_MAG) for _ in range(dim)]  # noqa: E731
+    pos = lambda: abs(draw(_MAG)) or 1.0  # noqa: E731
+    if family == "circle":
+        t = {"center": vec(), "radius": pos(), "speed": pos()}
+    elif family == "ellipse":
+        t = {"center": vec(), "a": pos(), "b": pos(), "beta": pos()}
+    elif family == "lissajous":
+        t = {"center": vec(), "amplitude": vec(), "frequency": vec(), "phase": vec()}
+    elif family == "line":
+        t = {"origin": vec(), "heading": vec(), "speed": pos()}
+    elif family == "trefoil":
+        t = {"center": vec(), "scale": pos(), "height": pos(), "beta": pos()}
+    else:
+        t = {"center": vec(), "d": draw(_MAG), "beta": pos()}
+    return {"family": family, **t}
+
+
+@settings(max_examples=40, deadline=None)
+@given(data=hst.data())
+def test_a_path_event_the_check_takes_is_one_a_vehicle_can_follow_without_overflowing(data):
+    """A path change (an [[event]], or a ground station's `gs path`, which the world checks
+    with check_path and answers "applied") of a circle of radius 1e308 or a Lissajous of
+    amplitude and frequency 1e300 was accepted, and the vehicle that took it ended
+    (DivergedError: its numbers overflowed). Now every number is within ±MAX_PATH_NUMBER and
+    the path's values are probed: what the check takes, the fleet flies."""
+    from cdus.core.node import DivergedError
+    from cdus.scenario.events import check_path
+    from tests.sim.test_formation import scenario
+    from cdus.sim.fleet import InProcessFleet
+
+    vid, dim = data.draw(hst.sampled_from([("usv1", 2), ("uav1", 3)]))
+    table = _path_table(data.draw, dim)
+    checked = check_path(table, dim)
+    if isinstance(checked, tuple):
+        assert isinstance(checked[0], str) and checked[1]  # refused, with the key and why
+        return
+    try:
+        InProcessFleet(scenario([{"at": 0.1, "action": "path", "vehicle": vid, "path": table}], duration=0.6)).run()
+    except DivergedError as e:
+        raise AssertionError(f"check_path took {table}, the vehicle diverged: {e}") from None
+    except ConfigError as e:  # the scenario's own check is the same one: it must agree
+        raise AssertionError(f"check_path took {table}, the config refused it: {e}") from None
+
+
+def test_a_path_with_numbers_a_vehicle_cannot_compute_is_refused_with_its_key():
+    from cdus.scenario.events import check_path
+
+    for table, key in [({"family": "circle", "center": [1e308, -1e308], "radius": 1e308, "speed": 1e308}, "center"),
+                       ({"family": "lissajous", "center": [0, 0, 0], "amplitude": [1e300] * 3,
+                         "frequency": [1e300, 1e-300, 1], "phase": [0, 1, 2]}, "amplitude"),
+                       ({"family": "circle", "center": [0, 0], "radius": 1e7}, "radius")]:
+        got = check_path(table, len(table["center"]))
+        assert isinstance(got, tuple) and got[0] == key and "within ±1e+06" in got[1], got

@@ -37,7 +37,7 @@ def test_lockstep_grants_no_further_than_the_radio_sample_allows():
     # without [radio], nothing changes
     plain = Lockstep(["a", "b"], 0.05, 100)
     plain.start()
-    assert [a for a in plain.poll() if isinstance(a, Grant)] == [Grant(49)]
+    assert [a for a in plain.poll() if isinstance(a, Grant)] == [Grant(99)]  # the horizon: the last tick
 
 
 def _watch(hold=0.6):

@@ -300,3 +300,54 @@ def test_lockstep_a_vehicle_paused_by_a_fault_stays_paused_in_the_status_after_i
     assert states["usv3"] == "paused" and states["usv1"] == "live", states
     w._note_fault("usv3", "kill")  # a kill of the paused vehicle: gone
     assert dict(zip(w.ids, w._status_extra().states))["usv3"] == "gone"
+
+
+@settings(max_examples=60, deadline=None)
+@given(at=hs.floats(allow_nan=False, allow_infinity=False))
+def test_a_link_change_at_any_time_is_relayed_as_the_agents_take_it_or_refused_with_nothing_changed(at):
+    """A link change dated beyond what the agents take (they drop at > MAX_LINK_AT as
+    link_range) was relayed, logged as a change and kept as the world's table, then answered
+    'internal error' (OverflowError at 1e308): every agent dropped it while the world thought it
+    in force. Now: relayed with an `at` every agent takes, or refused with nothing changed."""
+    from cdus.wire.messages import MAX_LINK_AT
+
+    w = started(world())
+    puts, table = len(w.session.puts) + len(w.pub_ctl.puts), dict(w._link_table)
+    r = ask(w, "link", link={"loss": 0.1}, at=at).answer
+    assert w.st.rejects["internal"] == 0
+    relayed = [decode_control(p, CTL_OPS) for p in w.pub_ctl.puts]
+    relayed = [c for c in relayed if c.op == "link"]
+    if r.applied:
+        assert relayed and 0.0 <= relayed[-1].fields["at"] <= MAX_LINK_AT and r.t == relayed[-1].fields["at"]
+        assert w.events[-1].kind == "link_changed"
+    else:
+        assert (at > MAX_LINK_AT and "beyond the latest time" in r.reason
+                or at >= w.duration and "not before the end of the run" in r.reason), r  # never applies
+        assert w.st.rejects["link"] == 1
+        assert not relayed and len(w.session.puts) + len(w.pub_ctl.puts) == puts and w._link_table == table
+        assert not [e for e in w.events if e.kind == "link_changed"]
+
+
+def test_a_flood_of_refused_commands_is_answered_and_counted_but_not_amplified_into_as_many_events():
+    """Every refused gains/link/formation/path command was also a 'rejected' event: published
+    on world/events, a line of world.log, an entry of metrics.json. 5000 bad queries from a
+    ground station made 5000 of each (world.log grew by 1 MB in a second). Now every one is
+    answered and counted, the event log takes a burst then one a second, and the next one
+    logged says how many it left out."""
+    import world_sim.world as ws
+
+    w = started(world())
+    for _ in range(500):
+        r = ask(w, "set_gains", gains={"k": -1.0}, vehicle="").answer
+        assert r.status == "rejected" and "k must be" in r.reason
+    assert w.st.rejects["gains"] == 500
+    logged = [e for e in w.events if e.kind == "rejected"]
+    assert ws.REJECTED_EVENTS_BURST <= len(logged) <= ws.REJECTED_EVENTS_BURST + 2
+    w._rejected_at -= 1.0 / ws.REJECTED_EVENTS_PER_S  # a second later: one more, saying what was left out
+    ask(w, "set_gains", gains={"k": -2.0}, vehicle="")
+    last = w.events[-1]
+    assert last.kind == "rejected" and "-2.0" in last.text and "refused commands since the last one logged" in last.text
+    assert len(last.text) <= 300
+    assert w.st.rejects["gains"] == 501
+    # an applied command is an event as ever
+    assert ask(w, "set_gains", gains={"c": 2.0}, vehicle="").answer.applied and w.events[-1].kind == "gains_changed"

@@ -177,3 +177,40 @@ def test_offsets_off_by_a_rounding_say_so():
     assert v.applied, v
     why = w._relay_formation({"phases": {}, "offsets": [{"i": "usv2", "k": "usv1", "delta": 3.0}]}, "gs1")
     assert "rounded" not in why
+
+
+RING = [("usv1", "usv2"), ("usv2", "usv3"), ("usv3", "uav1"), ("uav1", "uav2"), ("uav2", "uav3"), ("usv1", "uav3")]
+
+
+def _ring_offsets(theta: dict) -> list[dict]:
+    return [{"i": i, "k": k, "delta": theta[i] - theta[k]} for i, k in RING]
+
+
+def test_offsets_that_almost_close_a_cycle_are_refused_not_applied_with_another_delta():
+    """The cycle check's tolerance is relative (1e-9 of the largest value): around the lake ring
+    with phases ~1e8 apart, offsets missing closure by 0.4 ω units were answered "applied", and
+    uav1 -> uav2 got Δ = 1e8 + 0.4, not the 1e8 asked (0.08 rad at β = 0.2), silently."""
+    w = world()
+    w.lockstep.granted = 10
+    theta = {"usv1": 0.0, "usv2": -1e8, "usv3": -2e8, "uav1": -3e8, "uav2": -4e8, "uav3": -5e8}
+    offs = _ring_offsets(theta)
+    offs[-1]["delta"] += 0.4
+    why = w._relay_formation({"phases": {}, "offsets": offs}, "gs1")
+    assert isinstance(why, str) and "miss closing around a cycle" in why and not ctl_ops(w), why
+    assert w.st.rejects["formation"] == 1
+
+
+@settings(max_examples=60, deadline=None)
+@given(theta=st.lists(st.floats(-1e9, 1e9), min_size=6, max_size=6))
+def test_offsets_from_phases_are_always_taken_and_come_out_as_asked(theta):
+    w = world()
+    w.lockstep.granted = 10
+    th = dict(zip(["usv1", "usv2", "usv3", "uav1", "uav2", "uav3"], theta))
+    offs = _ring_offsets(th)
+    v = w._relay_formation({"phases": {}, "offsets": offs}, "gs1")
+    if isinstance(v, str):  # a Δ beyond ±1e9, or phases solved beyond it: never "does not close"
+        assert "beyond" in v or "within ±1e+09" in v, v
+        return
+    ph = dict(zip(w.ids, w.recorder.formation.phases_at(v.tick)))
+    for o in offs:
+        assert abs((ph[o["i"]] - ph[o["k"]]) - o["delta"]) <= 1e-5, (o, ph)
