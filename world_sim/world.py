@@ -77,6 +77,8 @@ RADIO_KEEP = 8  # radio geometry samples kept to send a (re)joining vehicle (it 
 REALTIME_SLACK = 1.0
 #: the reject reasons of the agents' ω checks that say someone forges a vehicle's ω (docs/metrics.md)
 SUSPECT_REASONS = ("future", "conflict", "implausible")
+#: ... and those that say someone forges the world's own messages to the vehicles (an open fleet)
+SUSPECT_WORLD_REASONS = ("radio_conflict",)
 SUSPECT_EVERY = 5.0  # s: at most one suspect event per (vehicle, reason) in this time
 #: s a lockstep world waits for a fleet that dropped all at once (the router or the network went,
 #: not the vehicles: their processes keep their state) before it declares them lost. A router
@@ -452,17 +454,19 @@ class World:
 
     def _suspects(self, vid: str, s: AgentStats, old: AgentStats | None) -> None:
         """A vehicle that counts new ω it cannot trust (from beyond its sender's possible seq, a
-        second different message for a seq, a jump its dynamics cannot make): a ``suspect``
+        second different message for a seq, a jump its dynamics cannot make) or a second, different
+        radio geometry sample for a tick (someone else speaks as the world): a ``suspect``
         event, at most one per (vehicle, reason) per SUSPECT_EVERY seconds."""
         now = time.monotonic()
-        for reason in SUSPECT_REASONS:
+        for reason in SUSPECT_REASONS + SUSPECT_WORLD_REASONS:
             new = s.rejected_by_reason.get(reason, 0) - (old.rejected_by_reason.get(reason, 0) if old else 0)
             last = self._suspect_seen.get((vid, reason))
             if new <= 0 or last is not None and now - last < SUSPECT_EVERY:
                 continue
             self._suspect_seen[(vid, reason)] = now
+            what = "ω" if reason in SUSPECT_REASONS else "radio geometry not the world's"
             self._note(FleetEvent.of(self._sim_now(), "suspect",
-                                     f"{vid} received ω it cannot trust: {new} new {reason!r} rejects "
+                                     f"{vid} received {what} it cannot trust: {new} new {reason!r} rejects "
                                      f"({s.rejected_by_reason[reason]} in all)", vehicle=vid, origin=vid))
 
     def _forward_link_changes(self, faults: dict) -> None:
