@@ -195,6 +195,7 @@ class Agent:
         self.rejoin = rejoin  # a restart: listeners that are not alive are not waited for
         self.listeners = listeners_of(scenario, vid)
         self.ids = list(scenario.ids)
+        self._dims = [v.dim for v in scenario.vehicles]  # the world sends a boat 2 coordinates, a drone 3
         self.index = self.ids.index(vid)
         self.period = 1.0 / scenario.rates.control
         self.last_tick = total_ticks(scenario.duration if duration is None else duration, self.period)
@@ -474,7 +475,7 @@ class Agent:
         radio = self.node.radio
         if radio is None:
             return self._reject("world", "radio_unexpected")
-        msg = decode_geometry(payload, len(self.ids))
+        msg = decode_geometry(payload, len(self.ids), self._dims)
         if isinstance(msg, str):
             return self._reject("world", f"radio_{msg}")
         if msg.tick > self.last_tick:

@@ -53,6 +53,7 @@ def test_a_geometry_sample_round_trips_and_is_what_tick_1_waits_for(agent):
     (msgpack.packb([1, 0, [[1.0, float("nan"), 3.0]] + [None] * (N - 1)]), "radio_non_finite"),
     (msgpack.packb([1, 0, [[1.0, 1e300, 3.0]] + [None] * (N - 1)]), "radio_range"),
     (msgpack.packb([1, 0, [None] * (N + 1)]), "radio_count"),
+    (msgpack.packb([1, 0, [[1.0, 2.0]] + [None] * (N - 1)]), "radio_dimension"),  # a drone sent as a boat
     (msgpack.packb([1, 0, [[1.0, 2.0, 3.0]] * 5000]), "radio_oversized"),
     (msgpack.packb([1, 0, [None] * 5000]), "radio_malformed"),  # more entries than a fleet can have
     (encode_geometry(GeometryMsg(2**40, (None,) * N)), "radio_range"),  # past the run: kept, never freed
@@ -95,7 +96,7 @@ def test_hostile_geometry_never_raises_and_every_reject_is_counted(payload):
     a = make_agent()
     before = a.node.radio.newest
     a._on_geometry(payload)
-    msg = decode_geometry(payload, N)
+    msg = decode_geometry(payload, N, [v.dim for v in SC.vehicles])
     taken = a.node.radio.newest != before
     if isinstance(msg, str):
         assert not taken and sum(a.rejected.values()) == 1 and list(a.rejected)[0].startswith("radio_")
