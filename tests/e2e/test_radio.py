@@ -145,3 +145,69 @@ def test_a_ground_station_radio_command_changes_delivery_from_its_time_on(tmp_pa
     for name in ("q", "omega"):
         assert np.array_equal(trace[name], out.recorder.view(name)), name
     assert not fleet_processes(fleet)
+
+
+@pytest.mark.parametrize("secured", [True, False], ids=["secured", "insecure"])
+def test_forged_radio_geometry_is_refused_by_a_secured_fleet_and_detected_on_an_open_one(tmp_path, launches, secured):
+    """range_out, lockstep, 10 s, held by a pause while someone publishes a geometry sample with
+    every vehicle 9,000 km away for every sample tick of the run (to the whole fleet and to each
+    vehicle alone). Secured: the forger holds uav1's credential and the router refuses every one
+    (the ACL: only the world publishes on the radio key), so the run is the in-process one to the
+    bit and no vehicle counts a radio reject. Open (--insecure): the forgeries for the ticks to
+    come stand (docs/security.md), but the world's samples that come later are counted
+    ``radio_conflict`` and the world reports a ``suspect`` event."""
+    import msgpack
+
+    from cdus.wire import keys
+    from cdus.wire.messages import encode_control
+    from cdus.wire.transport import free_tcp_port
+    from tests.outsider import raw_client
+
+    from .test_access import Events, member
+
+    fleet = unique_fleet()
+    port = free_tcp_port()
+    run = tmp_path / "run"
+    duration = 10.0
+    la = launches(["configs/range_out.toml", "--clock", "lockstep", "--duration", str(duration),
+                   "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "--trace-out", str(tmp_path / "trace.npz"),
+                   "-q", *(() if secured else ("--insecure",))], fleet)
+    la.wait_for(f"fleet '{fleet}' up")
+    sc = load_scenario("configs/range_out.toml", {"scenario.duration": duration})
+    if secured:
+        boss, mallory = member(run / "secure" / "ground.json5"), member(run / "secure" / "vehicle-uav1.json5")
+    else:
+        import zenoh
+        boss = mallory = zenoh.open(raw_client(f"tcp/127.0.0.1:{port}"))
+    try:
+        events = Events(boss, fleet)
+        boss.put(keys.world_cmd(fleet, keys.GROUND), encode_control("pause"))
+        events.wait_for("fleet", "paused")
+        every = round(sc.radio.sample_period * sc.rates.control)
+        far = msgpack.packb  # every vehicle 9,000 km out: nobody hears anybody
+        for to in (sc.ids, *([v] for v in sc.ids)):
+            for tick in range(0, round(duration * sc.rates.control) + 1, every):
+                mallory.put(keys.radio(fleet, to), far([1, tick, [[9.0e6, 0.0, 30.0]] * len(sc.ids)]))
+        assert la.proc.poll() is None, "the run ended before the forger was done: the test proves nothing"
+        boss.put(keys.world_cmd(fleet, keys.GROUND), encode_control("resume"))
+        assert la.wait() == 0, la.output()
+    finally:
+        boss.close()
+        if mallory is not boss:
+            mallory.close()
+    m = json.loads((run / "metrics.json").read_text())
+    assert m["completed"] is True
+    radio_rejects = {k: v for k, v in m["rejected_by_reason"]["vehicles"].items() if k.startswith("radio_")}
+    ref = InProcessFleet(sc).run()
+    if secured:
+        assert radio_rejects == {}
+        trace = np.load(tmp_path / "trace.npz")
+        for name in ("q", "omega"):
+            assert np.array_equal(trace[name], ref.recorder.view(name)), name
+        assert m["radio"] == ref.metrics["radio"]
+    else:
+        assert radio_rejects.get("radio_conflict", 0) > 0, radio_rejects
+        assert m["radio"]["dropped_by"]["range"] > ref.metrics["radio"]["dropped_by"]["range"]  # it did change it
+        suspects = [e for e in m["events"] if e["kind"] == "suspect" and "radio_conflict" in e["text"]]
+        assert suspects, m["events"]
+    assert not fleet_processes(fleet)
