@@ -660,6 +660,10 @@ class World:
         earliest = ((self.lockstep.granted + 1) * self.period if self.clock == "lockstep"
                     else self._sim_now() + self.period)
         at = max(fields["at"], earliest) if fields["at"] >= 0 else max(self._sim_now() + LINK_LEAD, earliest)
+        end = self.last_tick * self.period
+        if at > end:  # it would never apply, and epochs go in time order: it would refuse every later change
+            return (f"--at {at:g} s is past the run's end (t = {end:g} s): it would never apply; give --at "
+                    f"from now to {end:g} s, or no --at (as soon as possible)")
         later = self.radio_watch.channel.epochs[-1][0] if self.radio_watch is not None else -math.inf
         if at < later:  # changes apply in time order (epochs): a scheduled or earlier command's comes later
             return (f"a radio change from t = {later:g} s is already in force later (scheduled or commanded); "

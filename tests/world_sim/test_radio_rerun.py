@@ -102,6 +102,25 @@ def test_the_world_relays_a_radio_change_or_says_why_not():
     assert "no [radio]" in plain._relay_radio({"radio": {"tx_power": 3.0}, "at": -1.0}, "gs")
 
 
+def test_a_radio_change_past_the_runs_end_is_refused_and_locks_nobody_out():
+    """A change from a time past the run's end never applies; taken, it would have been the newest
+    epoch, and every later change (epochs go in time order) refused: one command with --at 2e9
+    (the agents refuse it too: past MAX_LINK_AT) locked the operator out of the radio."""
+    from .test_world import started
+
+    w = started(_radio_world())
+    end = w.last_tick * w.period
+    for at in (2e9, end + 1.0):
+        out = w._relay_radio({"radio": {"tx_power": 3.0}, "at": at}, "gs")
+        assert isinstance(out, str) and "past the run's end" in out and "--at" in out, out
+    assert len(w.radio_watch.channel.epochs) == 1
+    assert w._relay_radio({"radio": {"tx_power": 10.0}, "at": end}, "gs").applied  # the last moment is fine
+    w = started(_radio_world())
+    w._relay_radio({"radio": {"tx_power": 3.0}, "at": 2e9}, "gs")
+    v = w._relay_radio({"radio": {"tx_power": 10.0}, "at": -1.0}, "gs")
+    assert not isinstance(v, str) and v.applied, v
+
+
 def test_hostile_radio_commands_never_raise_and_are_refused_or_relayed():
     """Any radio command a ground station can send (decoded by COMMAND_OPS: a table and a time)
     is relayed or refused with a reason and a `rejected` event; nothing escapes, and the world's
