@@ -188,6 +188,7 @@ class World:
         self.events_scheduled = scenario.events
         self.sensing = sensor_schedule(scenario)  # (every, latency) ticks, None: no proximity sensor
         self.radio = radio_schedule(scenario)  # (every, lag) ticks, None: no [radio]
+        self._dims = [v.dim for v in scenario.vehicles]  # a geometry entry has the vehicle's dimension
         self._radio_rows: dict[int, dict[int, tuple]] = {}  # radio sample tick -> vehicle -> q (lockstep)
         self._radio_sent: deque[tuple[int, bytes]] = deque(maxlen=RADIO_KEEP)  # newest samples, for joiners
         self._next_radio = 0  # realtime: the next radio sample tick
@@ -935,7 +936,7 @@ class World:
         positions of the vehicles that stepped it, to every vehicle, then watched (events, views)."""
         for old in [k for k in self._radio_rows if k < tick]:
             del self._radio_rows[old]
-        payload = encode_geometry(geometry_sample(tick, positions, len(self.ids)))
+        payload = encode_geometry(geometry_sample(tick, positions, len(self.ids), self._dims))
         self.pub_radio.put(payload)
         self._radio_sent.append((tick, payload))
         msg = decode_geometry(payload, len(self.ids))  # what the vehicles read: the same numbers
