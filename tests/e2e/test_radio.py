@@ -231,3 +231,38 @@ def test_a_lockstep_fleet_beyond_the_geometry_bounds_runs_and_equals_the_in_proc
     assert metrics["radio"]["dropped_by"]["range"] == metrics["radio"]["sent"] > 0
     assert not {k for k in metrics["rejected_by_reason"]["vehicles"] if k.startswith("radio_")}
     assert not fleet_processes(fleet)
+
+
+@pytest.mark.parametrize("config", ["configs/range_out.toml", "configs/lake_circle.toml"])
+def test_ground_station_radio_commands_out_of_range_or_without_radio_are_refused_with_the_reason(
+        tmp_path, launches, config):
+    """`cdus gs radio` against a running lockstep fleet: NaN or 1e400 dBm, a station of 4
+    coordinates are refused before sending (exit 2, the field named); --at past the run's end,
+    or any change to a fleet without [radio], are refused by the world with its reason (exit 1)
+    and a `rejected` event; no agent counts a bad radio command; the run goes on and stops clean."""
+    from cdus.wire.transport import free_tcp_port
+
+    from .test_ground_station import gs
+
+    fleet = unique_fleet()
+    port = free_tcp_port()
+    run = tmp_path / "run"
+    la = launches([config, "--clock", "lockstep", "--duration", "3000", "--listen", f"tcp/127.0.0.1:{port}",
+                   "--logs", str(run), "-q"], fleet)
+    la.wait_for(f"fleet '{fleet}' up")
+    for args, field in ((["tx_power=nan"], "tx_power"), (["tx_power=1e400"], "tx_power"),
+                        (["station=[1,2,3,4]"], "station")):
+        res = gs(fleet, port, run, "radio", *args)
+        assert res.returncode == 2 and f"radio.{field}" in res.stderr, (args, res.returncode, res.stderr)
+    late = gs(fleet, port, run, "radio", "tx_power=10", "--at", "1e12")
+    assert late.returncode != 0
+    assert ("past the run's end" if "range_out" in config else "no [radio]") in late.stdout + late.stderr, late
+    if "lake_circle" in config:
+        res = gs(fleet, port, run, "radio", "tx_power=10")
+        assert res.returncode != 0 and "no [radio]" in res.stdout + res.stderr, res
+    assert gs(fleet, port, run, "stop").returncode == 0
+    assert la.wait(timeout=120) == 0, la.output()
+    m = json.loads((run / "metrics.json").read_text())
+    assert "bad_radio_command" not in m["rejected_by_reason"]["vehicles"]
+    assert [e["kind"] for e in m["events"]].count("rejected") == (1 if "range_out" in config else 2)
+    assert not fleet_processes(fleet)
