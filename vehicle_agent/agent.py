@@ -50,6 +50,7 @@ import zenoh
 from cdus.core.events import RosterChange, event_tick, plan_roster
 from cdus.core.link import burst_events
 from cdus.core.node import VehicleNode, gains_problem
+from cdus.core.radiolink import as_point
 from cdus.core.vehicle import DivergedError
 from cdus.scenario.config import ConfigError, nesting_problem
 from cdus.scenario.model import Scenario
@@ -193,6 +194,7 @@ class Agent:
         self.rejoin = rejoin  # a restart: listeners that are not alive are not waited for
         self.listeners = listeners_of(scenario, vid)
         self.ids = list(scenario.ids)
+        self._dims = [v.dim for v in scenario.vehicles]  # the world sends a boat 2 coordinates, a drone 3
         self.index = self.ids.index(vid)
         self.period = 1.0 / scenario.rates.control
         self.last_tick = total_ticks(scenario.duration if duration is None else duration, self.period)
@@ -468,11 +470,11 @@ class Agent:
     def _on_geometry(self, payload: bytes) -> None:
         """The world's radio geometry sample (cdus.sim.radio): counted and dropped if malformed, out
         of the run, not on the sample schedule, without [radio], or a second one for its tick
-        (the first stands)."""
+        (the first stands: ``radio_stale`` if it is the same, ``radio_conflict`` if not)."""
         radio = self.node.radio
         if radio is None:
             return self._reject("world", "radio_unexpected")
-        msg = decode_geometry(payload, len(self.ids))
+        msg = decode_geometry(payload, len(self.ids), self._dims)
         if isinstance(msg, str):
             return self._reject("world", f"radio_{msg}")
         if msg.tick > self.last_tick:
@@ -480,7 +482,12 @@ class Agent:
         if msg.tick % radio.every:
             return self._reject("world", "radio_tick")
         if not self.node.on_geometry(msg.tick, msg.positions):
-            self._reject("world", "radio_stale")
+            # the world says a sample again only to a (re)joining process, with the same bytes: a
+            # second, different sample for a tick is someone else's (an open fleet): the first stands
+            held = radio.held(msg.tick)
+            same = held is not None and held.positions == tuple(None if q is None else as_point(q)
+                                                                for q in msg.positions)
+            self._reject("world", "radio_stale" if same else "radio_conflict")
 
     def _update_radio(self, change: dict, at: float) -> None:
         """A run-time radio change (tx_power, station) for messages sent from ``at`` on."""

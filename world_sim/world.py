@@ -77,6 +77,8 @@ RADIO_KEEP = 8  # radio geometry samples kept to send a (re)joining vehicle (it 
 REALTIME_SLACK = 1.0
 #: the reject reasons of the agents' ω checks that say someone forges a vehicle's ω (docs/metrics.md)
 SUSPECT_REASONS = ("future", "conflict", "implausible")
+#: ... and those that say someone forges the world's own messages to the vehicles (an open fleet)
+SUSPECT_WORLD_REASONS = ("radio_conflict",)
 SUSPECT_EVERY = 5.0  # s: at most one suspect event per (vehicle, reason) in this time
 #: s a lockstep world waits for a fleet that dropped all at once (the router or the network went,
 #: not the vehicles: their processes keep their state) before it declares them lost. A router
@@ -191,6 +193,7 @@ class World:
         self.events_scheduled = scenario.events
         self.sensing = sensor_schedule(scenario)  # (every, latency) ticks, None: no proximity sensor
         self.radio = radio_schedule(scenario)  # (every, lag) ticks, None: no [radio]
+        self._dims = [v.dim for v in scenario.vehicles]  # a geometry entry has the vehicle's dimension
         self._radio_rows: dict[int, dict[int, tuple]] = {}  # radio sample tick -> vehicle -> q (lockstep)
         self._radio_sent: deque[tuple[int, bytes]] = deque(maxlen=RADIO_KEEP)  # newest samples, for joiners
         self._next_radio = 0  # realtime: the next radio sample tick
@@ -460,17 +463,19 @@ class World:
 
     def _suspects(self, vid: str, s: AgentStats, old: AgentStats | None) -> None:
         """A vehicle that counts new ω it cannot trust (from beyond its sender's possible seq, a
-        second different message for a seq, a jump its dynamics cannot make): a ``suspect``
+        second different message for a seq, a jump its dynamics cannot make) or a second, different
+        radio geometry sample for a tick (someone else speaks as the world): a ``suspect``
         event, at most one per (vehicle, reason) per SUSPECT_EVERY seconds."""
         now = time.monotonic()
-        for reason in SUSPECT_REASONS:
+        for reason in SUSPECT_REASONS + SUSPECT_WORLD_REASONS:
             new = s.rejected_by_reason.get(reason, 0) - (old.rejected_by_reason.get(reason, 0) if old else 0)
             last = self._suspect_seen.get((vid, reason))
             if new <= 0 or last is not None and now - last < SUSPECT_EVERY:
                 continue
             self._suspect_seen[(vid, reason)] = now
+            what = "ω" if reason in SUSPECT_REASONS else "radio geometry not the world's"
             self._note(FleetEvent.of(self._sim_now(), "suspect",
-                                     f"{vid} received ω it cannot trust: {new} new {reason!r} rejects "
+                                     f"{vid} received {what} it cannot trust: {new} new {reason!r} rejects "
                                      f"({s.rejected_by_reason[reason]} in all)", vehicle=vid, origin=vid))
 
     def _forward_link_changes(self, faults: dict) -> None:
@@ -677,6 +682,10 @@ class World:
         earliest = ((self.lockstep.granted + 1) * self.period if self.clock == "lockstep"
                     else self._sim_now() + self.period)
         at = max(fields["at"], earliest) if fields["at"] >= 0 else max(self._sim_now() + LINK_LEAD, earliest)
+        end = self.last_tick * self.period
+        if at > end:  # it would never apply, and epochs go in time order: it would refuse every later change
+            return (f"--at {at:g} s is past the run's end (t = {end:g} s): it would never apply; give --at "
+                    f"from now to {end:g} s, or no --at (as soon as possible)")
         later = self.radio_watch.channel.epochs[-1][0] if self.radio_watch is not None else -math.inf
         if at < later:  # changes apply in time order (epochs): a scheduled or earlier command's comes later
             return (f"a radio change from t = {later:g} s is already in force later (scheduled or commanded); "
@@ -980,7 +989,7 @@ class World:
         positions of the vehicles that stepped it, to every vehicle, then watched (events, views)."""
         for old in [k for k in self._radio_rows if k < tick]:
             del self._radio_rows[old]
-        payload = encode_geometry(geometry_sample(tick, positions, len(self.ids)))
+        payload = encode_geometry(geometry_sample(tick, positions, len(self.ids), self._dims))
         self.pub_radio.put(payload)
         self._radio_sent.append((tick, payload))
         msg = decode_geometry(payload, len(self.ids))  # what the vehicles read: the same numbers

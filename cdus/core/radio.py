@@ -26,26 +26,13 @@ from __future__ import annotations
 import bisect
 import math
 from dataclasses import dataclass, fields
-from typing import Iterable, Sequence
-
-from functools import lru_cache
+from typing import TYPE_CHECKING, Iterable, Sequence
 
 from cdus.core.link import stream_key, uniform
 from cdus.wire.messages import OmegaMsg, encode_omega
 
-
-class _Numpy:
-    """numpy, imported on first use: a vehicle process whose channel has no fading never loads it
-    (the agent's footprint, tests/vehicle_agent/test_footprint.py)."""
-
-    def __getattr__(self, name: str):
-        import numpy
-
-        globals()["np"] = numpy
-        return getattr(numpy, name)
-
-
-np = _Numpy()
+if TYPE_CHECKING:  # numpy is imported where it is used: an agent without [radio] loads none
+    import numpy as np
 
 C_LIGHT = 299_792_458.0  # m/s
 EPSILON_0 = 8.8541878128e-12  # F/m
@@ -154,6 +141,8 @@ def reflection_coefficient(sin_psi: float, cos_psi: float, eps: complex, polariz
     """Fresnel reflection coefficient of a flat surface of complex relative permittivity ``eps``
     at grazing angle ψ: Γ_h = (sin ψ - √(ε - cos²ψ)) / (sin ψ + √(ε - cos²ψ)),
     Γ_v = (ε sin ψ - √(ε - cos²ψ)) / (ε sin ψ + √(ε - cos²ψ))."""
+    import numpy as np  # here, not at the top: an agent without [radio] loads no numpy (tests/vehicle_agent)
+
     root = complex(np.sqrt(complex(eps - cos_psi * cos_psi)))
     if polarization == "horizontal":
         return (sin_psi - root) / (sin_psi + root)
@@ -234,6 +223,8 @@ def per_from_snr(snr_db: float, size_bytes: int, modulation: str = "bpsk", bandw
 def erfc_vec(x: np.ndarray) -> np.ndarray:
     """erfc over an array (x >= 0), relative error < 1.2e-7 (Numerical Recipes' erfcc, a
     Chebyshev fit); the per-message decisions use math.erfc."""
+    import numpy as np
+
     z = np.abs(x)
     t = 1.0 / (1.0 + 0.5 * z)
     poly = -z * z - 1.26551223 + t * (1.00002368 + t * (0.37409196 + t * (0.09678418 + t * (
@@ -248,6 +239,8 @@ def _q_vec(x: np.ndarray) -> np.ndarray:
 
 def per_curve(snr_db: np.ndarray, size_bytes: int, modulation: str, bandwidth: float, rate: float) -> np.ndarray:
     """:func:`per_from_snr` over an array of SNRs (dB)."""
+    import numpy as np
+
     ebn0 = 10.0 ** (np.clip(np.nan_to_num(snr_db, nan=-300.0), -300.0, 300.0) / 10.0) * bandwidth / rate
     if modulation in ("bpsk", "qpsk"):
         b = _q_vec(np.sqrt(2.0 * ebn0))
@@ -318,21 +311,39 @@ def gamma_draw(shape: float, key: int, seq: int) -> float:
 def fading_mean(f: np.ndarray, fading: str, k_factor: float, m: float) -> float:
     """E[f(g)] over the power gain g of the fading, f given on :data:`FADING_GRID` (trapezoid in
     ln g; the density vanishes past the grid's ends for K <= 100, m >= 0.5)."""
+    import numpy as np
+
     w = _fading_weights(fading, k_factor, m)
     return float(np.dot(w, f))
 
 
-@lru_cache(maxsize=1)
+_GRID: list = []  # FADING_GRID, made when first needed (numpy is imported only by a [radio] run)
+
+
 def fading_grid() -> np.ndarray:
-    """The power gains g the fading integrals are taken over (``FADING_GRID``): 3001 points
-    evenly spaced in ln g from 1e-12 to 60."""
-    return np.exp(np.linspace(math.log(1e-12), math.log(60.0), 3001))
+    """The power gains of the fading quadrature: 3,001 points, log-spaced from 1e-12 to 60."""
+    if not _GRID:
+        import numpy as np
+
+        _GRID.append(np.exp(np.linspace(math.log(1e-12), math.log(60.0), 3001)))
+    return _GRID[0]
 
 
-def __getattr__(name: str):
-    if name == "FADING_GRID":  # built (and numpy loaded) on first use
+def _LOG10_GRID():
+    """log10 of the fading grid (dB / 10 of every gain), made once."""
+    if len(_GRID) < 2:
+        import numpy as np
+
+        _GRID.append(np.log10(fading_grid()))
+    return _GRID[1]
+
+
+def __getattr__(name: str):  # FADING_GRID, as it was a module constant
+    if name == "FADING_GRID":
         return fading_grid()
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 _WEIGHTS: dict[tuple, np.ndarray] = {}
 
 
@@ -341,6 +352,8 @@ def _fading_weights(fading: str, k_factor: float, m: float) -> np.ndarray:
     w = _WEIGHTS.get(key)
     if w is not None:
         return w
+    import numpy as np
+
     g = fading_grid()
     if fading == "rician":
         kk = k_factor
@@ -674,7 +687,7 @@ class RadioChannel:
             if s.fading == "none":
                 success = 1.0 - per
             else:
-                curve = per_curve(snr + 10.0 * np.log10(fading_grid()), self.bytes, s.modulation, s.bandwidth,
+                curve = per_curve(snr + 10.0 * _LOG10_GRID(), self.bytes, s.modulation, s.bandwidth,
                                   s.capacity)
                 success = fading_mean(1.0 - curve, s.fading, s.rician_k, s.nakagami_m)
             m = self.medium(geo)

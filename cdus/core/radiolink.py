@@ -118,6 +118,10 @@ class RadioLink:
             del self._geo[min(self._geo)]
         return True
 
+    def held(self, tick: int) -> Geometry | None:
+        """The sample of ``tick`` held (the first one given), or None."""
+        return self._geo.get(tick)
+
     def sample_for(self, m: int) -> int:
         return sample_tick(m, self.every, self.lag)
 

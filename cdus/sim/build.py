@@ -193,7 +193,10 @@ def radio_channel_for(scenario: Scenario) -> RadioChannel:
     channel = RadioChannel(scenario.radio, scenario.ids, [v.kind for v in scenario.vehicles], scenario.radio_seed,
                            rate=1.0 / (broadcast_every(scenario.rates) * period), tick_period=period)
     for ev in scenario.radio_events:  # scheduled changes: every runner knows them up front
-        channel.update(ev.at, tx_power_dbm=ev.tx_power, station=ev.station)
+        # one past the run's end (a shorter --duration) never applies; as an epoch it would refuse
+        # every ground-station change of the run (epochs go in time order)
+        if ev.at <= scenario.duration:
+            channel.update(ev.at, tx_power_dbm=ev.tx_power, station=ev.station)
     return channel
 
 

@@ -259,7 +259,8 @@ class InProcessFleet:
     def _radio_sample(self, n: int, positions: dict) -> None:
         """The radio geometry of tick n, as the world samples it (cdus.sim.radio): through the wire
         format once, into the shared RadioLink (in force from n + lag), and watched (events)."""
-        wire = decode_geometry(encode_geometry(geometry_sample(n, positions, len(self.ids))), len(self.ids))
+        dims = [v.dim for v in self.scenario.vehicles]
+        wire = decode_geometry(encode_geometry(geometry_sample(n, positions, len(self.ids), dims)), len(self.ids), dims)
         if isinstance(wire, str):  # a diverged vehicle's position (non-finite): the step raises first
             return
         self.link.on_geometry(wire.tick, wire.positions)

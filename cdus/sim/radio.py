@@ -17,6 +17,7 @@ for messages sent from ``at`` on.
 
 from __future__ import annotations
 
+import math
 from typing import Any, Iterable, Mapping, Sequence
 
 from cdus.core import graph as graphs
@@ -24,7 +25,7 @@ from cdus.core.radio import Geometry
 from cdus.core.radiolink import RadioCounters, as_point
 from cdus.scenario.errors import ConfigError
 from cdus.scenario.radio import validate_radio_update
-from cdus.wire.messages import GeometryMsg
+from cdus.wire.messages import MAX_COORDINATE, GeometryMsg
 from cdus.wire.schemas import FleetEvent
 
 #: a link whose delivery probability is below this is out of the communication graph
@@ -34,9 +35,17 @@ SPLIT_P = 0.5
 SPLIT_HOLD = 2.0
 
 
-def geometry_sample(tick: int, positions: Mapping[int, Sequence[float]], n: int) -> GeometryMsg:
-    """The sample of ``tick``: vehicle j's position if it stepped the tick (``positions``), else None."""
-    return GeometryMsg(tick, tuple(tuple(positions[j]) if j in positions else None for j in range(n)))
+def geometry_sample(tick: int, positions: Mapping[int, Sequence[float]], n: int,
+                    dims: Sequence[int] | None = None) -> GeometryMsg:
+    """The sample of ``tick``: vehicle j's position if it stepped the tick (``positions``), else None.
+    A position the vehicles would refuse (cdus.wire.messages.decode_geometry: not finite, beyond
+    MAX_COORDINATE, not of the vehicle's dimension ``dims[j]``) is None too: that vehicle is not
+    heard, and the sample still goes out (refused, it would hold every lockstep vehicle forever)."""
+    def fit(j: int, q: Sequence[float]) -> bool:
+        return (len(q) in (2, 3) and (dims is None or len(q) == dims[j])
+                and all(math.isfinite(x) and abs(x) <= MAX_COORDINATE for x in q))
+    return GeometryMsg(tick, tuple(tuple(positions[j]) if j in positions and fit(j, positions[j]) else None
+                                   for j in range(n)))
 
 
 def radio_change_problem(change: Any) -> str | None:

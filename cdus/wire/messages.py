@@ -22,7 +22,7 @@ import math
 import re
 import struct
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Sequence
 
 import msgpack
 
@@ -263,10 +263,13 @@ def encode_geometry(m: GeometryMsg) -> bytes:
     return _pack([GEOMETRY_VERSION, m.tick, [None if q is None else [float(x) for x in q] for q in m.positions]])
 
 
-def decode_geometry(payload: bytes, n_vehicles: int | None = None) -> GeometryMsg | str:
+def decode_geometry(payload: bytes, n_vehicles: int | None = None,
+                    dims: Sequence[int] | None = None) -> GeometryMsg | str:
     """A valid geometry sample, or the reason it is rejected (``oversized``, ``malformed``,
     ``version``, ``type``, ``non_finite``, ``range`` (a coordinate beyond
-    :data:`MAX_COORDINATE`), ``count`` (not one entry per vehicle of the fleet)); never raises."""
+    :data:`MAX_COORDINATE`), ``count`` (not one entry per vehicle of the fleet), and given every
+    vehicle's dimension: ``dimension`` (a boat not sent 2 coordinates, a drone not 3: the world
+    sends each its own)); never raises."""
     obj = _versioned_triple(payload, 30 * MAX_GEOMETRY_VEHICLES + 32, MAX_GEOMETRY_VEHICLES, GEOMETRY_VERSION)
     if isinstance(obj, str):
         return obj
@@ -287,6 +290,8 @@ def decode_geometry(payload: bytes, n_vehicles: int | None = None) -> GeometryMs
         out.append(tuple(q))
     if n_vehicles is not None and len(out) != n_vehicles:
         return "count"
+    if dims is not None and (len(dims) != len(out) or any(q is not None and len(q) != d for q, d in zip(out, dims))):
+        return "dimension" if len(dims) == len(out) else "count"
     return GeometryMsg(tick, tuple(out))
 
 

@@ -145,3 +145,124 @@ def test_a_ground_station_radio_command_changes_delivery_from_its_time_on(tmp_pa
     for name in ("q", "omega"):
         assert np.array_equal(trace[name], out.recorder.view(name)), name
     assert not fleet_processes(fleet)
+
+
+@pytest.mark.parametrize("secured", [True, False], ids=["secured", "insecure"])
+def test_forged_radio_geometry_is_refused_by_a_secured_fleet_and_detected_on_an_open_one(tmp_path, launches, secured):
+    """range_out, lockstep, 10 s, held by a pause while someone publishes a geometry sample with
+    every vehicle 9,000 km away for every sample tick of the run (to the whole fleet and to each
+    vehicle alone). Secured: the forger holds uav1's credential and the router refuses every one
+    (the ACL: only the world publishes on the radio key), so the run is the in-process one to the
+    bit and no vehicle counts a radio reject. Open (--insecure): the forgeries for the ticks to
+    come stand (docs/security.md), but the world's samples that come later are counted
+    ``radio_conflict`` and the world reports a ``suspect`` event."""
+    import msgpack
+
+    from cdus.wire import keys
+    from cdus.wire.messages import encode_control
+    from cdus.wire.transport import free_tcp_port
+    from tests.outsider import raw_client
+
+    from .test_access import Events, member
+
+    fleet = unique_fleet()
+    port = free_tcp_port()
+    run = tmp_path / "run"
+    duration = 10.0
+    la = launches(["configs/range_out.toml", "--clock", "lockstep", "--duration", str(duration),
+                   "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "--trace-out", str(tmp_path / "trace.npz"),
+                   "-q", *(() if secured else ("--insecure",))], fleet)
+    la.wait_for(f"fleet '{fleet}' up")
+    sc = load_scenario("configs/range_out.toml", {"scenario.duration": duration})
+    if secured:
+        boss, mallory = member(run / "secure" / "ground.json5"), member(run / "secure" / "vehicle-uav1.json5")
+    else:
+        import zenoh
+        boss = mallory = zenoh.open(raw_client(f"tcp/127.0.0.1:{port}"))
+    try:
+        events = Events(boss, fleet)
+        boss.put(keys.world_cmd(fleet, keys.GROUND), encode_control("pause"))
+        events.wait_for("fleet", "paused")
+        every = round(sc.radio.sample_period * sc.rates.control)
+        far = msgpack.packb  # every vehicle 9,000 km out: nobody hears anybody
+        for to in (sc.ids, *([v] for v in sc.ids)):
+            for tick in range(0, round(duration * sc.rates.control) + 1, every):
+                mallory.put(keys.radio(fleet, to), far([1, tick, [[9.0e6, 0.0, 30.0]] * len(sc.ids)]))
+        assert la.proc.poll() is None, "the run ended before the forger was done: the test proves nothing"
+        boss.put(keys.world_cmd(fleet, keys.GROUND), encode_control("resume"))
+        assert la.wait() == 0, la.output()
+    finally:
+        boss.close()
+        if mallory is not boss:
+            mallory.close()
+    m = json.loads((run / "metrics.json").read_text())
+    assert m["completed"] is True
+    radio_rejects = {k: v for k, v in m["rejected_by_reason"]["vehicles"].items() if k.startswith("radio_")}
+    ref = InProcessFleet(sc).run()
+    if secured:
+        assert radio_rejects == {}
+        trace = np.load(tmp_path / "trace.npz")
+        for name in ("q", "omega"):
+            assert np.array_equal(trace[name], ref.recorder.view(name)), name
+        assert m["radio"] == ref.metrics["radio"]
+    else:
+        assert radio_rejects.get("radio_conflict", 0) > 0, radio_rejects
+        assert m["radio"]["dropped_by"]["range"] > ref.metrics["radio"]["dropped_by"]["range"]  # it did change it
+        suspects = [e for e in m["events"] if e["kind"] == "suspect" and "radio_conflict" in e["text"]]
+        assert suspects, m["events"]
+    assert not fleet_processes(fleet)
+
+
+def test_a_lockstep_fleet_beyond_the_geometry_bounds_runs_and_equals_the_in_process_run(tmp_path, launches):
+    """range_out with its circle's centre 20,000 km out (beyond the geometry's ±1e7 m): every
+    agent refused the world's first sample (`radio_range`) and waited for it at tick 1 forever.
+    Now the world sends such a vehicle as not live: nobody is heard, the run ends, and it
+    equals the in-process run."""
+    fleet = unique_fleet()
+    run = tmp_path / "run"
+    sets = {f"vehicle.{v}.path.center": "[2e7,0.0,30.0]" for v in ("uav1", "uav2", "uav3", "uav4")}
+    la = launches(["configs/range_out.toml", "--clock", "lockstep", "--duration", "2", "--logs", str(run), "-q",
+                   *[a for k, v in sets.items() for a in ("--set", f"{k}={v}")]], fleet)
+    assert la.wait(timeout=120) == 0, la.output()
+    metrics = json.loads((run / "metrics.json").read_text())
+    ref = InProcessFleet(load_scenario("configs/range_out.toml", {"scenario.duration": 2.0, **{
+        k: [2.0e7, 0.0, 30.0] for k in sets}})).run()
+    assert metrics["radio"] == ref.metrics["radio"]
+    assert metrics["radio"]["dropped_by"]["range"] == metrics["radio"]["sent"] > 0
+    assert not {k for k in metrics["rejected_by_reason"]["vehicles"] if k.startswith("radio_")}
+    assert not fleet_processes(fleet)
+
+
+@pytest.mark.parametrize("config", ["configs/range_out.toml", "configs/lake_circle.toml"])
+def test_ground_station_radio_commands_out_of_range_or_without_radio_are_refused_with_the_reason(
+        tmp_path, launches, config):
+    """`cdus gs radio` against a running lockstep fleet: NaN or 1e400 dBm, a station of 4
+    coordinates are refused before sending (exit 2, the field named); --at past the run's end,
+    or any change to a fleet without [radio], are refused by the world with its reason (exit 1)
+    and a `rejected` event; no agent counts a bad radio command; the run goes on and stops clean."""
+    from cdus.wire.transport import free_tcp_port
+
+    from .test_ground_station import gs
+
+    fleet = unique_fleet()
+    port = free_tcp_port()
+    run = tmp_path / "run"
+    la = launches([config, "--clock", "lockstep", "--duration", "3000", "--listen", f"tcp/127.0.0.1:{port}",
+                   "--logs", str(run), "-q"], fleet)
+    la.wait_for(f"fleet '{fleet}' up")
+    for args, field in ((["tx_power=nan"], "tx_power"), (["tx_power=1e400"], "tx_power"),
+                        (["station=[1,2,3,4]"], "station")):
+        res = gs(fleet, port, run, "radio", *args)
+        assert res.returncode == 2 and f"radio.{field}" in res.stderr, (args, res.returncode, res.stderr)
+    late = gs(fleet, port, run, "radio", "tx_power=10", "--at", "1e12")
+    assert late.returncode != 0
+    assert ("past the run's end" if "range_out" in config else "no [radio]") in late.stdout + late.stderr, late
+    if "lake_circle" in config:
+        res = gs(fleet, port, run, "radio", "tx_power=10")
+        assert res.returncode != 0 and "no [radio]" in res.stdout + res.stderr, res
+    assert gs(fleet, port, run, "stop").returncode == 0
+    assert la.wait(timeout=120) == 0, la.output()
+    m = json.loads((run / "metrics.json").read_text())
+    assert "bad_radio_command" not in m["rejected_by_reason"]["vehicles"]
+    assert [e["kind"] for e in m["events"]].count("rejected") == (1 if "range_out" in config else 2)
+    assert not fleet_processes(fleet)

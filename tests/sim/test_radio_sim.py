@@ -171,3 +171,40 @@ def test_a_scheduled_radio_event_is_the_same_change_as_a_ground_stations(tmp_pat
     cfg.write_text((ROOT / "configs/lake_circle.toml").read_text() + RADIO_EVENT)
     with pytest.raises(ConfigError, match=r"event\[0\]\.action: a radio event needs a \[radio\] table"):
         load_scenario(cfg)
+
+
+def test_the_sample_the_runners_send_is_one_every_vehicle_takes():
+    """Whatever the positions (telemetry a vehicle sent about itself: not finite, beyond 10,000 km,
+    of the wrong dimension), the world's sample decodes at every vehicle: a position they would
+    refuse is sent as not live (None). A refused sample held a lockstep fleet at tick 1 forever
+    (range_out with its circle's centre at 2e7 m: `radio_range` at every agent) while `cdus sim`
+    dropped every sample and let every message through (`no_geometry`)."""
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    from cdus.sim.radio import geometry_sample
+    from cdus.wire.messages import MAX_COORDINATE, decode_geometry, encode_geometry
+
+    dims = [2, 3, 3, 2]
+    coord = st.floats(allow_nan=True, allow_infinity=True) | st.sampled_from([1e7, -1e7, 1.0000001e7, 1e308])
+
+    @settings(max_examples=300, deadline=None)
+    @given(rows=st.dictionaries(st.integers(0, 3), st.lists(coord, min_size=2, max_size=3)), tick=st.integers(0, 99))
+    def check(rows, tick):
+        msg = geometry_sample(tick, rows, 4, dims)
+        back = decode_geometry(encode_geometry(msg), 4, dims)
+        assert back == msg
+        for j in range(4):
+            q = rows.get(j)
+            fits = q is not None and len(q) == dims[j] and all(abs(x) <= MAX_COORDINATE for x in q)  # nan: False
+            assert (msg.positions[j] is not None) == fits
+
+    check()
+
+
+def test_a_fleet_beyond_the_geometry_bounds_is_out_of_range_not_unradioed():
+    sc = load_scenario("configs/range_out.toml", {"scenario.duration": 1.0, **{
+        f"vehicle.{v}.path.center": [2.0e7, 0.0, 30.0] for v in ("uav1", "uav2", "uav3", "uav4")}})
+    radio = InProcessFleet(sc).run().metrics["radio"]
+    assert radio["sent"] > 0 and radio["no_geometry"] == 0
+    assert radio["dropped_by"]["range"] == radio["sent"]  # nobody is heard out there

@@ -53,6 +53,7 @@ def test_a_geometry_sample_round_trips_and_is_what_tick_1_waits_for(agent):
     (msgpack.packb([1, 0, [[1.0, float("nan"), 3.0]] + [None] * (N - 1)]), "radio_non_finite"),
     (msgpack.packb([1, 0, [[1.0, 1e300, 3.0]] + [None] * (N - 1)]), "radio_range"),
     (msgpack.packb([1, 0, [None] * (N + 1)]), "radio_count"),
+    (msgpack.packb([1, 0, [[1.0, 2.0]] + [None] * (N - 1)]), "radio_dimension"),  # a drone sent as a boat
     (msgpack.packb([1, 0, [[1.0, 2.0, 3.0]] * 5000]), "radio_oversized"),
     (msgpack.packb([1, 0, [None] * 5000]), "radio_malformed"),  # more entries than a fleet can have
     (encode_geometry(GeometryMsg(2**40, (None,) * N)), "radio_range"),  # past the run: kept, never freed
@@ -65,8 +66,9 @@ def test_a_malformed_geometry_sample_is_counted_and_dropped(agent, payload, reas
     assert agent.node.geometry_missing(1)  # nothing was taken
     agent._on_geometry(encode_geometry(GOOD))
     assert not agent.node.geometry_missing(1)
-    agent._on_geometry(encode_geometry(GeometryMsg(0, ((0.0, 0.0, 1.0),) * N)))  # a second one: the first stands
-    assert agent.rejected == {reason: 1, "radio_stale": 1}
+    agent._on_geometry(encode_geometry(GOOD))  # said again (the world, to a joining process): the first stands
+    agent._on_geometry(encode_geometry(GeometryMsg(0, ((0.0, 0.0, 1.0),) * N)))  # a different one: someone else's
+    assert agent.rejected == {reason: 1, "radio_stale": 1, "radio_conflict": 1}
     assert agent.node.radio.geometry_at(0).positions[0] == (50.0, 0.0, 30.0)
 
 
@@ -94,7 +96,7 @@ def test_hostile_geometry_never_raises_and_every_reject_is_counted(payload):
     a = make_agent()
     before = a.node.radio.newest
     a._on_geometry(payload)
-    msg = decode_geometry(payload, N)
+    msg = decode_geometry(payload, N, [v.dim for v in SC.vehicles])
     taken = a.node.radio.newest != before
     if isinstance(msg, str):
         assert not taken and sum(a.rejected.values()) == 1 and list(a.rejected)[0].startswith("radio_")
@@ -123,3 +125,22 @@ def test_a_radio_command_out_of_range_is_rejected_before_it_applies(agent):
     agent._on_ctl(encode_control("radio", radio={"a": {"b": {"c": {}}}}, at=1.0))
     assert agent.rejected == {"radio_range": 2}
     assert len(agent.node.radio.channel.epochs) == 1
+
+
+@settings(max_examples=100, deadline=None)
+@given(first=st.lists(st.none() | st.tuples(*[st.floats(-1e6, 1e6)] * 3), min_size=N, max_size=N),
+       second=st.lists(st.none() | st.tuples(*[st.floats(-1e6, 1e6)] * 3), min_size=N, max_size=N),
+       tick=st.integers(0, 50))
+def test_a_second_sample_for_a_tick_never_replaces_the_first_and_is_a_conflict_unless_the_same(first, second, tick):
+    """On an open fleet anyone may publish on the radio key (a secured fleet: the world only,
+    cdus.wire.access): the first sample of a tick stands, the world's resend of it is
+    ``radio_stale``, anything else for that tick ``radio_conflict`` (the world makes it a
+    ``suspect`` event)."""
+    a = make_agent()
+    tick -= tick % a.node.radio.every
+    a._on_geometry(encode_geometry(GeometryMsg(tick, tuple(first))))
+    held = a.node.radio.held(tick)
+    a._on_geometry(encode_geometry(GeometryMsg(tick, tuple(second))))
+    assert a.node.radio.held(tick) is held
+    same = [None if q is None else tuple(q) for q in first] == [None if q is None else tuple(q) for q in second]
+    assert a.rejected == {"radio_stale" if same else "radio_conflict": 1}

@@ -43,3 +43,15 @@ def test_the_radio_op_decodes_with_its_table_and_time(ops):
     assert c.op == "radio" and c.fields == {"radio": {"tx_power": 3}, "at": 2.0}
     assert decode_control(encode_control("radio", radio=[1], at=2.0), ops) == "type"
     assert decode_control(encode_control("radio", radio={}, at=float("inf")), ops) == "non_finite"
+
+
+def test_a_geometry_sample_gives_each_vehicle_its_own_dimension_or_is_rejected():
+    from cdus.wire.messages import GeometryMsg, decode_geometry, encode_geometry
+    dims = [2, 3, 2]
+    good = GeometryMsg(4, ((1.0, 2.0), (3.0, 4.0, 30.0), None))
+    assert decode_geometry(encode_geometry(good), 3, dims) == good
+    for bad in (((1.0, 2.0, 5.0), (3.0, 4.0, 30.0), None),  # a boat lifted 5 m off the water
+                ((1.0, 2.0), (3.0, 4.0), None)):  # a drone put on the water
+        assert decode_geometry(encode_geometry(GeometryMsg(4, bad)), 3, dims) == "dimension"
+        assert decode_geometry(encode_geometry(GeometryMsg(4, bad)), 3) == GeometryMsg(4, bad)  # not checked
+    assert decode_geometry(encode_geometry(good), None, [2, 3]) == "count"

@@ -102,6 +102,25 @@ def test_the_world_relays_a_radio_change_or_says_why_not():
     assert "no [radio]" in plain._relay_radio({"radio": {"tx_power": 3.0}, "at": -1.0}, "gs")
 
 
+def test_a_radio_change_past_the_runs_end_is_refused_and_locks_nobody_out():
+    """A change from a time past the run's end never applies; taken, it would have been the newest
+    epoch, and every later change (epochs go in time order) refused: one command with --at 2e9
+    (the agents refuse it too: past MAX_LINK_AT) locked the operator out of the radio."""
+    from .test_world import started
+
+    w = started(_radio_world())
+    end = w.last_tick * w.period
+    for at in (2e9, end + 1.0):
+        out = w._relay_radio({"radio": {"tx_power": 3.0}, "at": at}, "gs")
+        assert isinstance(out, str) and "past the run's end" in out and "--at" in out, out
+    assert len(w.radio_watch.channel.epochs) == 1
+    assert w._relay_radio({"radio": {"tx_power": 10.0}, "at": end}, "gs").applied  # the last moment is fine
+    w = started(_radio_world())
+    w._relay_radio({"radio": {"tx_power": 3.0}, "at": 2e9}, "gs")
+    v = w._relay_radio({"radio": {"tx_power": 10.0}, "at": -1.0}, "gs")
+    assert not isinstance(v, str) and v.applied, v
+
+
 def test_hostile_radio_commands_never_raise_and_are_refused_or_relayed():
     """Any radio command a ground station can send (decoded by COMMAND_OPS: a table and a time)
     is relayed or refused with a reason and a `rejected` event; nothing escapes, and the world's
@@ -156,6 +175,32 @@ def test_a_command_before_a_scheduled_radio_change_is_refused(tmp_path):
     v = w._relay_radio({"radio": {"tx_power": 3.0}, "at": 150.0}, "gs")
     assert v.applied and v.t == 150.0
     assert "--at 150 or later" in w._relay_radio({"radio": {"tx_power": 9.0}, "at": 120.0}, "gs")
+
+
+def test_a_scheduled_radio_change_past_the_runs_end_does_not_lock_the_ground_station_out(tmp_path):
+    """lake_radio with a change scheduled at 100 s, run with --duration 30: the change never
+    applies, and it refused every radio command of the run ("already in force later; give --at
+    100 or later", then "past the run's end"). Every runner builds its channel without it."""
+    from cdus.scenario.config import load_scenario as load
+    from cdus.sim.build import radio_channel_for
+    from cdus.wire.transport import Transport
+    from world_sim.world import World
+
+    from .test_world import FLEET, Pub, Session, started
+
+    cfg = tmp_path / "ev.toml"
+    cfg.write_text((ROOT / "configs/lake_radio.toml").read_text()
+                   + '\n[[event]]\nat = 10.0\naction = "radio"\ntx_power = 5.0\n'
+                   + '\n[[event]]\nat = 100.0\naction = "radio"\ntx_power = 7.0\n')
+    sc = load(cfg, {"scenario.duration": 30.0})
+    assert [e[:2] for e in radio_channel_for(sc).epochs][1:] == [(10.0, 5.0)]  # the one in the run stays
+    w = World(sc, FLEET, Transport(), clock="lockstep", log=lambda s: None)
+    w.session = Session()
+    w.pub_ctl, w.pub_launcher, w.pub_status, w.pub_events, w.pub_radio = Pub(), Pub(), Pub(), Pub(), Pub()
+    w._wake = lambda payload=b"": None
+    started(w)
+    v = w._relay_radio({"radio": {"tx_power": 3.0}, "at": 20.0}, "gs")
+    assert not isinstance(v, str) and v.applied and v.t == 20.0, v
 
 
 def test_realtime_samples_once_every_live_vehicle_has_reported_and_never_past_the_end():

@@ -378,6 +378,16 @@ def test_new_suspect_counts_in_a_vehicles_stats_make_one_event_per_vehicle_and_r
     assert len(w.events) == 3
 
 
+def test_a_vehicle_counting_radio_geometry_that_is_not_the_worlds_makes_a_suspect_event():
+    w = world()
+    for n, conflicts in enumerate([0, 0, 4]):
+        w._handle(Sample(keys.stats(FLEET, "usv1"), Payload(stats_payload(
+            id="usv1", tick=n, rejected_by_reason={"radio_stale": 3 * n, "radio_conflict": conflicts}))))
+    got = [(e.kind, e.vehicle, e.severity) for e in w.events]
+    assert got == [("suspect", "usv1", "warn")]
+    assert "radio geometry" in w.events[0].text and "'radio_conflict'" in w.events[0].text
+
+
 def test_the_worlds_events_are_marked_as_its_own_and_wire_text_is_escaped():
     w = world()
     w._handle(Sample(keys.world_cmd(FLEET, "gs1"),
