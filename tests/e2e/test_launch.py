@@ -179,10 +179,10 @@ def test_launch_and_sim_print_the_same_event_lines_at_the_same_times(tmp_path, l
 def test_a_remote_vehicle_that_never_came_up_is_named_so_in_the_summary(tmp_path):
     """It was listed as "not live at the end: killed or paused" with the run "interrupted"."""
     run = tmp_path / "run"
-    r = run_cli(["launch", "configs/lake_circle.toml", "--remote", "uav2", "--ready-timeout", "20", "--rerun", "off",
+    r = run_cli(["launch", "configs/lake_circle.toml", "--remote", "uav2", "--ready-timeout", "4", "--rerun", "off",
                  "--logs", str(run), "-q", "--fleet", unique_fleet()])
     assert r.returncode == 1, r.stdout + r.stderr
-    assert "uav2 (started elsewhere) did not connect within 20 s" in r.stdout
+    assert "uav2 (started elsewhere) did not connect within 4 s" in r.stdout
     # its neighbours' agents wait for its link before they declare themselves up: they never came up either
     assert "NOT STARTED: uav1, uav2, uav3 never came up" in r.stdout and "killed or paused" not in r.stdout, r.stdout
     rows = {ln.split()[0]: ln for ln in r.stdout.splitlines() if ln.startswith(("  usv", "  uav"))}
