@@ -11,8 +11,10 @@ In ONE run, interleaved so the machine's load affects all alike, each round runs
   as is     `cdus launch CONFIG --clock lockstep` (broadcast = control for lake_circle);
   10 Hz     the same with `--set rates.broadcast=10` (the lookahead: 5 ticks a broadcast).
 
-Every process (the ring's and the launcher's router included) runs the launcher's Zenoh
-runtime (ZENOH_RUNTIME, one worker thread) unless ZENOH_RUNTIME is set; the lockstep runs
+The ring's processes run one Zenoh worker thread (ZENOH_RUNTIME, as `cdus launch` gives its
+children); the launcher runs as shipped (its children on one worker thread, its own router on
+Zenoh's default pools: cdus.wire.transport.ROUTER_RUNTIME says why), so "of ring" is, if
+anything, conservative; the lockstep runs
 record no Rerun stream unless --rerun says so (the ring records nothing either).
 
 Each lockstep figure is the metrics' wall_s (the world's clock from every vehicle up to the
@@ -112,7 +114,6 @@ def main() -> None:
     n = len(sc.vehicles)
     ticks = round(args.duration * sc.rates.control) + 1
     ring_mode = "router" if args.links == "router" else "peer"
-    os.environ.setdefault("ZENOH_RUNTIME", raw_ring.RUNTIME)  # the launcher's default too
     print(load_line())
     print(f"{sc.name}: {n} vehicles, control {sc.rates.control:g} Hz, broadcast {sc.rates.broadcast:g} Hz, "
           f"{args.duration:g} s simulated ({ticks} ticks), {args.repeat} rounds, links {args.links}, "

@@ -150,3 +150,18 @@ class WorldTime:
                 assert time.monotonic() < deadline, f"the world's time stayed at {self.t}, not past {t}"
                 self.cond.wait(timeout=0.2)
             return self.t
+
+
+TRACE_FIELDS = ("q", "omega", "omega_rate", "path_error", "heading")
+
+
+def assert_same_trace(trace_file: Path, ref) -> None:
+    """A process fleet's trace (``--trace-out``) equals the in-process run ``ref`` (a RunResult)
+    to the bit, field by field: the claim "lockstep == cdus sim"."""
+    import numpy as np
+
+    trace = np.load(trace_file)
+    for name in TRACE_FIELDS:
+        got, want = trace[name], ref.recorder.view(name)
+        same = got.shape == want.shape and np.array_equal(got, want, equal_nan=True)
+        assert same, (name, got.shape, want.shape, None if got.shape != want.shape else np.nanmax(np.abs(got - want)))

@@ -6,7 +6,6 @@ import json
 import signal
 import time
 
-import numpy as np
 import pytest
 import zenoh
 
@@ -17,7 +16,7 @@ from cdus.wire.transport import Transport, free_tcp_port, open_session
 from cdus.sim.fleet import InProcessFleet
 from cdus.core.metrics import METRICS_FIELDS
 
-from .conftest import fleet_processes, run_cli, unique_fleet
+from .conftest import assert_same_trace, fleet_processes, run_cli, unique_fleet
 
 
 @pytest.mark.parametrize("links", ["router", "direct"])
@@ -29,10 +28,7 @@ def test_lockstep_reproduces_the_in_process_run(tmp_path, launches, links):
     assert la.wait() == 0, la.output()
     sc = load_scenario("configs/lake_circle.toml", {"scenario.duration": 10.0, "scenario.seed": 3})
     ref = InProcessFleet(sc).run()
-    trace = np.load(tmp_path / "trace.npz")
-    for name in ("q", "omega", "omega_rate", "path_error", "heading"):
-        diff = np.abs(trace[name] - ref.recorder.view(name)).max()
-        assert diff < 1e-9, (name, diff)
+    assert_same_trace(tmp_path / "trace.npz", ref)
     metrics = json.loads((run / "metrics.json").read_text())
     assert metrics["mode"] == "lockstep" and metrics["completed"] is True
     for field in ("duration_s", "path_settle_s", "coord_settle_s", "final_path_error_max",

@@ -14,7 +14,7 @@ import pytest
 from cdus.scenario.config import load_scenario
 from cdus.sim.fleet import InProcessFleet
 
-from .conftest import ROOT, fleet_processes, unique_fleet
+from .conftest import ROOT, assert_same_trace, fleet_processes, unique_fleet
 
 RADIO_KINDS = ("radio_split", "radio_joined")
 
@@ -31,10 +31,7 @@ def test_lockstep_with_the_radio_reproduces_the_in_process_run(tmp_path, launche
     assert la.wait() == 0, la.output()
     sc = load_scenario(config, {"scenario.duration": duration})
     ref = InProcessFleet(sc).run()
-    trace = np.load(tmp_path / "trace.npz")
-    for name in ("q", "omega", "omega_rate", "path_error", "heading"):
-        diff = np.abs(trace[name] - ref.recorder.view(name)).max()
-        assert diff == 0.0, (name, diff)
+    assert_same_trace(tmp_path / "trace.npz", ref)
     metrics = json.loads((run / "metrics.json").read_text())
     assert metrics["completed"] is True
     radio, expected = metrics["radio"], ref.metrics["radio"]

@@ -5,13 +5,12 @@ from __future__ import annotations
 
 import json
 
-import numpy as np
 import pytest
 
 from cdus.scenario.config import load_scenario
 from cdus.sim.fleet import InProcessFleet
 
-from .conftest import fleet_processes, unique_fleet
+from .conftest import assert_same_trace, fleet_processes, unique_fleet
 
 
 @pytest.mark.parametrize("config", ["configs/crossing.toml", "configs/crossing_dynamic.toml"])
@@ -30,10 +29,7 @@ def test_lockstep_with_the_safety_filter_reproduces_the_in_process_run(tmp_path,
     sc = load_scenario(config, {"scenario.duration": 6.0})
     ref = InProcessFleet(sc).run()
     assert ref.metrics["interventions"] > 0
-    trace = np.load(tmp_path / "trace.npz")
-    for name in ("q", "omega", "omega_rate", "path_error", "heading"):
-        diff = np.abs(trace[name] - ref.recorder.view(name)).max()
-        assert diff == 0.0, (name, diff)
+    assert_same_trace(tmp_path / "trace.npz", ref)
     metrics = json.loads((run / "metrics.json").read_text())
     assert metrics["completed"] is True
     assert metrics["interventions"] == ref.metrics["interventions"]  # a completed run: every count reported
