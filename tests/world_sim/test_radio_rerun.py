@@ -45,6 +45,22 @@ def test_the_radio_is_drawn_at_every_geometry_sample(tmp_path):
     assert bp.UTILISATION in rec.static
 
 
+def test_cdus_sim_printing_its_events_still_draws_the_radio(tmp_path, capsys):
+    """`cdus sim` (events printed as they happen) wraps the Rerun sink in a printing one; the
+    radio's samples must still reach the recording (they did only with -q)."""
+    import cdus
+
+    path = tmp_path / "run.rrd"
+    sc = load_scenario(ROOT / "configs/lake_radio.toml", {"scenario.duration": 1.0})
+    res = cdus.run(sc, rerun=f"save:{path}", events=True)
+    samples = res.metrics.radio.utilisation["samples"]
+    rec = Recording(path)
+    times, _ = rec.column(bp.RADIO_LINKS, "LineStrips3D:strips")
+    assert samples > 0 and len(times) == samples
+    assert len(rec.column(bp.RADIO_STATION, "Points3D:positions")[0]) == samples
+    assert len(rec.column(bp.UTILISATION, "Scalars:scalars")[0]) == samples
+
+
 def test_nothing_of_the_radio_without_it(tmp_path):
     _, _, rec = _record(tmp_path, "configs/lake_circle.toml", 1.0)
     assert not rec.rows(bp.RADIO_LINKS) and not rec.rows(bp.UTILISATION) and bp.UTILISATION not in rec.static
