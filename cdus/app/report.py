@@ -158,7 +158,7 @@ def radio_lines(m: dict) -> list[str]:
     return [f"  radio: {r.get('sent', 0)} decided, {r.get('delivered', 0)} delivered, {r.get('dropped', 0)} dropped "
             f"({causes}); channel utilisation mean {_fmt(u.get('mean'), '.3f', 'n/a')}, "
             f"max {_fmt(u.get('max'), '.3f', 'n/a')}; {r.get('splits', 0)} graph split(s)"
-            + (f" ({spans})" if spans else "")]
+            + (f": {spans}" if spans else "")]
 
 
 #: at most this many split intervals in the summary line (the metrics' events have them all)
@@ -167,7 +167,7 @@ MAX_SPANS = 4
 
 def split_spans(events: Sequence[Any]) -> str:
     """When the communication graph was split, from the ``radio_split`` / ``radio_joined``
-    events: ``18.8-83.8 s``, ``16.2 s-end (still split)``, several comma-separated; "" without."""
+    events: ``18.8-83.8 s``, ``from 16.2 s, still split at the end``, several comma-separated; "" without."""
     spans: list[str] = []
     start = None
     for e in events:
@@ -180,7 +180,7 @@ def split_spans(events: Sequence[Any]) -> str:
             spans.append(f"{start:.1f}-{t:.1f} s")
             start = None
     if start is not None:
-        spans.append(f"{start:.1f} s-end (still split)")
+        spans.append(f"from {start:.1f} s, still split at the end")
     more = len(spans) - MAX_SPANS
     return ", ".join(spans[:MAX_SPANS]) + (f", and {more} more" if more > 0 else "")
 

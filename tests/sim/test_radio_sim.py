@@ -96,7 +96,7 @@ def test_range_out_reports_the_split_and_re_converges_after_the_return():
     from cdus.app.report import summary_table
 
     # the end-of-run summary says when it was split, not only how many times
-    assert f"1 graph split(s) ({t_split:.1f}-{t_back:.1f} s)" in summary_table(m, sc.vehicles)
+    assert f"1 graph split(s): {t_split:.1f}-{t_back:.1f} s" in summary_table(m, sc.vehicles)
 
 
 def test_the_summary_gives_each_split_interval_and_one_still_open_at_the_end():
@@ -107,7 +107,7 @@ def test_the_summary_gives_each_split_interval_and_one_still_open_at_the_end():
 
     assert split_spans([]) == "" and split_spans([ev(3.0, "fleet")]) == ""
     assert split_spans([ev(1.0, "radio_split"), ev(2.5, "kill"), ev(4.04, "radio_joined"),
-                        ev(9.0, "radio_split")]) == "1.0-4.0 s, 9.0 s-end (still split)"
+                        ev(9.0, "radio_split")]) == "1.0-4.0 s, from 9.0 s, still split at the end"
     many = [ev(t + dt, k) for t in range(0, 40, 2) for dt, k in ((0.0, "radio_split"), (1.0, "radio_joined"))]
     assert split_spans(many) == "0.0-1.0 s, 2.0-3.0 s, 4.0-5.0 s, 6.0-7.0 s, and 16 more" and MAX_SPANS == 4
     assert split_spans([{"t": "x", "kind": "radio_split"}, 7, {"kind": "radio_joined"}]) == ""  # a damaged file
