@@ -181,6 +181,9 @@ def test_a_scheduled_radio_event_is_the_same_change_as_a_ground_stations(tmp_pat
     ref = commanded.run()
     assert np.array_equal(scheduled.recorder.view("q"), ref.recorder.view("q"))
     assert scheduled.metrics["radio"] == ref.metrics["radio"] and ref.metrics["radio"]["dropped_by"]["range"] > 0
+    # the run says so, at the tick it applies from (a ground station's change is reported by the world)
+    assert [(e["t"], e["text"]) for e in scheduled.metrics["events"] if e["kind"] == "radio_changed"] == [
+        (2.0, "radio: tx_power = -30 dBm from tick 100 (t = 2 s) (scheduled)")]
     for bad, field in [("tx_power = 900.0", "event[0].tx_power"), ('station = "x"', "event[0].station"),
                        ("vehicle = \"usv1\"", "event[0].vehicle")]:
         cfg.write_text(base + '\n[[event]]\nat = 2.0\naction = "radio"\n' + bad + "\n")
