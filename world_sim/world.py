@@ -655,7 +655,7 @@ class World:
         change = fields["radio"]
         if self.radio is None:
             return "this scenario has no [radio] table"
-        problem = radio_change_problem(change)
+        problem = radio_change_problem(change, self.radio_watch.channel.spec.topology)
         if problem is not None:
             return problem
         earliest = ((self.lockstep.granted + 1) * self.period if self.clock == "lockstep"

@@ -277,9 +277,11 @@ class InProcessFleet:
     def set_radio(self, change: dict, at: float) -> None:
         """A run-time radio change (tx_power, station) for messages sent from ``at`` on, as a
         ground station's relayed by the world (a scheduled ``radio`` event)."""
-        problem = radio_change_problem(change)
-        if problem is not None or self.radio is None:
-            raise ValueError(problem or "this scenario has no [radio] table")
+        if self.radio is None:
+            raise ValueError("this scenario has no [radio] table")
+        problem = radio_change_problem(change, self.scenario.radio.topology)
+        if problem is not None:
+            raise ValueError(problem)
         apply_radio_change(self.link.channel, change, at)
 
     @property

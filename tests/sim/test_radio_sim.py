@@ -131,6 +131,13 @@ def test_a_radio_change_changes_delivery_from_its_time_on():
     with pytest.raises(ValueError):
         weak.set_radio({"tx_power": "loud"}, 3.0)
     assert radio_change_problem({"station": [1.0, 2.0]}) is None
+    assert radio_change_problem({"station": [1.0, 2.0]}, "station") is None
+    assert "ad hoc" in radio_change_problem({"station": [1.0, 2.0]}, "adhoc")
+    assert radio_change_problem({"tx_power": 3.0}, "adhoc") is None
+    adhoc = InProcessFleet(load_scenario("configs/lake_radio.toml", {"scenario.duration": 1.0,
+                                                                      "radio.topology": "adhoc"}))
+    with pytest.raises(ValueError, match="ad hoc"):
+        adhoc.set_radio({"station": [0.0, -500.0]}, 0.5)
     assert "tx_power" in radio_change_problem({"tx_power": 1e6})
 
 

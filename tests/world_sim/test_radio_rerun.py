@@ -118,6 +118,29 @@ def test_the_world_relays_a_radio_change_or_says_why_not():
     assert "no [radio]" in plain._relay_radio({"radio": {"tx_power": 3.0}, "at": -1.0}, "gs")
 
 
+def test_moving_the_station_of_an_adhoc_fleet_is_refused_naming_why(tmp_path):
+    """An ad hoc radio has no station: `gs radio station=[...]` would be 'applied' and change
+    nothing; it is refused, saying so, and tx_power alone still goes."""
+    from cdus.scenario.config import load_scenario as load
+    from cdus.wire.transport import Transport
+    from world_sim.world import World
+
+    from .test_world import FLEET, Pub, Session, started
+
+    cfg = tmp_path / "adhoc.toml"
+    cfg.write_text((ROOT / "configs/lake_radio.toml").read_text().replace('topology = "station"', 'topology = "adhoc"'))
+    w = World(load(cfg), FLEET, Transport(), clock="lockstep", log=lambda s: None)
+    w.session = Session()
+    w.pub_ctl, w.pub_launcher, w.pub_status, w.pub_events, w.pub_radio = Pub(), Pub(), Pub(), Pub(), Pub()
+    w._wake = lambda payload=b"": None
+    started(w)
+    epochs, ctl = tuple(w.radio_watch.channel.epochs), len(w.pub_ctl.puts)
+    why = w._relay_radio({"radio": {"tx_power": 3.0, "station": [0.0, -500.0]}, "at": -1.0}, "gs")
+    assert isinstance(why, str) and "ad hoc" in why and "tx_power only" in why
+    assert tuple(w.radio_watch.channel.epochs) == epochs and len(w.pub_ctl.puts) == ctl  # nothing relayed
+    assert w._relay_radio({"radio": {"tx_power": 3.0}, "at": -1.0}, "gs").applied
+
+
 def test_hostile_radio_commands_never_raise_and_are_refused_or_relayed():
     """Any radio command a ground station can send (decoded by COMMAND_OPS: a table and a time)
     is relayed or refused with a reason and a `rejected` event; nothing escapes, and the world's
