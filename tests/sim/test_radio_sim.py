@@ -196,6 +196,10 @@ def test_a_scheduled_radio_event_is_the_same_change_as_a_ground_stations(tmp_pat
         cfg.write_text(base + '\n[[event]]\nat = 2.0\naction = "radio"\n' + bad + "\n")
         with pytest.raises(ConfigError, match=field.replace("[", r"\[").replace("]", r"\]")):
             load_scenario(cfg)
+    cfg.write_text(base.replace('topology = "station"', 'topology = "adhoc"')
+                   + '\n[[event]]\nat = 2.0\naction = "radio"\nstation = [0.0, -500.0]\n')
+    with pytest.raises(ConfigError, match=r"event\[0\]\.station: .*\"adhoc\": no station"):
+        load_scenario(cfg)
     cfg.write_text((ROOT / "configs/lake_circle.toml").read_text() + RADIO_EVENT)
     with pytest.raises(ConfigError, match=r"event\[0\]\.action: a radio event needs a \[radio\] table"):
         load_scenario(cfg)
