@@ -821,6 +821,12 @@ class _PrintingSink:
     def link_state(self, t: float, src: str, dst: str, state: str) -> None:
         self.inner.link_state(t, src, dst, state)
 
+    def radio(self, t: float, watch: Any) -> None:
+        """[radio]: each geometry sample to ``inner`` if it draws them (the Rerun sink does)."""
+        view = getattr(self.inner, "radio", None)
+        if view is not None:
+            view(t, watch)
+
     def close(self) -> None:
         self.inner.close()
 

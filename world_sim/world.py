@@ -47,7 +47,8 @@ from cdus.core.formation import FormationChange
 from cdus.scenario.events import check_offsets, check_path, check_phases, offsets_to_phases
 from cdus.sim.build import formation_schedule, metric_edges, radio_channel_for, radio_schedule, sensor_schedule
 from cdus.sim.lockstep import CatchUp, Decided, Fault, Grant, Join, Lockstep, RadioSample, Roster, Sense, horizon_window
-from cdus.sim.reports import ConsoleQuota, formation_changed, graph_event, link_state_event, path_changed, vehicle_back, vehicle_lost
+from cdus.sim.reports import (ConsoleQuota, formation_changed, graph_event, link_state_event, path_changed,
+                              radio_scheduled, vehicle_back, vehicle_lost)
 from cdus.sim.radio import RadioWatch, apply_radio_change, geometry_sample, radio_block, radio_change_problem
 from cdus.sim.sensing import sense_tick
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
@@ -190,6 +191,10 @@ class World:
             self._change_events.setdefault(tick, []).append(
                 formation_changed(tick, self.period, change.phases) if isinstance(change, FormationChange)
                 else path_changed(tick, self.period, change.vehicle, change.path))
+        for rev in scenario.radio_events:  # scheduled radio changes, reported at the tick they apply from
+            tick = event_tick(rev.at, self.period)
+            self._change_events.setdefault(tick, []).append(
+                radio_scheduled(tick, self.period, rev.tx_power, rev.station))
         self.events_scheduled = scenario.events
         self.sensing = sensor_schedule(scenario)  # (every, latency) ticks, None: no proximity sensor
         self.radio = radio_schedule(scenario)  # (every, lag) ticks, None: no [radio]
@@ -676,7 +681,7 @@ class World:
         change = fields["radio"]
         if self.radio is None:
             return "this scenario has no [radio] table"
-        problem = radio_change_problem(change)
+        problem = radio_change_problem(change, self.radio_watch.channel.spec.topology)
         if problem is not None:
             return problem
         earliest = ((self.lockstep.granted + 1) * self.period if self.clock == "lockstep"

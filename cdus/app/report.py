@@ -154,9 +154,35 @@ def radio_lines(m: dict) -> list[str]:
     by = r.get("dropped_by") or {}
     causes = ", ".join(f"{k} {v}" for k, v in by.items() if v) or "none"
     u = r.get("utilisation") or {}
+    spans = split_spans(m.get("events") or [])
     return [f"  radio: {r.get('sent', 0)} decided, {r.get('delivered', 0)} delivered, {r.get('dropped', 0)} dropped "
             f"({causes}); channel utilisation mean {_fmt(u.get('mean'), '.3f', 'n/a')}, "
-            f"max {_fmt(u.get('max'), '.3f', 'n/a')}; {r.get('splits', 0)} graph split(s)"]
+            f"max {_fmt(u.get('max'), '.3f', 'n/a')}; {r.get('splits', 0)} graph split(s)"
+            + (f": {spans}" if spans else "")]
+
+
+#: at most this many split intervals in the summary line (the metrics' events have them all)
+MAX_SPANS = 4
+
+
+def split_spans(events: Sequence[Any]) -> str:
+    """When the communication graph was split, from the ``radio_split`` / ``radio_joined``
+    events: ``18.8-83.8 s``, ``from 16.2 s, still split at the end``, several comma-separated; "" without."""
+    spans: list[str] = []
+    start = None
+    for e in events:
+        kind, t = (e.get("kind"), e.get("t")) if isinstance(e, dict) else (None, None)
+        if not isinstance(t, (int, float)) or isinstance(t, bool):
+            continue
+        if kind == "radio_split" and start is None:
+            start = t
+        elif kind == "radio_joined" and start is not None:
+            spans.append(f"{start:.1f}-{t:.1f} s")
+            start = None
+    if start is not None:
+        spans.append(f"from {start:.1f} s, still split at the end")
+    more = len(spans) - MAX_SPANS
+    return ", ".join(spans[:MAX_SPANS]) + (f", and {more} more" if more > 0 else "")
 
 
 #: how the summary names a closest pair's domain (cdus.core.metrics.closest_pairs)

@@ -323,7 +323,8 @@ def _resolve(p: Problems, data: Mapping[str, Any], source: str) -> Scenario | No
     specs = [v for v in fleet.specs if v is not None]
     base = base_phases(ids, {v.id: v.phase for v in specs}, edges) if ids is not None and not p else None
     changes = change_section(p, data.get("event", []), ids, {v.id: v.dim for v in specs}, edges, directed, base)
-    radio_events = radio_event_section(p, data.get("event", []), "radio" in data)
+    radio_events = radio_event_section(p, data.get("event", []), "radio" in data,
+                                       adhoc=radio is not None and radio.topology == "adhoc")
     if p or link is None:
         return None
     return Scenario(

@@ -372,10 +372,12 @@ def offsets_to_phases(ids: Sequence[str], current: Sequence[float], edges: Seque
 RADIO_EVENT_KEYS = ("at", "action", "tx_power", "station")
 
 
-def radio_event_section(p: Problems, raw: Any, has_radio: bool) -> tuple[RadioEvent, ...]:
+def radio_event_section(p: Problems, raw: Any, has_radio: bool, adhoc: bool = False) -> tuple[RadioEvent, ...]:
     """The ``action = "radio"`` events, sorted by time (a stable sort: the file's order at one
     time, the later one wins): ``at`` and ``tx_power`` and/or ``station``, as a ground station's
-    ``radio`` command takes them (cdus.scenario.radio.validate_radio_update); only with [radio]."""
+    ``radio`` command takes them (cdus.scenario.radio.validate_radio_update); only with [radio],
+    and no ``station`` with an ``adhoc`` one (it has no station: the ground station's command is
+    refused alike)."""
     out: list[RadioEvent] = []
     if not isinstance(raw, list):
         return ()  # event_section reports it
@@ -398,6 +400,10 @@ def radio_event_section(p: Problems, raw: Any, has_radio: bool) -> tuple[RadioEv
             for name, message in err.problems:
                 p.add(f"{field}.{name.removeprefix('radio.')}" if name != "radio" else field, message)
             continue
+        if adhoc and station is not None:
+            p.add(f"{field}.station", 'the [radio] table\'s topology is "adhoc": no station relays the messages, '
+                                      'so moving one changes nothing; remove station (keep tx_power) or set '
+                                      'radio.topology = "station"')
         if not p.since(mark) and at is not None:
             out.append(RadioEvent(at, tx, station))
     out.sort(key=lambda ev: ev.at)

@@ -79,8 +79,9 @@ def validate_radio_update(change: Any, source: str) -> tuple[float | None, tuple
     t = p.table(change, "radio", "{ tx_power = 10.0, station = [0.0, -50.0, 0.0] }")
     tx = st = None
     if t is not None:
+        mark = len(p)
         p.unknown_keys(t, UPDATE_KEYS, "radio")
-        if not any(k in t for k in UPDATE_KEYS):
+        if not any(k in t for k in UPDATE_KEYS) and not p.since(mark):  # a misspelt key says so, once
             p.add("radio", "changes nothing; give tx_power (dBm) and/or station ([x, y] or [x, y, z] in m)")
         if "tx_power" in t:
             tx = _number(p, t["tx_power"], "tx_power")

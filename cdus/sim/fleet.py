@@ -39,7 +39,8 @@ from cdus.sim.build import (
     sensor_schedule, with_radio,
 )
 from cdus.sim.sensing import contacts_of, sense_tick
-from cdus.sim.reports import formation_changed, graph_event, link_state_event, path_changed, scheduled_fault, vehicle_back
+from cdus.sim.reports import (formation_changed, graph_event, link_state_event, path_changed, radio_scheduled,
+                              scheduled_fault, vehicle_back)
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
 from cdus.sim.summary import link_block, run_metrics, sum_counters
 from cdus.sim.radio import RadioWatch, apply_radio_change, geometry_sample, radio_block, radio_change_problem
@@ -98,6 +99,10 @@ class InProcessFleet:
             self._change_events.setdefault(tick, []).append(
                 formation_changed(tick, self.period, change.phases) if isinstance(change, FormationChange)
                 else path_changed(tick, self.period, change.vehicle, change.path))
+        for rev in scenario.radio_events:  # scheduled radio changes, reported at the tick they apply from
+            tick = event_tick(rev.at, self.period)
+            self._change_events.setdefault(tick, []).append(
+                radio_scheduled(tick, self.period, rev.tx_power, rev.station))
         self.events: list[FleetEvent] = []
         self._last: list[Telemetry] = [node.vehicle.telemetry() for node in self.nodes]  # newest of each vehicle
         self._was_live = [True] * len(self.ids)
@@ -273,9 +278,11 @@ class InProcessFleet:
     def set_radio(self, change: dict, at: float) -> None:
         """A run-time radio change (tx_power, station) for messages sent from ``at`` on, as a
         ground station's relayed by the world (a scheduled ``radio`` event)."""
-        problem = radio_change_problem(change)
-        if problem is not None or self.radio is None:
-            raise ValueError(problem or "this scenario has no [radio] table")
+        if self.radio is None:
+            raise ValueError("this scenario has no [radio] table")
+        problem = radio_change_problem(change, self.scenario.radio.topology)
+        if problem is not None:
+            raise ValueError(problem)
         apply_radio_change(self.link.channel, change, at)
 
     @property

@@ -48,13 +48,18 @@ def geometry_sample(tick: int, positions: Mapping[int, Sequence[float]], n: int,
                                    for j in range(n)))
 
 
-def radio_change_problem(change: Any) -> str | None:
+def radio_change_problem(change: Any, topology: str | None = None) -> str | None:
     """What is wrong with a run-time radio change ``{"tx_power": dBm, "station": [x, y(, z)]}``
-    (either or both; cdus.scenario.radio.validate_radio_update), or None."""
+    (either or both; cdus.scenario.radio.validate_radio_update), or None. Given the fleet's
+    ``topology``, moving the station of an ``adhoc`` fleet (which has none) is refused too."""
     try:
         validate_radio_update(change, "radio command")
     except ConfigError as e:
         return str(e)
+    if topology == "adhoc" and "station" in change:
+        return ('radio.station: this fleet\'s radio is ad hoc (topology = "adhoc"): no station relays its '
+                'messages, so moving one changes nothing; give tx_power only, or run a scenario with '
+                'topology = "station"')
     return None
 
 

@@ -168,3 +168,13 @@ def path_changed(tick: int, period: float, vid: str, table: Iterable[tuple[str, 
     who = f" by {by}" if by else " (scheduled)"
     return FleetEvent.of(t, "path_changed", f"path of {vid}: {text} from tick {tick} (t = {t:g} s){who}",
                          vehicle=vid)
+
+
+def radio_scheduled(tick: int, period: float, tx_power: float | None, station: Sequence[float] | None
+                    ) -> FleetEvent:
+    """A scheduled radio change (``[[event]] action = "radio"``) in force from ``tick`` (the first
+    tick at or after its ``at``): the new transmit power and/or station, as every runner reports it."""
+    t = tick * period
+    parts = ([] if tx_power is None else [f"tx_power = {tx_power:g} dBm"]) + \
+        ([] if station is None else [f"station = [{', '.join(f'{x:g}' for x in station)}] m"])
+    return FleetEvent.of(t, "radio_changed", f"radio: {', '.join(parts)} from tick {tick} (t = {t:g} s) (scheduled)")

@@ -89,6 +89,9 @@ def test_a_restarted_vehicle_gets_the_geometry_in_force_and_the_run_stays_equal(
     assert 0 < radio["sent"] <= expected["sent"] and radio["sent"] >= expected["sent"] - 3 * 2 * 10
     assert radio["dropped_by"]["range"] == expected["dropped_by"]["range"] > 0  # after 7 s, every process
     assert [e["kind"] for e in metrics["events"] if e["kind"] == "vehicle_back"] == ["vehicle_back"]
+    changed = [(e["t"], e["text"]) for e in metrics["events"] if e["kind"] == "radio_changed"]
+    assert changed == [(e["t"], e["text"]) for e in ref.metrics["events"] if e["kind"] == "radio_changed"]
+    assert changed == [(7.0, "radio: tx_power = -10 dBm from tick 140 (t = 7 s) (scheduled)")]
     assert not fleet_processes(fleet)
 
 

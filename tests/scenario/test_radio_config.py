@@ -173,6 +173,10 @@ def test_run_time_update_checks():
         with pytest.raises(ConfigError) as info:
             validate_radio_update(bad, "gs")
         assert info.value.problems[0][0] == field
+    with pytest.raises(ConfigError) as info:  # a misspelt key: that problem only, not also "changes nothing"
+        validate_radio_update({"txpower": 3}, "gs")
+    assert [f for f, _ in info.value.problems] == ["radio.txpower"]
+    assert 'did you mean "tx_power"' in info.value.problems[0][1]
 
 
 # --------------------------------------------------------------------------- Hypothesis: ConfigError or a spec

@@ -93,6 +93,24 @@ def test_range_out_reports_the_split_and_re_converges_after_the_return():
     assert m["coord_settle_s"] is not None and t_split < m["coord_settle_s"] < t_back + 10.0
     assert coord[t > t_back + 10.0].max() < 0.7 * tol  # and it holds, with a margin, to the end
     assert m["final_coord_error_max"] < 0.7 * tol
+    from cdus.app.report import summary_table
+
+    # the end-of-run summary says when it was split, not only how many times
+    assert f"1 graph split(s): {t_split:.1f}-{t_back:.1f} s" in summary_table(m, sc.vehicles)
+
+
+def test_the_summary_gives_each_split_interval_and_one_still_open_at_the_end():
+    from cdus.app.report import MAX_SPANS, split_spans
+
+    def ev(t, kind):
+        return {"t": t, "kind": kind, "text": "", "severity": "info"}
+
+    assert split_spans([]) == "" and split_spans([ev(3.0, "fleet")]) == ""
+    assert split_spans([ev(1.0, "radio_split"), ev(2.5, "kill"), ev(4.04, "radio_joined"),
+                        ev(9.0, "radio_split")]) == "1.0-4.0 s, from 9.0 s, still split at the end"
+    many = [ev(t + dt, k) for t in range(0, 40, 2) for dt, k in ((0.0, "radio_split"), (1.0, "radio_joined"))]
+    assert split_spans(many) == "0.0-1.0 s, 2.0-3.0 s, 4.0-5.0 s, 6.0-7.0 s, and 16 more" and MAX_SPANS == 4
+    assert split_spans([{"t": "x", "kind": "radio_split"}, 7, {"kind": "radio_joined"}]) == ""  # a damaged file
 
 
 def test_a_radio_change_changes_delivery_from_its_time_on():
@@ -113,6 +131,13 @@ def test_a_radio_change_changes_delivery_from_its_time_on():
     with pytest.raises(ValueError):
         weak.set_radio({"tx_power": "loud"}, 3.0)
     assert radio_change_problem({"station": [1.0, 2.0]}) is None
+    assert radio_change_problem({"station": [1.0, 2.0]}, "station") is None
+    assert "ad hoc" in radio_change_problem({"station": [1.0, 2.0]}, "adhoc")
+    assert radio_change_problem({"tx_power": 3.0}, "adhoc") is None
+    adhoc = InProcessFleet(load_scenario("configs/lake_radio.toml", {"scenario.duration": 1.0,
+                                                                      "radio.topology": "adhoc"}))
+    with pytest.raises(ValueError, match="ad hoc"):
+        adhoc.set_radio({"station": [0.0, -500.0]}, 0.5)
     assert "tx_power" in radio_change_problem({"tx_power": 1e6})
 
 
@@ -163,11 +188,18 @@ def test_a_scheduled_radio_event_is_the_same_change_as_a_ground_stations(tmp_pat
     ref = commanded.run()
     assert np.array_equal(scheduled.recorder.view("q"), ref.recorder.view("q"))
     assert scheduled.metrics["radio"] == ref.metrics["radio"] and ref.metrics["radio"]["dropped_by"]["range"] > 0
+    # the run says so, at the tick it applies from (a ground station's change is reported by the world)
+    assert [(e["t"], e["text"]) for e in scheduled.metrics["events"] if e["kind"] == "radio_changed"] == [
+        (2.0, "radio: tx_power = -30 dBm from tick 100 (t = 2 s) (scheduled)")]
     for bad, field in [("tx_power = 900.0", "event[0].tx_power"), ('station = "x"', "event[0].station"),
                        ("vehicle = \"usv1\"", "event[0].vehicle")]:
         cfg.write_text(base + '\n[[event]]\nat = 2.0\naction = "radio"\n' + bad + "\n")
         with pytest.raises(ConfigError, match=field.replace("[", r"\[").replace("]", r"\]")):
             load_scenario(cfg)
+    cfg.write_text(base.replace('topology = "station"', 'topology = "adhoc"')
+                   + '\n[[event]]\nat = 2.0\naction = "radio"\nstation = [0.0, -500.0]\n')
+    with pytest.raises(ConfigError, match=r"event\[0\]\.station: .*\"adhoc\": no station"):
+        load_scenario(cfg)
     cfg.write_text((ROOT / "configs/lake_circle.toml").read_text() + RADIO_EVENT)
     with pytest.raises(ConfigError, match=r"event\[0\]\.action: a radio event needs a \[radio\] table"):
         load_scenario(cfg)

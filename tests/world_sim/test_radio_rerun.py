@@ -45,6 +45,22 @@ def test_the_radio_is_drawn_at_every_geometry_sample(tmp_path):
     assert bp.UTILISATION in rec.static
 
 
+def test_cdus_sim_printing_its_events_still_draws_the_radio(tmp_path, capsys):
+    """`cdus sim` (events printed as they happen) wraps the Rerun sink in a printing one; the
+    radio's samples must still reach the recording (they did only with -q)."""
+    import cdus
+
+    path = tmp_path / "run.rrd"
+    sc = load_scenario(ROOT / "configs/lake_radio.toml", {"scenario.duration": 1.0})
+    res = cdus.run(sc, rerun=f"save:{path}", events=True)
+    samples = res.metrics.radio.utilisation["samples"]
+    rec = Recording(path)
+    times, _ = rec.column(bp.RADIO_LINKS, "LineStrips3D:strips")
+    assert samples > 0 and len(times) == samples
+    assert len(rec.column(bp.RADIO_STATION, "Points3D:positions")[0]) == samples
+    assert len(rec.column(bp.UTILISATION, "Scalars:scalars")[0]) == samples
+
+
 def test_nothing_of_the_radio_without_it(tmp_path):
     _, _, rec = _record(tmp_path, "configs/lake_circle.toml", 1.0)
     assert not rec.rows(bp.RADIO_LINKS) and not rec.rows(bp.UTILISATION) and bp.UTILISATION not in rec.static
@@ -119,6 +135,29 @@ def test_a_radio_change_past_the_runs_end_is_refused_and_locks_nobody_out():
     w._relay_radio({"radio": {"tx_power": 3.0}, "at": 2e9}, "gs")
     v = w._relay_radio({"radio": {"tx_power": 10.0}, "at": -1.0}, "gs")
     assert not isinstance(v, str) and v.applied, v
+
+
+def test_moving_the_station_of_an_adhoc_fleet_is_refused_naming_why(tmp_path):
+    """An ad hoc radio has no station: `gs radio station=[...]` would be 'applied' and change
+    nothing; it is refused, saying so, and tx_power alone still goes."""
+    from cdus.scenario.config import load_scenario as load
+    from cdus.wire.transport import Transport
+    from world_sim.world import World
+
+    from .test_world import FLEET, Pub, Session, started
+
+    cfg = tmp_path / "adhoc.toml"
+    cfg.write_text((ROOT / "configs/lake_radio.toml").read_text().replace('topology = "station"', 'topology = "adhoc"'))
+    w = World(load(cfg), FLEET, Transport(), clock="lockstep", log=lambda s: None)
+    w.session = Session()
+    w.pub_ctl, w.pub_launcher, w.pub_status, w.pub_events, w.pub_radio = Pub(), Pub(), Pub(), Pub(), Pub()
+    w._wake = lambda payload=b"": None
+    started(w)
+    epochs, ctl = tuple(w.radio_watch.channel.epochs), len(w.pub_ctl.puts)
+    why = w._relay_radio({"radio": {"tx_power": 3.0, "station": [0.0, -500.0]}, "at": -1.0}, "gs")
+    assert isinstance(why, str) and "ad hoc" in why and "tx_power only" in why
+    assert tuple(w.radio_watch.channel.epochs) == epochs and len(w.pub_ctl.puts) == ctl  # nothing relayed
+    assert w._relay_radio({"radio": {"tx_power": 3.0}, "at": -1.0}, "gs").applied
 
 
 def test_hostile_radio_commands_never_raise_and_are_refused_or_relayed():
