@@ -1,7 +1,7 @@
 """python -m ground_station (or `cdus gs`): watch and command a running fleet.
 
     cdus gs --fleet lake_circle -e tcp/127.0.0.1:7447 --zenoh-config RUN/secure/ground.json5 status
-                                                                       # live table (Ctrl-C to leave)
+                                                                       # live table (Ctrl-C; ends with the run)
     cdus gs ... status --once                                          # one table, for scripts
     cdus gs ... status --json                                          # one JSON snapshot
     cdus gs ... watch --jsonl                                          # a JSON line per status and event
@@ -215,6 +215,22 @@ def _report(answer: Answer, what: str) -> int:
     return answer.code
 
 
+STATUS_LOST_S = 10.0  # the live table ends when the world has sent no status for this long
+
+
+def _run_ended(gs: GroundStation) -> str | None:
+    """Why the live table stops (the world left: the run is over; or no status for
+    STATUS_LOST_S s: the run ended with its router, or the link is down), None while it runs."""
+    if gs.world_gone():
+        return "the fleet's world has left: the run is over (the table above is its last status)"
+    with gs.view.lock:
+        at = gs.view.status_at
+    if at is not None and time.monotonic() - at > STATUS_LOST_S:
+        return (f"no status from the fleet for {STATUS_LOST_S:g} s: its run has ended or the link to its router is "
+                "down (the table above is the last status heard)")
+    return None
+
+
 def _watch(gs: GroundStation, interval: float) -> int:
     """JSON lines until Ctrl-C or the end of the run: a status line every ``interval`` s, a line
     per event as it is heard, then an ``end`` line."""
@@ -337,6 +353,10 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
                 return 0
             while True:
                 print("\033[2J\033[H" + status_table(gs.view), flush=True)
+                ended = _run_ended(gs)
+                if ended:
+                    print(ended, flush=True)
+                    return 0
                 time.sleep(args.interval)
         elif args.action == "watch":
             return _watch(gs, args.interval)

@@ -221,3 +221,25 @@ def test_a_second_different_answer_on_the_command_key_is_not_taken_for_the_world
     assert (a.outcome, a.code, a.reply) == ("rejected", 1, world)
     a = station([Reply(KEY, encode_reply(world)), Reply(KEY, b"\xc1")]).command("resume")  # junk beside it: counted
     assert (a.outcome, a.reply) == ("rejected", world)
+
+
+def test_the_live_table_ends_when_the_world_leaves_or_goes_silent():
+    """`gs status` kept redrawing a stopped fleet forever ("6/6 vehicles alive", every row "NO")."""
+    import time as _time
+
+    from ground_station.__main__ import STATUS_LOST_S, _run_ended
+    from ground_station.console import GroundStation
+    from cdus.wire.transport import Transport
+
+    gs = GroundStation("f", Transport())
+    assert _run_ended(gs) is None  # nothing heard yet: not ended
+    with gs.view.lock:
+        gs.view.world_seen, gs.view.alive = True, {"world"}
+        gs.view.status_at = _time.monotonic()
+    assert _run_ended(gs) is None
+    with gs.view.lock:
+        gs.view.status_at = _time.monotonic() - STATUS_LOST_S - 1
+    assert "no status from the fleet" in _run_ended(gs)
+    with gs.view.lock:
+        gs.view.alive = set()
+    assert "world has left" in _run_ended(gs)
