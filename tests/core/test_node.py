@@ -538,3 +538,63 @@ def test_forgeries_that_disagree_with_the_past_are_never_candidates():
     a.on_message(msg(1, 1))
     assert a.on_message(msg(1, 1, omega=5.0)) == "conflict"
     assert all(m.omega != 5.0 for m in a._peers[1].recent[1])
+
+
+
+def _spoof(m: OmegaMsg) -> OmegaMsg:
+    """The Spoofer of tests/e2e/test_hostile.py: the genuine ω + 1 rad at the next seq."""
+    return OmegaMsg(m.sender, m.seq + 1, (m.seq + 1) * T, m.omega + 1.0, 12345.0)
+
+
+def _as_an_agent(a: VehicleNode, arrivals: list[OmegaMsg], last: int) -> list[str | None]:
+    """Feed ``arrivals`` in this order, stepping as far as the lookahead allows after each, as a
+    lockstep agent granted up to ``last`` does; returns each message's answer."""
+    answers = []
+    for m in arrivals:
+        answers.append(a.on_message(m))
+        while a.tick <= last and not a.waiting_for(a.tick):
+            a.step(a.tick)
+    return answers
+
+
+def _clean(last: int) -> VehicleNode:
+    ref = node(0)
+    for n in range(last + 1):
+        for k in (1, 2):
+            ref.on_message(msg(k, n))
+        ref.step(n)
+    return ref
+
+
+def test_a_forgery_that_overtakes_its_genuine_predecessor_is_withdrawn_not_decided():
+    """Lockstep under load: the Spoofer's seq 8, made from the genuine seq 7, reaches a receiver
+    before the genuine 7. Judged against seq 6 over a 2-tick gap, with its absurd rate, it passed
+    and was taken; the genuine 7 filled the gap, and then tick 9 (which needs seq 8) did not wait
+    for the genuine 8 and decided the forgery in its place (the hostile e2e test's trace then
+    differed from cdus sim by ~1e-4 rad after 60 s). Once 7 is in, 8 is re-judged, withdrawn,
+    and the node waits for the genuine 8: the run is the clean one, the forgery counted."""
+    ref, a = _clean(12), node(0)
+    arrivals = [msg(k, n) for n in range(7) for k in (1, 2)]
+    arrivals += [msg(2, 7), _spoof(msg(1, 7)), msg(1, 7), msg(2, 8)]  # the forgery overtakes the genuine 7
+    arrivals += [msg(1, 8)] + [msg(k, n) for n in range(9, 12) for k in (1, 2)]
+    answers = _as_an_agent(a, arrivals, 12)
+    assert a.tick == 13
+    assert a.vehicle.omega == ref.vehicle.omega and list(a.vehicle.q) == list(ref.vehicle.q)
+    assert a.table.latest[1] == ref.table.latest[1]
+    assert a.counters.sent == ref.counters.sent and a.counters.delivered == ref.counters.delivered
+    # the forgery was taken at first, then withdrawn and counted when the genuine 7 came
+    assert answers[14:17] == [None, None, "implausible"] and answers.count(None) == len(answers) - 1
+
+
+def test_a_forgery_withdrawn_after_its_genuine_came_as_a_conflict_gives_the_genuine_its_place():
+    """The same overtaking forgery, but the genuine 8 also arrives before the genuine 7 (a
+    conflict then, kept as a candidate): the fill of 7 puts the genuine 8 in the forgery's place."""
+    ref, a = _clean(12), node(0)
+    arrivals = [msg(k, n) for n in range(7) for k in (1, 2)]
+    arrivals += [msg(2, 7), msg(2, 8), _spoof(msg(1, 7)), msg(1, 8), msg(1, 7)]
+    arrivals += [msg(k, n) for n in range(9, 12) for k in (1, 2)]
+    answers = _as_an_agent(a, arrivals, 12)
+    assert a.tick == 13
+    assert a.vehicle.omega == ref.vehicle.omega and list(a.vehicle.q) == list(ref.vehicle.q)
+    assert a.table.latest[1] == ref.table.latest[1]
+    assert answers[16:19] == [None, "conflict", "implausible"]
