@@ -598,3 +598,31 @@ def test_a_forgery_withdrawn_after_its_genuine_came_as_a_conflict_gives_the_genu
     assert a.vehicle.omega == ref.vehicle.omega and list(a.vehicle.q) == list(ref.vehicle.q)
     assert a.table.latest[1] == ref.table.latest[1]
     assert answers[16:19] == [None, "conflict", "implausible"]
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.data())
+def test_spoofed_omega_in_any_arrival_order_lockstep_allows_never_changes_the_run(data):
+    """The Spoofer's forgeries (seq s + 1 made from the genuine s, +1 rad) reach the receiver in
+    any order a fleet of processes allows: the genuine messages of each sender in send order, a
+    forgery at any moment after its sender's previous genuine message was sent (a sender runs
+    at most a tick or two ahead of this receiver in the ring), once the sender's first message
+    is in (before it, a forgery has no past to be judged by: docs/security.md). The receiver
+    steps whenever the lookahead lets it; it ends where the clean run ends, bit for bit."""
+    last = 12
+    ref = _clean(last)
+    arrivals: list[OmegaMsg] = []
+    nxt = {1: 0, 2: 0}
+    while min(nxt.values()) < last:  # the two senders' streams merged in any order, each in send order
+        k = data.draw(st.sampled_from([j for j in (1, 2) if nxt[j] < last]))
+        arrivals.append(msg(k, nxt[k]))
+        nxt[k] += 1
+    for s in data.draw(st.lists(st.integers(0, last - 2), unique=True, max_size=8)):
+        g = msg(1, s)
+        earliest = arrivals.index(msg(1, max(0, s - 2))) + 1
+        at = data.draw(st.integers(earliest, len(arrivals)))
+        arrivals.insert(at, _spoof(g))
+    a = node(0)
+    _as_an_agent(a, arrivals, last)
+    assert a.tick == last + 1
+    assert a.vehicle.omega == ref.vehicle.omega and list(a.vehicle.q) == list(ref.vehicle.q)
