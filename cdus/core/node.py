@@ -296,10 +296,46 @@ class VehicleNode:
                 heapq.heappush(self._pending, (arrival + d, self._order, msg, d))
 
     def _fill(self, peer: _Neighbour, msg: OmegaMsg, arrival: float | None) -> str | None:
-        """Take ``msg``, a seq that a newer message skipped (checked by the caller)."""
+        """Take ``msg``, a seq that a newer message skipped (checked by the caller).
+
+        A newer message was judged without ``msg``, against an older past. Deterministic
+        runners re-judge every newer one not decided yet against the past as it is known now:
+        one that disagrees came before its predecessor and was a forgery (the genuine sender's
+        messages of one link arrive in send order, a resend after an outage excepted, and a
+        resend agrees with what follows). It is withdrawn, so the node waits for its seq again
+        instead of deciding the forgery in the genuine one's place (the Spoofer of
+        tests/e2e/test_hostile.py under load: its seq s + 1, made from the genuine s, can reach a
+        receiver before the genuine s, and passed the loose check over the 2-tick gap)."""
         peer.missing.discard(msg.seq)
         self._take(peer, msg, arrival)
+        if arrival is None and self._rejudge(msg.sender, peer, msg.seq):
+            return self._reject("implausible")  # counted for the forgery withdrawn
         return None
+
+    def _rejudge(self, k: int, peer: _Neighbour, seq: int) -> int:
+        """Deterministic runners, after the gap ``seq`` of sender ``k`` was filled: re-judge the
+        undecided messages taken with a newer seq, oldest first, against the past as now known;
+        withdraw those that disagree (another candidate of their seq that agrees takes their
+        place). Returns how many were withdrawn."""
+        withdrawn, emptied = 0, set()
+        for q in sorted(s for s in peer.recent if s > seq):
+            taken = peer.recent[q][0]
+            if taken not in self._inbox or self._plausible(peer, taken, q * self.every):
+                continue
+            self._inbox.remove(taken)
+            withdrawn += 1
+            others = [m for m in peer.recent[q][1:] if self._plausible(peer, m, q * self.every)]
+            if others:  # the genuine one came after it, as a conflict, and agrees with the past
+                peer.recent[q] = [others[0]]
+                self._inbox.append(others[0])
+            else:
+                del peer.recent[q]
+                emptied.add(q)
+        if emptied:  # the sender's newest is the newest seq still taken; a withdrawn one below it is a gap
+            newest = max(peer.recent, default=seq)
+            peer.missing = {g for g in peer.missing if g < newest} | {q for q in emptied if q < newest}
+            self.seen_seq[k] = newest
+        return withdrawn
 
     def _explained(self, peer: _Neighbour, last: OmegaMsg, tick: int) -> bool:
         """Does the roster explain a jump of ω between ``last`` and a message sent at ``tick``

@@ -538,3 +538,91 @@ def test_forgeries_that_disagree_with_the_past_are_never_candidates():
     a.on_message(msg(1, 1))
     assert a.on_message(msg(1, 1, omega=5.0)) == "conflict"
     assert all(m.omega != 5.0 for m in a._peers[1].recent[1])
+
+
+
+def _spoof(m: OmegaMsg) -> OmegaMsg:
+    """The Spoofer of tests/e2e/test_hostile.py: the genuine ω + 1 rad at the next seq."""
+    return OmegaMsg(m.sender, m.seq + 1, (m.seq + 1) * T, m.omega + 1.0, 12345.0)
+
+
+def _as_an_agent(a: VehicleNode, arrivals: list[OmegaMsg], last: int) -> list[str | None]:
+    """Feed ``arrivals`` in this order, stepping as far as the lookahead allows after each, as a
+    lockstep agent granted up to ``last`` does; returns each message's answer."""
+    answers = []
+    for m in arrivals:
+        answers.append(a.on_message(m))
+        while a.tick <= last and not a.waiting_for(a.tick):
+            a.step(a.tick)
+    return answers
+
+
+def _clean(last: int) -> VehicleNode:
+    ref = node(0)
+    for n in range(last + 1):
+        for k in (1, 2):
+            ref.on_message(msg(k, n))
+        ref.step(n)
+    return ref
+
+
+def test_a_forgery_that_overtakes_its_genuine_predecessor_is_withdrawn_not_decided():
+    """Lockstep under load: the Spoofer's seq 8, made from the genuine seq 7, reaches a receiver
+    before the genuine 7. Judged against seq 6 over a 2-tick gap, with its absurd rate, it passed
+    and was taken; the genuine 7 filled the gap, and then tick 9 (which needs seq 8) did not wait
+    for the genuine 8 and decided the forgery in its place (the hostile e2e test's trace then
+    differed from cdus sim by ~1e-4 rad after 60 s). Once 7 is in, 8 is re-judged, withdrawn,
+    and the node waits for the genuine 8: the run is the clean one, the forgery counted."""
+    ref, a = _clean(12), node(0)
+    arrivals = [msg(k, n) for n in range(7) for k in (1, 2)]
+    arrivals += [msg(2, 7), _spoof(msg(1, 7)), msg(1, 7), msg(2, 8)]  # the forgery overtakes the genuine 7
+    arrivals += [msg(1, 8)] + [msg(k, n) for n in range(9, 12) for k in (1, 2)]
+    answers = _as_an_agent(a, arrivals, 12)
+    assert a.tick == 13
+    assert a.vehicle.omega == ref.vehicle.omega and list(a.vehicle.q) == list(ref.vehicle.q)
+    assert a.table.latest[1] == ref.table.latest[1]
+    assert a.counters.sent == ref.counters.sent and a.counters.delivered == ref.counters.delivered
+    # the forgery was taken at first, then withdrawn and counted when the genuine 7 came
+    assert answers[14:17] == [None, None, "implausible"] and answers.count(None) == len(answers) - 1
+
+
+def test_a_forgery_withdrawn_after_its_genuine_came_as_a_conflict_gives_the_genuine_its_place():
+    """The same overtaking forgery, but the genuine 8 also arrives before the genuine 7 (a
+    conflict then, kept as a candidate): the fill of 7 puts the genuine 8 in the forgery's place."""
+    ref, a = _clean(12), node(0)
+    arrivals = [msg(k, n) for n in range(7) for k in (1, 2)]
+    arrivals += [msg(2, 7), msg(2, 8), _spoof(msg(1, 7)), msg(1, 8), msg(1, 7)]
+    arrivals += [msg(k, n) for n in range(9, 12) for k in (1, 2)]
+    answers = _as_an_agent(a, arrivals, 12)
+    assert a.tick == 13
+    assert a.vehicle.omega == ref.vehicle.omega and list(a.vehicle.q) == list(ref.vehicle.q)
+    assert a.table.latest[1] == ref.table.latest[1]
+    assert answers[16:19] == [None, "conflict", "implausible"]
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.data())
+def test_spoofed_omega_in_any_arrival_order_lockstep_allows_never_changes_the_run(data):
+    """The Spoofer's forgeries (seq s + 1 made from the genuine s, +1 rad) reach the receiver in
+    any order a fleet of processes allows: the genuine messages of each sender in send order, a
+    forgery at any moment after its sender's previous genuine message was sent (a sender runs
+    at most a tick or two ahead of this receiver in the ring), once the sender's first message
+    is in (before it, a forgery has no past to be judged by: docs/security.md). The receiver
+    steps whenever the lookahead lets it; it ends where the clean run ends, bit for bit."""
+    last = 12
+    ref = _clean(last)
+    arrivals: list[OmegaMsg] = []
+    nxt = {1: 0, 2: 0}
+    while min(nxt.values()) < last:  # the two senders' streams merged in any order, each in send order
+        k = data.draw(st.sampled_from([j for j in (1, 2) if nxt[j] < last]))
+        arrivals.append(msg(k, nxt[k]))
+        nxt[k] += 1
+    for s in data.draw(st.lists(st.integers(0, last - 2), unique=True, max_size=8)):
+        g = msg(1, s)
+        earliest = arrivals.index(msg(1, max(0, s - 2))) + 1
+        at = data.draw(st.integers(earliest, len(arrivals)))
+        arrivals.insert(at, _spoof(g))
+    a = node(0)
+    _as_an_agent(a, arrivals, last)
+    assert a.tick == last + 1
+    assert a.vehicle.omega == ref.vehicle.omega and list(a.vehicle.q) == list(ref.vehicle.q)
