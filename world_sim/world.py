@@ -69,6 +69,7 @@ REALTIME_LAG = 8  # ticks the world waits before recording a realtime tick (> th
 STATUS_PERIOD = 1.0  # s
 FAULT_TIMEOUT = 10.0  # s the launcher may take to carry out a fault
 JOIN_TIMEOUT = 30.0  # s a restarted process may take to come up
+STOP_GRACE_ALIVE_S = 0.5  # s a stop before the start waits for liveliness tokens already on their way
 GRANT_RESEND = 0.5  # s: grants and start times are said again for processes that missed them
 LINK_LEAD = 0.5  # s of simulated time between a link command and when it applies, if not given
 INBOX_CAPACITY = 8192
@@ -355,6 +356,11 @@ class World:
         while (sample := self.inbox.try_recv()) is not None:
             self._handle(sample)
 
+    def _handle_alive_news(self) -> None:
+        while self._alive_news:
+            name, up = self._alive_news.popleft()
+            self._on_alive(name, up)
+
     def _handle(self, sample: Any) -> None:
         """One sample of the inbox (anything anyone can put on a key addressed to the world):
         handled, or counted by reason and dropped. Never raises."""
@@ -362,9 +368,7 @@ class World:
             self._dispatch(sample)
         except Exception as e:  # a bug of ours, not the sender's: counted, logged once, the run goes on
             self._reject("?", "internal", f"{type(e).__name__}: {e}")
-        while self._alive_news:
-            name, up = self._alive_news.popleft()
-            self._on_alive(name, up)
+        self._handle_alive_news()
         while self._queries:
             self._answer(self._queries.popleft())
         busy = self._busy  # counted by Zenoh's thread
@@ -944,7 +948,14 @@ class World:
                 missing = [v for v in self.ids if v not in self.st.alive]
                 raise TimeoutError(f"vehicles not up after {self.start_timeout:g} s: {', '.join(missing)}")
             self._drain(block=True)
-        self.started = not self.stop_requested  # stopped while waiting for the vehicles: never began
+        if self.stop_requested:  # a stop can overtake the last liveliness tokens (the launcher saw them first)
+            grace = time.monotonic() + STOP_GRACE_ALIVE_S
+            while len(self.st.alive) < len(self.ids) and time.monotonic() < grace:
+                time.sleep(0.02)
+                self._handle_alive_news()
+        # stopped while waiting for vehicles that never all came up: the run never began; a fleet
+        # that was all up and was stopped before its first tick was interrupted
+        self.started = not self.stop_requested or len(self.st.alive) >= len(self.ids)
         self._t_start = time.perf_counter()
         cpu0 = time.process_time()
         self.sink.start(self.scenario)

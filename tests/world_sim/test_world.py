@@ -553,3 +553,17 @@ def test_a_run_given_up_before_its_start_names_the_vehicles_that_never_came_up()
     w = started(world())
     w.session = None
     assert "never_up" not in w.finish()  # a run that started has no such field
+
+
+def test_a_stop_that_overtakes_the_last_liveliness_tokens_is_an_interruption_not_a_run_never_started():
+    """`cdus launch` says "fleet up" once it has every token, and a SIGTERM right then makes it
+    ask for a stop, which can reach the world before the world's own copies of the last tokens:
+    the run was interrupted (every vehicle was up), not "not_started" (seen in a loaded suite)."""
+    w = world()
+    for vid in w.ids[:-1]:
+        w._on_alive(vid, True)
+    w._handle(Sample(keys.world_cmd(FLEET, keys.LAUNCHER), Payload(encode_control("stop"))))
+    w._alive_news.append((w.ids[-1], True))  # the last token, heard after the stop
+    w.session = None
+    m = w.run()
+    assert m["completion"] == "interrupted" and "never_up" not in m, (m["completion"], m.get("never_up"))
