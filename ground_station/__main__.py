@@ -31,6 +31,7 @@ import argparse
 import json
 import os
 import sys
+import threading
 import time
 from dataclasses import replace
 
@@ -215,6 +216,18 @@ def _report(answer: Answer, what: str) -> int:
     return answer.code
 
 
+def _leave(gs: GroundStation, code: int = 0) -> None:
+    """The console's exit after `q`: close the session within 3 s, then leave even if a command's
+    worker thread or Zenoh's close is still waiting (a console that did not close after `q` was
+    seen in the tmux test; os._exit skips waiting for non-daemon threads)."""
+    closer = threading.Thread(target=gs.close, daemon=True)
+    closer.start()
+    closer.join(3.0)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
+
+
 STATUS_LOST_S = 10.0  # the live table ends when the world has sent no status for this long
 
 
@@ -341,7 +354,7 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
             from ground_station.tui import ConsoleApp  # Textual only for the console
 
             ConsoleApp(gs).run()
-            return 0
+            _leave(gs)  # never returns
         if args.action in ("status", "watch", "snapshot"):
             gs.fetch_last()  # a paused fleet sends no telemetry: the world says where each vehicle is
         if args.action == "status":

@@ -29,6 +29,7 @@ from textual.app import App, ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal
 from textual.css.query import NoMatches
+from textual.message import Message
 from textual.screen import ModalScreen
 from textual.widgets import DataTable, Footer, RichLog, Static
 
@@ -171,6 +172,15 @@ class ConfirmKill(ModalScreen[bool]):
         self.dismiss(yes)
 
 
+class CommandDone(Message):
+    """A command's outcome, posted from its worker thread (post_message is thread-safe and never
+    waits: call_from_thread waits for the app, which, quitting meanwhile, waited for the worker)."""
+
+    def __init__(self, line: str) -> None:
+        self.line = line
+        super().__init__()
+
+
 class ConsoleApp(App):
     """The live console on ground station ``gs`` (anything with ``fleet``, ``view`` (a
     FleetView), ``fleet_command`` and ``vehicle_fault``)."""
@@ -290,8 +300,11 @@ class ConsoleApp(App):
     def _dispatch(self, op: str, vehicle: str | None) -> None:
         what = f"{op} {vehicle}" if vehicle else f"{op} fleet"
         self.log_line(f"> {what}")
-        self.run_worker(lambda: self.call_from_thread(self.log_line, self.send(self.gs, op, vehicle)[1]),
+        self.run_worker(lambda: self.post_message(CommandDone(self.send(self.gs, op, vehicle)[1])),
                         thread=True, exclusive=False, group="commands")
+
+    def on_command_done(self, message: CommandDone) -> None:
+        self.log_line(message.line)
 
     def action_vehicle(self, op: str) -> None:
         vid = self.selected()

@@ -106,6 +106,10 @@ RESEND_OMEGAS = 16
 #: said before that is lost too
 RESEND_EVERY = 1.0
 RESEND_FOR = 10.0
+#: lockstep: granted and still waiting for a neighbour's ω this long (s), the agent says its recent
+#: messages again every RESEND_EVERY s (receivers drop copies as stale): a router frozen for
+#: seconds can lose messages in flight without any session seeing the world's token go and come back
+STUCK_RESEND = 2.0
 MAX_NAP = 0.05  # s: realtime sleeps at most this long between checks for a stop or a pause
 PING_TIMEOUT = 1.0  # s for a link check's reply (it is immediate when nobody answers)
 PING_RETRY = 0.02  # s between link checks
@@ -635,6 +639,7 @@ class Agent:
                 self.log(f"paused from tick {n}; resuming at tick {back} where the vehicle was")
                 n = back
                 continue
+            stuck_since = time.monotonic()
             while clock.granted < n or node.waiting_for(n) or self._samples_missing(n):
                 if self._stopping():
                     return
@@ -642,9 +647,17 @@ class Agent:
                     self.flush_states()
                 self._recv(never)
                 now_m = time.monotonic()
-                if now_m < self._resend_until and now_m - self._resent_at >= RESEND_EVERY:
-                    self._resent_at = now_m  # back from an outage: what was in flight may be lost
+                # back from an outage (the world's token came back), or granted and still waiting for
+                # ω after STUCK_RESEND s (an outage this session did not see as one: a frozen router
+                # that kept the leases): what was in flight may be lost, say it again
+                stuck = clock.granted >= n and now_m - stuck_since > STUCK_RESEND
+                if (now_m < self._resend_until or stuck) and now_m - self._resent_at >= RESEND_EVERY:
+                    self._resent_at = now_m
                     self._resend()
+                if now_m - stuck_since > 0.5 and self.waker is not None and self.waker.alarm is None:
+                    # a long wait (rare): make sure the loop wakes to resend even if nothing arrives
+                    self.waker.alarm = time.time() + max(RESEND_EVERY, STUCK_RESEND - (now_m - stuck_since)) + 0.05
+                    self.waker.interrupt()
                 if time.monotonic() - waited_since > LOG_WAIT:
                     waited_since = time.monotonic()
                     missing = node.waiting_for(n)
