@@ -150,12 +150,16 @@ def test_every_command_is_answered_and_the_ground_station_exits_by_the_answer(tm
         victim.wait()
         t0 = station.sim_time() or 0.0
         deadline = time.monotonic() + 90
-        while not any("pause of usv1 by gs:victim" in e.text for e in station.view.events) \
-                or (station.sim_time() or 0.0) < t0 + 10:
+        # the killed station's pause was carried out once, whole, or (killed before its query left,
+        # under load) not at all; either way the fleet goes on
+        while (station.sim_time() or 0.0) < t0 + 10:
             assert time.monotonic() < deadline, ("the fleet did not go on after a ground station died",
                                                  station.view.events[-5:])
             time.sleep(0.2)
-        assert station.command("resume-vehicle".replace("-", "_"), vehicle="usv1").outcome == "applied"
+        paused = sum("pause of usv1 by gs:victim" in e.text for e in station.view.events)
+        assert paused <= 1, station.view.events[-5:]
+        if paused:
+            assert station.command("resume_vehicle", vehicle="usv1").outcome == "applied"
 
         # watch: JSON lines, a status line and the events as they come, ended by Ctrl-C
         watcher = popen([*base, "watch", "--jsonl", "--interval", "0.5"])
