@@ -42,13 +42,13 @@ from cdus.files import write_json
 from cdus.scenario.config import ConfigError, nesting_problem
 from cdus.scenario.link import merge_link_tables, validate_link
 from cdus.scenario.model import Scenario
-from cdus.core.events import event_tick
-from cdus.core.formation import FormationChange
 from cdus.scenario.events import check_offsets, check_path, check_phases, offsets_to_phases
 from cdus.sim.build import formation_schedule, metric_edges, radio_channel_for, radio_schedule, sensor_schedule
 from cdus.sim.lockstep import CatchUp, Decided, Fault, Grant, Join, Lockstep, RadioSample, Roster, Sense, horizon_window
-from cdus.sim.reports import (ConsoleQuota, formation_changed, graph_event, link_state_event, path_changed,
-                              radio_scheduled, vehicle_back, vehicle_lost)
+from cdus.sim.reports import (
+    ConsoleQuota, formation_changed, graph_event, link_state_event, path_changed, scheduled_change_events,
+    vehicle_back, vehicle_lost,
+)
 from cdus.sim.radio import RadioWatch, apply_radio_change, geometry_sample, radio_block, radio_change_problem
 from cdus.sim.sensing import sense_tick
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
@@ -186,16 +186,7 @@ class World:
         self.recorder = Recorder(self.ids, [v.dim for v in scenario.vehicles], metric_edges(scenario))
         self.recorder.set_formation(formation_schedule(scenario), self.period)  # measured against the offsets in force
         #: the scenario's formation and path changes, reported when their tick is recorded
-        self._change_events: dict[int, list[FleetEvent]] = {}
-        for change in scenario.changes:
-            tick = event_tick(change.at, self.period)
-            self._change_events.setdefault(tick, []).append(
-                formation_changed(tick, self.period, change.phases) if isinstance(change, FormationChange)
-                else path_changed(tick, self.period, change.vehicle, change.path))
-        for rev in scenario.radio_events:  # scheduled radio changes, reported at the tick they apply from
-            tick = event_tick(rev.at, self.period)
-            self._change_events.setdefault(tick, []).append(
-                radio_scheduled(tick, self.period, rev.tx_power, rev.station))
+        self._change_events = scheduled_change_events(scenario, self.period)
         self.events_scheduled = scenario.events
         self.sensing = sensor_schedule(scenario)  # (every, latency) ticks, None: no proximity sensor
         self.radio = radio_schedule(scenario)  # (every, lag) ticks, None: no [radio]

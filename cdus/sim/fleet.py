@@ -27,8 +27,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 from cdus.core.events import RosterChange, event_tick, plan_roster
-from cdus.core.formation import FormationChange, PathChange
-from cdus.core.link import LinkEmulator, LinkModel, burst_events
+from cdus.core.link import LinkModel, burst_events
 from cdus.core.metrics import Recorder
 from cdus.core.node import VehicleNode
 from cdus.core.schedule import broadcast_every, total_ticks
@@ -39,8 +38,10 @@ from cdus.sim.build import (
     sensor_schedule, with_radio,
 )
 from cdus.sim.sensing import contacts_of, sense_tick
-from cdus.sim.reports import (formation_changed, graph_event, link_state_event, path_changed, radio_scheduled,
-                              scheduled_fault, vehicle_back)
+from cdus.sim.reports import (
+    formation_changed, graph_event, link_state_event, path_changed, scheduled_change_events, scheduled_fault,
+    vehicle_back,
+)
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
 from cdus.sim.summary import link_block, run_metrics, sum_counters
 from cdus.sim.radio import RadioWatch, apply_radio_change, geometry_sample, radio_block, radio_change_problem
@@ -92,17 +93,8 @@ class InProcessFleet:
         self.recorder = Recorder(self.ids, [v.dim for v in scenario.vehicles], metric_edges(scenario))
         self.recorder.set_formation(formation_schedule(scenario), self.period)
         #: changes to report at their tick: tick -> events (the scenario's, then set_formation/set_path's)
-        self._change_events: dict[int, list[FleetEvent]] = {}
+        self._change_events = scheduled_change_events(scenario, self.period)
         self._commanded: list[tuple[str, tuple, int]] = []  # run-time changes, for restarted nodes
-        for change in scenario.changes:
-            tick = event_tick(change.at, self.period)
-            self._change_events.setdefault(tick, []).append(
-                formation_changed(tick, self.period, change.phases) if isinstance(change, FormationChange)
-                else path_changed(tick, self.period, change.vehicle, change.path))
-        for rev in scenario.radio_events:  # scheduled radio changes, reported at the tick they apply from
-            tick = event_tick(rev.at, self.period)
-            self._change_events.setdefault(tick, []).append(
-                radio_scheduled(tick, self.period, rev.tx_power, rev.station))
         self.events: list[FleetEvent] = []
         self._last: list[Telemetry] = [node.vehicle.telemetry() for node in self.nodes]  # newest of each vehicle
         self._was_live = [True] * len(self.ids)

@@ -9,6 +9,8 @@ from __future__ import annotations
 from typing import Iterable, Sequence
 
 from cdus.core import graph as graphs
+from cdus.core.events import event_tick
+from cdus.core.formation import FormationChange
 from cdus.core.linkspec import LinkFaults
 from cdus.scenario.model import Scenario
 from cdus.wire.schemas import FleetEvent
@@ -178,3 +180,18 @@ def radio_scheduled(tick: int, period: float, tx_power: float | None, station: S
     parts = ([] if tx_power is None else [f"tx_power = {tx_power:g} dBm"]) + \
         ([] if station is None else [f"station = [{', '.join(f'{x:g}' for x in station)}] m"])
     return FleetEvent.of(t, "radio_changed", f"radio: {', '.join(parts)} from tick {tick} (t = {t:g} s) (scheduled)")
+
+
+def scheduled_change_events(scenario: Scenario, period: float) -> dict[int, list[FleetEvent]]:
+    """The events of the scenario's scheduled formation, path and radio changes, by the tick they
+    apply from (the in-process fleet and the world report each when its tick is recorded)."""
+    out: dict[int, list[FleetEvent]] = {}
+    for change in scenario.changes:
+        tick = event_tick(change.at, period)
+        out.setdefault(tick, []).append(
+            formation_changed(tick, period, change.phases) if isinstance(change, FormationChange)
+            else path_changed(tick, period, change.vehicle, change.path))
+    for rev in scenario.radio_events:
+        tick = event_tick(rev.at, period)
+        out.setdefault(tick, []).append(radio_scheduled(tick, period, rev.tx_power, rev.station))
+    return out
