@@ -283,14 +283,18 @@ def inconsistent_cycle(ids: Sequence[str], edges_with_deltas: Iterable[Any]) -> 
     constraint θ_i - θ_k = Δ_ik. Returns ``(cycle, total)``: the cycle as vehicle ids
     closing back to the first (started at its lowest-index vehicle) and the sum of Δ
     along it, each step a -> b adding Δ_ab (= -Δ_ba for a pair given the other way).
-    Tolerance: 1e-9 · max(1, |values|).
+    Tolerance: 1e-9 · max(1, the largest |Δ| or |θ| in the graph): the potentials are sums along
+    tree paths, so an edge between two vehicles near 0 carries the rounding of the largest
+    values on its path (phases 0 and 2^24 + 1 gave a residual of 4e-9 on an edge between 0 and
+    0.1, and a consistent set of offsets was refused).
     """
     ids = list(ids)
     triples = _triples(edges_with_deltas)
     theta, parent = _potentials(ids, triples)
+    scale = max([1.0, *(abs(d) for _, _, d in triples), *(abs(x) for x in theta.values())])
     for idx, (i, k, d) in enumerate(triples):
         residual = theta[i] - theta[k] - d
-        if abs(residual) <= 1e-9 * max(1.0, abs(theta[i]), abs(theta[k]), abs(d)):
+        if abs(residual) <= 1e-9 * scale:
             continue
         # tree paths i -> root and k -> root, joined at their lowest common ancestor
         up_i = _path_to_root(i, parent)
