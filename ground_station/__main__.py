@@ -218,8 +218,8 @@ def _report(answer: Answer, what: str) -> int:
 
 def _leave(gs: GroundStation, code: int = 0) -> None:
     """The console's exit after `q`: close the session within 3 s, then leave even if a command's
-    worker thread or Zenoh's close is still waiting (a console that did not close after `q` was
-    seen in the tmux test; os._exit skips waiting for non-daemon threads)."""
+    worker thread or Zenoh's close is still waiting (a router that has gone can hold a close;
+    os._exit skips waiting for non-daemon threads)."""
     closer = threading.Thread(target=gs.close, daemon=True)
     closer.start()
     closer.join(3.0)

@@ -8,6 +8,7 @@ from __future__ import annotations
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -65,6 +66,29 @@ class Tmux:
         """(has the command exited, its exit status)."""
         out = self.tmux(["list-panes", "-F", "#{pane_dead} #{pane_dead_status}"]).split()
         return out[:1] == ["1"], out[1] if len(out) > 1 else ""
+
+    def exit_status(self, timeout: float) -> str:
+        """The command's exit status once it has exited (its pty closed), within ``timeout`` s.
+
+        tmux learns the status on SIGCHLD, and tmux built with libutempter (Debian's) can miss
+        that signal when a pane's process exits quickly after a pty event (tmux issues 311 and
+        4559): the process stays a zombie, the pane dead without a status, for ever. Under load
+        here it happened in 5 of 6 runs, and a console that had exited looked like one that
+        would not close. The workaround its maintainer gives: signal SIGCHLD to the server."""
+        deadline = time.monotonic() + timeout
+        while not self.pane_dead()[0]:  # the pty closed: every process holding it has gone
+            if time.monotonic() > deadline:
+                raise AssertionError(f"the command did not exit within {timeout:g} s\n{self.screen()}")
+            time.sleep(0.25)
+        server = int(self.tmux(["display-message", "-p", "#{pid}"]).strip())
+        while True:
+            dead, status = self.pane_dead()
+            if status:
+                return status
+            if time.monotonic() > deadline:
+                raise AssertionError(f"tmux has no exit status for the dead pane within {timeout:g} s")
+            os.kill(server, signal.SIGCHLD)
+            time.sleep(0.25)
 
     def kill(self) -> None:
         subprocess.run(["tmux", "-S", self.sock, "kill-server"], capture_output=True, timeout=90)
@@ -150,11 +174,4 @@ def test_the_console_shows_a_live_fleet_and_its_keys_act_on_it(tmp_path, launche
     (tmp_path / "console.txt").write_text(tm.screen())
 
     tm.keys("q")
-    try:
-        tm.wait_for(lambda s: tm.pane_dead()[1], "the console closed", timeout=30)  # tmux has its exit status
-    except AssertionError:
-        # under load a first `q` has been seen to leave the console open (cause not found; the
-        # stop note says so): as a person would, press it again
-        tm.keys("q")
-        tm.wait_for(lambda s: tm.pane_dead()[1], "the console closed after a second q", timeout=90)
-    assert tm.pane_dead() == (True, "0")
+    assert tm.exit_status(timeout=30) == "0"
