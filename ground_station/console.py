@@ -359,8 +359,9 @@ class GroundStation:
         for r in self.session.get(keys.world_command(self.fleet, keys.GROUND), payload=payload, timeout=timeout,
                                   consolidation=_ALL_REPLIES):
             if r.ok is None:
-                problems.append("an error reply: " + printable(r.err.payload.to_bytes().decode("utf-8", "replace"),
-                                                              200))
+                said = r.err.payload.to_bytes().decode("utf-8", "replace")
+                if said.strip() != "Timeout":  # Zenoh's own word for a query whose time ran out: said below
+                    problems.append("an error reply: " + printable(said, 200))
                 continue
             reply = decode_reply(r.ok.payload.to_bytes())
             if isinstance(reply, str):
@@ -401,7 +402,9 @@ class GroundStation:
         if waited < timeout * 0.9:
             return Answer("no_answer", None, "the query ended with no answer: no world took the command "
                                              "(is the fleet still running?)")
-        return Answer("no_answer", None, f"no answer from the world within {timeout:g} s")
+        return Answer("no_answer", None, f"no answer from the world within {timeout:g} s (a vehicle's "
+                                         "kill, pause, resume or restart is answered when it is carried out: "
+                                         "give more time with --timeout S; the run's event log says what was done)")
 
     def snapshot(self) -> dict[str, Any]:
         """The fleet as this ground station knows it, as one versioned JSON object

@@ -71,6 +71,11 @@ FAULT_TIMEOUT = 10.0  # s the launcher may take to carry out a fault
 JOIN_TIMEOUT = 30.0  # s a restarted process may take to come up
 STOP_GRACE_ALIVE_S = 0.5  # s a stop before the start waits for liveliness tokens already on their way
 GRANT_RESEND = 0.5  # s: grants and start times are said again for processes that missed them
+#: lockstep: a resumed or restarted process that has reported no tick this long (s) after its
+#: catch-up gets the catch-up again (a resumed process whose session lapsed reconnects: the world
+#: sees its token back before the router has its subscriptions again, and what it sent then was
+#: lost; the process then waited for its roster for ever, and its neighbours for its ω)
+CATCHUP_RESEND = 1.0
 LINK_LEAD = 0.5  # s of simulated time between a link command and when it applies, if not given
 INBOX_CAPACITY = 8192
 RADIO_KEEP = 8  # radio geometry samples kept to send a (re)joining vehicle (it needs those in force from its join)
@@ -163,6 +168,17 @@ class WorldState:
         return sum(self.rejects.values())
 
 
+@dataclass
+class _CatchingUp:
+    """A process caught up (lockstep), until it reports a tick past ``acked``."""
+
+    acked: int  # the newest tick it had reported when caught up
+    at: float  # monotonic s: say the catch-up again then
+    since: float  # monotonic s of the first catch-up
+    join: int | None = None  # the join tick of a restart
+    told: bool = False  # the log says it once
+
+
 class World:
     def __init__(self, scenario: Scenario, fleet: str, transport: Transport, clock: str = "lockstep",
                  duration: float | None = None, metrics_out: str | None = None, trace_out: str | None = None,
@@ -222,6 +238,7 @@ class World:
         self.t0: float | None = None
         self.session: Any = None
         self._fault_since: float | None = None
+        self._catching: dict[int, _CatchingUp] = {}  # lockstep: caught-up processes not heard from since
         self._t_start = 0.0
         self._lock = threading.Lock()  # guards st.latest for the queryable's thread
         self._alive_news: deque[tuple[str, bool]] = deque()  # liveliness callbacks -> main thread
@@ -964,9 +981,13 @@ class World:
                 self.pub_ctl.put(encode_control("grant", until=a.until))
             elif isinstance(a, Join):
                 self.session.put(keys.ctl(self.fleet, [self.ids[a.vehicle]]), encode_control("join", tick=a.tick))
+                if a.vehicle in self._catching:
+                    self._catching[a.vehicle].join = a.tick
             elif isinstance(a, CatchUp):
                 self._replay_commands(self.ids[a.vehicle])
                 self._replay_geometry(self.ids[a.vehicle])
+                self._catching[a.vehicle] = _CatchingUp(self.lockstep.acked.get(a.vehicle, -1),
+                                                        time.monotonic() + CATCHUP_RESEND, time.monotonic())
             elif isinstance(a, Sense):
                 self._send_contacts(a.tick, self._sample_rows.pop(a.tick, {}))
             elif isinstance(a, RadioSample):
@@ -1061,6 +1082,8 @@ class World:
                 mark = self._widen_horizon(now, mark)
             if self._supervise_outage(now):
                 break
+            if self._catching:
+                self._catch_up_again(now)
             if now - self._last_grant > GRANT_RESEND and ls.granted >= 0:  # for anyone who missed it
                 self._last_grant = now
                 self.pub_ctl.put(encode_control("grant", until=ls.granted))
@@ -1074,6 +1097,31 @@ class World:
                 self._publish_status()
             if self.next_tick <= self.last_tick:
                 self._drain(block=True)
+
+    def _catch_up_again(self, now: float) -> None:
+        """Lockstep: a process caught up (CatchUp) that has reported no tick since, after
+        CATCHUP_RESEND s, hears it all again (its roster, the join tick of a restart, the commands
+        and radio samples, the grant): each is idempotent for a process that had it. Until it
+        reports, or for JOIN_TIMEOUT s."""
+        ls = self.lockstep
+        for j, c in list(self._catching.items()):
+            vid = self.ids[j]
+            if ls.acked.get(j, -1) > c.acked or vid not in self.st.alive or now - c.since > JOIN_TIMEOUT:
+                del self._catching[j]
+                continue
+            if now < c.at:
+                continue
+            if not c.told:
+                c.told = True
+                self.log(f"{vid} has reported nothing since its catch-up: saying it again")
+            c.at = now + CATCHUP_RESEND
+            for ch in ls.changes:
+                self._send_roster(ch, j)
+            if c.join is not None:
+                self.session.put(keys.ctl(self.fleet, [vid]), encode_control("join", tick=c.join))
+            self._replay_commands(vid)
+            self._replay_geometry(vid)
+            self.pub_ctl.put(encode_control("grant", until=ls.granted))
 
     def _widen_horizon(self, now: float, mark: tuple[float, int]) -> tuple[float, int]:
         """Lockstep: size the grant window to the fleet's speed since ``mark`` (wall s, next tick

@@ -79,6 +79,11 @@ def test_nothing_back_at_once_from_a_fleet_whose_world_is_up_is_a_denial(tmp_pat
     assert (a.outcome, a.code) == ("no_answer", 3) and "no world took the command" in a.detail, a
     a = station([], delay=0.2).command("stop", timeout=0.2)  # the whole timeout: silence
     assert (a.outcome, a.code) == ("no_answer", 3) and "within 0.2 s" in a.detail
+    # Zenoh ends a query whose time ran out with an error reply "Timeout": that is the same silence
+    # (it was shown as "an error reply: Timeout", with no word of the time given or how to give more)
+    a = station([Reply(KEY, None, err=b"Timeout")], delay=0.2).command("kill", timeout=0.2, vehicle="usv2")
+    assert (a.outcome, a.code) == ("no_answer", 3) and "no answer from the world within 0.2 s" in a.detail, a
+    assert "--timeout" in a.detail and "error reply" not in a.detail
 
 
 def row(j: int, n: int, q=(1.0, 2.0)) -> bytes:

@@ -62,3 +62,13 @@ def test_a_snapshot_into_a_directory_is_a_usage_error_before_connecting(tmp_path
     assert main(["--fleet", "f", "-e", "tcp/127.0.0.1:9", "snapshot", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert "is a directory" in err and "Traceback" not in err
+
+
+def test_timeout_and_name_are_taken_after_the_action_too():
+    """`cdus gs --fleet f kill usv2 --timeout 60` was "unrecognized arguments: --timeout 60"."""
+    p = build_parser()
+    assert p.parse_args(["--fleet", "f", "kill", "usv2", "--timeout", "60"]).timeout == 60.0
+    assert p.parse_args(["--fleet", "f", "--timeout", "7", "kill", "usv2"]).timeout == 7.0
+    assert p.parse_args(["--fleet", "f", "kill", "usv2"]).timeout == 10.0  # the default, not lost
+    args = p.parse_args(["--fleet", "f", "link", "loss=0.1", "--name", "ops", "--timeout", "3"])
+    assert (args.name, args.timeout, args.settings) == ("ops", 3.0, ["loss=0.1"])

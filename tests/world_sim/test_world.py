@@ -567,3 +567,35 @@ def test_a_stop_that_overtakes_the_last_liveliness_tokens_is_an_interruption_not
     w.session = None
     m = w.run()
     assert m["completion"] == "interrupted" and "never_up" not in m, (m["completion"], m.get("never_up"))
+
+
+def test_a_caught_up_process_that_reports_nothing_hears_the_catch_up_again_until_it_reports():
+    """A resumed process whose session lapsed reconnects; the world saw its token back and sent its
+    catch-up before the router had its subscriptions again (seen in CI: the process waited for its
+    roster for ever, its neighbours for its ω). Said again every CATCHUP_RESEND s until it reports."""
+    import time  # noqa: PLC0415
+
+    from world_sim.world import CATCHUP_RESEND  # noqa: PLC0415
+
+    w = started(world())
+    j = w.ids.index("uav1")
+    w.lockstep.changes.append(RosterChange(50, j, "live"))
+    w.lockstep.acked[j] = 49
+    w._act([CatchUp(j), Join(j, 50)])
+    to_uav1 = lambda: [decode_control(p, CTL_OPS) for k, p in w.session.puts  # noqa: E731
+                       if k == keys.ctl(FLEET, ["uav1"])]
+    first, grants = len(to_uav1()), len(w.pub_ctl.puts)
+    now = time.monotonic()
+    w._catch_up_again(now)  # not due yet
+    assert len(to_uav1()) == first
+    w._catch_up_again(now + CATCHUP_RESEND + 0.1)
+    again = to_uav1()[first:]
+    assert [c.op for c in again].count("roster") == len(w.lockstep.changes) and again[-1].op == "join"
+    assert again[-1].fields["tick"] == 50 and ctl_ops(w)[grants:][-1].op == "grant"
+    assert any(c.op == "roster" and c.fields == {"vehicle": "uav1", "tick": 50, "state": "live", "fresh": False}
+               for c in again)
+    send_rows(w, "uav1", [row(j, 50)])  # it reports: caught up
+    assert w.lockstep.acked[j] == 50
+    n = len(w.session.puts)
+    w._catch_up_again(now + 10 * CATCHUP_RESEND)
+    assert len(w.session.puts) == n and not w._catching
