@@ -108,7 +108,7 @@ def test_every_command_is_answered_and_the_ground_station_exits_by_the_answer(tm
 
     # vehicle faults: answered when they land on their tick
     for args in (("pause-vehicle", "uav1"), ("resume-vehicle", "uav1"), ("kill", "usv2"), ("restart", "usv2")):
-        res = gs(*args)
+        res = gs(*args, "--timeout", "45")  # each waits for the one before (a resumed process's reconnection, under load)
         assert res.returncode == 0 and "applied from tick" in res.stdout, (args, res)
     res = gs("resume-vehicle", "usv1")  # it is live: nothing to do
     assert res.returncode == 1 and "usv1 is live" in res.stderr, res
