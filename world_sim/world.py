@@ -76,6 +76,9 @@ GRANT_RESEND = 0.5  # s: grants and start times are said again for processes tha
 #: sees its token back before the router has its subscriptions again, and what it sent then was
 #: lost; the process then waited for its roster for ever, and its neighbours for its ω)
 CATCHUP_RESEND = 1.0
+#: realtime: a ground station's vehicle fault is answered when the launcher says it carried it
+#: out; none within this (s): not carried out (a --remote vehicle, a launcher gone)
+RT_FAULT_CONFIRM = 5.0
 LINK_LEAD = 0.5  # s of simulated time between a link command and when it applies, if not given
 INBOX_CAPACITY = 8192
 RADIO_KEEP = 8  # radio geometry samples kept to send a (re)joining vehicle (it needs those in force from its join)
@@ -239,6 +242,9 @@ class World:
         self.session: Any = None
         self._fault_since: float | None = None
         self._catching: dict[int, _CatchingUp] = {}  # lockstep: caught-up processes not heard from since
+        #: realtime: vid -> (query ref, action, monotonic deadline) of the ground stations' faults the
+        #: launcher has not yet said it carried out, oldest first
+        self._rt_asked: dict[str, deque[tuple[object, str, float]]] = {}
         self._t_start = 0.0
         self._lock = threading.Lock()  # guards st.latest for the queryable's thread
         self._alive_news: deque[tuple[str, bool]] = deque()  # liveliness callbacks -> main thread
@@ -559,6 +565,7 @@ class World:
             tick = undecided.get(ref)
             self._reply(query, op, by, Verdict.no(reason + ("" if tick is None else f" (before its tick {tick})")))
         self._waiting.clear()
+        self._rt_asked.clear()
         while self._queries:
             q = self._queries.popleft()
             self._reply(q, "?", "", Verdict.no(reason))
@@ -622,6 +629,8 @@ class World:
             return "only the launcher reports a fault carried out"
         if f["vehicle"] in self.index:
             self.lockstep.on_fault_done(self.index[f["vehicle"]])
+            if self.clock != "lockstep":
+                self._rt_fault_done(f["vehicle"])
         return Verdict(True, "", max(0, self.lockstep.granted))
 
     def _cmd_pause(self, f: dict, by: str) -> Verdict | str | None:
@@ -683,7 +692,32 @@ class World:
         self.pub_launcher.put(encode_control(op, vehicle=vid))
         self._expect_news(vid, action)
         self._note(FleetEvent.of(self._sim_now(), "fault", f"{action} of {vid} by {by}", vehicle=vid))
+        if self._command_ref is not None:  # answered when the launcher says it is done (_rt_fault_done)
+            self._rt_asked.setdefault(vid, deque()).append((self._command_ref, action,
+                                                            time.monotonic() + RT_FAULT_CONFIRM))
+            return LATER
         return Verdict(True, "realtime: the launcher carries it out now", self._tick_now())
+
+    def _rt_fault_done(self, vid: str) -> None:
+        """Realtime: the launcher carried out a fault on ``vid``: the oldest ground station's
+        fault on it waiting is answered, applied from the present tick."""
+        waiting = self._rt_asked.get(vid)
+        if waiting:
+            ref, _, _ = waiting.popleft()
+            self._decided(Decided(ref, self._tick_now()))
+
+    def _rt_faults_unconfirmed(self, now: float) -> None:
+        """Realtime: the ground stations' faults the launcher has not confirmed in RT_FAULT_CONFIRM s
+        are answered: not carried out."""
+        for vid, waiting in self._rt_asked.items():
+            while waiting and waiting[0][2] <= now:
+                ref, action, _ = waiting.popleft()
+                why = (f"the launcher did not say it carried out the {action} of {vid} within "
+                       f"{RT_FAULT_CONFIRM:g} s: not done here (a vehicle started with --remote on another "
+                       "host is faulted there; see the launcher's log)")
+                self._note(FleetEvent.of(self._sim_now(), "fault_missed", f"the {action} of {vid} was not "
+                                         "confirmed by the launcher", vehicle=vid))
+                self._decided(Decided(ref, self._tick_now(), why))
 
     def _relay_radio(self, fields: dict, sender: str) -> Verdict | str | None:
         """A ground station's radio change ``{"radio": {tx_power, station}, "at": s}``: checked,
@@ -1208,6 +1242,8 @@ class World:
         last_status = last_start = time.monotonic()
         while self.next_tick <= self.last_tick and not self.stop_requested:
             self._drain(block=True)
+            if self._rt_asked:
+                self._rt_faults_unconfirmed(time.monotonic())
             self._sense_realtime()
             self._radio_realtime()
             now = time.monotonic()

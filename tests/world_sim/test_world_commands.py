@@ -140,13 +140,44 @@ def test_a_fault_still_waiting_at_the_end_is_answered_rejected():
     assert r.status == "rejected" and r.reason.startswith("the run is over (before its tick")
 
 
-def test_realtime_vehicle_faults_are_answered_at_once():
+def launcher_done(w, vid: str) -> None:
+    """The launcher says it carried out a fault on ``vid`` (as cdus.app.launcher puts it)."""
+    w._on_command(keys.LAUNCHER, encode_control("fault_done", vehicle=vid))
+
+
+def test_realtime_vehicle_faults_are_answered_when_the_launcher_has_carried_them_out():
+    """They were answered "applied" when the world asked the launcher: a vehicle the launcher
+    does not run (--remote) was said killed and never was."""
     w = world(clock="realtime")
     for vid in w.ids:
         w._on_alive(vid, True)
-    r = ask(w, "pause_vehicle", vehicle="uav1").answer
-    assert r.applied and r.tick == 0 and "launcher" in r.reason
-    assert decode_control(w.pub_launcher.puts[-1], LAUNCHER_OPS).op == "pause_vehicle"
+    q = ask(w, "pause_vehicle", vehicle="uav1")
+    assert q.answer is None and decode_control(w.pub_launcher.puts[-1], LAUNCHER_OPS).op == "pause_vehicle"
+    launcher_done(w, "usv1")  # another vehicle's: not this one's answer
+    assert q.answer is None
+    launcher_done(w, "uav1")
+    assert q.answer.applied and q.answer.op == "pause_vehicle" and q.answer.tick == 0
+
+
+def test_realtime_a_fault_the_launcher_never_confirms_is_answered_not_carried_out():
+    import time  # noqa: PLC0415
+
+    from world_sim.world import RT_FAULT_CONFIRM  # noqa: PLC0415
+
+    w = world(clock="realtime")
+    for vid in w.ids:
+        w._on_alive(vid, True)
+    q1, q2 = ask(w, "kill", vehicle="usv2"), ask(w, "restart", vehicle="uav3")
+    w._rt_faults_unconfirmed(time.monotonic())
+    assert q1.answer is None and q2.answer is None  # not yet
+    launcher_done(w, "uav3")
+    w._rt_faults_unconfirmed(time.monotonic() + RT_FAULT_CONFIRM + 0.1)
+    assert q2.answer.applied
+    r = q1.answer
+    assert r.status == "rejected" and "did not say it carried out the kill of usv2" in r.reason and "--remote" in r.reason
+    assert any(e.kind == "fault_missed" and e.vehicle == "usv2" for e in w.events)
+    launcher_done(w, "usv2")  # a late word changes nothing: the query was answered once
+    assert len(q1.replies) == 1
 
 
 def test_realtime_a_fault_with_nothing_to_do_is_rejected_as_in_lockstep():
@@ -165,7 +196,10 @@ def test_realtime_a_fault_with_nothing_to_do_is_rejected_as_in_lockstep():
     for op, vid, applied in steps:
         if op == "restart" or op == "resume_vehicle" and applied:
             w._on_alive(vid, True)
-        r = ask(w, op, vehicle=vid).answer
+        q = ask(w, op, vehicle=vid)
+        if applied:
+            launcher_done(w, vid)
+        r = q.answer
         assert r.applied == applied, (op, vid, r)
         if not applied:
             assert r.reason.endswith("(nothing done)") and vid in r.reason, r
@@ -178,7 +212,9 @@ def test_realtime_a_fault_with_nothing_to_do_is_rejected_as_in_lockstep():
     w._on_alive("usv1", False)
     states = dict(zip(w.ids, w._status_extra().states))
     assert states == {**{vid: "live" for vid in w.ids}, "usv3": "paused", "usv1": "gone"}
-    assert ask(w, "kill", vehicle="usv2").answer.applied  # restarted: live again
+    q = ask(w, "kill", vehicle="usv2")
+    launcher_done(w, "usv2")
+    assert q.answer.applied  # restarted: live again
     assert ask(w, "kill", vehicle="usv2").answer.reason == "usv2 is killed (nothing done)"
     assert [e.kind for e in w.events if e.kind in ("fault", "rejected")].count("rejected") == 7
 
