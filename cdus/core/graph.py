@@ -283,19 +283,20 @@ def inconsistent_cycle(ids: Sequence[str], edges_with_deltas: Iterable[Any]) -> 
     constraint θ_i - θ_k = Δ_ik. Returns ``(cycle, total)``: the cycle as vehicle ids
     closing back to the first (started at its lowest-index vehicle) and the sum of Δ
     along it, each step a -> b adding Δ_ab (= -Δ_ba for a pair given the other way).
-    Tolerance: 1e-9 · max(1, the largest |Δ| or |θ| in the graph): the potentials are sums along
-    tree paths, so an edge between two vehicles near 0 carries the rounding of the largest
-    values on its path (phases 0 and 2^24 + 1 gave a residual of 4e-9 on an edge between 0 and
-    0.1, and a consistent set of offsets was refused).
+    Tolerance: 1e-9 · max(1, the largest |Δ| on that cycle), on the sum of its Δs. Not the
+    potentials' residual on the edge that closes it: those are sums along tree paths from the
+    root, and carry the rounding of the largest values on the way (phases 0 and 2^24 + 1 gave a
+    residual of 4e-9 on an edge between 0 and 0.1, and a consistent set of offsets was refused).
+    Not the largest value in the whole graph: a phase of 1e8 on a leaf then let a cycle
+    elsewhere miss closing by 0.05.
     """
     ids = list(ids)
     triples = _triples(edges_with_deltas)
     theta, parent = _potentials(ids, triples)
-    scale = max([1.0, *(abs(d) for _, _, d in triples), *(abs(x) for x in theta.values())])
     for idx, (i, k, d) in enumerate(triples):
         residual = theta[i] - theta[k] - d
-        if abs(residual) <= 1e-9 * scale:
-            continue
+        if abs(residual) <= 1e-9 * max(1.0, abs(d)):
+            continue  # closes, whatever the values on its cycle (no need to walk it)
         # tree paths i -> root and k -> root, joined at their lowest common ancestor
         up_i = _path_to_root(i, parent)
         up_k = _path_to_root(k, parent)
@@ -310,6 +311,8 @@ def inconsistent_cycle(ids: Sequence[str], edges_with_deltas: Iterable[Any]) -> 
         if len(nodes) == 2 and triples[steps[0]][:2] != (nodes[0], nodes[1]):
             steps = steps[::-1]  # two pairs on one link: read each as written, Δ_ab + Δ_ba
         total = sum(_step(nodes[j], nodes[(j + 1) % len(nodes)], triples[steps[j]]) for j in range(len(nodes)))
+        if abs(total) <= 1e-9 * max([1.0, *(abs(triples[c][2]) for c in steps)]):
+            continue  # the rounding of the potentials, not of this cycle's Δs
         return nodes + [nodes[0]], total
     return None
 

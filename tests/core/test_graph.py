@@ -1,6 +1,7 @@
 import math
 
 import pytest
+from hypothesis import given, settings, strategies as st
 
 from cdus.core.graph import build_pairs, inconsistent_cycle, reachable_from, suggest_phases, unreachable
 
@@ -144,3 +145,37 @@ def test_suggest_phases_reproduces_consistent_offsets():
     theta = {"a": 0.0, "b": 1.0, "c": 3.0}
     edges = [("b", "a", 1.0), ("c", "b", 2.0), ("c", "a", 3.0)]
     assert suggest_phases(["a", "b", "c"], edges) == pytest.approx(theta)
+
+
+@pytest.mark.parametrize("ids", [["a", "b", "c", "far"], ["far", "a", "b", "c"]])
+def test_a_huge_offset_elsewhere_does_not_hide_a_cycle_that_does_not_close(ids):
+    """The tolerance was 1e-9 of the largest value in the whole graph (and, before that, of the
+    potentials at the edge's ends, ~1e8 when the first vehicle is the far one): a leaf 1e8 away
+    let the cycle a -> b -> c miss closing by 0.05."""
+    edges = [("a", "b", 0.0), ("b", "c", 0.0), ("c", "a", 0.05), ("far", "a", 1e8)]
+    cycle, total = inconsistent_cycle(ids, edges)
+    assert cycle == ["a", "b", "c", "a"] and total == pytest.approx(0.05)
+
+
+def test_a_consistent_ring_through_a_huge_phase_passes_its_rounding():
+    theta = [0.0, 0.0, 0.0, 0.0, 0.0968, 16777217.0]  # 2^24 + 1: residual 4e-9 on an edge near 0
+    edges = [(SIX[j], SIX[(j + 1) % 6], theta[j] - theta[(j + 1) % 6]) for j in range(6)]
+    assert inconsistent_cycle(SIX, edges) is None
+    assert inconsistent_cycle(SIX[::-1], edges) is None
+
+
+@settings(max_examples=80, deadline=None)
+@given(theta=st.lists(st.floats(-1e9, 1e9), min_size=6, max_size=6), root=st.integers(0, 5),
+       miss=st.floats(1e-3, 1.0))
+def test_offsets_from_phases_close_and_a_miss_on_a_small_cycle_is_found(theta, root, miss):
+    """Any phases within ±1e9 give offsets that close (the rounding of the sums is tolerated),
+    around whichever vehicle the check starts; three vehicles near 0 whose Δs miss closing are
+    found, however large the phases of the others."""
+    th = dict(zip(SIX, theta))
+    ids = SIX[root:] + SIX[:root]
+    edges = [(i, k, th[i] - th[k]) for i in SIX for k in SIX if i < k]
+    assert inconsistent_cycle(ids, edges) is None
+    small = ["s1", "s2", "s3"]
+    edges += [("s1", "s2", 0.0), ("s2", "s3", 0.0), ("s3", "s1", miss), ("s1", SIX[root], -th[SIX[root]])]
+    found = inconsistent_cycle(ids + small, edges)
+    assert found is not None and found[1] == pytest.approx(miss), found

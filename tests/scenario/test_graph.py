@@ -124,6 +124,20 @@ def test_paper_six_ring_with_two_thirds_pi_deltas_is_rejected_with_the_cycle_and
     assert 'vehicle "v1" phase = 0.0, vehicle "v2" phase = 4.18879' in message
 
 
+@pytest.mark.parametrize("first", [False, True])
+def test_a_huge_phase_on_a_leaf_does_not_hide_deltas_that_do_not_close(first):
+    """A vehicle at phase 1e8 listening to usv1 only made the cycle check's tolerance 0.1 for the
+    whole graph: deltas missing closing by 0.05 around usv1 -> usv2 -> uav1 were taken."""
+    def fn(d):
+        far = {"id": "far", "kind": "usv", "phase": 1e8, "path": {"family": "circle", "center": [0, 0], "radius": 10}}
+        d["vehicle"] = [far, *d["vehicle"]] if first else [*d["vehicle"], far]
+        d["graph"] = {"topology": "explicit", "edges": [["usv1", "usv2"], ["usv2", "uav1"], ["uav1", "usv1"],
+                                                        ["far", "usv1"]],
+                      "edge": [{"i": "usv1", "k": "usv2", "delta": 0.5}, {"i": "usv2", "k": "uav1", "delta": -0.25},
+                               {"i": "uav1", "k": "usv1", "delta": -0.2}]}
+    check_bad(fn, "around the cycle usv1 -> usv2 -> uav1 -> usv1 the deltas sum to 0.05, not 0")
+
+
 def test_reversed_directed_chain_suggests_the_direction():
     # uav1 leads (usv2 and usv1 hear it): a valid tree
     parse_scenario(edit(section("graph", topology="explicit", directed=True,
