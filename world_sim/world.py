@@ -242,9 +242,10 @@ class World:
         self.session: Any = None
         self._fault_since: float | None = None
         self._catching: dict[int, _CatchingUp] = {}  # lockstep: caught-up processes not heard from since
-        #: realtime: vid -> (query ref, action, monotonic deadline) of the ground stations' faults the
-        #: launcher has not yet said it carried out, oldest first
-        self._rt_asked: dict[str, deque[tuple[object, str, float]]] = {}
+        #: realtime: vid -> (query ref, action, monotonic deadline) of the faults the launcher has not
+        #: yet said it carried out, oldest first (ref None: the scenario's, nobody waits: the
+        #: launcher says `fault_done` for each fault in the order asked, theirs too)
+        self._rt_asked: dict[str, deque[tuple[object | None, str, float]]] = {}
         self._t_start = 0.0
         self._lock = threading.Lock()  # guards st.latest for the queryable's thread
         self._alive_news: deque[tuple[str, bool]] = deque()  # liveliness callbacks -> main thread
@@ -704,7 +705,8 @@ class World:
         waiting = self._rt_asked.get(vid)
         if waiting:
             ref, _, _ = waiting.popleft()
-            self._decided(Decided(ref, self._tick_now()))
+            if ref is not None:  # else a scheduled fault's: not a ground station's answer
+                self._decided(Decided(ref, self._tick_now()))
 
     def _rt_faults_unconfirmed(self, now: float) -> None:
         """Realtime: the ground stations' faults the launcher has not confirmed in RT_FAULT_CONFIRM s
@@ -712,6 +714,8 @@ class World:
         for vid, waiting in self._rt_asked.items():
             while waiting and waiting[0][2] <= now:
                 ref, action, _ = waiting.popleft()
+                if ref is None:  # a scheduled fault's (the launcher's log says why it was not done)
+                    continue
                 why = (f"the launcher did not say it carried out the {action} of {vid} within "
                        f"{RT_FAULT_CONFIRM:g} s: not done here (a vehicle started with --remote on another "
                        "host is faulted there; see the launcher's log)")
@@ -1279,6 +1283,9 @@ class World:
             ev = self._realtime_faults.pop(0)
             op = {"pause": "pause_vehicle", "resume": "resume_vehicle"}.get(ev.action, ev.action)
             self.pub_launcher.put(encode_control(op, vehicle=ev.vehicle))
+            # its fault_done must not answer a ground station's fault asked after it
+            self._rt_asked.setdefault(ev.vehicle, deque()).append((None, ev.action,
+                                                                   time.monotonic() + RT_FAULT_CONFIRM))
             self._expect_news(ev.vehicle, ev.action)
             self._note(FleetEvent.of(now, "fault", f"scheduled {ev.action} of {ev.vehicle} (t = {ev.at:g} s)",
                                      vehicle=ev.vehicle))

@@ -387,3 +387,30 @@ def test_a_flood_of_refused_commands_is_answered_and_counted_but_not_amplified_i
     assert w.st.rejects["gains"] == 501
     # an applied command is an event as ever
     assert ask(w, "set_gains", gains={"c": 2.0}, vehicle="").answer.applied and w.events[-1].kind == "gains_changed"
+
+
+def test_realtime_a_scheduled_faults_word_from_the_launcher_does_not_answer_a_ground_stations(tmp_path):
+    """The launcher says `fault_done` for each fault it is asked, in order, the scenario's too: the
+    scheduled kill of usv2 done answered a ground station's restart of usv2 asked after it
+    "applied" before the launcher had restarted anything."""
+    from .test_world import EVENTS  # noqa: PLC0415  usv2 killed at 1 s
+
+    w = world(tmp_path, clock="realtime", events=EVENTS)
+    for vid in w.ids:
+        w._on_alive(vid, True)
+    w._realtime_faults_due(1.0)  # the launcher is asked to kill usv2
+    q = ask(w, "restart", vehicle="usv2")
+    assert [decode_control(p, LAUNCHER_OPS).op for p in w.pub_launcher.puts] == ["kill", "restart"]
+    launcher_done(w, "usv2")  # the kill
+    assert q.answer is None
+    launcher_done(w, "usv2")  # the restart
+    assert q.answer is not None and q.answer.applied and q.answer.op == "restart"
+    # a scheduled fault the launcher never confirms (a --remote vehicle) goes quietly: its own log says
+    import time  # noqa: PLC0415
+
+    from world_sim.world import RT_FAULT_CONFIRM  # noqa: PLC0415
+    w._realtime_faults_due(10.0)  # uav1 paused at 2 s
+    q = ask(w, "kill", vehicle="uav1")
+    w._rt_faults_unconfirmed(time.monotonic() + RT_FAULT_CONFIRM + 0.1)
+    assert q.answer.status == "rejected" and "kill of uav1" in q.answer.reason
+    assert [e.kind for e in w.events].count("fault_missed") == 1 and not any(w._rt_asked.values())
