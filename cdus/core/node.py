@@ -185,6 +185,9 @@ class VehicleNode:
         self._deaf_before = 0  # messages sent before this tick are not heard (a pause that lapsed)
         self._order = 0
         self._self_changes: list[RosterChange] = []
+        #: every roster change told so far, applied or not: one said again is not news (the world
+        #: says a process's catch-up again while it has reported no tick: it may have stepped past)
+        self._heard: set[RosterChange] = set()
         self._gains: list[tuple[int, tuple[float, ...], float]] = []  # (tick, k, c), by tick
         self._policies: list[tuple[int, str, float]] = []  # (tick, policy, timeout), by tick
         self._paths: list[tuple[int, Path]] = []  # (tick, path), by tick
@@ -345,7 +348,11 @@ class VehicleNode:
 
     def on_roster(self, change: RosterChange) -> None:
         """A liveness change of a neighbour or of this vehicle, effective at ``change.tick``
-        (or at the next tick stepped, if that has passed)."""
+        (or at the next tick stepped, if that has passed). A change told again is ignored: applied
+        once more after its tick it would forget the neighbour's ω (a gone) or its start (a live)."""
+        if change in self._heard:
+            return
+        self._heard.add(change)
         if change.vehicle == self.index:
             _insert(self._self_changes, change)
         elif change.vehicle in self._peers:

@@ -168,6 +168,32 @@ def test_own_pause_and_resume_from_the_roster():
     assert b.own_state_at(10) == ("live", True)
 
 
+def test_a_roster_change_told_again_after_its_tick_changes_nothing():
+    """The world says a caught-up process's roster again (world_sim CATCHUP_RESEND) while it has
+    reported no tick, which it may have stepped past (its rows go in batches): a neighbour's
+    restart heard again was applied again, its ω forgotten, and the run left `cdus sim`'s."""
+    changes = [RosterChange(2, 1, "gone"), RosterChange(2, 1, "live", fresh=True),
+               RosterChange(3, 0, "paused"), RosterChange(4, 0, "live")]
+
+    def run(again: bool) -> list:
+        a = node(0)
+        for ch in changes:
+            a.on_roster(ch)
+        out = []
+        for n in range(12):
+            if again and n in (8, 9):
+                for ch in changes:
+                    a.on_roster(ch)
+            if n % 3 == 0:
+                a.on_message(msg(1, n))
+                a.on_message(msg(2, n))
+            if a.own_state_at(n)[0] == "live":
+                out.append((n, a.step(n).telemetry.omega, held(a)))
+        return out
+
+    assert run(True) == run(False)
+
+
 def test_gains_change_on_their_tick():
     a = node(0)
     a.set_gains((3.0, 3.0), 4.0, tick=2)
