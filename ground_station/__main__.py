@@ -56,10 +56,15 @@ GS_CONNECT_TIMEOUT_MS = 5000  # a ground station is interactive: say soon that n
 STATUS_WAIT_S = 3.0  # the world publishes its status every second
 
 
+#: the longest wait a --timeout or --interval may name (s, ~31 years): Zenoh's query refused
+#: --timeout 1e20 ("negative timeout", a traceback), time.sleep an --interval past ~9.2e9
+MAX_WAIT_S = 1e9
+
+
 def _positive(text: str) -> float:
     x = float(text)
-    if not x > 0 or x == float("inf"):
-        raise argparse.ArgumentTypeError(f"must be a number of seconds > 0, got {text}")
+    if not 0 < x <= MAX_WAIT_S:
+        raise argparse.ArgumentTypeError(f"must be a number of seconds > 0 and at most {MAX_WAIT_S:g}, got {text}")
     return x
 
 

@@ -72,3 +72,17 @@ def test_timeout_and_name_are_taken_after_the_action_too():
     assert p.parse_args(["--fleet", "f", "kill", "usv2"]).timeout == 10.0  # the default, not lost
     args = p.parse_args(["--fleet", "f", "link", "loss=0.1", "--name", "ops", "--timeout", "3"])
     assert (args.name, args.timeout, args.settings) == ("ops", 3.0, ["loss=0.1"])
+
+
+def test_a_wait_too_long_for_zenoh_or_sleep_is_a_usage_error(capsys):
+    """`--timeout 1e20` passed the parser and Zenoh's query raised ValueError ("negative
+    timeout"): a traceback; `status --interval 1e20` would overflow time.sleep."""
+    p = build_parser()
+    for argv in (["--fleet", "f", "--timeout", "1e20", "kill", "usv2"], ["--fleet", "f", "kill", "usv2", "--timeout",
+                                                                          "1e20"],
+                 ["--fleet", "f", "status", "--interval", "1e20"], ["--fleet", "f", "kill", "usv2", "--timeout", "nan"]):
+        with pytest.raises(SystemExit) as e:
+            p.parse_args(argv)
+        assert e.value.code == 2, argv
+        assert "at most 1e+09" in capsys.readouterr().err
+    assert p.parse_args(["--fleet", "f", "kill", "usv2", "--timeout", "1e9"]).timeout == 1e9
