@@ -622,6 +622,10 @@ class Agent:
         n = clock.join
         if n > 0:  # the run is under way: a restarted process
             self._rejoin(n)
+        # the first tick stepped after a join or a resume is reported at once, not in a batch: the
+        # world says a caught-up process's catch-up again while it has reported nothing (what it
+        # would hear again after stepping past it is a replay that must not change the run)
+        report_next = True
         waited_since = time.monotonic()
         while n <= self.last_tick:
             state, fresh = node.own_state_at(n)
@@ -638,6 +642,7 @@ class Agent:
                 node.rejoin(back, v.q, v.heading, v.omega)
                 self.log(f"paused from tick {n}; resuming at tick {back} where the vehicle was")
                 n = back
+                report_next = True
                 continue
             stuck_since = time.monotonic()
             while clock.granted < n or node.waiting_for(n) or self._samples_missing(n):
@@ -667,6 +672,9 @@ class Agent:
             if self._stopping():
                 return
             self._tick(n)
+            if report_next:
+                report_next = False
+                self.flush_states()
             waited_since = time.monotonic()
             n += 1
 

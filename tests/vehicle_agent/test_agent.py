@@ -527,3 +527,22 @@ def test_after_an_outage_an_agent_says_again_the_telemetry_a_grant_window_can_ho
     a._resend()
     rows = [r for p in a.pub_state.puts for r in decode_states(p, len(a.ids))]
     assert [r.tick for r in rows] == list(range(300))
+
+
+def test_a_lockstep_agent_reports_its_first_tick_after_a_join_or_a_resume_at_once(fake):
+    """The world says a caught-up process's catch-up again while it has reported no tick
+    (world_sim CATCHUP_RESEND, 1 s); rows go in batches of 50, and a fleet slower than 50 ticks
+    a second then heard the catch-up again after stepping past it (a replay must change nothing,
+    but better that it reach only a process that has not stepped)."""
+    a, s, lines = fake(duration=1.0)
+    ctl(s, "join", tick=0)
+    ctl(s, "roster", vehicle=ME, tick=3, state="paused", fresh=False)
+    ctl(s, "roster", vehicle=ME, tick=8, state="live", fresh=False)
+    ctl(s, "grant", until=20)
+    for seq in range(20):
+        omega_from(s, a, "usv2", seq)
+        omega_from(s, a, "uav3", seq)
+    with pytest.raises(AssertionError, match="empty inbox"):
+        a.run()  # waits for a grant past 20
+    batches = [[r.tick for r in decode_states(p)] for p in s.pubs[keys.state(FLEET, ME)].puts]
+    assert batches == [[0], [1, 2, 8], list(range(9, 21))], batches
