@@ -1138,9 +1138,9 @@ class World:
 
     def _catch_up_again(self, now: float) -> None:
         """Lockstep: a process caught up (CatchUp) that has reported no tick since, after
-        CATCHUP_RESEND s, hears it all again (its roster, the join tick of a restart, the commands
-        and radio samples, the grant): each is idempotent for a process that had it. Until it
-        reports, or for JOIN_TIMEOUT s."""
+        CATCHUP_RESEND s, hears it all again, in the first one's order (its roster, the commands
+        and radio samples, the join tick of a restart, the grant): each is idempotent for a
+        process that had it. Until it reports, or for JOIN_TIMEOUT s."""
         ls = self.lockstep
         for j, c in list(self._catching.items()):
             vid = self.ids[j]
@@ -1155,10 +1155,10 @@ class World:
             c.at = now + CATCHUP_RESEND
             for ch in ls.changes:
                 self._send_roster(ch, j)
-            if c.join is not None:
-                self.session.put(keys.ctl(self.fleet, [vid]), encode_control("join", tick=c.join))
             self._replay_commands(vid)
             self._replay_geometry(vid)
+            if c.join is not None:  # last, as the first time: it starts stepping when it hears it
+                self.session.put(keys.ctl(self.fleet, [vid]), encode_control("join", tick=c.join))
             self.pub_ctl.put(encode_control("grant", until=ls.granted))
 
     def _widen_horizon(self, now: float, mark: tuple[float, int]) -> tuple[float, int]:

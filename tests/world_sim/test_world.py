@@ -599,3 +599,28 @@ def test_a_caught_up_process_that_reports_nothing_hears_the_catch_up_again_until
     n = len(w.session.puts)
     w._catch_up_again(now + 10 * CATCHUP_RESEND)
     assert len(w.session.puts) == n and not w._catching
+
+
+def test_a_catch_up_said_again_gives_the_join_tick_after_the_commands_as_the_first_one_does():
+    """A restarted process starts stepping when it hears its join tick; the commands in force
+    (gains from a tick before it) must be in its inbox by then. The catch-up said again sent
+    the join before them: a process that had missed the first stepped its join tick with the
+    scenario's gains when the grant broadcast every 0.5 s came before the replayed commands."""
+    import time  # noqa: PLC0415
+
+    from world_sim.world import CATCHUP_RESEND  # noqa: PLC0415
+
+    w = started(world())
+    w._relay_gains({"c": 2.0}, "", "gs1")
+    j = w.ids.index("uav1")
+    w.lockstep.changes.append(RosterChange(50, j, "live"))
+    w.lockstep.acked[j] = 49
+    ops = lambda: [decode_control(p, CTL_OPS).op for k, p in w.session.puts  # noqa: E731
+                   if k == keys.ctl(FLEET, ["uav1"])]
+    before = len(ops())  # its start's join
+    w._act([CatchUp(j), Join(j, 50)])
+    first = ops()[before:]
+    assert first.index("gains") < first.index("join"), first
+    w._catch_up_again(time.monotonic() + CATCHUP_RESEND + 0.1)
+    again = ops()[before + len(first):]
+    assert again.index("gains") < again.index("join"), again
