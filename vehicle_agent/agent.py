@@ -211,6 +211,8 @@ class Agent:
         self.clock = Clock()
         self.state_batch = STATE_BATCH[clock]
         self.rejected: Counter = Counter()  # by reason, every reject (the node's ω ones too, but "gone")
+        self._commands_seen: set[int] = set()  # the world's run-time commands applied, by their seq
+        self.commands_heard_again = 0  # replays of those (a catch-up said again): not applied twice
         self._rings: list[tuple[int, Any]] = []  # realtime: (neighbour, its ω subscription: a ring channel)
         self._bucket: dict[int, tuple[float, float]] = {}  # realtime ω rate per neighbour: (tokens, when)
         self._rate = RATE_MARGIN * scenario.rates.broadcast  # ω per s a neighbour may send
@@ -434,6 +436,12 @@ class Agent:
         problem = self._ctl_problem(op, f)
         if problem is not None:
             return self._reject("world", problem)
+        seq = f.get("seq")
+        if seq is not None:  # a numbered run-time command: once, however often it is heard
+            if seq in self._commands_seen:
+                self.commands_heard_again += 1
+                return None
+            self._commands_seen.add(seq)
         if op == "grant":
             clock.granted = max(clock.granted, f["until"])
         elif op == "join":

@@ -226,7 +226,9 @@ class World:
         self._realtime_faults = list(scenario.events)  # realtime: carried out when their time comes
         self.st = WorldState()
         self.pairs = [(e.i, e.k) for e in scenario.edges]
-        self._commands: list[tuple[str | None, bytes]] = []  # run-time link and gains commands, for (re)joiners
+        #: run-time commands (link, radio, gains, formation, path), for (re)joiners; each carries its
+        #: index here as ``seq`` so a process that hears it again applies it once
+        self._commands: list[tuple[str | None, bytes]] = []
         self._console = ConsoleQuota(scenario=scenario)
         self._rt_expect: dict[str, set[str]] = {}  # realtime: liveliness changes a fault we asked for explains
         self._faulted: dict[str, str] = {}  # "killed" | "paused", by the faults carried out (both clocks)
@@ -665,7 +667,7 @@ class World:
         earliest = ((self.lockstep.granted + 1) * self.period if self.clock == "lockstep"
                     else self._sim_now() + self.period)
         at = max(f["at"], earliest) if f["at"] >= 0 else max(self._sim_now() + LINK_LEAD, earliest)
-        payload = encode_control("link", link=f["link"], at=float(at))
+        payload = encode_control("link", link=f["link"], at=float(at), seq=len(self._commands))
         self.pub_ctl.put(payload)
         self._commands.append((None, payload))
         self.st.link_commanded = True
@@ -745,7 +747,7 @@ class World:
         if at < later:  # changes apply in time order (epochs): a scheduled or earlier command's comes later
             return (f"a radio change from t = {later:g} s is already in force later (scheduled or commanded); "
                     f"give --at {later:g} or later")
-        payload = encode_control("radio", radio=change, at=float(at))
+        payload = encode_control("radio", radio=change, at=float(at), seq=len(self._commands))
         self.pub_ctl.put(payload)
         self._commands.append((None, payload))
         if self.radio_watch is not None:
@@ -775,7 +777,7 @@ class World:
                                      f"gains {printable(gains, 120)} from {sender}: {why}"))
             return why
         tick = self.lockstep.granted + 1 if self.clock == "lockstep" else self._tick_now() + 1
-        payload = encode_control("gains", gains=gains, tick=tick)
+        payload = encode_control("gains", gains=gains, tick=tick, seq=len(self._commands))
         self.session.put(keys.ctl(self.fleet, targets), payload)
         self._commands.append((vehicle or None, payload))
         self._note(FleetEvent.of(tick * self.period, "gains_changed",
@@ -824,7 +826,7 @@ class World:
         ordered = [(vid, checked[vid]) for vid in self.ids if vid in checked]
         self.recorder.formation.add(tick, {self.index[vid]: theta for vid, theta in ordered})
         for lo in range(0, len(ordered), 32):  # a control map holds at most 64 entries (decode_control)
-            payload = encode_control("formation", phases=dict(ordered[lo:lo + 32]), tick=tick)
+            payload = encode_control("formation", phases=dict(ordered[lo:lo + 32]), tick=tick, seq=len(self._commands))
             self.pub_ctl.put(payload)
             self._commands.append((None, payload))
         self._note(formation_changed(tick, self.period, ordered, sender))
@@ -841,7 +843,7 @@ class World:
             why = path if isinstance(path, str) else f"path{'.' + path[0] if path[0] else ''}: {path[1]}"
             return self._refuse(sender, "path", f"path of {vid}", why)
         tick = self._change_tick()
-        payload = encode_control("path", vehicle=vid, path=table, tick=tick)
+        payload = encode_control("path", vehicle=vid, path=table, tick=tick, seq=len(self._commands))
         self.session.put(keys.ctl(self.fleet, [vid]), payload)
         self._commands.append((vid, payload))
         self._note(path_changed(tick, self.period, vid, sorted(table.items()), sender))

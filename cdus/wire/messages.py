@@ -317,6 +317,12 @@ CTL_OPS: dict[str, dict[str, type]] = {
     "stop": {},  # end of run: finish, report, exit
 }
 
+#: the world's run-time commands to the vehicles (``ctl``) may carry ``seq``: their number in the
+#: world's list of commands (an int >= 0). A process that hears one again (the commands are
+#: replayed to a rejoining or resumed process, and said again if it stays silent) applies it once.
+SEQUENCED = ("link", "gains", "formation", "path", "radio")
+MAX_SEQ = 2**53
+
 #: anyone -> the world (``to/+world+/cmd/<from>``); ``link`` and ``gains`` tables are checked by their owners
 COMMAND_OPS: dict[str, dict[str, type]] = {
     "pause": {},
@@ -387,6 +393,11 @@ def decode_control(payload: bytes, ops: dict[str, dict[str, type]]) -> Control |
         if typ is float and not math.isfinite(val):
             return "non_finite"
         out[name] = val
+    if ops is CTL_OPS and op in SEQUENCED and "seq" in obj:
+        seq = obj["seq"]
+        if type(seq) is not int or not 0 <= seq < MAX_SEQ:
+            return "seq"
+        out["seq"] = seq
     who = obj.get("name")
     if who is not None and (not isinstance(who, str) or not _NAME_RE.match(who)):
         return "name"

@@ -254,6 +254,31 @@ def test_a_link_command_merges_sub_tables_and_switches_the_stale_policy_at_its_t
     assert table.policy == "extrapolate"
 
 
+def test_a_numbered_command_heard_again_is_applied_once(fake):
+    """The world replays its run-time commands to a resumed or restarted process, and says the
+    catch-up again while the process stays silent: a process that had them heard an older link
+    table merged again over a newer one (until the newer one came again), and an older radio
+    change refused as out of time order. Numbered (seq), each applies once."""
+    a, s, lines = fake()
+    ctl(s, "link", link={"loss": 0.1, "delay": {"base": 0.2}}, at=1.0, seq=0)
+    ctl(s, "link", link={"loss": 0.3}, at=2.0, seq=1)
+    a._drain(lambda: None)
+    epochs = list(a.node.link.epochs)
+    ctl(s, "link", link={"loss": 0.1, "delay": {"base": 0.2}}, at=1.0, seq=0)  # the replay, in order
+    ctl(s, "gains", gains={"c": 3.0}, tick=4, seq=2)
+    a._drain(lambda: None)
+    assert a.link_table["loss"] == 0.3 and list(a.node.link.epochs) == epochs and not a.rejected
+    assert a.commands_heard_again == 1 and sum("gains" in ln for ln in lines) == 1
+    ctl(s, "link", link={"loss": 0.1}, at=1.0, seq=1)  # heard again, whatever it says: once
+    ctl(s, "gains", gains={"c": 3.0}, tick=4, seq=2)
+    a._drain(lambda: None)
+    assert a.link_table["loss"] == 0.3 and a.commands_heard_again == 3
+    ctl(s, "link", link={"loss": 0.2}, at=3.0)  # without a number (an older world): applied as ever
+    ctl(s, "link", link={"loss": 0.25}, at=3.0, seq=True)  # not a number: refused, counted
+    a._drain(lambda: None)
+    assert a.link_table["loss"] == 0.2 and a.rejected["seq"] == 1
+
+
 def test_a_link_command_without_a_policy_keeps_the_one_the_agent_runs(fake):
     a, s, lines = fake()
     a.node.table.policy = "timeout"  # as `--policy timeout` sets it

@@ -168,6 +168,21 @@ def test_control_round_trip_and_ints_taken_as_floats():
         Control("set_gains", {"gains": {"k": [1.0, 2.0]}, "vehicle": "usv1"})
 
 
+def test_a_world_command_carries_its_number_and_a_bad_one_is_refused():
+    """``seq`` on the world's run-time commands to the vehicles (replays applied once)."""
+    for op, fields in [("link", {"link": {"loss": 0.1}, "at": 1.0}), ("gains", {"gains": {"c": 2.0}, "tick": 3}),
+                       ("formation", {"phases": {"usv1": 1.0}, "tick": 3}), ("radio", {"radio": {}, "at": 1.0}),
+                       ("path", {"vehicle": "usv1", "path": {}, "tick": 3})]:
+        assert decode_control(encode_control(op, **fields, seq=7), CTL_OPS) == Control(op, {**fields, "seq": 7})
+        assert decode_control(encode_control(op, **fields), CTL_OPS) == Control(op, fields)  # optional
+        for bad in (-1, 2**53, True, 1.0, "1", None, [1]):
+            assert decode_control(encode_control(op, **fields, seq=bad), CTL_OPS) == "seq", (op, bad)
+    # not a field of anything else: ignored there, as any other unknown key
+    assert decode_control(encode_control("grant", until=5, seq="x"), CTL_OPS) == Control("grant", {"until": 5})
+    got = decode_control(encode_control("link", link={}, at=1.0, seq=3), COMMAND_OPS)
+    assert got == Control("link", {"link": {}, "at": 1.0})
+
+
 def test_control_keys_are_text_on_the_wire():
     raw = msgpack.unpackb(encode_control("kill", vehicle="usv1"), raw=True)
     assert raw[b"op"] == b"kill" and raw[b"vehicle"] == b"usv1"

@@ -24,7 +24,7 @@ def test_a_phase_change_goes_to_every_vehicle_from_the_first_tick_not_granted_an
     v = w._relay_formation({"phases": {"usv2": 1.0, "uav1": 2.5}, "offsets": []}, "gs1")
     assert v.applied and v.tick == 41
     c = ctl_ops(w)[-1]
-    assert c.op == "formation" and c.fields == {"phases": {"usv2": 1.0, "uav1": 2.5}, "tick": 41}
+    assert c.op == "formation" and c.fields == {"phases": {"usv2": 1.0, "uav1": 2.5}, "tick": 41, "seq": 0}
     f = w.recorder.formation
     assert f.phases_at(40) == w.scenario.phases
     assert f.phases_at(41)[w.ids.index("usv2")] == 1.0 and f.phases_at(41)[w.ids.index("uav1")] == 2.5
@@ -54,7 +54,7 @@ def test_a_path_goes_to_its_vehicle_only_and_a_bad_one_is_refused_with_the_field
     key, payload = w.session.puts[-1]
     c = decode_control(payload, CTL_OPS)
     assert key == keys.ctl(FLEET, ["uav1"]) and c.op == "path" and c.fields == {"vehicle": "uav1", "path": CIRCLE,
-                                                                                 "tick": 6}
+                                                                                 "tick": 6, "seq": 0}
     assert w.events[-1].kind == "path_changed" and w.events[-1].vehicle == "uav1"
     n = len(w.session.puts)
     assert "path.radius: must be > 0" in w._relay_path({"vehicle": "uav1", "path": {**CIRCLE, "radius": -1}}, "gs1")
