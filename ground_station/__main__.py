@@ -115,6 +115,7 @@ def build_parser(prog: str = "cdus gs") -> argparse.ArgumentParser:
         v = sub.add_parser(name, help=f"{name.replace('-vehicle', '')} one vehicle's process (via the launcher)")
         v.add_argument("vehicle")
     for action in sub.choices.values():  # also after the action (`kill usv2 --timeout 60`), as people type it
+        action.allow_abbrev = False  # as the top level: `--time 5` is not taken for --timeout
         action.add_argument("--timeout", type=_positive, default=argparse.SUPPRESS,
                             help="as before the action: seconds to wait for the world's answer")
         action.add_argument("--name", default=argparse.SUPPRESS, help="as before the action: this ground station's name")

@@ -72,6 +72,8 @@ def test_timeout_and_name_are_taken_after_the_action_too():
     assert p.parse_args(["--fleet", "f", "kill", "usv2"]).timeout == 10.0  # the default, not lost
     args = p.parse_args(["--fleet", "f", "link", "loss=0.1", "--name", "ops", "--timeout", "3"])
     assert (args.name, args.timeout, args.settings) == ("ops", 3.0, ["loss=0.1"])
+    with pytest.raises(SystemExit):  # no abbreviations, after the action as before it
+        p.parse_args(["--fleet", "f", "kill", "usv2", "--time", "5"])
 
 
 def test_a_wait_too_long_for_zenoh_or_sleep_is_a_usage_error(capsys):
