@@ -179,3 +179,26 @@ def test_offsets_from_phases_close_and_a_miss_on_a_small_cycle_is_found(theta, r
     edges += [("s1", "s2", 0.0), ("s2", "s3", 0.0), ("s3", "s1", miss), ("s1", SIX[root], -th[SIX[root]])]
     found = inconsistent_cycle(ids + small, edges)
     assert found is not None and found[1] == pytest.approx(miss), found
+
+
+def test_the_cycle_tolerance_is_1e_9_of_its_largest_delta_and_no_looser():
+    """docs: a cycle closes within 1e-9 · max(1, its largest |Δ|). Offsets taken from phases
+    ~2.5e8 apart miss closing by 3e-8 in float (rounding): they close. At small values a miss of
+    1.5e-9 is a miss, 0.5e-9 is not (mutation testing: a tolerance divided instead of
+    multiplied, or max(2, ...), went unseen)."""
+    b, c = 252754923.8953228, -151013804.44788435
+    rounded = [("a", "b", 0.0 - b), ("b", "c", b - c), ("c", "a", c - 0.0)]
+    assert sum(d for _, _, d in rounded) != 0.0 and inconsistent_cycle(["a", "b", "c"], rounded) is None
+    small = lambda miss: [("a", "b", 0.5), ("b", "c", 0.25), ("c", "a", -0.75 + miss)]  # noqa: E731
+    assert inconsistent_cycle(["a", "b", "c"], small(0.5e-9)) is None
+    cycle, total = inconsistent_cycle(["a", "b", "c"], small(1.5e-9))
+    assert cycle == ["a", "b", "c", "a"] and total == pytest.approx(1.5e-9, rel=1e-6)
+
+
+def test_a_pair_given_both_ways_is_a_two_vehicle_cycle_read_as_written():
+    """Δ_ab + Δ_ba around a -> b -> a, whichever order the edges or the ids come in."""
+    for ids, edges in [(["a", "b"], [("a", "b", 1.0), ("b", "a", 0.5)]), (["a", "b"], [("b", "a", 0.5), ("a", "b", 1.0)]),
+                       (["b", "a"], [("a", "b", 1.0), ("b", "a", 0.5)]),
+                       (["a", "b", "c"], [("a", "b", 1.0), ("b", "a", 0.5), ("b", "c", 2.0)])]:
+        cycle, total = inconsistent_cycle(ids, edges)
+        assert total == 1.5 and cycle in (["a", "b", "a"], ["b", "a", "b"]) and cycle[0] == ids[0], (ids, edges)
