@@ -205,11 +205,9 @@ def test_lake_circle_across_three_namespaces_is_the_single_host_run(tmp_path, ho
 def test_a_partition_costs_the_world_its_uavs_and_the_formation_settles_again(tmp_path, hosts, launches):
     fleet = unique_fleet()
     run = tmp_path / "run"
-    # realtime: concentric_circles settles in about 8 s; a ring usv1-usv2-uav1-uav2. The launcher
-    # prints its progress every 10 %, 3 s: the link goes down at t = 12 s, up at 15 s or later
-    # (after both UAVs were reported lost), and the formation settles again about 8 s later
+    # realtime: concentric_circles settles in about 8 s; a ring usv1-usv2-uav1-uav2
     la = launch_in(hosts, launches, "configs/concentric_circles.toml", fleet, run,
-                   ["--clock", "realtime", "--duration", "30"])
+                   ["--clock", "realtime", "--duration", "40"])
     groups = {"a": ["usv1", "usv2"], "b": ["uav1", "uav2"]}
     agents = start_vehicles(hosts, la, groups)
     la.wait_for(f"fleet '{fleet}' up")
@@ -219,7 +217,7 @@ def test_a_partition_costs_the_world_its_uavs_and_the_formation_settles_again(tm
     for vid in groups["b"]:
         la.wait_for(f"vehicle {vid} lost", timeout=30)
     noticed = time.monotonic() - cut
-    la.wait_for(sim_time_past(15.0), timeout=30)  # the link stays down for at least 3 s
+    la.wait_for(sim_time_past(17.0), timeout=30)  # the link stays down for at least 5 s
     healed = time.monotonic()
     hosts.link("b", up=True)
     for vid in groups["b"]:
