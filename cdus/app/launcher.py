@@ -8,7 +8,8 @@ tail of their logs), then watches: it shows the world's progress, restarts agent
 scenario's ``[supervision]`` (restart never | on-failure | always, at most ``max_restarts``
 times per vehicle, after a doubling back-off; docs/config.md), and at the end, on Ctrl-C,
 on SIGTERM or on a failure, walks the shutdown ladder: ask the world to stop (it writes the
-metrics), let everyone exit for a grace period, SIGTERM their process groups, then SIGKILL.
+metrics), let everyone who came up exit for a grace period, SIGTERM their process groups
+(at once for one that never came up: it cannot hear the stop), then SIGKILL.
 Nothing it started outlives it, not even when the launcher itself is SIGKILLed: every child
 is started with ``PR_SET_PDEATHSIG`` (Linux): the moment the launcher dies the kernel sends
 the world SIGTERM (it still writes what it has) and the agents SIGKILL (nothing to save, and
@@ -274,6 +275,7 @@ class Launcher:
         self.metrics_out = Path(self.opts.metrics_out or self.run_dir / "metrics.json")
         self.cond = threading.Condition()
         self.alive: set[str] = set()
+        self.ever_alive: set[str] = set()  # whose token was seen at least once
         self.status: dict | None = None
         self.rejected: dict[str, int] = {}  # messages to the launcher dropped, by reason
         # what of the events to print (drop bursts per link are capped, links lossy by design said once)
@@ -430,6 +432,7 @@ class Launcher:
                 self.alive.discard(who)
             else:
                 self.alive.add(who)
+                self.ever_alive.add(who)
             self.cond.notify_all()
 
     def _on_status(self, sample: Any) -> None:
@@ -627,14 +630,18 @@ class Launcher:
         """The shutdown ladder: ask, wait, SIGTERM, wait, SIGKILL. Idempotent."""
         self.stopping = True
         world = self.children.get("world")
+        # the world's stop reaches the processes that came up (declared their token); one that never
+        # did (waiting for a neighbour's link that never came, or still starting) does not hear it and
+        # would only run out the grace: it gets its SIGTERM below at once
+        told = {n for n in self.children if n == keys.WORLD or n in self.ever_alive}
         if self.session is not None and world is not None and world.running():
             try:
                 self.session.put(keys.world_cmd(self.fleet, keys.LAUNCHER), encode_control("stop"))
-                self._wait_exit(self.opts.grace)  # the world stops the agents
+                self._wait_exit(self.opts.grace, told)  # the world stops the agents
             except zenoh.ZError as e:
                 self.log(f"  could not ask the world to stop ({e}); stopping the processes")
         elif self.finished:  # the world ended the run and told the agents to stop
-            self._wait_exit(self.opts.grace)
+            self._wait_exit(self.opts.grace, told)
         # else the world died: nobody tells the agents to stop but the signals below
         for c in self.children.values():
             if c.running():
@@ -660,10 +667,11 @@ class Launcher:
         if self.sockets is not None:
             shutil.rmtree(self.sockets, ignore_errors=True)
 
-    def _wait_exit(self, seconds: float) -> None:
+    def _wait_exit(self, seconds: float, names: set[str] | None = None) -> None:
+        """Wait up to ``seconds`` for the children (those named in ``names``, else all) to exit."""
         deadline = time.monotonic() + seconds
-        for c in self.children.values():
-            if c.proc is None:
+        for n, c in self.children.items():
+            if c.proc is None or (names is not None and n not in names):
                 continue
             try:
                 c.proc.wait(timeout=max(0.0, deadline - time.monotonic()))

@@ -279,3 +279,38 @@ def test_stop_ends_a_paused_vehicle_with_sigterm_not_after_the_grace_with_sigkil
         if c.running():
             c.signal_group(signal.SIGKILL)
             c.proc.wait()
+
+
+def test_stop_does_not_wait_out_the_grace_for_a_vehicle_that_never_came_up(tmp_path):
+    """The world's stop reaches the processes that came up; one that never did (waiting for a
+    neighbour's link that never came: a remote vehicle that did not connect) cannot hear it. The
+    ladder waits for the others only, then SIGTERMs it: it used to run out the whole grace (5 s
+    by default) first."""
+    la, lines = quiet_launcher(tmp_path, grace=30.0)
+    world = la.children["world"] = Child("world", [sys.executable, "-c", "pass"], la.logs / "world.log")
+    up = la.children["usv1"] = Child("usv1", [sys.executable, "-c", "import time; time.sleep(0.5)"],
+                                     la.logs / "usv1.log")  # stops on the world's word (here: by itself)
+    never = la.children["uav1"] = Child("uav1", SLEEP, la.logs / "uav1.log")
+    for c in (world, up, never):
+        c.start(la.env)
+    world.proc.wait()
+    la.finished = True  # the world ended the run
+    la.ever_alive |= {"world", "usv1"}
+    waited: list[set[str]] = []
+    real_wait = la._wait_exit
+
+    def wait_exit(seconds, names=None):
+        waited.append({n for n, c in la.children.items() if c.running() and (names is None or n in names)})
+        real_wait(seconds) if names is None else real_wait(seconds, names)
+
+    la._wait_exit = wait_exit
+    try:
+        la.stop()
+        assert waited[0] == {"usv1"}, (waited, lines)  # the grace is for the ones told to stop
+        assert up.proc.returncode == 0  # it was let finish
+        assert never.proc.returncode == -signal.SIGTERM, (never.proc.returncode, lines)
+    finally:
+        for c in (up, never):
+            if c.running():
+                c.signal_group(signal.SIGKILL)
+                c.proc.wait()

@@ -143,9 +143,13 @@ def test_an_unreachable_cluster_is_a_usage_error_naming_it_and_nothing_runs(tmp_
     assert not out.exists()
 
 
+# 10 simulated seconds a run (0.1 s of CPU in process): what is checked is which runs are on disk, not their results
+RUN_S = "10"
+
+
 def _start(out: Path, jobs: int, seeds: int = 10) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "cdus.app.cli", "sweep", CONFIG, "--set", "link.loss=0,0.1",
-                             "--seeds", str(seeds), "--duration", "30", "--jobs", str(jobs), "--out", str(out)],
+                             "--seeds", str(seeds), "--duration", RUN_S, "--jobs", str(jobs), "--out", str(out)],
                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True)
 
@@ -183,7 +187,7 @@ def test_a_sweep_killed_half_way_and_restarted_runs_each_pair_exactly_once(tmp_p
     assert 3 <= done < 20, "the sweep finished before it was killed: the test proves nothing"
     assert not (out / "results.csv").exists()  # it never got to the end
     again = subprocess.run([sys.executable, "-m", "cdus.app.cli", "sweep", CONFIG, "--set", "link.loss=0,0.1",
-                            "--seeds", "10", "--duration", "30", "--jobs", "1", "--out", str(out)],
+                            "--seeds", "10", "--duration", RUN_S, "--jobs", "1", "--out", str(out)],
                            cwd=ROOT, capture_output=True, text=True, timeout=300, start_new_session=True)
     assert again.returncode == 0, again.stderr
     assert f"{done} of 20 runs already done" in again.stderr

@@ -25,7 +25,8 @@ from .conftest import fleet_processes, unique_fleet
 def test_lake_circle_settles_with_30_percent_loss_and_100_ms_delay_in_lockstep(tmp_path, launches):
     fleet = unique_fleet()
     run = tmp_path / "run"
-    la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--set", "link.loss=0.3",
+    # 170 s, not the scenario's 250: it settles at 125.28 s (in process, deterministic)
+    la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", "170", "--set", "link.loss=0.3",
                    "--set", "link.delay.base=0.1", "--logs", str(run), "-q"], fleet)
     assert la.wait(timeout=300) == 0, la.output()
     m = json.loads((run / "metrics.json").read_text())
@@ -33,8 +34,8 @@ def test_lake_circle_settles_with_30_percent_loss_and_100_ms_delay_in_lockstep(t
     faults = m["link"]["faults"]["total"]
     assert 0.27 < faults["dropped_by"]["loss"] / faults["sent"] < 0.33
     # the same decisions as the in-process run: the emulator decides from (seed, src, dst, seq)
-    ref = InProcessFleet(load_scenario("configs/lake_circle.toml",
-                                       {"link.loss": 0.3, "link.delay.base": 0.1})).run().metrics
+    ref = InProcessFleet(load_scenario("configs/lake_circle.toml", {"scenario.duration": 170.0, "link.loss": 0.3,
+                                                                    "link.delay.base": 0.1})).run().metrics
     assert m["coord_settle_s"] == ref["coord_settle_s"]
     assert faults["dropped"] == ref["link"]["faults"]["total"]["dropped"]
     assert not fleet_processes(fleet)
@@ -44,12 +45,13 @@ def partition_scenario(tmp_path):
     text = open("configs/lake_circle.toml").read()
     text += """
 [[link.partition]]
-from = 150.0
-to = 200.0
+from = 130.0
+to = 145.0
 groups = [["usv1", "usv2", "usv3"], ["uav1", "uav2", "uav3"]]
 """
     path = tmp_path / "partition.toml"
-    path.write_text(text.replace("duration = 250.0", "duration = 400.0"))
+    # it settles at 124.04 s, splits at 130 s, heals at 145 s and settles again at 190.04 s (in process)
+    path.write_text(text.replace("duration = 250.0", "duration = 220.0"))
     return path
 
 
@@ -60,8 +62,8 @@ def test_a_partition_that_splits_the_ring_and_heals_reconverges(tmp_path, launch
     ref = InProcessFleet(load_scenario(cfg)).run()
     t = ref.recorder.view("t")
     err = ref.recorder.edge_error().max(axis=1)
-    assert err[(t > 140) & (t < 150)].max() < 0.05  # settled before the split
-    assert ref.metrics["coord_settle_s"] > 200.0  # disturbed by the split...
+    assert err[(t > 125) & (t < 130)].max() < 0.05  # settled before the split
+    assert ref.metrics["coord_settle_s"] > 145.0  # disturbed by the split...
     assert ref.metrics["final_coord_error_max"] < 0.05  # ...and back after healing
     fleet = unique_fleet()
     run = tmp_path / "run"
@@ -72,20 +74,21 @@ def test_a_partition_that_splits_the_ring_and_heals_reconverges(tmp_path, launch
     assert m["coord_settle_s"] == ref.metrics["coord_settle_s"]
     assert m["final_coord_error_max"] < 0.05
     changes = m["link"]["faults"]["state_changes"]
-    assert any(c["state"] == "down" and abs(c["t"] - 150.0) < 0.1 for c in changes)
-    assert any(c["state"] == "up" and abs(c["t"] - 200.0) < 0.1 for c in changes)
+    assert any(c["state"] == "down" and abs(c["t"] - 130.0) < 0.1 for c in changes)
+    assert any(c["state"] == "up" and abs(c["t"] - 145.0) < 0.1 for c in changes)
 
 
 def test_a_killed_and_restarted_vehicle_rejoins_and_the_fleet_reconverges(tmp_path, launches):
-    text = open("configs/lake_circle.toml").read().replace("duration = 250.0", "duration = 320.0")
+    # settled at 124.04 s; killed at 130 s, restarted at 135 s, settles again at 212.1 s (in process)
+    text = open("configs/lake_circle.toml").read()
     text += """
 [[event]]
-at = 150.0
+at = 130.0
 action = "kill"
 vehicle = "usv2"
 
 [[event]]
-at = 170.0
+at = 135.0
 action = "restart"
 vehicle = "usv2"
 """
@@ -104,16 +107,16 @@ vehicle = "usv2"
     assert [e for e in seen if e[0] in news] == [(e["kind"], e.get("vehicle")) for e in ref["events"]
                                                  if e["kind"] in news]
     # at the same times: vehicle_back and the graph events of the scheduled changes carry their ticks
-    # (they said 169.98 s and 149.98 s, the newest tick recorded)
+    # (they said 134.98 s and 129.98 s, the newest tick recorded)
     timed = ("fault", "vehicle_back")
     assert [(e["kind"], e["t"]) for e in m["events"] if e["kind"] in timed] == \
         [(e["kind"], e["t"]) for e in ref["events"] if e["kind"] in timed] == \
-        [("fault", 150.0), ("fault", 170.0), ("vehicle_back", 170.0)]
+        [("fault", 130.0), ("fault", 135.0), ("vehicle_back", 135.0)]
     assert {e["t"] for e in m["events"] if e["kind"] == "graph"} == {e["t"] for e in ref["events"]
-                                                                      if e["kind"] == "graph"} == {150.0, 170.0}
+                                                                      if e["kind"] == "graph"} == {130.0, 135.0}
     log = (run / "logs" / "usv2.log").read_text()
-    assert "rejoining at tick 8500" in log, log[-2000:]  # t = 170 s exactly: the fleet waited for it
-    assert m["coord_settle_s"] is not None and m["coord_settle_s"] > 170.0, m
+    assert "rejoining at tick 6750" in log, log[-2000:]  # t = 135 s exactly: the fleet waited for it
+    assert m["coord_settle_s"] is not None and m["coord_settle_s"] > 135.0, m
     assert m["final_coord_error_max"] < 0.05
     assert not fleet_processes(fleet)
 
@@ -123,7 +126,7 @@ def test_a_kill_between_two_telemetry_batches_does_not_hold_the_lockstep_fleet(t
     telemetry batch of 10, and then waits to be killed. It sends those rows first: the world
     carries out a kill only once every live vehicle has reported the tick before it. It used
     to wait with them unsent, and the fleet hung at tick 25 for good (the test above kills at
-    tick 7500, a batch boundary, and a restart made it flush)."""
+    tick 6500, a batch boundary, and a restart made it flush)."""
     text = open("configs/lake_circle.toml").read().replace("duration = 250.0", "duration = 3.0")
     text += """
 [[event]]

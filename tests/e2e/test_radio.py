@@ -250,8 +250,9 @@ def test_ground_station_radio_commands_out_of_range_or_without_radio_are_refused
     la = launches([config, "--clock", "lockstep", "--duration", "3000", "--listen", f"tcp/127.0.0.1:{port}",
                    "--logs", str(run), "-q"], fleet)
     la.wait_for(f"fleet '{fleet}' up")
-    for args, field in ((["tx_power=nan"], "tx_power"), (["tx_power=1e400"], "tx_power"),
-                        (["station=[1,2,3,4]"], "station")):
+    # refused by the ground station before it sends, whatever the fleet: checked once, on the fleet with [radio]
+    local = ((["tx_power=nan"], "tx_power"), (["tx_power=1e400"], "tx_power"), (["station=[1,2,3,4]"], "station"))
+    for args, field in local if "range_out" in config else ():
         res = gs(fleet, port, run, "radio", *args)
         assert res.returncode == 2 and f"radio.{field}" in res.stderr, (args, res.returncode, res.stderr)
     late = gs(fleet, port, run, "radio", "tx_power=10", "--at", "1e12")

@@ -170,18 +170,21 @@ def test_forged_names_are_not_tracked():
     assert gs.view.alive == {"usv1"} and gs.view.rejected == 3
 
 
-def test_an_unreachable_router_says_that_nothing_listens_and_that_fleets_take_credentials(capsys):
+def test_an_unreachable_router_says_that_nothing_listens_and_that_fleets_take_credentials(capsys, monkeypatch):
     """Nothing listens at the endpoint: no answer (exit 3), and the hint for a secured fleet."""
+    import ground_station.__main__ as gs_main
     from cdus.wire.transport import free_tcp_port
     from ground_station.__main__ import main
 
+    monkeypatch.setattr(gs_main, "GS_CONNECT_TIMEOUT_MS", 1000)  # nobody will answer: 1 s says so as well as 5
     code = main(["--fleet", "nobody", "-e", f"tcp/127.0.0.1:{free_tcp_port()}", "status", "--once"])
     err = capsys.readouterr().err
-    assert code == 3 and "could not reach the fleet's router" in err and "nothing listens there" in err
+    assert code == 3 and "could not reach the fleet's router" in err and "within 1 s" in err
+    assert "nothing listens there" in err
     assert "--zenoh-config RUN/secure/ground.json5" in err
 
 
-def test_a_router_that_refuses_the_session_is_reported_as_such_with_the_file_to_use(tmp_path, capsys):
+def test_a_router_that_refuses_the_session_is_reported_as_such_with_the_file_to_use(tmp_path, capsys, monkeypatch):
     """A secured router is up and refuses a session without credentials (or with a wrong
     password): the ground station says so (exit 4, denied) and names ground.json5, not a bare
     'Timeout!'."""
@@ -189,8 +192,11 @@ def test_a_router_that_refuses_the_session_is_reported_as_such_with_the_file_to_
 
     from cdus.app.credentials import make_credentials
     from cdus.wire.transport import Transport, free_tcp_port, open_session
+    import ground_station.__main__ as gs_main
     from ground_station.__main__ import main
 
+    # a refused session is told from nobody there by probing the port after the failure: the wait is not the check
+    monkeypatch.setattr(gs_main, "GS_CONNECT_TIMEOUT_MS", 1000)
     ep = f"tcp/127.0.0.1:{free_tcp_port()}"
     cred = make_credentials(tmp_path, "f1", {"usv1": ["usv2"], "usv2": ["usv1"]}, (ep,))
     router = open_session(Transport(mode="router", listen=cred.listen, extra=cred.router_extra()))
