@@ -517,8 +517,8 @@ class Agent:
 
     def _on_roster(self, f: dict) -> None:
         j = self.ids.index(f["vehicle"])
-        self.node.on_roster(RosterChange(f["tick"], j, f["state"], f["fresh"]))
-        if j in self.node.neighbours:
+        news = self.node.on_roster(RosterChange(f["tick"], j, f["state"], f["fresh"]))
+        if news and j in self.node.neighbours:  # a catch-up said again is not logged again
             self.log(f"neighbour {f['vehicle']} {f['state']} from tick {f['tick']}")
 
     def _update_link(self, table: dict, at: float) -> None:

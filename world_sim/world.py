@@ -76,6 +76,7 @@ GRANT_RESEND = 0.5  # s: grants and start times are said again for processes tha
 #: sees its token back before the router has its subscriptions again, and what it sent then was
 #: lost; the process then waited for its roster for ever, and its neighbours for its ω)
 CATCHUP_RESEND = 1.0
+CATCHUP_RESEND_MAX = 8.0
 #: realtime: a ground station's vehicle fault is answered when the launcher says it carried it
 #: out; none within this (s): not carried out (a --remote vehicle, a launcher gone)
 RT_FAULT_CONFIRM = 5.0
@@ -180,6 +181,7 @@ class _CatchingUp:
     since: float  # monotonic s of the first catch-up
     join: int | None = None  # the join tick of a restart
     told: bool = False  # the log says it once
+    every: float = CATCHUP_RESEND / 2  # s between resends, doubled each time (CATCHUP_RESEND_MAX at most)
 
 
 class World:
@@ -1139,22 +1141,27 @@ class World:
                 self._drain(block=True)
 
     def _catch_up_again(self, now: float) -> None:
-        """Lockstep: a process caught up (CatchUp) that has reported no tick since, after
-        CATCHUP_RESEND s, hears it all again, in the first one's order (its roster, the commands
-        and radio samples, the join tick of a restart, the grant): each is idempotent for a
-        process that had it. Until it reports, or for JOIN_TIMEOUT s."""
+        """Lockstep: a process caught up (CatchUp) that has reported no tick since hears it all
+        again, in the first one's order (its roster, the commands and radio samples, the join tick
+        of a restart, the grant): each is told once to a process that had it (roster changes are
+        kept once, commands by their seq). After CATCHUP_RESEND s, then twice as long each time up
+        to 8 s, while its liveliness token is up, until it reports. Not while it is down: a
+        restart's fault_done can come before the old process's token goes, so the first catch-up
+        went to a process not yet started (seen in the suite: the new uav2 waited for its join for
+        ever); when the new one's token comes, it hears it."""
         ls = self.lockstep
         for j, c in list(self._catching.items()):
             vid = self.ids[j]
-            if ls.acked.get(j, -1) > c.acked or vid not in self.st.alive or now - c.since > JOIN_TIMEOUT:
+            if ls.acked.get(j, -1) > c.acked:
                 del self._catching[j]
                 continue
-            if now < c.at:
+            if now < c.at or vid not in self.st.alive:
                 continue
             if not c.told:
                 c.told = True
                 self.log(f"{vid} has reported nothing since its catch-up: saying it again")
-            c.at = now + CATCHUP_RESEND
+            c.every = min(2 * c.every, CATCHUP_RESEND_MAX)
+            c.at = now + c.every
             for ch in ls.changes:
                 self._send_roster(ch, j)
             self._replay_commands(vid)

@@ -346,12 +346,13 @@ class VehicleNode:
         t0 = send_tick(last.t_send, self.period)
         return any(t0 < c <= tick for c in peer.change_ticks)
 
-    def on_roster(self, change: RosterChange) -> None:
+    def on_roster(self, change: RosterChange) -> bool:
         """A liveness change of a neighbour or of this vehicle, effective at ``change.tick``
         (or at the next tick stepped, if that has passed). A change told again is ignored: applied
-        once more after its tick it would forget the neighbour's ω (a gone) or its start (a live)."""
+        once more after its tick it would forget the neighbour's ω (a gone) or its start (a live).
+        Returns whether it was news."""
         if change in self._heard:
-            return
+            return False
         self._heard.add(change)
         if change.vehicle == self.index:
             _insert(self._self_changes, change)
@@ -360,6 +361,7 @@ class VehicleNode:
             _insert(peer.changes, change)
             peer.change_ticks.append(change.tick)
             del peer.change_ticks[:-RECENT]
+        return True
 
     def on_contacts(self, tick: int, contacts: tuple[Contact, ...]) -> None:
         """The proximity sensor's contacts of this vehicle sampled at ``tick``."""

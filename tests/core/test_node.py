@@ -192,6 +192,9 @@ def test_a_roster_change_told_again_after_its_tick_changes_nothing():
         return out
 
     assert run(True) == run(False)
+    a = node(0)
+    assert [a.on_roster(ch) for ch in changes] == [True] * 4  # news, then not (the agent logs news only)
+    assert [a.on_roster(ch) for ch in changes] == [False] * 4
 
 
 def test_gains_change_on_their_tick():

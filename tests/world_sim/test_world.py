@@ -624,3 +624,32 @@ def test_a_catch_up_said_again_gives_the_join_tick_after_the_commands_as_the_fir
     w._catch_up_again(time.monotonic() + CATCHUP_RESEND + 0.1)
     again = ops()[before + len(first):]
     assert again.index("gains") < again.index("join"), again
+
+
+def test_a_catch_up_that_went_to_a_process_not_yet_up_is_said_when_its_token_comes():
+    """A restart's fault_done can come before the old process's token goes: the world saw the
+    vehicle alive, caught it up and sent its join while the new process was still starting, then
+    the old token went (which ended the catch-up's resends) and the new one came as expected news:
+    the new process waited for its join for ever, and the fleet for it (seen in the suite)."""
+    import time  # noqa: PLC0415
+
+    from world_sim.world import CATCHUP_RESEND  # noqa: PLC0415
+
+    w = started(world())
+    j = w.ids.index("uav2")
+    w.lockstep.acked[j] = 49
+    w._act([CatchUp(j), Join(j, 50)])
+    joins = lambda: [c for k, p in w.session.puts if k == keys.ctl(FLEET, ["uav2"])  # noqa: E731
+                     for c in [decode_control(p, CTL_OPS)] if c.op == "join"]
+    first = len(joins())
+    w._on_alive("uav2", False)  # the old process's token goes
+    now = time.monotonic()
+    w._catch_up_again(now + 5 * CATCHUP_RESEND)
+    assert len(joins()) == first and w._catching  # nobody to tell: kept, not dropped
+    w._on_alive("uav2", True)  # the new process's token
+    w._catch_up_again(now + 5 * CATCHUP_RESEND)
+    assert len(joins()) == first + 1 and joins()[-1].fields["tick"] == 50
+    w._catch_up_again(now + 5.5 * CATCHUP_RESEND)  # then less and less often: 1, 2, 4, 8 s apart
+    assert len(joins()) == first + 1
+    w._catch_up_again(now + 7.1 * CATCHUP_RESEND)
+    assert len(joins()) == first + 2
