@@ -207,10 +207,20 @@ def path_fields(settings: list[str]) -> dict:
     return table
 
 
-def _check_vehicle(vid: str, ids: list) -> None:
+def _check_vehicle(vid: str, ids: list, field: str = "vehicle") -> None:
     if ids and vid not in ids:
-        raise ConfigError("command line", [("vehicle", f"no vehicle {vid!r} in this fleet; its vehicles are "
-                                                       f"{', '.join(ids)}")])
+        raise ConfigError("command line", [(field, f"no vehicle {vid!r} in this fleet; its vehicles are "
+                                                   f"{', '.join(ids)}")])
+
+
+def check_formation_vehicles(change: dict, ids: list) -> None:
+    """Every id a formation change names is one of the fleet's; the error names the argument
+    that held it (``phases.usv9``, ``offsets.usv2.usv9``), not a ``vehicle`` the user never typed."""
+    for vid in change["phases"]:
+        _check_vehicle(vid, ids, f"phases.{vid}")
+    for o in change["offsets"]:
+        for vid in (o["i"], o["k"]):
+            _check_vehicle(vid, ids, f"offsets.{o['i']}.{o['k']}")
 
 
 def _report(answer: Answer, what: str) -> int:
@@ -403,16 +413,15 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
             return _report(gs.command("radio", timeout=args.timeout, radio=change, at=at), f"radio {change}")
         elif args.action == "gains":
             if args.vehicle is not None:
-                _check_vehicle(args.vehicle, ids)
+                _check_vehicle(args.vehicle, ids, "--vehicle")
             return _report(gs.command("set_gains", timeout=args.timeout, gains=gains, vehicle=args.vehicle or ""),
                            f"gains {gains} for {args.vehicle or 'every vehicle'}")
         elif args.action == "formation":
-            for vid in [*change["phases"], *(x for o in change["offsets"] for x in (o["i"], o["k"]))]:
-                _check_vehicle(vid, ids)
+            check_formation_vehicles(change, ids)
             return _report(gs.command("formation", timeout=args.timeout, **change),
                            f"formation {change['phases'] or change['offsets']}")
         elif args.action == "path":
-            _check_vehicle(args.vehicle, ids)
+            _check_vehicle(args.vehicle, ids, "--vehicle")
             return _report(gs.command("path", timeout=args.timeout, vehicle=args.vehicle, path=change),
                            f"path {change} for {args.vehicle}")
         else:

@@ -88,3 +88,21 @@ def test_a_wait_too_long_for_zenoh_or_sleep_is_a_usage_error(capsys):
         assert e.value.code == 2, argv
         assert "at most 1e+09" in capsys.readouterr().err
     assert p.parse_args(["--fleet", "f", "kill", "usv2", "--timeout", "1e9"]).timeout == 1e9
+
+
+@pytest.mark.parametrize("settings, field", [
+    (["phases.usv9=1"], "phases.usv9"),
+    (["phases.usv2=1", "phases.boat=2"], "phases.boat"),
+    (["offsets.usv9.usv1=1"], "offsets.usv9.usv1"),
+    (["offsets.usv2.usv9=1"], "offsets.usv2.usv9"),
+])
+def test_an_unknown_vehicle_in_a_formation_names_the_argument_that_held_it(settings, field):
+    """`cdus gs formation phases.usv9=1` said "vehicle: no vehicle 'usv9'", a field the user never typed."""
+    from ground_station.__main__ import check_formation_vehicles
+    ids = ["usv1", "usv2", "usv3"]
+    with pytest.raises(ConfigError) as info:
+        check_formation_vehicles(formation_fields(settings), ids)
+    assert info.value.problems[0][0] == field
+    assert "its vehicles are usv1, usv2, usv3" in info.value.problems[0][1]
+    check_formation_vehicles(formation_fields(["phases.usv2=1", "phases.usv3=2"]), ids)  # known ids pass
+    check_formation_vehicles(formation_fields(["offsets.usv3.usv1=2"]), ids)
