@@ -142,7 +142,8 @@ def _positive_number(x) -> bool:
 
 
 def check_gains(gains: dict, vehicle: str | None) -> None:
-    """k: a number > 0 (every axis) or, for one vehicle (--vehicle), one per axis; c: a number > 0."""
+    """k: a finite number > 0 (every axis) or, for one vehicle (--vehicle), one per axis; c: a finite
+    number > 0 (`gains k=inf` said "must be a number > 0, got inf", which it is)."""
     bad = sorted(set(gains) - {"k", "c"})
     if bad:
         raise ConfigError("command line", [(bad[0], "gains are k (a number or, with --vehicle, one per axis) and c")])
@@ -154,11 +155,11 @@ def check_gains(gains: dict, vehicle: str | None) -> None:
             raise ConfigError("command line", [("k", "one value per axis needs --vehicle (boats have 2 axes, "
                                                      "drones 3); a single number sets every axis")])
         if not k or not all(_positive_number(x) for x in k):
-            raise ConfigError("command line", [("k", f"must be numbers > 0, got {k}")])
+            raise ConfigError("command line", [("k", f"must be finite numbers > 0, got {k}")])
     elif not _positive_number(k):
-        raise ConfigError("command line", [("k", f"must be a number > 0, got {k!r}")])
+        raise ConfigError("command line", [("k", f"must be a finite number > 0, got {k!r}")])
     if "c" in gains and not _positive_number(gains["c"]):
-        raise ConfigError("command line", [("c", f"must be a number > 0, got {gains['c']!r}")])
+        raise ConfigError("command line", [("c", f"must be a finite number > 0, got {gains['c']!r}")])
 
 
 def _change_parsers(sub) -> None:

@@ -37,8 +37,11 @@ def test_status_table_before_anything_is_heard():
 
 @pytest.mark.parametrize("argv, says", [
     (["--fleet", "bad/name", "stop"], "--fleet"),
-    (["--fleet", "f", "gains", "c=abc"], "c: must be a number > 0"),
-    (["--fleet", "f", "gains", "k=-3"], "k: must be a number > 0"),
+    (["--fleet", "f", "gains", "c=abc"], "c: must be a finite number > 0"),
+    (["--fleet", "f", "gains", "k=-3"], "k: must be a finite number > 0"),
+    (["--fleet", "f", "gains", "k=inf"], "k: must be a finite number > 0, got inf"),  # not "a number > 0, got inf"
+    (["--fleet", "f", "gains", "c=inf"], "c: must be a finite number > 0, got inf"),
+    (["--fleet", "f", "gains", "--vehicle", "usv1", "k=[1,inf]"], "k: must be finite numbers > 0"),
     (["--fleet", "f", "gains", "k=[1,2]"], "needs --vehicle"),
     (["--fleet", "f", "gains", "x=1"], "gains are k"),
     (["--fleet", "f", "link", "loss=3"], "link.loss"),
