@@ -376,7 +376,10 @@ class Lockstep:
             killed = j in self._killed
             moot = {"pause": now != "live", "resume": now == "live" or killed, "kill": killed}.get(p.action, False)
             if moot:
-                why = f"{vid} is {'killed' if killed else now} at tick {p.tick} (nothing done)"
+                # "usv2 is killed at tick 13199" read as when it was killed (it had been at 9500):
+                # the tick is where this fault would have landed, so say that
+                why = (f"{vid} is {'killed' if killed else now} at tick {p.tick}, where this {p.action} would "
+                       f"land (nothing done)")
                 self._out.append(FleetEvent.of(p.tick * self.period, "rejected",
                                                f"{p.action} of {vid} by {p.by}: it is "
                                                f"{'killed' if killed else now} (nothing done)", vehicle=vid))

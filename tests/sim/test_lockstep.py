@@ -8,7 +8,7 @@ t = 1.0 s lands on tick 10 and the 1 s liveliness lease is 10 ticks.
 from __future__ import annotations
 
 from cdus.core.events import Event, RosterChange, plan_roster
-from cdus.sim.lockstep import Fault, Grant, Join, Lockstep, Roster
+from cdus.sim.lockstep import Decided, Fault, Grant, Join, Lockstep, Roster
 from cdus.wire.schemas import FleetEvent
 
 IDS = ("a", "b", "c")
@@ -407,6 +407,22 @@ def test_a_ground_stations_fault_with_nothing_to_act_on_is_refused_without_holdi
                     "resume of c by gs1: it is killed (nothing done)"]
     assert faults(acts) == [Fault("kill", 2)]
     assert ls.granted == 100  # nobody waited for a launcher that was never asked
+
+
+def test_the_answer_to_a_moot_fault_says_the_tick_is_where_it_would_land():
+    """`cdus gs kill usv2` twice said "usv2 is killed at tick 13199 (nothing done)" of a vehicle
+    killed at tick 9500: the tick is where the second kill would land, not when it was killed."""
+    ls = started(window=5)
+    ls.poll()
+    ls.vehicle_fault("kill", 2, by="gs1")
+    step(ls)
+    ls.on_fault_done(2)
+    step(ls, who=[0, 1])
+    tick = ls.vehicle_fault("kill", 2, by="gs1", ref="second")
+    acts = step(ls, who=[0, 1])
+    [d] = [a for a in acts if isinstance(a, Decided)]
+    assert (d.ref, d.tick) == ("second", tick)
+    assert d.reason == f"c is killed at tick {tick}, where this kill would land (nothing done)"
 
 
 # ---------------------------------------------------------------------- the whole fleet at once
