@@ -61,15 +61,24 @@ STATUS_WAIT_S = 3.0  # the world publishes its status every second
 MAX_WAIT_S = 1e9
 
 
+def _number(text: str) -> float:
+    """A float, or nan for text that is none: the callers' range checks refuse it with their own
+    message (argparse's own for a ValueError names the function: "invalid _positive value")."""
+    try:
+        return float(text)
+    except ValueError:
+        return float("nan")
+
+
 def _positive(text: str) -> float:
-    x = float(text)
+    x = _number(text)
     if not 0 < x <= MAX_WAIT_S:
         raise argparse.ArgumentTypeError(f"must be a number of seconds > 0 and at most {MAX_WAIT_S:g}, got {text}")
     return x
 
 
 def _sim_time(text: str) -> float:
-    x = float(text)
+    x = _number(text)
     if not 0 <= x < float("inf"):
         raise argparse.ArgumentTypeError(f"must be a simulated time >= 0 s, got {text}")
     return x

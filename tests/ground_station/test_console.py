@@ -61,6 +61,21 @@ def test_bad_arguments_are_usage_errors(argv):
     assert e.value.code == 2
 
 
+@pytest.mark.parametrize("argv, says", [
+    (["--fleet", "f", "gains", "c=1", "--timeout", "abc"], "argument --timeout: must be a number of seconds > 0"),
+    (["--fleet", "f", "--timeout", "soon", "stop"], "argument --timeout: must be a number of seconds > 0"),
+    (["--fleet", "f", "status", "--interval", "x"], "argument --interval: must be a number of seconds > 0"),
+    (["--fleet", "f", "link", "--at", "later", "loss=0.1"], "argument --at: must be a simulated time >= 0 s, got later"),
+])
+def test_a_number_that_is_not_one_gets_the_options_own_message(argv, says, capsys):
+    """`gains c=1 --timeout abc` said "invalid _positive value: 'abc'", the name of a function."""
+    with pytest.raises(SystemExit) as e:
+        gs_main(argv)
+    assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert says in err and "_positive" not in err and "_sim_time" not in err
+
+
 def test_gains_problem_names_what_does_not_fit_a_vehicle():
     assert gains_problem({"k": [1.0, 2.0]}, 3) == "k must be 3 numbers > 0 for this vehicle, got [1.0, 2.0]"
     assert gains_problem({"k": 2.0, "c": 0}, 2) == "c must be a number > 0, got 0"
