@@ -170,6 +170,7 @@ class Lockstep:
         self._current: _Pending | None = None
         self._expect: dict[int, set[str]] = {}  # liveliness changes a fault in progress explains
         self._paused_by_hand: dict[int, int] = {}  # vehicle -> tick a ground station paused it at
+        self._lapsed_by_hand: dict[int, int] = {}  # vehicle -> tick of a ground station's pause that lapsed to gone
         self._killed: set[int] = set()  # killed and not restarted since (a resume cannot bring them back)
         self._out: list[Action] = []
         self.pending: set[int] = set()  # liveliness lost, not decided yet (decide_drops)
@@ -378,7 +379,9 @@ class Lockstep:
             if moot:
                 # "usv2 is killed at tick 13199" read as when it was killed (it had been at 9500):
                 # the tick is where this fault would have landed, so say that
-                why = (f"{vid} is {'killed' if killed else now} at tick {p.tick}, where this {p.action} would "
+                lapsed = self._lapsed_by_hand.get(j) if now == "gone" and not killed else None
+                was = "" if lapsed is None else f" (paused at tick {lapsed}; gone once its liveliness lease lapsed)"
+                why = (f"{vid} is {'killed' if killed else now} at tick {p.tick}{was}, where this {p.action} would "
                        f"land (nothing done)")
                 self._out.append(FleetEvent.of(p.tick * self.period, "rejected",
                                                f"{p.action} of {vid} by {p.by}: it is "
@@ -391,6 +394,7 @@ class Lockstep:
             self._killed.add(j)
         elif p.action == "restart":
             self._killed.discard(j)
+        self._lapsed_by_hand.pop(j, None)  # a fault carried out: what the vehicle is now is that fault's doing
         if not scheduled:  # a ground station's: decide its roster changes here
             if p.action == "pause" and self.state_at(j, p.tick) == "live":
                 self._send(RosterChange(p.tick, j, "paused"))
@@ -470,6 +474,7 @@ class Lockstep:
             if want >= since + self._lease_ticks and self.state_at(j, since + self._lease_ticks) == "paused":
                 self._send(RosterChange(since + self._lease_ticks, j, "gone"))
                 del self._paused_by_hand[j]
+                self._lapsed_by_hand[j] = since
         if want > self.granted:
             for ch in self._plan:  # the scheduled changes up to the new grant, before it
                 if self.granted < ch.tick <= want:

@@ -328,6 +328,31 @@ def test_a_ground_stations_pause_lapses_to_gone_after_the_lease_unless_resumed()
     assert RosterChange(15, 1, "gone") in rosters(acts)
 
 
+def test_a_second_pause_of_a_paused_vehicle_whose_lease_lapsed_says_it_was_paused():
+    """`cdus gs pause-vehicle usv3` twice answered "usv3 is gone at tick 18180": gone reads as
+    killed; the answer now says it was paused, and when, and that the lease lapsing made it gone."""
+    ls = started(window=5)
+    ls.poll()
+    ls.vehicle_fault("pause", 1, by="gs1")
+    step(ls)
+    ls.on_fault_done(1)
+    step(ls, who=[0, 2], rounds=3)
+    assert RosterChange(15, 1, "gone") in ls.changes  # paused at 5, lease 10 ticks
+    tick = ls.vehicle_fault("pause", 1, by="gs1", ref="again")
+    acts = step(ls, who=[0, 2], rounds=1)
+    [d] = [a for a in acts if isinstance(a, Decided)]
+    assert d.reason == (f"b is gone at tick {tick} (paused at tick 5; gone once its liveliness lease lapsed), "
+                        "where this pause would land (nothing done)")
+    ls.vehicle_fault("kill", 1, by="gs1")  # a killed one is said killed, with no word of the pause
+    step(ls, who=[0, 2], rounds=1)
+    ls.on_fault_done(1)
+    step(ls, who=[0, 2], rounds=1)
+    ls.vehicle_fault("pause", 1, by="gs1", ref="third")
+    acts = step(ls, who=[0, 2], rounds=1)
+    [d] = [a for a in acts if isinstance(a, Decided)]
+    assert "is killed at tick" in d.reason and "paused at" not in d.reason
+
+
 def test_a_ground_stations_pause_and_resume():
     ls = started(window=5)
     ls.poll()
