@@ -338,15 +338,36 @@ def _config_problem(path: str | None) -> str | None:
     return None
 
 
+def _file_sets_connect_timeout(path: str | None) -> bool:
+    """Does a Zenoh config file (JSON, as cdus writes them) set ``connect.timeout_ms`` itself?"""
+    if not path:
+        return False
+    try:
+        with open(path) as fh:
+            return "timeout_ms" in json.load(fh)["connect"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return False
+
+
+def gs_transport(args: argparse.Namespace):
+    """The ground station's transport: GS_CONNECT_TIMEOUT_MS to reach the router, unless the
+    ``--zenoh-config`` file sets its own and no ``-e`` overrides it. It was given only without a
+    file, so the documented line (``-e ... --zenoh-config RUN/secure/ground.json5``) waited the
+    agents' 30 s (CONNECT_TIMEOUT_S, set with every ``-e``) for a fleet that had ended, then said
+    "within 5 s"."""
+    transport = with_default_endpoint(transport_from_args(args))
+    if transport.connect or not _file_sets_connect_timeout(transport.config_file):
+        transport = replace(transport, extra=(*transport.extra, ("connect/timeout_ms", str(GS_CONNECT_TIMEOUT_MS))))
+    return transport
+
+
 def main(argv=None, prog: str = "python -m ground_station") -> int:
     args = build_parser(prog).parse_args(argv)
     problem = _config_problem(args.zenoh_config)
     if problem:
         print(f"error: {problem}\nnothing was sent.", file=sys.stderr)
         return EXIT_USAGE
-    transport = with_default_endpoint(transport_from_args(args))
-    if transport.connect and not transport.config_file:
-        transport = replace(transport, extra=(*transport.extra, ("connect/timeout_ms", str(GS_CONNECT_TIMEOUT_MS))))
+    transport = gs_transport(args)
     try:
         gs = GroundStation(args.fleet, transport, name=args.name or default_name())
     except ValueError as e:  # the fleet name, the ground station's

@@ -232,3 +232,25 @@ def test_a_router_that_refuses_the_session_is_reported_as_such_with_the_file_to_
         assert "use the ground.json5 of this run" in err and "add --zenoh-config" not in err, err  # one was given
     finally:
         router.close()
+
+
+def test_the_connect_timeout_holds_with_the_runs_credentials_file(tmp_path):
+    """`cdus gs -e EP --zenoh-config RUN/secure/ground.json5 status` (the line cdus launch prints)
+    at a fleet that had ended hung 30 s (the agents' connect timeout, set with every -e) and then
+    said "within 5 s": the ground station's own timeout was given only without a file."""
+    import json
+
+    from cdus.wire.transport import zenoh_config
+    from ground_station.__main__ import GS_CONNECT_TIMEOUT_MS, build_parser, gs_transport
+
+    ground = tmp_path / "ground.json5"
+    ground.write_text(json.dumps({"mode": "client", "connect": {"endpoints": ["tcp/127.0.0.1:1"]}}))
+    for argv in (["-e", "tcp/127.0.0.1:1", "--zenoh-config", str(ground)],  # the printed line
+                 ["--zenoh-config", str(ground)],  # the file's endpoint
+                 ["-e", "tcp/127.0.0.1:1"]):
+        t = gs_transport(build_parser("gs").parse_args(["--fleet", "f", *argv, "status", "--once"]))
+        assert json.loads(zenoh_config(t).get_json("connect/timeout_ms")) == GS_CONNECT_TIMEOUT_MS, argv
+    own = tmp_path / "own.json5"  # a file that sets its own, with no -e: the file's is kept
+    own.write_text(json.dumps({"mode": "client", "connect": {"endpoints": ["tcp/127.0.0.1:1"], "timeout_ms": 1234}}))
+    t = gs_transport(build_parser("gs").parse_args(["--fleet", "f", "--zenoh-config", str(own), "status"]))
+    assert json.loads(zenoh_config(t).get_json("connect/timeout_ms")) == 1234
