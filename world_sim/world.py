@@ -178,7 +178,6 @@ class _CatchingUp:
 
     acked: int  # the newest tick it had reported when caught up
     at: float  # monotonic s: say the catch-up again then
-    since: float  # monotonic s of the first catch-up
     join: int | None = None  # the join tick of a restart
     told: bool = False  # the log says it once
     every: float = CATCHUP_RESEND / 2  # s between resends, doubled each time (CATCHUP_RESEND_MAX at most)
@@ -669,9 +668,7 @@ class World:
         earliest = ((self.lockstep.granted + 1) * self.period if self.clock == "lockstep"
                     else self._sim_now() + self.period)
         at = max(f["at"], earliest) if f["at"] >= 0 else max(self._sim_now() + LINK_LEAD, earliest)
-        payload = encode_control("link", link=f["link"], at=float(at), seq=len(self._commands))
-        self.pub_ctl.put(payload)
-        self._commands.append((None, payload))
+        self._send_command(None, None, "link", link=f["link"], at=float(at))
         self.st.link_commanded = True
         self._note(FleetEvent.of(self._sim_now(), "link_changed",
                                  f"link faults changed from t = {at:.2f} s by {by}: {printable(f['link'], 200)}"))
@@ -749,9 +746,7 @@ class World:
         if at < later:  # changes apply in time order (epochs): a scheduled or earlier command's comes later
             return (f"a radio change from t = {later:g} s is already in force later (scheduled or commanded); "
                     f"give --at {later:g} or later")
-        payload = encode_control("radio", radio=change, at=float(at), seq=len(self._commands))
-        self.pub_ctl.put(payload)
-        self._commands.append((None, payload))
+        self._send_command(None, None, "radio", radio=change, at=float(at))
         if self.radio_watch is not None:
             apply_radio_change(self.radio_watch.channel, change, float(at))
         self._note(FleetEvent.of(self._sim_now(), "radio_changed",
@@ -779,9 +774,7 @@ class World:
                                      f"gains {printable(gains, 120)} from {sender}: {why}"))
             return why
         tick = self.lockstep.granted + 1 if self.clock == "lockstep" else self._tick_now() + 1
-        payload = encode_control("gains", gains=gains, tick=tick, seq=len(self._commands))
-        self.session.put(keys.ctl(self.fleet, targets), payload)
-        self._commands.append((vehicle or None, payload))
+        self._send_command(targets, vehicle or None, "gains", gains=gains, tick=tick)
         self._note(FleetEvent.of(tick * self.period, "gains_changed",
                                  f"gains {gains} for {vehicle or 'every vehicle'} from tick {tick} by {sender}"))
         return Verdict(True, "", tick)
@@ -828,9 +821,7 @@ class World:
         ordered = [(vid, checked[vid]) for vid in self.ids if vid in checked]
         self.recorder.formation.add(tick, {self.index[vid]: theta for vid, theta in ordered})
         for lo in range(0, len(ordered), 32):  # a control map holds at most 64 entries (decode_control)
-            payload = encode_control("formation", phases=dict(ordered[lo:lo + 32]), tick=tick, seq=len(self._commands))
-            self.pub_ctl.put(payload)
-            self._commands.append((None, payload))
+            self._send_command(None, None, "formation", phases=dict(ordered[lo:lo + 32]), tick=tick)
         self._note(formation_changed(tick, self.period, ordered, sender))
         return Verdict(True, "" if ordered else "no phase changed: the offsets given were in force", tick)
 
@@ -845,9 +836,7 @@ class World:
             why = path if isinstance(path, str) else f"path{'.' + path[0] if path[0] else ''}: {path[1]}"
             return self._refuse(sender, "path", f"path of {vid}", why)
         tick = self._change_tick()
-        payload = encode_control("path", vehicle=vid, path=table, tick=tick, seq=len(self._commands))
-        self.session.put(keys.ctl(self.fleet, [vid]), payload)
-        self._commands.append((vid, payload))
+        self._send_command([vid], vid, "path", vehicle=vid, path=table, tick=tick)
         self._note(path_changed(tick, self.period, vid, sorted(table.items()), sender))
         return Verdict(True, "", tick)
 
@@ -928,6 +917,17 @@ class World:
         now = self._faulted.get(vid) or ("live" if vid in self.st.alive else "gone")
         moot = {"pause": now != "live", "resume": now in ("live", "killed"), "kill": now == "killed"}.get(action)
         return f"{vid} is {now} (nothing done)" if moot else None
+
+    def _send_command(self, to: list[str] | None, kept_for: str | None, op: str, **fields: Any) -> None:
+        """A run-time command to the vehicles ``to`` (None: the ctl publisher, every vehicle), kept
+        for (re)joiners (``kept_for`` one vehicle, None all) and numbered by its place in that list
+        (``seq``: a process that hears it again applies it once)."""
+        payload = encode_control(op, **fields, seq=len(self._commands))
+        if to is None:
+            self.pub_ctl.put(payload)
+        else:
+            self.session.put(keys.ctl(self.fleet, to), payload)
+        self._commands.append((kept_for, payload))
 
     def _replay_commands(self, vid: str) -> None:
         """A (re)started or resumed process missed the ground stations' link and gains commands
@@ -1029,7 +1029,7 @@ class World:
                 self._replay_commands(self.ids[a.vehicle])
                 self._replay_geometry(self.ids[a.vehicle])
                 self._catching[a.vehicle] = _CatchingUp(self.lockstep.acked.get(a.vehicle, -1),
-                                                        time.monotonic() + CATCHUP_RESEND, time.monotonic())
+                                                        time.monotonic() + CATCHUP_RESEND)
             elif isinstance(a, Sense):
                 self._send_contacts(a.tick, self._sample_rows.pop(a.tick, {}))
             elif isinstance(a, RadioSample):

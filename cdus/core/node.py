@@ -679,7 +679,6 @@ class VehicleNode:
 
 
 def _insert(changes: list[RosterChange], change: RosterChange) -> None:
-    """Keep ``changes`` sorted by tick, a change given twice once."""
-    if change not in changes:
-        changes.append(change)
-        changes.sort(key=lambda c: c.tick)
+    """Keep ``changes`` sorted by tick (each change comes once: on_roster keeps what it heard)."""
+    changes.append(change)
+    changes.sort(key=lambda c: c.tick)
