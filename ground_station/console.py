@@ -90,6 +90,26 @@ class Answer:
                                                                                              EXIT_NO_ANSWER)
 
 
+def vehicle_state(vid: str, world: dict | None, alive: set[str], tokens_in: bool = False) -> str:
+    """live / paused / lost: the world's roster where its status has it, else its liveliness;
+    a vehicle whose liveliness token is gone is lost unless the roster says it is paused.
+    ``tokens_in``: our liveliness view has come in (the world's token was heard), so a vehicle
+    missing from ``alive`` is gone even when no vehicle is left in it (the end of a run, where
+    the world's last status still lists them all); before that, the world's ``alive`` stands in."""
+    st = None
+    if world:
+        ids, states = world.get("ids") or [], world.get("states")
+        if isinstance(states, list) and len(states) == len(ids) and vid in ids:
+            st = states[ids.index(vid)]
+    tokens = alive if alive or tokens_in else set((world or {}).get("alive") or [])
+    if st == "paused":  # a stopped process's token lapses with the lease: paused still, as the operator asked
+        return "paused"
+    if (tokens or tokens_in) and vid not in tokens or st == "gone":
+        return "lost"
+    st = st or ("live" if vid in tokens else "lost")
+    return "paused" if st == "live" and world and world.get("paused") else st
+
+
 def status_table(view: FleetView, now: float | None = None) -> str:
     """A plain-text table of the fleet: one row per vehicle seen, then the world's line. Every
     string that came over the wire is escaped (cdus.wire.text.printable), every number that is
@@ -99,10 +119,11 @@ def status_table(view: FleetView, now: float | None = None) -> str:
         known = (w or {}).get("ids")
         known = [k for k in known if isinstance(k, str)] if isinstance(known, list) else []
         ids = sorted(set(view.states) | (view.alive - {keys.WORLD}) | set(known))
+        vehicles = view.alive - {keys.WORLD, keys.GROUND, "launcher"}
         rows = [f"{'vehicle':<10} {'alive':<5} {'t (s)':>8} {'|Φ| (m)':>9} {'ω':>11} {'ω̇':>8}  position"]
         for vid in ids:
             m = view.states.get(vid)
-            alive = "yes" if vid in view.alive else "NO"
+            alive = "NO" if vehicle_state(vid, w, vehicles, view.world_seen) == "lost" else "yes"
             name = _text(vid, 32)
             why = _not_live(view, vid)
             if m is None:
@@ -115,7 +136,7 @@ def status_table(view: FleetView, now: float | None = None) -> str:
             coord = w.get("coord_error_max")
             path = w.get("path_error_max")
             paused = ", PAUSED" if w.get("paused") else ""
-            alive_n = len(w["alive"]) if isinstance(w.get("alive"), list) else "?"
+            alive_n = sum(1 for v in known if vehicle_state(v, w, vehicles, view.world_seen) != "lost")  # as the rows
             rows.append(f"world: t = {num(w.get('t', 0), '.1f')} / {num(w.get('duration', 0), '.0f')} s "
                         f"({_text(w.get('clock'), 16)}{paused}), {alive_n}/{len(known)} vehicles alive, worst |Φ| "
                         f"{num(path)} m, worst edge error {num(coord, '.4f')} rad")

@@ -36,7 +36,7 @@ from textual.widgets import DataTable, Footer, RichLog, Static
 from cdus.wire import keys
 from cdus.wire.schemas import FleetEvent
 from ground_station.alarms import Alarms
-from ground_station.console import _text, num
+from ground_station.console import _text, num, vehicle_state
 
 REFRESH_S = 0.5
 STALE_S = 3.0  # the world publishes its status every second: this long without one is news
@@ -68,23 +68,6 @@ def send_command(gs: Any, op: str, vehicle: str | None = None) -> tuple[bool, st
     return False, f"{what}: {answer.outcome.replace('_', ' ').upper()}, {_text(answer.detail, 200)}"
 
 
-def vehicle_state(vid: str, world: dict | None, alive: set[str]) -> str:
-    """live / paused / lost: the world's roster where its status has it, else its liveliness;
-    a vehicle whose liveliness token is gone is lost unless the roster says it is paused."""
-    st = None
-    if world:
-        ids, states = world.get("ids") or [], world.get("states")
-        if isinstance(states, list) and len(states) == len(ids) and vid in ids:
-            st = states[ids.index(vid)]
-    tokens = alive or set((world or {}).get("alive") or [])  # ours, or the world's before ours come in
-    if st == "paused":  # a stopped process's token lapses with the lease: paused still, as the operator asked
-        return "paused"
-    if tokens and vid not in tokens or st == "gone":
-        return "lost"
-    st = st or ("live" if vid in tokens else "lost")
-    return "paused" if st == "live" and world and world.get("paused") else st
-
-
 def snapshot(view: Any) -> dict[str, Any]:
     """What the screen shows, read once under the view's lock: plain values, no widgets
     (tested without a terminal)."""
@@ -92,6 +75,7 @@ def snapshot(view: Any) -> dict[str, Any]:
         w = view.world  # replaced whole by each status, never changed in place
         states = dict(view.states)
         alive = set(view.alive) - {keys.WORLD, keys.GROUND, "launcher"}
+        tokens_in = view.world_seen  # our liveliness view is in: an empty one means every vehicle left
         events = list(view.events[-200:])
         rejected = view.rejected
     # the world's ids when it has spoken (other names on the fleet's keys are not vehicles of the run:
@@ -110,13 +94,13 @@ def snapshot(view: Any) -> dict[str, Any]:
         m = states.get(vid)
         q = list(m.q) + [None] * 3 if m is not None else [None] * 3
         r = rx.get(vid)
-        rows.append((vid, kinds.get(vid, "?"), vehicle_state(vid, w, alive),
+        rows.append((vid, kinds.get(vid, "?"), vehicle_state(vid, w, alive, tokens_in),
                      num(m.t if m else None, ".2f"), num(q[0], ".1f"), num(q[1], ".1f"),
                      num(q[2], ".1f") if m is not None and len(m.q) > 2 else "",
                      num(m.omega if m else None), num(m.omega_rate if m else None), num(m.path_error if m else None),
                      num(worst_edge.get(vid), ".4f"), "-" if r is None else str(r[0]), "-" if r is None else str(r[1])))
     if w:
-        n_alive = sum(1 for v in ids if vehicle_state(v, w, alive) != "lost")
+        n_alive = sum(1 for v in ids if vehicle_state(v, w, alive, tokens_in) != "lost")
         header = (f"t = {num(w.get('t'), '.1f')} / {num(w.get('duration'), '.0f')} s  ({_text(w.get('clock'), 16)})"
                   f"   {n_alive}/{len(ids)} vehicles alive" + ("   FLEET PAUSED" if w.get("paused") else "")
                   + f"\nworst |Φ| {num(w.get('path_error_max'))} m   worst edge error "
@@ -131,20 +115,20 @@ def snapshot(view: Any) -> dict[str, Any]:
     heard = {v: m.t for v, m in states.items() if v in ids and isinstance(m.t, float) and math.isfinite(m.t)}
     now = max(heard.values(), default=None)
     return {"world": w, "header": header, "rows": rows, "edges": edges, "links": (w or {}).get("links") or [],
-            "events": events, "alive": alive, "now": now, "heard": heard}
+            "events": events, "alive": alive, "now": now, "heard": heard, "tokens_in": tokens_in}
 
 
 def alarm_status(world: dict, alive: set[str], now: float | None = None,
-                 heard: dict[str, float] | None = None) -> dict:
+                 heard: dict[str, float] | None = None, tokens_in: bool = False) -> dict:
     """The world's status as the alarms read it: each vehicle's roster state, but ``gone`` as
     soon as its liveliness token is (a killed process's token goes at once, the status comes
     once a second), as the vehicle table shows it; its time the newest the console knows
     (``now``: the newest telemetry's, ahead of the status's), so an alarm is not stamped
     before what it reports); ``heard``: each vehicle's newest telemetry time, when a lost one
-    was last heard of."""
+    was last heard of; ``tokens_in``: as vehicle_state's."""
     calm = {**world, "paused": False}  # the fleet's pause is not a vehicle's state
     ids = [v for v in world.get("ids") or [] if isinstance(v, str)]
-    states = [vehicle_state(v, calm, alive) for v in ids]
+    states = [vehicle_state(v, calm, alive, tokens_in) for v in ids]
     t = world.get("t")
     if now is not None and isinstance(t, float) and now > t:
         t = now
@@ -278,7 +262,7 @@ class ConsoleApp(App):
                     self.log_line(f"event (before) {e.line()}")
         if w is not None:  # every refresh: a vehicle's token going is news before the next status
             self._status_seen = w
-            for ch in self.alarms.update(alarm_status(w, snap["alive"], snap["now"], snap["heard"])):
+            for ch in self.alarms.update(alarm_status(w, snap["alive"], snap["now"], snap["heard"], snap["tokens_in"])):
                 self.log_line(ch.line())
         self._show_alarms()
         events = snap["events"]

@@ -31,6 +31,23 @@ def test_status_table_shows_every_known_vehicle_the_world_and_its_events():
     assert "t = 9.00 s: vehicle uav1 lost  [WARN]" in text
 
 
+def test_status_table_rows_and_footer_agree_when_every_vehicle_has_left():
+    """At the end of a run every vehicle's token goes while the world's last status still lists
+    them all: the rows said NO on every line and the footer "2/2 vehicles alive"."""
+    view = FleetView()
+    view.world_seen = True
+    view.alive = {"world"}  # the vehicles have left; the world is winding down
+    view.world = {"t": 250.0, "duration": 250.0, "clock": "lockstep", "alive": ["usv1", "uav1"],
+                  "ids": ["usv1", "uav1"], "states": ["live", "live"], "path_error_max": 0.06,
+                  "coord_error_max": 0.5}
+    text = status_table(view)
+    assert "0/2 vehicles alive" in text, text
+    assert all(" NO " in ln for ln in text.splitlines() if ln.startswith(("usv1", "uav1")))
+    view.alive = {"world", "usv1"}
+    text = status_table(view)
+    assert "1/2 vehicles alive" in text and any(ln.startswith("usv1") and " yes " in ln for ln in text.splitlines())
+
+
 def test_status_table_before_anything_is_heard():
     assert "world: no status yet" in status_table(FleetView())
 

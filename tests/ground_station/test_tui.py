@@ -104,6 +104,18 @@ def test_a_vehicle_without_a_liveliness_token_is_lost_whatever_the_roster_says()
     assert vehicle_state("usv2", old, set()) == "live"  # before our tokens come in: the world's alive
     assert vehicle_state("usv2", {**old, "alive": ["usv1"]}, set()) == "lost"
     assert vehicle_state("usv2", world(1.0, states=("live", "paused", "live")), {"usv2"}) == "paused"
+    # once our tokens are in, none left means every vehicle left (the end of a run), not "use the world's"
+    assert vehicle_state("usv2", old, set(), tokens_in=True) == "lost"
+    assert vehicle_state("usv2", world(1.0), set(), tokens_in=True) == "lost"
+    assert vehicle_state("usv2", world(1.0, states=("live", "paused", "live")), set(), tokens_in=True) == "paused"
+
+
+def test_the_console_says_lost_when_every_vehicle_has_left():
+    gs = FakeGS()
+    gs.view.world_seen = True
+    gs.view.alive = {"world"}
+    snap = snapshot(gs.view)
+    assert [r[2] for r in snap["rows"]] == ["lost"] * 3 and "0/3 vehicles alive" in snap["header"]
 
 
 def test_send_command_says_what_became_of_it():
