@@ -288,8 +288,10 @@ def _watch(gs: GroundStation, interval: float) -> int:
             last = now
             print(json.dumps(gs.snapshot()), flush=True)
         if gs.world_gone():
-            print(json.dumps({"v": 1, "kind": "end", "fleet": gs.fleet, "reason": "the world left: the run is over"}),
-                  flush=True)
+            with gs.view.lock:
+                completion = (gs.view.world or {}).get("completion")
+            print(json.dumps({"v": 1, "kind": "end", "fleet": gs.fleet, "reason": "the world left: the run is over",
+                              "completion": completion}), flush=True)
             return 0
         time.sleep(0.05)
 

@@ -91,7 +91,7 @@ class Answer:
 
 
 def vehicle_state(vid: str, world: dict | None, alive: set[str], tokens_in: bool = False) -> str:
-    """live / paused / lost: the world's roster where its status has it, else its liveliness;
+    """live / paused / lost / ended (left when the run was over): the world's roster where its status has it, else its liveliness;
     a vehicle whose liveliness token is gone is lost unless the roster says it is paused.
     ``tokens_in``: our liveliness view has come in (the world's token was heard), so a vehicle
     missing from ``alive`` is gone even when no vehicle is left in it (the end of a run, where
@@ -104,6 +104,8 @@ def vehicle_state(vid: str, world: dict | None, alive: set[str], tokens_in: bool
     tokens = alive if alive or tokens_in else set((world or {}).get("alive") or [])
     if st == "paused":  # a stopped process's token lapses with the lease: paused still, as the operator asked
         return "paused"
+    if st != "gone" and (world or {}).get("completion") and vid not in tokens:
+        return "ended"  # left with the run's end (the world's last status says it is over)
     if (tokens or tokens_in) and vid not in tokens or st == "gone":
         return "lost"
     st = st or ("live" if vid in tokens else "lost")
@@ -123,7 +125,8 @@ def status_table(view: FleetView, now: float | None = None) -> str:
         rows = [f"{'vehicle':<10} {'alive':<5} {'t (s)':>8} {'|Φ| (m)':>9} {'ω':>11} {'ω̇':>8}  position"]
         for vid in ids:
             m = view.states.get(vid)
-            alive = "NO" if vehicle_state(vid, w, vehicles, view.world_seen) == "lost" else "yes"
+            state = vehicle_state(vid, w, vehicles, view.world_seen)
+            alive = "NO" if state in ("lost", "ended") else "yes"
             name = _text(vid, 32)
             why = _not_live(view, vid)
             if m is None:
@@ -136,10 +139,11 @@ def status_table(view: FleetView, now: float | None = None) -> str:
             coord = w.get("coord_error_max")
             path = w.get("path_error_max")
             paused = ", PAUSED" if w.get("paused") else ""
-            alive_n = sum(1 for v in known if vehicle_state(v, w, vehicles, view.world_seen) != "lost")  # as the rows
+            alive_n = sum(1 for v in known if vehicle_state(v, w, vehicles, view.world_seen) not in ("lost", "ended"))
+            over = f"; the run is over: {_text(w['completion'], 24)}" if w.get("completion") else ""
             rows.append(f"world: t = {num(w.get('t', 0), '.1f')} / {num(w.get('duration', 0), '.0f')} s "
                         f"({_text(w.get('clock'), 16)}{paused}), {alive_n}/{len(known)} vehicles alive, worst |Φ| "
-                        f"{num(path)} m, worst edge error {num(coord, '.4f')} rad")
+                        f"{num(path)} m, worst edge error {num(coord, '.4f')} rad{over}")
         else:
             rows.append("world: no status yet")
         events = view.events or (w or {}).get("events") or []  # heard live, else the world's recent ones
@@ -165,13 +169,15 @@ def status_table(view: FleetView, now: float | None = None) -> str:
 
 def _not_live(view: FleetView, vid: str) -> str | None:
     """Why a vehicle's values are not live ones (caller holds the lock): ``paused (fleet)``,
-    ``paused``, ``gone``, ``not alive``; None when they are."""
+    ``paused``, ``gone``, ``the run ended``, ``not alive``; None when they are."""
     w = view.world or {}
     roster = w.get("roster") or {}
     if roster.get(vid) == "gone":
         return "gone"
     if roster.get(vid) == "paused":
         return "paused"
+    if w.get("completion") and vid not in view.alive:
+        return "the run ended"  # it left with the run's end (the world's last status)
     if w.get("paused"):
         return "paused (fleet)"
     if vid not in view.alive:
@@ -452,7 +458,7 @@ class GroundStation:
                 run = "world_gone" if world_gone else "no_status"
             elif world_gone:
                 run = "ended"
-            elif w["t"] >= w["duration"] - 1e-9:
+            elif w.get("completion") or w["t"] >= w["duration"] - 1e-9:
                 run = "finishing"
             else:
                 run = "paused" if w["paused"] else "running"
@@ -460,6 +466,7 @@ class GroundStation:
                 "v": SNAPSHOT_VERSION, "kind": "status", "fleet": self.fleet, "wall_time": time.time(),
                 "run": run,
                 "t": None if w is None else w["t"], "duration": None if w is None else w["duration"],
+                "completion": None if w is None else w.get("completion"),
                 "clock": None if w is None else w["clock"], "paused": None if w is None else w["paused"],
                 "alive": sum(1 for v in ids if v in self.view.alive),
                 "path_error_max": None if w is None else w["path_error_max"],

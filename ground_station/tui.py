@@ -100,9 +100,10 @@ def snapshot(view: Any) -> dict[str, Any]:
                      num(m.omega if m else None), num(m.omega_rate if m else None), num(m.path_error if m else None),
                      num(worst_edge.get(vid), ".4f"), "-" if r is None else str(r[0]), "-" if r is None else str(r[1])))
     if w:
-        n_alive = sum(1 for v in ids if vehicle_state(v, w, alive, tokens_in) != "lost")
+        n_alive = sum(1 for v in ids if vehicle_state(v, w, alive, tokens_in) not in ("lost", "ended"))
         header = (f"t = {num(w.get('t'), '.1f')} / {num(w.get('duration'), '.0f')} s  ({_text(w.get('clock'), 16)})"
                   f"   {n_alive}/{len(ids)} vehicles alive" + ("   FLEET PAUSED" if w.get("paused") else "")
+                  + (f"   RUN OVER: {_text(w['completion'], 24)}" if w.get("completion") else "")
                   + f"\nworst |Φ| {num(w.get('path_error_max'))} m   worst edge error "
                   f"{num(w.get('coord_error_max'), '.4f')} rad"
                   + ("   closest {} - {} {} m".format(*w["closest"][:2], num(w["closest"][2], ".2f"))
@@ -132,7 +133,9 @@ def alarm_status(world: dict, alive: set[str], now: float | None = None,
     t = world.get("t")
     if now is not None and isinstance(t, float) and now > t:
         t = now
-    return {**world, "t": t, "states": ["gone" if x == "lost" else x for x in states], "last_heard": heard or {}}
+    # a vehicle that left with the run's end is not lost: as the roster had it
+    states = ["gone" if x == "lost" else "live" if x == "ended" else x for x in states]
+    return {**world, "t": t, "states": states, "last_heard": heard or {}}
 
 
 class ConfirmKill(ModalScreen[bool]):

@@ -1299,7 +1299,8 @@ class World:
             self._note(FleetEvent.of(now, "fault", f"scheduled {ev.action} of {ev.vehicle} (t = {ev.at:g} s)",
                                      vehicle=ev.vehicle))
 
-    def _publish_status(self) -> None:
+    def _publish_status(self, completion: str | None = None) -> None:
+        """The fleet's status; ``completion`` once the run is over (its last status)."""
         n = len(self.recorder)
         t = (self.next_tick - 1) * self.period
         path = coord = None
@@ -1308,7 +1309,7 @@ class World:
             path = None if math.isnan(worst_path[-1]) else float(worst_path[-1])
             coord = None if math.isnan(worst_coord[-1]) or not self.recorder.edges else float(worst_coord[-1])
         paused = self.lockstep.paused if self.clock == "lockstep" else self.paused_at is not None
-        extra = self._status_extra()
+        extra = replace(self._status_extra(), completion=completion)
         self.pub_status.put(encode_status(t, self.duration, self.clock, sorted(self.st.alive), self.ids, path, coord,
                                           self.events[-10:], paused, roster=dict(zip(self.ids, extra.states)), extra=extra))
 
@@ -1413,14 +1414,15 @@ class World:
         self.finished = True
         # before the stop: the vehicles up then leave with it (a run that never began: who never came)
         never_up = {} if self.started else {"never_up": [v for v in self.ids if v not in self.st.alive]}
+        completion = self._completion()  # decided by the run, not by the vehicles leaving at the stop
         if self.session is not None:
+            self._publish_status(completion)  # first: a console reads the vehicles' leaving as the run's end
             self.pub_ctl.put(encode_control("stop"))
             deadline = time.monotonic() + 0.3  # let the agents' last counters arrive
             while time.monotonic() < deadline:
                 self._drain(block=False)
                 time.sleep(0.02)
         wall = time.perf_counter() - self._t_start if self.started else 0.0
-        completion = self._completion()
         metrics = run_metrics(self.scenario, self.recorder, mode=self.clock, link=self.link_block(), wall_s=wall,
                               policy=self.policy, events=self.events,
                               interventions=sum(s.interventions for s in self._processes()),

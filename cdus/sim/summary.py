@@ -21,11 +21,7 @@ from cdus.scenario.model import Scenario
 from cdus.wire.schemas import FleetEvent
 
 
-COMPLETED = "completed"  # the completion of a run that stepped every tick to its end (docs/metrics.md)
-#: why a run did not complete: SIGINT/SIGTERM; a ground station's stop; vehicles lost with nobody
-#: asking and not back by the end; the whole fleet gone with the world's router; the world died
-#: (written by the launcher); the vehicles never all came up
-COMPLETIONS = (COMPLETED, "interrupted", "stopped", "vehicles_lost", "router_lost", "world_lost", "not_started")
+from cdus.wire.schemas import COMPLETED, COMPLETIONS  # noqa: F401  (defined with the status that carries them)
 
 
 def link_block(counters: LinkCounters, faults: dict | None = None, **extra: Any) -> dict[str, Any]:

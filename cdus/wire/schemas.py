@@ -353,6 +353,12 @@ def _burst(d: Any, ids: Collection[str] | None) -> BurstReport | None:
 
 # --------------------------------------------------------------------------- world status
 
+COMPLETED = "completed"  # the completion of a run that stepped every tick to its end (docs/metrics.md)
+#: why a run did not complete: SIGINT/SIGTERM; a ground station's stop; vehicles lost with nobody
+#: asking and not back by the end; the whole fleet gone with the world's router; the world died
+#: (written by the launcher); the vehicles never all came up
+COMPLETIONS = (COMPLETED, "interrupted", "stopped", "vehicles_lost", "router_lost", "world_lost", "not_started")
+
 STATUS_KEYS = ("t", "duration", "clock", "alive", "ids", "path_error_max", "coord_error_max", "events", "paused",
                "roster")
 #: optional fields (added within version 1; a status without them is still valid, and decodes
@@ -366,7 +372,10 @@ STATUS_KEYS = ("t", "duration", "clock", "alive", "ids", "path_error_max", "coor
 #: - closest: [a, b, distance (m)]: the closest pair of live vehicles of one kind at the newest tick
 #: - path_errors: each vehicle's |Φ| (m) at the newest tick, None where it is not live, in ``ids`` order
 #: - directed: whether the graph is directed (``edges`` then go i -> k as the scenario's; else each pair once)
-STATUS_EXTRA = ("kinds", "states", "edges", "links", "rx", "safety_radius", "closest", "path_errors", "directed")
+#: - completion: the run is over, and how (COMPLETIONS): the world's last status, sent before it
+#:   tells the vehicles to stop, so their leaving is not read as vehicles lost
+STATUS_EXTRA = ("kinds", "states", "edges", "links", "rx", "safety_radius", "closest", "path_errors", "directed",
+                "completion")
 VEHICLE_KINDS = ("usv", "uav")
 #: a vehicle's state in the world's roster (status ``roster`` {id: state}, and ``states`` in ids
 #: order): stepping, paused (by a fault or a ground station), gone (killed, lost) at the world's tick
@@ -388,6 +397,7 @@ class StatusExtra:
     closest: tuple[str, str, float] | None = None
     path_errors: list[float | None] | None = None
     directed: bool | None = None
+    completion: str | None = None
 
     def as_dict(self) -> dict[str, Any]:
         d = {"kinds": self.kinds, "states": self.states,
@@ -397,7 +407,7 @@ class StatusExtra:
              "safety_radius": _finite(self.safety_radius),
              "closest": None if self.closest is None or _finite(self.closest[2]) is None else list(self.closest),
              "path_errors": None if self.path_errors is None else [_finite(x) for x in self.path_errors],
-             "directed": self.directed}
+             "directed": self.directed, "completion": self.completion}
         return {k: v for k, v in d.items() if v is not None}
 
 
@@ -416,7 +426,8 @@ def encode_status(t: float, duration: float, clock: str, alive: list[str], ids: 
     if roster is not None:
         base["roster"] = roster
     more = extra.as_dict() if extra else {}
-    for fields in (more, {k: v for k, v in more.items() if k not in ("edges", "links")}, {}):
+    for fields in (more, {k: v for k, v in more.items() if k not in ("edges", "links")},
+                   {k: v for k, v in more.items() if k == "completion"}):
         out = msgpack.packb({**base, **fields}, use_bin_type=True)
         if len(out) <= STATUS_LIMIT:
             break
@@ -539,6 +550,10 @@ def _status_extra(obj: dict, sids: list[str]) -> dict[str, Any] | str:
         if type(obj["directed"]) is not bool:
             return "extra"
         out["directed"] = obj["directed"]
+    if "completion" in obj:
+        if not _in(obj["completion"], COMPLETIONS):
+            return "extra"
+        out["completion"] = str(obj["completion"])
     return out
 
 

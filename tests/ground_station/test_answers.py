@@ -12,7 +12,7 @@ import msgpack
 from hypothesis import given, settings, strategies as hs
 
 from cdus.wire.messages import StateMsg, encode_states
-from cdus.wire.schemas import CommandReply, FleetEvent, encode_event, encode_reply, encode_status
+from cdus.wire.schemas import CommandReply, FleetEvent, encode_event, encode_reply, StatusExtra, encode_status
 from ground_station.console import GroundStation, _not_live, status_table
 
 from .test_console import Sample
@@ -156,6 +156,34 @@ def test_watch_writes_versioned_json_lines_and_ends_when_the_world_leaves(capsys
     lines = [json.loads(ln) for ln in capsys.readouterr().out.splitlines()]
     assert [ln["kind"] for ln in lines] == ["event", "status", "end"] and all(ln["v"] == 1 for ln in lines)
     assert lines[0]["event"]["text"] == "fleet paused by gs:x" and lines[1]["run"] == "ended"
+    assert lines[1]["completion"] is None and lines[2]["completion"] is None  # no last status heard
+
+
+def test_watch_says_how_the_run_ended_from_the_worlds_last_status(capsys):
+    from ground_station.__main__ import _watch
+
+    class Alive(Sample):
+        kind = "SampleKind.PUT"
+
+    class Gone(Sample):
+        kind = "SampleKind.DELETE"
+
+    gs = station([], world_up=False)
+    gs._on_alive(Alive("cdus/f/alive/world", b""))
+    gs._on_alive(Alive("cdus/f/alive/usv1", b""))
+    gs._on_status(Sample("cdus/f/world/status", encode_status(10.0, 10.0, "lockstep", ["usv1"], ["usv1"], None, None,
+                                                              [], False, extra=StatusExtra(completion="completed"))))
+    gs._on_state(Sample("cdus/f/to/+world+/state/usv1", encode_states([StateMsg(0, 500, 10.0, (1.0, 2.0), 0.3, 10.0, -9.9,
+                                                                      -1.0, 0.06)])))
+    gs._on_alive(Gone("cdus/f/alive/usv1", b""))  # it leaves with the run's end
+    snap = gs.snapshot()
+    assert (snap["run"], snap["completion"]) == ("finishing", "completed")
+    assert snap["vehicles"][0]["reason"] == "the run ended"
+    gs._on_alive(Gone("cdus/f/alive/world", b""))
+    assert _watch(gs, 0.1) == 0
+    lines = [json.loads(ln) for ln in capsys.readouterr().out.splitlines()]
+    assert lines[-1] == {"v": 1, "kind": "end", "fleet": "f", "reason": "the world left: the run is over",
+                         "completion": "completed"}
 
 
 def test_a_snapshot_to_a_path_it_cannot_write_is_a_clear_error_not_a_traceback(tmp_path, monkeypatch, capsys):

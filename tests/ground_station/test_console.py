@@ -48,6 +48,20 @@ def test_status_table_rows_and_footer_agree_when_every_vehicle_has_left():
     assert "1/2 vehicles alive" in text and any(ln.startswith("usv1") and " yes " in ln for ln in text.splitlines())
 
 
+def test_status_table_after_the_worlds_last_status_says_ended_not_lost():
+    view = FleetView()
+    view.world_seen = True
+    view.alive = {"world"}
+    view.world = {"t": 250.0, "duration": 250.0, "clock": "lockstep", "alive": ["usv1", "uav1"],
+                  "ids": ["usv1", "uav1"], "states": ["live", "gone"], "roster": {"usv1": "live", "uav1": "gone"},
+                  "path_error_max": 0.06,
+                  "coord_error_max": 0.5, "completion": "completed"}
+    text = status_table(view)
+    assert "0/2 vehicles alive" in text and "the run is over: completed" in text, text
+    assert any(ln.startswith("usv1") and "(the run ended)" in ln for ln in text.splitlines())
+    assert any(ln.startswith("uav1") and "(gone)" in ln for ln in text.splitlines())  # gone before the end
+
+
 def test_status_table_before_anything_is_heard():
     assert "world: no status yet" in status_table(FleetView())
 

@@ -110,6 +110,23 @@ def test_a_vehicle_without_a_liveliness_token_is_lost_whatever_the_roster_says()
     assert vehicle_state("usv2", world(1.0, states=("live", "paused", "live")), set(), tokens_in=True) == "paused"
 
 
+def test_vehicles_leaving_with_the_runs_end_are_ended_and_raise_no_alarm():
+    from ground_station.alarms import Alarms
+    from ground_station.tui import alarm_status
+
+    gs = FakeGS()
+    gs.view.world_seen = True
+    gs.view.world = world(100.0, states=("live", "gone", "live"), completion="completed")
+    gs.view.alive = {"world", "usv1"}
+    snap = snapshot(gs.view)
+    assert [r[2] for r in snap["rows"]] == ["live", "lost", "ended"]
+    assert "1/3 vehicles alive" in snap["header"] and "RUN OVER: completed" in snap["header"]
+    st = alarm_status(gs.view.world, snap["alive"], tokens_in=True)
+    assert st["states"] == ["live", "gone", "live"]
+    raised = [ch.alarm.subject for ch in Alarms().update(st) if ch.raised and ch.alarm.kind == "vehicle_lost"]
+    assert raised == ["usv2"]  # the one gone before the end, not uav1 that left with it
+
+
 def test_the_console_says_lost_when_every_vehicle_has_left():
     gs = FakeGS()
     gs.view.world_seen = True

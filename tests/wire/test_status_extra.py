@@ -19,7 +19,7 @@ def extra(**over) -> StatusExtra:
              edges=[("usv1", "usv2", None), ("usv1", "uav1", 0.25)],
              links=[("usv1", "usv2", 100, 7, "lossy"), ("usv2", "usv1", 90, 0, None)],
              rx=[(100, 7), None, (50, 0)], safety_radius=2.0, closest=("usv1", "usv2", 1.5),
-             path_errors=[0.1, None, 0.3], directed=False)
+             path_errors=[0.1, None, 0.3], directed=False, completion="completed")
     d.update(over)
     return StatusExtra(**d)
 
@@ -37,6 +37,7 @@ def test_the_console_fields_round_trip():
     assert st["rx"] == [(100, 7), None, (50, 0)]
     assert st["safety_radius"] == 2.0 and st["closest"] == ("usv1", "usv2", 1.5)
     assert st["path_errors"] == [0.1, None, 0.3] and st["directed"] is False
+    assert st["completion"] == "completed"
 
 
 def test_a_status_without_them_is_still_valid_and_non_finite_values_are_left_out():
@@ -69,6 +70,9 @@ def test_a_status_without_them_is_still_valid_and_non_finite_values_are_left_out
     ("path_errors", [0.1, -0.1, None]),
     ("path_errors", [0.1]),
     ("directed", 1),
+    ("completion", "done"),  # not one of COMPLETIONS
+    ("completion", None),
+    ("completion", ["completed"]),
 ])
 def test_a_malformed_console_field_is_rejected(field, value):
     d = msgpack.unpackb(status(extra()), raw=False)
@@ -84,6 +88,13 @@ def test_too_many_edges_or_links_are_rejected():
     many = extra(edges=[("usv1", "usv2", 0.1)] * 600, links=[("usv1", "usv2", 1, 0, None)] * 600)
     st = decode_status(status(many))
     assert len(st["edges"]) == 512 and len(st["links"]) == 512
+
+
+def test_a_status_too_big_for_the_console_fields_still_says_the_run_is_over():
+    ids = [f"v{j}" for j in range(3000)]  # the summary alone fits, the console fields do not
+    ex = StatusExtra(kinds=["usv"] * len(ids), path_errors=[0.1] * len(ids), completion="stopped")
+    st = decode_status(encode_status(3.0, 100.0, "lockstep", ids, ids, 0.3, 0.25, [], False, extra=ex))
+    assert isinstance(st, dict) and st["completion"] == "stopped" and "kinds" not in st
 
 
 _values = hs.recursive(hs.one_of(hs.none(), hs.booleans(), hs.integers(-2**63, 2**64 - 1), hs.floats(),

@@ -110,3 +110,19 @@ def test_realtime_a_vehicle_paused_by_a_ground_station_is_paused_until_resumed_e
     assert states()[3] == "live"
     w._on_alive("usv2", False)  # nobody asked: lost
     assert states()[1] == "gone"
+
+
+def test_the_last_status_says_how_the_run_ended_before_the_vehicles_are_told_to_stop(tmp_path):
+    """A console read the vehicles leaving at a run's end as vehicles lost: the world's last
+    status now says the run is over (its completion, as the metrics'), sent before the stop."""
+    w = started(world(tmp_path))
+    order = []
+    status_put, ctl_put = w.pub_status.put, w.pub_ctl.put
+    w.pub_status.put = lambda p: (order.append(("status", decode_status(p).get("completion"))), status_put(p))
+    w.pub_ctl.put = lambda p: (order.append(("ctl", p)), ctl_put(p))
+    w.stop_requested, w.completion = True, "stopped"
+    w._drain = lambda block=False: None  # no inbox here: the agents' last counters do not come
+    m = w.finish()
+    assert order[0] == ("status", "stopped") and order[1] == ("ctl", encode_control("stop"))
+    assert m["completion"] == "stopped"
+    assert all(decode_status(p).get("completion") is None for p in w.pub_status.puts[:-1])  # only the last says it
