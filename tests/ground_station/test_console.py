@@ -285,3 +285,30 @@ def test_the_connect_timeout_holds_with_the_runs_credentials_file(tmp_path):
     own.write_text(json.dumps({"mode": "client", "connect": {"endpoints": ["tcp/127.0.0.1:1"], "timeout_ms": 1234}}))
     t = gs_transport(build_parser("gs").parse_args(["--fleet", "f", "--zenoh-config", str(own), "status"]))
     assert json.loads(zenoh_config(t).get_json("connect/timeout_ms")) == 1234
+
+
+def test_a_link_command_on_every_link_is_one_line_of_the_status_table_not_twelve():
+    from cdus.sim.reports import link_state_event
+    from ground_station.console import group_link_states
+
+    links = [f"{a}->{b}" for a, b in [("usv1", "usv2"), ("usv2", "usv1"), ("usv2", "usv3"), ("usv3", "usv2"),
+                                      ("usv3", "uav1"), ("uav1", "usv3")]]
+    cmd = FleetEvent.of(10.0, "link_changed", "link loss=0.1 by gs:alice")
+    lossy = [link_state_event(10.02 + 0.01 * j, ln, "lossy") for j, ln in enumerate(links)]
+    later = link_state_event(30.0, links[0], "down")
+    grouped = group_link_states([cmd, *lossy, later])
+    assert [e.text for e in grouped] == [
+        "link loss=0.1 by gs:alice",
+        "6 links lossy (from t = 10.02 s): usv1->usv2, usv2->usv1, usv2->usv3, usv3->usv2 and 2 more",
+        "link usv1->usv2 down (from t = 30.00 s)"]
+    assert grouped[1].t == 10.02 and grouped[2] is later
+    # far apart, or one link twice: separate changes
+    apart = [link_state_event(1.0, links[0], "lossy"), link_state_event(5.0, links[1], "lossy")]
+    assert group_link_states(apart) == apart
+    twice = [link_state_event(1.0, links[0], "lossy"), link_state_event(1.1, links[0], "lossy")]
+    assert group_link_states(twice) == twice
+    view = FleetView()
+    view.world = {"t": 31.0, "duration": 250.0, "clock": "realtime", "alive": [], "ids": [],
+                  "path_error_max": None, "coord_error_max": None, "events": [cmd, *lossy, later]}
+    text = status_table(view)
+    assert "link loss=0.1 by gs:alice" in text and "6 links lossy" in text and text.count("lossy") == 1
