@@ -28,6 +28,7 @@ the fleet name and the credentials to attach with. docs/ground_station.md has th
 from __future__ import annotations
 
 import argparse
+import difflib
 import json
 import os
 import sys
@@ -45,7 +46,7 @@ from cdus.wire.keys import FLEET_RE
 from cdus.wire.transport import add_transport_args, transport_from_args, with_default_endpoint
 from cdus.files import write_json
 from ground_station.console import (
-    COMMAND_TIMEOUT, EXIT_DENIED, EXIT_NO_ANSWER, EXIT_USAGE, Answer, GroundStation, config_endpoints, credentials_user, default_name, listening, num,
+    COMMAND_TIMEOUT, EXIT_DENIED, EXIT_NO_ANSWER, EXIT_USAGE, Answer, GroundStation, config_endpoints, credentials_fleet, credentials_user, default_name, listening, num,
     status_table,
 )
 
@@ -296,6 +297,21 @@ def _watch(gs: GroundStation, interval: float) -> int:
         time.sleep(0.05)
 
 
+def _other_fleets(fleets: list[str], asked: str, of_credentials: str | None = None,
+                  config_file: str | None = None) -> str:
+    """What to add to "no status from fleet X": the fleet the credentials given are for (a
+    secured router lets a ground station see no other), else the fleets running at the router."""
+    if of_credentials is not None and of_credentials != asked:
+        return (f"; the credentials in {config_file} are for fleet {of_credentials!r} "
+                f"(did you mean --fleet {of_credentials}?)")
+    others = [f for f in fleets if f != asked]
+    if not others:
+        return ""
+    close = difflib.get_close_matches(asked, others, n=1, cutoff=0.6)
+    shown = ", ".join(others[:10]) + (f" and {len(others) - 10} more" if len(others) > 10 else "")
+    return f"; fleets running there: {shown}" + (f" (did you mean --fleet {close[0]}?)" if close else "")
+
+
 def _unreachable(transport, e: Exception) -> int:
     """The session could not be opened: say whether a router is there at all."""
     eps = list(transport.connect) or config_endpoints(transport.config_file)
@@ -399,7 +415,9 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
         if not gs.wait_for_status(STATUS_WAIT_S):
             print(f"error: no status from fleet {args.fleet!r} within {STATUS_WAIT_S:g} s at "
                   f"{', '.join(transport.connect) or 'the configured endpoint'}: is it running? "
-                  "(cdus launch prints the fleet name and the endpoint to attach to)", file=sys.stderr)
+                  "(cdus launch prints the fleet name and the endpoint to attach to)"
+                  + _other_fleets(gs.fleets_here(), args.fleet, credentials_fleet(transport.config_file),
+                                  transport.config_file), file=sys.stderr)
             return EXIT_NO_ANSWER
         # the world's ids: names of the key space (letters, digits, _ and -), nothing else is trusted
         ids = [i for i in (gs.view.world or {}).get("ids") or [] if isinstance(i, str) and FLEET_RE.match(i)]

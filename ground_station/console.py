@@ -232,6 +232,37 @@ def credentials_user(config_file: str | None) -> str | None:
     return printable(user, 64) if isinstance(user, str) else None
 
 
+_FLEET_SPACE = re.compile(r"cdus/([A-Za-z0-9_-]{1,64})/\*\*")
+
+
+def credentials_fleet(config_file: str | None) -> str | None:
+    """The fleet a ground station's credentials are for: cdus writes them beside the fleet's
+    router settings (RUN/secure/router.json5), whose access control names its key space
+    ``cdus/<fleet>/**``. None if that cannot be read or names no single fleet."""
+    if not config_file:
+        return None
+    found: set[str] = set()
+
+    def walk(x: Any) -> None:
+        if isinstance(x, str):
+            m = _FLEET_SPACE.fullmatch(x)
+            if m:
+                found.add(m[1])
+        elif isinstance(x, dict):
+            for v in x.values():
+                walk(v)
+        elif isinstance(x, list):
+            for v in x:
+                walk(v)
+
+    try:
+        with open(os.path.join(os.path.dirname(os.path.abspath(config_file)), "router.json5")) as fh:
+            walk(json.load(fh))
+    except (OSError, ValueError, RecursionError):
+        return None
+    return found.pop() if len(found) == 1 else None
+
+
 def config_endpoints(config_file: str | None) -> list[str]:
     """The ``connect/endpoints`` of a Zenoh config file cdus wrote (JSON), [] if none."""
     if not config_file:
@@ -372,6 +403,23 @@ class GroundStation:
                     self.view.states[vid] = rows[-1]
                     taken += 1
         return taken
+
+    def fleets_here(self, timeout: float = 1.0) -> list[str]:
+        """The fleets whose world holds a liveliness token at this router (sorted, at most 50),
+        for a mistyped ``--fleet``: [] when there are none or the router's access control does
+        not let this ground station see them."""
+        found: set[str] = set()
+        try:
+            for reply in self.session.liveliness().get(keys.ANY_FLEET_WORLD, timeout=timeout):
+                sample = reply.ok
+                fleet = keys.fleet_of(str(sample.key_expr)) if sample is not None else None
+                if fleet is not None and keys.alive_name(str(sample.key_expr)) == keys.WORLD:
+                    found.add(fleet)
+                if len(found) >= 50:
+                    break
+        except (zenoh.ZError, RuntimeError):
+            return []
+        return sorted(found)
 
     def world_up(self) -> bool:
         """Is the world there: its liveliness token, or a status within the last 3 s?"""

@@ -107,6 +107,15 @@ def any_alive(fleet: str) -> str:
     return f"cdus/{fleet}/alive/*"
 
 
+ANY_FLEET_WORLD = "cdus/*/alive/world"  # every fleet's world at a router (a mistyped --fleet's hint)
+
+
+def fleet_of(key: str) -> str | None:
+    """The fleet in ``cdus/<fleet>/...``, None if ``key`` is not in a fleet's key space."""
+    parts = key.split("/")
+    return parts[1] if len(parts) > 2 and parts[0] == "cdus" and FLEET_RE.match(parts[1]) else None
+
+
 def any_state(fleet: str) -> str:
     return f"cdus/{fleet}/to/*/state/*"
 

@@ -33,6 +33,10 @@ def test_ground_station_watches_and_commands_a_running_fleet(tmp_path, launches)
         assert vid in res.stdout
     assert "world: t =" in res.stdout
 
+    typo = run_cli(["gs", "--fleet", fleet + "x", "-e", f"tcp/127.0.0.1:{port}",
+                    "--zenoh-config", str(run / "secure" / "ground.json5"), "status", "--once"], timeout=60)
+    assert typo.returncode == 3 and f"did you mean --fleet {fleet}?" in typo.stderr, typo.stderr
+
     res = gs(fleet, port, run, "link", "loss=1.0")  # cut every link
     assert res.returncode == 0, res.stderr
     assert gs(fleet, port, run, "link", "loss=7").returncode == 2  # a bad value is refused locally

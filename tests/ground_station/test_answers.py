@@ -9,6 +9,7 @@ import threading
 import time
 
 import msgpack
+import zenoh
 from hypothesis import given, settings, strategies as hs
 
 from cdus.wire.messages import StateMsg, encode_states
@@ -276,3 +277,17 @@ def test_the_live_table_ends_when_the_world_leaves_or_goes_silent():
     with gs.view.lock:
         gs.view.alive = set()
     assert "world has left" in _run_ended(gs)
+
+
+def test_fleets_here_names_each_fleet_whose_world_is_up_and_nothing_forged():
+    gs = station([])
+    replies = [Reply("cdus/lake_demo/alive/world", b""), Reply("cdus/other/alive/world", b""),
+               Reply("cdus/lake_demo/alive/world", b""), Reply("cdus/third/alive/usv1", b""),
+               Reply("cdus/bad name/alive/world", b""), Reply("elsewhere/x/alive/world", b""), Reply("k", None, b"e")]
+    gs.session.liveliness = lambda: type("L", (), {"get": lambda self, key, timeout=None: iter(replies)})()
+    assert gs.fleets_here() == ["lake_demo", "other"]
+
+    def refused(key, timeout=None):
+        raise zenoh.ZError("denied")
+    gs.session.liveliness = lambda: type("L", (), {"get": lambda self, key, timeout=None: refused(key)})()
+    assert gs.fleets_here() == []

@@ -312,3 +312,24 @@ def test_a_link_command_on_every_link_is_one_line_of_the_status_table_not_twelve
                   "path_error_max": None, "coord_error_max": None, "events": [cmd, *lossy, later]}
     text = status_table(view)
     assert "link loss=0.1 by gs:alice" in text and "6 links lossy" in text and text.count("lossy") == 1
+
+
+def test_a_mistyped_fleet_is_told_the_fleet_its_credentials_are_for_or_the_fleets_running(tmp_path):
+    from cdus.app.credentials import make_credentials
+    from ground_station.__main__ import _other_fleets
+    from ground_station.console import credentials_fleet
+
+    cred = make_credentials(tmp_path / "secure", "lake_demo", {"usv1": ["usv2"], "usv2": ["usv1"]},
+                            ("tcp/127.0.0.1:7447",))
+    ground = str(tmp_path / "secure" / "ground.json5")
+    assert credentials_fleet(ground) == "lake_demo" and cred is not None
+    assert credentials_fleet(str(tmp_path / "elsewhere.json5")) is None and credentials_fleet(None) is None
+    (tmp_path / "secure" / "router.json5").write_text("{not json")
+    assert credentials_fleet(ground) is None
+    assert _other_fleets([], "lake_dem", "lake_demo", ground) == (
+        f"; the credentials in {ground} are for fleet 'lake_demo' (did you mean --fleet lake_demo?)")
+    assert _other_fleets([], "lake_demo", "lake_demo", ground) == ""  # right fleet, not running: no hint
+    assert _other_fleets(["lake_demo", "other"], "lake_dem") == (
+        "; fleets running there: lake_demo, other (did you mean --fleet lake_demo?)")
+    assert _other_fleets(["zzz"], "lake_dem") == "; fleets running there: zzz"
+    assert _other_fleets([f"f{j:02d}" for j in range(12)], "x").endswith("f09 and 2 more")
