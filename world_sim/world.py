@@ -624,8 +624,9 @@ class World:
                                  if interrupted else f"fleet stopped by {by}"))
         self.completion = self.completion or ("interrupted" if interrupted else "stopped")
         self.stop_requested = True
-        tick = self.next_tick if self.clock == "lockstep" else self._tick_now()
-        return Verdict(True, "the run ends here: its metrics are written", tick)
+        # the tick of the event (and of the run's last record): the answer said the next one, a tick later
+        tick = round(self._sim_now() / self.period)
+        return Verdict(True, "the run ends after this tick: its metrics are written", tick)
 
     def _cmd_fault_done(self, f: dict, by: str) -> Verdict | str:
         if by != keys.LAUNCHER:

@@ -73,7 +73,8 @@ def test_fleet_commands_are_applied_from_the_first_tick_not_granted_or_rejected_
     assert ask(w, "resume").answer.applied
     assert ask(w, "resume").answer.reason == "the fleet is not paused"
     r = ask(w, "stop").answer
-    assert r.applied and r.tick == w.next_tick and w.stop_requested
+    assert r.applied and r.tick == max(0, w.next_tick - 1) and w.stop_requested
+    assert r.t == w.events[-1].t and w.events[-1].text == "fleet stopped by gs"  # the answer's time is the event's
     for op, fields in [("pause", {}), ("stop", {}), ("set_gains", {"gains": {"c": 2.0}, "vehicle": ""})]:
         r = ask(w, op, **fields).answer
         assert (r.status, r.reason) == ("rejected", "the run is stopping"), op
