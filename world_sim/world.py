@@ -752,7 +752,9 @@ class World:
         self._note(FleetEvent.of(self._sim_now(), "radio_changed",
                                  f"radio changed from t = {at:.2f} s by {printable(sender, 64)}: "
                                  f"{printable(change, 200)}"))
-        return Verdict(True, "", max(0, math.ceil(at / self.period - 1e-9)), float(at))
+        late = (f"t = {fields['at']:g} s asked had passed: from the first time every vehicle can take it"
+                if 0 <= fields["at"] < at else "")
+        return Verdict(True, late, max(0, math.ceil(at / self.period - 1e-9)), float(at))
 
     def _cmd_radio(self, f: dict, by: str) -> Verdict | str:
         """The ``radio`` command: relayed (:meth:`_relay_radio`) or refused, counted and reported."""
