@@ -10,7 +10,7 @@
     cdus gs ... pause | resume | stop                                  # the whole fleet
     cdus gs ... link loss=0.3 delay.base=0.1 [--at 120]                # link faults from sim time t
     cdus gs ... gains k=2 c=1 [--vehicle usv1]                         # guidance gains
-    cdus gs ... radio tx_power=20 station=[0,-60,10] [--at 120]        # [radio]: power (dBm), station (m)
+    cdus gs ... radio tx_power=20 station=[0,-60,0] [--at 120]         # [radio]: power (dBm), station x, y, mast base z (m)
     cdus gs ... kill usv2 | restart usv2 | pause-vehicle usv2 | resume-vehicle usv2
     cdus gs ... formation phases.usv2=3.1416 phases.uav2=3.1416      # new phases (ω units), others kept
     cdus gs ... formation offsets.usv2.usv1=3.141592653589793 offsets.usv3.usv2=1.0471975511965976
@@ -114,7 +114,7 @@ def build_parser(prog: str = "cdus gs") -> argparse.ArgumentParser:
     ln.add_argument("--at", type=_sim_time,
                     help="simulated time from which they apply (default: now + 0.5 s; a past time means now)")
     rd = sub.add_parser("radio", help="change the radio at run time ([radio] scenarios): tx_power=DBM station=[x,y,z]")
-    rd.add_argument("settings", nargs="+", metavar="KEY=VALUE", help="e.g. tx_power=20 station=[0,-60,10]")
+    rd.add_argument("settings", nargs="+", metavar="KEY=VALUE", help="e.g. tx_power=20 (dBm) station=[0,-60,0] (x, y and the mast's base z above the water, m; the antenna is radio.antenna.station above it)")
     rd.add_argument("--at", type=_sim_time,
                     help="simulated time from which it applies (default: now + 0.5 s; a past time means now)")
     gn = sub.add_parser("gains", help="change guidance gains: k=... c=...")

@@ -549,7 +549,10 @@ class GroundStation:
                 "path_error_max": None if w is None else w["path_error_max"],
                 "coord_error_max": None if w is None else w["coord_error_max"],
                 "vehicles": vehicles,
-                "events": [e.as_dict() for e in self.view.events[-20:]],
+                # heard live, else the world's recent ones (as the text status): a one-shot
+                # `status --json` hears none live
+                "events": [e.as_dict() for e in (self.view.events or [e for e in (w or {}).get("events") or []
+                                                                      if isinstance(e, FleetEvent)])[-20:]],
                 "rejected": self.view.rejected,
             }
 

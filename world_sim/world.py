@@ -753,7 +753,9 @@ class World:
         self._note(FleetEvent.of(self._sim_now(), "radio_changed",
                                  f"radio changed from t = {at:.2f} s by {printable(sender, 64)}: "
                                  f"{printable(change, 200)}"))
-        return Verdict(True, "", max(0, math.ceil(at / self.period - 1e-9)), float(at))
+        late = (f"t = {fields['at']:g} s asked had passed: from the first time every vehicle can take it"
+                if 0 <= fields["at"] < at else "")
+        return Verdict(True, late, max(0, math.ceil(at / self.period - 1e-9)), float(at))
 
     def _cmd_radio(self, f: dict, by: str) -> Verdict | str:
         """The ``radio`` command: relayed (:meth:`_relay_radio`) or refused, counted and reported."""
@@ -1334,9 +1336,12 @@ class World:
         if n:
             omega, live, q = rec.omega[n - 1], rec.live[n - 1], rec.q[n - 1]
             path_errors = [float(x) if live[j] else None for j, x in enumerate(rec.path_error[n - 1])]
+            # the offsets in force at that row (a formation change moves them), as coord_error_max
+            d = rec.deltas(n - 1, n)
+            deltas = [e.delta for e in rec.edges] if d is None else [float(x) for x in d[0]]
             edges = [(self.ids[e.i], self.ids[e.k],
-                      float(abs(omega[e.i] - omega[e.k] - e.delta)) if live[e.i] and live[e.k] else None)
-                     for e in rec.edges]
+                      float(abs(omega[e.i] - omega[e.k] - delta)) if live[e.i] and live[e.k] else None)
+                     for e, delta in zip(rec.edges, deltas)]
             closest = closest_live_pair(q, live, kinds, self.ids)
         links: dict[tuple[str, str], tuple] = {}
         for s in self.st.stats.values():

@@ -455,7 +455,9 @@ class Launcher:
             self._reject(f"event {e}", "a malformed event")
             return
         if not self.opts.quiet:
-            for line in self._console.printed(e):
+            with self.cond:  # the quota is shared with the opening (main thread)
+                lines = self._console.printed(e)
+            for line in lines:
                 self.log(line)
 
     def _wait_alive(self, names: list[str], timeout: float) -> list[str]:
@@ -508,6 +510,11 @@ class Launcher:
         here = f"{len(ids) - len(self.opts.remote)} here, {len(self.opts.remote)} elsewhere" if self.opts.remote else ""
         self.log(f"fleet {self.fleet!r} up: world + {len(ids)} vehicles ({self.opts.clock} clock{', ' if here else ''}"
                  f"{here}); logs in {self.logs}")
+        if not self.opts.quiet:  # the links lossy by design, before the events stamped later
+            with self.cond:
+                lines = self._console.opening()
+            for line in lines:
+                self.log(line)
 
     def supervise(self) -> int:
         """Until the world exits: progress, restarts. Returns the world's exit status."""

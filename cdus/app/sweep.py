@@ -398,6 +398,7 @@ def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "")
               ("final_coord_error_max", "final coordination error, worst edge (rad)", "no run finished"))
     shown = [False, False]
     drawn: dict[str, list[str]] = {"empty": [], "never": []}
+    labels: list[Any] = []  # the "k/n never" texts, kept apart once the layout is final
     n_series = max(1, len(series))
     for si, (label, group) in enumerate(series.items()):
         group = sorted(group, key=lambda c: pos(dict(c.cell)[x_key]) if x_key else 0.0)
@@ -418,8 +419,8 @@ def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "")
                         ax.plot([x], [y], marker="v", ls="none", color=line[0].get_color(), transform=trans,
                                 markersize=8, clip_on=False)
                         text = f"{c.never('coord')}/{c.ok} never"
-                        ax.text(x, y - 0.045, text, transform=trans, ha="center", va="top", fontsize=7,
-                                color=line[0].get_color())
+                        labels.append(ax.text(x, y - 0.045, text, transform=trans, ha="center", va="top",
+                                              fontsize=7, color=line[0].get_color()))
                         drawn["never"].append(text)
     for ax, ok, (_, ylabel, empty) in zip(axes, shown, panels):
         ax.set_ylabel(ylabel)
@@ -442,8 +443,29 @@ def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "")
     fig.suptitle((title + "\n" if title else "") + f"points: mean over seeds; error bars: {CI_SHORT}",
                  fontsize=10)
     fig.tight_layout()
+    _separate(fig, labels)
     fig.savefig(path, dpi=110)
     return drawn
+
+
+def _separate(fig: Any, labels: list[Any], step: float = 0.04, rows: int = 6) -> None:
+    """Move each label down a row (``step`` in axes units) while it overlaps one placed before:
+    neighbouring cells' "2/2 never" ran into each other on one row."""
+    if len(labels) < 2:
+        return
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    placed: list[Any] = []
+    for t in sorted(labels, key=lambda t: t.get_position()[0]):
+        x, y = t.get_position()
+        for _ in range(rows):
+            box = t.get_window_extent(renderer)
+            if not any(box.overlaps(b) for b in placed):
+                break
+            y -= step
+            t.set_position((x, y))
+        placed.append(t.get_window_extent(renderer))
 
 
 # --- the engine -------------------------------------------------------------------------------

@@ -127,6 +127,16 @@ class ConsoleQuota:
         self.design, self._lossy = design_lines(scenario) if scenario is not None else ("", {})
         self._design_said = False
 
+    def opening(self) -> list[str]:
+        """The design line, once, as :meth:`printed` would give it at t = 0, for a printer that
+        hears link states late (the launcher: with the agents' stats, a wall second into the run,
+        after events stamped later); the lossy lines it stands for are then left out. Not
+        thread-safe: a printer calling it and :meth:`printed` from two threads holds a lock."""
+        if not self.design or self._design_said:
+            return []
+        self._design_said = True
+        return [f"  event: {printable(FleetEvent.of(0.0, 'link_state', self.design).line())}"]
+
     def lines(self, event: FleetEvent) -> list[str]:
         if event.kind == "link_state" and event.link in self._lossy and event.t < DESIGN_BEFORE_S \
                 and event.text == link_state_event(event.t, event.link, "lossy").text:

@@ -57,3 +57,32 @@ def test_the_x_axis_carries_its_unit_and_the_figure_says_what_the_error_bars_and
     assert "error bars: 95 % bootstrap CI of the mean" in fig.get_suptitle()
     assert "▼: runs that never settled" in fig.axes[0].get_title()
     assert "1/2 never" in [t.get_text() for t in fig.axes[0].texts]
+
+
+def test_never_labels_of_neighbouring_cells_do_not_overlap(tmp_path):
+    """README's radio sweep (radio.tx_power = -8, -6, -4, -2, 0, 5, 20; the first five never
+    settled): the five '2/2 never' labels were drawn on one row and ran into each other
+    ('2/2 ne2/2 ne2/2 ...'). Each label is now moved down a row while it would overlap one
+    already drawn."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    figs = []
+    original = Figure.savefig
+
+    def keep(self, *a, **k):
+        figs.append(self)
+        return original(self, *a, **k)
+
+    cells = [_cell((("radio.tx_power", p),), [] if p <= 0 else [100.0, 110.0], [1.0, 2.0])
+             for p in (-8, -6, -4, -2, 0, 5, 20)]
+    import pytest
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(Figure, "savefig", keep)
+        drawn = plot(["radio.tx_power"], cells, tmp_path / "p.png")
+    assert drawn["never"] == ["2/2 never"] * 5
+    (fig,) = figs
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    boxes = [t.get_window_extent(renderer) for t in fig.axes[0].texts if t.get_text().endswith("never")]
+    assert len(boxes) == 5
+    overlaps = [(i, j) for i in range(5) for j in range(i + 1, 5) if boxes[i].overlaps(boxes[j])]
+    assert overlaps == []

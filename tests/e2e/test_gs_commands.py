@@ -112,6 +112,14 @@ def test_every_command_is_answered_and_the_ground_station_exits_by_the_answer(tm
         assert res.returncode == 0 and "applied from tick" in res.stdout, (args, res)
     res = gs("resume-vehicle", "usv1")  # it is live: nothing to do
     assert res.returncode == 1 and "usv1 is live" in res.stderr, res
+    # refused by the fleet (exit 1) where only the world can tell: offsets that do not close the
+    # ring with those in force, a drone sent on a 2-D path, a resume of a running fleet
+    res = gs("formation", "offsets.usv2.usv1=1.0")
+    assert res.returncode == 1 and "rejected by the fleet: inconsistent formation offsets" in res.stderr, res
+    res = gs("path", "--vehicle", "uav1", "family=circle", "center=[0,0]", "radius=5")
+    assert res.returncode == 1 and "rejected by the fleet" in res.stderr and "3-D path" in res.stderr, res
+    res = gs("resume")
+    assert res.returncode == 1 and "rejected by the fleet: the fleet is not paused" in res.stderr, res
 
     # what the command line cannot check, the world does: an unknown vehicle, a link table that fails
     station = GroundStation(fleet, Transport(mode="client", config_file=str(run / "secure" / "ground.json5")),

@@ -162,14 +162,16 @@ def test_launch_and_sim_print_the_same_event_lines_at_the_same_times(tmp_path, l
     common = ["--duration", "10", "--set", "link.loss=0.1", "--rerun", "off"]
     sim = run_cli(["sim", str(cfg), *common, "--runs-dir", str(tmp_path / "runs")])
     assert sim.returncode == 0, sim.stderr
-    printed = sorted(ln for ln in sim.stdout.splitlines() if ln.startswith("  event: "))
+    printed = [ln for ln in sim.stdout.splitlines() if ln.startswith("  event: ")]
     assert printed == ["  event: t = 0.00 s: link faults from t = 0: loss 0.1 on 12 links (all)",
                        "  event: t = 1.00 s: scheduled kill of usv2 (t = 1 s)",
                        "  event: t = 1.00 s: the live graph (5 vehicles) still has a spanning tree"]
     fleet = unique_fleet()
     la = launches([str(cfg), *common, "--clock", "lockstep", "--logs", str(tmp_path / "run")], fleet)
     assert la.wait() == 0, la.output()
-    assert sorted(ln for ln in la.output().splitlines() if ln.startswith("  event: ")) == printed, la.output()
+    # in the same order too: the launcher heard the t = 0 line with the agents' stats, a wall
+    # second in, and printed it after the kill's lines (t = 1.00 s, then t = 0.00 s)
+    assert [ln for ln in la.output().splitlines() if ln.startswith("  event: ")] == printed, la.output()
     assert not fleet_processes(fleet)
 
 

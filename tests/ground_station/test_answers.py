@@ -291,3 +291,18 @@ def test_fleets_here_names_each_fleet_whose_world_is_up_and_nothing_forged():
         raise zenoh.ZError("denied")
     gs.session.liveliness = lambda: type("L", (), {"get": lambda self, key, timeout=None: refused(key)})()
     assert gs.fleets_here() == []
+
+
+def test_a_one_shot_snapshot_carries_the_worlds_recent_events_as_the_text_status_does():
+    """`cdus gs status --json` and `snapshot FILE` on a fleet that had been paused, re-gained
+    and re-formed gave "events": [] (a one-shot ground station hears no event live) while
+    `cdus gs status` listed them from the world's status. Now the same events in both."""
+    gs = station([], world_up=True)
+    recent = [FleetEvent.of(3.0, "fleet", "fleet paused by gs:x"), FleetEvent.of(5.0, "fleet", "fleet resumed by gs:x")]
+    gs._on_status(Sample("cdus/f/world/status", encode_status(6.0, 10.0, "realtime", [], ["usv1"], None, None, recent,
+                                                              False)))
+    snap = gs.snapshot()
+    assert [e["text"] for e in snap["events"]] == ["fleet paused by gs:x", "fleet resumed by gs:x"]
+    assert "fleet resumed by gs:x" in status_table(gs.view)
+    gs._on_event(Sample("cdus/f/world/events", encode_event(FleetEvent.of(7.0, "fleet", "fleet stopped by gs:y"))))
+    assert [e["text"] for e in gs.snapshot()["events"]] == ["fleet stopped by gs:y"]  # heard live: those, as the table

@@ -60,3 +60,17 @@ def test_the_in_process_fleet_reports_link_changes_as_events_as_the_world_does()
     states = [e for e in events if e.kind == "link_state"]
     assert len(states) == 12 and {e.t for e in states} == {0.0}
     assert states[0] == link_state_event(0.0, states[0].link, "lossy")
+
+
+def test_the_opening_says_the_design_once_and_the_lossy_lines_then_add_nothing():
+    """The launcher hears the t = 0 lossy states with the agents' stats, after a kill at 1 s
+    had been printed: it says the design line at the start (ConsoleQuota.opening) instead."""
+    sc = load_scenario("configs/lake_circle.toml", {"link.loss": 0.1})
+    console = ConsoleQuota(scenario=sc)
+    assert console.opening() == ["  event: t = 0.00 s: link faults from t = 0: loss 0.1 on 12 links (all)"]
+    assert console.opening() == []
+    lossy = [link_state_event(0.0, f"{e.k}->{e.i}", "lossy") for e in sc.edges]
+    assert [line for e in lossy for line in console.printed(e)] == []
+    assert ConsoleQuota(scenario=load_scenario("configs/lake_circle.toml")).opening() == []  # nothing lossy by design
+    heard_first = ConsoleQuota(scenario=sc)  # a lossy state heard before the opening: said then, not again
+    assert len(heard_first.printed(lossy[0])) == 1 and heard_first.opening() == []

@@ -118,6 +118,19 @@ def test_the_world_relays_a_radio_change_or_says_why_not():
     assert "no [radio]" in plain._relay_radio({"radio": {"tx_power": 3.0}, "at": -1.0}, "gs")
 
 
+def test_a_radio_change_asked_for_a_time_already_past_says_it_was_moved_as_a_link_change_does():
+    """`cdus gs radio tx_power=10 --at 5` at t = 21 s answered 'applied from tick 1079 (t = 21.58 s)'
+    with no word that the 5 s asked had passed (`gs link ... --at 5` says so)."""
+    from .test_world import started
+
+    w = started(_radio_world())
+    w.lockstep.granted = 100
+    v = w._relay_radio({"radio": {"tx_power": 3.0}, "at": 0.5}, "gs")
+    assert v.applied and v.t > 0.5 and v.reason.startswith("t = 0.5 s asked had passed"), v
+    assert w._relay_radio({"radio": {"tx_power": 4.0}, "at": -1.0}, "gs").reason == ""  # no --at: nothing moved
+    assert w._relay_radio({"radio": {"tx_power": 5.0}, "at": 10.0}, "gs").reason == ""  # in the future: as asked
+
+
 def test_a_radio_change_past_the_runs_end_is_refused_and_locks_nobody_out():
     """A change from a time past the run's end never applies; taken, it would have been the newest
     epoch, and every later change (epochs go in time order) refused: one command with --at 2e9

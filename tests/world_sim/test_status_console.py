@@ -126,3 +126,30 @@ def test_the_last_status_says_how_the_run_ended_before_the_vehicles_are_told_to_
     assert order[0] == ("status", "stopped") and order[1] == ("ctl", encode_control("stop"))
     assert m["completion"] == "stopped"
     assert all(decode_status(p).get("completion") is None for p in w.pub_status.puts[:-1])  # only the last says it
+
+
+def test_after_a_formation_change_the_status_edges_are_measured_against_the_new_offsets():
+    # A ground station's `formation phases.usv2=15.7` on a realtime lake_radio fleet: the
+    # console's header (the status's coord_error_max) went to 0.76 rad while its edge table
+    # and the vehicles' `edge err` still said 14.15 rad (the scenario's Δ), and the console
+    # raised `edge usv2-usv3 growing` for an edge that was converging to its new offset.
+    w = started(world())
+    w.lockstep.granted = 40
+    assert w._relay_formation({"phases": {"usv2": 15.7}, "offsets": []}, "gs1").applied  # from tick 41
+    theta = dict(zip(w.ids, w.recorder.formation.phases_at(41)))
+    qs = [(0.0, 0.0)] * 3 + [(0.0, 0.0, 20.0)] * 3
+    for n in (40, 41):
+        # every vehicle exactly at its new phase: ω_i = θ_i - t (the formation reached)
+        rows = [at(j, n, qs[j], theta[vid] - n * w.period, 0.01) for j, vid in enumerate(w.ids)]
+        w.recorder.record(n * w.period, rows)
+        w.next_tick = n + 1
+        w._publish_status()
+        st = decode_status(w.pub_status.puts[-1])
+        edges = {(a, b): e for a, b, e in st["edges"]}
+        touches = [(a, b) for a, b in edges if "usv2" in (a, b)]
+        assert touches
+        if n == 40:  # before the change: measured against the scenario's Δ (usv2 is 13.6 rad off it)
+            assert all(edges[ab] > 10 for ab in touches)
+        else:  # from the change on: against the new offsets, as the header's coord_error_max
+            assert all(e < 1e-9 for e in edges.values()), edges
+            assert st["coord_error_max"] < 1e-9
