@@ -46,3 +46,10 @@ def test_leaf_and_alive_name_parse_what_the_builders_make():
     assert keys.leaf(keys.state("f", "usv1")) == ("state", "usv1")
     assert keys.leaf(keys.omega("f", "usv1", ["usv2"])) == ("omega", "usv1")
     assert keys.alive_name(keys.alive("f", "uav3")) == "uav3"
+
+
+def test_fleet_of_names_the_fleet_of_a_key_in_a_fleets_space_only():
+    assert keys.fleet_of("cdus/lake_demo/alive/world") == "lake_demo"
+    assert keys.fleet_of("cdus/f/x") == "f"
+    for key in ("cdus/f", "cdus", "other/f/alive/world", "cdus/bad name/alive/world", "cdus//alive/world"):
+        assert keys.fleet_of(key) is None, key

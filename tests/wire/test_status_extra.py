@@ -129,3 +129,36 @@ def test_a_fleet_of_thousands_still_gets_its_status_with_what_fits():
     assert "edges" not in st and "links" not in st and len(st["states"]) == 800
     st = big(2000)  # only the summary fits (ids and alive take most of it)
     assert set(st) == set(STATUS_KEYS) and len(st["ids"]) == 2000
+
+
+@pytest.mark.parametrize("field, value", [
+    ("edges", [["nobody", "usv2", 0.1]]),  # the first end is checked as the second
+    ("links", [["nobody", "usv2", 5, 1, None]]),
+    ("links", [["usv1", "usv2", 5, 1, None], ["usv2", "usv2", 5, 1, None]]),
+    ("rx", [[-1, 0], None, None]),
+    ("rx", [[1.5, 0], None, None]),  # the first count is checked as the second
+    ("closest", ["nobody", "usv2", 1.0]),
+    ("closest", ["usv1", "usv1", 1.0]),
+])
+def test_each_end_of_an_edge_link_or_pair_is_checked(field, value):
+    d = msgpack.unpackb(status(extra()), raw=False)
+    d[field] = value
+    assert decode_status(msgpack.packb(d)) == "extra"
+
+
+def test_the_console_fields_at_their_bounds_are_kept():
+    """The edges of what the decoder takes: an edge error and a distance of 0 (settled, touching),
+    as many dropped as sent, a radius below 1 m, times at MAX_TIME."""
+    from cdus.wire.schemas import MAX_TIME
+
+    d = msgpack.unpackb(status(extra()), raw=False)
+    d.update(edges=[["usv1", "usv2", 0.0]], links=[["usv1", "usv2", 5, 5, None]], rx=[[3, 3], None, None],
+             safety_radius=0.5, closest=["usv1", "usv2", 0.0])
+    st = decode_status(msgpack.packb(d))
+    assert st["edges"] == [("usv1", "usv2", 0.0)] and st["links"] == [("usv1", "usv2", 5, 5, None)]
+    assert st["rx"][0] == (3, 3) and st["safety_radius"] == 0.5 and st["closest"] == ("usv1", "usv2", 0.0)
+    d.update(safety_radius=MAX_TIME, closest=["usv1", "usv2", 0.5])
+    st = decode_status(msgpack.packb(d))
+    assert st["safety_radius"] == MAX_TIME and st["closest"][2] == 0.5
+    d.update(closest=["usv1", "usv2", MAX_TIME])
+    assert decode_status(msgpack.packb(d))["closest"][2] == MAX_TIME
