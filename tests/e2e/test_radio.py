@@ -19,11 +19,12 @@ from .conftest import ROOT, assert_same_trace, fleet_processes, unique_fleet
 RADIO_KINDS = ("radio_split", "radio_joined")
 
 
-@pytest.mark.parametrize("config, duration", [("configs/lake_radio.toml", 6.0), ("configs/range_out.toml", 24.0)])
+@pytest.mark.parametrize("config, duration", [("configs/lake_radio.toml", 6.0), ("configs/range_out.toml", 112.0)])
 def test_lockstep_with_the_radio_reproduces_the_in_process_run(tmp_path, launches, config, duration):
     """lake_radio: 6 s, six vehicles relayed by the shore station (collisions drop some
-    messages). range_out: 24 s, the drones leave the station's range at about 19 s: the
-    split is reported by the world as by the in-process fleet, at the same time."""
+    messages). range_out, all of it: the drones leave the station's range at about 19 s and
+    come back at about 84 s: the split and the join are reported by the world as by the
+    in-process fleet, at the same time, and the formation settles again after the return."""
     fleet = unique_fleet()
     run = tmp_path / "run"
     la = launches([config, "--clock", "lockstep", "--duration", str(duration),
@@ -41,8 +42,13 @@ def test_lockstep_with_the_radio_reproduces_the_in_process_run(tmp_path, launche
     theirs = [(e["t"], e["kind"], e["text"]) for e in ref.metrics["events"] if e["kind"] in RADIO_KINDS]
     assert ours == theirs
     if "range_out" in config:
-        assert [k for _, k, _ in ours] == ["radio_split"]
+        assert [k for _, k, _ in ours] == ["radio_split", "radio_joined"]
         assert radio["dropped_by"]["range"] > 0
+        split, joined = ours[0][0], ours[1][0]
+        assert 15.0 < split < joined < duration
+        # re-converged after the return: settled by the end, and not before the split
+        assert metrics["coord_settle_s"] is not None and metrics["coord_settle_s"] > split
+        assert metrics["coord_settle_s"] == ref.metrics["coord_settle_s"]
     assert not fleet_processes(fleet)
 
 
