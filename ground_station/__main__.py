@@ -430,7 +430,7 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
             gs.fetch_last()  # a paused fleet sends no telemetry: the world says where each vehicle is
         if args.action == "status":
             if args.json:
-                print(json.dumps(gs.snapshot(), indent=2))
+                print(json.dumps(gs.snapshot(settings=True), indent=2))
                 return 0
             if args.once:
                 print(status_table(gs.view))
@@ -446,7 +446,7 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
             return _watch(gs, args.interval)
         elif args.action == "snapshot":
             try:
-                write_json(args.file, gs.snapshot())
+                write_json(args.file, gs.snapshot(settings=True))
             except OSError as e:  # a directory that cannot be made or written, a read-only file system
                 print(f"error: could not write the snapshot to {args.file}: {e.strerror or e}"
                       + (f" ({e.filename})" if e.filename and str(e.filename) != args.file else ""), file=sys.stderr)

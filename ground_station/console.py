@@ -26,7 +26,7 @@ from cdus.wire import keys
 from cdus.wire.access import GROUND_ROLE
 from cdus.wire.transport import Transport, endpoint_host, open_session
 from cdus.wire.messages import VEHICLE_FAULTS, StateMsg, decode_states, encode_control
-from cdus.wire.schemas import CommandReply, FleetEvent, decode_event, decode_reply, decode_status
+from cdus.wire.schemas import CommandReply, FleetEvent, decode_event, decode_reply, decode_settings, decode_status
 from cdus.wire.text import printable
 
 #: exit codes of `cdus gs` (docs/ground_station.md)
@@ -404,6 +404,29 @@ class GroundStation:
                     taken += 1
         return taken
 
+    def fetch_settings(self, timeout: float = 2.0) -> dict[str, Any] | None:
+        """The run's settings in force, from the world (``world/settings``, decoded by
+        cdus.wire.schemas.decode_settings): the run-time changes made, the formation's phases and
+        the [link] table. None when no world answered with readable settings (an older world);
+        a reply that cannot be read is counted as rejected."""
+        try:
+            replies = list(self.session.get(keys.world_settings(self.fleet), timeout=timeout))
+        except (zenoh.ZError, RuntimeError):
+            return None
+        with self.view.lock:
+            known = [k for k in (self.view.world or {}).get("ids") or [] if isinstance(k, str)] or None
+        for reply in replies:
+            sample = reply.ok
+            if sample is None:
+                continue
+            got = decode_settings(sample.payload.to_bytes(), known)
+            if isinstance(got, dict):
+                return got
+            with self.view.lock:
+                self.view.rejected += 1
+                self.view.rejected_by_reason[got] += 1
+        return None
+
     def fleets_here(self, timeout: float = 1.0) -> list[str]:
         """The fleets whose world holds a liveliness token at this router (sorted, at most 50),
         for a mistyped ``--fleet``: [] when there are none or the router's access control does
@@ -510,10 +533,12 @@ class GroundStation:
                                          "kill, pause, resume or restart is answered when it is carried out: "
                                          "give more time with --timeout S; the run's event log says what was done)")
 
-    def snapshot(self) -> dict[str, Any]:
+    def snapshot(self, settings: bool = False) -> dict[str, Any]:
         """The fleet as this ground station knows it, as one versioned JSON object
         (docs/ground_station.md): the run, then every vehicle with its newest values (or null)
-        and why they are not live ones (null when they are)."""
+        and why they are not live ones (null when they are); with ``settings``, the run's
+        settings in force asked of the world (:meth:`fetch_settings`; null if it did not say)."""
+        extra = {"settings": self.fetch_settings()} if settings else {}
         with self.view.lock:
             w = self.view.world
             known = [k for k in (w or {}).get("ids") or [] if isinstance(k, str)]
@@ -554,7 +579,7 @@ class GroundStation:
                 "events": [e.as_dict() for e in (self.view.events or [e for e in (w or {}).get("events") or []
                                                                       if isinstance(e, FleetEvent)])[-20:]],
                 "rejected": self.view.rejected,
-            }
+            } | extra
 
     def events_since(self, seen: int) -> tuple[list[FleetEvent], int]:
         """The events heard after the first ``seen`` (and the new count); those pushed out of

@@ -60,7 +60,7 @@ from cdus.wire.messages import (
 )
 from cdus.wire.schemas import (
     ID_RE, MAX_REASON, MAX_TEXT as MAX_EVENT_TEXT, ORIGIN_WORLD, AgentStats, CommandReply, FleetEvent,
-    StatusExtra, decode_stats, encode_event, encode_reply, encode_status,
+    StatusExtra, decode_stats, encode_event, encode_reply, encode_settings, encode_status,
 )
 from cdus.wire.text import printable
 from cdus.wire.transport import Transport, open_session
@@ -230,6 +230,7 @@ class World:
         #: run-time commands (link, radio, gains, formation, path), for (re)joiners; each carries its
         #: index here as ``seq`` so a process that hears it again applies it once
         self._commands: list[tuple[str | None, bytes]] = []
+        self._make_settings()  # the settings reply (world/settings), made again at each change
         self._console = ConsoleQuota(scenario=scenario)
         self._rt_expect: dict[str, set[str]] = {}  # realtime: liveliness changes a fault we asked for explains
         self._faulted: dict[str, str] = {}  # "killed" | "paused", by the faults carried out (both clocks)
@@ -299,6 +300,7 @@ class World:
         self._subs = [
             s.liveliness().declare_subscriber(keys.any_alive(f), self._on_alive_sample, history=True),
             s.declare_queryable(keys.world_last(f, "*"), self._on_last_query),
+            s.declare_queryable(keys.world_settings(f), self._on_settings_query),
             s.declare_queryable(keys.any_world_command(f), self._on_command_query),
         ]
         self.token = s.liveliness().declare_token(keys.alive(f, keys.WORLD))
@@ -352,6 +354,17 @@ class World:
         for v, m in rows:
             if m is not None:
                 query.reply(keys.world_last(self.fleet, v), encode_states([m]))
+
+    def _on_settings_query(self, query: Any) -> None:
+        """A ground station asks what the run's settings are now (``gs snapshot``): the reply the
+        main thread made at the newest change (:meth:`_make_settings`)."""
+        query.reply(keys.world_settings(self.fleet), self._settings)
+
+    def _make_settings(self) -> None:
+        """The settings reply, made on the main thread when a change is made, so a query (on
+        Zenoh's thread) never reads the lists as they change."""
+        phases = self.recorder.formation.phases_at(2**62) if self.recorder.formation is not None else ()
+        self._settings = encode_settings(list(self._commands), list(zip(self.ids, phases)), self._link_table)
 
     def _on_command_query(self, query: Any) -> None:
         """A command as a query (Zenoh's thread): handed to the main thread, which answers it; past
@@ -931,6 +944,7 @@ class World:
         else:
             self.session.put(keys.ctl(self.fleet, to), payload)
         self._commands.append((kept_for, payload))
+        self._make_settings()
 
     def _replay_commands(self, vid: str) -> None:
         """A (re)started or resumed process missed the ground stations' link and gains commands

@@ -136,6 +136,11 @@ def world_events(fleet: str) -> str:
     return f"cdus/{fleet}/world/events"
 
 
+def world_settings(fleet: str) -> str:
+    """The world's settings in force (cdus.wire.schemas.encode_settings), a queryable."""
+    return f"cdus/{fleet}/world/settings"
+
+
 def world_last(fleet: str, vid: str) -> str:
     return f"cdus/{fleet}/world/last/{vid}"
 

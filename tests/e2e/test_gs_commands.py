@@ -105,6 +105,13 @@ def test_every_command_is_answered_and_the_ground_station_exits_by_the_answer(tm
     assert res.returncode == 0 and "applied from tick" in res.stdout, res
     res = gs("link", "loss=0.0", "--at", "0")
     assert res.returncode == 0 and "applied from tick" in res.stdout, res
+    # the snapshot saves the settings in force: every run-time change made, phases, the link table
+    res = gs("snapshot", str(tmp_path / "settings.json"))
+    assert res.returncode == 0, res.stderr
+    settings = json.loads((tmp_path / "settings.json").read_text())["settings"]
+    assert [(c["seq"], c["op"], c["vehicle"]) for c in settings["changes"]] == [(0, "gains", None), (1, "link", None)]
+    assert settings["changes"][0]["fields"]["gains"] == {"k": 1.5, "c": 2.0} and settings["link"] == {"loss": 0.0}
+    assert sorted(settings["phases"]) == ["uav1", "uav2", "usv1", "usv2"] and settings["unreadable"] == 0
 
     # vehicle faults: answered when they land on their tick
     for args in (("pause-vehicle", "uav1"), ("resume-vehicle", "uav1"), ("kill", "usv2"), ("restart", "usv2")):

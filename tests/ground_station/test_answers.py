@@ -197,6 +197,7 @@ def test_a_snapshot_to_a_path_it_cannot_write_is_a_clear_error_not_a_traceback(t
     monkeypatch.setattr(cli.GroundStation, "open", lambda self, watch=True: opened.append(1))
     monkeypatch.setattr(cli.GroundStation, "wait_for_status", lambda self, timeout: True)
     monkeypatch.setattr(cli.GroundStation, "fetch_last", lambda self, timeout=2.0: 0)
+    monkeypatch.setattr(cli.GroundStation, "fetch_settings", lambda self, timeout=2.0: None)
     monkeypatch.setattr(cli.GroundStation, "close", lambda self: None)
     base = ["--fleet", "f", "-e", "tcp/127.0.0.1:1", "snapshot"]
     assert cli.main([*base, str(tmp_path)]) == cli.EXIT_USAGE and not opened
@@ -306,3 +307,19 @@ def test_a_one_shot_snapshot_carries_the_worlds_recent_events_as_the_text_status
     assert "fleet resumed by gs:x" in status_table(gs.view)
     gs._on_event(Sample("cdus/f/world/events", encode_event(FleetEvent.of(7.0, "fleet", "fleet stopped by gs:y"))))
     assert [e["text"] for e in gs.snapshot()["events"]] == ["fleet stopped by gs:y"]  # heard live: those, as the table
+
+
+def test_the_snapshot_saves_the_settings_the_world_says_and_counts_a_reply_it_cannot_read():
+    from cdus.wire.messages import encode_control
+    from cdus.wire.schemas import encode_settings
+
+    good = encode_settings([(None, encode_control("link", link={"loss": 0.1}, at=4.0, seq=0))], [("usv1", 1.0)],
+                           {"loss": 0.1})
+    gs = station([Reply("cdus/f/world/settings", b"\xc1"), Reply("cdus/f/world/settings", good)])
+    got = gs.fetch_settings()
+    assert got["link"] == {"loss": 0.1} and got["changes"][0]["op"] == "link" and got["phases"] == {"usv1": 1.0}
+    assert gs.view.rejected == 1 and gs.view.rejected_by_reason["malformed"] == 1
+    snap = gs.snapshot(settings=True)
+    assert snap["settings"] == got and "settings" not in gs.snapshot()  # only when asked (watch lines do not)
+    json.dumps(snap, allow_nan=False)
+    assert station([]).snapshot(settings=True)["settings"] is None  # an older world: said as null

@@ -415,3 +415,24 @@ def test_realtime_a_scheduled_faults_word_from_the_launcher_does_not_answer_a_gr
     w._rt_faults_unconfirmed(time.monotonic() + RT_FAULT_CONFIRM + 0.1)
     assert q.answer.status == "rejected" and "kill of uav1" in q.answer.reason
     assert [e.kind for e in w.events].count("fault_missed") == 1 and not any(w._rt_asked.values())
+
+
+def test_the_settings_query_says_every_change_made_the_phases_and_the_link_table_in_force():
+    from cdus.wire.schemas import decode_settings
+
+    w = started(world())
+    q = Query(keys.world_settings(FLEET), None)
+    w._on_settings_query(q)
+    first = decode_settings(q.replies[0][1], w.ids)
+    assert q.replies[0][0] == keys.world_settings(FLEET) and first["changes"] == [] and first["link"] == {}
+    assert ask(w, "set_gains", gains={"k": 2.0}, vehicle="usv1").answer.applied
+    assert ask(w, "link", link={"loss": 0.2}, at=-1.0).answer.applied
+    assert ask(w, "formation", phases={"usv2": 1.5}, offsets=[]).answer.applied
+    assert not ask(w, "set_gains", gains={"k": -1.0}, vehicle="").answer.applied  # refused: not a change
+    q = Query(keys.world_settings(FLEET), None)
+    w._on_settings_query(q)
+    got = decode_settings(q.replies[0][1], w.ids)
+    assert [(c["seq"], c["op"], c["vehicle"]) for c in got["changes"]] == [(0, "gains", "usv1"), (1, "link", None),
+                                                                         (2, "formation", None)]
+    assert got["link"] == {"loss": 0.2} and got["phases"]["usv2"] == 1.5
+    assert got["phases"]["usv1"] == first["phases"]["usv1"]
