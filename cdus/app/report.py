@@ -33,16 +33,23 @@ class Progress:
         self.stream = stream
         self.quiet = quiet
         self.tty = stream.isatty()
-        self.start = time.perf_counter()
         self._last_decile = -1
+        self._first: tuple[float, float] | None = None  # (simulated t, wall) of the first report
 
     def __call__(self, t: float, total: float) -> None:
         if self.quiet or total <= 0:
             return
-        wall = time.perf_counter() - self.start
+        now = time.perf_counter()
+        rate = None
+        if self._first is None:
+            # the rate is measured from the first report: a fleet's start-up (processes, sessions)
+            # before it is not simulation (a realtime launch's first line said "0.3x real time")
+            self._first = (t, now) if t > 0 else None
+        elif now > self._first[1] and t > self._first[0]:
+            rate = (t - self._first[0]) / (now - self._first[1])
         frac = min(1.0, t / total)
-        rate = t / wall if wall > 0 else 0.0
-        line = f"{self.label}: t = {t:7.1f} / {total:.1f} s ({frac:4.0%}), {rate:6.1f}x real time"
+        line = f"{self.label}: t = {t:7.1f} / {total:.1f} s ({frac:4.0%})" + (
+            f", {rate:6.1f}x real time" if rate is not None else "")
         if self.tty:
             self.stream.write("\r" + line)
             self.stream.flush()
