@@ -73,3 +73,48 @@ _values = hs.recursive(_leaf, lambda inner: hs.lists(inner, max_size=4) | hs.dic
 def test_any_settings_payload_decodes_to_plain_values_or_a_reason_never_raises(obj):
     got = decode_settings(msgpack.packb(obj, use_bin_type=True), IDS)
     assert isinstance(got, str) or json.dumps(got, allow_nan=False)
+
+
+def test_plain_values_keep_their_kind_their_depth_and_their_size():
+    from cdus.wire.schemas import _PLAIN_DEPTH, _plain
+    from cdus.wire.text import printable
+
+    assert [_plain(x) for x in (True, False, None, 0, 2**63 - 1, -(2**63), 2**63, 1.5, math.nan, b"x")] == \
+        [True, False, None, 0, 2**63 - 1, None, None, 1.5, None, None]
+    assert _plain([math.inf, "a\x1b", [1.0]]) == [None, "a\\x1b", [1.0]]
+    assert _plain("x" * 300) == printable("x" * 300, 256) and len(_plain("x" * 300)) == 257  # 256 and the ellipsis
+    assert list(_plain({"k" * 100: 1})) == [printable("k" * 100, 64)]
+    deep: object = 1.0
+    for _ in range(_PLAIN_DEPTH):
+        deep = [deep]
+    assert _plain(deep) == deep  # as deep as it may be: whole
+    nested = _plain({"a": deep})
+    inner = nested["a"]
+    for _ in range(_PLAIN_DEPTH - 1):
+        inner = inner[0]
+    assert inner == [None]  # one level too deep: left out
+
+
+def test_what_the_decoder_takes_at_most():
+    base = msgpack.unpackb(encode_settings([], PHASES, {}), raw=False)
+
+    def packed(**over) -> bytes:
+        return msgpack.packb({**base, **over}, use_bin_type=True)
+
+    assert encode_settings([], PHASES, {}, total=50) and \
+        decode_settings(encode_settings([], PHASES, {}, total=50), IDS)["total"] == 50
+    from cdus.wire.schemas import MAX_COUNT
+    assert decode_settings(packed(total=MAX_COUNT), IDS) == "type"
+    assert decode_settings(packed(total=MAX_COUNT - 1), IDS)["total"] == MAX_COUNT - 1
+    assert decode_settings(packed(changes=[[None, b"\x00" * 4097]]), IDS) == "malformed"  # a command is small
+    assert decode_settings(packed(link={"name": "x" * 4097}), IDS) == "malformed"
+    assert decode_settings(packed(link={str(j): j for j in range(4097)}), IDS) == "malformed"
+    assert decode_settings(packed(link={"x": msgpack.ExtType(1, b"a")}), IDS) == "malformed"
+    assert decode_settings(packed(changes=[None] * 10_001, total=10_001), IDS) == "malformed"
+    assert decode_settings(packed(changes=[None] * 10_000, total=10_000), IDS)["unreadable"] == 10_000
+    assert decode_settings(packed(link={"k": "x" * 4096}), IDS)["link"]["k"] == printable_256("x" * 4096)
+
+
+def printable_256(s: str) -> str:
+    from cdus.wire.text import printable
+    return printable(s, 256)
