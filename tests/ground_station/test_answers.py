@@ -138,14 +138,18 @@ def test_no_status_or_reply_breaks_the_snapshot_or_the_command(payloads, text, t
     assert a.outcome in ("applied", "rejected", "no_answer", "denied") and a.code in (0, 1, 3, 4)
 
 
+class Alive(Sample):
+    """A liveliness token that comes."""
+    kind = "SampleKind.PUT"
+
+
+class Gone(Sample):
+    """A liveliness token that goes."""
+    kind = "SampleKind.DELETE"
+
+
 def test_watch_writes_versioned_json_lines_and_ends_when_the_world_leaves(capsys):
     from ground_station.__main__ import _watch
-
-    class Alive(Sample):
-        kind = "SampleKind.PUT"
-
-    class Gone(Sample):
-        kind = "SampleKind.DELETE"
 
     gs = station([], world_up=False)
     gs._on_alive(Alive("cdus/f/alive/world", b""))
@@ -162,12 +166,6 @@ def test_watch_writes_versioned_json_lines_and_ends_when_the_world_leaves(capsys
 
 def test_watch_says_how_the_run_ended_from_the_worlds_last_status(capsys):
     from ground_station.__main__ import _watch
-
-    class Alive(Sample):
-        kind = "SampleKind.PUT"
-
-    class Gone(Sample):
-        kind = "SampleKind.DELETE"
 
     gs = station([], world_up=False)
     gs._on_alive(Alive("cdus/f/alive/world", b""))
