@@ -689,7 +689,8 @@ class RadioChannel:
             else:
                 curve = per_curve(snr + 10.0 * _LOG10_GRID(), self.bytes, s.modulation, s.bandwidth,
                                   s.capacity)
-                success = fading_mean(1.0 - curve, s.fading, s.rician_k, s.nakagami_m)
+                # the weights sum to 1 within rounding: 1 + 2e-16 when every gain gets through
+                success = min(1.0, max(0.0, fading_mean(1.0 - curve, s.fading, s.rician_k, s.nakagami_m)))
             m = self.medium(geo)
             own = self.rate * (m.live if a == len(self.ids) else 1)  # the station relays everyone's
             leg = _Leg(snr, per, success, self._collision(m, own))
