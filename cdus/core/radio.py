@@ -549,6 +549,8 @@ class RadioChannel:
     def update(self, at: float, tx_power_dbm: float | None = None, station: Sequence[float] | None = None) -> None:
         """From t_send >= ``at`` on, the transmit power and/or the station position change (the
         others stay). Updates come in time order; the same ``at`` again replaces that epoch."""
+        if not math.isfinite(at):  # nan would sit in the bisected starts; inf would refuse every later one
+            raise ValueError(f"radio update time must be a finite number of s, got {at!r}")
         if at < self._starts[-1]:
             raise ValueError(f"radio update at t = {at:g} s is before the previous one at t = {self._starts[-1]:g} s; "
                              f"updates must come in time order")

@@ -488,3 +488,16 @@ def test_a_faded_delivery_probability_never_exceeds_one(fading, k, m):
     geo = Geometry.of(0, [(0.0, 0.0), (10.0, 0.0)])
     p = ch.delivery_probability(0, 1, geo)
     assert 0.0 <= p <= 1.0 and ch.decide(0, 1, 0, 0.0, geo).p == p
+
+
+@pytest.mark.parametrize("at", [math.nan, math.inf, -math.inf])
+def test_an_update_at_a_time_that_is_not_finite_is_refused_and_changes_nothing(at):
+    """A NaN ``at`` was kept as an epoch start (bisect over a list holding NaN, and every later
+    update taken after it whatever its time); +inf refused every later update (InProcessFleet.
+    set_radio took both: the world and the agents refuse them before, as non_finite)."""
+    ch = chan()
+    with pytest.raises(ValueError, match="finite"):
+        ch.update(at, tx_power_dbm=5.0)
+    assert ch.epochs == ((-math.inf, 20.0, (0.0, 0.0, 0.0)),)
+    ch.update(1.0, tx_power_dbm=6.0)
+    assert ch.epochs[-1] == (1.0, 6.0, (0.0, 0.0, 0.0))
