@@ -432,7 +432,7 @@ class Agent:
         c = decode_control(payload, CTL_OPS)
         if isinstance(c, str):
             return self._reject("world", c)
-        op, f, clock = c.op, c.fields, self.clock
+        op, f = c.op, c.fields
         problem = self._ctl_problem(op, f)
         if problem is not None:
             return self._reject("world", problem)
@@ -441,7 +441,17 @@ class Agent:
             if seq in self._commands_seen:
                 self.commands_heard_again += 1
                 return None
-            self._commands_seen.add(seq)
+            # only a command applied uses its number: a refused one (counted) would else lock the
+            # world's own command with that number out (an open fleet: anyone may publish first)
+            refused = sum(self.rejected.values())
+            self._apply_ctl(op, f)
+            if sum(self.rejected.values()) == refused:
+                self._commands_seen.add(seq)
+            return None
+        self._apply_ctl(op, f)
+
+    def _apply_ctl(self, op: str, f: dict) -> None:
+        clock = self.clock
         if op == "grant":
             clock.granted = max(clock.granted, f["until"])
         elif op == "join":

@@ -144,3 +144,21 @@ def test_a_second_sample_for_a_tick_never_replaces_the_first_and_is_a_conflict_u
     assert a.node.radio.held(tick) is held
     same = [None if q is None else tuple(q) for q in first] == [None if q is None else tuple(q) for q in second]
     assert a.rejected == {"radio_stale" if same else "radio_conflict": 1}
+
+
+def test_a_refused_numbered_radio_command_does_not_use_up_its_number(agent):
+    """The world numbers its run-time commands (seq) and a process applies each number once. A
+    radio command the process refuses (counted bad_radio_command: a value out of range, a change
+    before one in force) had its number taken all the same, so the world's own command with that
+    number (on an open fleet anyone may publish on ctl first) was then dropped as heard again:
+    one refused message locked the world's change out. Only a command applied uses its number."""
+    agent._on_ctl(encode_control("radio", radio={"tx_power": 1e9}, at=2.0, seq=0))  # refused: out of range
+    agent._on_ctl(encode_control("radio", radio={"tx_power": 5.0}, at=3.0, seq=1))
+    agent._on_ctl(encode_control("radio", radio={"tx_power": 6.0}, at=1.0, seq=2))  # refused: before t = 3
+    assert agent.rejected == {"bad_radio_command": 2}
+    agent._on_ctl(encode_control("radio", radio={"tx_power": 7.0}, at=4.0, seq=0))  # the world's
+    agent._on_ctl(encode_control("radio", radio={"tx_power": 8.0}, at=5.0, seq=2))
+    agent._on_ctl(encode_control("radio", radio={"tx_power": 9.0}, at=6.0, seq=1))  # heard again: once
+    assert [e[:2] for e in agent.node.radio.channel.epochs] == [(-math.inf, 24.0), (3.0, 5.0), (4.0, 7.0),
+                                                                (5.0, 8.0)]
+    assert agent.commands_heard_again == 1 and agent.rejected == {"bad_radio_command": 2}
