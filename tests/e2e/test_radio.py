@@ -267,3 +267,126 @@ def test_ground_station_radio_commands_out_of_range_or_without_radio_are_refused
     assert "bad_radio_command" not in m["rejected_by_reason"]["vehicles"]
     assert [e["kind"] for e in m["events"]].count("rejected") == (1 if "range_out" in config else 2)
     assert not fleet_processes(fleet)
+
+
+def _hostile_geometry(sc) -> list[bytes]:
+    """Geometry samples every vehicle's decoder refuses (decode_geometry): none can stand for a tick."""
+    import msgpack
+
+    n = len(sc.ids)
+    drone = [1.0, 2.0, 30.0]
+    last = round(sc.duration * sc.rates.control)
+    return [b"\xc1", b"", msgpack.packb([2, 0, [drone] * n]), msgpack.packb([1, 0, [[1.0, float("nan"), 3.0]] * n]),
+            msgpack.packb([1, 0, [[1.0, 1e300, 3.0]] * n]), msgpack.packb([1, 0, [drone] * (n + 1)]),
+            msgpack.packb([1, 0, [[1.0, 2.0]] * n]), msgpack.packb([1, 0, [drone] * 5000]),
+            msgpack.packb([1, -4, [drone] * n]), msgpack.packb([1, 1, [drone] * n]),  # not a sample tick
+            msgpack.packb([1, last + 4, [drone] * n]), msgpack.packb([1, 0, [[1, 2, 3]] * n]),
+            msgpack.packb([1, 0, [{"x": 1.0}] * n]), msgpack.packb([[[[[[[]]]]]]] * 3)]
+
+
+def _hostile_radio_ctl(sc) -> list[bytes]:
+    """World-to-vehicle radio changes every vehicle refuses, numbered as the world numbers its
+    commands (0, 1, ...): refused, none may use up the number of the world's own command."""
+    import msgpack
+
+    from cdus.wire.messages import encode_control
+
+    out = [encode_control("radio", radio={"tx_power": 1e9}, at=5.0, seq=0),
+           encode_control("radio", radio={"station": [0.0]}, at=5.0, seq=0),
+           encode_control("radio", radio={"power": 3.0}, at=5.0, seq=1),
+           encode_control("radio", radio={}, at=5.0, seq=2),
+           encode_control("radio", radio={"tx_power": 3.0}, at=-1.0, seq=0),  # radio_range
+           encode_control("radio", radio={"tx_power": 3.0}, at=2e9, seq=0),
+           encode_control("radio", radio={"tx_power": 3.0}, at=5.0, seq=-1),  # seq
+           encode_control("radio", radio={"a": {"b": {"c": {"d": {}}}}}, at=5.0, seq=0),
+           msgpack.packb({"v": 1, "op": "radio", "radio": {"tx_power": 3.0}, "at": float("nan"), "seq": 0}),
+           msgpack.packb({"v": 1, "op": "radio", "radio": [1, 2], "at": 5.0, "seq": 0})]
+    return out
+
+
+def _hostile_radio_commands() -> list[bytes]:
+    """Radio commands to the world that it refuses (each counted, answered on a query)."""
+    import msgpack
+
+    from cdus.wire.messages import encode_control
+
+    return [b"\xc1", msgpack.packb({"v": 1, "op": "radio", "radio": {"tx_power": float("nan")}, "at": -1.0}),
+            encode_control("radio", radio={"tx_power": 1e9}, at=-1.0),
+            encode_control("radio", radio={"station": [1e300, 0.0]}, at=-1.0),
+            encode_control("radio", radio={"station": [1.0, 2.0, 3.0, 4.0]}, at=-1.0),
+            encode_control("radio", radio={"tx_power": True}, at=-1.0),
+            encode_control("radio", radio={"tx_power": 3.0}, at=1e12),  # past the run's end
+            encode_control("radio", radio={"txpower": 3.0}, at=-1.0),
+            encode_control("radio", radio={"tx_power": 3.0, "junk": [[[[[]]]]]}, at=-1.0),
+            msgpack.packb({"v": 1, "op": "radio", "radio": {"tx_power": 3.0}, "at": "soon"}),
+            msgpack.packb({"v": 1, "op": "radio", "radio": {"tx_power": 3.0}, "at": [0.0] * 5000})]
+
+
+@pytest.mark.parametrize("secured", [True, False], ids=["secured", "insecure"])
+def test_hostile_radio_messages_are_counted_and_change_nothing_but_the_worlds_change(tmp_path, launches, secured):
+    """range_out, lockstep, 10 s, held by a pause while someone publishes radio geometry every
+    vehicle refuses, radio changes on the vehicles' ctl key that they refuse (numbered as the
+    world numbers its commands), and radio commands to the world that it refuses; then the
+    ground station changes tx_power from t = 5 s (the world's command number 0). Secured: the
+    forger holds uav1's credential (the router refuses its puts on the world's keys); open
+    (--insecure): a raw client, whose messages reach the vehicles, are counted by reason and
+    dropped. Either way the run equals the in-process run given the same change (to the bit),
+    and the world's change was applied by every vehicle (before d2ecdd7 a refused forgery
+    numbered 0 made every vehicle drop it as heard again)."""
+    from cdus.wire import keys
+    from cdus.wire.messages import encode_control
+    from cdus.wire.transport import free_tcp_port
+    from tests.outsider import raw_client
+
+    from .test_access import Events, member
+
+    fleet = unique_fleet()
+    port = free_tcp_port()
+    run = tmp_path / "run"
+    duration = 10.0
+    la = launches(["configs/range_out.toml", "--clock", "lockstep", "--duration", str(duration),
+                   "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "--trace-out", str(tmp_path / "trace.npz"),
+                   "-q", *(() if secured else ("--insecure",))], fleet)
+    la.wait_for(f"fleet '{fleet}' up")
+    sc = load_scenario("configs/range_out.toml", {"scenario.duration": duration})
+    if secured:
+        boss, mallory = member(run / "secure" / "ground.json5"), member(run / "secure" / "vehicle-uav1.json5")
+    else:
+        import zenoh
+        boss = mallory = zenoh.open(raw_client(f"tcp/127.0.0.1:{port}"))
+    geometry, ctl, commands = _hostile_geometry(sc), _hostile_radio_ctl(sc), _hostile_radio_commands()
+    try:
+        events = Events(boss, fleet)
+        boss.put(keys.world_cmd(fleet, keys.GROUND), encode_control("pause"))
+        events.wait_for("fleet", "paused")
+        for payload in geometry:
+            mallory.put(keys.radio(fleet, sc.ids), payload)
+        for payload in ctl:
+            mallory.put(keys.ctl(fleet, sc.ids), payload)
+        for payload in commands:  # the vehicle's credential may not command the world: refused by the router
+            mallory.put(keys.world_cmd(fleet, keys.GROUND), payload)
+            boss.put(keys.world_cmd(fleet, keys.GROUND), payload)
+        boss.put(keys.world_cmd(fleet, keys.GROUND), encode_control("radio", radio={"tx_power": -10.0}, at=5.0))
+        events.wait_for("radio_changed", "t = 5.00 s")
+        assert la.proc.poll() is None, "the run ended before the forger was done: the test proves nothing"
+        boss.put(keys.world_cmd(fleet, keys.GROUND), encode_control("resume"))
+        assert la.wait() == 0, la.output()
+    finally:
+        boss.close()
+        if mallory is not boss:
+            mallory.close()
+    m = json.loads((run / "metrics.json").read_text())
+    assert m["completed"] is True
+    ref_fleet = InProcessFleet(sc)
+    ref_fleet.set_radio({"tx_power": -10.0}, 5.0)
+    ref = ref_fleet.run()
+    assert_same_trace(tmp_path / "trace.npz", ref)
+    assert m["radio"] == ref.metrics["radio"] and m["radio"]["dropped_by"]["range"] > 0
+    world, vehicles = m["rejected_by_reason"]["world"], m["rejected_by_reason"]["vehicles"]
+    times = 1 if secured else 2  # the world's refusals: the ground station's (and the raw client's)
+    assert sum(world.values()) == times * len(commands), world
+    if secured:
+        assert vehicles == {}, vehicles
+    else:  # every vehicle counted each forgery once
+        assert sum(vehicles.values()) == (len(geometry) + len(ctl)) * len(sc.ids), vehicles
+    assert not fleet_processes(fleet)
