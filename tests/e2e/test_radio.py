@@ -390,3 +390,30 @@ def test_hostile_radio_messages_are_counted_and_change_nothing_but_the_worlds_ch
     else:  # every vehicle counted each forgery once
         assert sum(vehicles.values()) == (len(geometry) + len(ctl)) * len(sc.ids), vehicles
     assert not fleet_processes(fleet)
+
+
+def test_infinite_correlation_scales_start_a_fleet_that_equals_the_in_process_run(tmp_path, launches):
+    """radio.shadowing_distance = inf and shadowing_time = inf are valid (not correlated in space;
+    not changing with time), and so is a link down window with to = inf: `cdus launch` crashed on
+    them writing the scenario for its processes (a traceback, 'Out of range float values are not
+    JSON compliant'). range_out for 4 s with all three: lockstep equals cdus sim to the bit."""
+    sets = {"radio.shadowing_distance": "inf", "radio.shadowing_time": "inf",
+            "link.down": '[{src = "uav1", dst = "uav2", from = 2.0, to = inf}]'}
+    fleet = unique_fleet()
+    run = tmp_path / "run"
+    args = ["configs/range_out.toml", "--clock", "lockstep", "--duration", "4", "--logs", str(run),
+            "--trace-out", str(tmp_path / "trace.npz"), "-q"]
+    for k, v in sets.items():
+        args += ["--set", f"{k}={v}"]
+    la = launches(args, fleet)
+    assert la.wait() == 0, la.output()
+    from cdus.scenario.config import parse_value
+    sc = load_scenario("configs/range_out.toml", {"scenario.duration": 4.0, **{k: parse_value(v) for k, v in
+                                                                               sets.items()}})
+    assert sc.radio.shadowing_distance == sc.radio.shadowing_time == float("inf")
+    ref = InProcessFleet(sc).run()
+    assert_same_trace(tmp_path / "trace.npz", ref)
+    metrics = json.loads((run / "metrics.json").read_text())
+    assert metrics["radio"] == ref.metrics["radio"] and metrics["radio"]["dropped_by"]["fault"] > 0  # the down link
+    assert metrics["link"]["faults"] == ref.metrics["link"]["faults"]
+    assert not fleet_processes(fleet)

@@ -244,3 +244,19 @@ def test_the_documented_examples_and_keys():
             assert parse_scenario(data).radio.topology == "station"
     table = (docs / "config.md").read_text().split("### `[radio]`")[1].split("###")[0]
     assert {k for k in re.findall(r"^\| `(\w+)` \|", table, re.M)} == set(RADIO_KEYS)
+
+
+def test_infinite_scales_survive_the_json_a_fleet_of_processes_is_given(tmp_path):
+    """`cdus launch` hands the resolved scenario (Scenario.raw) to the world and the agents as
+    JSON: with radio.shadowing_distance = inf (valid) it raised 'Out of range float values are not
+    JSON compliant' (a traceback, nothing started). Written as the launcher writes it, it loads back
+    the same scenario."""
+    from cdus.files import write_json
+    from cdus.scenario.config import load_scenario
+
+    s = load_scenario("configs/range_out.toml", {"radio.shadowing_distance": math.inf,
+                                                  "radio.shadowing_time": math.inf})
+    path = tmp_path / "scenario.json"
+    write_json(path, s.raw, allow_inf=True)
+    back = load_scenario(str(path))
+    assert back.radio == s.radio and math.isinf(back.radio.shadowing_distance)
