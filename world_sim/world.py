@@ -43,7 +43,9 @@ from cdus.scenario.config import ConfigError, nesting_problem
 from cdus.scenario.link import merge_link_tables, validate_link
 from cdus.scenario.model import Scenario
 from cdus.scenario.events import check_offsets, check_path, check_phases, offsets_to_phases
-from cdus.sim.build import formation_schedule, metric_edges, radio_channel_for, radio_schedule, sensor_schedule
+from cdus.sim.build import (
+    build_vehicle, formation_schedule, metric_edges, radio_channel_for, radio_schedule, sensor_schedule,
+)
 from cdus.sim.lockstep import CatchUp, Decided, Fault, Grant, Join, Lockstep, RadioSample, Roster, Sense, horizon_window
 from cdus.sim.reports import (
     ConsoleQuota, formation_changed, graph_event, link_state_event, path_changed, scheduled_change_events,
@@ -1227,6 +1229,8 @@ class World:
                 latest, last = st.latest.get(j), self._recorded.get(j)
                 m = max((x for x in (latest, last) if x is not None and x.tick <= n), key=lambda x: x.tick,
                         default=last)
+            if m is None and self.clock == "lockstep" and self.lockstep.state_at(j, n) != "live":
+                m = self._initial_row(j)  # paused or killed from tick 0: where it starts, as cdus sim has it
             if m is None:
                 return False  # a vehicle never reported: nothing to record yet
             states.append(m)
@@ -1240,6 +1244,13 @@ class World:
         if n % UPDATE_EVERY == 0:
             self.sink.update(self.recorder)
         return True
+
+    def _initial_row(self, j: int) -> StateMsg:
+        """Vehicle j's state before its first tick (a scheduled pause or kill at t = 0 keeps it
+        from ever reporting one until it is back; the world recorded nothing and waited for ever)."""
+        tel = build_vehicle(self.scenario.vehicles[j], self.scenario.rates, self.scenario.seed,
+                            self.scenario.safety).telemetry()
+        return StateMsg(j, 0, tel.t, tuple(tel.q), tel.heading, tel.speed, tel.omega, tel.omega_rate, tel.path_error)
 
     def _live_at(self, n: int) -> list[bool]:
         """Which vehicles step tick n: the lockstep roster's word, or (realtime) whose liveliness
