@@ -417,3 +417,73 @@ def test_infinite_correlation_scales_start_a_fleet_that_equals_the_in_process_ru
     assert metrics["radio"] == ref.metrics["radio"] and metrics["radio"]["dropped_by"]["fault"] > 0  # the down link
     assert metrics["link"]["faults"] == ref.metrics["link"]["faults"]
     assert not fleet_processes(fleet)
+
+
+EDGE_EVENTS = """
+[[event]]
+at = 0.0
+action = "pause"
+vehicle = "usv2"
+
+[[event]]
+at = 1.0
+action = "resume"
+vehicle = "usv2"
+
+[[event]]
+at = 1.5
+action = "kill"
+vehicle = "uav3"
+
+[[event]]
+at = 1.5
+action = "radio"
+tx_power = 0.0
+station = [0.0, -300.0]
+
+[[event]]
+at = 2.5
+action = "restart"
+vehicle = "uav3"
+
+[[event]]
+at = 4.0
+action = "radio"
+tx_power = 20.0
+
+[[event]]
+at = 5.0
+action = "radio"
+tx_power = 10.0
+
+[[event]]
+at = 9.0
+action = "radio"
+tx_power = -50.0
+"""
+
+
+def test_faults_and_radio_changes_at_the_edges_equal_the_in_process_run(tmp_path, launches):
+    """lake_radio for 5 s with a geometry sample every tick (sample_period 0.02 s): usv2 paused
+    from t = 0 (before cc957bf the world waited for its tick-0 row for ever: 'vehicles_lost'
+    after 30 s, no trace), uav3 killed at 1.5 s on the tick a radio change moves the station and
+    restarted at 2.5 s (cdus sim rejoined it twice: an ulp off at the restart tick), radio changes
+    on the last tick and past the end. The trace and the radio events equal cdus sim's."""
+    config = tmp_path / "lake_radio_edges.toml"
+    config.write_text((ROOT / "configs" / "lake_radio.toml").read_text() + EDGE_EVENTS)
+    fleet = unique_fleet()
+    run = tmp_path / "run"
+    la = launches([str(config), "--clock", "lockstep", "--duration", "5", "--set", "radio.sample_period=0.02",
+                   "--logs", str(run), "--trace-out", str(tmp_path / "trace.npz"), "-q"], fleet)
+    assert la.wait(timeout=120) == 0, la.output()
+    ref = InProcessFleet(load_scenario(config, {"scenario.duration": 5.0, "radio.sample_period": 0.02})).run()
+    assert_same_trace(tmp_path / "trace.npz", ref)
+    metrics = json.loads((run / "metrics.json").read_text())
+    assert metrics["completed"] is True
+    kinds = (*RADIO_KINDS, "radio_changed")
+    ours = [(e["t"], e["kind"], e["text"]) for e in metrics["events"] if e["kind"] in kinds]
+    assert ours == [(e["t"], e["kind"], e["text"]) for e in ref.metrics["events"] if e["kind"] in kinds]
+    assert [t for t, k, _ in ours if k == "radio_changed"] == [1.5, 4.0, 5.0]  # not the one past the end
+    radio, expected = metrics["radio"], ref.metrics["radio"]
+    assert (radio["utilisation"], radio["splits"]) == (expected["utilisation"], expected["splits"])
+    assert not fleet_processes(fleet)
