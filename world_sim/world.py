@@ -237,6 +237,7 @@ class World:
         self._faulted: dict[str, str] = {}  # "killed" | "paused", by the faults carried out (both clocks)
         self.log = log or (lambda s: print(f"[world] {s}", flush=True))
         self.next_tick = 0  # next tick to record
+        self._initial: dict[int, StateMsg] = {}  # vehicle -> its state before its first tick (made when needed)
         self.events: list[FleetEvent] = []
         self.started = False
         self.cpu_s = 0.0  # CPU time of the process over the run
@@ -1229,7 +1230,8 @@ class World:
                 latest, last = st.latest.get(j), self._recorded.get(j)
                 m = max((x for x in (latest, last) if x is not None and x.tick <= n), key=lambda x: x.tick,
                         default=last)
-            if m is None and self.clock == "lockstep" and self.lockstep.state_at(j, n) != "live":
+            if m is None and (self.lockstep.state_at(j, n) != "live" if self.clock == "lockstep" else
+                              self.ids[j] in self._faulted or latest is not None):  # (its rows come in order)
                 m = self._initial_row(j)  # paused or killed from tick 0: where it starts, as cdus sim has it
             if m is None:
                 return False  # a vehicle never reported: nothing to record yet
@@ -1248,9 +1250,12 @@ class World:
     def _initial_row(self, j: int) -> StateMsg:
         """Vehicle j's state before its first tick (a scheduled pause or kill at t = 0 keeps it
         from ever reporting one until it is back; the world recorded nothing and waited for ever)."""
-        tel = build_vehicle(self.scenario.vehicles[j], self.scenario.rates, self.scenario.seed,
-                            self.scenario.safety).telemetry()
-        return StateMsg(j, 0, tel.t, tuple(tel.q), tel.heading, tel.speed, tel.omega, tel.omega_rate, tel.path_error)
+        if j not in self._initial:
+            tel = build_vehicle(self.scenario.vehicles[j], self.scenario.rates, self.scenario.seed,
+                                self.scenario.safety).telemetry()
+            self._initial[j] = StateMsg(j, 0, tel.t, tuple(tel.q), tel.heading, tel.speed, tel.omega, tel.omega_rate,
+                                        tel.path_error)
+        return self._initial[j]
 
     def _live_at(self, n: int) -> list[bool]:
         """Which vehicles step tick n: the lockstep roster's word, or (realtime) whose liveliness

@@ -45,3 +45,23 @@ def test_a_vehicle_paused_from_tick_0_is_recorded_where_it_starts(tmp_path):
         got, want = w.recorder.view(name)[: g + 1, j], ref.recorder.view(name)[: g + 1, j]
         assert np.array_equal(got, want, equal_nan=True), name
     assert not w.recorder.view("live")[: g + 1, j].any()
+
+
+def test_realtime_a_vehicle_paused_from_the_start_does_not_hold_the_recording_for_ever():
+    """Realtime, the same pause at t = 0: the world recorded nothing for the whole run (the
+    agents were done at 4 s; it went on until the launcher was interrupted at 117 s). A vehicle
+    not heard from yet still holds tick n back, unless a fault stopped it or it has reported a
+    later tick (its rows come in order: it never will report n)."""
+    w = world(clock="realtime")
+    j = w.ids.index("usv2")
+    for k, vid in enumerate(w.ids):
+        if vid != "usv2":
+            send_rows(w, vid, [row(k, n) for n in range(40)])
+    assert not w._record(0)  # usv2 not heard from yet: waited for, as before
+    w._faulted["usv2"] = "paused"
+    assert w._record(0) and w._recorded[j] == w._initial_row(j)
+    del w._faulted["usv2"]  # resumed: from its first row on, its own rows
+    send_rows(w, "usv2", [row(j, n) for n in range(20, 40)])
+    for n in range(1, 40):
+        assert w._record(n)
+    assert w.next_tick == 40 and w._recorded[j].tick == 39
