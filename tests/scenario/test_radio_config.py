@@ -260,3 +260,20 @@ def test_infinite_scales_survive_the_json_a_fleet_of_processes_is_given(tmp_path
     write_json(path, s.raw, allow_inf=True)
     back = load_scenario(str(path))
     assert back.radio == s.radio and math.isinf(back.radio.shadowing_distance)
+
+
+@pytest.mark.parametrize("event", [{"action": "radio", "tx_power": 5.0}, {"action": "kill", "vehicle": "usv1"},
+                                   {"action": "formation", "phases": {"usv1": 1.0}}])
+def test_an_event_time_too_large_to_be_a_tick_is_a_config_error(event):
+    """at = 1e308 is a finite number >= 0, so it passed, and every runner crashed building its
+    schedule (OverflowError: 1e308 × the control rate is inf, no tick): `cdus sim` printed a
+    traceback. Events are at most 1e9 s (the latest time a run-time change takes)."""
+    data = base()
+    data["radio"] = {}
+    data["event"] = [{"at": 1e308, **event}]
+    text = problems(data)
+    assert "event[0].at: must be a number >= 0 and <= 1e+09" in text, text
+    data["event"] = [{"at": 1e9, **event}]
+    s = parse_scenario(data)  # past the end: never applies, harmless
+    from cdus.sim.fleet import InProcessFleet
+    InProcessFleet(s).run(0.1)
