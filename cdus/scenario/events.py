@@ -132,7 +132,8 @@ def _event(p: Problems, e: dict, field: str, ids: Sequence[str] | None) -> list[
         if action is not None and action != "pause":
             p.add(f"{field}.duration", f"only a pause takes a duration (this event is a {quote(action)}); remove it")
         else:
-            duration = p.number(e["duration"], f"{field}.duration", gt=0, unit=" s (then the vehicle resumes)")
+            duration = p.number(e["duration"], f"{field}.duration", gt=0, le=MAX_EVENT_AT,
+                                unit=" s (then the vehicle resumes)")
     if p.since(mark) or at is None or action is None or vehicle is None:
         return []
     events = [Event(at, action, vehicle)]
