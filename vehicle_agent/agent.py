@@ -409,10 +409,12 @@ class Agent:
             now = time.time()
             if not now - T0_PAST - last * self.period <= f["t0"] <= now + T0_AHEAD:
                 return "t0_range"
+        # a radio command's own reason: radio_range is the geometry's (a coordinate or a tick out of range)
+        name = "radio_command" if op == "radio" else op
         if op in ("link", "radio") and not 0.0 <= f["at"] <= MAX_LINK_AT:
-            return f"{op}_range"
+            return f"{name}_range"
         if op in ("link", "gains", "radio") and nesting_problem(f[op], MAX_COMMAND_NESTING):
-            return f"{op}_range"
+            return f"{name}_range"
         if op in ("formation", "path"):
             return self._change_problem(op, f)
         return None

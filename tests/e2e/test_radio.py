@@ -295,7 +295,7 @@ def _hostile_radio_ctl(sc) -> list[bytes]:
            encode_control("radio", radio={"station": [0.0]}, at=5.0, seq=0),
            encode_control("radio", radio={"power": 3.0}, at=5.0, seq=1),
            encode_control("radio", radio={}, at=5.0, seq=2),
-           encode_control("radio", radio={"tx_power": 3.0}, at=-1.0, seq=0),  # radio_range
+           encode_control("radio", radio={"tx_power": 3.0}, at=-1.0, seq=0),  # radio_command_range
            encode_control("radio", radio={"tx_power": 3.0}, at=2e9, seq=0),
            encode_control("radio", radio={"tx_power": 3.0}, at=5.0, seq=-1),  # seq
            encode_control("radio", radio={"a": {"b": {"c": {"d": {}}}}}, at=5.0, seq=0),

@@ -123,7 +123,7 @@ def test_a_radio_command_applies_from_its_time_or_is_counted(agent, change, take
 def test_a_radio_command_out_of_range_is_rejected_before_it_applies(agent):
     agent._on_ctl(encode_control("radio", radio={"tx_power": 5.0}, at=-1.0))
     agent._on_ctl(encode_control("radio", radio={"a": {"b": {"c": {}}}}, at=1.0))
-    assert agent.rejected == {"radio_range": 2}
+    assert agent.rejected == {"radio_command_range": 2}  # not the geometry's radio_range: told apart
     assert len(agent.node.radio.channel.epochs) == 1
 
 
