@@ -452,6 +452,21 @@ action = "radio"
 tx_power = 20.0
 
 [[event]]
+at = 4.0
+action = "radio"
+station = [0.0, -100.0]
+
+[[event]]
+at = 4.001
+action = "radio"
+tx_power = 15.0
+
+[[event]]
+at = 4.019
+action = "radio"
+tx_power = 18.0
+
+[[event]]
 at = 5.0
 action = "radio"
 tx_power = 10.0
@@ -467,8 +482,8 @@ def test_faults_and_radio_changes_at_the_edges_equal_the_in_process_run(tmp_path
     """lake_radio for 5 s with a geometry sample every tick (sample_period 0.02 s): usv2 paused
     from t = 0 (before cc957bf the world waited for its tick-0 row for ever: 'vehicles_lost'
     after 30 s, no trace), uav3 killed at 1.5 s on the tick a radio change moves the station and
-    restarted at 2.5 s (cdus sim rejoined it twice: an ulp off at the restart tick), radio changes
-    on the last tick and past the end. The trace and the radio events equal cdus sim's."""
+    restarted at 2.5 s (cdus sim rejoined it twice: an ulp off at the restart tick), two radio
+    changes at one time and two within one tick, one on the last tick and one past the end. The trace and the radio events equal cdus sim's."""
     config = tmp_path / "lake_radio_edges.toml"
     config.write_text((ROOT / "configs" / "lake_radio.toml").read_text() + EDGE_EVENTS)
     fleet = unique_fleet()
@@ -483,7 +498,8 @@ def test_faults_and_radio_changes_at_the_edges_equal_the_in_process_run(tmp_path
     kinds = (*RADIO_KINDS, "radio_changed")
     ours = [(e["t"], e["kind"], e["text"]) for e in metrics["events"] if e["kind"] in kinds]
     assert ours == [(e["t"], e["kind"], e["text"]) for e in ref.metrics["events"] if e["kind"] in kinds]
-    assert [t for t, k, _ in ours if k == "radio_changed"] == [1.5, 4.0, 5.0]  # not the one past the end
+    # two at 4.0 s, two within tick 201 (4.02 s), one on the last tick; not the one past the end
+    assert [t for t, k, _ in ours if k == "radio_changed"] == pytest.approx([1.5, 4.0, 4.0, 4.02, 4.02, 5.0])
     radio, expected = metrics["radio"], ref.metrics["radio"]
     assert (radio["utilisation"], radio["splits"]) == (expected["utilisation"], expected["splits"])
     assert not fleet_processes(fleet)
