@@ -279,3 +279,28 @@ def test_an_event_time_too_large_to_be_a_tick_is_a_config_error(event):
     s = parse_scenario(data)  # past the end: never applies, harmless
     from cdus.sim.fleet import InProcessFleet
     InProcessFleet(s).run(0.1)
+
+
+@pytest.mark.parametrize("where", ["table", "update", "event"])
+def test_a_station_below_the_water_is_refused_with_the_fix(where):
+    """station = [x, y, -50]: the base of the mast 50 m under the water, its antenna (10 m up) 40 m
+    under it; two-ray took the antenna 1 cm above the water without a word. Refused in the table,
+    a run-time change and a scheduled one, naming the field."""
+    st = [0.0, -60.0, -50.0]
+    if where == "table":
+        with pytest.raises(ConfigError) as info:
+            spec({"topology": "station", "station": st})
+        problems_ = info.value.problems
+    elif where == "update":
+        with pytest.raises(ConfigError) as info:
+            validate_radio_update({"station": st}, "gs")
+        problems_ = info.value.problems
+    else:
+        data = base()
+        data["radio"] = {"topology": "station", "station": [0.0, 0.0]}
+        data["event"] = [{"at": 1.0, "action": "radio", "station": st}]
+        text = problems(data)
+        assert "event[0].station: " in text and "z >= 0" in text, text
+        return
+    assert problems_[0][0] == "radio.station" and "z >= 0" in problems_[0][1] and "-50" in problems_[0][1]
+    assert spec({"topology": "station", "station": [0.0, -60.0, 0.0]}).station == (0.0, -60.0, 0.0)
