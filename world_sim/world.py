@@ -1088,7 +1088,9 @@ class World:
         if n < self._next_radio or n > self.last_tick:
             return
         every = self.radio[0]
-        alive = {self.index[v] for v in self.st.alive}
+        # a vehicle a fault paused or killed is not live in the sample (as in lockstep), and one
+        # paused from the start, which reports nothing, holds no sample back
+        alive = {self.index[v] for v in self.st.alive if v not in self._faulted}
         with self._lock:
             positions = {j: m.q for j, m in self.st.latest.items() if j in alive}
         if not self.st.latest or len(positions) < len(alive):
