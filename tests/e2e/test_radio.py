@@ -503,3 +503,64 @@ def test_faults_and_radio_changes_at_the_edges_equal_the_in_process_run(tmp_path
     radio, expected = metrics["radio"], ref.metrics["radio"]
     assert (radio["utilisation"], radio["splits"]) == (expected["utilisation"], expected["splits"])
     assert not fleet_processes(fleet)
+
+
+def test_realtime_under_hostile_radio_traffic_keeps_running_and_counts(tmp_path, launches):
+    """An open realtime lake_radio fleet for 8 s while a raw client publishes, every 50 ms, the
+    geometry samples every vehicle refuses, the radio changes they refuse on ctl, the radio
+    commands the world refuses, and random bytes on one vehicle's radio key: the run completes
+    with every vehicle live, no process fails, the vehicles count the radio rejects by reason
+    (the world's inbox is rate-limited at the router in realtime: it counts some)."""
+    import random
+    import threading
+
+    import zenoh
+
+    from cdus.wire import keys
+    from cdus.wire.transport import free_tcp_port
+    from tests.outsider import raw_client
+
+    fleet = unique_fleet()
+    port = free_tcp_port()
+    run = tmp_path / "run"
+    duration = 8.0
+    la = launches(["configs/lake_radio.toml", "--clock", "realtime", "--duration", str(duration),
+                   "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "--insecure", "-q"], fleet)
+    la.wait_for(f"fleet '{fleet}' up")
+    sc = load_scenario("configs/lake_radio.toml", {"scenario.duration": duration})
+    geometry, ctl, commands = _hostile_geometry(sc), _hostile_radio_ctl(sc), _hostile_radio_commands()
+    mallory = zenoh.open(raw_client(f"tcp/127.0.0.1:{port}"))
+    done = threading.Event()
+    rng = random.Random(1)
+
+    def attack():
+        while not done.is_set():
+            for payload in geometry:
+                mallory.put(keys.radio(fleet, sc.ids), payload)
+            for payload in ctl:
+                mallory.put(keys.ctl(fleet, sc.ids), payload)
+            for payload in commands:
+                mallory.put(keys.world_cmd(fleet, keys.GROUND), payload)
+            mallory.put(keys.radio(fleet, [rng.choice(sc.ids)]), rng.randbytes(rng.randint(0, 300)))
+            done.wait(0.05)
+
+    worker = threading.Thread(target=attack, daemon=True)
+    worker.start()
+    try:
+        assert la.wait(timeout=120) == 0, la.output()
+    finally:
+        done.set()
+        worker.join(timeout=10)
+        mallory.close()
+    m = json.loads((run / "metrics.json").read_text())
+    assert m["completed"] is True, m.get("completion")
+    assert sorted(m["live_final"]) == sorted(sc.ids) and not any(e["kind"] == "vehicle_lost" for e in m["events"])
+    vehicles = m["rejected_by_reason"]["vehicles"]
+    for reason in ("radio_malformed", "radio_version", "radio_non_finite", "radio_count", "radio_dimension",
+                   "radio_oversized", "radio_range", "radio_command_range", "bad_radio_command"):
+        assert vehicles.get(reason, 0) >= len(sc.ids), (reason, vehicles)
+    assert sum(m["rejected_by_reason"]["world"].values()) > 0
+    assert m["radio"]["sent"] > 0 and m["radio"]["utilisation"]["samples"] == int(duration / 0.2) + 1
+    for log in (run / "logs").glob("*.log"):
+        assert "Traceback" not in log.read_text(), log
+    assert not fleet_processes(fleet)
