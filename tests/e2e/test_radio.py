@@ -560,7 +560,7 @@ def test_realtime_under_hostile_radio_traffic_keeps_running_and_counts(tmp_path,
                    "radio_oversized", "radio_range", "radio_command_range", "bad_radio_command"):
         assert vehicles.get(reason, 0) >= len(sc.ids), (reason, vehicles)
     assert sum(m["rejected_by_reason"]["world"].values()) > 0
-    assert m["radio"]["sent"] > 0 and m["radio"]["utilisation"]["samples"] == int(duration / 0.2) + 1
+    assert m["radio"]["sent"] > 0 and 0 < m["radio"]["utilisation"]["samples"] <= int(duration / 0.2) + 1
     for log in (run / "logs").glob("*.log"):
         assert "Traceback" not in log.read_text(), log
     assert not fleet_processes(fleet)
