@@ -396,7 +396,8 @@ def radio_event_section(p: Problems, raw: Any, has_radio: bool, adhoc: bool = Fa
         if "at" not in e:
             p.missing(f"{field}.at", 'a radio event needs at, and tx_power and/or station, e.g. at = 60.0, '
                                      'action = "radio", tx_power = 5.0')
-        at = p.number(e["at"], f"{field}.at", ge=0, le=MAX_EVENT_AT, unit=" (s of simulated time)") if "at" in e else None
+        at = (p.number(e["at"], f"{field}.at", ge=0, le=MAX_EVENT_AT, unit=" (s of simulated time)")
+              if "at" in e else None)
         try:
             tx, station = validate_radio_update({k: v for k, v in e.items() if k in ("tx_power", "station")},
                                                 f"{field}")

@@ -483,7 +483,8 @@ def test_faults_and_radio_changes_at_the_edges_equal_the_in_process_run(tmp_path
     from t = 0 (before cc957bf the world waited for its tick-0 row for ever: 'vehicles_lost'
     after 30 s, no trace), uav3 killed at 1.5 s on the tick a radio change moves the station and
     restarted at 2.5 s (cdus sim rejoined it twice: an ulp off at the restart tick), two radio
-    changes at one time and two within one tick, one on the last tick and one past the end. The trace and the radio events equal cdus sim's."""
+    changes at one time and two within one tick, one on the last tick and one past the end. The
+    trace and the radio events equal cdus sim's."""
     config = tmp_path / "lake_radio_edges.toml"
     config.write_text((ROOT / "configs" / "lake_radio.toml").read_text() + EDGE_EVENTS)
     fleet = unique_fleet()
