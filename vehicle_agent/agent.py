@@ -409,10 +409,12 @@ class Agent:
             now = time.time()
             if not now - T0_PAST - last * self.period <= f["t0"] <= now + T0_AHEAD:
                 return "t0_range"
+        # a radio command's own reason: radio_range is the geometry's (a coordinate or a tick out of range)
+        name = "radio_command" if op == "radio" else op
         if op in ("link", "radio") and not 0.0 <= f["at"] <= MAX_LINK_AT:
-            return f"{op}_range"
+            return f"{name}_range"
         if op in ("link", "gains", "radio") and nesting_problem(f[op], MAX_COMMAND_NESTING):
-            return f"{op}_range"
+            return f"{name}_range"
         if op in ("formation", "path"):
             return self._change_problem(op, f)
         return None
@@ -432,7 +434,7 @@ class Agent:
         c = decode_control(payload, CTL_OPS)
         if isinstance(c, str):
             return self._reject("world", c)
-        op, f, clock = c.op, c.fields, self.clock
+        op, f = c.op, c.fields
         problem = self._ctl_problem(op, f)
         if problem is not None:
             return self._reject("world", problem)
@@ -441,7 +443,17 @@ class Agent:
             if seq in self._commands_seen:
                 self.commands_heard_again += 1
                 return None
-            self._commands_seen.add(seq)
+            # only a command applied uses its number: a refused one (counted) would else lock the
+            # world's own command with that number out (an open fleet: anyone may publish first)
+            refused = sum(self.rejected.values())
+            self._apply_ctl(op, f)
+            if sum(self.rejected.values()) == refused:
+                self._commands_seen.add(seq)
+            return None
+        self._apply_ctl(op, f)
+
+    def _apply_ctl(self, op: str, f: dict) -> None:
+        clock = self.clock
         if op == "grant":
             clock.granted = max(clock.granted, f["until"])
         elif op == "join":

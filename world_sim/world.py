@@ -43,7 +43,9 @@ from cdus.scenario.config import ConfigError, nesting_problem
 from cdus.scenario.link import merge_link_tables, validate_link
 from cdus.scenario.model import Scenario
 from cdus.scenario.events import check_offsets, check_path, check_phases, offsets_to_phases
-from cdus.sim.build import formation_schedule, metric_edges, radio_channel_for, radio_schedule, sensor_schedule
+from cdus.sim.build import (
+    build_vehicle, formation_schedule, metric_edges, radio_channel_for, radio_schedule, sensor_schedule,
+)
 from cdus.sim.lockstep import CatchUp, Decided, Fault, Grant, Join, Lockstep, RadioSample, Roster, Sense, horizon_window
 from cdus.sim.reports import (
     ConsoleQuota, formation_changed, graph_event, link_state_event, path_changed, scheduled_change_events,
@@ -236,6 +238,7 @@ class World:
         self._faulted: dict[str, str] = {}  # "killed" | "paused", by the faults carried out (both clocks)
         self.log = log or (lambda s: print(f"[world] {s}", flush=True))
         self.next_tick = 0  # next tick to record
+        self._initial: dict[int, StateMsg] = {}  # vehicle -> its state before its first tick (made when needed)
         self.events: list[FleetEvent] = []
         self.started = False
         self.cpu_s = 0.0  # CPU time of the process over the run
@@ -1102,7 +1105,9 @@ class World:
         if n < self._next_radio or n > self.last_tick:
             return
         every = self.radio[0]
-        alive = {self.index[v] for v in self.st.alive}
+        # a vehicle a fault paused or killed is not live in the sample (as in lockstep), and one
+        # paused from the start, which reports nothing, holds no sample back
+        alive = {self.index[v] for v in self.st.alive if v not in self._faulted}
         with self._lock:
             positions = {j: m.q for j, m in self.st.latest.items() if j in alive}
         if not self.st.latest or len(positions) < len(alive):
@@ -1244,6 +1249,9 @@ class World:
                 latest, last = st.latest.get(j), self._recorded.get(j)
                 m = max((x for x in (latest, last) if x is not None and x.tick <= n), key=lambda x: x.tick,
                         default=last)
+            if m is None and (self.lockstep.state_at(j, n) != "live" if self.clock == "lockstep" else
+                              self.ids[j] in self._faulted or latest is not None):  # (its rows come in order)
+                m = self._initial_row(j)  # paused or killed from tick 0: where it starts, as cdus sim has it
             if m is None:
                 return False  # a vehicle never reported: nothing to record yet
             states.append(m)
@@ -1257,6 +1265,16 @@ class World:
         if n % UPDATE_EVERY == 0:
             self.sink.update(self.recorder)
         return True
+
+    def _initial_row(self, j: int) -> StateMsg:
+        """Vehicle j's state before its first tick (a scheduled pause or kill at t = 0 keeps it
+        from ever reporting one until it is back; the world recorded nothing and waited for ever)."""
+        if j not in self._initial:
+            tel = build_vehicle(self.scenario.vehicles[j], self.scenario.rates, self.scenario.seed,
+                                self.scenario.safety).telemetry()
+            self._initial[j] = StateMsg(j, 0, tel.t, tuple(tel.q), tel.heading, tel.speed, tel.omega, tel.omega_rate,
+                                        tel.path_error)
+        return self._initial[j]
 
     def _live_at(self, n: int) -> list[bool]:
         """Which vehicles step tick n: the lockstep roster's word, or (realtime) whose liveliness

@@ -271,7 +271,7 @@ class Launcher:
         self.logs = self.run_dir / "logs"
         self.logs.mkdir(parents=True, exist_ok=True)
         self.config_path = self.run_dir / "scenario.json"
-        write_json(self.config_path, self.scenario.raw)
+        write_json(self.config_path, self.scenario.raw, allow_inf=True)  # e.g. radio.shadowing_time = inf
         self.metrics_out = Path(self.opts.metrics_out or self.run_dir / "metrics.json")
         self.cond = threading.Condition()
         self.alive: set[str] = set()

@@ -206,7 +206,7 @@ def _run_lockstep(scenario: Scenario) -> dict:
     """A `cdus launch --clock lockstep` fleet of the resolved scenario (its data as JSON)."""
     with tempfile.TemporaryDirectory(prefix="cdus-sweep-") as tmp:
         config = Path(tmp) / "scenario.json"
-        write_json(config, scenario.raw)
+        write_json(config, scenario.raw, allow_inf=True)
         logs = Path(tmp) / "run"
         args = [sys.executable, "-m", "cdus.app.cli", "launch", str(config), "--clock", "lockstep", "-q",
                 "--rerun", "off", "--fleet", "sweep" + uuid.uuid4().hex[:8], "--logs", str(logs)]

@@ -549,6 +549,8 @@ class RadioChannel:
     def update(self, at: float, tx_power_dbm: float | None = None, station: Sequence[float] | None = None) -> None:
         """From t_send >= ``at`` on, the transmit power and/or the station position change (the
         others stay). Updates come in time order; the same ``at`` again replaces that epoch."""
+        if not math.isfinite(at):  # nan would sit in the bisected starts; inf would refuse every later one
+            raise ValueError(f"radio update time must be a finite number of s, got {at!r}")
         if at < self._starts[-1]:
             raise ValueError(f"radio update at t = {at:g} s is before the previous one at t = {self._starts[-1]:g} s; "
                              f"updates must come in time order")
@@ -689,7 +691,8 @@ class RadioChannel:
             else:
                 curve = per_curve(snr + 10.0 * _LOG10_GRID(), self.bytes, s.modulation, s.bandwidth,
                                   s.capacity)
-                success = fading_mean(1.0 - curve, s.fading, s.rician_k, s.nakagami_m)
+                # the weights sum to 1 within rounding: 1 + 2e-16 when every gain gets through
+                success = min(1.0, max(0.0, fading_mean(1.0 - curve, s.fading, s.rician_k, s.nakagami_m)))
             m = self.medium(geo)
             own = self.rate * (m.live if a == len(self.ids) else 1)  # the station relays everyone's
             leg = _Leg(snr, per, success, self._collision(m, own))

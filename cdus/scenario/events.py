@@ -45,6 +45,9 @@ from cdus.scenario.errors import ConfigError
 from cdus.scenario.radio import validate_radio_update
 
 EVENT_KEYS = ("at", "action", "vehicle", "duration", "phases", "offsets", "path")
+#: s, the latest event time: past it a time is no tick (1e308 s × the control rate overflows), and
+#: it is the latest time a run-time change takes (cdus.wire.messages.MAX_LINK_AT)
+MAX_EVENT_AT = 1e9
 REQUIRED = ("at", "action", "vehicle")
 #: the actions that change the formation or a path (the others are vehicle faults)
 CHANGE_ACTIONS = ("formation", "path")
@@ -121,7 +124,7 @@ def _event(p: Problems, e: dict, field: str, ids: Sequence[str] | None) -> list[
                                     'vehicle = "usv2"')
     if missing:
         return []
-    at = p.number(e["at"], f"{field}.at", ge=0, unit=" (s of simulated time)")
+    at = p.number(e["at"], f"{field}.at", ge=0, le=MAX_EVENT_AT, unit=" (s of simulated time)")
     action = p.choice(e["action"], f"{field}.action", ALL_ACTIONS, "action")
     vehicle = p.vehicle(e["vehicle"], f"{field}.vehicle", ids)
     duration = None
@@ -129,7 +132,8 @@ def _event(p: Problems, e: dict, field: str, ids: Sequence[str] | None) -> list[
         if action is not None and action != "pause":
             p.add(f"{field}.duration", f"only a pause takes a duration (this event is a {quote(action)}); remove it")
         else:
-            duration = p.number(e["duration"], f"{field}.duration", gt=0, unit=" s (then the vehicle resumes)")
+            duration = p.number(e["duration"], f"{field}.duration", gt=0, le=MAX_EVENT_AT,
+                                unit=" s (then the vehicle resumes)")
     if p.since(mark) or at is None or action is None or vehicle is None:
         return []
     events = [Event(at, action, vehicle)]
@@ -161,7 +165,7 @@ def change_section(p: Problems, raw: Any, ids: Sequence[str] | None, dims: Mappi
         if "at" not in e:
             p.missing(f"{field}.at", f'a {e["action"]} event needs at (s of simulated time), e.g. at = 60.0')
             continue
-        at = p.number(e["at"], f"{field}.at", ge=0, unit=" (s of simulated time)")
+        at = p.number(e["at"], f"{field}.at", ge=0, le=MAX_EVENT_AT, unit=" (s of simulated time)")
         if "duration" in e:
             p.add(f"{field}.duration", f"only a pause takes a duration (this event is a {quote(e['action'])}); remove it")
         if at is not None:
@@ -392,7 +396,8 @@ def radio_event_section(p: Problems, raw: Any, has_radio: bool, adhoc: bool = Fa
         if "at" not in e:
             p.missing(f"{field}.at", 'a radio event needs at, and tx_power and/or station, e.g. at = 60.0, '
                                      'action = "radio", tx_power = 5.0')
-        at = p.number(e["at"], f"{field}.at", ge=0, unit=" (s of simulated time)") if "at" in e else None
+        at = (p.number(e["at"], f"{field}.at", ge=0, le=MAX_EVENT_AT, unit=" (s of simulated time)")
+              if "at" in e else None)
         try:
             tx, station = validate_radio_update({k: v for k, v in e.items() if k in ("tx_power", "station")},
                                                 f"{field}")

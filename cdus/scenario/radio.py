@@ -136,9 +136,9 @@ def _number(p: Problems, v: Any, key: str) -> float | None:
 
 def _station(p: Problems, v: Any, field: str) -> tuple[float, float, float] | None:
     ok = isinstance(v, list) and len(v) in (2, 3) and all(is_number(x) and math.isfinite(x) for x in v)
-    if not ok or any(abs(x) > MAX_COORDINATE for x in v):
+    if not ok or any(abs(x) > MAX_COORDINATE for x in v) or (len(v) == 3 and v[2] < 0):
         p.add(field, f"must be the station's position [x, y] or [x, y, z] in m (finite, within ±{MAX_COORDINATE:g}; "
-                     f"z: the base of its mast above the water, default 0), got {describe(v)}")
+                     f"z >= 0: the base of its mast above the water, default 0), got {describe(v)}")
         return None
     return (float(v[0]), float(v[1]), float(v[2]) if len(v) == 3 else 0.0)
 

@@ -475,3 +475,29 @@ def test_without_fading_a_reception_loss_is_always_range():
     geo = Geometry.of(0, [(0.0, 0.0), (530.0, 0.0)])
     causes = [ch.decide(0, 1, s, 0.0, geo).cause for s in range(3000)]
     assert "range" in causes and None in causes and "fading" not in causes
+
+
+@pytest.mark.parametrize("fading, k, m", [("nakagami", 10.0, 0.5), ("nakagami", 10.0, 1.0), ("rician", 0.0, 1.0),
+                                          ("rician", 100.0, 1.0), ("nakagami", 10.0, 100.0)])
+def test_a_faded_delivery_probability_never_exceeds_one(fading, k, m):
+    """With fading the probability is a quadrature over the gains, whose weights sum to 1 within
+    rounding: with Nakagami m = 0.5, a link far above the noise (noise_floor -250 dBm) and no
+    collisions to speak of (slot 1e-300 s) it was 1.0000000000000002 (the [radio] Hypothesis
+    test's 0 <= p <= 1 could fail on it)."""
+    ch = chan(fading=fading, rician_k=k, nakagami_m=m, noise_floor=-250.0, shadowing_sigma=0.0, slot=1e-300)
+    geo = Geometry.of(0, [(0.0, 0.0), (10.0, 0.0)])
+    p = ch.delivery_probability(0, 1, geo)
+    assert 0.0 <= p <= 1.0 and ch.decide(0, 1, 0, 0.0, geo).p == p
+
+
+@pytest.mark.parametrize("at", [math.nan, math.inf, -math.inf])
+def test_an_update_at_a_time_that_is_not_finite_is_refused_and_changes_nothing(at):
+    """A NaN ``at`` was kept as an epoch start (bisect over a list holding NaN, and every later
+    update taken after it whatever its time); +inf refused every later update (InProcessFleet.
+    set_radio took both: the world and the agents refuse them before, as non_finite)."""
+    ch = chan()
+    with pytest.raises(ValueError, match="finite"):
+        ch.update(at, tx_power_dbm=5.0)
+    assert ch.epochs == ((-math.inf, 20.0, (0.0, 0.0, 0.0)),)
+    ch.update(1.0, tx_power_dbm=6.0)
+    assert ch.epochs[-1] == (1.0, 6.0, (0.0, 0.0, 0.0))

@@ -273,3 +273,301 @@ def test_ground_station_radio_commands_out_of_range_or_without_radio_are_refused
     assert "bad_radio_command" not in m["rejected_by_reason"]["vehicles"]
     assert [e["kind"] for e in m["events"]].count("rejected") == (1 if "range_out" in config else 2)
     assert not fleet_processes(fleet)
+
+
+def _hostile_geometry(sc) -> list[bytes]:
+    """Geometry samples every vehicle's decoder refuses (decode_geometry): none can stand for a tick."""
+    import msgpack
+
+    n = len(sc.ids)
+    drone = [1.0, 2.0, 30.0]
+    last = round(sc.duration * sc.rates.control)
+    return [b"\xc1", b"", msgpack.packb([2, 0, [drone] * n]), msgpack.packb([1, 0, [[1.0, float("nan"), 3.0]] * n]),
+            msgpack.packb([1, 0, [[1.0, 1e300, 3.0]] * n]), msgpack.packb([1, 0, [drone] * (n + 1)]),
+            msgpack.packb([1, 0, [[1.0, 2.0]] * n]), msgpack.packb([1, 0, [drone] * 5000]),
+            msgpack.packb([1, -4, [drone] * n]), msgpack.packb([1, 1, [drone] * n]),  # not a sample tick
+            msgpack.packb([1, last + 4, [drone] * n]), msgpack.packb([1, 0, [[1, 2, 3]] * n]),
+            msgpack.packb([1, 0, [{"x": 1.0}] * n]), msgpack.packb([[[[[[[]]]]]]] * 3)]
+
+
+def _hostile_radio_ctl(sc) -> list[bytes]:
+    """World-to-vehicle radio changes every vehicle refuses, numbered as the world numbers its
+    commands (0, 1, ...): refused, none may use up the number of the world's own command."""
+    import msgpack
+
+    from cdus.wire.messages import encode_control
+
+    out = [encode_control("radio", radio={"tx_power": 1e9}, at=5.0, seq=0),
+           encode_control("radio", radio={"station": [0.0]}, at=5.0, seq=0),
+           encode_control("radio", radio={"power": 3.0}, at=5.0, seq=1),
+           encode_control("radio", radio={}, at=5.0, seq=2),
+           encode_control("radio", radio={"tx_power": 3.0}, at=-1.0, seq=0),  # radio_command_range
+           encode_control("radio", radio={"tx_power": 3.0}, at=2e9, seq=0),
+           encode_control("radio", radio={"tx_power": 3.0}, at=5.0, seq=-1),  # seq
+           encode_control("radio", radio={"a": {"b": {"c": {"d": {}}}}}, at=5.0, seq=0),
+           msgpack.packb({"v": 1, "op": "radio", "radio": {"tx_power": 3.0}, "at": float("nan"), "seq": 0}),
+           msgpack.packb({"v": 1, "op": "radio", "radio": [1, 2], "at": 5.0, "seq": 0})]
+    return out
+
+
+def _hostile_radio_commands() -> list[bytes]:
+    """Radio commands to the world that it refuses (each counted, answered on a query)."""
+    import msgpack
+
+    from cdus.wire.messages import encode_control
+
+    return [b"\xc1", msgpack.packb({"v": 1, "op": "radio", "radio": {"tx_power": float("nan")}, "at": -1.0}),
+            encode_control("radio", radio={"tx_power": 1e9}, at=-1.0),
+            encode_control("radio", radio={"station": [1e300, 0.0]}, at=-1.0),
+            encode_control("radio", radio={"station": [1.0, 2.0, 3.0, 4.0]}, at=-1.0),
+            encode_control("radio", radio={"tx_power": True}, at=-1.0),
+            encode_control("radio", radio={"tx_power": 3.0}, at=1e12),  # past the run's end
+            encode_control("radio", radio={"txpower": 3.0}, at=-1.0),
+            encode_control("radio", radio={"tx_power": 3.0, "junk": [[[[[]]]]]}, at=-1.0),
+            msgpack.packb({"v": 1, "op": "radio", "radio": {"tx_power": 3.0}, "at": "soon"}),
+            msgpack.packb({"v": 1, "op": "radio", "radio": {"tx_power": 3.0}, "at": [0.0] * 5000})]
+
+
+@pytest.mark.parametrize("secured", [True, False], ids=["secured", "insecure"])
+def test_hostile_radio_messages_are_counted_and_change_nothing_but_the_worlds_change(tmp_path, launches, secured):
+    """range_out, lockstep, 10 s, held by a pause while someone publishes radio geometry every
+    vehicle refuses, radio changes on the vehicles' ctl key that they refuse (numbered as the
+    world numbers its commands), and radio commands to the world that it refuses; then the
+    ground station changes tx_power from t = 5 s (the world's command number 0). Secured: the
+    forger holds uav1's credential (the router refuses its puts on the world's keys); open
+    (--insecure): a raw client, whose messages reach the vehicles, are counted by reason and
+    dropped. Either way the run equals the in-process run given the same change (to the bit),
+    and the world's change was applied by every vehicle (before d2ecdd7 a refused forgery
+    numbered 0 made every vehicle drop it as heard again)."""
+    from cdus.wire import keys
+    from cdus.wire.messages import encode_control
+    from cdus.wire.transport import free_tcp_port
+    from tests.outsider import raw_client
+
+    from .test_access import Events, member
+
+    fleet = unique_fleet()
+    port = free_tcp_port()
+    run = tmp_path / "run"
+    duration = 10.0
+    la = launches(["configs/range_out.toml", "--clock", "lockstep", "--duration", str(duration),
+                   "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "--trace-out", str(tmp_path / "trace.npz"),
+                   "-q", *(() if secured else ("--insecure",))], fleet)
+    la.wait_for(f"fleet '{fleet}' up")
+    sc = load_scenario("configs/range_out.toml", {"scenario.duration": duration})
+    if secured:
+        boss, mallory = member(run / "secure" / "ground.json5"), member(run / "secure" / "vehicle-uav1.json5")
+    else:
+        import zenoh
+        boss = mallory = zenoh.open(raw_client(f"tcp/127.0.0.1:{port}"))
+    geometry, ctl, commands = _hostile_geometry(sc), _hostile_radio_ctl(sc), _hostile_radio_commands()
+    try:
+        events = Events(boss, fleet)
+        boss.put(keys.world_cmd(fleet, keys.GROUND), encode_control("pause"))
+        events.wait_for("fleet", "paused")
+        for payload in geometry:
+            mallory.put(keys.radio(fleet, sc.ids), payload)
+        for payload in ctl:
+            mallory.put(keys.ctl(fleet, sc.ids), payload)
+        for payload in commands:  # the vehicle's credential may not command the world: refused by the router
+            mallory.put(keys.world_cmd(fleet, keys.GROUND), payload)
+            boss.put(keys.world_cmd(fleet, keys.GROUND), payload)
+        boss.put(keys.world_cmd(fleet, keys.GROUND), encode_control("radio", radio={"tx_power": -10.0}, at=5.0))
+        events.wait_for("radio_changed", "t = 5.00 s")
+        assert la.proc.poll() is None, "the run ended before the forger was done: the test proves nothing"
+        boss.put(keys.world_cmd(fleet, keys.GROUND), encode_control("resume"))
+        assert la.wait() == 0, la.output()
+    finally:
+        boss.close()
+        if mallory is not boss:
+            mallory.close()
+    m = json.loads((run / "metrics.json").read_text())
+    assert m["completed"] is True
+    ref_fleet = InProcessFleet(sc)
+    ref_fleet.set_radio({"tx_power": -10.0}, 5.0)
+    ref = ref_fleet.run()
+    assert_same_trace(tmp_path / "trace.npz", ref)
+    assert m["radio"] == ref.metrics["radio"] and m["radio"]["dropped_by"]["range"] > 0
+    world, vehicles = m["rejected_by_reason"]["world"], m["rejected_by_reason"]["vehicles"]
+    times = 1 if secured else 2  # the world's refusals: the ground station's (and the raw client's)
+    assert sum(world.values()) == times * len(commands), world
+    if secured:
+        assert vehicles == {}, vehicles
+    else:  # every vehicle counted each forgery once
+        assert sum(vehicles.values()) == (len(geometry) + len(ctl)) * len(sc.ids), vehicles
+    assert not fleet_processes(fleet)
+
+
+def test_infinite_correlation_scales_start_a_fleet_that_equals_the_in_process_run(tmp_path, launches):
+    """radio.shadowing_distance = inf and shadowing_time = inf are valid (not correlated in space;
+    not changing with time), and so is a link down window with to = inf: `cdus launch` crashed on
+    them writing the scenario for its processes (a traceback, 'Out of range float values are not
+    JSON compliant'). range_out for 4 s with all three: lockstep equals cdus sim to the bit."""
+    sets = {"radio.shadowing_distance": "inf", "radio.shadowing_time": "inf",
+            "link.down": '[{src = "uav1", dst = "uav2", from = 2.0, to = inf}]'}
+    fleet = unique_fleet()
+    run = tmp_path / "run"
+    args = ["configs/range_out.toml", "--clock", "lockstep", "--duration", "4", "--logs", str(run),
+            "--trace-out", str(tmp_path / "trace.npz"), "-q"]
+    for k, v in sets.items():
+        args += ["--set", f"{k}={v}"]
+    la = launches(args, fleet)
+    assert la.wait() == 0, la.output()
+    from cdus.scenario.config import parse_value
+    sc = load_scenario("configs/range_out.toml", {"scenario.duration": 4.0, **{k: parse_value(v) for k, v in
+                                                                               sets.items()}})
+    assert sc.radio.shadowing_distance == sc.radio.shadowing_time == float("inf")
+    ref = InProcessFleet(sc).run()
+    assert_same_trace(tmp_path / "trace.npz", ref)
+    metrics = json.loads((run / "metrics.json").read_text())
+    assert metrics["radio"] == ref.metrics["radio"] and metrics["radio"]["dropped_by"]["fault"] > 0  # the down link
+    assert metrics["link"]["faults"] == ref.metrics["link"]["faults"]
+    assert not fleet_processes(fleet)
+
+
+EDGE_EVENTS = """
+[[event]]
+at = 0.0
+action = "pause"
+vehicle = "usv2"
+
+[[event]]
+at = 1.0
+action = "resume"
+vehicle = "usv2"
+
+[[event]]
+at = 1.5
+action = "kill"
+vehicle = "uav3"
+
+[[event]]
+at = 1.5
+action = "radio"
+tx_power = 0.0
+station = [0.0, -300.0]
+
+[[event]]
+at = 2.5
+action = "restart"
+vehicle = "uav3"
+
+[[event]]
+at = 4.0
+action = "radio"
+tx_power = 20.0
+
+[[event]]
+at = 4.0
+action = "radio"
+station = [0.0, -100.0]
+
+[[event]]
+at = 4.001
+action = "radio"
+tx_power = 15.0
+
+[[event]]
+at = 4.019
+action = "radio"
+tx_power = 18.0
+
+[[event]]
+at = 5.0
+action = "radio"
+tx_power = 10.0
+
+[[event]]
+at = 9.0
+action = "radio"
+tx_power = -50.0
+"""
+
+
+def test_faults_and_radio_changes_at_the_edges_equal_the_in_process_run(tmp_path, launches):
+    """lake_radio for 5 s with a geometry sample every tick (sample_period 0.02 s): usv2 paused
+    from t = 0 (before cc957bf the world waited for its tick-0 row for ever: 'vehicles_lost'
+    after 30 s, no trace), uav3 killed at 1.5 s on the tick a radio change moves the station and
+    restarted at 2.5 s (cdus sim rejoined it twice: an ulp off at the restart tick), two radio
+    changes at one time and two within one tick, one on the last tick and one past the end. The
+    trace and the radio events equal cdus sim's."""
+    config = tmp_path / "lake_radio_edges.toml"
+    config.write_text((ROOT / "configs" / "lake_radio.toml").read_text() + EDGE_EVENTS)
+    fleet = unique_fleet()
+    run = tmp_path / "run"
+    la = launches([str(config), "--clock", "lockstep", "--duration", "5", "--set", "radio.sample_period=0.02",
+                   "--logs", str(run), "--trace-out", str(tmp_path / "trace.npz"), "-q"], fleet)
+    assert la.wait(timeout=120) == 0, la.output()
+    ref = InProcessFleet(load_scenario(config, {"scenario.duration": 5.0, "radio.sample_period": 0.02})).run()
+    assert_same_trace(tmp_path / "trace.npz", ref)
+    metrics = json.loads((run / "metrics.json").read_text())
+    assert metrics["completed"] is True
+    kinds = (*RADIO_KINDS, "radio_changed")
+    ours = [(e["t"], e["kind"], e["text"]) for e in metrics["events"] if e["kind"] in kinds]
+    assert ours == [(e["t"], e["kind"], e["text"]) for e in ref.metrics["events"] if e["kind"] in kinds]
+    # two at 4.0 s, two within tick 201 (4.02 s), one on the last tick; not the one past the end
+    assert [t for t, k, _ in ours if k == "radio_changed"] == pytest.approx([1.5, 4.0, 4.0, 4.02, 4.02, 5.0])
+    radio, expected = metrics["radio"], ref.metrics["radio"]
+    assert (radio["utilisation"], radio["splits"]) == (expected["utilisation"], expected["splits"])
+    assert not fleet_processes(fleet)
+
+
+def test_realtime_under_hostile_radio_traffic_keeps_running_and_counts(tmp_path, launches):
+    """An open realtime lake_radio fleet for 8 s while a raw client publishes, every 50 ms, the
+    geometry samples every vehicle refuses, the radio changes they refuse on ctl, the radio
+    commands the world refuses, and random bytes on one vehicle's radio key: the run completes
+    with every vehicle live, no process fails, the vehicles count the radio rejects by reason
+    (the world's inbox is rate-limited at the router in realtime: it counts some)."""
+    import random
+    import threading
+
+    import zenoh
+
+    from cdus.wire import keys
+    from cdus.wire.transport import free_tcp_port
+    from tests.outsider import raw_client
+
+    fleet = unique_fleet()
+    port = free_tcp_port()
+    run = tmp_path / "run"
+    duration = 8.0
+    la = launches(["configs/lake_radio.toml", "--clock", "realtime", "--duration", str(duration),
+                   "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "--insecure", "-q"], fleet)
+    la.wait_for(f"fleet '{fleet}' up")
+    sc = load_scenario("configs/lake_radio.toml", {"scenario.duration": duration})
+    geometry, ctl, commands = _hostile_geometry(sc), _hostile_radio_ctl(sc), _hostile_radio_commands()
+    mallory = zenoh.open(raw_client(f"tcp/127.0.0.1:{port}"))
+    done = threading.Event()
+    rng = random.Random(1)
+
+    def attack():
+        while not done.is_set():
+            for payload in geometry:
+                mallory.put(keys.radio(fleet, sc.ids), payload)
+            for payload in ctl:
+                mallory.put(keys.ctl(fleet, sc.ids), payload)
+            for payload in commands:
+                mallory.put(keys.world_cmd(fleet, keys.GROUND), payload)
+            mallory.put(keys.radio(fleet, [rng.choice(sc.ids)]), rng.randbytes(rng.randint(0, 300)))
+            done.wait(0.05)
+
+    worker = threading.Thread(target=attack, daemon=True)
+    worker.start()
+    try:
+        assert la.wait(timeout=120) == 0, la.output()
+    finally:
+        done.set()
+        worker.join(timeout=10)
+        mallory.close()
+    m = json.loads((run / "metrics.json").read_text())
+    assert m["completed"] is True, m.get("completion")
+    assert sorted(m["live_final"]) == sorted(sc.ids) and not any(e["kind"] == "vehicle_lost" for e in m["events"])
+    vehicles = m["rejected_by_reason"]["vehicles"]
+    for reason in ("radio_malformed", "radio_version", "radio_non_finite", "radio_count", "radio_dimension",
+                   "radio_oversized", "radio_range", "radio_command_range", "bad_radio_command"):
+        assert vehicles.get(reason, 0) >= len(sc.ids), (reason, vehicles)
+    assert sum(m["rejected_by_reason"]["world"].values()) > 0
+    assert m["radio"]["sent"] > 0 and 0 < m["radio"]["utilisation"]["samples"] <= int(duration / 0.2) + 1
+    for log in (run / "logs").glob("*.log"):
+        assert "Traceback" not in log.read_text(), log
+    assert not fleet_processes(fleet)

@@ -44,9 +44,9 @@ def test_no_events():
 
 @pytest.mark.parametrize("raw, field, text", [
     ({"at": -1, "action": "kill", "vehicle": "usv1"}, "event[0].at",
-     "must be a number >= 0 (s of simulated time), got -1"),
+     "must be a number >= 0 and <= 1e+09 (s of simulated time), got -1"),
     ({"at": "soon", "action": "kill", "vehicle": "usv1"}, "event[0].at",
-     'must be a number >= 0 (s of simulated time), got the string "soon"'),
+     'must be a number >= 0 and <= 1e+09 (s of simulated time), got the string "soon"'),
     ({"at": 1, "action": "explode", "vehicle": "usv1"}, "event[0].action",
      'unknown action "explode"; choose one of kill, pause, resume, restart, formation, path'),
     ({"at": 1, "action": "kil", "vehicle": "usv1"}, "event[0].action",
@@ -56,7 +56,7 @@ def test_no_events():
     ({"at": 1, "action": "kill", "vehicle": "usv1", "duration": 3}, "event[0].duration",
      'only a pause takes a duration (this event is a "kill"); remove it'),
     ({"at": 1, "action": "pause", "vehicle": "usv1", "duration": 0}, "event[0].duration",
-     "must be a number > 0 s (then the vehicle resumes), got 0"),
+     "must be a number > 0 and <= 1e+09 s (then the vehicle resumes), got 0"),
     ({"at": 1, "action": "kill", "vehicle": "usv1", "when": 3}, "event[0].when",
      "unknown key; valid keys here: at, action, vehicle, duration, phases, offsets, path"),
     ({"action": "kill", "vehicle": "usv1"}, "event[0].at",

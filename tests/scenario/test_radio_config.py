@@ -244,3 +244,63 @@ def test_the_documented_examples_and_keys():
             assert parse_scenario(data).radio.topology == "station"
     table = (docs / "config.md").read_text().split("### `[radio]`")[1].split("###")[0]
     assert {k for k in re.findall(r"^\| `(\w+)` \|", table, re.M)} == set(RADIO_KEYS)
+
+
+def test_infinite_scales_survive_the_json_a_fleet_of_processes_is_given(tmp_path):
+    """`cdus launch` hands the resolved scenario (Scenario.raw) to the world and the agents as
+    JSON: with radio.shadowing_distance = inf (valid) it raised 'Out of range float values are not
+    JSON compliant' (a traceback, nothing started). Written as the launcher writes it, it loads back
+    the same scenario."""
+    from cdus.files import write_json
+    from cdus.scenario.config import load_scenario
+
+    s = load_scenario("configs/range_out.toml", {"radio.shadowing_distance": math.inf,
+                                                  "radio.shadowing_time": math.inf})
+    path = tmp_path / "scenario.json"
+    write_json(path, s.raw, allow_inf=True)
+    back = load_scenario(str(path))
+    assert back.radio == s.radio and math.isinf(back.radio.shadowing_distance)
+
+
+@pytest.mark.parametrize("event", [{"action": "radio", "tx_power": 5.0}, {"action": "kill", "vehicle": "usv1"},
+                                   {"action": "formation", "phases": {"usv1": 1.0}},
+                                   {"action": "pause", "vehicle": "usv1", "at": 1.0, "duration": 1e308}])
+def test_an_event_time_too_large_to_be_a_tick_is_a_config_error(event):
+    """at = 1e308 is a finite number >= 0, so it passed, and every runner crashed building its
+    schedule (OverflowError: 1e308 × the control rate is inf, no tick): `cdus sim` printed a
+    traceback. Events are at most 1e9 s (the latest time a run-time change takes)."""
+    data = base()
+    data["radio"] = {}
+    data["event"] = [{"at": 1e308, **event}]
+    text = problems(data)
+    field = "duration" if "duration" in event else "at"
+    assert f"event[0].{field}: must be a number " in text and "<= 1e+09" in text, text
+    data["event"] = [{"at": 1e9, **event, **({"duration": 1e9} if "duration" in event else {})}]
+    s = parse_scenario(data)  # past the end: never applies, harmless
+    from cdus.sim.fleet import InProcessFleet
+    InProcessFleet(s).run(0.1)
+
+
+@pytest.mark.parametrize("where", ["table", "update", "event"])
+def test_a_station_below_the_water_is_refused_with_the_fix(where):
+    """station = [x, y, -50]: the base of the mast 50 m under the water, its antenna (10 m up) 40 m
+    under it; two-ray took the antenna 1 cm above the water without a word. Refused in the table,
+    a run-time change and a scheduled one, naming the field."""
+    st = [0.0, -60.0, -50.0]
+    if where == "table":
+        with pytest.raises(ConfigError) as info:
+            spec({"topology": "station", "station": st})
+        problems_ = info.value.problems
+    elif where == "update":
+        with pytest.raises(ConfigError) as info:
+            validate_radio_update({"station": st}, "gs")
+        problems_ = info.value.problems
+    else:
+        data = base()
+        data["radio"] = {"topology": "station", "station": [0.0, 0.0]}
+        data["event"] = [{"at": 1.0, "action": "radio", "station": st}]
+        text = problems(data)
+        assert "event[0].station: " in text and "z >= 0" in text, text
+        return
+    assert problems_[0][0] == "radio.station" and "z >= 0" in problems_[0][1] and "-50" in problems_[0][1]
+    assert spec({"topology": "station", "station": [0.0, -60.0, 0.0]}).station == (0.0, -60.0, 0.0)

@@ -123,7 +123,7 @@ def test_a_radio_command_applies_from_its_time_or_is_counted(agent, change, take
 def test_a_radio_command_out_of_range_is_rejected_before_it_applies(agent):
     agent._on_ctl(encode_control("radio", radio={"tx_power": 5.0}, at=-1.0))
     agent._on_ctl(encode_control("radio", radio={"a": {"b": {"c": {}}}}, at=1.0))
-    assert agent.rejected == {"radio_range": 2}
+    assert agent.rejected == {"radio_command_range": 2}  # not the geometry's radio_range: told apart
     assert len(agent.node.radio.channel.epochs) == 1
 
 
@@ -144,3 +144,46 @@ def test_a_second_sample_for_a_tick_never_replaces_the_first_and_is_a_conflict_u
     assert a.node.radio.held(tick) is held
     same = [None if q is None else tuple(q) for q in first] == [None if q is None else tuple(q) for q in second]
     assert a.rejected == {"radio_stale" if same else "radio_conflict": 1}
+
+
+def test_a_refused_numbered_radio_command_does_not_use_up_its_number(agent):
+    """The world numbers its run-time commands (seq) and a process applies each number once. A
+    radio command the process refuses (counted bad_radio_command: a value out of range, a change
+    before one in force) had its number taken all the same, so the world's own command with that
+    number (on an open fleet anyone may publish on ctl first) was then dropped as heard again:
+    one refused message locked the world's change out. Only a command applied uses its number."""
+    agent._on_ctl(encode_control("radio", radio={"tx_power": 1e9}, at=2.0, seq=0))  # refused: out of range
+    agent._on_ctl(encode_control("radio", radio={"tx_power": 5.0}, at=3.0, seq=1))
+    agent._on_ctl(encode_control("radio", radio={"tx_power": 6.0}, at=1.0, seq=2))  # refused: before t = 3
+    assert agent.rejected == {"bad_radio_command": 2}
+    agent._on_ctl(encode_control("radio", radio={"tx_power": 7.0}, at=4.0, seq=0))  # the world's
+    agent._on_ctl(encode_control("radio", radio={"tx_power": 8.0}, at=5.0, seq=2))
+    agent._on_ctl(encode_control("radio", radio={"tx_power": 9.0}, at=6.0, seq=1))  # heard again: once
+    assert [e[:2] for e in agent.node.radio.channel.epochs] == [(-math.inf, 24.0), (3.0, 5.0), (4.0, 7.0),
+                                                                (5.0, 8.0)]
+    assert agent.commands_heard_again == 1 and agent.rejected == {"bad_radio_command": 2}
+
+
+anything = st.recursive(st.none() | st.booleans() | floats | st.text(max_size=4),
+                        lambda c: st.lists(c, max_size=4) | st.dictionaries(st.text(max_size=8), c, max_size=3),
+                        max_leaves=12)
+changes = st.dictionaries(st.sampled_from(["tx_power", "station", "power"]),
+                          floats | st.lists(floats, max_size=4) | anything, max_size=3) | anything
+
+
+@settings(max_examples=300, deadline=None)
+@given(change=changes, at=floats | anything, seq=st.integers(-2, 2**53) | anything, extra=st.booleans())
+def test_a_hostile_radio_command_is_applied_or_counted_and_never_keeps_the_worlds_out(change, at, seq, extra):
+    """Any ctl radio message (an open fleet: anyone may publish on ctl): never raises; applied
+    (a new epoch) or counted once; and the world's command with the same number that follows is
+    applied unless the first one was (then it is the same number heard again)."""
+    a = make_agent()
+    fields = {"radio": change, "at": at, "seq": seq}
+    if extra:
+        fields["junk"] = 1
+    a._on_ctl(msgpack.packb({"v": 1, "op": "radio", **fields}))
+    applied = len(a.node.radio.channel.epochs) == 2
+    assert applied != (sum(a.rejected.values()) == 1), (a.rejected, a.node.radio.channel.epochs)
+    if type(seq) is int and 0 <= seq < 2**53:
+        a._on_ctl(encode_control("radio", radio={"tx_power": 3.0}, at=1.0e6, seq=seq))
+        assert (a.node.radio.channel.epochs[-1][:2] == (1.0e6, 3.0)) != applied

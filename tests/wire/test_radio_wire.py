@@ -55,3 +55,16 @@ def test_a_geometry_sample_gives_each_vehicle_its_own_dimension_or_is_rejected()
         assert decode_geometry(encode_geometry(GeometryMsg(4, bad)), 3, dims) == "dimension"
         assert decode_geometry(encode_geometry(GeometryMsg(4, bad)), 3) == GeometryMsg(4, bad)  # not checked
     assert decode_geometry(encode_geometry(good), None, [2, 3]) == "count"
+
+
+def test_the_largest_sample_a_fleet_can_send_decodes():
+    """The world's sample for the largest fleet the config takes (MAX_VEHICLES drones, every
+    coordinate at the bound) is one every vehicle decodes: raising MAX_VEHICLES past what the
+    geometry decoder takes would make each agent refuse the world's own samples and a lockstep
+    fleet wait for them for ever."""
+    from cdus.scenario.vehicles import MAX_VEHICLES
+    from cdus.wire.messages import MAX_COORDINATE, MAX_GEOMETRY_VEHICLES, GeometryMsg, decode_geometry, encode_geometry
+
+    assert MAX_GEOMETRY_VEHICLES >= MAX_VEHICLES
+    big = GeometryMsg(2**31 - 1, tuple((-MAX_COORDINATE, MAX_COORDINATE, -MAX_COORDINATE) for _ in range(MAX_VEHICLES)))
+    assert decode_geometry(encode_geometry(big), MAX_VEHICLES, [3] * MAX_VEHICLES) == big

@@ -281,3 +281,79 @@ def test_realtime_samples_once_every_live_vehicle_has_reported_and_never_past_th
     w.t0 = time.time() - (w.last_tick + 5) * w.period
     w._radio_realtime()
     assert len(w.pub_radio.puts) == 1  # past the run's end: the agents would refuse it (radio_range)
+
+
+def test_any_radio_command_is_answered_and_a_relayed_one_is_what_every_vehicle_takes():
+    """Hypothesis over the ground station's radio command (any table, any time, either clock):
+    never an internal error; refused with nothing relayed, or relayed with a time and a change
+    every vehicle's agent takes, leaving its channel's epochs equal to the world's."""
+    import msgpack
+    from hypothesis import HealthCheck, given, settings
+    from hypothesis import strategies as hs
+
+    from cdus.scenario.config import load_scenario as load
+    from cdus.wire.messages import CTL_OPS, decode_control
+    from cdus.wire.transport import Transport
+    from vehicle_agent.agent import Agent
+
+    from .test_world import FLEET, started
+    from .test_world_commands import Query, _wake
+
+    sc = load(ROOT / "configs/lake_radio.toml")
+    num = hs.floats() | hs.integers(-2**63, 2**64 - 1) | hs.booleans() | hs.text(max_size=3) | hs.none()
+    value = num | hs.lists(num, max_size=4) | hs.dictionaries(hs.text(max_size=2), num, max_size=2)
+    plausible = hs.fixed_dictionaries({}, optional={
+        "tx_power": hs.floats(-60.0, 60.0), "station": hs.lists(hs.floats(-2e7, 2e7), min_size=2, max_size=3)})
+    change = plausible | hs.dictionaries(hs.sampled_from(["tx_power", "station", "x"]), value, max_size=3) | num
+    at = hs.floats(-10.0, 400.0) | num
+
+    @settings(max_examples=150, deadline=None, suppress_health_check=list(HealthCheck))
+    @given(change=change, at=at, clock=hs.sampled_from(["lockstep", "realtime"]))
+    def check(change, at, clock):
+        w = _radio_world(clock)
+        if clock == "lockstep":
+            started(w)
+        q = Query(f"cdus/{FLEET}/world/cmd/gs", msgpack.packb({"v": 1, "op": "radio", "radio": change, "at": at}))
+        w._on_command_query(q)
+        w._handle(_wake())
+        assert w.st.rejects.get("internal", 0) == 0
+        r = q.answer
+        relayed = [p for p in w.pub_ctl.puts if decode_control(p, CTL_OPS).op == "radio"]
+        if r.status == "rejected":
+            assert not relayed and len(w.radio_watch.channel.epochs) == 1
+            return
+        a = Agent(sc, "usv1", "tunit", Transport(), clock=clock, log=lambda s: None)
+        for p in relayed:
+            a._on_ctl(p)
+        assert a.rejected == {} and a.node.radio.channel.epochs == w.radio_watch.channel.epochs
+
+    check()
+
+
+def test_realtime_a_vehicle_paused_by_a_fault_holds_no_geometry_sample_back():
+    """Realtime: the world samples the geometry once every vehicle alive has reported. A vehicle
+    paused from the start (SIGSTOPped: its token stays up for the lease) reports nothing, so no
+    sample went out for the first second or so and every message meanwhile passed unjudged
+    (no_geometry: 340 of lake_radio's in a 6 s run with usv2 paused at 0 s). A vehicle a fault
+    paused or killed is not live in the sample (as in lockstep) and holds nothing back."""
+    import time
+
+    from cdus.wire.messages import decode_geometry
+
+    from .test_world import row, send_rows
+
+    w = _radio_world("realtime")
+    for vid in w.ids:
+        w._on_alive(vid, True)
+    w.t0 = time.time() - 1.0  # tick 50 or so
+    j = w.ids.index("usv2")
+    for k, vid in enumerate(w.ids):
+        if vid != "usv2":
+            send_rows(w, vid, [row(k, n) for n in range(3)])
+    w._radio_realtime()
+    assert w.pub_radio.puts == []  # usv2, live, not heard from yet: waited for (the start)
+    w._note_fault("usv2", "pause")
+    w._radio_realtime()
+    (payload,) = w.pub_radio.puts
+    msg = decode_geometry(payload, len(w.ids))
+    assert msg.positions[j] is None and all(q is not None for k, q in enumerate(msg.positions) if k != j)
