@@ -694,9 +694,11 @@ class World:
         self.pub_launcher.put(encode_control(op, vehicle=vid))
         self._expect_news(vid, action)
         self._note(FleetEvent.of(self._sim_now(), "fault", f"{action} of {vid} by {by}", vehicle=vid))
+        # every fault asked holds its place (the launcher says fault_done for each, in order): one
+        # put or past MAX_WAITING, nobody waiting (ref None), too, or its word answers a later query
+        self._rt_asked.setdefault(vid, deque()).append((self._command_ref, action,
+                                                        time.monotonic() + RT_FAULT_CONFIRM))
         if self._command_ref is not None:  # answered when the launcher says it is done (_rt_fault_done)
-            self._rt_asked.setdefault(vid, deque()).append((self._command_ref, action,
-                                                            time.monotonic() + RT_FAULT_CONFIRM))
             return LATER
         return Verdict(True, "realtime: the launcher carries it out now", self._tick_now())
 
