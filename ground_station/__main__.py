@@ -140,8 +140,11 @@ def nested(settings: list[str]) -> dict:
             raise ConfigError("command line", [(item, "expected KEY=VALUE, e.g. loss=0.3")])
         node = out
         parts = key.split(".")
-        for part in parts[:-1]:
+        for n, part in enumerate(parts[:-1]):
             node = node.setdefault(part, {})
+            if not isinstance(node, dict):  # `k=1 k.x=2`: a TypeError (a traceback) before
+                raise ConfigError("command line", [(".".join(parts[:n + 1]), f"given both a value and, in {item}, "
+                                                                             "fields of it; give one")])
         node[parts[-1]] = parse_value(value)
     return out
 
@@ -191,6 +194,10 @@ def formation_fields(settings: list[str]) -> dict:
                                             "give phases.ID=θ ... (ω units) or offsets.I.K=Δ ... (I listens to K), "
                                             "not both")])
     phases = table.get("phases", {})
+    for name in ("phases", "offsets"):  # `phases=3`, `offsets=[1]`: an AttributeError (a traceback) before
+        if not isinstance(table.get(name, {}), dict):
+            raise ConfigError("command line", [(name, "write phases.ID=θ (ω units) or offsets.I.K=Δ (I listens to "
+                                                      f"K), got {name}={table[name]!r}")])
     offsets = []
     for i, row in table.get("offsets", {}).items():
         for k, d in (row.items() if isinstance(row, dict) else [(None, row)]):
