@@ -397,6 +397,9 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
             problem = radio_change_problem(change)
             if problem is not None:
                 raise ConfigError("command line", [("radio", problem)])
+        elif args.action == "snapshot" and args.file in ("", "-"):  # wrote a file named '-', or said 'Is a directory (.)'
+            raise ConfigError("command line", [("FILE", f"{args.file!r} names no file: give a file name (status --json "
+                                                        "prints the same object on stdout)")])
         elif args.action == "snapshot" and os.path.isdir(args.file):
             raise ConfigError("command line", [("FILE", f"{args.file} is a directory: name the file to write, "
                                                         f"e.g. {os.path.join(args.file, 'state.json')}")])
@@ -473,8 +476,22 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
         return _unreachable(transport, e)
     except KeyboardInterrupt:
         return 0
+    except BrokenPipeError:  # `watch --jsonl | head -n 5`: the reader has what it wanted (was a traceback)
+        _stdout_gone()
+        return 0
     finally:
         gs.close()
+
+
+def _stdout_gone() -> None:
+    """stdout's reader left: point stdout at /dev/null (by dup2, nothing renamed) so the exit's
+    flush of what is still buffered does not raise again."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):
+        pass
 
 
 if __name__ == "__main__":

@@ -93,3 +93,55 @@ def _write_many(arg) -> list[str]:
         except OSError as e:
             errors.append(repr(e))
     return errors[:3]
+
+
+@pytest.mark.parametrize("name", ["", "-"])
+def test_snapshot_to_no_file_name_is_a_usage_error(name, capsys, tmp_path, monkeypatch):
+    """`snapshot -` wrote a file named '-' in the working directory; `snapshot ''` said 'could
+    not write the snapshot to : Is a directory (.)' after connecting."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["--fleet", "f", "-e", "tcp/127.0.0.1:9", "snapshot", name]) == 2
+    assert "names no file" in capsys.readouterr().err and not list(tmp_path.iterdir())
+
+
+WATCH_INTO_A_CLOSED_PIPE = """
+import sys
+import ground_station.__main__ as gm
+from cdus.wire.transport import Transport
+
+class FakeGS:
+    fleet = "f"
+    def __init__(self, *a, **k): pass
+    def open(self, watch=True): pass
+    def wait_for_status(self, t): return True
+    def fetch_last(self): return 0
+    def events_since(self, seen): return [], seen
+    def snapshot(self): return {"v": 1, "kind": "status", "pad": "x" * 5000}
+    def world_gone(self): return False
+    def close(self): pass
+    view = type("V", (), {"world": {"ids": []}})()
+
+gm.GroundStation = FakeGS
+sys.exit(gm.main(["--fleet", "f", "-e", "tcp/127.0.0.1:9", "watch", "--jsonl", "--interval", "0.01"]))
+"""
+
+
+def test_watch_into_a_pipe_whose_reader_left_ends_quietly():
+    """`cdus gs watch --jsonl | head -n 2`: a BrokenPipeError traceback, exit 1 (seen against a
+    realtime fleet). Now it ends, exit 0, nothing on stderr."""
+    import os
+    import subprocess
+    import sys
+
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    p = subprocess.Popen([sys.executable, "-c", WATCH_INTO_A_CLOSED_PIPE], cwd=root, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, start_new_session=True)
+    try:
+        p.stdout.readline()
+        p.stdout.close()  # the reader leaves, as head does
+        _, err = p.communicate(timeout=30)
+    finally:
+        if p.poll() is None:
+            os.killpg(p.pid, 9)
+            p.wait()
+    assert p.returncode == 0 and b"Traceback" not in err, err.decode()
