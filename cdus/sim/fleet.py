@@ -189,6 +189,7 @@ class InProcessFleet:
         last = self._last[j]
         omegas = {k: self._last[k].omega for k in node.neighbours if self.nodes[k].own_state_at(n)[0] == "live"}
         node.rejoin(n, last.q, last.heading, last.omega, omegas)
+        self._was_live[j] = True  # rejoined: step() must not rejoin it again as resumed (an agent rejoins once)
 
     def step(self) -> None:
         n = self.tick
