@@ -102,3 +102,39 @@ _typed = hs.one_of(
 @given(cmd=_typed, clock=hs.sampled_from(["lockstep", "realtime"]))
 def test_well_typed_fuzzed_changes_are_answered_and_never_an_internal_error(cmd, clock):
     test_fuzzed_changes_are_answered_once_and_never_an_internal_error.hypothesis.inner_test(cmd[0], cmd[1], clock)
+
+
+def test_a_change_asked_when_the_run_has_no_tick_left_for_it_is_rejected_not_applied():
+    """In the run's last 0.25 s the grant has reached its last tick (lockstep; realtime: the last
+    0.5 s): a formation, path, gains or link command was answered 'applied from tick 12501 (t =
+    250.02 s)' in a run whose last tick is 12500, and never applied (`cdus gs` exited 0)."""
+    w = started(world())
+    w.lockstep.granted = w.last_tick
+    before = (len(w.session.puts), len(w.pub_ctl.puts), len(w._commands), dict(w._link_table))
+    for op, fields in [("formation", {"phases": {"usv2": 1.0}, "offsets": []}),
+                       ("path", {"vehicle": "usv1", "path": {"family": "circle", "center": [0, 0], "radius": 5}}),
+                       ("set_gains", {"gains": {"c": 2.0}, "vehicle": ""}),
+                       ("link", {"link": {"loss": 0.1}, "at": -1.0})]:
+        r = ask(w, op, **fields).answer
+        assert r.status == "rejected" and "would never apply" in r.reason and str(w.last_tick) in r.reason, (op, r)
+    assert (len(w.session.puts), len(w.pub_ctl.puts), len(w._commands), dict(w._link_table)) == before
+    assert w.st.rejects["formation"] == w.st.rejects["path"] == w.st.rejects["gains"] == w.st.rejects["link"] == 1
+    assert not w.recorder.formation.ticks
+    # one tick before the end still applies
+    w2 = started(world())
+    w2.lockstep.granted = w2.last_tick - 1
+    r = ask(w2, "formation", phases={"usv2": 1.0}, offsets=[]).answer
+    assert r.applied and r.tick == w2.last_tick
+
+
+def test_realtime_a_change_past_the_last_tick_is_rejected():
+    w = world(clock="realtime")
+    for vid in w.ids:
+        w._on_alive(vid, True)
+    w._tick_now = lambda: w.last_tick - 2  # the wall clock's tick, the run's last 0.04 s
+    for op, fields in [("formation", {"phases": {"usv2": 1.0}, "offsets": []}),
+                       ("path", {"vehicle": "usv1", "path": {"family": "circle", "center": [0, 0], "radius": 5}}),
+                       ("link", {"link": {"loss": 0.1}, "at": -1.0})]:
+        r = ask(w, op, **fields).answer
+        assert r.status == "rejected" and "would never apply" in r.reason, (op, r)
+    assert ask(w, "set_gains", gains={"c": 2.0}, vehicle="").answer.applied  # its next tick is still in the run
