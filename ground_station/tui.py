@@ -68,18 +68,20 @@ def send_command(gs: Any, op: str, vehicle: str | None = None) -> tuple[bool, st
     return False, f"{what}: {answer.outcome.replace('_', ' ').upper()}, {_text(answer.detail, 200)}"
 
 
-def vehicle_state(vid: str, world: dict | None, alive: set[str]) -> str:
+def vehicle_state(vid: str, world: dict | None, alive: set[str], heard: bool = False) -> str:
     """live / paused / lost: the world's roster where its status has it, else its liveliness;
-    a vehicle whose liveliness token is gone is lost unless the roster says it is paused."""
+    a vehicle whose liveliness token is gone is lost unless the roster says it is paused.
+    ``heard``: this ground station's liveliness subscription has spoken (the world's token came),
+    so ``alive`` is the truth even when empty; before, the world's status says who is alive."""
     st = None
     if world:
         ids, states = world.get("ids") or [], world.get("states")
         if isinstance(states, list) and len(states) == len(ids) and vid in ids:
             st = states[ids.index(vid)]
-    tokens = alive or set((world or {}).get("alive") or [])  # ours, or the world's before ours come in
+    tokens = alive if heard else alive or set((world or {}).get("alive") or [])  # ours, or the world's before ours
     if st == "paused":  # a stopped process's token lapses with the lease: paused still, as the operator asked
         return "paused"
-    if tokens and vid not in tokens or st == "gone":
+    if (heard or tokens) and vid not in tokens or st == "gone":
         return "lost"
     st = st or ("live" if vid in tokens else "lost")
     return "paused" if st == "live" and world and world.get("paused") else st
@@ -92,6 +94,8 @@ def snapshot(view: Any) -> dict[str, Any]:
         w = view.world  # replaced whole by each status, never changed in place
         states = dict(view.states)
         alive = set(view.alive) - {keys.WORLD, keys.GROUND, "launcher"}
+        heard = view.world_seen  # tokens come in: ours are the truth (all gone: every vehicle lost)
+        over = view.world_seen and keys.WORLD not in view.alive
         events = list(view.events[-200:])
         rejected = view.rejected
     # the world's ids when it has spoken (other names on the fleet's keys are not vehicles of the run:
@@ -110,15 +114,16 @@ def snapshot(view: Any) -> dict[str, Any]:
         m = states.get(vid)
         q = list(m.q) + [None] * 3 if m is not None else [None] * 3
         r = rx.get(vid)
-        rows.append((vid, kinds.get(vid, "?"), vehicle_state(vid, w, alive),
+        rows.append((vid, kinds.get(vid, "?"), vehicle_state(vid, w, alive, heard),
                      num(m.t if m else None, ".2f"), num(q[0], ".1f"), num(q[1], ".1f"),
                      num(q[2], ".1f") if m is not None and len(m.q) > 2 else "",
                      num(m.omega if m else None), num(m.omega_rate if m else None), num(m.path_error if m else None),
                      num(worst_edge.get(vid), ".4f"), "-" if r is None else str(r[0]), "-" if r is None else str(r[1])))
     if w:
-        n_alive = sum(1 for v in ids if vehicle_state(v, w, alive) != "lost")
+        n_alive = sum(1 for v in ids if vehicle_state(v, w, alive, heard) != "lost")
         header = (f"t = {num(w.get('t'), '.1f')} / {num(w.get('duration'), '.0f')} s  ({_text(w.get('clock'), 16)})"
                   f"   {n_alive}/{len(ids)} vehicles alive" + ("   FLEET PAUSED" if w.get("paused") else "")
+                  + ("   RUN OVER (the world has left)" if over else "")
                   + f"\nworst |Φ| {num(w.get('path_error_max'))} m   worst edge error "
                   f"{num(w.get('coord_error_max'), '.4f')} rad"
                   + ("   closest {} - {} {} m".format(*w["closest"][:2], num(w["closest"][2], ".2f"))
@@ -128,14 +133,14 @@ def snapshot(view: Any) -> dict[str, Any]:
         header = "no status from the world yet"
     if rejected:
         header += f"   ({rejected} malformed messages ignored)"
-    heard = {v: m.t for v, m in states.items() if v in ids and isinstance(m.t, float) and math.isfinite(m.t)}
-    now = max(heard.values(), default=None)
+    telemetry_t = {v: m.t for v, m in states.items() if v in ids and isinstance(m.t, float) and math.isfinite(m.t)}
+    now = max(telemetry_t.values(), default=None)
     return {"world": w, "header": header, "rows": rows, "edges": edges, "links": (w or {}).get("links") or [],
-            "events": events, "alive": alive, "now": now, "heard": heard}
+            "events": events, "alive": alive, "now": now, "heard": telemetry_t, "tokens_heard": heard, "over": over}
 
 
 def alarm_status(world: dict, alive: set[str], now: float | None = None,
-                 heard: dict[str, float] | None = None) -> dict:
+                 heard: dict[str, float] | None = None, tokens_heard: bool = False) -> dict:
     """The world's status as the alarms read it: each vehicle's roster state, but ``gone`` as
     soon as its liveliness token is (a killed process's token goes at once, the status comes
     once a second), as the vehicle table shows it; its time the newest the console knows
@@ -144,7 +149,7 @@ def alarm_status(world: dict, alive: set[str], now: float | None = None,
     was last heard of."""
     calm = {**world, "paused": False}  # the fleet's pause is not a vehicle's state
     ids = [v for v in world.get("ids") or [] if isinstance(v, str)]
-    states = [vehicle_state(v, calm, alive) for v in ids]
+    states = [vehicle_state(v, calm, alive, tokens_heard) for v in ids]
     t = world.get("t")
     if now is not None and isinstance(t, float) and now > t:
         t = now
@@ -261,7 +266,7 @@ class ConsoleApp(App):
             self._status_at = now
         quiet = now - self._status_at
         stale = (f"   NO STATUS for {quiet:.0f} s (the world ended or the link to the router is down)"
-                 if quiet > STALE_S else "")
+                 if quiet > STALE_S and not snap["over"] else "")
         head, _, rest = snap["header"].partition("\n")
         self.query_one("#header", Static).update(Text(f"fleet {self.gs.fleet}   {head}{stale}\n{rest}".rstrip()))
         _fill(self.query_one("#vehicles", DataTable), snap["rows"])
@@ -278,7 +283,7 @@ class ConsoleApp(App):
                     self.log_line(f"event (before) {e.line()}")
         if w is not None:  # every refresh: a vehicle's token going is news before the next status
             self._status_seen = w
-            for ch in self.alarms.update(alarm_status(w, snap["alive"], snap["now"], snap["heard"])):
+            for ch in self.alarms.update(alarm_status(w, snap["alive"], snap["now"], snap["heard"], snap["tokens_heard"])):
                 self.log_line(ch.line())
         self._show_alarms()
         events = snap["events"]
