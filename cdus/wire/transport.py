@@ -160,6 +160,12 @@ def zenoh_config(t: Transport):
     if t.lease_ms:
         conf.insert_json5("transport/link/tx/lease", str(int(t.lease_ms)))
     for key, value in t.extra:
+        if key in OPTIONAL_KEYS:  # a Zenoh older than this setting (eclipse-zenoh>=1.0 is allowed): without it
+            try:
+                conf.insert_json5(key, value)
+            except zenoh.ZError:
+                pass
+            continue
         conf.insert_json5(key, value)
     return conf
 
@@ -254,6 +260,8 @@ COMMANDS_DROP = (("qos/network", json.dumps([{
     "id": "commands-drop", "messages": ["query"], "flows": ["ingress"],
     "key_exprs": ["cdus/*/world/cmd/**"], "overwrite": {"congestion_control": "drop"}}])),)
 ROUTER_EXTRA = NO_TIMESTAMPS + BLOCK_BEFORE_CLOSE + COMMANDS_DROP
+#: settings a Zenoh that does not know them goes without (qos/network: Zenoh 1.10 has it)
+OPTIONAL_KEYS = frozenset({"qos/network"})
 
 
 def router(listen: Sequence[str] = (), config_file: str | None = None) -> Transport:

@@ -28,3 +28,11 @@ def test_zenoh_takes_the_routers_settings():
     from cdus.wire.transport import free_tcp_port
     s = open_session(router((f"tcp/127.0.0.1:{free_tcp_port()}",)))
     s.close()
+
+
+def test_a_zenoh_that_does_not_know_the_setting_goes_without_it():
+    """pyproject allows eclipse-zenoh>=1.0; a router whose Zenoh refuses qos/network must still start."""
+    from cdus.wire.transport import Transport, free_tcp_port, zenoh_config
+    t = Transport(mode="router", listen=(f"tcp/127.0.0.1:{free_tcp_port()}",),
+                  extra=(("qos/network", "[{unknown_field: 1}]"),))
+    zenoh_config(t)  # raised zenoh.ZError
