@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -20,10 +22,35 @@ def write_json(path: str | os.PathLike, data: Any, allow_inf: bool = False) -> N
         with open(p, "w") as fh:
             fh.write(text)
         return
+    if p.is_symlink():  # the file it names is written, the link kept (it was replaced by a file)
+        p = Path(os.path.realpath(p))
     p.parent.mkdir(parents=True, exist_ok=True)
-    tmp = p.with_name(p.name + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, p)
+    # a temp name of its own: two writers of one file (two `cdus gs snapshot FILE`) shared FILE.tmp,
+    # and one's rename found it gone (FileNotFoundError) or took the other's half-written one;
+    # a FILE.tmp of the user's was overwritten and removed
+    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
+    try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+        os.chmod(tmp, 0o666 & ~_umask())
+        os.replace(tmp, p)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def _umask() -> int:
+    """The process's umask, read without changing it (os.umask would, for every thread a moment):
+    mkstemp makes 0600 files, a written file gets the mode open() would give it."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    return 0o022
 
 
 def _jsonable(x: Any) -> Any:

@@ -141,8 +141,11 @@ def nested(settings: list[str]) -> dict:
             raise ConfigError("command line", [(item, "expected KEY=VALUE, e.g. loss=0.3")])
         node = out
         parts = key.split(".")
-        for part in parts[:-1]:
+        for n, part in enumerate(parts[:-1]):
             node = node.setdefault(part, {})
+            if not isinstance(node, dict):  # `k=1 k.x=2`: a TypeError (a traceback) before
+                raise ConfigError("command line", [(".".join(parts[:n + 1]), f"given both a value and, in {item}, "
+                                                                             "fields of it; give one")])
         node[parts[-1]] = parse_value(value)
     return out
 
@@ -192,6 +195,10 @@ def formation_fields(settings: list[str]) -> dict:
                                             "give phases.ID=θ ... (ω units) or offsets.I.K=Δ ... (I listens to K), "
                                             "not both")])
     phases = table.get("phases", {})
+    for name in ("phases", "offsets"):  # `phases=3`, `offsets=[1]`: an AttributeError (a traceback) before
+        if not isinstance(table.get(name, {}), dict):
+            raise ConfigError("command line", [(name, "write phases.ID=θ (ω units) or offsets.I.K=Δ (I listens to "
+                                                      f"K), got {name}={table[name]!r}")])
     offsets = []
     for i, row in table.get("offsets", {}).items():
         for k, d in (row.items() if isinstance(row, dict) else [(None, row)]):
@@ -408,6 +415,9 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
             problem = radio_change_problem(change)
             if problem is not None:
                 raise ConfigError("command line", [("radio", problem)])
+        elif args.action == "snapshot" and args.file in ("", "-"):  # wrote a file named '-', or said 'Is a directory (.)'
+            raise ConfigError("command line", [("FILE", f"{args.file!r} names no file: give a file name (status --json "
+                                                        "prints the same object on stdout)")])
         elif args.action == "snapshot" and os.path.isdir(args.file):
             raise ConfigError("command line", [("FILE", f"{args.file} is a directory: name the file to write, "
                                                         f"e.g. {os.path.join(args.file, 'state.json')}")])
@@ -486,8 +496,22 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
         return _unreachable(transport, e)
     except KeyboardInterrupt:
         return 0
+    except BrokenPipeError:  # `watch --jsonl | head -n 5`: the reader has what it wanted (was a traceback)
+        _stdout_gone()
+        return 0
     finally:
         gs.close()
+
+
+def _stdout_gone() -> None:
+    """stdout's reader left: point stdout at /dev/null (by dup2, nothing renamed) so the exit's
+    flush of what is still buffered does not raise again."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):
+        pass
 
 
 if __name__ == "__main__":

@@ -76,6 +76,7 @@ def snapshot(view: Any) -> dict[str, Any]:
         states = dict(view.states)
         alive = set(view.alive) - {keys.WORLD, keys.GROUND, "launcher"}
         tokens_in = view.world_seen  # our liveliness view is in: an empty one means every vehicle left
+        over = view.world_seen and keys.WORLD not in view.alive  # the world has left (its last status unheard)
         events = list(view.events[-200:])
         rejected = view.rejected
     # the world's ids when it has spoken (other names on the fleet's keys are not vehicles of the run:
@@ -103,7 +104,8 @@ def snapshot(view: Any) -> dict[str, Any]:
         n_alive = sum(1 for v in ids if vehicle_state(v, w, alive, tokens_in) not in ("lost", "ended"))
         header = (f"t = {num(w.get('t'), '.1f')} / {num(w.get('duration'), '.0f')} s  ({_text(w.get('clock'), 16)})"
                   f"   {n_alive}/{len(ids)} vehicles alive" + ("   FLEET PAUSED" if w.get("paused") else "")
-                  + (f"   RUN OVER: {_text(w['completion'], 24)}" if w.get("completion") else "")
+                  + (f"   RUN OVER: {_text(w['completion'], 24)}" if w.get("completion")
+                     else "   RUN OVER (the world has left)" if over else "")
                   + f"\nworst |Φ| {num(w.get('path_error_max'))} m   worst edge error "
                   f"{num(w.get('coord_error_max'), '.4f')} rad"
                   + ("   closest {} - {} {} m".format(*w["closest"][:2], num(w["closest"][2], ".2f"))
@@ -113,10 +115,10 @@ def snapshot(view: Any) -> dict[str, Any]:
         header = "no status from the world yet"
     if rejected:
         header += f"   ({rejected} malformed messages ignored)"
-    heard = {v: m.t for v, m in states.items() if v in ids and isinstance(m.t, float) and math.isfinite(m.t)}
-    now = max(heard.values(), default=None)
+    telemetry_t = {v: m.t for v, m in states.items() if v in ids and isinstance(m.t, float) and math.isfinite(m.t)}
+    now = max(telemetry_t.values(), default=None)
     return {"world": w, "header": header, "rows": rows, "edges": edges, "links": (w or {}).get("links") or [],
-            "events": events, "alive": alive, "now": now, "heard": heard, "tokens_in": tokens_in}
+            "events": events, "alive": alive, "now": now, "heard": telemetry_t, "tokens_in": tokens_in, "over": over}
 
 
 def alarm_status(world: dict, alive: set[str], now: float | None = None,
@@ -248,7 +250,7 @@ class ConsoleApp(App):
             self._status_at = now
         quiet = now - self._status_at
         stale = (f"   NO STATUS for {quiet:.0f} s (the world ended or the link to the router is down)"
-                 if quiet > STALE_S else "")
+                 if quiet > STALE_S and not snap["over"] else "")
         head, _, rest = snap["header"].partition("\n")
         self.query_one("#header", Static).update(Text(f"fleet {self.gs.fleet}   {head}{stale}\n{rest}".rstrip()))
         _fill(self.query_one("#vehicles", DataTable), snap["rows"])

@@ -679,12 +679,15 @@ class World:
             self._note(FleetEvent.of(self._sim_now(), "rejected",
                                      f"link command from {printable(by, 64)}: {printable(str(e), 200)}"))
             return printable(str(e), 280)
-        self._link_table = merged
         # Never before what a vehicle may already have sent (lockstep: past the grant), so
         # every receiver applies it from the same message on; a past --at means "now".
         earliest = ((self.lockstep.granted + 1) * self.period if self.clock == "lockstep"
                     else self._sim_now() + self.period)
         at = max(f["at"], earliest) if f["at"] >= 0 else max(self._sim_now() + LINK_LEAD, earliest)
+        late = self._never_applies(max(0, math.ceil(at / self.period - 1e-9)))
+        if late:
+            return self._refuse(by, "link", "link command", late)
+        self._link_table = merged
         self._send_command(None, None, "link", link=f["link"], at=float(at))
         self.st.link_commanded = True
         self._note(FleetEvent.of(self._sim_now(), "link_changed",
@@ -711,9 +714,11 @@ class World:
         self.pub_launcher.put(encode_control(op, vehicle=vid))
         self._expect_news(vid, action)
         self._note(FleetEvent.of(self._sim_now(), "fault", f"{action} of {vid} by {by}", vehicle=vid))
+        # every fault asked holds its place (the launcher says fault_done for each, in order): one
+        # put or past MAX_WAITING, nobody waiting (ref None), too, or its word answers a later query
+        self._rt_asked.setdefault(vid, deque()).append((self._command_ref, action,
+                                                        time.monotonic() + RT_FAULT_CONFIRM))
         if self._command_ref is not None:  # answered when the launcher says it is done (_rt_fault_done)
-            self._rt_asked.setdefault(vid, deque()).append((self._command_ref, action,
-                                                            time.monotonic() + RT_FAULT_CONFIRM))
             return LATER
         return Verdict(True, "realtime: the launcher carries it out now", self._tick_now())
 
@@ -793,6 +798,9 @@ class World:
                                      f"gains {printable(gains, 120)} from {sender}: {why}"))
             return why
         tick = self.lockstep.granted + 1 if self.clock == "lockstep" else self._tick_now() + 1
+        late = self._never_applies(tick)
+        if late:
+            return self._refuse(sender, "gains", f"gains {printable(gains, 120)}", late)
         self._send_command(targets, vehicle or None, "gains", gains=gains, tick=tick)
         self._note(FleetEvent.of(tick * self.period, "gains_changed",
                                  f"gains {gains} for {vehicle or 'every vehicle'} from tick {tick} by {sender}"))
@@ -805,6 +813,15 @@ class World:
         if self.clock == "lockstep":
             return self.lockstep.granted + 1
         return self._tick_now() + max(1, math.ceil(LINK_LEAD / self.period))
+
+    def _never_applies(self, tick: int) -> str | None:
+        """Why a change from ``tick`` would never apply (past the run's last tick: near the end the
+        grant has reached it, or the wall clock nearly has), else None. It was answered "applied
+        from tick N+1" and `cdus gs` exited 0."""
+        if tick <= self.last_tick:
+            return None
+        return (f"the run's last tick is {self.last_tick} (t = {self.last_tick * self.period:.2f} s) and the first "
+                f"this change could apply from is {tick}: it would never apply (the run is ending)")
 
     def _refuse(self, sender: str, reason: str, what: str, why: str) -> str:
         """Count and report a refused command; returns the reason (for an acknowledgement)."""
@@ -823,6 +840,9 @@ class World:
         if bool(phases) == bool(offsets):
             return self._refuse(sender, "formation", "formation", "give either phases or offsets (exactly one)")
         tick = self._change_tick()
+        late = self._never_applies(tick)
+        if late:
+            return self._refuse(sender, "formation", "formation", late)
         sc = self.scenario
         if phases:
             checked = check_phases(phases, self.ids)
@@ -855,6 +875,9 @@ class World:
             why = path if isinstance(path, str) else f"path{'.' + path[0] if path[0] else ''}: {path[1]}"
             return self._refuse(sender, "path", f"path of {vid}", why)
         tick = self._change_tick()
+        late = self._never_applies(tick)
+        if late:
+            return self._refuse(sender, "path", f"path of {vid}", late)
         self._send_command([vid], vid, "path", vehicle=vid, path=table, tick=tick)
         self._note(path_changed(tick, self.period, vid, sorted(table.items()), sender))
         return Verdict(True, "", tick)

@@ -160,6 +160,12 @@ def zenoh_config(t: Transport):
     if t.lease_ms:
         conf.insert_json5("transport/link/tx/lease", str(int(t.lease_ms)))
     for key, value in t.extra:
+        if key in OPTIONAL_KEYS:  # a Zenoh older than this setting (eclipse-zenoh>=1.0 is allowed): without it
+            try:
+                conf.insert_json5(key, value)
+            except zenoh.ZError:
+                pass
+            continue
         conf.insert_json5(key, value)
     return conf
 
@@ -243,7 +249,19 @@ NO_TIMESTAMPS = (("timestamping/enabled", "{router: false, peer: false, client: 
 # is how long a silent vehicle is given anyway (docs/multihost.md, "Partitions").
 BLOCK_BEFORE_CLOSE = (("transport/link/tx/queue/congestion_control/block/wait_before_close",
                        str(DEFAULT_LEASE_MS * 1000)),)  # µs
-ROUTER_EXTRA = NO_TIMESTAMPS + BLOCK_BEFORE_CLOSE
+#: Commands to the world and their answers (world/cmd/**, queries and replies: BLOCK by Zenoh's
+#: default) are dropped by the router when the link they go to is full, not waited for: a ground
+#: station's flood of command queries (3000 in 0.05 s) held the router's routing thread on the
+#: world's full link for wait_before_close, then the router closed that link: a lockstep world
+#: lost every vehicle and got them back, then usv1 was lost for 120-220 s of simulated time (a
+#: changed result), and every ground station watching saw the world leave. A command dropped so
+#: is not answered (`cdus gs` says so: no answer, exit 3).
+COMMANDS_DROP = (("qos/network", json.dumps([{
+    "id": "commands-drop", "messages": ["query"], "flows": ["ingress"],
+    "key_exprs": ["cdus/*/world/cmd/**"], "overwrite": {"congestion_control": "drop"}}])),)
+ROUTER_EXTRA = NO_TIMESTAMPS + BLOCK_BEFORE_CLOSE + COMMANDS_DROP
+#: settings a Zenoh that does not know them goes without (qos/network: Zenoh 1.10 has it)
+OPTIONAL_KEYS = frozenset({"qos/network"})
 
 
 def router(listen: Sequence[str] = (), config_file: str | None = None) -> Transport:

@@ -311,3 +311,31 @@ def test_a_vehicle_whose_token_goes_is_lost_before_the_next_status():
             await pilot.pause(0.3)
             assert text_of(app, "#log").count("vehicle usv2 lost") == 1  # the status saying so raises nothing again
     run(go())
+
+
+def test_when_every_token_is_gone_the_vehicles_are_lost_not_the_worlds_last_alive():
+    """rev-gs, seen in tmux on a realtime fleet that ended (and one whose world was SIGKILLed):
+    with every liveliness token gone, the console fell back to the world's last status (meant for
+    before this ground station's tokens come in) and showed '4/4 vehicles alive', each 'live',
+    for as long as it stayed open; with the world's token gone too it said only 'NO STATUS'."""
+    gs = FakeGS()
+    gs.view.world_seen = True  # this ground station's liveliness subscription has spoken
+    gs.view.alive = {"world"}  # every vehicle's token gone, the world's still there (its status lags)
+    snap = snapshot(gs.view)
+    assert [r[2] for r in snap["rows"]] == ["lost", "lost", "lost"] and "0/3 vehicles alive" in snap["header"]
+    gs.view.alive = set()  # the world's too: the run is over
+    snap = snapshot(gs.view)
+    assert "0/3 vehicles alive" in snap["header"] and "RUN OVER" in snap["header"]
+    gs.view.world_seen = False  # before any token is heard: the world's status says who is alive
+    assert [r[2] for r in snapshot(gs.view)["rows"]] == ["live", "live", "live"]
+
+    async def go():
+        gs2 = FakeGS()
+        gs2.view.world_seen = True
+        app = ConsoleApp(gs2, refresh_s=0.05)
+        async with app.run_test(size=(160, 50)) as pilot:
+            await settle(pilot, lambda: "usv2 usv live" in text_of(app, "#vehicles"), "usv2 live")
+            with gs2.view.lock:
+                gs2.view.alive = {"world"}
+            await settle(pilot, lambda: all(f"{v} lost" in text_of(app, "#alarms") for v in IDS), "every alarm")
+    run(go())
