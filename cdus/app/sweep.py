@@ -388,7 +388,8 @@ def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "")
             values = dict(c.cell)
             series.setdefault(tuple(value_label(k, values[k]) for k in others), []).append(c)
     xs_all = [dict(c.cell)[x_key] if x_key else "all runs" for c in cells if c.runs]
-    numeric = all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in xs_all)
+    # an inf value (radio.shadowing_distance = inf) has no place on a numeric axis: the values as categories
+    numeric = all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in xs_all)
     categories = list(dict.fromkeys(canonical(x) for x in xs_all))
 
     def pos(x: Any) -> float:
@@ -646,7 +647,7 @@ def sweep(scenario: str | os.PathLike | Scenario,
             before = scan_rows(rows_path, p.index_of)
             log.cut(before.end)
             write_manifest(out, manifest)
-            write_json(out / "scenario.json", base.raw)  # what every run started from, overrides applied
+            write_json(out / "scenario.json", base.raw, allow_inf=True)  # what every run started from, overrides applied
             ran, lost, interrupted = _run_all(p, base, clock, ex, log, before, quiet, stream or sys.stderr, out)
         result = _finish(out, base, g, p, clock, ex.describe(), before, ran, lost, interrupted,
                          time.perf_counter() - start)

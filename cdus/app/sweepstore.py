@@ -125,7 +125,9 @@ def check_out(out: Path, manifest: Manifest) -> bool:
 
 
 def write_manifest(out: Path, manifest: Manifest) -> None:
-    write_json(out / MANIFEST, manifest.to_json())
+    # allow_inf: a grid value may be inf where the config takes it (radio.shadowing_distance = inf),
+    # written as Infinity, which json reads back as inf (so a resume compares equal)
+    write_json(out / MANIFEST, manifest.to_json(), allow_inf=True)
 
 
 @dataclass
@@ -179,6 +181,16 @@ def _index(line: bytes, index_of: Any) -> int | None:
     return -2 if j is None else j
 
 
+def row_json(row: dict) -> str:
+    """A row as one JSON line: the cell's values kept (inf included: a valid config value of
+    radio.shadowing_distance, radio.shadowing_time, link.down.to; a resume compares them), the
+    metrics :func:`clean` (a non-finite result is None; the status says why)."""
+    cell = json.dumps(row.get("cell", {}), separators=(",", ":"), allow_nan=True, default=str)
+    rest = json.dumps({k: clean(v) for k, v in row.items() if k != "cell"}, separators=(",", ":"),
+                      allow_nan=False, default=str)
+    return '{"cell":' + cell + ("," + rest[1:] if rest != "{}" else "}")
+
+
 class RowLog:
     """Appends rows to results.jsonl: one ``os.write`` of the whole line, then fsync. Holds an
     exclusive lock on the file while open, so two sweeps never write into one ``out``."""
@@ -198,8 +210,9 @@ class RowLog:
             os.ftruncate(self.fd, end)
 
     def append(self, row: dict) -> None:
-        data = (json.dumps({k: clean(v) for k, v in row.items()}, separators=(",", ":"), allow_nan=False,
-                           default=str) + "\n").encode()
+        """``row["cell"]`` as it is (a config value may be inf: written as ``Infinity``, read back
+        as inf, so a resume finds its run); every other value :func:`clean`."""
+        data = (row_json(row) + "\n").encode()
         view = memoryview(data)
         while view:
             n = os.write(self.fd, view)
