@@ -35,6 +35,7 @@ from cdus.wire.transport import router as fleet_router
 from ground_station.__main__ import main as gs_main
 from world_sim.recording import parse_spec
 from cdus.app.report import Progress, run_dir, summary_table
+from cdus.sim.reports import late_event_lines
 from cdus.files import write_json
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -153,12 +154,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _note_late_events(scenario: Scenario) -> None:
-    """Say (not fail: --duration often shortens a run on purpose) which scheduled faults the
-    run ends before."""
-    late = [e for e in scenario.events if e.at > scenario.duration]
-    if late:
-        which = ", ".join(f"{e.action} of {e.vehicle} at {e.at:g} s" for e in late)
-        print(f"note: the run ends at {scenario.duration:g} s, before {which}: not carried out", file=sys.stderr)
+    """Say (not fail: --duration often shortens a run on purpose) which [[event]]s the run ends
+    before (cdus.sim.reports.late_event_lines), once, where the run starts: `cdus sim` and
+    `cdus launch` alike."""
+    for line in late_event_lines(scenario):
+        print(line, file=sys.stderr)
 
 
 def cmd_sim(args: argparse.Namespace) -> int:
@@ -230,7 +230,6 @@ def remote_ids(values: list[str], scenario: Scenario) -> tuple[str, ...]:
 
 def cmd_launch(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.config, _overrides(args))
-    _note_late_events(scenario)
     try:
         parse_spec(args.rerun, Path(args.logs or "."))  # a bad --rerun starts nothing
     except ValueError as e:
@@ -259,6 +258,7 @@ def cmd_launch(args: argparse.Namespace) -> int:
         router, cred = secure_router(router, opts, scenario, run / "secure", "tls" if args.tls else "password")
     print(f"{scenario.name}: launching {len(scenario.vehicles) - len(opts.remote)} vehicle processes + world "
           f"({args.clock} clock), router {', '.join(router.listen) or args.zenoh_config}")
+    _note_late_events(scenario)  # after the line that says the run starts, as `cdus sim` before its run
     if args.insecure:
         where = ", ".join(exposed) or f"this router ({', '.join(router.listen) or args.zenoh_config}: any " \
                                       f"process of this host)"

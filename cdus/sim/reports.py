@@ -108,6 +108,47 @@ def design_lines(scenario: Scenario) -> tuple[str, dict[str, str]]:
     return "link faults from t = 0: " + "; ".join(parts), lossy
 
 
+#: how many events past the end are named one by one (then one line counts the rest)
+LATE_NAMED = 10
+
+
+def _event_words(e: dict) -> str:
+    """An [[event]] (validated) in a few words: ``kill usv2 at 300 s``, ``formation at 60 s``."""
+    action, at = e.get("action"), e.get("at")
+    if action in ("formation", "radio"):
+        return f"{action} at {at:g} s"
+    if action == "path":
+        return f"path of {e.get('vehicle')} at {at:g} s"
+    return f"{action} {e.get('vehicle')} at {at:g} s"
+
+
+def late_event_lines(scenario: Scenario, duration: float | None = None) -> list[str]:
+    """A note per ``[[event]]`` the run ends before (``at`` past ``duration``, by default the
+    scenario's, e.g. shortened by --duration): accepted (a shorter run of a longer scenario is
+    a legitimate use) but said once where the run starts, by ``cdus sim`` and ``cdus launch``
+    alike. A pause whose ``duration`` ends past the run's end is named too (its resume will
+    not apply). Every action counts: faults, formation and path changes, radio changes."""
+    end = scenario.duration if duration is None else duration
+    raw = scenario.raw.get("event", [])
+    if not isinstance(raw, list):
+        return []
+    lines = []
+    for j, e in enumerate(raw):
+        at = e.get("at") if isinstance(e, dict) else None
+        if not isinstance(at, (int, float)) or isinstance(at, bool):
+            continue
+        words = printable(_event_words(e), 200)
+        if at > end:
+            lines.append(f"note: event[{j}] ({words}) is past the run's end ({end:g} s): it will not apply")
+        elif isinstance(e.get("duration"), (int, float)) and at + e["duration"] > end:
+            lines.append(f"note: event[{j}] ({words} for {e['duration']:g} s) ends past the run's end ({end:g} s): "
+                         f"its resume at {at + e['duration']:g} s will not apply")
+    if len(lines) > LATE_NAMED:
+        lines = lines[:LATE_NAMED] + [f"note: and {len(lines) - LATE_NAMED} more events past the run's end "
+                                      f"({end:g} s): they will not apply"]
+    return lines
+
+
 class ConsoleQuota:
     """What to print of a stream of events, the launcher's and ``cdus sim``'s alike
     (:meth:`printed`): every event, but

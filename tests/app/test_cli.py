@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from cdus.app.cli import build_parser, launch_options, main
-from cdus.scenario.config import ConfigError, load_scenario
+from cdus.scenario.config import ConfigError, load_scenario, parse_overrides
 from cdus.scenario.model import RESTART_POLICIES
 
 CONFIG = "configs/lake_circle.toml"
@@ -69,7 +69,56 @@ def test_scheduled_faults_after_the_end_are_named_not_silently_skipped(capsys, t
     code = main(["sim", "configs/lake_circle.toml", "--rerun", "off", "-q", "--duration", "2",
                  "--metrics-out", str(tmp_path / "m.json"), "--set", 'event=[{at=100.0,action="kill",vehicle="usv2"}]'])
     assert code == 0
-    assert "before kill of usv2 at 100 s: not carried out" in capsys.readouterr().err
+    assert "note: event[0] (kill usv2 at 100 s) is past the run's end (2 s): it will not apply" in \
+        capsys.readouterr().err
+
+
+LATE = ('event=[{at=1.0,action="kill",vehicle="usv1"},{at=0.5,action="pause",vehicle="usv2",duration=5.0},'
+        '{at=3.0,action="path",vehicle="usv3",path={family="circle",center=[0,0],radius=10}},'
+        '{at=2.5,action="formation",phases={usv1=0.5}},{at=2.0,action="kill",vehicle="uav1"}]')
+
+
+def test_every_kind_of_event_past_the_end_is_said_once_where_cdus_sim_starts(capsys, tmp_path):
+    """Issue 17 review: a path or formation change past the run's end was accepted in silence
+    (the note named scheduled faults only). An event at the end itself applies: no note."""
+    code = main(["sim", "configs/lake_circle.toml", "--rerun", "off", "-q", "--set", "scenario.duration=2",
+                 "--metrics-out", str(tmp_path / "m.json"), "--set", LATE])
+    assert code == 0
+    notes = [line for line in capsys.readouterr().err.splitlines() if line.startswith("note:")]
+    assert notes == [
+        "note: event[1] (pause usv2 at 0.5 s for 5 s) ends past the run's end (2 s): its resume at 5.5 s will not "
+        "apply",
+        "note: event[2] (path of usv3 at 3 s) is past the run's end (2 s): it will not apply",
+        "note: event[3] (formation at 2.5 s) is past the run's end (2 s): it will not apply",
+    ]
+
+
+def test_the_launcher_s_opening_notes_the_same_lines_from_its_run_s_duration():
+    """`cdus launch` prints late_event_lines(scenario) after its "launching" line (cmd_launch);
+    the lines come from the scenario as --duration/--set left it, or a duration given."""
+    from cdus.scenario.config import load_scenario
+    from cdus.sim.reports import LATE_NAMED, late_event_lines
+
+    s = load_scenario("configs/lake_circle.toml", {"scenario.duration": 2.0, **parse_overrides([LATE])})
+    assert late_event_lines(s) == late_event_lines(s, 2.0) and len(late_event_lines(s)) == 3
+    assert late_event_lines(s, 10.0) == []
+    assert late_event_lines(s, 0.75) == [
+        "note: event[0] (kill usv1 at 1 s) is past the run's end (0.75 s): it will not apply",
+        "note: event[1] (pause usv2 at 0.5 s for 5 s) ends past the run's end (0.75 s): its resume at 5.5 s will "
+        "not apply",
+        "note: event[2] (path of usv3 at 3 s) is past the run's end (0.75 s): it will not apply",
+        "note: event[3] (formation at 2.5 s) is past the run's end (0.75 s): it will not apply",
+        "note: event[4] (kill uav1 at 2 s) is past the run's end (0.75 s): it will not apply",
+    ]
+    radio = load_scenario("configs/range_out.toml", parse_overrides(['event=[{at=200.0,action="radio",tx_power=5.0}]']))
+    assert late_event_lines(radio) == [
+        "note: event[0] (radio at 200 s) is past the run's end (112 s): it will not apply"]
+    many = load_scenario("configs/lake_circle.toml", parse_overrides(
+        ["event=[" + ",".join(f'{{at={100 + j}.0,action="formation",phases={{usv1={j / 10}}}}}' for j in range(12))
+         + "]"]))
+    lines = late_event_lines(many, 5.0)
+    assert len(lines) == LATE_NAMED + 1 and lines[-1] == "note: and 2 more events past the run's end (5 s): they " \
+                                                         "will not apply"
 
 
 # ---------------------------------------------------------------- safe by default: who may reach the router
@@ -212,3 +261,14 @@ def test_sim_prints_the_fleets_events_as_launch_does(tmp_path, capsys):
                       "  event: t = 1.00 s: the live graph (5 vehicles) still has a spanning tree"]
     assert main([*args, "-q"]) == 0
     assert "event:" not in capsys.readouterr().out
+
+
+def test_cdus_launch_says_the_events_past_the_end_once_where_it_starts(tmp_path, capsys, monkeypatch):
+    started = _started(monkeypatch)
+    main(["launch", CONFIG, "--logs", str(tmp_path / "run"), "--rerun", "off", "--insecure", "--duration", "2",
+          "--set", LATE])
+    assert len(started) == 1
+    err = capsys.readouterr().err
+    notes = [line for line in err.splitlines() if line.startswith("note:")]
+    assert notes == [line for line in err.splitlines() if "past the run's end" in line] and len(notes) == 3
+    assert "note: event[3] (formation at 2.5 s) is past the run's end (2 s): it will not apply" in notes
