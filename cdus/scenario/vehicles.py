@@ -357,13 +357,18 @@ def _path(p: Problems, t: _Merged, dim: int | None) -> tuple[Path | None, tuple]
     return None, ()
 
 
+#: a vehicle of each dimension in words (KINDS: usv 2-D, uav 3-D)
+VEHICLE_WORDS = {KINDS["usv"]: "a boat", KINDS["uav"]: "a drone"}
+
+
 def retrace_message(spec: dict, turn: float, dim: int | None) -> str:
     """Why a Lissajous path that runs back over itself is refused, and how to fix it."""
     axes = "its x, y (what a usv follows)" if dim == 2 and len(spec.get("center") or ()) == 3 else "the path"
     if all(a == 0 for a in (spec.get("amplitude") or ())[:dim or 3]) or \
             all(f == 0 for f in (spec.get("frequency") or ())[:dim or 3]):
         return f"{axes} does not move (every amplitude or frequency is 0): there is no path to follow"
-    return (f"this Lissajous path runs back over itself: {axes} stops at ω = {turn:.4g} (no tangent: a boat "
+    who = VEHICLE_WORDS.get(dim, "a vehicle")  # the kind from the dimension (KINDS: one kind per dimension)
+    return (f"this Lissajous path runs back over itself: {axes} stops at ω = {turn:.4g} (no tangent: {who} "
             f"cannot follow it) and retraces its way (phase {list(spec.get('phase', [0] * len(spec.get('center') or ())))} "
             "turns every moving axis there at once; all phases 0 always do), so any two vehicles on it not at the "
             "same ω meet head-on twice a lap. Give phases that do not, e.g. phase = [0, 1.5708] for frequencies "

@@ -254,6 +254,27 @@ def test_a_lissajous_path_that_runs_back_over_itself_is_refused_naming_its_phase
     assert "does not move (every amplitude or frequency is 0)" in problems(data)
 
 
+def test_the_retrace_message_names_the_vehicle_s_kind():
+    """Review of issue 17: a drone's refused Lissajous said "a boat cannot follow it"."""
+    from cdus.scenario.events import check_path
+
+    data = base()  # usv1, usv2, uav1
+    data["vehicle"][0]["path"] = _liss()
+    data["vehicle"][2]["path"] = {"family": "lissajous", "center": [0, 0, 10], "amplitude": [20, 10, 2],
+                                  "frequency": [1, 2, 1]}
+    lines = problems(data).splitlines()
+    boat = next(ln for ln in lines if 'vehicle[0] (id "usv1").path.phase' in ln)
+    drone = next(ln for ln in lines if 'vehicle[2] (id "uav1").path.phase' in ln)
+    assert "(no tangent: a boat cannot follow it)" in boat and "drone" not in boat
+    assert "(no tangent: a drone cannot follow it)" in drone and "boat" not in drone
+    # a run-time path (a ground station's or an [[event]]'s) is worded alike, by the vehicle's dimension
+    for dim, who, other in ((2, "a boat", "drone"), (3, "a drone", "boat")):
+        center = [0, 0, 10][:dim]
+        key, message = check_path({**_liss(), "center": center, "amplitude": [20, 10, 2][:dim],
+                                   "frequency": [1, 2, 1][:dim]}, dim)
+        assert key == "phase" and f"(no tangent: {who} cannot follow it)" in message and other not in message
+
+
 def test_a_figure_eight_and_the_papers_path_are_accepted():
     s = parse_scenario(edit_paths(_liss(phase=[0, math.pi / 2])))
     assert s.vehicle("usv1").path == s.vehicle("usv2").path
