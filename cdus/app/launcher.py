@@ -46,7 +46,7 @@ from typing import Any, Callable
 import zenoh
 
 from cdus.scenario.model import DEFAULT_RESTART, Scenario, Supervision
-from cdus.app.report import Progress
+from cdus.app.report import WORLD_LOST, Progress
 from cdus.core.metrics import Recorder
 from cdus.files import write_json
 from cdus.sim.build import metric_edges
@@ -129,7 +129,7 @@ def print_line(s: str) -> None:
         sys.stdout.flush()
 
 
-WORLD_LOST = "world_lost"  # the completion reason the launcher writes when the world died without metrics
+# WORLD_LOST (cdus.app.report): the completion reason the launcher writes when the world died without metrics
 
 
 class LaunchError(Exception):

@@ -80,7 +80,27 @@ def _not_live(vid: str, m: dict, never_up: Sequence[str]) -> str:
         return "  (never came up)"
     if m.get("completion") == "not_started":
         return "  (up, waiting for the others: the run never started)"
+    if m.get("completion") == WORLD_LOST:  # live_final is the world's last status, or nothing
+        t = _world_lost_t(m)
+        return ("  (not known: the world was lost before its first status)" if t is None else
+                f"  (not live at the world's last status, t = {t:.1f} s)")
     return "  (not live at the end: killed or paused; left out of the worst errors)"
+
+
+#: the completion the launcher writes when the world process died without writing its metrics
+#: (cdus.app.launcher.WORLD_LOST): the trace is lost; what is known is the world's last status
+WORLD_LOST = "world_lost"
+
+
+def _world_lost_t(m: dict) -> float | None:
+    """The time of the world's last status in a world_lost record; None: it gave none."""
+    t = (m.get("world_lost") or {}).get("last_status_t") if isinstance(m.get("world_lost"), dict) else None
+    return float(t) if isinstance(t, (int, float)) and not isinstance(t, bool) and math.isfinite(t) else None
+
+
+def _lost_words(m: dict) -> str:
+    t = _world_lost_t(m)
+    return "the world was lost before its first status" if t is None else f"the world was lost at t = {t:.1f} s"
 
 
 def boat_offset_note(m: dict, vehicles: Sequence[VehicleSpec]) -> list[str]:
@@ -99,8 +119,12 @@ def boat_offset_note(m: dict, vehicles: Sequence[VehicleSpec]) -> list[str]:
             f"path_tol {tol:g} m; set [metrics] path_tol above it (docs/config.md, [metrics])"]
 
 
-def _settle(x: float | None) -> str:
-    return "never (not within the tolerance at the end)" if x is None else f"{x:.2f} s"
+def _settle(x: float | None, unknown: str | None = None) -> str:
+    """A settle time; None is "never" for a run whose trace was judged, ``unknown`` (the words
+    why) for one whose trace was lost (the world died): it may have settled."""
+    if x is None:
+        return unknown or "never (not within the tolerance at the end)"
+    return f"{x:.2f} s"
 
 
 def summary_table(metrics: dict, vehicles: Sequence[VehicleSpec]) -> str:
@@ -108,13 +132,25 @@ def summary_table(metrics: dict, vehicles: Sequence[VehicleSpec]) -> str:
     m = metrics
     lines = []
     rf = m.get("realtime_factor")
-    lines.append(
-        f"{m['scenario']} ({m['mode']}, seed {m['seed']}): {m['duration_s']:.1f} s simulated in "
-        f"{m['wall_s']:.1f} s wall" + (f" ({rf:.0f}x real time)" if rf else ""))
+    # the world died (the launcher wrote these metrics): the trace is lost with it, so the settle
+    # times are not known, and the errors are those of the world's last status, if it gave one
+    lost = m.get("completion") == WORLD_LOST
+    t_lost = _world_lost_t(m) if lost else None
+    if lost and t_lost is None:  # its duration_s (0) is not a time the run reached
+        lines.append(f"{m['scenario']} ({m['mode']}, seed {m['seed']}): {m['wall_s']:.1f} s wall; how far the "
+                     f"run got is not known")
+    else:
+        lines.append(
+            f"{m['scenario']} ({m['mode']}, seed {m['seed']}): {m['duration_s']:.1f} s simulated in "
+            f"{m['wall_s']:.1f} s wall" + (f" ({rf:.0f}x real time)" if rf else ""))
     never_up = [v for v in (m.get("never_up") or ()) if isinstance(v, str)]
     if m.get("completion") == "not_started":
         lines.append("  NOT STARTED: " + (f"{', '.join(never_up)} never came up; " if never_up else "")
                      + "the run did not begin, nothing below was simulated")
+    elif lost:
+        lines.append(f"  NOT COMPLETED ({WORLD_LOST}): {_lost_words(m)} and the run's trace with it: the settle "
+                     "times are not known" + ("" if t_lost is None else
+                                              ", the errors below are those of the world's last status"))
     elif m.get("completed") is False:
         lines.append(f"  NOT COMPLETED ({m.get('completion', 'interrupted')}): the run ended at "
                      f"{m['duration_s']:.1f} s; the settle times and errors below are of what ran")
@@ -129,11 +165,18 @@ def summary_table(metrics: dict, vehicles: Sequence[VehicleSpec]) -> str:
             f"  {v.id:<10} {v.kind:<4} {v.plant:<22} {_fmt(pe.get(v.id), '.4f', 'n/a'):>14} "
             f"{_fmt(m['omega_rate_final'].get(v.id), '.4f', 'n/a'):>10}"
             + ("" if not gone else _not_live(v.id, m, never_up)))
-    lines.append(f"  path settle (worst |Φ| < {m['path_tol']} m):             {_settle(m['path_settle_s'])}")
+    unknown = f"not known: {_lost_words(m)}" if lost else None
+    lines.append(f"  path settle (worst |Φ| < {m['path_tol']} m):             "
+                 f"{_settle(m['path_settle_s'], unknown)}")
     lines += boat_offset_note(m, vehicles)
-    lines.append(f"  coordination settle (worst edge < {m['coord_tol']} rad): {_settle(m['coord_settle_s'])}")
-    lines.append(f"  final worst |Φ| {_fmt(m['final_path_error_max'], '.4f', 'n/a')} m, "
-                 f"final worst coordination error {_fmt(m['final_coord_error_max'], '.4f', 'n/a')} rad")
+    lines.append(f"  coordination settle (worst edge < {m['coord_tol']} rad): "
+                 f"{_settle(m['coord_settle_s'], unknown)}")
+    if lost and t_lost is None:
+        lines.append(f"  worst |Φ| and coordination error: not known ({_lost_words(m)})")
+    else:
+        final, when = ("", f" at the world's last status (t = {t_lost:.1f} s)") if lost else ("final ", "")
+        lines.append(f"  {final}worst |Φ| {_fmt(m['final_path_error_max'], '.4f', 'n/a')} m, "
+                     f"{final}worst coordination error {_fmt(m['final_coord_error_max'], '.4f', 'n/a')} rad{when}")
     safety = m.get("safety") or {}
     if safety.get("enabled") or m.get("min_separation_m") is not None:
         sep = m.get("min_separation_m")

@@ -267,6 +267,38 @@ def test_a_world_that_died_leaves_metrics_that_say_so(tmp_path):
     assert "NOT COMPLETED (world_lost)" in table  # and says it is not a finished run
 
 
+def test_the_summary_of_a_lost_world_says_what_is_not_known_not_never(tmp_path):
+    """Review of issue 18: after the world died the summary said settle "never" next to a final
+    |Φ| of 0.0235 m. The trace is lost with the world: the settle times are not known, the
+    errors are those of its last status. The metrics' fields keep their meaning (null settle
+    times, completion "world_lost")."""
+    from cdus.app.report import summary_table
+
+    la, _ = quiet_launcher(tmp_path, duration=40.0)
+    ids = list(la.scenario.ids)
+    la._on_status(Sample(encode_status(12.5, 40.0, "lockstep", ids[:-1], ids, 0.0235, 0.0012, [], False)))
+    m = la.write_world_lost(-9, 3.0)
+    assert (m["path_settle_s"], m["coord_settle_s"], m["final_path_error_max"]) == (None, None, 0.0235)
+    table = summary_table(m, la.scenario.vehicles)
+    assert "never" not in table, table
+    assert "NOT COMPLETED (world_lost): the world was lost at t = 12.5 s and the run's trace with it: the settle " \
+           "times are not known, the errors below are those of the world's last status" in table
+    assert "path settle (worst |Φ| < 0.1 m):             not known: the world was lost at t = 12.5 s" in table
+    assert "coordination settle (worst edge < 0.05 rad): not known: the world was lost at t = 12.5 s" in table
+    assert "worst |Φ| 0.0235 m, worst coordination error 0.0012 rad at the world's last status (t = 12.5 s)" in table
+    assert "final worst" not in table
+    gone = next(line for line in table.splitlines() if line.lstrip().startswith(ids[-1]))
+    assert gone.endswith("(not live at the world's last status, t = 12.5 s)")
+    # a world lost before its first status: nothing of the run is known
+    la, _ = quiet_launcher(tmp_path / "early", duration=40.0)
+    table = summary_table(la.write_world_lost(1, 2.0), la.scenario.vehicles)
+    assert "never" not in table and "0.0 s simulated" not in table and "killed or paused" not in table, table
+    assert "2.0 s wall; how far the run got is not known" in table
+    assert "path settle (worst |Φ| < 0.1 m):             not known: the world was lost before its first status" \
+        in table
+    assert "worst |Φ| and coordination error: not known (the world was lost before its first status)" in table
+
+
 def test_stop_ends_a_paused_vehicle_with_sigterm_not_after_the_grace_with_sigkill(tmp_path):
     la, lines = quiet_launcher(tmp_path, grace=2.0)
     c = la.children["usv1"] = Child("usv1", SLEEP, la.logs / "usv1.log")
