@@ -9,6 +9,7 @@ import json
 import math
 
 import pyarrow.parquet as pq
+import pytest
 from matplotlib.figure import Figure
 
 from cdus.app.cli import main
@@ -18,9 +19,10 @@ RADIO = "configs/range_out.toml"
 LINK = "configs/concentric_circles.toml"
 
 
-def test_an_inf_grid_value_survives_the_files_and_a_resume_through_the_cli(tmp_path, capsys):
+@pytest.mark.parametrize("clock", ["inproc", "lockstep"])
+def test_an_inf_grid_value_survives_the_files_and_a_resume_through_the_cli(tmp_path, capsys, clock):
     out = tmp_path / "s"
-    argv = ["sweep", RADIO, "--set", "radio.shadowing_distance=50,inf", "--seeds", "1", "--clock", "inproc",
+    argv = ["sweep", RADIO, "--set", "radio.shadowing_distance=50,inf", "--seeds", "1", "--clock", clock,
             "--duration", "0.5", "--jobs", "1", "--out", str(out), "-q"]
     assert main(argv) == 0
     manifest = json.loads((out / "manifest.json").read_text())
