@@ -513,7 +513,7 @@ def test_faults_and_radio_changes_at_the_edges_equal_the_in_process_run(tmp_path
 
 
 def test_realtime_under_hostile_radio_traffic_keeps_running_and_counts(tmp_path, launches):
-    """An open realtime lake_radio fleet for 8 s while a raw client publishes, every 50 ms, the
+    """An open realtime lake_radio fleet for 4 s while a raw client publishes, every 50 ms, the
     geometry samples every vehicle refuses, the radio changes they refuse on ctl, the radio
     commands the world refuses, and random bytes on one vehicle's radio key: the run completes
     with every vehicle live, no process fails, the vehicles count the radio rejects by reason
@@ -530,7 +530,7 @@ def test_realtime_under_hostile_radio_traffic_keeps_running_and_counts(tmp_path,
     fleet = unique_fleet()
     port = free_tcp_port()
     run = tmp_path / "run"
-    duration = 8.0
+    duration = 4.0
     la = launches(["configs/lake_radio.toml", "--clock", "realtime", "--duration", str(duration),
                    "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "--insecure", "-q"], fleet)
     la.wait_for(f"fleet '{fleet}' up")

@@ -1,5 +1,5 @@
 """The fleet's router drops a command query it cannot pass on rather than wait (rev-gs):
-cdus.wire.transport.COMMANDS_DROP, see tests/e2e/test_gs_flood for what waiting did."""
+cdus.wire.transport.COMMANDS_DROP; docs/ground_station.md says what waiting did to a flooded fleet."""
 
 from __future__ import annotations
 
