@@ -183,10 +183,11 @@ def test_realtime_under_attack_keeps_running_and_counts(tmp_path, launches):
     fleet = unique_fleet()
     port = free_tcp_port()
     run = tmp_path / "run"
-    la = launches(["configs/lake_circle.toml", "--clock", "realtime", "--duration", "12",
+    # 8 s: the attack is one burst from t = 1 s; the run goes on long enough after it to show its effects
+    la = launches(["configs/lake_circle.toml", "--clock", "realtime", "--duration", "8",
                    "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "--insecure"], fleet)
     la.wait_for(f"fleet '{fleet}' up")
-    sc = load_scenario("configs/lake_circle.toml", {"scenario.duration": 12.0})
+    sc = load_scenario("configs/lake_circle.toml", {"scenario.duration": 8.0})
     attack = _attack(port, fleet, sc, hold=False)
     try:
         code = _wait(la, 120)
