@@ -367,8 +367,17 @@ class GroundStation:
                 self.view.rejected += 1
 
     def wait_for_status(self, timeout: float) -> bool:
-        """Wait until the world's status has been heard (it is published about once a second)."""
+        """Wait until the world's status has been heard: asked for at once (the world answers
+        with its newest), else as it is published, about once a second."""
         deadline = time.monotonic() + timeout
+        try:
+            for reply in self.session.get(keys.world_status(self.fleet), timeout=min(timeout, 1.0)):
+                with self.view.lock:
+                    heard = self.view.world is not None  # a published one came first: it is as new
+                if reply.ok is not None and not heard:
+                    self._on_status(reply.ok)  # checked as a published one is
+        except (zenoh.ZError, RuntimeError):
+            pass  # not answered (a world older than the query, a router that refuses it): the subscription's
         while time.monotonic() < deadline:
             with self.view.lock:
                 if self.view.world is not None:

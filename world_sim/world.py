@@ -233,6 +233,7 @@ class World:
         #: index here as ``seq`` so a process that hears it again applies it once
         self._commands: list[tuple[str | None, bytes]] = []
         self._make_settings()  # the settings reply (world/settings), made again at each change
+        self._status_payload: bytes | None = None  # the newest status published (_publish_status)
         self._console = ConsoleQuota(scenario=scenario)
         self._rt_expect: dict[str, set[str]] = {}  # realtime: liveliness changes a fault we asked for explains
         self._faulted: dict[str, str] = {}  # "killed" | "paused", by the faults carried out (both clocks)
@@ -304,6 +305,7 @@ class World:
             s.liveliness().declare_subscriber(keys.any_alive(f), self._on_alive_sample, history=True),
             s.declare_queryable(keys.world_last(f, "*"), self._on_last_query),
             s.declare_queryable(keys.world_settings(f), self._on_settings_query),
+            s.declare_queryable(keys.world_status(f), self._on_status_query),
             s.declare_queryable(keys.any_world_command(f), self._on_command_query),
         ]
         self.token = s.liveliness().declare_token(keys.alive(f, keys.WORLD))
@@ -357,6 +359,13 @@ class World:
         for v, m in rows:
             if m is not None:
                 query.reply(keys.world_last(self.fleet, v), encode_states([m]))
+
+    def _on_status_query(self, query: Any) -> None:
+        """A ground station attaching asks for the status at once rather than wait up to a second
+        for the next one: the newest published (none before the first)."""
+        payload = self._status_payload
+        if payload is not None:
+            query.reply(keys.world_status(self.fleet), payload)
 
     def _on_settings_query(self, query: Any) -> None:
         """A ground station asks what the run's settings are now (``gs snapshot``): the reply the
@@ -897,6 +906,7 @@ class World:
             self.pub_ctl.put(encode_control("resume", t0=self.t0))
         self._note(FleetEvent.of(self._sim_now(), "fleet", ("fleet paused" if pause else "fleet resumed")
                                  + (f" by {by}" if by else "")))
+        self._publish_status()  # at once: a ground station attaching is answered the newest status
         return Verdict(True, "", tick)
 
     def _on_alive(self, name: str, up: bool) -> None:
@@ -1368,8 +1378,10 @@ class World:
             coord = None if math.isnan(worst_coord[-1]) or not self.recorder.edges else float(worst_coord[-1])
         paused = self.lockstep.paused if self.clock == "lockstep" else self.paused_at is not None
         extra = replace(self._status_extra(), completion=completion)
-        self.pub_status.put(encode_status(t, self.duration, self.clock, sorted(self.st.alive), self.ids, path, coord,
-                                          self.events[-10:], paused, roster=dict(zip(self.ids, extra.states)), extra=extra))
+        payload = encode_status(t, self.duration, self.clock, sorted(self.st.alive), self.ids, path, coord,
+                                self.events[-10:], paused, roster=dict(zip(self.ids, extra.states)), extra=extra)
+        self._status_payload = payload  # what a status query is answered (bytes: replaced whole, never changed)
+        self.pub_status.put(payload)
 
     def _status_extra(self) -> StatusExtra:
         """What a live console shows beyond the summary (cdus.wire.schemas.STATUS_EXTRA), at the

@@ -86,7 +86,7 @@ def fleet_acl(fleet: str, listeners: Mapping[str, Sequence[str]], match_certific
                                       keys.launcher_cmd(f), keys.world_status(f), keys.world_events(f)]),
         _rule("world-token", ("liveliness_token",), [keys.alive(f, keys.WORLD)]),
         _rule("world-last", ("declare_queryable", "reply"), [keys.world_last(f, "*"), keys.any_world_command(f),
-                                                             keys.world_settings(f)]),
+                                                             keys.world_settings(f), keys.world_status(f)]),
     ]
     policies.append({"id": "world", "rules": ["world-put", "world-token", "world-last"], "subjects": [WORLD_ROLE]})
 

@@ -436,3 +436,36 @@ def test_the_settings_query_says_every_change_made_the_phases_and_the_link_table
                                                                          (2, "formation", None)]
     assert got["link"] == {"loss": 0.2} and got["phases"]["usv2"] == 1.5
     assert got["phases"]["usv1"] == first["phases"]["usv1"]
+
+
+def test_a_status_query_is_answered_with_the_newest_status_and_none_before_the_first():
+    from cdus.wire.schemas import decode_status
+
+    w = started(world())
+    q = Query(keys.world_status(FLEET), None)
+    w._on_status_query(q)
+    assert q.replies == []  # nothing published yet: the asker waits for the first
+    w._publish_status()
+    w.next_tick = 5
+    w._publish_status()
+    q = Query(keys.world_status(FLEET), None)
+    w._on_status_query(q)
+    assert q.replies == [(keys.world_status(FLEET), w.pub_status.puts[-1])]
+    assert decode_status(q.replies[0][1])["t"] == 4 * w.period
+
+
+def test_a_fleet_pause_is_in_the_status_a_query_is_answered_at_once():
+    """The status query answers the newest status published: a pause is published with it (a
+    ground station attaching right after a pause was answered the status before it)."""
+    from cdus.wire.schemas import decode_status
+
+    w = started(world())
+    w._publish_status()
+    assert ask(w, "pause").answer.applied
+    q = Query(keys.world_status(FLEET), None)
+    w._on_status_query(q)
+    assert decode_status(q.replies[0][1])["paused"] is True
+    assert ask(w, "resume").answer.applied
+    q = Query(keys.world_status(FLEET), None)
+    w._on_status_query(q)
+    assert decode_status(q.replies[0][1])["paused"] is False
