@@ -153,6 +153,31 @@ def test_a_ground_station_radio_command_changes_delivery_from_its_time_on(tmp_pa
     assert not fleet_processes(fleet)
 
 
+def _range_out_with_a_forger(tmp_path, launches, secured: bool, duration: float = 10.0):
+    """A lockstep range_out fleet up, with a trace, and two sessions: ``boss`` holding the ground
+    credentials and ``mallory`` uav1's (secured), or one raw client for both (--insecure).
+    Returns (fleet, run dir, launch, scenario, boss, mallory)."""
+    from cdus.wire.transport import free_tcp_port
+    from tests.outsider import raw_client
+
+    from .test_access import member
+
+    fleet = unique_fleet()
+    port = free_tcp_port()
+    run = tmp_path / "run"
+    la = launches(["configs/range_out.toml", "--clock", "lockstep", "--duration", str(duration),
+                   "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "--trace-out", str(tmp_path / "trace.npz"),
+                   "-q", *(() if secured else ("--insecure",))], fleet)
+    la.wait_for(f"fleet '{fleet}' up")
+    sc = load_scenario("configs/range_out.toml", {"scenario.duration": duration})
+    if secured:
+        boss, mallory = member(run / "secure" / "ground.json5"), member(run / "secure" / "vehicle-uav1.json5")
+    else:
+        import zenoh
+        boss = mallory = zenoh.open(raw_client(f"tcp/127.0.0.1:{port}"))
+    return fleet, run, la, sc, boss, mallory
+
+
 @pytest.mark.parametrize("secured", [True, False], ids=["secured", "insecure"])
 def test_forged_radio_geometry_is_refused_by_a_secured_fleet_and_detected_on_an_open_one(tmp_path, launches, secured):
     """range_out, lockstep, 10 s, held by a pause while someone publishes a geometry sample with
@@ -166,25 +191,11 @@ def test_forged_radio_geometry_is_refused_by_a_secured_fleet_and_detected_on_an_
 
     from cdus.wire import keys
     from cdus.wire.messages import encode_control
-    from cdus.wire.transport import free_tcp_port
-    from tests.outsider import raw_client
 
-    from .test_access import Events, member
+    from .test_access import Events
 
-    fleet = unique_fleet()
-    port = free_tcp_port()
-    run = tmp_path / "run"
-    duration = 10.0
-    la = launches(["configs/range_out.toml", "--clock", "lockstep", "--duration", str(duration),
-                   "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "--trace-out", str(tmp_path / "trace.npz"),
-                   "-q", *(() if secured else ("--insecure",))], fleet)
-    la.wait_for(f"fleet '{fleet}' up")
-    sc = load_scenario("configs/range_out.toml", {"scenario.duration": duration})
-    if secured:
-        boss, mallory = member(run / "secure" / "ground.json5"), member(run / "secure" / "vehicle-uav1.json5")
-    else:
-        import zenoh
-        boss = mallory = zenoh.open(raw_client(f"tcp/127.0.0.1:{port}"))
+    fleet, run, la, sc, boss, mallory = _range_out_with_a_forger(tmp_path, launches, secured)
+    duration = sc.duration
     try:
         events = Events(boss, fleet)
         boss.put(keys.world_cmd(fleet, keys.GROUND), encode_control("pause"))
@@ -341,25 +352,10 @@ def test_hostile_radio_messages_are_counted_and_change_nothing_but_the_worlds_ch
     numbered 0 made every vehicle drop it as heard again)."""
     from cdus.wire import keys
     from cdus.wire.messages import encode_control
-    from cdus.wire.transport import free_tcp_port
-    from tests.outsider import raw_client
 
-    from .test_access import Events, member
+    from .test_access import Events
 
-    fleet = unique_fleet()
-    port = free_tcp_port()
-    run = tmp_path / "run"
-    duration = 10.0
-    la = launches(["configs/range_out.toml", "--clock", "lockstep", "--duration", str(duration),
-                   "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "--trace-out", str(tmp_path / "trace.npz"),
-                   "-q", *(() if secured else ("--insecure",))], fleet)
-    la.wait_for(f"fleet '{fleet}' up")
-    sc = load_scenario("configs/range_out.toml", {"scenario.duration": duration})
-    if secured:
-        boss, mallory = member(run / "secure" / "ground.json5"), member(run / "secure" / "vehicle-uav1.json5")
-    else:
-        import zenoh
-        boss = mallory = zenoh.open(raw_client(f"tcp/127.0.0.1:{port}"))
+    fleet, run, la, sc, boss, mallory = _range_out_with_a_forger(tmp_path, launches, secured)
     geometry, ctl, commands = _hostile_geometry(sc), _hostile_radio_ctl(sc), _hostile_radio_commands()
     try:
         events = Events(boss, fleet)
