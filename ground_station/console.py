@@ -90,6 +90,9 @@ class Answer:
                                                                                              EXIT_NO_ANSWER)
 
 
+NOT_VEHICLES = frozenset({keys.WORLD, keys.GROUND, "launcher"})  # liveliness tokens of the fleet that are no vehicle's
+
+
 def vehicle_state(vid: str, world: dict | None, alive: set[str], tokens_in: bool = False) -> str:
     """live / paused / lost / ended (left when the run was over): the world's roster where its status has it, else its liveliness;
     a vehicle whose liveliness token is gone is lost unless the roster says it is paused.
@@ -121,7 +124,7 @@ def status_table(view: FleetView, now: float | None = None) -> str:
         known = (w or {}).get("ids")
         known = [k for k in known if isinstance(k, str)] if isinstance(known, list) else []
         ids = sorted(set(view.states) | (view.alive - {keys.WORLD}) | set(known))
-        vehicles = view.alive - {keys.WORLD, keys.GROUND, "launcher"}
+        vehicles = view.alive - NOT_VEHICLES
         rows = [f"{'vehicle':<10} {'alive':<5} {'t (s)':>8} {'|Φ| (m)':>9} {'ω':>11} {'ω̇':>8}  position"]
         for vid in ids:
             m = view.states.get(vid)
@@ -241,24 +244,12 @@ def credentials_fleet(config_file: str | None) -> str | None:
     ``cdus/<fleet>/**``. None if that cannot be read or names no single fleet."""
     if not config_file:
         return None
-    found: set[str] = set()
-
-    def walk(x: Any) -> None:
-        if isinstance(x, str):
-            m = _FLEET_SPACE.fullmatch(x)
-            if m:
-                found.add(m[1])
-        elif isinstance(x, dict):
-            for v in x.values():
-                walk(v)
-        elif isinstance(x, list):
-            for v in x:
-                walk(v)
-
     try:
         with open(os.path.join(os.path.dirname(os.path.abspath(config_file)), "router.json5")) as fh:
-            walk(json.load(fh))
-    except (OSError, ValueError, RecursionError):
+            rules = json.load(fh)["access_control"]["rules"]  # as cdus.wire.access.fleet_acl writes them
+        found = {m[1] for rule in rules for expr in rule["key_exprs"]
+                 if isinstance(expr, str) and (m := _FLEET_SPACE.fullmatch(expr))}
+    except (OSError, ValueError, KeyError, TypeError):
         return None
     return found.pop() if len(found) == 1 else None
 

@@ -36,7 +36,7 @@ from textual.widgets import DataTable, Footer, RichLog, Static
 from cdus.wire import keys
 from cdus.wire.schemas import FleetEvent
 from ground_station.alarms import Alarms
-from ground_station.console import _text, num, vehicle_state
+from ground_station.console import NOT_VEHICLES, _text, num, vehicle_state
 
 REFRESH_S = 0.5
 STALE_S = 3.0  # the world publishes its status every second: this long without one is news
@@ -74,7 +74,7 @@ def snapshot(view: Any) -> dict[str, Any]:
     with view.lock:
         w = view.world  # replaced whole by each status, never changed in place
         states = dict(view.states)
-        alive = set(view.alive) - {keys.WORLD, keys.GROUND, "launcher"}
+        alive = set(view.alive) - NOT_VEHICLES
         tokens_in = view.world_seen  # our liveliness view is in: an empty one means every vehicle left
         over = view.world_seen and keys.WORLD not in view.alive  # the world has left (its last status unheard)
         events = list(view.events[-200:])
