@@ -44,10 +44,10 @@ from cdus.sim.sink import NullSink
 from cdus.wire import keys
 from world_sim.recording import parse_spec
 
-__all__ = [
-    "CLOCKS", "ConfigError", "DivergedError", "DroppedBy", "Event", "FaultCounters", "LinkFaults", "LinkMetrics",
-    "LinkStateChange", "Metrics", "RadioMetrics", "RejectedByReason", "Result", "RunError", "RunInterrupted",
-    "SafetyInfo", "Scenario", "Trace", "load", "override", "run", "sweep",
+__all__ = [  # the names of ``import cdus`` (cdus/__init__.py, docs/api.md; tests/api/test_public.py: one list)
+    "CLOCKS", "ClosestPair", "ConfigError", "DivergedError", "DroppedBy", "Event", "FaultCounters", "LinkFaults",
+    "LinkMetrics", "LinkStateChange", "Metrics", "RadioMetrics", "RejectedByReason", "Result", "RunError",
+    "RunInterrupted", "SafetyInfo", "Scenario", "Trace", "cell_statistics", "load", "override", "run", "sweep",
 ]
 
 CLOCKS = ("inproc", "lockstep")  # how run() runs a scenario: `cdus sim`, `cdus launch --clock lockstep`
