@@ -25,7 +25,7 @@ import zenoh
 from cdus.wire import keys
 from cdus.wire.access import GROUND_ROLE
 from cdus.wire.transport import Transport, endpoint_host, open_session
-from cdus.wire.messages import VEHICLE_FAULTS, StateMsg, decode_states, encode_control
+from cdus.wire.messages import StateMsg, decode_states, encode_control
 from cdus.wire.schemas import CommandReply, FleetEvent, decode_event, decode_reply, decode_settings, decode_status
 from cdus.wire.text import printable
 
@@ -588,39 +588,6 @@ class GroundStation:
             total = self.view.events_seen
             new = min(total - seen, len(self.view.events))
             return (self.view.events[len(self.view.events) - new:] if new > 0 else []), total
-
-    def send(self, op: str, **fields: Any) -> None:
-        """A command to the world (cdus.wire.messages.COMMAND_OPS), put without waiting for an
-        answer (as older versions did; :meth:`command` asks and waits)."""
-        self.session.put(keys.world_cmd(self.fleet, keys.GROUND), encode_control(op, **fields))
-
-    def fleet_command(self, op: str) -> None:
-        """pause | resume | stop the whole fleet."""
-        self.send(op)
-
-    def set_link(self, table: dict, at: float | None = None) -> None:
-        """Change the link faults from simulated time ``at`` (default: as soon as the world can,
-        a moment after its present)."""
-        if at is not None and not (math.isfinite(at) and at >= 0):
-            raise ValueError("at must be a finite time >= 0 s")
-        self.send("link", link=table, at=-1.0 if at is None else float(at))
-
-    def set_radio(self, change: dict, at: float | None = None) -> None:
-        """Change the radio (``{"tx_power": dBm, "station": [x, y, z]}``) from simulated time ``at``
-        (default: as soon as the world can)."""
-        if at is not None and not (math.isfinite(at) and at >= 0):
-            raise ValueError("at must be a finite time >= 0 s")
-        self.send("radio", radio=change, at=-1.0 if at is None else float(at))
-
-    def set_gains(self, gains: dict, vehicle: str | None = None) -> None:
-        self.send("set_gains", gains=gains, vehicle=vehicle or "")
-
-    def vehicle_fault(self, action: str, vehicle: str) -> None:
-        """kill | pause | resume | restart one vehicle's process (the launcher carries it out)."""
-        op = {"pause": "pause_vehicle", "resume": "resume_vehicle"}.get(action, action)
-        if op not in VEHICLE_FAULTS:
-            raise ValueError(f"unknown vehicle fault {action!r}")
-        self.send(op, vehicle=vehicle)
 
 
 def _json_num(x: float) -> float | None:

@@ -172,7 +172,7 @@ class CommandDone(Message):
 
 class ConsoleApp(App):
     """The live console on ground station ``gs`` (anything with ``fleet``, ``view`` (a
-    FleetView), ``fleet_command`` and ``vehicle_fault``)."""
+    FleetView) and ``command``, the acknowledged call)."""
 
     TITLE = "cdus console"
     CSS = """

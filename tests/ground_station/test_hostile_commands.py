@@ -12,7 +12,7 @@ from tests.world_sim.test_world_commands import ask, launcher_done
 
 
 def _put(w, op: str, **fields) -> None:
-    """A command put on to/+world+/cmd/gs (the ground role may: GroundStation.send, older clients)."""
+    """A command put on to/+world+/cmd/gs (the ground role may: older clients put without asking)."""
     w._handle(Sample(keys.world_cmd(FLEET, keys.GROUND), Payload(encode_control(op, **fields))))
 
 
