@@ -6,6 +6,7 @@ controller. The Python API (docs/api.md):
     res = cdus.run(sc)                                 # or clock="lockstep": one process per vehicle
     res.metrics.coord_settle_s, res.trace.to_dataframe()
     table = cdus.sweep("configs/lake_circle.toml", {"link.loss": [0, 0.2]}, seeds=3, out="runs/sw")
+    table.rows, table.cells, table.to_dataframe(), table.to_xarray()   # a SweepTable, typed rows
 
 ``import cdus`` is cheap: the names below are loaded from :mod:`cdus.api` on first use, and
 neither Zenoh nor Rerun is imported until a run needs them.
@@ -18,14 +19,15 @@ from typing import TYPE_CHECKING, Any
 __all__ = [
     "CLOCKS", "ClosestPair", "ConfigError", "DivergedError", "DroppedBy", "Event", "FaultCounters", "LinkFaults", "LinkMetrics",
     "LinkStateChange", "Metrics", "RadioMetrics", "RejectedByReason", "Result", "RunError", "RunInterrupted",
-    "SafetyInfo", "Scenario", "Trace", "cell_statistics", "load", "override", "run", "sweep",
+    "SafetyInfo", "Scenario", "SweepRow", "SweepTable", "CellStats", "Trace", "cell_statistics", "load", "override",
+    "run", "sweep",
 ]
 
 if TYPE_CHECKING:  # for type checkers and editors; at run time __getattr__ loads them
     from cdus.api import (  # noqa: F401
         CLOCKS, ClosestPair, ConfigError, DivergedError, DroppedBy, Event, FaultCounters, LinkFaults, LinkMetrics,
         LinkStateChange, Metrics, RadioMetrics, RejectedByReason, Result, RunError, RunInterrupted, SafetyInfo,
-        Scenario, Trace, cell_statistics, load, override, run, sweep,
+        Scenario, SweepRow, SweepTable, CellStats, Trace, cell_statistics, load, override, run, sweep,
     )
 
 

@@ -6,6 +6,7 @@
     res.metrics.coord_settle_s               # a typed Metrics (docs/metrics.md), .to_dict() is the JSON
     res.trace.to_dataframe()                 # the time series (numpy arrays; pandas, xarray helpers)
     table = cdus.sweep("configs/lake_circle.toml", {"link.loss": [0, 0.2]}, seeds=3, out="runs/sw")
+    table.rows[0].coord_settle_s, table.cells, table.to_dataframe(), table.to_xarray()
 
 docs/api.md is the reference. Every argument is checked here, where it enters: a bad path,
 override, or option raises :class:`ConfigError` naming the field and what would be valid,
@@ -33,9 +34,12 @@ import numpy as np
 
 from cdus.app import sweep as app_sweep
 from cdus.app.report import Progress
+from cdus.app.sweeptable import CellStats, SweepTable, cell_statistics
+from cdus.app.sweepstore import SweepRow
 from cdus.core.linkspec import POLICIES
 from cdus.core.metrics import Recorder
 from cdus.core.vehicle import DivergedError
+from cdus.extras import needs
 from cdus.scenario.config import MAX_NESTING, ConfigError, load_scenario, nesting_problem, parse_scenario
 from cdus.scenario.model import Scenario
 from cdus.sim.fleet import InProcessFleet
@@ -47,11 +51,11 @@ from world_sim.recording import parse_spec
 __all__ = [  # the names of ``import cdus`` (cdus/__init__.py, docs/api.md; tests/api/test_public.py: one list)
     "CLOCKS", "ClosestPair", "ConfigError", "DivergedError", "DroppedBy", "Event", "FaultCounters", "LinkFaults",
     "LinkMetrics", "LinkStateChange", "Metrics", "RadioMetrics", "RejectedByReason", "Result", "RunError",
-    "RunInterrupted", "SafetyInfo", "Scenario", "Trace", "cell_statistics", "load", "override", "run", "sweep",
+    "RunInterrupted", "SafetyInfo", "Scenario", "SweepRow", "SweepTable", "CellStats", "Trace", "cell_statistics",
+    "load", "override", "run", "sweep",
 ]
 
 CLOCKS = ("inproc", "lockstep")  # how run() runs a scenario: `cdus sim`, `cdus launch --clock lockstep`
-EXTRA = "api"  # the optional-dependency group with pandas and xarray: pip install 'cdus[api]'
 
 
 # --------------------------------------------------------------------------- errors
@@ -509,14 +513,6 @@ class Metrics:
 # --------------------------------------------------------------------------- the trace
 
 
-def _needs(module: str, what: str):
-    try:
-        return __import__(module)
-    except ImportError:
-        raise ImportError(f"{what} needs {module}, an optional dependency of cdus: pip install 'cdus[{EXTRA}]' "
-                          f"(or pip install {module})") from None
-
-
 TRACE_ARRAYS = ("t", "q", "heading", "omega", "omega_rate", "path_error", "edge_error", "live")
 
 
@@ -602,7 +598,7 @@ class Trace:
         """A pandas DataFrame, one row per (tick, vehicle): ``t, vehicle, x, y, z, heading,
         omega, omega_rate, path_error, live`` and ``interventions`` when the trace has them
         (needs pandas: the ``api`` extra)."""
-        pd = _needs("pandas", "Trace.to_dataframe")
+        pd = needs("pandas", "Trace.to_dataframe")
         T, N = len(self.t), len(self.ids)
         return pd.DataFrame({
             "t": np.repeat(self.t, N), "vehicle": pd.Categorical(np.tile(np.array(self.ids, dtype=object), T),
@@ -615,7 +611,7 @@ class Trace:
 
     def edges_dataframe(self):
         """A pandas DataFrame, one row per (tick, metric edge): ``t, edge, error`` (rad)."""
-        pd = _needs("pandas", "Trace.edges_dataframe")
+        pd = needs("pandas", "Trace.edges_dataframe")
         T, E = len(self.t), len(self.edge_names)
         return pd.DataFrame({"t": np.repeat(self.t, E),
                              "edge": pd.Categorical(np.tile(np.array(self.edge_names, dtype=object), T),
@@ -625,7 +621,7 @@ class Trace:
     def to_xarray(self):
         """An xarray Dataset over dims ``t``, ``vehicle``, ``axis`` (x, y, z) and ``edge``, with
         units in each variable's attrs (needs xarray: the ``api`` extra)."""
-        xr = _needs("xarray", "Trace.to_xarray")
+        xr = needs("xarray", "Trace.to_xarray")
         tv = ("t", "vehicle")
         data = {
             "q": (("t", "vehicle", "axis"), self.q, {"units": "m", "long_name": "position"}),
@@ -901,11 +897,11 @@ def _run_lockstep(scenario: Scenario, fleet: str, policy: str | None, rerun: str
 def sweep(config: str | os.PathLike | Scenario, grid: Mapping[str, Sequence[Any]], *, out: str | os.PathLike,
           seeds: int | Sequence[int] = 3, clock: str = "inproc", executor: str = "local", cluster: str | None = None,
           jobs: int | None = None, duration: float | None = None, overrides: Mapping[str, Any] | None = None,
-          quiet: bool = True):
+          quiet: bool = True) -> SweepTable:
     """Run every combination of ``grid``'s values x ``seeds`` (``cdus sweep``'s engine,
-    cdus.app.sweep.sweep) and return its table: a pandas DataFrame if pandas is installed,
-    else a list of dicts, one row per (cell, seed) in plan order (the grid values as typed
-    columns, ``seed``, ``status``, ``reason`` and the metrics' fields; docs/api.md).
+    cdus.app.sweep.sweep) and return its :class:`SweepTable`, whatever is installed: ``rows``
+    (typed, one per (cell, seed) in plan order), ``cells`` (the per-cell statistics),
+    ``to_dataframe()`` and ``to_xarray()`` (grid x seed) (docs/api.md).
 
     ``config``: a scenario file or a loaded Scenario (the workers get it resolved).
     ``grid``: dotted key -> list of values, e.g. ``{"link.loss": [0, 0.2], "rates.control":
@@ -952,32 +948,5 @@ def sweep(config: str | os.PathLike | Scenario, grid: Mapping[str, Sequence[Any]
         warnings.warn(f"{result.planned - result.done} of {result.planned} runs are not in the table: the executor "
                       f"lost them ({result.lost} lost, a worker process died?); the same call again runs only those",
                       RuntimeWarning, stacklevel=2)
-    try:
-        table = result.table()
-    except ImportError:
-        return result.rows()
-    table.attrs["cells"] = cell_statistics(result)
-    return table
+    return SweepTable.of(result)
 
-
-def cell_statistics(result: "app_sweep.SweepResult"):
-    """A sweep's per-cell statistics as a pandas DataFrame (what summary.md shows), one row
-    per cell: the grid values, ``runs``, ``ok``, and for each of coord_settle_s,
-    final_coord_error_max, path_settle_s and final_path_error_max: ``<field>_n`` (the ok
-    runs with a value; for a settle time, those that settled), ``_mean``, ``_std`` (n - 1;
-    None below 2 values), ``_ci_lo`` and ``_ci_hi`` (the 95 % percentile bootstrap interval
-    of the mean, 2,000 resamples, seeded). ``cdus.sweep``'s table carries it as
-    ``table.attrs["cells"]``."""
-    pd = _needs("pandas", "cdus.cell_statistics")
-    rows = []
-    for c in result.cells:
-        row: dict[str, Any] = {k: v for k, v in c.cell}
-        row["runs"], row["ok"] = c.runs, c.ok
-        for f in app_sweep.STAT_FIELDS:
-            st = c.stats.get(f)
-            for name, v in (("n", None if st is None else st.n), ("mean", None if st is None else st.mean),
-                            ("std", None if st is None else st.std), ("ci_lo", None if st is None else st.lo),
-                            ("ci_hi", None if st is None else st.hi)):
-                row[f"{f}_{name}"] = v
-        rows.append(row)
-    return pd.DataFrame(rows)

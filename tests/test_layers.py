@@ -20,6 +20,7 @@ ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("cdus", "vehicle_agent", "world_sim", "ground_station")
 LAYERS = {  # module prefix -> layer rank (longest prefix wins)
     "cdus.wire": 0, "cdus.files": 0,
+    "cdus.extras": 0,  # the ImportError of a table helper without pandas or xarray
     "cdus.core": 1,
     "cdus.scenario": 2,
     "cdus.sim": 3,

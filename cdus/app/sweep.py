@@ -488,6 +488,8 @@ class SweepResult:
     executor: str
     interrupted: bool = False
     cells: list[CellSummary] = field(default_factory=list)
+    grid: Grid = field(default_factory=list)  # the grid as checked: [(key, [values...]), ...]
+    seeds: tuple[int, ...] = ()  # the plan's seeds, in order
 
     @property
     def csv(self) -> Path:
@@ -777,7 +779,7 @@ def _finish(out: Path, base: Scenario, g: Grid, p: _Plan, clock: str, executor: 
     cells = tally.finish()
     resumed = len(before.offsets)
     result = SweepResult(out, p.size, n, ran, resumed, tally.failed, before.torn, before.unreadable, lost, wall,
-                         executor, interrupted, cells)
+                         executor, interrupted, cells, g, tuple(p.seeds))
     seeds = p.seeds
     seed_text = f"seed {seeds[0]}" if len(seeds) == 1 else f"seeds {seeds[0]}..{seeds[-1]}" \
         if seeds == list(range(seeds[0], seeds[-1] + 1)) else "seeds " + ", ".join(map(str, seeds))

@@ -17,7 +17,7 @@ import hashlib
 import json
 import math
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, Iterator, Sequence
 
@@ -28,17 +28,82 @@ MANIFEST, ROWS, CSV, PARQUET = "manifest.json", "results.jsonl", "results.csv", 
 FORMAT = "cdus-sweep/1"
 STATUSES = ("ok", "failed")  # a row's status; a line with another is not a row
 
-# The metrics fields of a row (the metrics JSON's, flattened) and their Parquet types.
-FIELD_TYPES: dict[str, str] = {
-    "scenario": "string", "mode": "string", "duration_s": "float64", "path_tol": "float64", "coord_tol": "float64",
-    "path_settle_s": "float64", "coord_settle_s": "float64", "final_path_error_max": "float64",
-    "final_coord_error_max": "float64", "omega_rate_mean": "float64", "link_sent": "int64",
-    "link_delivered": "int64", "link_dropped": "int64", "link_rejected": "int64", "link_latency_ms_p50": "float64",
-    "link_latency_ms_p99": "float64", "wall_s": "float64", "realtime_factor": "float64",
-    "omega_rate_final": "string", "min_separation_m": "float64", "near_collision": "bool", "interventions": "int64", "completed": "bool",
-    "policy": "string", "live_final": "string",
-}
+
+
+@dataclass(frozen=True)
+class SweepRow:
+    """One run of a sweep as its table holds it (a row of results.csv and results.parquet):
+    the cell's grid values, the seed, ``status`` (``ok`` or ``failed``), ``reason`` (why it
+    failed, else ""), and the run's metrics JSON flattened (docs/metrics.md; ``link_*`` are the
+    ``link`` block's, ``omega_rate_mean`` the mean of ``omega_rate_final``, which is kept as
+    JSON text, ``live_final`` the live ids joined by spaces). A metric is None where the run
+    has no value (a failed run has none; a settle time that never came). The fields after
+    ``reason`` are the table's metric columns, in order, with their types (FIELD_TYPES)."""
+    cell: tuple[tuple[str, Any], ...]  # (grid key, value) in the grid's order; a table or list value as it was given
+    seed: int
+    status: str
+    reason: str = ""
+    scenario: str | None = None
+    mode: str | None = None
+    duration_s: float | None = None
+    path_tol: float | None = None
+    coord_tol: float | None = None
+    path_settle_s: float | None = None
+    coord_settle_s: float | None = None
+    final_path_error_max: float | None = None
+    final_coord_error_max: float | None = None
+    omega_rate_mean: float | None = None
+    link_sent: int | None = None
+    link_delivered: int | None = None
+    link_dropped: int | None = None
+    link_rejected: int | None = None
+    link_latency_ms_p50: float | None = None
+    link_latency_ms_p99: float | None = None
+    wall_s: float | None = None
+    realtime_factor: float | None = None
+    omega_rate_final: str | None = None
+    min_separation_m: float | None = None
+    near_collision: bool | None = None
+    interventions: int | None = None
+    completed: bool | None = None
+    policy: str | None = None
+    live_final: str | None = None
+
+    def __getitem__(self, key: str) -> Any:
+        """A column by name, as in the DataFrame: a grid key (``row["link.loss"]``), ``seed``,
+        ``status``, a metric."""
+        for k, v in self.cell:
+            if k == key:
+                return v
+        if key == "cell" or key not in ROW_COLUMNS:
+            raise KeyError(key)
+        return getattr(self, key)
+
+    def as_dict(self) -> dict[str, Any]:
+        """The row's columns: the grid keys, then ``seed``, ``status``, ``reason`` and the metrics."""
+        return {**dict(self.cell), **{c: getattr(self, c) for c in ROW_COLUMNS}}
+
+    @classmethod
+    def from_columns(cls, columns: dict[str, Any], grid: Sequence[tuple[str, Sequence[Any]]]) -> "SweepRow":
+        """A row of results.parquet (``{column: value}``, as pyarrow reads it), its cell's
+        values those of ``grid`` as given (the column holds them typed: 0 as 0.0 in a float
+        column, a table or a list as JSON text)."""
+        cell = []
+        for key, values in grid:
+            kind = grid_type(values)
+            given = {canonical(_typed(v, kind)): v for v in values}
+            v = columns.get(key)
+            cell.append((key, given.get(canonical(v), v)))
+        return cls(tuple(cell), **{c: columns.get(c) for c in ROW_COLUMNS})
+
+
+_COLUMN_TYPES = {"str | None": "string", "float | None": "float64", "int | None": "int64", "bool | None": "bool"}
+ROW_HEAD = ("seed", "status", "reason")  # the columns between the grid keys and the metrics
+# The metrics fields of a row (the metrics JSON's, flattened) and their Parquet types: SweepRow's.
+FIELD_TYPES: dict[str, str] = {f.name: _COLUMN_TYPES[f.type] for f in fields(SweepRow)
+                               if f.name not in ("cell", *ROW_HEAD)}
 FIELDS = tuple(FIELD_TYPES)
+ROW_COLUMNS = (*ROW_HEAD, *FIELDS)
 WALL_CLOCK_FIELDS = ("wall_s", "realtime_factor")  # differ between two runs of the same (cell, seed)
 
 
@@ -272,17 +337,28 @@ def _int64(value: int | float) -> bool:
         return False
 
 
+def table_schema(keys: Sequence[str], key_types: Sequence[str]) -> tuple[list[str], dict[str, str], Any]:
+    """The table's columns (the grid keys, ``seed``, ``status``, ``reason``, the metrics), each
+    column's type (:func:`grid_type`'s, FIELD_TYPES) and the Arrow schema of results.parquet."""
+    import pyarrow as pa
+
+    columns = [*keys, *ROW_COLUMNS]
+    types = {**dict(zip(keys, key_types)), "seed": "int64", "status": "string", "reason": "string", **FIELD_TYPES}
+    arrow = {"float64": pa.float64(), "int64": pa.int64(), "bool": pa.bool_(), "string": pa.string(),
+             "json": pa.string()}
+    return columns, types, pa.schema([pa.field(c, arrow[types[c]]) for c in columns])
+
+
+def typed_columns(flat: dict[str, Any], columns: Sequence[str], types: dict[str, str]) -> dict[str, Any]:
+    """A row's values as their columns' types (:func:`_typed`): what results.parquet holds."""
+    return {c: _typed(flat.get(c), types[c]) for c in columns}
+
+
 def write_tables(out: Path, keys: Sequence[str], key_types: Sequence[str], rows: Iterator[dict],
                  batch: int = 1000) -> int:
     """results.csv and results.parquet from ``rows`` (plan order), ``batch`` rows in memory
     at a time; returns how many rows."""
-    import pyarrow as pa
-
-    columns = [*keys, "seed", "status", "reason", *FIELDS]
-    types = {**dict(zip(keys, key_types)), "seed": "int64", "status": "string", "reason": "string", **FIELD_TYPES}
-    arrow = {"float64": pa.float64(), "int64": pa.int64(), "bool": pa.bool_(), "string": pa.string(),
-             "json": pa.string()}
-    schema = pa.schema([pa.field(c, arrow[types[c]]) for c in columns])
+    columns, types, schema = table_schema(keys, key_types)
     csv_tmp, pq_tmp = out / (CSV + ".tmp"), out / (PARQUET + ".tmp")
     try:
         n = _write(csv_tmp, pq_tmp, columns, keys, types, schema, rows, batch)
@@ -315,7 +391,7 @@ def _write(csv_tmp: Path, pq_tmp: Path, columns: list, keys: Sequence[str], type
             flat = {**{k: row["cell"].get(k) for k in keys}, **{c: row.get(c) for c in columns if c not in keys}}
             w.writerow({c: "" if flat.get(c) is None else (cell_label(flat[c]) if c in keys else flat[c])
                         for c in columns})
-            chunk.append({c: _typed(flat.get(c), types[c]) for c in columns})
+            chunk.append(typed_columns(flat, columns, types))
             n += 1
             if len(chunk) >= batch:
                 flush()

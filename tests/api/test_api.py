@@ -238,9 +238,9 @@ def test_the_trace_as_a_dataframe_and_a_dataset(concentric):
 def test_without_pandas_the_error_names_the_extra(concentric, monkeypatch):
     monkeypatch.setitem(sys.modules, "pandas", None)
     monkeypatch.setitem(sys.modules, "xarray", None)
-    with pytest.raises(ImportError, match=r"Trace.to_dataframe needs pandas.*pip install 'cdus\[api\]'"):
+    with pytest.raises(ImportError, match=r"Trace.to_dataframe needs pandas.*pip install -e '\.\[api\]'"):
         concentric.trace.to_dataframe()
-    with pytest.raises(ImportError, match=r"Trace.to_xarray needs xarray.*'cdus\[api\]'"):
+    with pytest.raises(ImportError, match=r"Trace.to_xarray needs xarray.*pip install -e '\.\[api\]'"):
         concentric.trace.to_xarray()
 
 
@@ -369,8 +369,9 @@ def test_import_cdus_and_an_in_process_run_import_neither_zenoh_nor_rerun():
         cdus.nothing  # noqa: B018
 
 
-def test_a_sweep_through_the_api_gives_its_table(tmp_path, monkeypatch):
+def test_a_sweep_through_the_api_gives_its_table(tmp_path):
     import matplotlib.pyplot as plt
+    import pandas as pd
 
     sc = cdus.load(LAKE, {"scenario.seed": 7})
     before = plt.get_backend()
@@ -383,21 +384,48 @@ def test_a_sweep_through_the_api_gives_its_table(tmp_path, monkeypatch):
     assert (tmp_path / "sw/sweep.png").exists()
     assert (tmp_path / "sw/results.csv").exists() and (tmp_path / "sw/results.parquet").exists()
     assert json.loads((tmp_path / "sw/scenario.json").read_text())["scenario"]["seed"] == 7  # the fixed override
-    assert list(table["link.loss"]) == [0, 0, 0.3, 0.3] and list(table["seed"]) == [7, 8, 7, 8]
-    assert set(table["status"]) == {"ok"}
-    cells = table.attrs["cells"]  # the per-cell statistics of summary.md, as a table
-    assert list(cells["link.loss"]) == [0, 0.3] and list(cells["runs"]) == [2, 2] and list(cells["ok"]) == [2, 2]
-    for _, c in cells.iterrows():
-        errs = table[table["link.loss"] == c["link.loss"]]["final_coord_error_max"]
-        assert c["final_coord_error_max_n"] == 2 and c["final_coord_error_max_mean"] == pytest.approx(errs.mean())
-        assert c["final_coord_error_max_ci_lo"] <= c["final_coord_error_max_mean"] <= c["final_coord_error_max_ci_hi"]
+    assert isinstance(table, cdus.SweepTable) and len(table) == 4 and table.keys == ("link.loss",)
+    assert [(r["link.loss"], r.seed) for r in table] == [(0, 7), (0, 8), (0.3, 7), (0.3, 8)]
+    assert {r.status for r in table.rows} == {"ok"}
+    df = table.to_dataframe()
+    assert list(df["link.loss"]) == [0, 0, 0.3, 0.3] and list(df["seed"]) == [7, 8, 7, 8]
+    assert list(df["final_coord_error_max"]) == [r.final_coord_error_max for r in table.rows]
+    assert df.equals(pd.read_parquet(tmp_path / "sw/results.parquet"))  # the table the engine wrote, typed alike
+    # the per-cell statistics of summary.md: typed, and as a DataFrame
+    assert [(c["link.loss"], c.runs, c.ok) for c in table.cells] == [(0, 2, 2), (0.3, 2, 2)]
+    for c in table.cells:
+        errs = [r.final_coord_error_max for r in table.rows if r["link.loss"] == c["link.loss"]]
+        st = c.stats["final_coord_error_max"]
+        assert st.n == 2 and st.mean == pytest.approx(sum(errs) / 2) and st.lo <= st.mean <= st.hi
+    cells = cdus.cell_statistics(table)
+    assert list(cells["link.loss"]) == [0, 0.3] and list(cells["runs"]) == [2, 2]
+    assert list(cells["final_coord_error_max_mean"]) == [c.stats["final_coord_error_max"].mean for c in table.cells]
+    ds = table.to_xarray()  # grid x seed
+    assert dict(ds.sizes) == {"link.loss": 2, "seed": 2} and list(ds.seed) == [7, 8]
+    assert float(ds.final_coord_error_max.sel({"link.loss": 0.3, "seed": 8})) == table.rows[3].final_coord_error_max
+    assert ds.link_dropped.dtype.kind == "i" and ds.coord_settle_s.attrs["units"] == "s"
     one = cdus.run(cdus.override(sc, {"link.loss": 0.3, "scenario.seed": 8, "scenario.duration": 4}))
-    row = table.iloc[3]
+    row = table.rows[3]
     assert row.final_coord_error_max == one.metrics.final_coord_error_max
     assert row.link_dropped == one.metrics.link.dropped > 0
+
+
+def test_without_pandas_a_sweep_gives_the_same_typed_table(tmp_path, monkeypatch):
+    """It gave a DataFrame with pandas and a list of dicts without: one type now, whatever is installed."""
     monkeypatch.setitem(sys.modules, "pandas", None)
-    rows = cdus.sweep(LAKE, {}, out=tmp_path / "plain", seeds=[3], duration=2, jobs=1)
-    assert isinstance(rows, list) and rows[0]["seed"] == 3 and rows[0]["status"] == "ok"
+    monkeypatch.setitem(sys.modules, "xarray", None)
+    table = cdus.sweep(LAKE, {}, out=tmp_path / "plain", seeds=[3], duration=2, jobs=1)
+    assert isinstance(table, cdus.SweepTable) and table.keys == () and table.seeds == (3,)
+    (row,) = table.rows
+    assert isinstance(row, cdus.SweepRow) and (row.seed, row.status, row.cell) == (3, "ok", ())
+    assert isinstance(row.final_coord_error_max, float) and isinstance(row.link_sent, int)
+    (cell,) = table.cells
+    assert isinstance(cell, cdus.CellStats) and (cell.runs, cell.ok) == (1, 1)
+    for call, what in ((table.to_dataframe, "SweepTable.to_dataframe needs pandas"),
+                       (table.to_xarray, "SweepTable.to_xarray needs xarray"),
+                       (lambda: cdus.cell_statistics(table), "cdus.cell_statistics needs pandas")):
+        with pytest.raises(ImportError, match=what + r".*pip install -e '\.\[api\]'"):
+            call()
 
 
 def test_an_event_field_that_does_not_apply_is_absent_never_null():
