@@ -897,7 +897,7 @@ def _run_lockstep(scenario: Scenario, fleet: str, policy: str | None, rerun: str
 def sweep(config: str | os.PathLike | Scenario, grid: Mapping[str, Sequence[Any]], *, out: str | os.PathLike,
           seeds: int | Sequence[int] = 3, clock: str = "inproc", executor: str = "local", cluster: str | None = None,
           jobs: int | None = None, duration: float | None = None, overrides: Mapping[str, Any] | None = None,
-          quiet: bool = True) -> SweepTable:
+          quiet: bool = True, plot_format: str = "png") -> SweepTable:
     """Run every combination of ``grid``'s values x ``seeds`` (``cdus sweep``'s engine,
     cdus.app.sweep.sweep) and return its :class:`SweepTable`, whatever is installed: ``rows``
     (typed, one per (cell, seed) in plan order), ``cells`` (the per-cell statistics),
@@ -912,6 +912,7 @@ def sweep(config: str | os.PathLike | Scenario, grid: Mapping[str, Sequence[Any]
     ``executor``: ``local`` (processes of this machine) or ``dask`` (a LocalCluster on
     127.0.0.1); ``cluster``: a running Dask scheduler's address; ``jobs``: runs in parallel;
     ``duration``: simulated seconds per run; ``overrides``: fixed config values of every run.
+    ``plot_format``: ``png`` (sweep.png), ``pdf`` or ``svg`` (a vector sweep.pdf or sweep.svg).
     Every cell is validated before any run (ConfigError). Ctrl-C raises
     cdus.app.sweep.SweepInterrupted (a KeyboardInterrupt) with the rows done kept on disk."""
     where = "cdus.sweep"
@@ -919,6 +920,8 @@ def sweep(config: str | os.PathLike | Scenario, grid: Mapping[str, Sequence[Any]
         raise _arg_error(where, "out", f"expected a directory path for the results, got {type(out).__name__}")
     if clock not in CLOCKS:
         raise _arg_error(where, "clock", f"{clock!r} is not one of {', '.join(CLOCKS)}")
+    if plot_format not in app_sweep.PLOT_FORMATS:
+        raise _arg_error(where, "plot_format", f"{plot_format!r} is not one of {', '.join(app_sweep.PLOT_FORMATS)}")
     if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
         raise _arg_error(where, "jobs", f"expected a number of parallel runs >= 1 (or None), got {jobs!r}")
     if duration is not None and (isinstance(duration, bool) or not isinstance(duration, (int, float))
@@ -943,7 +946,8 @@ def sweep(config: str | os.PathLike | Scenario, grid: Mapping[str, Sequence[Any]
     result = app_sweep.sweep(config if isinstance(config, Scenario) else os.fspath(config), axes,
                              seeds if isinstance(seeds, int) else list(seeds), Path(out), overrides=fixed,
                              clock=clock, executor=executor, cluster=cluster, jobs=jobs,
-                             duration=None if duration is None else float(duration), quiet=quiet)
+                             duration=None if duration is None else float(duration), quiet=quiet,
+                             plot_format=plot_format)
     if result.done < result.planned:  # runs lost by the executor (a worker died): say so, the table is short
         warnings.warn(f"{result.planned - result.done} of {result.planned} runs are not in the table: the executor "
                       f"lost them ({result.lost} lost, a worker process died?); the same call again runs only those",

@@ -22,7 +22,7 @@ from cdus import api
 from cdus.app.fleet_run import secure_router
 from cdus.app.launcher import LINKS, LaunchOptions, ListenError, check_listen, launch
 from cdus.app.executors import CONNECT_TIMEOUT_S, EXECUTORS
-from cdus.app.sweep import CLOCKS, SweepInterrupted, check_grid, parse_grid, sweep
+from cdus.app.sweep import CLOCKS, PLOT_FORMATS, SweepInterrupted, check_grid, parse_grid, sweep
 from cdus.app.sweepstore import ROWS
 from cdus.core.vehicle import DivergedError
 from cdus.scenario.config import ConfigError, load_scenario, parse_overrides
@@ -125,7 +125,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "finished run is appended to --out/results.jsonl at once, and the same command "
                                    "again resumes (runs only what is missing). At the end: results.csv, "
                                    "results.parquet, summary.md (mean, sd, 95 % bootstrap CI per cell) and "
-                                   "sweep.png.")
+                                   "sweep.png (--plot-format pdf or svg: a vector sweep.pdf or sweep.svg).")
     p.add_argument("config", help="scenario file (TOML)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=V1,V2,...",
                    help="a grid axis: a dotted config key and its values, e.g. --set link.loss=0,0.2,0.4")
@@ -145,6 +145,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"how long to try to reach --cluster (default {CONNECT_TIMEOUT_S:g} s)")
     p.add_argument("--out", required=True, metavar="DIR",
                    help="where the results go; the same DIR again resumes the same sweep")
+    p.add_argument("--plot-format", choices=PLOT_FORMATS, default="png",
+                   help="the plot's format: sweep.png (default), or a vector sweep.pdf or sweep.svg for a paper")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_sweep)
 
@@ -318,7 +320,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     try:
         res = sweep(args.config, grid, args.seeds, Path(args.out), clock=args.clock, executor=args.executor,
                     cluster=args.cluster, jobs=args.jobs, duration=args.duration, quiet=args.quiet,
-                    connect_timeout=args.connect_timeout)
+                    connect_timeout=args.connect_timeout, plot_format=args.plot_format)
     except SweepInterrupted as e:
         print(f"\n{e.message}", file=sys.stderr)
         return EXIT_INTERRUPTED

@@ -14,7 +14,8 @@ In ``out``: ``manifest.json`` (which sweep this is), ``results.jsonl`` (one row 
 run, appended as it comes), and, written at the end from those rows, ``results.csv`` and
 ``results.parquet`` (one row per run in plan order: the grid values as typed columns, the
 seed, the status, the metrics JSON's fields), ``summary.md`` (per cell: mean, standard
-deviation and a 95 % bootstrap interval of the mean, how many settled) and ``sweep.png``.
+deviation and a 95 % bootstrap interval of the mean, how many settled) and ``sweep.png`` (or
+``sweep.pdf``, ``sweep.svg``: ``--plot-format``).
 Running the same sweep again with the same ``out`` runs only the (cell, seed) pairs not done
 yet (cdus.app.sweepstore has the file formats).
 """
@@ -52,7 +53,7 @@ from cdus.sim.fleet import InProcessFleet
 from cdus.wire.text import printable
 
 __all__ = ["sweep", "SweepResult", "SweepInterrupted", "parse_grid", "check_grid", "plan", "Run", "FIELDS",
-           "CLOCKS", "cell_label"]
+           "CLOCKS", "PLOT_FORMATS", "cell_label"]
 
 CLOCKS = ("inproc", "lockstep")
 MAX_SEED = 2 ** 63  # a seed is an int64 column of the table
@@ -331,46 +332,135 @@ def explain() -> str:
 
 # --- the plot ----------------------------------------------------------------------------------
 
-UNITS = {"scenario.duration": "s", "link.timeout": "s", "metrics.path_tol": "m", "metrics.coord_tol": "rad",
-         "safety.radius": "m", "safety.range": "m", "safety.rate": "Hz", "safety.latency": "s",
-         "safety.gamma": "1/s", "supervision.backoff_s": "s", "radio.tx_power": "dBm", "radio.sample_period": "s",
-         "radio.shadowing_sigma": "dB", "radio.frequency": "Hz", "radio.capacity": "bit/s", "radio.noise_floor": "dBm",
-         "radio.relay_delay": "s"}
+#: how a grid key reads on an axis or in a legend: (words, unit or None); a key not here is
+#: worded from its own parts (axis_label)
+LABELS: dict[str, tuple[str, str | None]] = {
+    "scenario.duration": ("Run duration", "s"),
+    "rates.control": ("Control rate", "Hz"), "rates.broadcast": ("Broadcast rate", "Hz"),
+    "rates.physics": ("Physics rate", "Hz"),
+    "gains.k": ("Path gain k", None), "gains.c": ("Coordination gain c", None),
+    "graph.topology": ("Graph topology", None), "graph.weight": ("Edge weight", None),
+    "metrics.path_tol": ("Path tolerance", "m"), "metrics.coord_tol": ("Coordination tolerance", "rad"),
+    "link.loss": ("Loss probability", None), "link.duplicate": ("Duplication probability", None),
+    "link.delay.base": ("Link delay", "s"), "link.delay.jitter": ("Delay jitter", "s"),
+    "link.burst": ("Burst loss (Gilbert-Elliott)", None), "link.burst.p": ("Burst onset probability p", None),
+    "link.burst.r": ("Burst end probability r", None), "link.policy": ("Stale-neighbour policy", None),
+    "link.timeout": ("Stale-neighbour timeout", "s"),
+    "safety.radius": ("Safety radius R", "m"), "safety.range": ("Proximity sensor range", "m"),
+    "safety.rate": ("Proximity sensor rate", "Hz"), "safety.latency": ("Proximity sensor latency", "s"),
+    "safety.gamma": ("Safety filter rate γ", "1/s"), "supervision.backoff_s": ("Restart back-off", "s"),
+    "radio.tx_power": ("Transmit power", "dBm"), "radio.sample_period": ("Geometry sample period", "s"),
+    "radio.shadowing_sigma": ("Shadowing σ", "dB"), "radio.shadowing_distance": ("Shadowing distance", "m"),
+    "radio.shadowing_time": ("Shadowing time", "s"), "radio.frequency": ("Carrier frequency", "Hz"),
+    "radio.capacity": ("Channel bit rate", "bit/s"), "radio.noise_floor": ("Noise floor", "dBm"),
+    "radio.noise_figure": ("Noise figure", "dB"), "radio.bandwidth": ("Noise bandwidth", "Hz"),
+    "radio.relay_delay": ("Station relay delay", "s"), "radio.queue": ("Transmit queue", "messages"),
+    "radio.exponent": ("Path-loss exponent", None), "radio.fading": ("Fading", None),
+    "radio.modulation": ("Modulation", None), "radio.topology": ("Radio topology", None),
+}
+#: the unit of a key not in LABELS, by its last part (a vehicle's or a link's own setting)
 SUFFIX_UNITS = {".loss": "fraction", ".duplicate": "fraction", ".bad_loss": "fraction", ".good_loss": "fraction",
                 ".burst.p": "probability", ".burst.r": "probability", ".delay.base": "s", ".delay.jitter": "s",
                 ".phase": "ω units"}
+UNITLESS = ("fraction", "probability", "ω units")  # not written after a value
 
 
 def unit_of(key: str) -> str | None:
     """A grid key's unit where known: ``s``, ``Hz``, ``fraction``..."""
-    unit = UNITS.get(key)
-    if unit is None and key.startswith("rates."):
-        unit = "Hz"
-    if unit is None:
-        unit = next((u for sfx, u in SUFFIX_UNITS.items() if key.endswith(sfx) or key == sfx[1:]), None)
-    return unit
+    if key in LABELS:
+        return LABELS[key][1]
+    if key.startswith("rates."):
+        return "Hz"
+    return next((u for sfx, u in SUFFIX_UNITS.items() if key.endswith(sfx) or key == sfx[1:]), None)
+
+
+def words_of(key: str) -> str:
+    """A grid key in words: LABELS's, else its parts (``vehicle.usv1.gains.k`` -> ``Vehicle
+    usv1 gains k``)."""
+    if key in LABELS:
+        return LABELS[key][0]
+    text = " ".join(key.replace("_", " ").split("."))
+    return text[:1].upper() + text[1:]
 
 
 def axis_label(key: str) -> str:
-    """A grid key with its unit where known: ``link.delay.base (s)``, ``link.loss (fraction)``."""
+    """A grid key as an axis label, in words with its unit: ``Link delay (s)``, ``Loss
+    probability``; a key not in LABELS in its own words: ``Vehicle usv1 gains k``."""
     unit = unit_of(key)
-    return f"{key} ({unit})" if unit else key
+    words = words_of(key)
+    return f"{words} ({unit})" if unit and (key not in LABELS or unit not in UNITLESS) else words
 
 
 def value_label(key: str, value: Any) -> str:
-    """A grid value in a legend or a title, with its physical unit: ``link.delay.base=0.2 s``,
-    ``rates.control=20 Hz``, ``link.loss=0.2`` (a fraction needs none)."""
+    """A grid value in a legend or a title, in words with its physical unit: ``Link delay =
+    0.2 s``, ``Control rate = 20 Hz``, ``Loss probability = 0.2`` (a fraction needs none)."""
     unit = unit_of(key)
-    text = f"{key}={cell_label(value)}"
-    return f"{text} {unit}" if unit and unit not in ("fraction", "probability", "ω units") else text
+    text = f"{words_of(key)} = {cell_label(value)}"
+    return f"{text} {unit}" if unit and unit not in UNITLESS else text
+
+
+DODGE_STEP = 0.1  # series at one x are drawn this fraction of the x spacing apart...
+DODGE_SPREAD = 0.4  # ...and all of them within this fraction
+
+
+def dodge_offsets(n: int, positions: Sequence[float]) -> list[float]:
+    """How far in x each of ``n`` series is moved so that points of different series at one x
+    (and their error bars) do not hide each other: centred on the x, ``DODGE_STEP`` of the
+    smallest spacing of ``positions`` apart (closer with many series: within
+    ``DODGE_SPREAD``). One series is not moved."""
+    if n < 2:
+        return [0.0] * n
+    xs = sorted(set(positions))
+    gaps = [b - a for a, b in zip(xs, xs[1:]) if b > a]
+    gap = min(gaps) if gaps else (abs(xs[0]) or 1.0) if xs else 1.0
+    step = min(DODGE_STEP, DODGE_SPREAD / (n - 1)) * gap
+    return [(i - (n - 1) / 2) * step for i in range(n)]
+
+
+LOG_DECADES_ONLY = 3.0  # a log axis spanning this many decades or more is labelled at the decades only
+
+
+def plain_log_axis(ax: Any) -> None:
+    """``ax``'s log y axis as a paper has it: major ticks at the decades (at 1, 2 and 5 times
+    them when the data spans fewer than LOG_DECADES_ONLY decades), labelled as plain numbers
+    (``0.01``, ``0.2``; powers of ten beyond 1e-3 .. 1e4); minor ticks unlabelled (matplotlib
+    labelled them ``6×10⁻²``, ``4×10⁻²``... over less than a decade or two)."""
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    lo, hi = sorted(ax.get_ylim())
+    span = math.log10(hi / lo) if lo > 0 and hi > 0 else 0.0
+    axis = ax.yaxis
+    axis.set_major_locator(LogLocator(base=10, subs=(1.0,) if span >= LOG_DECADES_ONLY else (1.0, 2.0, 5.0)))
+    axis.set_major_formatter(FuncFormatter(lambda y, _: plain_number(y)))
+    axis.set_minor_formatter(NullFormatter())
+
+
+def plain_number(y: float) -> str:
+    """A tick value: ``0.02``, ``5``, ``100``; a power of ten outside 1e-3 .. 1e4 as ``10^k``."""
+    if y <= 0 or not math.isfinite(y):
+        return ""
+    k = math.floor(math.log10(y) + 1e-9)
+    mantissa = y / 10 ** k
+    if -3 <= k <= 4:
+        return f"{y:.{max(0, -k)}f}" if k < 0 else f"{y:g}"
+    return f"$10^{{{k}}}$" if abs(mantissa - 1) < 1e-6 else f"${mantissa:g}\\times10^{{{k}}}$"
+
+
+PLOT_FORMATS = ("png", "pdf", "svg")  # --plot-format: sweep.png, or a vector file for a paper
+# no creation date in a vector file (and an SVG's ids from a fixed salt): the same rows give the same file
+_NO_DATE = {"pdf": {"CreationDate": None}, "svg": {"Date": None}}
 
 
 def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "") -> dict[str, Any]:
     """Coordination settle time and final coordination error over the first grid key, one
     line per combination of the other keys: the mean over the seeds with its 95 % bootstrap
     interval as error bars; a cell whose runs did not all settle gets a marker at the top
-    with the count; a panel with nothing to show says so. Returns what it drew besides the
-    lines: ``{"empty": [the texts of empty panels], "never": [the labels of the markers]}``."""
+    with the count; a panel with nothing to show says so. Keys are worded (LABELS), series
+    are moved apart in x (:func:`dodge_offsets`), the log axis has plain decades
+    (:func:`plain_log_axis`). ``path``'s extension is the format (PLOT_FORMATS: png, or pdf
+    and svg, vector). Returns what it drew besides the lines: ``{"empty": [the texts of empty
+    panels], "never": [the labels of the markers], "offsets": {series: its x offset}}``."""
+    from matplotlib import rc_context
     from matplotlib.figure import Figure  # no pyplot: a notebook's backend and figures are left alone
     from matplotlib.transforms import blended_transform_factory
 
@@ -395,16 +485,18 @@ def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "")
     def pos(x: Any) -> float:
         return float(x) if numeric else float(categories.index(canonical(x)))
 
-    panels = (("coord_settle_s", "coordination settle time (s)", "no run settled"),
-              ("final_coord_error_max", "final coordination error, worst edge (rad)", "no run finished"))
+    panels = (("coord_settle_s", "Coordination settle time (s)", "no run settled"),
+              ("final_coord_error_max", "Final coordination error, worst edge (rad)", "no run finished"))
     shown = [False, False]
-    drawn: dict[str, list[str]] = {"empty": [], "never": []}
+    drawn: dict[str, Any] = {"empty": [], "never": [], "offsets": {}}
     labels: list[Any] = []  # the "k/n never" texts, kept apart once the layout is final
     n_series = max(1, len(series))
+    offsets = dodge_offsets(len(series), [pos(x) for x in xs_all])
     for si, (label, group) in enumerate(series.items()):
         group = sorted(group, key=lambda c: pos(dict(c.cell)[x_key]) if x_key else 0.0)
-        xs = [pos(dict(c.cell)[x_key]) if x_key else 0.0 for c in group]
+        xs = [(pos(dict(c.cell)[x_key]) if x_key else 0.0) + offsets[si] for c in group]
         name = ", ".join(label) or None
+        drawn["offsets"][name] = offsets[si]
         for ai, (ax, (fld, _, _)) in enumerate(zip(axes, panels)):
             means = [c.stats[fld].mean if c.stats[fld].n else math.nan for c in group]
             lo = [m - c.stats[fld].lo if c.stats[fld].n else 0.0 for m, c in zip(means, group)]
@@ -427,7 +519,7 @@ def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "")
         ax.set_ylabel(ylabel)
         ax.set_xlabel(axis_label(x_key) if x_key else "")
         ax.grid(True, alpha=0.3)
-        ax.margins(x=0.08)
+        ax.margins(x=0.1)
         if not numeric:
             ax.set_xticks(range(len(categories)), [str(cell_label(json.loads(c))) for c in categories],
                           fontsize=8, rotation=15 if max(map(len, categories), default=0) > 12 else 0)
@@ -435,17 +527,28 @@ def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "")
             ax.set_yticks([])  # no values: no scale (matplotlib's default one runs through negative times)
             ax.text(0.5, 0.5, empty, transform=ax.transAxes, ha="center", va="center", fontsize=13, color="0.4")
             drawn["empty"].append(empty)
-        elif n_series > 1 or others:
-            ax.legend(fontsize=8)
+    legend_rows = 0
+    if any(shown) and (n_series > 1 or others):  # one legend for both panels, under them: it hides no point
+        handles, names = axes[shown.index(True)].get_legend_handles_labels()
+        ncol = min(len(names), 3)
+        legend_rows = math.ceil(len(names) / ncol)
+        fig.legend(handles, names, loc="lower center", ncol=ncol, fontsize=8, frameon=False)
+    if not numeric and x_key:  # the ticks at the categories themselves, not at the dodged points
+        for ax in axes:
+            ax.set_xlim(-0.5, len(categories) - 0.5)
     if shown[1]:
         axes[1].set_yscale("log")
-    axes[0].set_title("coordination settle time (▼: runs that never settled)", fontsize=10)
-    axes[1].set_title("final coordination error", fontsize=10)
-    fig.suptitle((title + "\n" if title else "") + f"points: mean over seeds; error bars: {CI_SHORT}",
+        plain_log_axis(axes[1])
+    axes[0].set_title("Coordination settle time (▼: runs that never settled)", fontsize=10)
+    axes[1].set_title("Final coordination error", fontsize=10)
+    apart = "; series moved apart in x a little" if len(series) > 1 else ""
+    fig.suptitle((title + "\n" if title else "") + f"points: mean over seeds; error bars: {CI_SHORT}{apart}",
                  fontsize=10)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, (0.1 + 0.22 * legend_rows) / fig.get_figheight() if legend_rows else 0, 1, 1))
     _separate(fig, labels)
-    fig.savefig(path, dpi=110)
+    fmt = path.suffix.lstrip(".").lower()
+    with rc_context({"svg.hashsalt": "cdus"}):  # an SVG's ids from a fixed salt, not a random one
+        fig.savefig(path, dpi=110, format=fmt if fmt in PLOT_FORMATS else None, metadata=_NO_DATE.get(fmt))
     return drawn
 
 
@@ -490,6 +593,7 @@ class SweepResult:
     cells: list[CellSummary] = field(default_factory=list)
     grid: Grid = field(default_factory=list)  # the grid as checked: [(key, [values...]), ...]
     seeds: tuple[int, ...] = ()  # the plan's seeds, in order
+    plot_format: str = "png"  # the plot's file: sweep.png, sweep.pdf or sweep.svg
 
     @property
     def csv(self) -> Path:
@@ -505,7 +609,7 @@ class SweepResult:
 
     @property
     def plot(self) -> Path:
-        return self.out / "sweep.png"
+        return self.out / f"sweep.{self.plot_format}"
 
     def __len__(self) -> int:
         return self.done
@@ -564,7 +668,8 @@ def sweep(scenario: str | os.PathLike | Scenario,
           seeds: int | Sequence[int], out: str | os.PathLike, *,
           overrides: Mapping[str, Any] | None = None, clock: str = "inproc", executor: str = "local",
           cluster: str | None = None, jobs: int | None = None, duration: float | None = None, quiet: bool = False,
-          connect_timeout: float = CONNECT_TIMEOUT_S, stream: TextIO | None = None) -> SweepResult:
+          connect_timeout: float = CONNECT_TIMEOUT_S, stream: TextIO | None = None,
+          plot_format: str = "png") -> SweepResult:
     """Run every (cell, seed) of ``grid`` × ``seeds`` not already done in ``out``; return
     what was done and where the table is.
 
@@ -578,7 +683,8 @@ def sweep(scenario: str | os.PathLike | Scenario,
     the number of cores, 1 for lockstep; ``jobs=1`` runs in this process) or ``"dask"`` (a LocalCluster of
     ``jobs`` processes on 127.0.0.1); ``cluster``: the address of a running Dask scheduler
     (e.g. ``"tcp://127.0.0.1:8786"``), overrides ``executor``. ``quiet``: no progress bar
-    (else a tqdm bar with an ETA on ``stream``, default stderr).
+    (else a tqdm bar with an ETA on ``stream``, default stderr). ``plot_format``: the plot's
+    file, ``sweep.png``, ``sweep.pdf`` or ``sweep.svg`` (PLOT_FORMATS; the last two vector).
 
     Every cell is validated before any run (a ConfigError names the key, nothing is run);
     every run is resolved here and the worker gets the resolved Scenario. Each finished run is appended
@@ -598,6 +704,9 @@ def sweep(scenario: str | os.PathLike | Scenario,
                            "`if __name__ == \"__main__\":` (docs/api.md)")
     if clock not in CLOCKS:
         raise ConfigError("command line", [("--clock", f"expected one of {', '.join(CLOCKS)}, got {clock!r}")])
+    if plot_format not in PLOT_FORMATS:
+        raise ConfigError("command line", [("--plot-format", f"expected one of {', '.join(PLOT_FORMATS)}, got "
+                                                             f"{printable(repr(plot_format), 40)}")])
     g = normalize_grid(grid)
     n_cells = math.prod(len(v) for _, v in g)
     n_seeds = seeds if isinstance(seeds, int) and not isinstance(seeds, bool) else None
@@ -652,7 +761,7 @@ def sweep(scenario: str | os.PathLike | Scenario,
             write_json(out / "scenario.json", base.raw, allow_inf=True)  # what every run started from, overrides applied
             ran, lost, interrupted = _run_all(p, base, clock, ex, log, before, quiet, stream or sys.stderr, out)
         result = _finish(out, base, g, p, clock, ex.describe(), before, ran, lost, interrupted,
-                         time.perf_counter() - start)
+                         time.perf_counter() - start, plot_format)
     finally:
         log.close()
     if interrupted:
@@ -771,7 +880,7 @@ def _count(n: int, what: str) -> str:
 
 
 def _finish(out: Path, base: Scenario, g: Grid, p: _Plan, clock: str, executor: str, before: Any, ran: int,
-            lost: int, interrupted: bool, wall: float) -> SweepResult:
+            lost: int, interrupted: bool, wall: float, plot_format: str = "png") -> SweepResult:
     """The tables, the summary and the plot, from results.jsonl."""
     scan = scan_rows(out / ROWS, p.index_of)
     tally = _Tally(p)
@@ -779,7 +888,7 @@ def _finish(out: Path, base: Scenario, g: Grid, p: _Plan, clock: str, executor: 
     cells = tally.finish()
     resumed = len(before.offsets)
     result = SweepResult(out, p.size, n, ran, resumed, tally.failed, before.torn, before.unreadable, lost, wall,
-                         executor, interrupted, cells, g, tuple(p.seeds))
+                         executor, interrupted, cells, g, tuple(p.seeds), plot_format)
     seeds = p.seeds
     seed_text = f"seed {seeds[0]}" if len(seeds) == 1 else f"seeds {seeds[0]}..{seeds[-1]}" \
         if seeds == list(range(seeds[0], seeds[-1] + 1)) else "seeds " + ", ".join(map(str, seeds))
@@ -802,5 +911,5 @@ def _finish(out: Path, base: Scenario, g: Grid, p: _Plan, clock: str, executor: 
             lines.append(f"- and {tally.failed - len(tally.failures)} more (status \"failed\" in {CSV})")
         lines.append("")
     (out / "summary.md").write_text("\n".join(lines))
-    plot(p.keys, cells, out / "sweep.png", f"{base.name}: {n} runs")
+    plot(p.keys, cells, result.plot, f"{base.name}: {n} runs")
     return result

@@ -289,6 +289,7 @@ def deep(n: int) -> list:
     (lambda: cdus.sweep(LAKE, {}, out="x", seeds=0), r"seeds: expected how many seeds"),
     (lambda: cdus.sweep(LAKE, {}, out=None), r"cdus.sweep: out: expected a directory path"),
     (lambda: cdus.sweep(LAKE, {}, out="x", jobs=0), r"jobs: expected a number of parallel runs"),
+    (lambda: cdus.sweep(LAKE, {}, out="x", plot_format="jpg"), r"plot_format: 'jpg' is not one of png, pdf, svg"),
     (lambda: cdus.sweep(LAKE, {}, out="x", duration=-1), r"duration: expected simulated seconds > 0"),
 ])
 def test_bad_inputs_are_a_config_error_naming_the_field_and_nothing_runs(call, match, tmp_path, monkeypatch):

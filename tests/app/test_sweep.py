@@ -138,12 +138,15 @@ def test_progress_lines_round_and_say_never():
     assert run_text(Run((), 1), {"status": "failed", "reason": "boom"}) == "(base), seed 1: FAILED: boom"
 
 
-def test_axis_labels_carry_units_where_known():
-    assert axis_label("link.loss") == "link.loss (fraction)"
-    assert axis_label("link.delay.base") == "link.delay.base (s)"
-    assert axis_label("rates.control") == "rates.control (Hz)"
-    assert axis_label("link.rule.0.loss") == "link.rule.0.loss (fraction)"
-    assert axis_label("graph.topology") == "graph.topology"
+def test_axis_labels_are_words_with_units_where_known():
+    assert axis_label("link.loss") == "Loss probability"
+    assert axis_label("link.delay.base") == "Link delay (s)"
+    assert axis_label("rates.control") == "Control rate (Hz)"
+    assert axis_label("graph.topology") == "Graph topology"
+    # a key the table does not know: its own parts in words, the unit from its last part
+    assert axis_label("link.rule.0.loss") == "Link rule 0 loss (fraction)"
+    assert axis_label("vehicle.usv1.gains.k") == "Vehicle usv1 gains k"
+    assert axis_label("rates.sensor_x") == "Rates sensor x (Hz)"
 
 
 def _cell(value, ok, settle, error):
@@ -157,7 +160,7 @@ def _cell(value, ok, settle, error):
 def test_the_plot_marks_runs_that_never_settled_and_says_when_no_run_settled(tmp_path):
     cells = [_cell(0.0, 3, [10.0, 12.0, 11.0], [0.01, 0.02, 0.015]), _cell(0.1, 3, [20.0], [0.05, 0.06, 0.07])]
     drawn = plot(["link.delay.base"], cells, tmp_path / "a.png")
-    assert drawn == {"empty": [], "never": ["2/3 never"]}
+    assert drawn == {"empty": [], "never": ["2/3 never"], "offsets": {None: 0.0}}
     nothing = [_cell(0.1, 2, [], [0.1, 0.2]), _cell(0.2, 2, [], [0.2, 0.3])]
     drawn = plot(["link.delay.base"], nothing, tmp_path / "b.png")
     assert drawn["empty"] == ["no run settled"] and drawn["never"] == ["2/2 never", "2/2 never"]
@@ -184,7 +187,8 @@ def test_a_grid_of_words_and_tables_plots_as_categories(tmp_path):
         c.values["final_coord_error_max"] = [0.01, 0.02]
         c.finish(seed=0)
         cells.append(c)
-    assert plot(["link.policy", "link.burst"], cells, tmp_path / "c.png", "t") == {"empty": [], "never": []}
+    drawn = plot(["link.policy", "link.burst"], cells, tmp_path / "c.png", "t")
+    assert drawn == {"empty": [], "never": [], "offsets": {None: 0.0}}
     assert (tmp_path / "c.png").stat().st_size > 10_000
 
 
@@ -246,3 +250,18 @@ def test_a_bad_value_in_any_cell_refuses_the_sweep_before_any_run(tmp_path):
     with pytest.raises(ConfigError, match=r"link.loss.*probability|probability.*link.loss"):
         sweep("configs/concentric_circles.toml", grid, [1, 2], tmp_path / "out", jobs=1, duration=20.0, quiet=True)
     assert not (tmp_path / "out").exists()  # nothing run, nothing written
+
+
+def test_the_cli_writes_the_plot_in_the_format_asked_and_refuses_another(tmp_path, capsys):
+    from cdus.app.cli import main
+
+    out = tmp_path / "o"
+    assert main(["sweep", "configs/concentric_circles.toml", "--set", "link.loss=0,0.2", "--seeds", "1",
+                 "--duration", "2", "--jobs", "1", "-q", "--plot-format", "pdf", "--out", str(out)]) == 0
+    assert (out / "sweep.pdf").read_bytes()[:5] == b"%PDF-" and not (out / "sweep.png").exists()
+    assert f"plot: {out / 'sweep.pdf'}" in capsys.readouterr().out
+    with pytest.raises(SystemExit):
+        main(["sweep", "configs/concentric_circles.toml", "--plot-format", "jpg", "--out", str(tmp_path / "x")])
+    with pytest.raises(ConfigError, match="--plot-format: expected one of png, pdf, svg"):
+        sweep("configs/concentric_circles.toml", {}, 1, tmp_path / "y", plot_format="jpg")
+    assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()

@@ -1,10 +1,12 @@
-"""sweep.png: every value in a legend or the title carries its unit, and a panel with no
-values shows no scale."""
+"""sweep.png: keys in words (a label table, a fallback for the others), every value in a legend or
+the title with its unit, a panel with no values shows no scale."""
 
 from matplotlib.figure import Figure
 
 from cdus.app.stats import describe
-from cdus.app.sweep import CellSummary, plot, value_label
+import pytest
+
+from cdus.app.sweep import CellSummary, dodge_offsets, plain_number, plot, value_label
 
 
 def _cell(cell, settle, error):
@@ -24,10 +26,11 @@ def drawn_figure(monkeypatch, *args):
 
 
 def test_values_carry_their_physical_units():
-    assert value_label("link.delay.base", 0.2) == "link.delay.base=0.2 s"
-    assert value_label("rates.control", 20) == "rates.control=20 Hz"
-    assert value_label("link.loss", 0.2) == "link.loss=0.2"
-    assert value_label("link.policy", "hold") == "link.policy=hold"
+    assert value_label("link.delay.base", 0.2) == "Link delay = 0.2 s"
+    assert value_label("rates.control", 20) == "Control rate = 20 Hz"
+    assert value_label("link.loss", 0.2) == "Loss probability = 0.2"
+    assert value_label("link.policy", "hold") == "Stale-neighbour policy = hold"
+    assert value_label("vehicle.usv1.delay.base", 0.1) == "Vehicle usv1 delay base = 0.1 s"
 
 
 def test_legend_and_title_say_the_units(monkeypatch, tmp_path):
@@ -35,9 +38,10 @@ def test_legend_and_title_say_the_units(monkeypatch, tmp_path):
     cells = [_cell((("link.loss", loss), ("link.delay.base", d), ("rates.control", 20)), [10.0, 12.0], [0.01, 0.02])
              for loss in (0, 0.2) for d in (0, 0.1)]
     fig = drawn_figure(monkeypatch, keys, cells, tmp_path / "p.png", "t")
-    legend = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
-    assert legend == ["link.delay.base=0 s", "link.delay.base=0.1 s"]
-    assert "rates.control=20 Hz" in fig.get_suptitle()
+    (legend,) = fig.legends  # one for both panels, under them
+    assert [t.get_text() for t in legend.get_texts()] == ["Link delay = 0 s", "Link delay = 0.1 s"]
+    assert "Control rate = 20 Hz" in fig.get_suptitle()
+    assert [ax.get_xlabel() for ax in fig.axes] == ["Loss probability"] * 2
 
 
 def test_a_panel_with_nothing_to_show_has_no_scale(monkeypatch, tmp_path):
@@ -53,7 +57,7 @@ def test_the_x_axis_carries_its_unit_and_the_figure_says_what_the_error_bars_and
     cells = [_cell((("link.delay.base", d),), settle, [0.01, 0.02]) for d, settle in ((0.0, [10.0, 12.0]),
                                                                                        (0.2, [11.0]))]
     fig = drawn_figure(monkeypatch, ["link.delay.base"], cells, tmp_path / "p.png")
-    assert [ax.get_xlabel() for ax in fig.axes] == ["link.delay.base (s)"] * 2
+    assert [ax.get_xlabel() for ax in fig.axes] == ["Link delay (s)"] * 2
     assert "error bars: 95 % bootstrap CI of the mean" in fig.get_suptitle()
     assert "▼: runs that never settled" in fig.axes[0].get_title()
     assert "1/2 never" in [t.get_text() for t in fig.axes[0].texts]
@@ -86,3 +90,81 @@ def test_never_labels_of_neighbouring_cells_do_not_overlap(tmp_path):
     assert len(boxes) == 5
     overlaps = [(i, j) for i in range(5) for j in range(i + 1, 5) if boxes[i].overlaps(boxes[j])]
     assert overlaps == []
+
+
+def _errorbar_xs(ax) -> list[list[float]]:
+    """The x of each series' points (the errorbar lines with markers), in drawing order."""
+    return [list(line.get_xdata()) for line in ax.lines if line.get_marker() == "o"]
+
+
+def test_series_at_one_x_are_moved_apart_symmetrically(monkeypatch, tmp_path):
+    """Issue 27: points and error bars of different series at one x were drawn on top of each other."""
+    cells = [_cell((("link.delay.base", d), ("link.policy", p)), [10.0, 12.0], [0.01, 0.02])
+             for d in (0.0, 0.1, 0.2) for p in ("hold", "timeout", "extrapolate")]
+    fig = drawn_figure(monkeypatch, ["link.delay.base", "link.policy"], cells, tmp_path / "p.png")
+    for ax in fig.axes:
+        xs = _errorbar_xs(ax)
+        assert len(xs) == 3
+        for j, x in enumerate((0.0, 0.1, 0.2)):
+            at = [series[j] for series in xs]
+            assert at == pytest.approx([x - 0.01, x, x + 0.01])  # DODGE_STEP of the 0.1 spacing apart
+    assert "series moved apart in x" in fig.get_suptitle()
+
+
+def test_dodge_offsets():
+    assert dodge_offsets(1, [0.0, 0.1]) == [0.0]
+    assert dodge_offsets(2, [0.0, 0.1, 0.2]) == pytest.approx([-0.005, 0.005])
+    assert dodge_offsets(2, [0, 1, 2]) == pytest.approx([-0.05, 0.05])  # categories: one apart
+    many = dodge_offsets(9, [0.0, 1.0])  # closer, all within DODGE_SPREAD of the spacing
+    assert many[-1] - many[0] == pytest.approx(0.4) and many == sorted(many) and sum(many) == pytest.approx(0)
+    assert dodge_offsets(2, [5.0]) == pytest.approx([-0.25, 0.25])  # one x only: a tenth of its size
+    assert dodge_offsets(2, [0.0]) == pytest.approx([-0.05, 0.05])
+
+
+def test_a_categorical_axis_keeps_its_ticks_on_the_categories(monkeypatch, tmp_path):
+    cells = [_cell((("link.policy", p), ("rates.control", r)), [10.0], [0.01]) for p in ("hold", "extrapolate")
+             for r in (20, 50)]
+    fig = drawn_figure(monkeypatch, ["link.policy", "rates.control"], cells, tmp_path / "p.png")
+    ax = fig.axes[0]
+    assert list(ax.get_xticks()) == [0, 1] and [t.get_text() for t in ax.get_xticklabels()] == ["hold", "extrapolate"]
+    assert [xs for xs in _errorbar_xs(ax)] == [pytest.approx([-0.05, 0.95]), pytest.approx([0.05, 1.05])]
+
+
+def _log_labels(fig):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    FigureCanvasAgg(fig).draw()
+    axis = fig.axes[1].yaxis
+    lo, hi = fig.axes[1].get_ylim()
+    major = [t.get_text() for t in axis.get_ticklabels() if lo <= t.get_position()[1] <= hi]
+    minor = [t.get_text() for t in axis.get_ticklabels(minor=True) if t.get_text()]
+    return major, minor
+
+
+def test_the_log_axis_is_labelled_with_plain_numbers_only_at_major_ticks(monkeypatch, tmp_path):
+    """Issue 27: the error panel's log axis labelled its minor ticks 6×10⁻², 4×10⁻², 3×10⁻²..."""
+    cells = [_cell((("link.loss", x),), [10.0], [e, e * 1.2]) for x, e in ((0, 0.015), (0.2, 0.04), (0.4, 0.15))]
+    major, minor = _log_labels(drawn_figure(monkeypatch, ["link.loss"], cells, tmp_path / "p.png"))
+    assert minor == []
+    assert {"0.02", "0.05", "0.1"} <= set(major) <= {"0.01", "0.02", "0.05", "0.1", "0.2"}  # 1, 2, 5 x decades
+    wide = [_cell((("link.loss", x),), [10.0], [e]) for x, e in ((0, 1e-6), (0.2, 1e-3), (0.4, 2.0))]
+    major, minor = _log_labels(drawn_figure(monkeypatch, ["link.loss"], wide, tmp_path / "q.png"))
+    assert minor == [] and "0.001" in major and "1" in major
+    assert all(m in ("0.001", "0.01", "0.1", "1", "10") or m.startswith("$10^{") for m in major), major
+
+
+def test_plain_numbers():
+    assert [plain_number(y) for y in (0.02, 0.5, 1.0, 5.0, 100.0, 1e-3)] == ["0.02", "0.5", "1", "5", "100", "0.001"]
+    assert plain_number(1e-5) == "$10^{-5}$" and plain_number(2e-5) == r"$2\times10^{-5}$"
+    assert plain_number(1e6) == "$10^{6}$" and plain_number(0.0) == ""
+
+
+@pytest.mark.parametrize("fmt, magic", [("pdf", b"%PDF-"), ("svg", b"<svg")])
+def test_the_plot_is_written_as_a_vector_file_the_same_each_time(tmp_path, fmt, magic):
+    cells = [_cell((("link.loss", x), ("link.policy", p)), [10.0, 11.0], [0.01, 0.02]) for x in (0, 0.2)
+             for p in ("hold", "extrapolate")]
+    for name in ("a", "b"):
+        plot(["link.loss", "link.policy"], cells, tmp_path / f"{name}.{fmt}", "t")
+    data = (tmp_path / f"a.{fmt}").read_bytes()
+    assert magic in data[:400]
+    assert data == (tmp_path / f"b.{fmt}").read_bytes()  # no creation date: the same rows, the same file
