@@ -513,7 +513,9 @@ def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "")
                                 markersize=8, clip_on=False)
                         text = f"{c.never('coord')}/{c.ok} never"
                         labels.append(ax.text(x, y - 0.045, text, transform=trans, ha="center", va="top",
-                                              fontsize=7, color=line[0].get_color()))
+                                              fontsize=7, color=line[0].get_color(), zorder=5,
+                                              bbox={"boxstyle": "square,pad=0.1", "fc": "white", "ec": "none",
+                                                    "alpha": 0.85}))  # readable over another series' bars
                         drawn["never"].append(text)
     for ax, ok, (_, ylabel, empty) in zip(axes, shown, panels):
         ax.set_ylabel(ylabel)
