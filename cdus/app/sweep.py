@@ -388,7 +388,7 @@ def axis_label(key: str) -> str:
     probability``; a key not in LABELS in its own words: ``Vehicle usv1 gains k``."""
     unit = unit_of(key)
     words = words_of(key)
-    return f"{words} ({unit})" if unit and (key not in LABELS or unit not in UNITLESS) else words
+    return f"{words} ({unit})" if unit else words
 
 
 def value_label(key: str, value: Any) -> str:
