@@ -33,7 +33,7 @@ from cdus.wire.access import GROUND_ROLE
 from cdus.wire.transport import Transport, client_of, endpoint, exposed_endpoints, router_listen
 from cdus.wire.transport import router as fleet_router
 from ground_station.__main__ import main as gs_main
-from world_sim.recording import parse_spec
+from world_sim.recording import parse_spec, recording_line
 from cdus.app.report import Progress, run_dir, summary_table
 from cdus.sim.reports import late_event_lines
 from cdus.files import write_json
@@ -275,16 +275,17 @@ def cmd_launch(args: argparse.Namespace) -> int:
         if made:  # only the directory this command made (credentials, an empty logs/), never the user's
             shutil.rmtree(run, ignore_errors=True)
         raise ConfigError("command line", [("--listen" if args.listen else "--zenoh-config", str(e))]) from None
-    if la.metrics_out.exists():
-        metrics = json.loads(la.metrics_out.read_text())
+    if la.metrics_at is not None:
+        metrics = json.loads(la.metrics_at.read_text())
         print(summary_table(metrics, scenario.vehicles))
-        print(f"  metrics: {la.metrics_out}\n  logs: {la.logs}")
-        for target in parse_spec(args.rerun, run):
-            if target.kind == "save":
-                print(f"  recording: {target.where} (open it with: rerun {target.where})")
+        elsewhere = f" (not {la.metrics_out}: it could not be written)" if la.metrics_at != la.metrics_out else ""
+        print(f"  metrics: {la.metrics_at}{elsewhere}\n  logs: {la.logs}")
     else:
-        print(f"no metrics were written; logs: {la.logs}", file=sys.stderr)
+        print(f"no metrics file was written (the lines above say why); logs: {la.logs}", file=sys.stderr)
         status = status or EXIT_FAIL
+    for target in parse_spec(args.rerun, run):  # what exists, also after a disk that filled or a killed world
+        if target.kind == "save":
+            print(recording_line(Path(target.where)))
     return status
 
 

@@ -54,4 +54,4 @@ def run_lockstep(scenario: Scenario, run: Path, *, fleet: str, policy: str | Non
     if secure:
         router, _ = secure_router(router, opts, scenario, run / "secure", "tls" if tls else "password")
     status, la = launch(scenario, run, router, opts, log=log)
-    return status, la.metrics_out, run / "trace.npz"
+    return status, la.metrics_at or la.metrics_out, run / "trace.npz"

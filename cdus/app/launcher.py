@@ -15,7 +15,10 @@ is started with ``PR_SET_PDEATHSIG`` (Linux): the moment the launcher dies the k
 the world SIGTERM (it still writes what it has) and the agents SIGKILL (nothing to save, and
 a vehicle paused by a fault, SIGSTOPped, would never act on a SIGTERM). If the world dies, the
 launcher writes the run's metrics.json itself (``completed: false``, ``completion:
-"world_lost"``, what it knew from the world's last status), stops the fleet and exits 1.
+"world_lost"``, what it knew from the world's last status), stops the fleet and exits 1. A world
+that exits ``METRICS_ELSEWHERE_EXIT`` ended its run but could not write its metrics where asked
+(a full disk): the launcher finds them where the world kept them (cdus.files.metrics_fallbacks)
+instead.
 
 The launcher's command key (``to/+launcher+/cmd``) carries out faults on the scenario's
 own vehicles only: anything else (``kill world``, an unknown id, a malformed message) is
@@ -48,7 +51,7 @@ import zenoh
 from cdus.scenario.model import DEFAULT_RESTART, Scenario, Supervision
 from cdus.app.report import WORLD_LOST, Progress
 from cdus.core.metrics import Recorder
-from cdus.files import write_json
+from cdus.files import METRICS_ELSEWHERE_EXIT, keep_json, metrics_fallbacks, write_json
 from cdus.sim.build import metric_edges
 from cdus.sim.summary import run_metrics
 from cdus.sim.reports import ConsoleQuota
@@ -273,6 +276,7 @@ class Launcher:
         self.config_path = self.run_dir / "scenario.json"
         write_json(self.config_path, self.scenario.raw, allow_inf=True)  # e.g. radio.shadowing_time = inf
         self.metrics_out = Path(self.opts.metrics_out or self.run_dir / "metrics.json")
+        self.metrics_at: Path | None = None  # where the run's metrics are once it ended (launch), None: nowhere
         self.cond = threading.Condition()
         self.alive: set[str] = set()
         self.ever_alive: set[str] = set()  # whose token was seen at least once
@@ -592,13 +596,30 @@ class Launcher:
             except zenoh.ZError as e:
                 self.log(f"  could not publish that: {e}")
 
-    def metrics_mark(self) -> tuple | None:
-        """What the metrics file is now (None: absent), to tell later whether the world wrote it."""
+    def metrics_mark(self, path: Path | None = None) -> tuple | None:
+        """What the metrics file (or ``path``) is now (None: absent), to tell later whether the world wrote it."""
         try:
-            st = os.stat(self.metrics_out)
+            st = os.stat(path or self.metrics_out)
         except OSError:
             return None
         return (st.st_ino, st.st_mtime_ns, st.st_size)
+
+    def world_fallbacks(self) -> list[Path]:
+        """Where the world keeps its metrics when it cannot write them to metrics_out (a full disk;
+        cdus.files.metrics_fallbacks, as the world computes them)."""
+        w = self.children.get(keys.WORLD)
+        if w is None or w.proc is None:
+            return []
+        return metrics_fallbacks(self.metrics_out, self.run_dir, f"{self.fleet}-{w.proc.pid}")
+
+    def find_world_metrics(self, marks: dict[Path, tuple | None]) -> Path | None:
+        """Where the world wrote its metrics in this run: metrics_out or a fallback that changed
+        since ``marks`` (their :meth:`metrics_mark` before the run); None: it wrote none."""
+        for place in (self.metrics_out, *self.world_fallbacks()):
+            now = self.metrics_mark(place)
+            if now is not None and now != marks.get(place):
+                return place
+        return None
 
     def write_world_lost(self, code: int, wall_s: float) -> dict:
         """The world died without writing its metrics: write what the launcher knows (an empty
@@ -630,7 +651,12 @@ class Launcher:
             "restarts": {n: c.restarts for n, c in self.children.items() if n != keys.WORLD and c.restarts},
             "rejected_by_launcher": dict(self.rejected),
         }
-        write_json(self.metrics_out, m)
+        self.metrics_at = keep_json(self.metrics_out, m, metrics_fallbacks(self.metrics_out, self.run_dir,
+                                                                           f"{self.fleet}-launcher-{os.getpid()}"),
+                                    self.log)
+        if self.metrics_at is None:  # no disk takes them: the terminal does
+            self.log("the metrics could be written nowhere; here they are:")
+            self.log(json.dumps(m))
         return m
 
     def stop(self) -> None:
@@ -710,18 +736,26 @@ def launch(scenario: Scenario, run_dir: Path, router: Transport, opts: LaunchOpt
     # A shell starting us in the background (`cdus launch ... &` in a script) ignores SIGINT
     # for us, and Python keeps it ignored: Ctrl-C / kill -INT must still stop the fleet cleanly.
     old_int = signal.signal(signal.SIGINT, _term)
-    mark = la.metrics_mark()
+    marks = {la.metrics_out: la.metrics_mark()}
     t0 = time.perf_counter()
     try:
         la.start()
+        marks.update((p, la.metrics_mark(p)) for p in la.world_fallbacks())
         code = la.supervise()
         status = 0 if code == 0 else 1
-        if code != 0:
+        la.metrics_at = la.find_world_metrics(marks)
+        if code == METRICS_ELSEWHERE_EXIT:  # the run ended; its files are not where asked: not a lost world
+            where = (f"they are in {la.metrics_at}" if la.metrics_at is not None
+                     else "nothing could take them (they are printed in the world's log, if it could be written)")
+            la.log(f"the world ended the run but could not write its metrics or trace where asked; {where}. "
+                   f"Its log ends with:\n{la.children['world'].tail()}")
+        elif code != 0:
             la.log(f"world exited with status {code}; its log ends with:\n{la.children['world'].tail()}")
-            if la.metrics_mark() == mark:  # it wrote nothing: the launcher writes what it knows
+            if la.metrics_at is None:  # it wrote nothing: the launcher writes what it knows
                 la.write_world_lost(code, time.perf_counter() - t0)
-                la.log(f"the world wrote no metrics: {la.metrics_out} written by the launcher "
-                       f"(completed: false, completion: {WORLD_LOST!r}); stopping the fleet")
+                if la.metrics_at is not None:
+                    la.log(f"the world wrote no metrics: {la.metrics_at} written by the launcher "
+                           f"(completed: false, completion: {WORLD_LOST!r}); stopping the fleet")
     except LaunchError as e:
         la.log(f"error: the fleet did not come up:\n{e}")
         status = 1
@@ -742,6 +776,9 @@ def launch(scenario: Scenario, run_dir: Path, router: Transport, opts: LaunchOpt
         signal.signal(signal.SIGINT, old_int)
     if interrupted:
         status = 130
+    if la.metrics_at is None:  # interrupted, or a world that exited 0: what it wrote while stopping
+        la.metrics_at = la.find_world_metrics(marks) or (
+            la.metrics_out if status == 0 and la.metrics_out.exists() else None)  # e.g. a pipe: no mark changes
     if la.rejected:
         la.log(f"  the launcher dropped {sum(la.rejected.values())} messages: "
                + ", ".join(f"{n} {r}" for r, n in sorted(la.rejected.items())))

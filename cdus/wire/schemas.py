@@ -49,6 +49,7 @@ EVENT_KINDS: dict[str, str] = {
     "radio_split": "warn",  # [radio]: the communication graph (links likely to deliver) lost its spanning tree
     "radio_joined": "info",  # ... and has one again
     "radio_changed": "info",  # [radio]: transmit power or the station changed at run time
+    "recording_stopped": "warn",  # the world's .rrd file could not be written on (a full disk): the run goes on
 }
 MAX_TEXT = 300
 MAX_ID = 64

@@ -233,6 +233,7 @@ class _NoRun:
         from pathlib import Path
 
         self.metrics_out = Path(run) / "absent.json"
+        self.metrics_at = None
         self.logs = Path(run) / "logs"
 
 

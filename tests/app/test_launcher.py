@@ -346,3 +346,42 @@ def test_stop_does_not_wait_out_the_grace_for_a_vehicle_that_never_came_up(tmp_p
             if c.running():
                 c.signal_group(signal.SIGKILL)
                 c.proc.wait()
+
+
+from tests.fullfs import full_fs  # noqa: E402,F401  (the fixture)
+
+
+def test_a_lost_world_on_a_full_disk_leaves_its_metrics_in_the_run_directory_or_printed(full_fs, tmp_path,
+                                                                                        monkeypatch):
+    """Issue 27, broken 2: the launcher's world_lost metrics died in a second traceback on the
+    full disk. They are kept in the run directory; where nothing takes them, printed."""
+    la, lines = quiet_launcher(tmp_path, duration=40.0, metrics_out=full_fs / "metrics.json")
+    la._on_status(Sample(status(12.5)))
+    m = la.write_world_lost(-9, 3.0)
+    assert la.metrics_at == la.run_dir / "metrics.json" and json.loads(la.metrics_at.read_text()) == m
+    assert lines[0] == f"error: could not write the metrics to {full_fs / 'metrics.json'}: No space left on device"
+    # nothing takes them (the run directory and the temporary directory full too): the terminal does
+    la, lines = quiet_launcher(tmp_path / "again", duration=40.0, metrics_out=full_fs / "metrics.json")
+    la.run_dir = full_fs
+    monkeypatch.setattr("tempfile.tempdir", str(full_fs))
+    m = la.write_world_lost(-9, 3.0)
+    assert la.metrics_at is None
+    assert lines[-2] == "the metrics could be written nowhere; here they are:"
+    assert json.loads(lines[-1]) == m
+
+
+def test_the_world_metrics_kept_elsewhere_are_found_there_not_taken_for_a_lost_world(tmp_path):
+    """The world exits METRICS_ELSEWHERE_EXIT having kept its metrics at a fallback: the launcher
+    finds them there (changed since the run began), and a stale file of an earlier run is not
+    taken for them."""
+    la, _ = quiet_launcher(tmp_path, metrics_out=tmp_path / "elsewhere" / "metrics.json")
+    w = la.children["world"] = Child("world", EXIT_0, la.logs / "world.log")
+    w.start(la.env)
+    exited(w)
+    (la.run_dir / "metrics.json").write_text('{"stale": true}')
+    marks = {p: la.metrics_mark(p) for p in (la.metrics_out, *la.world_fallbacks())}
+    assert la.world_fallbacks()[0] == la.run_dir / "metrics.json"
+    assert la.find_world_metrics(marks) is None  # the stale one is not this run's
+    (la.run_dir / "metrics.json").unlink()
+    (la.run_dir / "metrics.json").write_text('{"completed": true}')
+    assert la.find_world_metrics(marks) == la.run_dir / "metrics.json"
