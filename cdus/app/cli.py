@@ -20,7 +20,7 @@ import zenoh
 
 from cdus import api
 from cdus.app.fleet_run import secure_router
-from cdus.app.launcher import LINKS, LaunchOptions, ListenError, check_listen, launch
+from cdus.app.launcher import LINKS, LaunchOptions, ListenError, RunDirInUse, RunDirLock, check_listen, launch
 from cdus.app.executors import CONNECT_TIMEOUT_S, EXECUTORS
 from cdus.app.sweep import CLOCKS, SweepInterrupted, check_grid, parse_grid, sweep
 from cdus.app.sweepstore import ROWS
@@ -252,7 +252,17 @@ def cmd_launch(args: argparse.Namespace) -> int:
         raise ConfigError("command line", [("--listen" if args.listen else "--zenoh-config", str(e))]) from None
     made = not args.logs or not Path(args.logs).exists()
     run = Path(args.logs) if args.logs else run_dir(args.runs_dir, scenario.name)
-    run.mkdir(parents=True, exist_ok=True)
+    try:  # before anything is written into it (credentials, logs): one fleet per run directory
+        lock = RunDirLock(run)
+    except RunDirInUse as e:
+        raise ConfigError("command line", [("--logs", str(e))]) from None
+    with lock:
+        return _launch_into(args, scenario, opts, router, exposed, run, made)
+
+
+def _launch_into(args: argparse.Namespace, scenario: Scenario, opts: LaunchOptions, router: Transport,
+                 exposed: tuple[str, ...], run: Path, made: bool) -> int:
+    """cmd_launch once the run directory is held: credentials, the fleet, the summary."""
     cred = None
     if not args.insecure:
         router, cred = secure_router(router, opts, scenario, run / "secure", "tls" if args.tls else "password")

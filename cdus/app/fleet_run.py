@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Callable
 
 from cdus.app.credentials import Credentials, CredentialsError, make_credentials
-from cdus.app.launcher import LaunchOptions, launch
+from cdus.app.launcher import LaunchOptions, RunDirLock, launch
 from cdus.scenario.config import ConfigError
 from cdus.scenario.model import Scenario
 from cdus.sim.build import listeners_of
@@ -44,7 +44,12 @@ def run_lockstep(scenario: Scenario, run: Path, *, fleet: str, policy: str | Non
     (logs/, secure/, metrics.json, trace.npz). Returns (the launcher's exit status: 0 completed,
     1 failed, 130 interrupted; the metrics path; the trace path), either file possibly absent.
     Arguments are the caller's to check (cdus.api.run)."""
-    run.mkdir(parents=True, exist_ok=True)
+    with RunDirLock(run):  # RunDirInUse: another fleet runs into it now; nothing is touched
+        return _run_held(scenario, run, fleet, policy, rerun, secure, tls, ready_timeout, quiet, log)
+
+
+def _run_held(scenario: Scenario, run: Path, fleet: str, policy: str | None, rerun: str, secure: bool, tls: bool,
+              ready_timeout: float, quiet: bool, log: Callable[[str], None] | None) -> tuple[int, Path, Path]:
     for stale in ("metrics.json", "trace.npz"):  # an earlier run's in the same directory is not this run's
         (run / stale).unlink(missing_ok=True)
     opts = LaunchOptions(fleet=fleet, clock="lockstep", restart=scenario.supervision.restart,

@@ -18,7 +18,7 @@ launcher writes the run's metrics.json itself (``completed: false``, ``completio
 "world_lost"``, what it knew from the world's last status), stops the fleet and exits 1. A world
 that exits ``METRICS_ELSEWHERE_EXIT`` ended its run but could not write its metrics where asked
 (a full disk): the launcher finds them where the world kept them (cdus.files.metrics_fallbacks)
-instead.
+instead. A run directory is held (:class:`RunDirLock`) while a fleet runs into it.
 
 The launcher's command key (``to/+launcher+/cmd``) carries out faults on the scenario's
 own vehicles only: anything else (``kill world``, an unknown id, a malformed message) is
@@ -30,6 +30,7 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import errno
+import fcntl
 import json
 import math
 import os
@@ -137,6 +138,44 @@ def print_line(s: str) -> None:
 
 class LaunchError(Exception):
     """The fleet could not be brought up; the message says who failed and why."""
+
+
+class RunDirInUse(Exception):
+    """Another launcher runs into this run directory now: nothing was started."""
+
+
+LOCK_NAME = ".launch.lock"  # in the run directory: flock'ed by the launcher running into it
+
+
+class RunDirLock:
+    """An exclusive hold on a run directory while a fleet runs into it (logs, credentials,
+    metrics): ``flock`` on ``<run>/.launch.lock``, as ``cdus sweep`` holds its ``--out``. The
+    kernel lets go when the holder dies (even by SIGKILL), so the directory of a dead launcher
+    is free again; the file stays (removing it would race a launcher taking it)."""
+
+    def __init__(self, run: Path):
+        run.mkdir(parents=True, exist_ok=True)
+        self.path = run / LOCK_NAME
+        # close-on-exec: the children never hold it (they die with the launcher anyway)
+        self.fd: int | None = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        try:
+            fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(self.fd)
+            self.fd = None
+            raise RunDirInUse(f"another `cdus launch` is running into {run} now (it holds {self.path}); wait for "
+                              f"it to end or give another --logs") from None
+
+    def release(self) -> None:
+        if self.fd is not None:
+            os.close(self.fd)
+            self.fd = None
+
+    def __enter__(self) -> "RunDirLock":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.release()
 
 
 class ListenError(Exception):

@@ -273,3 +273,24 @@ def test_cdus_launch_says_the_events_past_the_end_once_where_it_starts(tmp_path,
     notes = [line for line in err.splitlines() if line.startswith("note:")]
     assert notes == [line for line in err.splitlines() if "past the run's end" in line] and len(notes) == 3
     assert "note: event[3] (formation at 2.5 s) is past the run's end (2 s): it will not apply" in notes
+
+
+def test_a_launch_into_a_run_directory_in_use_starts_nothing_and_touches_nothing(tmp_path, capsys, monkeypatch):
+    """Issue 27, broken 5: a second `cdus launch` with the first's --logs replaced its
+    secure/ground.json5 (its printed ground-station line stopped working), its logs and its
+    metrics. Refused with exit 2 before anything is written; free again once the first ends."""
+    from cdus.app.launcher import RunDirLock
+
+    started = _started(monkeypatch)
+    run = tmp_path / "run"
+    main(["launch", CONFIG, "--logs", str(run), "--rerun", "off"])
+    ground = (run / "secure" / "ground.json5").read_bytes()
+    capsys.readouterr()
+    with RunDirLock(run):  # the first launcher, still running
+        assert main(["launch", CONFIG, "--logs", str(run), "--rerun", "off"]) == 2
+        out, err = capsys.readouterr()
+        assert f"--logs: another `cdus launch` is running into {run} now" in err
+        assert "give another --logs" in err and "nothing was started" in err and not out
+        assert (run / "secure" / "ground.json5").read_bytes() == ground and len(started) == 1
+    main(["launch", CONFIG, "--logs", str(run), "--rerun", "off"])  # it ended: the directory is free
+    assert len(started) == 2

@@ -4,7 +4,9 @@ no wall-clock assertions."""
 
 from __future__ import annotations
 
+import os
 import signal
+import subprocess
 import sys
 
 import pytest
@@ -385,3 +387,29 @@ def test_the_world_metrics_kept_elsewhere_are_found_there_not_taken_for_a_lost_w
     (la.run_dir / "metrics.json").unlink()
     (la.run_dir / "metrics.json").write_text('{"completed": true}')
     assert la.find_world_metrics(marks) == la.run_dir / "metrics.json"
+
+
+def test_a_run_directory_in_use_is_refused_and_a_dead_launchers_is_free_again(tmp_path):
+    """Issue 27, broken 5: two `cdus launch` with one --logs overwrote each other (logs, metrics,
+    the first's ground credentials). One holds the directory while it runs; another is refused
+    before anything is written; once the holder is gone, even SIGKILLed, it is free."""
+    from cdus.app.launcher import RunDirInUse, RunDirLock
+
+    run = tmp_path / "run"
+    with RunDirLock(run):
+        with pytest.raises(RunDirInUse, match=f"another `cdus launch` is running into {run} now"):
+            RunDirLock(run)
+    RunDirLock(run).release()  # released: free again
+    holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from pathlib import Path; "
+                               "from cdus.app.launcher import RunDirLock; l = RunDirLock(Path(sys.argv[1])); "
+                               "print('held', flush=True); time.sleep(600)", str(run)],
+                              stdout=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        assert holder.stdout.readline() == "held\n"
+        with pytest.raises(RunDirInUse):  # another process's hold
+            RunDirLock(run)
+    finally:
+        os.killpg(holder.pid, signal.SIGKILL)
+        holder.wait()
+    with RunDirLock(run):  # a dead launcher's directory is reusable
+        pass
