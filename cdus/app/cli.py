@@ -355,10 +355,43 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def set_without_equals(argv: Sequence[str]) -> str | None:
+    """``--set KEY VALUE`` (a space for the ``=``): what the user meant, ``--set KEY=VALUE``; None
+    if every ``--set`` has its ``=``. argparse would take VALUE for an unknown argument and print
+    the top-level usage ("unrecognized arguments: 0.2"), which says nothing of the slip. A VALUE
+    that is an existing file is the config, not a forgotten value: left to argparse."""
+    for i, a in enumerate(argv):
+        if a == "--set":
+            key, j = (argv[i + 1] if i + 1 < len(argv) else ""), i + 2
+        elif a.startswith("--set="):
+            key, j = a[len("--set="):], i + 1
+        else:
+            continue
+        value = argv[j] if j < len(argv) else ""
+        if not key or "=" in key or key.startswith("-") or not value or Path(value).is_file():
+            continue
+        if not value.startswith("-") or _is_number(value):
+            return f"--set {key}={value}"
+    return None
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text.split(",")[0])
+    except ValueError:
+        return False
+    return True
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "gs":
         return gs_main(argv[1:], "cdus gs")
+    meant = set_without_equals(argv[1:])
+    if meant is not None:
+        print(f"error: --set takes KEY=VALUE in one word: did you mean {meant}?", file=sys.stderr)
+        print("nothing was started.", file=sys.stderr)
+        return EXIT_USAGE
     parser = build_parser()
     args = parser.parse_args(argv)
     try:

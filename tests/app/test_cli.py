@@ -294,3 +294,23 @@ def test_a_launch_into_a_run_directory_in_use_starts_nothing_and_touches_nothing
         assert (run / "secure" / "ground.json5").read_bytes() == ground and len(started) == 1
     main(["launch", CONFIG, "--logs", str(run), "--rerun", "off"])  # it ended: the directory is free
     assert len(started) == 2
+
+
+@pytest.mark.parametrize("argv, meant", [
+    (["sim", CONFIG, "--set", "link.loss", "0.2"], "--set link.loss=0.2"),
+    (["launch", CONFIG, "--set=link.loss", "0.2", "-q"], "--set link.loss=0.2"),
+    (["sim", "--set", "vehicle.usv1.gains.k", "-1", CONFIG], "--set vehicle.usv1.gains.k=-1"),
+    (["sweep", CONFIG, "--out", "x", "--set", "link.loss", "0,0.2"], "--set link.loss=0,0.2"),
+])
+def test_a_set_with_a_space_for_the_equals_says_what_was_meant(argv, meant, capsys):
+    """Issue 27: `--set link.loss 0.2` printed the top-level usage and "unrecognized arguments:
+    0.2". It says what was meant, and starts nothing."""
+    assert main(argv) == 2
+    out, err = capsys.readouterr()
+    assert f"did you mean {meant}?" in err and "nothing was started" in err and "usage: cdus [-h]" not in err
+    assert not out
+
+
+def test_a_set_whose_next_word_is_the_config_is_not_taken_for_its_value(capsys):
+    assert main(["sim", "--set", "link.loss", CONFIG, "-q"]) == 2  # the value is missing: the config parser says so
+    assert "did you mean" not in capsys.readouterr().err
