@@ -863,7 +863,6 @@ def _run_lockstep(scenario: Scenario, fleet: str, policy: str | None, rerun: str
                   progress: bool | Callable[[float, float], None], secure: bool, tls: bool,
                   ready_timeout: float) -> Result:
     from cdus.app.fleet_run import run_lockstep  # Zenoh and the launcher: only for lockstep runs
-    from cdus.app.launcher import RunDirInUse
 
     lines: list[str] = []
 
@@ -873,12 +872,9 @@ def _run_lockstep(scenario: Scenario, fleet: str, policy: str | None, rerun: str
             print(line, flush=True)
 
     def go(where: Path) -> Result | None:
-        try:
-            status, metrics_path, trace_path = run_lockstep(
-                scenario, where, fleet=fleet, policy=policy, rerun=rerun, secure=secure, tls=tls,
-                ready_timeout=ready_timeout, quiet=progress is not True, log=log)
-        except RunDirInUse as e:  # another fleet runs into it now: nothing was started or touched
-            raise ConfigError("run", [("run_dir", str(e))]) from None
+        status, metrics_path, trace_path = run_lockstep(
+            scenario, where, fleet=fleet, policy=policy, rerun=rerun, secure=secure, tls=tls,
+            ready_timeout=ready_timeout, quiet=progress is not True, log=log)
         if not metrics_path.exists():
             if status == 130:
                 raise RunInterrupted(None)

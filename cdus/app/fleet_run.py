@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Callable
 
 from cdus.app.credentials import Credentials, CredentialsError, make_credentials
-from cdus.app.launcher import LaunchOptions, RunDirLock, launch
+from cdus.app.launcher import LaunchOptions, RunDirInUse, RunDirLock, launch
 from cdus.scenario.config import ConfigError
 from cdus.scenario.model import Scenario
 from cdus.sim.build import listeners_of
@@ -43,8 +43,13 @@ def run_lockstep(scenario: Scenario, run: Path, *, fleet: str, policy: str | Non
     """Run ``scenario`` (its duration, its supervision policy) as a lockstep fleet in ``run``
     (logs/, secure/, metrics.json, trace.npz). Returns (the launcher's exit status: 0 completed,
     1 failed, 130 interrupted; the metrics path; the trace path), either file possibly absent.
-    Arguments are the caller's to check (cdus.api.run)."""
-    with RunDirLock(run):  # RunDirInUse: another fleet runs into it now; nothing is touched
+    Arguments are the caller's to check (cdus.api.run); a run directory another fleet runs into now is a
+    ConfigError naming run_dir."""
+    try:
+        lock = RunDirLock(run)
+    except RunDirInUse as e:  # another fleet runs into it now: nothing is started or touched
+        raise ConfigError("run", [("run_dir", str(e))]) from None
+    with lock:
         return _run_held(scenario, run, fleet, policy, rerun, secure, tls, ready_timeout, quiet, log)
 
 
