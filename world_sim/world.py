@@ -65,7 +65,8 @@ from cdus.wire.messages import (
 )
 from cdus.wire.schemas import (
     ID_RE, MAX_REASON, MAX_TEXT as MAX_EVENT_TEXT, ORIGIN_WORLD, AgentStats, CommandReply, FleetEvent,
-    StatusExtra, decode_stats, encode_event, encode_reply, encode_settings, encode_status,
+    STATUS_KEY_ENV, StatusExtra, decode_stats, encode_event, encode_reply, encode_settings, encode_status,
+    status_signature,
 )
 from cdus.wire.text import printable
 from cdus.wire.transport import Transport, open_session
@@ -243,6 +244,9 @@ class World:
         self._commands: list[tuple[str | None, bytes]] = []
         self._make_settings()  # the settings reply (world/settings), made again at each change
         self._status_payload: bytes | None = None  # the newest status published (_publish_status)
+        #: the launcher's per-run key (STATUS_KEY_ENV): each status is signed with it, so the
+        #: launcher tells this world's statuses from forged ones; None: started by hand, unsigned
+        self._status_key = _status_key(os.environ.get(STATUS_KEY_ENV))
         self._console = ConsoleQuota(scenario=scenario)
         self._rt_expect: dict[str, set[str]] = {}  # realtime: liveliness changes a fault we asked for explains
         self._faulted: dict[str, str] = {}  # "killed" | "paused", by the faults carried out (both clocks)
@@ -1390,7 +1394,10 @@ class World:
         payload = encode_status(t, self.duration, self.clock, sorted(self.st.alive), self.ids, path, coord,
                                 self.events[-10:], paused, roster=dict(zip(self.ids, extra.states)), extra=extra)
         self._status_payload = payload  # what a status query is answered (bytes: replaced whole, never changed)
-        self.pub_status.put(payload)
+        if self._status_key is None:
+            self.pub_status.put(payload)
+        else:
+            self.pub_status.put(payload, attachment=status_signature(self._status_key, payload))
 
     def _status_extra(self) -> StatusExtra:
         """What a live console shows beyond the summary (cdus.wire.schemas.STATUS_EXTRA), at the
@@ -1543,6 +1550,14 @@ class World:
         if at is None:
             self.log("the metrics could be written nowhere; here they are:")
             _say(json.dumps(metrics, default=str), prefix="")
+
+
+def _status_key(text: str | None) -> bytes | None:
+    """The launcher's status key from its hex form; None when there is none (or it is not hex)."""
+    try:
+        return bytes.fromhex(text) if text else None
+    except ValueError:
+        return None
 
 
 def _say(text: str, prefix: str = "[world] ") -> None:

@@ -34,6 +34,7 @@ import fcntl
 import json
 import math
 import os
+import secrets
 import shlex
 import shutil
 import signal
@@ -58,7 +59,7 @@ from cdus.sim.summary import run_metrics
 from cdus.sim.reports import ConsoleQuota
 from cdus.wire import keys
 from cdus.wire.messages import CTL_OPS, LAUNCHER_OPS, decode_control, encode_control
-from cdus.wire.schemas import FleetEvent, decode_event, decode_status, encode_event
+from cdus.wire.schemas import STATUS_KEY_ENV, FleetEvent, decode_event, decode_status, encode_event, signed_by
 from cdus.wire.text import printable
 from cdus.wire.transport import (
     CHILD_RUNTIME, DEFAULT_LEASE_MS, ROUTER_RUNTIME, ROUTER_RUNTIME_ENV, Transport, children_runtime, client_of,
@@ -331,6 +332,10 @@ class Launcher:
         self.env = dict(os.environ)
         self.env["ZENOH_RUNTIME"] = children_runtime()  # the user's, else CHILD_RUNTIME (not the router's)
         self.env["PYTHONUNBUFFERED"] = "1"
+        #: the world signs its statuses with this (cdus.wire.schemas.STATUS_KEY_ENV): only the world
+        #: started here knows it, so a status forged on an open fleet is not believed
+        self.status_key = secrets.token_bytes(16)
+        self.env.pop(STATUS_KEY_ENV, None)  # an agent never holds one (not even one from our own environment)
         if self.opts.links == "direct" and (self.opts.remote or self.opts.zenoh_configs):
             raise ValueError("direct links are unix sockets on this host that skip the router: "
                              "vehicles on other hosts and a secured fleet need links='router'")
@@ -362,6 +367,10 @@ class Launcher:
         if self.opts.policy:
             argv += ["--policy", self.opts.policy]
         return Child("world", argv, self.logs / "world.log", death_signal=signal.SIGTERM)
+
+    def world_env(self) -> dict[str, str]:
+        """The world's environment: the children's, and the status key (the world's alone)."""
+        return {**self.env, STATUS_KEY_ENV: self.status_key.hex()}
 
     def _agent(self, vid: str) -> Child:
         argv = [sys.executable, "-m", "vehicle_agent", *self._common(vid, self._agent_transport(vid)), "--id", vid]
@@ -479,7 +488,12 @@ class Launcher:
             self.cond.notify_all()
 
     def _on_status(self, sample: Any) -> None:
-        st = decode_status(sample.payload.to_bytes())
+        payload = sample.payload.to_bytes()
+        attachment = getattr(sample, "attachment", None)
+        if not signed_by(self.status_key, payload, None if attachment is None else attachment.to_bytes()):
+            self._reject("status unsigned", "a world status not signed by the world started here (forged?)")
+            return
+        st = decode_status(payload)
         if isinstance(st, str):
             self._reject(f"status {st}", "a malformed world status")
             return
@@ -489,8 +503,14 @@ class Launcher:
             self._reject("status t", f"a world status with t = {printable(t, 40)} (not in [-1, {limit:g}] s)")
             return
         with self.cond:
-            self.status = st
-            self.cond.notify_all()
+            if self.status is not None and t < self.status["t"]:  # a signed status replayed: time only moves on
+                stale = True
+            else:
+                stale = False
+                self.status = st
+                self.cond.notify_all()
+        if stale:
+            self._reject("status stale", f"a world status of t = {t:g} s, older than the last one (replayed?)")
 
     def _on_event(self, sample: Any) -> None:
         e = decode_event(sample.payload.to_bytes())
@@ -532,7 +552,8 @@ class Launcher:
     def start(self) -> None:
         self._open()
         w = self.children["world"] = self._world()
-        w.start(self.env)
+        w.start(self.world_env())
+
         missing = self._wait_alive(["world"], self.opts.ready_timeout)
         if missing:
             raise self._fail_start(missing, self.opts.ready_timeout)

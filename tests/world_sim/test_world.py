@@ -698,3 +698,24 @@ def test_a_recording_that_stops_is_an_event_while_the_run_goes_on():
     (e,) = w.events
     assert (e.kind, e.severity) == ("recording_stopped", "warn") and "No space left on device" in e.text
     assert decode_event(w.pub_events.puts[-1]).text == e.text
+
+
+def test_the_world_signs_its_statuses_with_the_launchers_key(monkeypatch):
+    """Issue 27: the launcher believes only statuses signed with the key it handed its world."""
+    from cdus.wire.schemas import STATUS_KEY_ENV, signed_by
+
+    class SigningPub(Pub):
+        def put(self, payload, attachment=None) -> None:
+            self.puts.append((bytes(payload), attachment))
+
+    monkeypatch.setenv(STATUS_KEY_ENV, "ab" * 16)
+    w = world()
+    w.pub_status = SigningPub()
+    w._publish_status()
+    (payload, attachment), = w.pub_status.puts
+    assert signed_by(bytes.fromhex("ab" * 16), payload, attachment)
+    monkeypatch.delenv(STATUS_KEY_ENV)  # started by hand: unsigned, as before
+    w = world()
+    w.pub_status = SigningPub()
+    w._publish_status()
+    assert w.pub_status.puts[0][1] is None
