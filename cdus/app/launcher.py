@@ -805,10 +805,10 @@ def launch(scenario: Scenario, run_dir: Path, router: Transport, opts: LaunchOpt
         status = 0 if code == 0 else 1
         la.metrics_at = la.find_world_metrics(marks)
         if code == METRICS_ELSEWHERE_EXIT:  # the run ended; its files are not where asked: not a lost world
-            where = (f"they are in {la.metrics_at}" if la.metrics_at is not None
-                     else "nothing could take them (they are printed in the world's log, if it could be written)")
-            la.log(f"the world ended the run but could not write its metrics or trace where asked; {where}. "
-                   f"Its log ends with:\n{la.children['world'].tail()}")
+            where = (f"the metrics are in {la.metrics_at}" if la.metrics_at is not None
+                     else "no file could take the metrics (they are printed in the world's log, if it could be written)")
+            la.log(f"the world ended the run but could not write all its files where asked (its log says which and "
+                   f"why); {where}. Its log ends with:\n{la.children['world'].tail()}")
         elif code != 0:
             la.log(f"world exited with status {code}; its log ends with:\n{la.children['world'].tail()}")
             if la.metrics_at is None:  # it wrote nothing: the launcher writes what it knows
