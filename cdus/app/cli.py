@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shutil
 import signal
 import sys
@@ -20,7 +21,9 @@ import zenoh
 
 from cdus import api
 from cdus.app.fleet_run import secure_router
-from cdus.app.launcher import LINKS, LaunchOptions, ListenError, RunDirInUse, RunDirLock, check_listen, launch
+from cdus.app.launcher import (
+    LINKS, LaunchOptions, ListenError, RunDirError, RunDirInUse, RunDirLock, check_listen, launch,
+)
 from cdus.app.executors import CONNECT_TIMEOUT_S, EXECUTORS
 from cdus.app.sweep import CLOCKS, SweepInterrupted, check_grid, parse_grid, sweep
 from cdus.app.sweepstore import ROWS
@@ -36,7 +39,7 @@ from ground_station.__main__ import main as gs_main
 from world_sim.recording import parse_spec, recording_line
 from cdus.app.report import Progress, run_dir, summary_table
 from cdus.sim.reports import late_event_lines
-from cdus.files import write_json
+from cdus.files import keep_json, metrics_fallbacks
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
@@ -184,12 +187,25 @@ def cmd_sim(args: argparse.Namespace) -> int:
         result = e.result
     progress.done()
     metrics = result.metrics.to_dict()
-    write_json(metrics_out, metrics)
-    if args.trace_out:
-        result.trace.save(args.trace_out)
+    say = lambda line: print(line, file=sys.stderr)  # noqa: E731
+    kept = keep_json(metrics_out, metrics, metrics_fallbacks(metrics_out, None, f"sim-{os.getpid()}"), say)
+    trace = args.trace_out
+    if trace:
+        try:
+            result.trace.save(trace)
+        except OSError as e:  # a full disk: said (no half a trace left); the metrics are kept
+            say(f"error: could not write the trace to {trace}: {e.strerror or e}")
+            if Path(trace).is_file():
+                Path(trace).unlink(missing_ok=True)
+            trace, status = None, status or EXIT_FAIL
     print(summary_table(metrics, scenario.vehicles))
-    print(f"  metrics: {metrics_out}" + (f"\n  trace: {args.trace_out}" if args.trace_out else ""))
-    return status
+    if kept is None:  # no file takes them: here they are
+        print(f"  metrics (no file could take them):\n{json.dumps(metrics)}")
+    else:
+        print(f"  metrics: {kept}" + (f" (not {metrics_out}: it could not be written)" if kept != Path(metrics_out) else ""))
+    if trace:
+        print(f"  trace: {trace}")
+    return status if kept == Path(metrics_out) else status or EXIT_FAIL
 
 
 def launch_options(args: argparse.Namespace, scenario: Scenario) -> LaunchOptions:
@@ -264,8 +280,13 @@ def _launch_into(args: argparse.Namespace, scenario: Scenario, opts: LaunchOptio
                  exposed: tuple[str, ...], run: Path, made: bool) -> int:
     """cmd_launch once the run directory is held: credentials, the fleet, the summary."""
     cred = None
-    if not args.insecure:
-        router, cred = secure_router(router, opts, scenario, run / "secure", "tls" if args.tls else "password")
+    try:
+        if not args.insecure:
+            router, cred = secure_router(router, opts, scenario, run / "secure", "tls" if args.tls else "password")
+    except OSError as e:  # a full disk, a read-only directory
+        print(f"error: cannot write the run's credentials into {run / 'secure'}: {e.strerror or e}; nothing was "
+              f"started; make room or give another --logs", file=sys.stderr)
+        return EXIT_FAIL
     print(f"{scenario.name}: launching {len(scenario.vehicles) - len(opts.remote)} vehicle processes + world "
           f"({args.clock} clock), router {', '.join(router.listen) or args.zenoh_config}")
     _note_late_events(scenario)  # after the line that says the run starts, as `cdus sim` before its run
@@ -281,6 +302,9 @@ def _launch_into(args: argparse.Namespace, scenario: Scenario, opts: LaunchOptio
           f"{(client_of(router).connect or ('ENDPOINT',))[0]}{gs_config} status")
     try:
         status, la = launch(scenario, run, router, opts)
+    except RunDirError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return EXIT_FAIL
     except ListenError as e:  # taken between the check and the router's start: still nothing was started
         if made:  # only the directory this command made (credentials, an empty logs/), never the user's
             shutil.rmtree(run, ignore_errors=True)

@@ -179,6 +179,10 @@ class RunDirLock:
         self.release()
 
 
+class RunDirError(Exception):
+    """The run directory cannot be written (a full disk, a read-only directory): nothing was started."""
+
+
 class ListenError(Exception):
     """The router could not listen where it was asked (a busy port, an address not of this
     host): a usage error; nothing was started."""
@@ -778,7 +782,11 @@ def launch(scenario: Scenario, run_dir: Path, router: Transport, opts: LaunchOpt
 
     Exit status: 0 the run completed, 1 it failed (the message names who), 130 interrupted.
     """
-    la = Launcher(scenario, run_dir, router, opts, **({"log": log} if log else {}))
+    try:
+        la = Launcher(scenario, run_dir, router, opts, **({"log": log} if log else {}))
+    except OSError as e:  # scenario.json, logs/: a full disk, a read-only directory
+        raise RunDirError(f"cannot write into the run directory {run_dir}: {e.strerror or e} ({e.filename}); "
+                          f"nothing was started; make room or give another --logs") from None
     interrupted = False
     phase = {"stopping": False, "in_stop": False}
 

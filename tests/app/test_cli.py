@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import pytest
 
 from cdus.app.cli import build_parser, launch_options, main
@@ -314,3 +317,36 @@ def test_a_set_with_a_space_for_the_equals_says_what_was_meant(argv, meant, caps
 def test_a_set_whose_next_word_is_the_config_is_not_taken_for_its_value(capsys):
     assert main(["sim", "--set", "link.loss", CONFIG, "-q"]) == 2  # the value is missing: the config parser says so
     assert "did you mean" not in capsys.readouterr().err
+
+
+from tests.fullfs import full_fs  # noqa: E402,F401  (the fixture)
+
+
+def test_cdus_sim_on_a_full_disk_says_so_and_keeps_its_metrics(full_fs, tmp_path, capsys, monkeypatch):
+    """Issue 27, broken 2, for cdus sim: the metrics write on a full disk was a traceback and the
+    run was lost. The failure is said (which file, why), the metrics kept in the temporary
+    directory, else printed; exit 1."""
+    assert main(["sim", CONFIG, "--duration", "1", "-q", "--rerun", "off", "--metrics-out", str(full_fs / "m.json"),
+                 "--trace-out", str(full_fs / "t.npz")]) == 1
+    out, err = capsys.readouterr()
+    assert f"error: could not write the metrics to {full_fs / 'm.json'}: No space left on device" in err
+    assert f"error: could not write the trace to {full_fs / 't.npz'}: No space left on device" in err
+    kept = next(ln for ln in out.splitlines() if ln.startswith("  metrics: "))
+    where = Path(kept.split()[1])
+    assert kept.endswith(f"(not {full_fs / 'm.json'}: it could not be written)") and json.loads(where.read_text())
+    where.unlink()
+    assert "trace:" not in out and not (full_fs / "t.npz").exists()
+    monkeypatch.setattr("tempfile.tempdir", str(full_fs))  # nowhere to keep them: printed
+    assert main(["sim", CONFIG, "--duration", "1", "-q", "--rerun", "off", "--metrics-out", str(full_fs / "m.json")]) == 1
+    out, _ = capsys.readouterr()
+    assert json.loads(out.split("  metrics (no file could take them):\n")[1])["duration_s"] == 1.0
+
+
+def test_a_launch_into_a_full_disk_starts_nothing_and_says_why(full_fs, capsys):
+    assert main(["launch", CONFIG, "--logs", str(full_fs / "run"), "--rerun", "off"]) == 1
+    err = capsys.readouterr().err
+    assert f"error: cannot write the run's credentials into {full_fs / 'run' / 'secure'}: No space left on device; " \
+           "nothing was started" in err
+    assert main(["launch", CONFIG, "--logs", str(full_fs / "run2"), "--rerun", "off", "--insecure"]) == 1
+    assert f"error: cannot write into the run directory {full_fs / 'run2'}: No space left on device" \
+        in capsys.readouterr().err
