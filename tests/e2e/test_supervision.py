@@ -66,7 +66,8 @@ def test_a_sigkilled_world_leaves_metrics_that_say_so_and_the_launcher_fails(tmp
     fleet = unique_fleet()
     port = free_tcp_port()
     run = tmp_path / "run"
-    la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", "3000", "--rerun", "off",
+    la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", "3000",
+                   "--rerun", f"save:{run / 'rec.rrd'}",
                    "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "-q", "--insecure"], fleet)
     la.wait_for(f"fleet '{fleet}' up")
     s = zenoh.open(raw_client(f"tcp/127.0.0.1:{port}"))
@@ -97,6 +98,11 @@ def test_a_sigkilled_world_leaves_metrics_that_say_so_and_the_launcher_fails(tmp
     assert m["duration_s"] < 2999.0 and m["final_path_error_max"] != 1e-9
     assert m["world_lost"]["rejected_by_launcher"].get("status unsigned", 0) >= 1, m["world_lost"]
     assert "world wrote no metrics" in la.output()
+    # issue 27: the launcher printed a recording path the killed world never wrote; it says what exists
+    assert not (run / "rec.rrd").exists()
+    (said,) = [ln for ln in la.output().splitlines() if ln.startswith("  recording:")]
+    assert said.startswith(f"  recording: {run / 'rec.rrd'} was not written; what was recorded is in") \
+        or said == f"  recording: none; {run / 'rec.rrd'} was not written (the world's log says why)", said
     assert not fleet_processes(fleet)
 
 
