@@ -30,6 +30,7 @@ import threading
 import time
 from collections import Counter, deque
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
@@ -1543,7 +1544,7 @@ class World:
         looking there too; where nothing takes them, printed whole as JSON on stdout."""
         fallbacks = metrics_fallbacks(self.metrics_out, self.run_dir, f"{self.fleet}-{os.getpid()}")
         at = keep_json(self.metrics_out, metrics, fallbacks, self.log)
-        if at is not None and str(at) == str(self.metrics_out):
+        if at is not None and at == Path(self.metrics_out):
             self.log(f"metrics written to {self.metrics_out}")
             return
         self.not_written.append("the metrics")

@@ -557,7 +557,6 @@ class Launcher:
         self._open()
         w = self.children["world"] = self._world()
         w.start(self.world_env())
-
         missing = self._wait_alive(["world"], self.opts.ready_timeout)
         if missing:
             raise self._fail_start(missing, self.opts.ready_timeout)

@@ -719,3 +719,17 @@ def test_the_world_signs_its_statuses_with_the_launchers_key(monkeypatch):
     w.pub_status = SigningPub()
     w._publish_status()
     assert w.pub_status.puts[0][1] is None
+
+
+def test_metrics_written_where_asked_are_not_said_to_be_elsewhere(tmp_path, monkeypatch):
+    """A relative --metrics-out ("./metrics.json", as written) is where they were written: exit 0."""
+    import world_sim.world as ww
+
+    w = world(metrics_out="./metrics.json", run_dir=str(tmp_path / "run"))
+    w.session = None
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(w, "open", lambda: None)
+    monkeypatch.setattr(w, "run", w.finish)
+    monkeypatch.setattr(w, "close", lambda: None)
+    assert ww.run_world(w) == 0 and w.not_written == []
+    assert (tmp_path / "metrics.json").is_file() and not (tmp_path / "run").exists()
