@@ -7,7 +7,7 @@ import json
 import os
 import tempfile
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 
 def write_json(path: str | os.PathLike, data: Any, allow_inf: bool = False) -> None:
@@ -38,6 +38,44 @@ def write_json(path: str | os.PathLike, data: Any, allow_inf: bool = False) -> N
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
+
+
+#: The world's exit status when the run ended but its metrics could not be written where asked
+#: (a full disk, a read-only directory): the world said which file and why in its log, and kept
+#: them at the first of :func:`metrics_fallbacks` that took them. Not a lost world: the launcher
+#: looks for them there (cdus.app.launcher).
+METRICS_ELSEWHERE_EXIT = 3
+
+
+def metrics_fallbacks(metrics_out: str | os.PathLike, run_dir: str | os.PathLike | None, tag: str) -> list[Path]:
+    """Where metrics go when ``metrics_out`` cannot be written, in order: the run directory's
+    ``metrics.json`` (when ``metrics_out`` is elsewhere), then ``cdus-metrics-<tag>.json`` in the
+    temporary directory (another file system, often). ``tag`` names the writer (the world's
+    fleet and process id): the launcher computes the same list to find them."""
+    out = Path(metrics_out)
+    places = []
+    if run_dir is not None and Path(run_dir, "metrics.json").resolve() != out.resolve():
+        places.append(Path(run_dir, "metrics.json"))
+    places.append(Path(tempfile.gettempdir(), f"cdus-metrics-{tag}.json"))
+    return places
+
+
+def keep_json(path: str | os.PathLike, data: Any, elsewhere: list[Path], log: Callable[[str], None],
+              what: str = "the metrics") -> Path | None:
+    """``data`` written to ``path`` (:func:`write_json`), or, if that fails (ENOSPC, EROFS, any
+    OSError), to the first of ``elsewhere`` that takes it; every failure told through ``log``
+    (which file, why). Returns where the data is, None if nowhere (the caller keeps it some other
+    way: printed)."""
+    for place in [Path(path), *elsewhere]:
+        try:
+            write_json(place, data)
+        except OSError as e:
+            log(f"error: could not write {what} to {place}: {e.strerror or e}")
+            continue
+        if place != Path(path):
+            log(f"{what} were kept in {place} instead of {path}")
+        return place
+    return None
 
 
 def _umask() -> int:

@@ -54,7 +54,7 @@ def main(argv=None) -> int:
         return 2
     world = World(scenario, args.fleet, transport, clock=args.clock, duration=args.duration,
                   metrics_out=args.metrics_out, trace_out=args.trace_out, start_timeout=args.start_timeout,
-                  sink=sink, policy=args.policy)
+                  sink=sink, policy=args.policy, run_dir=args.run_dir)
     return run_world(world)
 
 

@@ -8,6 +8,7 @@ parsed here into targets, without importing Rerun (a bad value starts nothing);
 from __future__ import annotations
 
 import os
+import shlex
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -16,6 +17,7 @@ from typing import Mapping
 
 DEFAULT_URL = "rerun+http://127.0.0.1:9876/proxy"  # where `rerun` listens by default
 RECORDING_NAME = "recording.rrd"  # the file `auto` writes into the run directory
+PARTS_SUFFIX = ".parts"  # PATH.parts/NNN.rrd: the segments of save:PATH while it is written (rerun_sink)
 SPEC_FORMS = ("off", "auto", "spawn", "save:PATH", "connect[:URL]")
 
 
@@ -85,3 +87,18 @@ def parse_spec(spec: str | None, run_dir: Path | None = None,
 def _bad(spec: str, why: str) -> None:
     raise ValueError(f"--rerun {spec!r}: {why}; valid forms: {' | '.join(SPEC_FORMS)}, "
                      f"comma-separated to combine (e.g. spawn,save:run.rrd)")
+
+
+def recording_line(path: Path) -> str:
+    """What a ``save:path`` recording left, said as it is: the file; or, when the run was cut
+    short (a SIGKILLed world, a disk that filled before the segments could be merged), its
+    segments in ``path.parts``; or that there is none (the world's log says why)."""
+    q = shlex.quote(str(path))
+    if path.is_file() and path.stat().st_size > 0:
+        return f"  recording: {path} (open it with: rerun {q})"
+    parts = path.with_name(path.name + PARTS_SUFFIX)
+    segments = sorted(parts.glob("*.rrd")) if parts.is_dir() else []
+    if segments:
+        return (f"  recording: {path} was not written; what was recorded is in {len(segments)} segments (open them "
+                f"with: rerun {shlex.quote(str(parts))}/*.rrd; the world's log says why)")
+    return f"  recording: none; {path} was not written (the world's log says why)"

@@ -82,7 +82,7 @@ from cdus.core.link import LINK_STATES
 from cdus.scenario.model import Scenario
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
 from cdus.wire.schemas import FleetEvent
-from world_sim.recording import Target, parse_spec
+from world_sim.recording import PARTS_SUFFIX, Target, parse_spec
 
 APP_ID = "cdus"
 FLUSH_EVERY = 5.0  # simulated seconds between batches sent to Rerun (bench/rerun_cost.py)
@@ -94,7 +94,6 @@ SEGMENT_EVERY = 10.0  # simulated seconds per file segment: what a crash can los
 #: 7.7 kB (lissajous_5x5); rounded up. A clean close needs twice the recording (the segments
 #: and the merged file) for a moment.
 BYTES_PER_VEHICLE_SECOND = 8_000
-PARTS_SUFFIX = ".parts"
 
 USV_COLOURS = ((31, 119, 180), (0, 170, 220), (70, 90, 220), (40, 150, 170), (110, 150, 255), (20, 80, 150))
 UAV_COLOURS = ((255, 127, 14), (230, 85, 13), (250, 175, 40), (215, 110, 60), (255, 150, 90), (190, 95, 0))
@@ -289,6 +288,9 @@ class RerunSink:
         self.segment_every = segment_every
         self.out = out if out is not None else sys.stdout
         self.files = [Path(t.where) for t in targets if t.kind == "save"]
+        #: told (once) why the file recording stopped, besides the warning: the world makes it an
+        #: event the launcher and ground stations show while the run goes on
+        self.on_stop: Any = None
         self.recording_id = recording_id or f"cdus-{uuid.uuid4().hex[:12]}"
         self._segment = 0  # the number of the next segment to write
         self._segment_t0 = 0.0  # simulated time the data not yet written starts at
@@ -555,6 +557,9 @@ class RerunSink:
         kept = " ".join(f"{shlex.quote(str(_parts(f)))}/*.rrd" for f in self.files)
         _warn(f"the Rerun recording stopped: {reason}; the run goes on. What was recorded before stays "
               f"readable: rerun {kept}")
+        if self.on_stop is not None:
+            self.on_stop(f"the Rerun recording into {', '.join(map(str, self.files))} stopped: {reason}; the run "
+                         f"goes on (what was recorded before: rerun {kept})")
         if self._file_rec is not None:
             self.rec.streams.remove(self._file_rec)
             try:

@@ -21,12 +21,16 @@ operator's commands to the vehicles with the tick (or simulated time) they apply
 
 from __future__ import annotations
 
+import contextlib
+import json
 import math
+import os
 import signal
 import threading
 import time
 from collections import Counter, deque
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
@@ -38,7 +42,7 @@ from cdus.core.node import gains_problem
 from cdus.core.radiolink import RadioCounters
 from cdus.core.metrics import Recorder
 from cdus.core.schedule import total_ticks
-from cdus.files import write_json
+from cdus.files import METRICS_ELSEWHERE_EXIT, keep_json, metrics_fallbacks
 from cdus.scenario.config import ConfigError, nesting_problem
 from cdus.scenario.link import merge_link_tables, validate_link
 from cdus.scenario.model import Scenario
@@ -62,7 +66,8 @@ from cdus.wire.messages import (
 )
 from cdus.wire.schemas import (
     ID_RE, MAX_REASON, MAX_TEXT as MAX_EVENT_TEXT, ORIGIN_WORLD, AgentStats, CommandReply, FleetEvent,
-    StatusExtra, decode_stats, encode_event, encode_reply, encode_settings, encode_status,
+    STATUS_KEY_ENV, StatusExtra, decode_stats, encode_event, encode_reply, encode_settings, encode_status,
+    status_signature,
 )
 from cdus.wire.text import printable
 from cdus.wire.transport import Transport, open_session
@@ -189,7 +194,7 @@ class World:
     def __init__(self, scenario: Scenario, fleet: str, transport: Transport, clock: str = "lockstep",
                  duration: float | None = None, metrics_out: str | None = None, trace_out: str | None = None,
                  start_timeout: float = 60.0, log: Callable[[str], None] | None = None, sink: Sink | None = None,
-                 policy: str | None = None):
+                 policy: str | None = None, run_dir: str | None = None):
         self.scenario = scenario
         self.fleet = keys.check_fleet(fleet)
         self.transport = transport
@@ -201,8 +206,14 @@ class World:
         self.last_tick = total_ticks(self.duration, self.period)
         self.metrics_out = metrics_out
         self.trace_out = trace_out
+        self.run_dir = run_dir  # where the metrics go when metrics_out cannot be written (metrics_fallbacks)
+        #: the outputs not written where asked (a full disk): "the metrics" / "the trace"; the
+        #: world then exits METRICS_ELSEWHERE_EXIT (run_world)
+        self.not_written: list[str] = []
         self.start_timeout = start_timeout
         self.sink = sink or NullSink()
+        if hasattr(self.sink, "on_stop"):  # a file recording that stops (a full disk) is said while the run goes on
+            self.sink.on_stop = self._recording_stopped
         self.policy = policy or scenario.link.policy
         self._link_table = scenario.link_table  # the [link] table as run-time commands have left it
         self.recorder = Recorder(self.ids, [v.dim for v in scenario.vehicles], metric_edges(scenario))
@@ -234,10 +245,13 @@ class World:
         self._commands: list[tuple[str | None, bytes]] = []
         self._make_settings()  # the settings reply (world/settings), made again at each change
         self._status_payload: bytes | None = None  # the newest status published (_publish_status)
+        #: the launcher's per-run key (STATUS_KEY_ENV): each status is signed with it, so the
+        #: launcher tells this world's statuses from forged ones; None: started by hand, unsigned
+        self._status_key = _status_key(os.environ.get(STATUS_KEY_ENV))
         self._console = ConsoleQuota(scenario=scenario)
         self._rt_expect: dict[str, set[str]] = {}  # realtime: liveliness changes a fault we asked for explains
         self._faulted: dict[str, str] = {}  # "killed" | "paused", by the faults carried out (both clocks)
-        self.log = log or (lambda s: print(f"[world] {s}", flush=True))
+        self.log = log or _say
         self.next_tick = 0  # next tick to record
         self._initial: dict[int, StateMsg] = {}  # vehicle -> its state before its first tick (made when needed)
         self.events: list[FleetEvent] = []
@@ -1381,7 +1395,10 @@ class World:
         payload = encode_status(t, self.duration, self.clock, sorted(self.st.alive), self.ids, path, coord,
                                 self.events[-10:], paused, roster=dict(zip(self.ids, extra.states)), extra=extra)
         self._status_payload = payload  # what a status query is answered (bytes: replaced whole, never changed)
-        self.pub_status.put(payload)
+        if self._status_key is None:
+            self.pub_status.put(payload)
+        else:
+            self.pub_status.put(payload, attachment=status_signature(self._status_key, payload))
 
     def _status_extra(self) -> StatusExtra:
         """What a live console shows beyond the summary (cdus.wire.schemas.STATUS_EXTRA), at the
@@ -1502,13 +1519,55 @@ class World:
                               completed=completion == COMPLETED, completion=completion,
                               rejected_by_reason=self.rejects_by_reason(), **never_up, **self._radio_metrics())
         if self.metrics_out:
-            write_json(self.metrics_out, metrics)
-            self.log(f"metrics written to {self.metrics_out}")
+            self._keep_metrics(metrics)
         if self.trace_out and len(self.recorder):
-            self.recorder.save_trace(self.trace_out)
+            try:
+                self.recorder.save_trace(self.trace_out)
+            except OSError as e:  # a full disk: said, the metrics (written first) are kept
+                self.not_written.append("the trace")
+                self.log(f"error: could not write the trace to {self.trace_out}: {e.strerror or e}")
+                with contextlib.suppress(OSError):  # no half a trace that looks like one
+                    if os.path.isfile(self.trace_out):
+                        os.unlink(self.trace_out)
         self.sink.update(self.recorder)
         self.sink.close()
         return metrics
+
+    def _recording_stopped(self, text: str) -> None:
+        """The sink's file recording stopped (ENOSPC...): an event, so the launcher's console and
+        the ground stations say it at once, and the metrics' events keep it."""
+        self._note(FleetEvent.of(max(0, self.next_tick - 1) * self.period, "recording_stopped", text))
+
+    def _keep_metrics(self, metrics: dict) -> None:
+        """The metrics at metrics_out, or (a full disk, a read-only directory: which file and why
+        said) at the first of :func:`cdus.files.metrics_fallbacks` that takes them, the launcher
+        looking there too; where nothing takes them, printed whole as JSON on stdout."""
+        fallbacks = metrics_fallbacks(self.metrics_out, self.run_dir, f"{self.fleet}-{os.getpid()}")
+        at = keep_json(self.metrics_out, metrics, fallbacks, self.log)
+        if at is not None and at == Path(self.metrics_out):
+            self.log(f"metrics written to {self.metrics_out}")
+            return
+        self.not_written.append("the metrics")
+        if at is None:
+            self.log("the metrics could be written nowhere; here they are:")
+            _say(json.dumps(metrics, default=str), prefix="")
+
+
+def _status_key(text: str | None) -> bytes | None:
+    """The launcher's status key from its hex form; None when there is none (or it is not hex)."""
+    try:
+        return bytes.fromhex(text) if text else None
+    except ValueError:
+        return None
+
+
+def _say(text: str, prefix: str = "[world] ") -> None:
+    """One line on stdout (the world's log); a log on a full disk is no reason to stop the world."""
+    try:
+        print(f"{prefix}{text}", flush=True)
+    except OSError:
+        pass
+
 
 def _s(settle: float | None) -> str:
     return "never" if settle is None else f"{settle:.2f} s"
@@ -1531,6 +1590,9 @@ def run_world(world: World) -> int:
         if len(world.recorder) and not m["live_final"] and not world.stop_requested:
             world.log("error: no vehicle was live at the end of the run (their logs say why)")
             return 1
+        if world.not_written:  # the run is whole, its files are not where asked: not a lost world
+            world.log(f"error: {' and '.join(world.not_written)} could not be written where asked (see above)")
+            return METRICS_ELSEWHERE_EXIT
         return 0
     except TimeoutError as e:
         world.log(f"error: {e}")

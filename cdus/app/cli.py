@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shutil
 import signal
 import sys
@@ -20,7 +21,9 @@ import zenoh
 
 from cdus import api
 from cdus.app.fleet_run import secure_router
-from cdus.app.launcher import LINKS, LaunchOptions, ListenError, check_listen, launch
+from cdus.app.launcher import (
+    LINKS, LaunchOptions, ListenError, RunDirError, RunDirInUse, RunDirLock, check_listen, launch,
+)
 from cdus.app.executors import CONNECT_TIMEOUT_S, EXECUTORS
 from cdus.app.sweep import CLOCKS, PLOT_FORMATS, SweepInterrupted, check_grid, parse_grid, sweep
 from cdus.app.sweepstore import ROWS
@@ -33,10 +36,10 @@ from cdus.wire.access import GROUND_ROLE
 from cdus.wire.transport import Transport, client_of, endpoint, exposed_endpoints, router_listen
 from cdus.wire.transport import router as fleet_router
 from ground_station.__main__ import main as gs_main
-from world_sim.recording import parse_spec
+from world_sim.recording import parse_spec, recording_line
 from cdus.app.report import Progress, run_dir, summary_table
 from cdus.sim.reports import late_event_lines
-from cdus.files import write_json
+from cdus.files import keep_json, metrics_fallbacks
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
@@ -186,12 +189,25 @@ def cmd_sim(args: argparse.Namespace) -> int:
         result = e.result
     progress.done()
     metrics = result.metrics.to_dict()
-    write_json(metrics_out, metrics)
-    if args.trace_out:
-        result.trace.save(args.trace_out)
+    say = lambda line: print(line, file=sys.stderr)  # noqa: E731
+    kept = keep_json(metrics_out, metrics, metrics_fallbacks(metrics_out, None, f"sim-{os.getpid()}"), say)
+    trace = args.trace_out
+    if trace:
+        try:
+            result.trace.save(trace)
+        except OSError as e:  # a full disk: said (no half a trace left); the metrics are kept
+            say(f"error: could not write the trace to {trace}: {e.strerror or e}")
+            if Path(trace).is_file():
+                Path(trace).unlink(missing_ok=True)
+            trace, status = None, status or EXIT_FAIL
     print(summary_table(metrics, scenario.vehicles))
-    print(f"  metrics: {metrics_out}" + (f"\n  trace: {args.trace_out}" if args.trace_out else ""))
-    return status
+    if kept is None:  # no file takes them: here they are
+        print(f"  metrics (no file could take them):\n{json.dumps(metrics)}")
+    else:
+        print(f"  metrics: {kept}" + (f" (not {metrics_out}: it could not be written)" if kept != Path(metrics_out) else ""))
+    if trace:
+        print(f"  trace: {trace}")
+    return status if kept == Path(metrics_out) else status or EXIT_FAIL
 
 
 def launch_options(args: argparse.Namespace, scenario: Scenario) -> LaunchOptions:
@@ -254,10 +270,25 @@ def cmd_launch(args: argparse.Namespace) -> int:
         raise ConfigError("command line", [("--listen" if args.listen else "--zenoh-config", str(e))]) from None
     made = not args.logs or not Path(args.logs).exists()
     run = Path(args.logs) if args.logs else run_dir(args.runs_dir, scenario.name)
-    run.mkdir(parents=True, exist_ok=True)
+    try:  # before anything is written into it (credentials, logs): one fleet per run directory
+        lock = RunDirLock(run)
+    except RunDirInUse as e:
+        raise ConfigError("command line", [("--logs", str(e))]) from None
+    with lock:
+        return _launch_into(args, scenario, opts, router, exposed, run, made)
+
+
+def _launch_into(args: argparse.Namespace, scenario: Scenario, opts: LaunchOptions, router: Transport,
+                 exposed: tuple[str, ...], run: Path, made: bool) -> int:
+    """cmd_launch once the run directory is held: credentials, the fleet, the summary."""
     cred = None
-    if not args.insecure:
-        router, cred = secure_router(router, opts, scenario, run / "secure", "tls" if args.tls else "password")
+    try:
+        if not args.insecure:
+            router, cred = secure_router(router, opts, scenario, run / "secure", "tls" if args.tls else "password")
+    except OSError as e:  # a full disk, a read-only directory
+        print(f"error: cannot write the run's credentials into {run / 'secure'}: {e.strerror or e}; nothing was "
+              f"started; make room or give another --logs", file=sys.stderr)
+        return EXIT_FAIL
     print(f"{scenario.name}: launching {len(scenario.vehicles) - len(opts.remote)} vehicle processes + world "
           f"({args.clock} clock), router {', '.join(router.listen) or args.zenoh_config}")
     _note_late_events(scenario)  # after the line that says the run starts, as `cdus sim` before its run
@@ -273,20 +304,24 @@ def cmd_launch(args: argparse.Namespace) -> int:
           f"{(client_of(router).connect or ('ENDPOINT',))[0]}{gs_config} status")
     try:
         status, la = launch(scenario, run, router, opts)
+    except RunDirError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return EXIT_FAIL
     except ListenError as e:  # taken between the check and the router's start: still nothing was started
         if made:  # only the directory this command made (credentials, an empty logs/), never the user's
             shutil.rmtree(run, ignore_errors=True)
         raise ConfigError("command line", [("--listen" if args.listen else "--zenoh-config", str(e))]) from None
-    if la.metrics_out.exists():
-        metrics = json.loads(la.metrics_out.read_text())
+    if la.metrics_at is not None:
+        metrics = json.loads(la.metrics_at.read_text())
         print(summary_table(metrics, scenario.vehicles))
-        print(f"  metrics: {la.metrics_out}\n  logs: {la.logs}")
-        for target in parse_spec(args.rerun, run):
-            if target.kind == "save":
-                print(f"  recording: {target.where} (open it with: rerun {target.where})")
+        elsewhere = f" (not {la.metrics_out}: it could not be written)" if la.metrics_at != la.metrics_out else ""
+        print(f"  metrics: {la.metrics_at}{elsewhere}\n  logs: {la.logs}")
     else:
-        print(f"no metrics were written; logs: {la.logs}", file=sys.stderr)
+        print(f"no metrics file was written (the lines above say why); logs: {la.logs}", file=sys.stderr)
         status = status or EXIT_FAIL
+    for target in parse_spec(args.rerun, run):  # what exists, also after a disk that filled or a killed world
+        if target.kind == "save":
+            print(recording_line(Path(target.where)))
     return status
 
 
@@ -346,10 +381,43 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def set_without_equals(argv: Sequence[str]) -> str | None:
+    """``--set KEY VALUE`` (a space for the ``=``): what the user meant, ``--set KEY=VALUE``; None
+    if every ``--set`` has its ``=``. argparse would take VALUE for an unknown argument and print
+    the top-level usage ("unrecognized arguments: 0.2"), which says nothing of the slip. A VALUE
+    that is an existing file is the config, not a forgotten value: left to argparse."""
+    for i, a in enumerate(argv):
+        if a == "--set":
+            key, j = (argv[i + 1] if i + 1 < len(argv) else ""), i + 2
+        elif a.startswith("--set="):
+            key, j = a[len("--set="):], i + 1
+        else:
+            continue
+        value = argv[j] if j < len(argv) else ""
+        if not key or "=" in key or key.startswith("-") or not value or Path(value).is_file():
+            continue
+        if not value.startswith("-") or _is_number(value):
+            return f"--set {key}={value}"
+    return None
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text.split(",")[0])
+    except ValueError:
+        return False
+    return True
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "gs":
         return gs_main(argv[1:], "cdus gs")
+    meant = set_without_equals(argv[1:])
+    if meant is not None:
+        print(f"error: --set takes KEY=VALUE in one word: did you mean {meant}?", file=sys.stderr)
+        print("nothing was started.", file=sys.stderr)
+        return EXIT_USAGE
     parser = build_parser()
     args = parser.parse_args(argv)
     try:

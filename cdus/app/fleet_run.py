@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Callable
 
 from cdus.app.credentials import Credentials, CredentialsError, make_credentials
-from cdus.app.launcher import LaunchOptions, launch
+from cdus.app.launcher import LaunchOptions, RunDirInUse, RunDirLock, launch
 from cdus.scenario.config import ConfigError
 from cdus.scenario.model import Scenario
 from cdus.sim.build import listeners_of
@@ -43,8 +43,18 @@ def run_lockstep(scenario: Scenario, run: Path, *, fleet: str, policy: str | Non
     """Run ``scenario`` (its duration, its supervision policy) as a lockstep fleet in ``run``
     (logs/, secure/, metrics.json, trace.npz). Returns (the launcher's exit status: 0 completed,
     1 failed, 130 interrupted; the metrics path; the trace path), either file possibly absent.
-    Arguments are the caller's to check (cdus.api.run)."""
-    run.mkdir(parents=True, exist_ok=True)
+    Arguments are the caller's to check (cdus.api.run); a run directory another fleet runs into now is a
+    ConfigError naming run_dir."""
+    try:
+        lock = RunDirLock(run)
+    except RunDirInUse as e:  # another fleet runs into it now: nothing is started or touched
+        raise ConfigError("run", [("run_dir", str(e))]) from None
+    with lock:
+        return _run_held(scenario, run, fleet, policy, rerun, secure, tls, ready_timeout, quiet, log)
+
+
+def _run_held(scenario: Scenario, run: Path, fleet: str, policy: str | None, rerun: str, secure: bool, tls: bool,
+              ready_timeout: float, quiet: bool, log: Callable[[str], None] | None) -> tuple[int, Path, Path]:
     for stale in ("metrics.json", "trace.npz"):  # an earlier run's in the same directory is not this run's
         (run / stale).unlink(missing_ok=True)
     opts = LaunchOptions(fleet=fleet, clock="lockstep", restart=scenario.supervision.restart,
@@ -54,4 +64,4 @@ def run_lockstep(scenario: Scenario, run: Path, *, fleet: str, policy: str | Non
     if secure:
         router, _ = secure_router(router, opts, scenario, run / "secure", "tls" if tls else "password")
     status, la = launch(scenario, run, router, opts, log=log)
-    return status, la.metrics_out, run / "trace.npz"
+    return status, la.metrics_at or la.metrics_out, run / "trace.npz"

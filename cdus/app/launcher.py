@@ -15,7 +15,10 @@ is started with ``PR_SET_PDEATHSIG`` (Linux): the moment the launcher dies the k
 the world SIGTERM (it still writes what it has) and the agents SIGKILL (nothing to save, and
 a vehicle paused by a fault, SIGSTOPped, would never act on a SIGTERM). If the world dies, the
 launcher writes the run's metrics.json itself (``completed: false``, ``completion:
-"world_lost"``, what it knew from the world's last status), stops the fleet and exits 1.
+"world_lost"``, what it knew from the world's last status), stops the fleet and exits 1. A world
+that exits ``METRICS_ELSEWHERE_EXIT`` ended its run but could not write its metrics where asked
+(a full disk): the launcher finds them where the world kept them (cdus.files.metrics_fallbacks)
+instead. A run directory is held (:class:`RunDirLock`) while a fleet runs into it.
 
 The launcher's command key (``to/+launcher+/cmd``) carries out faults on the scenario's
 own vehicles only: anything else (``kill world``, an unknown id, a malformed message) is
@@ -27,9 +30,11 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import errno
+import fcntl
 import json
 import math
 import os
+import secrets
 import shlex
 import shutil
 import signal
@@ -48,13 +53,13 @@ import zenoh
 from cdus.scenario.model import DEFAULT_RESTART, Scenario, Supervision
 from cdus.app.report import WORLD_LOST, Progress
 from cdus.core.metrics import Recorder
-from cdus.files import write_json
+from cdus.files import METRICS_ELSEWHERE_EXIT, keep_json, metrics_fallbacks, write_json
 from cdus.sim.build import metric_edges
 from cdus.sim.summary import run_metrics
 from cdus.sim.reports import ConsoleQuota
 from cdus.wire import keys
 from cdus.wire.messages import CTL_OPS, LAUNCHER_OPS, decode_control, encode_control
-from cdus.wire.schemas import FleetEvent, decode_event, decode_status, encode_event
+from cdus.wire.schemas import STATUS_KEY_ENV, FleetEvent, decode_event, decode_status, encode_event, signed_by
 from cdus.wire.text import printable
 from cdus.wire.transport import (
     CHILD_RUNTIME, DEFAULT_LEASE_MS, ROUTER_RUNTIME, ROUTER_RUNTIME_ENV, Transport, children_runtime, client_of,
@@ -134,6 +139,48 @@ def print_line(s: str) -> None:
 
 class LaunchError(Exception):
     """The fleet could not be brought up; the message says who failed and why."""
+
+
+class RunDirInUse(Exception):
+    """Another launcher runs into this run directory now: nothing was started."""
+
+
+LOCK_NAME = ".launch.lock"  # in the run directory: flock'ed by the launcher running into it
+
+
+class RunDirLock:
+    """An exclusive hold on a run directory while a fleet runs into it (logs, credentials,
+    metrics): ``flock`` on ``<run>/.launch.lock``, as ``cdus sweep`` holds its ``--out``. The
+    kernel lets go when the holder dies (even by SIGKILL), so the directory of a dead launcher
+    is free again; the file stays (removing it would race a launcher taking it)."""
+
+    def __init__(self, run: Path):
+        run.mkdir(parents=True, exist_ok=True)
+        self.path = run / LOCK_NAME
+        # close-on-exec: the children never hold it (they die with the launcher anyway)
+        self.fd: int | None = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        try:
+            fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(self.fd)
+            self.fd = None
+            raise RunDirInUse(f"another `cdus launch` is running into {run} now (it holds {self.path}); wait for "
+                              f"it to end or give another --logs") from None
+
+    def release(self) -> None:
+        if self.fd is not None:
+            os.close(self.fd)
+            self.fd = None
+
+    def __enter__(self) -> "RunDirLock":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.release()
+
+
+class RunDirError(Exception):
+    """The run directory cannot be written (a full disk, a read-only directory): nothing was started."""
 
 
 class ListenError(Exception):
@@ -273,6 +320,7 @@ class Launcher:
         self.config_path = self.run_dir / "scenario.json"
         write_json(self.config_path, self.scenario.raw, allow_inf=True)  # e.g. radio.shadowing_time = inf
         self.metrics_out = Path(self.opts.metrics_out or self.run_dir / "metrics.json")
+        self.metrics_at: Path | None = None  # where the run's metrics are once it ended (launch), None: nowhere
         self.cond = threading.Condition()
         self.alive: set[str] = set()
         self.ever_alive: set[str] = set()  # whose token was seen at least once
@@ -288,6 +336,10 @@ class Launcher:
         self.env = dict(os.environ)
         self.env["ZENOH_RUNTIME"] = children_runtime()  # the user's, else CHILD_RUNTIME (not the router's)
         self.env["PYTHONUNBUFFERED"] = "1"
+        #: the world signs its statuses with this (cdus.wire.schemas.STATUS_KEY_ENV): only the world
+        #: started here knows it, so a status forged on an open fleet is not believed
+        self.status_key = secrets.token_bytes(16)
+        self.env.pop(STATUS_KEY_ENV, None)  # an agent never holds one (not even one from our own environment)
         if self.opts.links == "direct" and (self.opts.remote or self.opts.zenoh_configs):
             raise ValueError("direct links are unix sockets on this host that skip the router: "
                              "vehicles on other hosts and a secured fleet need links='router'")
@@ -319,6 +371,10 @@ class Launcher:
         if self.opts.policy:
             argv += ["--policy", self.opts.policy]
         return Child("world", argv, self.logs / "world.log", death_signal=signal.SIGTERM)
+
+    def world_env(self) -> dict[str, str]:
+        """The world's environment: the children's, and the status key (the world's alone)."""
+        return {**self.env, STATUS_KEY_ENV: self.status_key.hex()}
 
     def _agent(self, vid: str) -> Child:
         argv = [sys.executable, "-m", "vehicle_agent", *self._common(vid, self._agent_transport(vid)), "--id", vid]
@@ -436,7 +492,12 @@ class Launcher:
             self.cond.notify_all()
 
     def _on_status(self, sample: Any) -> None:
-        st = decode_status(sample.payload.to_bytes())
+        payload = sample.payload.to_bytes()
+        attachment = getattr(sample, "attachment", None)
+        if not signed_by(self.status_key, payload, None if attachment is None else attachment.to_bytes()):
+            self._reject("status unsigned", "a world status not signed by the world started here (forged?)")
+            return
+        st = decode_status(payload)
         if isinstance(st, str):
             self._reject(f"status {st}", "a malformed world status")
             return
@@ -446,8 +507,14 @@ class Launcher:
             self._reject("status t", f"a world status with t = {printable(t, 40)} (not in [-1, {limit:g}] s)")
             return
         with self.cond:
-            self.status = st
-            self.cond.notify_all()
+            if self.status is not None and t < self.status["t"]:  # a signed status replayed: time only moves on
+                stale = True
+            else:
+                stale = False
+                self.status = st
+                self.cond.notify_all()
+        if stale:
+            self._reject("status stale", f"a world status of t = {t:g} s, older than the last one (replayed?)")
 
     def _on_event(self, sample: Any) -> None:
         e = decode_event(sample.payload.to_bytes())
@@ -489,7 +556,7 @@ class Launcher:
     def start(self) -> None:
         self._open()
         w = self.children["world"] = self._world()
-        w.start(self.env)
+        w.start(self.world_env())
         missing = self._wait_alive(["world"], self.opts.ready_timeout)
         if missing:
             raise self._fail_start(missing, self.opts.ready_timeout)
@@ -592,13 +659,30 @@ class Launcher:
             except zenoh.ZError as e:
                 self.log(f"  could not publish that: {e}")
 
-    def metrics_mark(self) -> tuple | None:
-        """What the metrics file is now (None: absent), to tell later whether the world wrote it."""
+    def metrics_mark(self, path: Path | None = None) -> tuple | None:
+        """What the metrics file (or ``path``) is now (None: absent), to tell later whether the world wrote it."""
         try:
-            st = os.stat(self.metrics_out)
+            st = os.stat(path or self.metrics_out)
         except OSError:
             return None
         return (st.st_ino, st.st_mtime_ns, st.st_size)
+
+    def world_fallbacks(self) -> list[Path]:
+        """Where the world keeps its metrics when it cannot write them to metrics_out (a full disk;
+        cdus.files.metrics_fallbacks, as the world computes them)."""
+        w = self.children.get(keys.WORLD)
+        if w is None or w.proc is None:
+            return []
+        return metrics_fallbacks(self.metrics_out, self.run_dir, f"{self.fleet}-{w.proc.pid}")
+
+    def find_world_metrics(self, marks: dict[Path, tuple | None]) -> Path | None:
+        """Where the world wrote its metrics in this run: metrics_out or a fallback that changed
+        since ``marks`` (their :meth:`metrics_mark` before the run); None: it wrote none."""
+        for place in (self.metrics_out, *self.world_fallbacks()):
+            now = self.metrics_mark(place)
+            if now is not None and now != marks.get(place):
+                return place
+        return None
 
     def write_world_lost(self, code: int, wall_s: float) -> dict:
         """The world died without writing its metrics: write what the launcher knows (an empty
@@ -630,7 +714,12 @@ class Launcher:
             "restarts": {n: c.restarts for n, c in self.children.items() if n != keys.WORLD and c.restarts},
             "rejected_by_launcher": dict(self.rejected),
         }
-        write_json(self.metrics_out, m)
+        self.metrics_at = keep_json(self.metrics_out, m, metrics_fallbacks(self.metrics_out, self.run_dir,
+                                                                           f"{self.fleet}-launcher-{os.getpid()}"),
+                                    self.log)
+        if self.metrics_at is None:  # no disk takes them: the terminal does
+            self.log("the metrics could be written nowhere; here they are:")
+            self.log(json.dumps(m))
         return m
 
     def stop(self) -> None:
@@ -692,7 +781,11 @@ def launch(scenario: Scenario, run_dir: Path, router: Transport, opts: LaunchOpt
 
     Exit status: 0 the run completed, 1 it failed (the message names who), 130 interrupted.
     """
-    la = Launcher(scenario, run_dir, router, opts, **({"log": log} if log else {}))
+    try:
+        la = Launcher(scenario, run_dir, router, opts, **({"log": log} if log else {}))
+    except OSError as e:  # scenario.json, logs/: a full disk, a read-only directory
+        raise RunDirError(f"cannot write into the run directory {run_dir}: {e.strerror or e} ({e.filename}); "
+                          f"nothing was started; make room or give another --logs") from None
     interrupted = False
     phase = {"stopping": False, "in_stop": False}
 
@@ -710,18 +803,26 @@ def launch(scenario: Scenario, run_dir: Path, router: Transport, opts: LaunchOpt
     # A shell starting us in the background (`cdus launch ... &` in a script) ignores SIGINT
     # for us, and Python keeps it ignored: Ctrl-C / kill -INT must still stop the fleet cleanly.
     old_int = signal.signal(signal.SIGINT, _term)
-    mark = la.metrics_mark()
+    marks = {la.metrics_out: la.metrics_mark()}
     t0 = time.perf_counter()
     try:
         la.start()
+        marks.update((p, la.metrics_mark(p)) for p in la.world_fallbacks())
         code = la.supervise()
         status = 0 if code == 0 else 1
-        if code != 0:
+        la.metrics_at = la.find_world_metrics(marks)
+        if code == METRICS_ELSEWHERE_EXIT:  # the run ended; its files are not where asked: not a lost world
+            where = (f"the metrics are in {la.metrics_at}" if la.metrics_at is not None
+                     else "no file could take the metrics (they are printed in the world's log, if it could be written)")
+            la.log(f"the world ended the run but could not write all its files where asked (its log says which and "
+                   f"why); {where}. Its log ends with:\n{la.children['world'].tail()}")
+        elif code != 0:
             la.log(f"world exited with status {code}; its log ends with:\n{la.children['world'].tail()}")
-            if la.metrics_mark() == mark:  # it wrote nothing: the launcher writes what it knows
+            if la.metrics_at is None:  # it wrote nothing: the launcher writes what it knows
                 la.write_world_lost(code, time.perf_counter() - t0)
-                la.log(f"the world wrote no metrics: {la.metrics_out} written by the launcher "
-                       f"(completed: false, completion: {WORLD_LOST!r}); stopping the fleet")
+                if la.metrics_at is not None:
+                    la.log(f"the world wrote no metrics: {la.metrics_at} written by the launcher "
+                           f"(completed: false, completion: {WORLD_LOST!r}); stopping the fleet")
     except LaunchError as e:
         la.log(f"error: the fleet did not come up:\n{e}")
         status = 1
@@ -742,6 +843,9 @@ def launch(scenario: Scenario, run_dir: Path, router: Transport, opts: LaunchOpt
         signal.signal(signal.SIGINT, old_int)
     if interrupted:
         status = 130
+    if la.metrics_at is None:  # interrupted, or a world that exited 0: what it wrote while stopping
+        la.metrics_at = la.find_world_metrics(marks) or (
+            la.metrics_out if status == 0 and la.metrics_out.exists() else None)  # e.g. a pipe: no mark changes
     if la.rejected:
         la.log(f"  the launcher dropped {sum(la.rejected.values())} messages: "
                + ", ".join(f"{n} {r}" for r, n in sorted(la.rejected.items())))

@@ -22,6 +22,8 @@ import difflib
 import math
 from typing import Any, Iterable, Iterator, Mapping, Sequence
 
+from cdus.wire.text import is_printable, printable
+
 ANY_VEHICLE = "*"  # the wildcard of link.override/down src and dst
 
 
@@ -221,10 +223,16 @@ class Problems:
             return None
         return v
 
-    def string(self, v: Any, field: str, *, nonempty: bool = False, note: str = "") -> str | None:
-        """A string (a non-empty one with ``nonempty``)."""
+    def string(self, v: Any, field: str, *, nonempty: bool = False, note: str = "",
+               one_line: bool = False) -> str | None:
+        """A string (a non-empty one with ``nonempty``; with ``one_line``, one a terminal shows as
+        it is: no control characters, escape sequences or line breaks)."""
         if not isinstance(v, str) or (nonempty and not v.strip()):
             self.add(field, f"must be a {'non-empty ' if nonempty else ''}string, got {describe(v)}{note}")
+            return None
+        if one_line and not is_printable(v):
+            self.add(field, f"must be printable text on one line (no control characters, escape sequences or "
+                            f"line breaks: it is printed and names files), got '{printable(v, 80)}'{note}")
             return None
         return v
 

@@ -20,6 +20,7 @@ import copy
 import json
 import os
 import re
+import stat
 import tomllib
 from typing import Any, Iterable, Mapping
 
@@ -68,7 +69,16 @@ def load_scenario(path: str | os.PathLike, overrides: Mapping[str, Any] | None =
     """Read, override, validate and resolve a scenario file. Raises :class:`ConfigError`."""
     source = os.fspath(path)
     try:
-        with open(source, "rb") as fh:
+        # O_NONBLOCK: a FIFO opens at once (it is refused below) instead of waiting for a writer for ever
+        fd = os.open(source, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+        mode = os.fstat(fd).st_mode
+        if not stat.S_ISREG(mode):
+            os.close(fd)
+            what = "a directory" if stat.S_ISDIR(mode) else "a named pipe (FIFO)" if stat.S_ISFIFO(mode) \
+                else "a device or socket"
+            raise ConfigError(source, [("file", f"is {what}, not a regular file; give the path of a scenario "
+                                                f".toml file (see configs/ for examples)")])
+        with open(fd, "rb") as fh:
             raw = fh.read(MAX_FILE_BYTES + 1)
     except FileNotFoundError:
         raise ConfigError(source, [("file", "not found; give the path of a scenario .toml file "

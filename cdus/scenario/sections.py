@@ -50,7 +50,7 @@ def scenario_section(p: Problems, sc: Mapping[str, Any]) -> Header:
     if "name" not in sc:
         p.missing("scenario.name", 'every scenario needs a name, e.g. [scenario] name = "lake_circle"')
     else:
-        name = p.string(sc["name"], "scenario.name", nonempty=True) or ""
+        name = p.string(sc["name"], "scenario.name", nonempty=True, one_line=True) or ""
     description = p.string(sc.get("description", ""), "scenario.description") or ""
     duration = DEFAULT_DURATION
     if "duration" in sc:

@@ -17,6 +17,8 @@ Texts from the wire come out escaped (:func:`cdus.wire.text.printable`), safe to
 
 from __future__ import annotations
 
+import hashlib
+import hmac
 import math
 import re
 from dataclasses import asdict, dataclass, field, fields
@@ -49,6 +51,7 @@ EVENT_KINDS: dict[str, str] = {
     "radio_split": "warn",  # [radio]: the communication graph (links likely to deliver) lost its spanning tree
     "radio_joined": "info",  # ... and has one again
     "radio_changed": "info",  # [radio]: transmit power or the station changed at run time
+    "recording_stopped": "warn",  # the world's .rrd file could not be written on (a full disk): the run goes on
 }
 MAX_TEXT = 300
 MAX_ID = 64
@@ -412,6 +415,23 @@ class StatusExtra:
 
 
 STATUS_LIMIT = 1 << 16  # bytes: decode_status takes no bigger status
+
+#: The environment variable a launcher hands its world a per-run key in (hex): the world signs
+#: each status it publishes with it (:func:`status_signature`, as the sample's Zenoh attachment),
+#: and the launcher believes only statuses so signed: on an open fleet anyone may publish on
+#: ``world/status``, and a forged one must not reach the launcher's ``world_lost`` metrics.
+#: In the environment, not the command line: other users cannot read it (ps shows arguments).
+STATUS_KEY_ENV = "CDUS_STATUS_KEY"
+
+
+def status_signature(key: bytes, payload: bytes) -> bytes:
+    """HMAC-SHA256 of a status payload under the run's key (16 bytes of it)."""
+    return hmac.new(key, payload, hashlib.sha256).digest()[:16]
+
+
+def signed_by(key: bytes, payload: bytes, attachment: bytes | None) -> bool:
+    """Was ``payload`` signed under ``key`` (compared in constant time)?"""
+    return attachment is not None and hmac.compare_digest(attachment, status_signature(key, payload))
 
 
 def encode_status(t: float, duration: float, clock: str, alive: list[str], ids: list[str],

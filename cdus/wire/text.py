@@ -14,6 +14,17 @@ import unicodedata
 MAX_PRINTABLE = 300
 
 
+def _unprintable(ch: str) -> bool:
+    """A control or format character (Cc, Cf, Cs, Co, Cn) or a line separator: what a terminal
+    may act on rather than show."""
+    return unicodedata.category(ch)[0] == "C" or ch in "\u2028\u2029"
+
+
+def is_printable(text: str) -> bool:
+    """Does ``text`` reach a terminal as it is (:func:`printable` would change nothing but its length)?"""
+    return not any(_unprintable(ch) for ch in text)
+
+
 def printable(text: object, limit: int = MAX_PRINTABLE) -> str:
     """``text`` with every control or format character escaped (``\\x1b``, ``\\n``, ``\\u202e``),
     cut to ``limit`` characters (marked with an ellipsis). Non-strings are shown by ``repr``."""
@@ -22,7 +33,7 @@ def printable(text: object, limit: int = MAX_PRINTABLE) -> str:
     out = []
     size = 0
     for ch in text:
-        if unicodedata.category(ch)[0] == "C" or ch in "\u2028\u2029":  # Cc, Cf, Cs, Co, Cn; line separators
+        if _unprintable(ch):
             piece = ch.encode("unicode_escape").decode("ascii") if ch.isascii() or ord(ch) > 0xff \
                 else f"\\x{ord(ch):02x}"
         else:

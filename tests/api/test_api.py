@@ -438,3 +438,17 @@ def test_an_event_field_that_does_not_apply_is_absent_never_null():
     d["events"][0]["link"] = None
     with pytest.raises(ValueError, match=r"metrics: events\[0\]\.link: expected a string"):
         Metrics.from_dict(d)
+
+
+def test_a_lockstep_run_into_a_directory_another_fleet_runs_into_is_refused_untouched(tmp_path):
+    """Issue 27, broken 5, for the API: run_dir held by a running fleet is a ConfigError naming
+    run_dir; nothing is started, its metrics are not removed."""
+    from cdus.app.launcher import RunDirLock
+
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "metrics.json").write_text("{}")  # the running fleet's
+    with RunDirLock(run):
+        with pytest.raises(cdus.ConfigError, match="run_dir: another `cdus launch` is running into"):
+            cdus.run(cdus.load("configs/lake_circle.toml"), clock="lockstep", run_dir=run)
+    assert (run / "metrics.json").read_text() == "{}" and not (run / "logs").exists()

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import pytest
 
 from cdus.app.cli import build_parser, launch_options, main
@@ -233,6 +236,7 @@ class _NoRun:
         from pathlib import Path
 
         self.metrics_out = Path(run) / "absent.json"
+        self.metrics_at = None
         self.logs = Path(run) / "logs"
 
 
@@ -272,3 +276,77 @@ def test_cdus_launch_says_the_events_past_the_end_once_where_it_starts(tmp_path,
     notes = [line for line in err.splitlines() if line.startswith("note:")]
     assert notes == [line for line in err.splitlines() if "past the run's end" in line] and len(notes) == 3
     assert "note: event[3] (formation at 2.5 s) is past the run's end (2 s): it will not apply" in notes
+
+
+def test_a_launch_into_a_run_directory_in_use_starts_nothing_and_touches_nothing(tmp_path, capsys, monkeypatch):
+    """Issue 27, broken 5: a second `cdus launch` with the first's --logs replaced its
+    secure/ground.json5 (its printed ground-station line stopped working), its logs and its
+    metrics. Refused with exit 2 before anything is written; free again once the first ends."""
+    from cdus.app.launcher import RunDirLock
+
+    started = _started(monkeypatch)
+    run = tmp_path / "run"
+    main(["launch", CONFIG, "--logs", str(run), "--rerun", "off"])
+    ground = (run / "secure" / "ground.json5").read_bytes()
+    capsys.readouterr()
+    with RunDirLock(run):  # the first launcher, still running
+        assert main(["launch", CONFIG, "--logs", str(run), "--rerun", "off"]) == 2
+        out, err = capsys.readouterr()
+        assert f"--logs: another `cdus launch` is running into {run} now" in err
+        assert "give another --logs" in err and "nothing was started" in err and not out
+        assert (run / "secure" / "ground.json5").read_bytes() == ground and len(started) == 1
+    main(["launch", CONFIG, "--logs", str(run), "--rerun", "off"])  # it ended: the directory is free
+    assert len(started) == 2
+
+
+@pytest.mark.parametrize("argv, meant", [
+    (["sim", CONFIG, "--set", "link.loss", "0.2"], "--set link.loss=0.2"),
+    (["launch", CONFIG, "--set=link.loss", "0.2", "-q"], "--set link.loss=0.2"),
+    (["sim", "--set", "vehicle.usv1.gains.k", "-1", CONFIG], "--set vehicle.usv1.gains.k=-1"),
+    (["sweep", CONFIG, "--out", "x", "--set", "link.loss", "0,0.2"], "--set link.loss=0,0.2"),
+])
+def test_a_set_with_a_space_for_the_equals_says_what_was_meant(argv, meant, capsys):
+    """Issue 27: `--set link.loss 0.2` printed the top-level usage and "unrecognized arguments:
+    0.2". It says what was meant, and starts nothing."""
+    assert main(argv) == 2
+    out, err = capsys.readouterr()
+    assert f"did you mean {meant}?" in err and "nothing was started" in err and "usage: cdus [-h]" not in err
+    assert not out
+
+
+def test_a_set_whose_next_word_is_the_config_is_not_taken_for_its_value(capsys):
+    assert main(["sim", "--set", "link.loss", CONFIG, "-q"]) == 2  # the value is missing: the config parser says so
+    assert "did you mean" not in capsys.readouterr().err
+
+
+from tests.fullfs import full_fs  # noqa: E402,F401  (the fixture)
+
+
+def test_cdus_sim_on_a_full_disk_says_so_and_keeps_its_metrics(full_fs, tmp_path, capsys, monkeypatch):
+    """Issue 27, broken 2, for cdus sim: the metrics write on a full disk was a traceback and the
+    run was lost. The failure is said (which file, why), the metrics kept in the temporary
+    directory, else printed; exit 1."""
+    assert main(["sim", CONFIG, "--duration", "1", "-q", "--rerun", "off", "--metrics-out", str(full_fs / "m.json"),
+                 "--trace-out", str(full_fs / "t.npz")]) == 1
+    out, err = capsys.readouterr()
+    assert f"error: could not write the metrics to {full_fs / 'm.json'}: No space left on device" in err
+    assert f"error: could not write the trace to {full_fs / 't.npz'}: No space left on device" in err
+    kept = next(ln for ln in out.splitlines() if ln.startswith("  metrics: "))
+    where = Path(kept.split()[1])
+    assert kept.endswith(f"(not {full_fs / 'm.json'}: it could not be written)") and json.loads(where.read_text())
+    where.unlink()
+    assert "trace:" not in out and not (full_fs / "t.npz").exists()
+    monkeypatch.setattr("tempfile.tempdir", str(full_fs))  # nowhere to keep them: printed
+    assert main(["sim", CONFIG, "--duration", "1", "-q", "--rerun", "off", "--metrics-out", str(full_fs / "m.json")]) == 1
+    out, _ = capsys.readouterr()
+    assert json.loads(out.split("  metrics (no file could take them):\n")[1])["duration_s"] == 1.0
+
+
+def test_a_launch_into_a_full_disk_starts_nothing_and_says_why(full_fs, capsys):
+    assert main(["launch", CONFIG, "--logs", str(full_fs / "run"), "--rerun", "off"]) == 1
+    err = capsys.readouterr().err
+    assert f"error: cannot write the run's credentials into {full_fs / 'run' / 'secure'}: No space left on device; " \
+           "nothing was started" in err
+    assert main(["launch", CONFIG, "--logs", str(full_fs / "run2"), "--rerun", "off", "--insecure"]) == 1
+    assert f"error: cannot write into the run directory {full_fs / 'run2'}: No space left on device" \
+        in capsys.readouterr().err

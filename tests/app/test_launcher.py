@@ -4,7 +4,9 @@ no wall-clock assertions."""
 
 from __future__ import annotations
 
+import os
 import signal
+import subprocess
 import sys
 
 import pytest
@@ -160,13 +162,19 @@ from hypothesis import given, settings, strategies as st  # noqa: E402
 
 from cdus.app.launcher import COMMAND_HZ, OMEGA_MARGIN, WORLD_LOST  # noqa: E402
 from cdus.wire.messages import LAUNCHER_OPS, encode_control  # noqa: E402
-from cdus.wire.schemas import FleetEvent, encode_event, encode_status  # noqa: E402
+from cdus.wire.schemas import FleetEvent, encode_event, encode_status, status_signature  # noqa: E402
 
 
 class Sample:
-    def __init__(self, payload: bytes, key: str = "cdus/t/to/+launcher+/cmd"):
+    def __init__(self, payload: bytes, key: str = "cdus/t/to/+launcher+/cmd", attachment: bytes | None = None):
         self.payload = type("P", (), {"to_bytes": lambda _self: payload})()
         self.key_expr = key
+        self.attachment = None if attachment is None else type("A", (), {"to_bytes": lambda _self: attachment})()
+
+
+def world_says(la: Launcher, payload: bytes) -> None:
+    """A status from the world this launcher started: signed with the key it was handed."""
+    la._on_status(Sample(payload, "cdus/t/world/status", status_signature(la.status_key, payload)))
 
 
 def quiet_launcher(tmp_path, **opts) -> tuple[Launcher, list[str]]:
@@ -217,12 +225,12 @@ def status(t: float) -> bytes:
 
 def test_a_world_status_with_a_time_that_is_not_a_plausible_number_is_dropped(tmp_path):
     la, lines = quiet_launcher(tmp_path)
-    la._on_status(Sample(status(12.5)))
+    world_says(la, status(12.5))
     for bad in (math.nan, math.inf, 1e308, -5.0):
         raw = msgpack.unpackb(status(0.0))
         raw["t"] = bad
-        la._on_status(Sample(msgpack.packb(raw)))
-    la._on_status(Sample(b"junk"))
+        world_says(la, msgpack.packb(raw))
+    world_says(la, b"junk")
     assert la.status["t"] == 12.5
     assert sum(la.rejected.values()) == 5 and la.rejected["status malformed"] == 1, la.rejected
     # 1e308 and -5 s are numbers: the status decoder refuses them as out of range, or the
@@ -250,7 +258,7 @@ def test_rate_limits_are_set_for_realtime_runs_only(tmp_path):
 
 def test_a_world_that_died_leaves_metrics_that_say_so(tmp_path):
     la, _ = quiet_launcher(tmp_path, duration=40.0)
-    la._on_status(Sample(status(12.5)))
+    world_says(la, status(12.5))
     la.alive = {"world", "usv1", "usv2"}
     m = la.write_world_lost(-9, 3.0)
     assert json.loads(la.metrics_out.read_text()) == m
@@ -276,7 +284,7 @@ def test_the_summary_of_a_lost_world_says_what_is_not_known_not_never(tmp_path):
 
     la, _ = quiet_launcher(tmp_path, duration=40.0)
     ids = list(la.scenario.ids)
-    la._on_status(Sample(encode_status(12.5, 40.0, "lockstep", ids[:-1], ids, 0.0235, 0.0012, [], False)))
+    world_says(la, encode_status(12.5, 40.0, "lockstep", ids[:-1], ids, 0.0235, 0.0012, [], False))
     m = la.write_world_lost(-9, 3.0)
     assert (m["path_settle_s"], m["coord_settle_s"], m["final_path_error_max"]) == (None, None, 0.0235)
     table = summary_table(m, la.scenario.vehicles)
@@ -346,3 +354,109 @@ def test_stop_does_not_wait_out_the_grace_for_a_vehicle_that_never_came_up(tmp_p
             if c.running():
                 c.signal_group(signal.SIGKILL)
                 c.proc.wait()
+
+
+from tests.fullfs import full_fs  # noqa: E402,F401  (the fixture)
+
+
+def test_a_lost_world_on_a_full_disk_leaves_its_metrics_in_the_run_directory_or_printed(full_fs, tmp_path,
+                                                                                        monkeypatch):
+    """Issue 27, broken 2: the launcher's world_lost metrics died in a second traceback on the
+    full disk. They are kept in the run directory; where nothing takes them, printed."""
+    la, lines = quiet_launcher(tmp_path, duration=40.0, metrics_out=full_fs / "metrics.json")
+    world_says(la, status(12.5))
+    m = la.write_world_lost(-9, 3.0)
+    assert la.metrics_at == la.run_dir / "metrics.json" and json.loads(la.metrics_at.read_text()) == m
+    assert lines[0] == f"error: could not write the metrics to {full_fs / 'metrics.json'}: No space left on device"
+    # nothing takes them (the run directory and the temporary directory full too): the terminal does
+    la, lines = quiet_launcher(tmp_path / "again", duration=40.0, metrics_out=full_fs / "metrics.json")
+    la.run_dir = full_fs
+    monkeypatch.setattr("tempfile.tempdir", str(full_fs))
+    m = la.write_world_lost(-9, 3.0)
+    assert la.metrics_at is None
+    assert lines[-2] == "the metrics could be written nowhere; here they are:"
+    assert json.loads(lines[-1]) == m
+
+
+def test_the_world_metrics_kept_elsewhere_are_found_there_not_taken_for_a_lost_world(tmp_path):
+    """The world exits METRICS_ELSEWHERE_EXIT having kept its metrics at a fallback: the launcher
+    finds them there (changed since the run began), and a stale file of an earlier run is not
+    taken for them."""
+    la, _ = quiet_launcher(tmp_path, metrics_out=tmp_path / "elsewhere" / "metrics.json")
+    w = la.children["world"] = Child("world", EXIT_0, la.logs / "world.log")
+    w.start(la.env)
+    exited(w)
+    (la.run_dir / "metrics.json").write_text('{"stale": true}')
+    marks = {p: la.metrics_mark(p) for p in (la.metrics_out, *la.world_fallbacks())}
+    assert la.world_fallbacks()[0] == la.run_dir / "metrics.json"
+    assert la.find_world_metrics(marks) is None  # the stale one is not this run's
+    (la.run_dir / "metrics.json").unlink()
+    (la.run_dir / "metrics.json").write_text('{"completed": true}')
+    assert la.find_world_metrics(marks) == la.run_dir / "metrics.json"
+
+
+def test_a_run_directory_in_use_is_refused_and_a_dead_launchers_is_free_again(tmp_path):
+    """Issue 27, broken 5: two `cdus launch` with one --logs overwrote each other (logs, metrics,
+    the first's ground credentials). One holds the directory while it runs; another is refused
+    before anything is written; once the holder is gone, even SIGKILLed, it is free."""
+    from cdus.app.launcher import RunDirInUse, RunDirLock
+
+    run = tmp_path / "run"
+    with RunDirLock(run):
+        with pytest.raises(RunDirInUse, match=f"another `cdus launch` is running into {run} now"):
+            RunDirLock(run)
+    RunDirLock(run).release()  # released: free again
+    holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from pathlib import Path; "
+                               "from cdus.app.launcher import RunDirLock; l = RunDirLock(Path(sys.argv[1])); "
+                               "print('held', flush=True); time.sleep(600)", str(run)],
+                              stdout=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        assert holder.stdout.readline() == "held\n"
+        with pytest.raises(RunDirInUse):  # another process's hold
+            RunDirLock(run)
+    finally:
+        os.killpg(holder.pid, signal.SIGKILL)
+        holder.wait()
+    with RunDirLock(run):  # a dead launcher's directory is reusable
+        pass
+
+
+def test_only_the_statuses_of_the_world_started_here_are_believed(tmp_path):
+    """Issue 27: on an open fleet a forged world/status, then a SIGKILL of the world, put the
+    forged values into the launcher's world_lost metrics. The launcher hands its world a key
+    (STATUS_KEY_ENV, in its environment only); a status not signed with it, or replayed from
+    earlier in the run, is counted and dropped."""
+    la, lines = quiet_launcher(tmp_path, duration=3000.0)
+    world_says(la, status(12.5))
+    forged = status(2999.0)
+    la._on_status(Sample(forged, "cdus/t/world/status"))  # unsigned
+    la._on_status(Sample(forged, "cdus/t/world/status", status_signature(b"another key", forged)))
+    la._on_status(Sample(forged, "cdus/t/world/status", status_signature(la.status_key, status(12.5))))  # another's
+    world_says(la, status(3.0))  # a genuine one replayed, older than the newest
+    assert la.status["t"] == 12.5
+    assert la.rejected == {"status unsigned": 3, "status stale": 1}, la.rejected
+    assert la.write_world_lost(-9, 3.0)["world_lost"]["last_status_t"] == 12.5
+    world_says(la, status(13.0))
+    assert la.status["t"] == 13.0
+
+
+def test_the_key_goes_to_the_world_alone(tmp_path, monkeypatch):
+    from cdus.wire.schemas import STATUS_KEY_ENV
+
+    monkeypatch.setenv(STATUS_KEY_ENV, "00" * 16)  # one in our own environment reaches no agent
+    la, _ = quiet_launcher(tmp_path)
+    assert la.world_env()[STATUS_KEY_ENV] == la.status_key.hex() and len(la.status_key) == 16
+    assert STATUS_KEY_ENV not in la.env  # what the agents are started with
+    assert quiet_launcher(tmp_path / "b")[0].status_key != la.status_key  # one per run
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.binary(max_size=200), st.one_of(st.none(), st.binary(max_size=40)), st.booleans())
+def test_no_status_is_believed_unless_signed_and_none_raises(tmp_path_factory, payload, attachment, sign):
+    la, _ = quiet_launcher(tmp_path_factory.mktemp("s"))
+    if sign:
+        attachment = status_signature(la.status_key, payload)
+    la._on_status(Sample(payload, "cdus/t/world/status", attachment))
+    signed = attachment is not None and attachment == status_signature(la.status_key, payload)
+    assert sum(la.rejected.values()) + (la.status is not None) == 1
+    assert la.status is None or signed

@@ -189,3 +189,30 @@ def test_a_remote_vehicle_that_never_came_up_is_named_so_in_the_summary(tmp_path
     assert rows["usv1"].endswith("(up, waiting for the others: the run never started)")
     m = json.loads((run / "metrics.json").read_text())
     assert m["completion"] == "not_started" and m["never_up"] == ["uav1", "uav2", "uav3"]
+
+
+from tests.fullfs import full_fs  # noqa: E402,F401  (the fixture)
+
+
+def test_a_full_disk_at_the_end_keeps_a_completed_run(tmp_path, full_fs):
+    """Issue 27, broken 2: with the metrics, the trace and the recording on a full file system,
+    the world died in write_json at the end, the launcher took it for a lost world and died in a
+    second traceback (exit 1, no metrics, no summary). Now: the run's own metrics (completed) in
+    the run directory, the summary, which file failed and why, no recording path that does not
+    exist, and no process left."""
+    fleet = unique_fleet()
+    run = tmp_path / "run"
+    res = run_cli(["launch", "configs/lake_circle.toml", "--fleet", fleet, "--logs", str(run), "--duration", "2",
+                   "-q", "--metrics-out", str(full_fs / "metrics.json"), "--trace-out", str(full_fs / "trace.npz"),
+                   "--rerun", f"save:{full_fs / 'rec.rrd'}"], timeout=120)
+    out = res.stdout + res.stderr
+    assert res.returncode == 1, out
+    assert "Traceback" not in out and "world_lost" not in out, out
+    m = json.loads((run / "metrics.json").read_text())
+    assert m["completed"] is True and m.get("written_by") != "launcher", m
+    assert f"metrics: {run / 'metrics.json'} (not {full_fs / 'metrics.json'}: it could not be written)" in res.stdout
+    assert "lake_circle (lockstep, seed 1): 2.0 s simulated" in res.stdout  # the summary
+    assert f"could not write the metrics to {full_fs / 'metrics.json'}: No space left on device" in out
+    assert f"could not write the trace to {full_fs / 'trace.npz'}: No space left on device" in out
+    assert f"recording: none; {full_fs / 'rec.rrd'} was not written" in res.stdout
+    assert not fleet_processes(fleet)

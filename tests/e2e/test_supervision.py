@@ -15,6 +15,7 @@ import zenoh
 
 from cdus.wire import keys
 from cdus.wire.messages import encode_control
+from cdus.wire.schemas import encode_status
 from cdus.wire.transport import free_tcp_port
 
 from tests.outsider import raw_client
@@ -65,25 +66,43 @@ def test_a_sigkilled_world_leaves_metrics_that_say_so_and_the_launcher_fails(tmp
     fleet = unique_fleet()
     port = free_tcp_port()
     run = tmp_path / "run"
-    la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", "3000", "--rerun", "off",
+    la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", "3000",
+                   "--rerun", f"save:{run / 'rec.rrd'}",
                    "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "-q", "--insecure"], fleet)
     la.wait_for(f"fleet '{fleet}' up")
     s = zenoh.open(raw_client(f"tcp/127.0.0.1:{port}"))
     try:
         clock = WorldTime(s, fleet)
         t = clock.wait_past(1.0)
+        world = pids(fleet, "world_sim")
+        assert len(world) == 1
+        # issue 27: on this open fleet a forged status, then the world's SIGKILL, put the forged
+        # values into the launcher's world_lost metrics (duration 2,999 s for a run at 63 s). The
+        # world stopped first, so the forgeries are the last statuses the launcher hears
+        os.kill(world[0], signal.SIGSTOP)
+        ids = ["usv1", "usv2", "usv3", "uav1", "uav2", "uav3"]
+        forged = encode_status(2999.0, 3000.0, "lockstep", ids, ids, 1e-9, 1e-9, [], False)
+        for _ in range(5):
+            s.put(keys.world_status(fleet), forged)
+        s.put(keys.launcher_cmd(fleet), b"junk")  # after them, a message the launcher says it dropped:
+        la.wait_for("a malformed command on")  # it has heard the forgeries too
     finally:
         s.close()
-    world = pids(fleet, "world_sim")
-    assert len(world) == 1
     os.kill(world[0], signal.SIGKILL)
     assert la.wait(timeout=60) == 1, la.output()
     m = json.loads((run / "metrics.json").read_text())
     assert m["completed"] is False and m["completion"] == "world_lost", m
     assert m["written_by"] == "launcher"
     assert m["world_lost"]["world_exit"] == -signal.SIGKILL
-    assert m["world_lost"]["last_status_t"] >= t  # what the launcher knew
+    assert t <= m["world_lost"]["last_status_t"] < 2999.0  # what the launcher knew from its own world only
+    assert m["duration_s"] < 2999.0 and m["final_path_error_max"] != 1e-9
+    assert m["world_lost"]["rejected_by_launcher"].get("status unsigned", 0) >= 1, m["world_lost"]
     assert "world wrote no metrics" in la.output()
+    # issue 27: the launcher printed a recording path the killed world never wrote; it says what exists
+    assert not (run / "rec.rrd").exists()
+    (said,) = [ln for ln in la.output().splitlines() if ln.startswith("  recording:")]
+    assert said.startswith(f"  recording: {run / 'rec.rrd'} was not written; what was recorded is in") \
+        or said == f"  recording: none; {run / 'rec.rrd'} was not written (the world's log says why)", said
     assert not fleet_processes(fleet)
 
 

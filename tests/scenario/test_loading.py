@@ -111,3 +111,31 @@ def test_cdus_sim_exits_2_on_deep_nesting_without_a_traceback(tmp_path, body):
                        cwd=ROOT)
     assert r.returncode == 2, r.stderr
     assert "Traceback" not in r.stderr and str(f) in r.stderr and "nested deeper" in r.stderr
+
+
+def test_a_fifo_or_a_directory_given_as_the_config_is_refused_at_once(tmp_path):
+    """Issue 27: a FIFO given as the config hung `cdus sim` (open waited for a writer for ever).
+    Refused, naming what it is; the CLI exits 2 (run in a child so a regression hangs only it,
+    and is killed)."""
+    import os
+
+    fifo = tmp_path / "pipe.toml"
+    os.mkfifo(fifo)
+    res = subprocess.run([sys.executable, "-m", "cdus.app.cli", "sim", str(fifo), "-q"], capture_output=True,
+                         text=True, timeout=30)  # first: a hang is killed here, not in this process below
+    assert res.returncode == 2 and "not a regular file" in res.stderr and "nothing was started" in res.stderr
+    with pytest.raises(ConfigError, match=r"file: is a named pipe \(FIFO\), not a regular file"):
+        load_scenario(fifo)
+    with pytest.raises(ConfigError, match=r"file: is a directory, not a regular file"):
+        load_scenario(tmp_path)
+
+
+def test_a_scenario_name_with_escape_sequences_is_refused_where_it_enters():
+    """Issue 27: a scenario.name with escape sequences reached the terminal raw from `cdus sim`
+    (its summary, its progress line, the run directory's name). It is printed and names files:
+    refused where it enters, shown escaped; a printable Unicode name is fine."""
+    for bad in ("lake\x1b[31mRED\x07", "two\nlines", "rtl\u202eeman"):
+        with pytest.raises(ConfigError, match=r"scenario\.name: must be printable text on one line") as e:
+            parse_scenario({**base(), "scenario": {"name": bad}})
+        assert "\x1b" not in str(e.value) and "\n" not in str(e.value).split("scenario.name")[1]
+    assert parse_scenario({**base(), "scenario": {"name": "lac_Léman-2"}}).name == "lac_Léman-2"

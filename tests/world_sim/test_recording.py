@@ -348,6 +348,7 @@ if len(sys.argv) > 4:  # a file-size limit: writes past it fail with EFBIG (SIGX
     resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
 sc = load_scenario(sys.argv[5] if len(sys.argv) > 5 else "configs/lake_circle.toml", {"scenario.duration": duration})
 sink = RerunSink([Target("save", path)], segment_every=segment, flush_every=1.0)
+sink.on_stop = lambda text: print("on_stop:", text, flush=True)  # the world makes it an event
 print("started", flush=True)
 result = InProcessFleet(sc, sink=sink).run()
 sink.close()
@@ -413,6 +414,9 @@ def test_a_write_that_fails_stops_the_recording_with_one_warning_and_the_run_goe
     assert "done 3001" in out  # every tick of the run
     assert err.count("warning: the Rerun recording stopped") == 1, err
     assert "Traceback" not in err
+    # told to its owner too (issue 27: only world.log said it): once, with the file and why
+    assert out.count("on_stop: ") == 1 and f"on_stop: the Rerun recording into {path} stopped: File too large; the " \
+        f"run goes on" in out, out
     for seg in (tmp_path / "full.rrd.parts").glob("*.rrd"):  # what was closed before the failure is readable
         assert rerun_cli("rrd", "verify", str(seg)).returncode == 0, seg
 
@@ -451,3 +455,23 @@ def test_the_start_check_compares_free_space_with_the_expected_size(tmp_path, mo
     assert "free on the disk" not in capsys.readouterr().err
     sink.close()
     sink2.close()
+
+
+def test_the_recording_line_says_what_exists(tmp_path):
+    """Issue 27, broken 2: the launcher printed a recording.rrd path that did not exist (a disk
+    that filled, a SIGKILLed world). It says what there is: the file, its segments, or none."""
+    from world_sim.recording import recording_line
+
+    rrd = tmp_path / "recording.rrd"
+    assert recording_line(rrd) == f"  recording: none; {rrd} was not written (the world's log says why)"
+    parts = tmp_path / "recording.rrd.parts"
+    parts.mkdir()
+    assert "none" in recording_line(rrd)  # an empty parts directory holds nothing
+    (parts / "000.rrd").write_bytes(b"x")
+    (parts / "001.rrd").write_bytes(b"x")
+    assert recording_line(rrd) == (f"  recording: {rrd} was not written; what was recorded is in 2 segments (open "
+                                   f"them with: rerun {parts}/*.rrd; the world's log says why)")
+    rrd.write_bytes(b"")  # cut at zero bytes: not a recording
+    assert "was not written" in recording_line(rrd)
+    rrd.write_bytes(b"rrd")
+    assert recording_line(rrd) == f"  recording: {rrd} (open it with: rerun {rrd})"

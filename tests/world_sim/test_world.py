@@ -653,3 +653,83 @@ def test_a_catch_up_that_went_to_a_process_not_yet_up_is_said_when_its_token_com
     assert len(joins()) == first + 1
     w._catch_up_again(now + 7.1 * CATCHUP_RESEND)
     assert len(joins()) == first + 2
+
+
+from tests.fullfs import full_fs  # noqa: E402,F401  (the fixture)
+
+
+def test_a_full_disk_at_the_end_keeps_the_metrics_and_tells_the_launcher(full_fs, tmp_path, monkeypatch):
+    """Issue 27, broken 2: the world died in write_json (ENOSPC) at the end of a completed run,
+    the launcher took that for a lost world. Now the world says which file and why, keeps the
+    metrics in the run directory, and exits METRICS_ELSEWHERE_EXIT, not with a traceback."""
+    import world_sim.world as ww
+    from cdus.files import METRICS_ELSEWHERE_EXIT
+
+    lines: list[str] = []
+    run = tmp_path / "run"
+    w = world(metrics_out=str(full_fs / "metrics.json"), run_dir=str(run))
+    w.session = None
+    w.log = lines.append
+    monkeypatch.setattr(w, "open", lambda: None)
+    monkeypatch.setattr(w, "run", w.finish)
+    monkeypatch.setattr(w, "close", lambda: None)
+    assert ww.run_world(w) == METRICS_ELSEWHERE_EXIT
+    kept = json.loads((run / "metrics.json").read_text())
+    assert kept["completion"] == "not_started" and kept["mode"] == "lockstep"
+    assert f"error: could not write the metrics to {full_fs / 'metrics.json'}: No space left on device" in lines
+    assert f"the metrics were kept in {run / 'metrics.json'} instead of {full_fs / 'metrics.json'}" in lines
+    assert w.not_written == ["the metrics"]
+
+
+def test_a_recording_that_stops_is_an_event_while_the_run_goes_on():
+    """Issue 27, broken 2: a disk that filled while recording was said in world.log only. The
+    sink's on_stop is an event (the launcher's console and ground stations show it, the metrics
+    keep it)."""
+    from cdus.sim.sink import NullSink
+
+    class FileSink(NullSink):
+        on_stop = None
+
+        def update(self, recorder) -> None:
+            self.on_stop("the Rerun recording into /x.rrd stopped: No space left on device; the run goes on")
+
+    w = world(sink=FileSink())
+    w.sink.update(w.recorder)
+    (e,) = w.events
+    assert (e.kind, e.severity) == ("recording_stopped", "warn") and "No space left on device" in e.text
+    assert decode_event(w.pub_events.puts[-1]).text == e.text
+
+
+def test_the_world_signs_its_statuses_with_the_launchers_key(monkeypatch):
+    """Issue 27: the launcher believes only statuses signed with the key it handed its world."""
+    from cdus.wire.schemas import STATUS_KEY_ENV, signed_by
+
+    class SigningPub(Pub):
+        def put(self, payload, attachment=None) -> None:
+            self.puts.append((bytes(payload), attachment))
+
+    monkeypatch.setenv(STATUS_KEY_ENV, "ab" * 16)
+    w = world()
+    w.pub_status = SigningPub()
+    w._publish_status()
+    (payload, attachment), = w.pub_status.puts
+    assert signed_by(bytes.fromhex("ab" * 16), payload, attachment)
+    monkeypatch.delenv(STATUS_KEY_ENV)  # started by hand: unsigned, as before
+    w = world()
+    w.pub_status = SigningPub()
+    w._publish_status()
+    assert w.pub_status.puts[0][1] is None
+
+
+def test_metrics_written_where_asked_are_not_said_to_be_elsewhere(tmp_path, monkeypatch):
+    """A relative --metrics-out ("./metrics.json", as written) is where they were written: exit 0."""
+    import world_sim.world as ww
+
+    w = world(metrics_out="./metrics.json", run_dir=str(tmp_path / "run"))
+    w.session = None
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(w, "open", lambda: None)
+    monkeypatch.setattr(w, "run", w.finish)
+    monkeypatch.setattr(w, "close", lambda: None)
+    assert ww.run_world(w) == 0 and w.not_written == []
+    assert (tmp_path / "metrics.json").is_file() and not (tmp_path / "run").exists()
