@@ -48,6 +48,8 @@ def _overrides(args: argparse.Namespace) -> dict[str, Any]:
         out["scenario.duration"] = args.duration
     if getattr(args, "seed", None) is not None:
         out["scenario.seed"] = args.seed
+    if getattr(args, "ros2", False):
+        out["ros2.enabled"] = True
     return out
 
 
@@ -117,6 +119,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "router (on loopback: any process of this host) can then stop, retune, kill and steer "
                         "the fleet (docs/security.md); needed for --links direct and for outside tools that "
                         "attach without credentials")
+    p.add_argument("--ros2", action="store_true",
+                   help="publish the fleet as ROS 2 topics in rmw_zenoh's format on the fleet's router (the "
+                        "scenario's [ros2] table: domain, namespace, distro; docs/ros2.md)")
     p.set_defaults(func=cmd_launch)
 
     p = sub.add_parser("sweep", allow_abbrev=False,

@@ -23,8 +23,9 @@ import math
 from dataclasses import dataclass
 from typing import Any, Iterable, Sequence
 
-from cdus.ros2.rmw import Qos
+from cdus.ros2.rmw import Qos, topic_key
 from cdus.scenario.ros2 import Ros2Spec, ros_name
+from cdus.wire.access import Ros2Grant
 
 POSE, ODOM, FLOAT, PATH = ("geometry_msgs/msg/PoseStamped", "nav_msgs/msg/Odometry", "std_msgs/msg/Float64",
                            "nav_msgs/msg/Path")
@@ -61,6 +62,16 @@ def topics(spec: Ros2Spec, ids: Sequence[str]) -> list[Topic]:
     for vid in ids:
         out += [Topic(_join(spec.namespace, ros_name(vid), f), t, q, vid, f) for f, t, q in VEHICLE_TOPICS]
     return out
+
+
+def key(spec: Ros2Spec, topic: Topic) -> str:
+    """The Zenoh key ``topic``'s data goes to."""
+    return topic_key(spec.domain_id, topic.name, topic.type_name, spec.distro)
+
+
+def grant(spec: Ros2Spec, ids: Sequence[str]) -> Ros2Grant:
+    """What a secured fleet's access-control list lets the ROS 2 side use (cdus.wire.access)."""
+    return Ros2Grant(spec.domain_id, tuple(key(spec, t) for t in topics(spec, ids)))
 
 
 def node_name(fleet: str) -> str:

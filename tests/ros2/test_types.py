@@ -16,6 +16,7 @@ from mcap_ros2 import _dynamic as dyn
 from zenoh_ros2_sdk import attachment as sdk_attachment, qos as sdk_qos, utils as sdk_utils
 
 from cdus.ros2 import cdr, rmw, types
+from tests.ros2.interfaces import MSG_FILES
 
 GOLDEN = {
     "std_msgs/msg/String": "df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18",
@@ -36,17 +37,6 @@ GOLDEN = {
     "rosgraph_msgs/msg/Clock": "692f7a66e93a3c83e71765d033b60349ba68023a8c689a79e48078bcb5c58564",
 }
 
-#: the .msg files of the ROS 2 interface definitions (comments and default values left out)
-MSG_FILES = {
-    "builtin_interfaces/msg/Time": "int32 sec\nuint32 nanosec\n",
-    "std_msgs/msg/Header": "builtin_interfaces/Time stamp\nstring frame_id\n",
-    "std_msgs/msg/Float64": "float64 data\n",
-    "geometry_msgs/msg/Point": "float64 x\nfloat64 y\nfloat64 z\n",
-    "geometry_msgs/msg/Quaternion": "float64 x 0\nfloat64 y 0\nfloat64 z 0\nfloat64 w 1\n",
-    "geometry_msgs/msg/Pose": "Point position\nQuaternion orientation\n",
-    "geometry_msgs/msg/PoseStamped": "std_msgs/Header header\nPose pose\n",
-    "nav_msgs/msg/Path": "std_msgs/Header header\ngeometry_msgs/PoseStamped[] poses\n",
-}
 
 
 @pytest.mark.parametrize("type_name", sorted(GOLDEN))
