@@ -25,7 +25,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--config", required=True, help="scenario file (.toml, or the .json a launcher resolved)")
     p.add_argument("--fleet", default="default", help="fleet name: the key-space prefix cdus/<fleet>/")
     p.add_argument("--clock", help="(ignored: the launcher passes every child the same flags)")
-    p.add_argument("--duration", type=float, help="(ignored: the bridge runs as long as the world)")
+    p.add_argument("--duration", type=float, help="simulated seconds (default: the scenario's): telemetry of a later "
+                                                  "tick is forged")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a config key")
     add_transport_args(p)
     return p
@@ -41,7 +42,7 @@ def main(argv=None) -> int:
     t = with_default_endpoint(transport_from_args(args))
     session = open_session(replace(t, extra=(*t.extra, TIMESTAMPS)))
     try:
-        return run_bridge(scenario, args.fleet, session)
+        return run_bridge(scenario, args.fleet, session, args.duration)
     finally:
         session.close()
 

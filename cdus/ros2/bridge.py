@@ -30,12 +30,14 @@ import zenoh.ext
 from cdus.ros2 import cdr, fleet as rf
 from cdus.ros2.rmw import Node, attachment, gid
 from cdus.scenario.model import Scenario
+from cdus.core.schedule import total_ticks
 from cdus.sim.polyline import path_polyline
 from cdus.wire import keys
 from cdus.wire.access import ROS2_ROLE
 from cdus.wire.messages import decode_states
 from cdus.wire.schemas import decode_event
 
+MAX_T = 2.0**31 - 1  # s: builtin_interfaces/Time's seconds are an int32
 QUEUE = 4096  # samples waiting for the bridge's thread; past this the oldest are dropped (counted)
 
 
@@ -65,16 +67,72 @@ class Publisher:
         self.pub.undeclare()
 
 
+class Republisher:
+    """What the bridge makes of one sample of the fleet: telemetry rows into the vehicles' topics
+    and /clock, an event into the events topic. ``publish((vehicle or None, field), value)`` sends
+    a message; a malformed or forged sample is counted in ``rejected`` by reason and dropped."""
+
+    def __init__(self, scenario: Scenario, fleet: str, publish: Callable[[tuple[str | None, str], dict], None],
+                 duration: float | None = None):
+        self.fleet, self.publish, self.spec, self.ids = keys.check_fleet(fleet), publish, scenario.ros2, scenario.ids
+        self.every = rf.every(scenario.ros2, scenario.rates.control)
+        self.period = 1.0 / scenario.rates.control
+        self.last = total_ticks(duration or scenario.duration, self.period)  # the run's last tick
+        self.rejected: dict[str, int] = {}
+        self.last_tick = -1
+
+    def _reject(self, reason: str) -> None:
+        self.rejected[reason] = self.rejected.get(reason, 0) + 1
+
+    def handle(self, key: str, payload: bytes) -> None:
+        """One sample from the fleet: telemetry rows or an event."""
+        if key == keys.world_events(self.fleet):
+            e = decode_event(payload, self.ids)
+            if isinstance(e, str):
+                self._reject(f"event {e}")
+                return
+            self.publish((None, "events"), {"data": json.dumps(e.as_dict(), ensure_ascii=False)})
+            return
+        kind, src = keys.leaf(key)
+        if kind != "state" or src not in self.ids:
+            self._reject("state unknown_sender")
+            return
+        rows = decode_states(payload, len(self.ids))
+        if isinstance(rows, str):
+            self._reject(f"state {rows}")
+            return
+        for row in rows:
+            vid = self.ids[row.sender]
+            if vid != src:  # a vehicle speaks only for itself
+                self._reject("state wrong_sender")
+                continue
+            if not (row.tick <= self.last and 0.0 <= row.t < MAX_T and abs(row.t - row.tick * self.period) <= self.period / 2):
+                self._reject("state tick_time")  # t_n = n T, n within the run: a forged tick would stop /clock
+                continue
+            self.publish_row(vid, row)
+
+    def publish_row(self, vid: str, row: Any) -> None:
+        frame = self.spec.world_frame
+        if row.tick > self.last_tick:
+            self.last_tick = row.tick
+            self.publish((None, "clock"), rf.clock(row.t))
+        if row.tick % self.every:
+            return
+        self.publish((vid, "pose"), rf.pose(row.t, row.q, row.heading, frame))
+        self.publish((vid, "odom"), rf.odometry(row.t, vid, row.q, row.heading, row.speed, frame))
+        self.publish((vid, "omega"), rf.value(row.omega))
+        self.publish((vid, "omega_rate"), rf.value(row.omega_rate))
+        self.publish((None, "tf"), rf.transforms(row.t, [(vid, row.q, row.heading)], frame))
+
+
 class Bridge:
-    def __init__(self, scenario: Scenario, fleet: str, session: Any, log: Callable[[str], None] = print):
+    def __init__(self, scenario: Scenario, fleet: str, session: Any, log: Callable[[str], None] = print,
+                 duration: float | None = None):
         self.scenario, self.fleet, self.session, self.log = scenario, keys.check_fleet(fleet), session, log
         spec = self.spec = scenario.ros2
         self.ids = scenario.ids
         self.node = Node(spec.domain_id, str(session.info.zid()), rf.node_name(fleet), spec.namespace)
-        self.every = rf.every(spec, scenario.rates.control)
-        self.rejected: dict[str, int] = {}
         self.dropped = 0
-        self.last_tick = -1
         self.queue: collections.deque = collections.deque()
         self.cond = threading.Condition()
         self.world_seen = False
@@ -86,6 +144,7 @@ class Bridge:
                                                                 rf.key(spec, topic), spec.distro)
         for v in scenario.vehicles:  # once: the advanced publisher keeps it for late subscribers
             self.pubs[(v.id, "path")].publish(rf.path(path_polyline(v, scenario.duration), spec.world_frame))
+        self.republisher = Republisher(scenario, fleet, lambda which, value: self.pubs[which].publish(value), duration)
         f = self.fleet
         self.subs = [session.declare_subscriber(keys.any_state(f), self._enqueue),
                      session.declare_subscriber(keys.world_events(f), self._enqueue),
@@ -125,52 +184,12 @@ class Bridge:
                     break
                 batch, self.queue = self.queue, collections.deque()
             for key, payload in batch:
-                self.handle(key, payload)
+                self.republisher.handle(key, payload)
         return 0
-
-    def _reject(self, reason: str) -> None:
-        self.rejected[reason] = self.rejected.get(reason, 0) + 1
-
-    def handle(self, key: str, payload: bytes) -> None:
-        """One sample from the fleet: telemetry rows or an event."""
-        if key == keys.world_events(self.fleet):
-            e = decode_event(payload, self.ids)
-            if isinstance(e, str):
-                self._reject(f"event {e}")
-                return
-            self.pubs[(None, "events")].publish({"data": json.dumps(e.as_dict(), ensure_ascii=False)})
-            return
-        kind, src = keys.leaf(key)
-        if kind != "state" or src not in self.ids:
-            self._reject("state unknown_sender")
-            return
-        rows = decode_states(payload, len(self.ids))
-        if isinstance(rows, str):
-            self._reject(f"state {rows}")
-            return
-        for row in rows:
-            vid = self.ids[row.sender]
-            if vid != src:  # a vehicle speaks only for itself
-                self._reject("state wrong_sender")
-                continue
-            self.publish_row(vid, row)
-
-    def publish_row(self, vid: str, row: Any) -> None:
-        frame = self.spec.world_frame
-        if row.tick > self.last_tick:
-            self.last_tick = row.tick
-            self.pubs[(None, "clock")].publish(rf.clock(row.t))
-        if row.tick % self.every:
-            return
-        self.pubs[(vid, "pose")].publish(rf.pose(row.t, row.q, row.heading, frame))
-        self.pubs[(vid, "odom")].publish(rf.odometry(row.t, vid, row.q, row.heading, row.speed, frame))
-        self.pubs[(vid, "omega")].publish(rf.value(row.omega))
-        self.pubs[(vid, "omega_rate")].publish(rf.value(row.omega_rate))
-        self.pubs[(None, "tf")].publish(rf.transforms(row.t, [(vid, row.q, row.heading)], frame))
 
     def summary(self) -> str:
         sent = sum(p.sent for p in self.pubs.values())
-        rej = ", ".join(f"{n} {r}" for r, n in sorted(self.rejected.items())) or "none"
+        rej = ", ".join(f"{n} {r}" for r, n in sorted(self.republisher.rejected.items())) or "none"
         return (f"ros2 bridge: {sent} messages published on {len(self.pubs)} topics (domain {self.spec.domain_id}, "
                 f"{self.spec.distro}); {self.dropped} telemetry samples dropped by a full queue; rejected: {rej}")
 
@@ -183,8 +202,8 @@ class Bridge:
         self.node_token.undeclare()
 
 
-def run_bridge(scenario: Scenario, fleet: str, session: Any) -> int:
-    bridge = Bridge(scenario, fleet, session)
+def run_bridge(scenario: Scenario, fleet: str, session: Any, duration: float | None = None) -> int:
+    bridge = Bridge(scenario, fleet, session, duration=duration)
     signal.signal(signal.SIGTERM, lambda *_: bridge.request_stop())
     signal.signal(signal.SIGINT, lambda *_: bridge.request_stop())
     bridge.log(f"ros2 bridge up: node {bridge.node.namespace.rstrip('/')}/{bridge.node.name}, "
