@@ -191,7 +191,8 @@ class Bridge:
         sent = sum(p.sent for p in self.pubs.values())
         rej = ", ".join(f"{n} {r}" for r, n in sorted(self.republisher.rejected.items())) or "none"
         return (f"ros2 bridge: {sent} messages published on {len(self.pubs)} topics (domain {self.spec.domain_id}, "
-                f"{self.spec.distro}); {self.dropped} telemetry samples dropped by a full queue; rejected: {rej}")
+                f"{self.spec.distro}); {self.dropped} telemetry samples dropped by a full queue; rejected: {rej}; "
+                f"CPU {time.process_time():.2f} s")
 
     def close(self) -> None:
         for s in self.subs:
