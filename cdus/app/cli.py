@@ -35,6 +35,7 @@ from cdus.wire.transport import router as fleet_router
 from ground_station.__main__ import main as gs_main
 from world_sim.recording import parse_spec
 from cdus.app.report import Progress, run_dir, summary_table
+from cdus.ros2.export import ExportError, export_mcap
 from cdus.sim.reports import late_event_lines
 from cdus.files import write_json
 
@@ -152,6 +153,18 @@ def build_parser() -> argparse.ArgumentParser:
                    help="where the results go; the same DIR again resumes the same sweep")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_sweep)
+
+    p = sub.add_parser("export", allow_abbrev=False, help="a run's trace as ROS 2 messages in an MCAP file",
+                       description="Write a run (its trace and scenario) as the ROS 2 topics `cdus launch --ros2` "
+                                   "publishes, in an MCAP file Foxglove opens and `ros2 bag play` replays "
+                                   "(docs/ros2.md).")
+    p.add_argument("run_dir", metavar="RUN_DIR", help="the run's directory (cdus launch --logs)")
+    p.add_argument("--mcap", required=True, metavar="FILE", help="the MCAP file to write")
+    p.add_argument("--trace", metavar="PATH", help="the run's trace (default: RUN_DIR/trace.npz, what "
+                                                   "--trace-out RUN_DIR/trace.npz wrote)")
+    p.add_argument("--config", metavar="FILE", help="the run's scenario (default: RUN_DIR/scenario.json, which "
+                                                    "cdus launch writes); its [ros2] table sets the topics")
+    p.set_defaults(func=cmd_export)
 
     # `cdus gs ...` is handed to ground_station whole (see main); listed here for --help
     sub.add_parser("gs", help="ground station: watch and command a running fleet (cdus gs --help)", add_help=False)
@@ -310,6 +323,20 @@ def check_exposure(args: argparse.Namespace, router: Transport) -> tuple[str, ..
         return exposed_endpoints(router)
     except zenoh.ZError as e:
         raise ConfigError("command line", [("--zenoh-config", str(e).split(" at /")[0])]) from None
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    """`cdus export RUN_DIR --mcap FILE`."""
+    run = Path(args.run_dir)
+    scenario = load_scenario(args.config) if args.config else None
+    try:
+        counts = export_mcap(run, Path(args.mcap), Path(args.trace) if args.trace else None, scenario)
+    except ExportError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return EXIT_USAGE
+    print(f"{args.mcap}: {sum(counts.values())} messages on {len(counts)} topics "
+          f"(open it in Foxglove, or ros2 bag play {args.mcap})")
+    return EXIT_OK
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:

@@ -118,11 +118,9 @@ class Republisher:
             self.publish((None, "clock"), rf.clock(row.t))
         if row.tick % self.every:
             return
-        self.publish((vid, "pose"), rf.pose(row.t, row.q, row.heading, frame))
-        self.publish((vid, "odom"), rf.odometry(row.t, vid, row.q, row.heading, row.speed, frame))
-        self.publish((vid, "omega"), rf.value(row.omega))
-        self.publish((vid, "omega_rate"), rf.value(row.omega_rate))
-        self.publish((None, "tf"), rf.transforms(row.t, [(vid, row.q, row.heading)], frame))
+        for which, value in rf.vehicle_messages(vid, row.t, row.q, row.heading, row.speed, row.omega, row.omega_rate,
+                                                frame):
+            self.publish(which, value)
 
 
 class Bridge:

@@ -133,6 +133,16 @@ def path(points: Any, frame: str, t: float = 0.0) -> dict:
                                       for p in points]}
 
 
+def vehicle_messages(vid: str, t: float, q: Sequence[float], heading: float, speed: float, omega: float,
+                     omega_rate: float, frame: str) -> list[tuple[tuple[str | None, str], dict]]:
+    """What one telemetry row of vehicle ``vid`` publishes: ((vehicle or None, field), message)
+    for its pose, odometry, ω, ω̇ and its /tf transform; the bridge and the MCAP export alike."""
+    return [((vid, "pose"), pose(t, q, heading, frame)),
+            ((vid, "odom"), odometry(t, vid, q, heading, speed, frame)),
+            ((vid, "omega"), value(omega)), ((vid, "omega_rate"), value(omega_rate)),
+            ((None, "tf"), transforms(t, [(vid, q, heading)], frame))]
+
+
 def every(spec: Ros2Spec, control_rate: float) -> int:
     """Control ticks between two publications of the per-vehicle topics and /tf (at least 1)."""
     return max(1, round(control_rate / spec.rate))
