@@ -29,7 +29,7 @@ from cdus.scenario.config import ConfigError, load_scenario, parse_overrides
 from cdus.core.linkspec import POLICIES
 from cdus.scenario.model import RESTART_POLICIES, Scenario
 from cdus.wire import keys
-from cdus.wire.access import GROUND_ROLE
+from cdus.wire.access import GROUND_ROLE, ROS2_CLIENT_ROLE
 from cdus.wire.transport import Transport, client_of, endpoint, exposed_endpoints, router_listen
 from cdus.wire.transport import router as fleet_router
 from ground_station.__main__ import main as gs_main
@@ -287,6 +287,12 @@ def cmd_launch(args: argparse.Namespace) -> int:
     gs_config = f" --zenoh-config {cred.file(GROUND_ROLE)}" if cred is not None else ""
     print(f"  attach a ground station: cdus gs --fleet {opts.fleet} -e "
           f"{(client_of(router).connect or ('ENDPOINT',))[0]}{gs_config} status")
+    if scenario.ros2.enabled:
+        r2 = scenario.ros2
+        r2_config = f"ZENOH_SESSION_CONFIG_URI={cred.file(ROS2_CLIENT_ROLE)} " if cred is not None else ""
+        print(f"  ROS 2 ({r2.distro}): /clock, /tf and {r2.namespace}/<vehicle>/... in domain {r2.domain_id}; from a ROS "
+              f"2 machine: {r2_config}RMW_IMPLEMENTATION=rmw_zenoh_cpp ROS_DOMAIN_ID={r2.domain_id} ros2 topic list, "
+              f"its Zenoh connected to {(client_of(router).connect or ('ENDPOINT',))[0]} (docs/ros2.md)")
     try:
         status, la = launch(scenario, run, router, opts)
     except ListenError as e:  # taken between the check and the router's start: still nothing was started

@@ -62,8 +62,10 @@ def ros2_client(tmp_path, monkeypatch):
 
 def test_a_ros2_client_discovers_the_fleet_decodes_pose_odometry_clock_and_the_latched_paths(tmp_path, launches, ros2_client):
     fleet, port, run = unique_fleet(), free_tcp_port(), tmp_path / "run"
-    la = launches(["configs/lake_circle.toml", "--ros2", "--duration", "3000", "--rerun", "off", "-q",
+    la = launches(["configs/lake_circle.toml", "--ros2", "--duration", "3000", "--rerun", "off",
                    "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run)], fleet)
+    hint = la.wait_for("ROS 2 (jazzy)")  # what to tell a ROS 2 machine
+    assert f"ZENOH_SESSION_CONFIG_URI={run / 'secure' / 'ros2-client.json5'}" in hint and "ROS_DOMAIN_ID=0" in hint
     la.wait_for(f"fleet '{fleet}' up", timeout=90)
     ros2_client.setenv("ZENOH_SESSION_CONFIG_URI", str(run / "secure" / "ros2-client.json5"))
 
