@@ -33,12 +33,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
     try:
         scenario = load_scenario(args.config, parse_overrides(args.set))
     except ConfigError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
+        parser.error(str(e))  # exits 2
     t = with_default_endpoint(transport_from_args(args))
     session = open_session(replace(t, extra=(*t.extra, TIMESTAMPS)))
     try:
