@@ -78,8 +78,6 @@ def test_rerun_imports_it(run, tmp_path):
     rrd = tmp_path / "run.rrd"
     subprocess.run([sys.executable, "-m", "rerun", "mcap", "convert", str(d / "run.mcap"), "-o", str(rrd)],
                    check=True, capture_output=True, timeout=120)
-    subprocess.run([sys.executable, "-m", "rerun", "rrd", "verify", str(rrd)], check=True, capture_output=True,
-                   timeout=120)
     printed = subprocess.run([sys.executable, "-m", "rerun", "rrd", "print", str(rrd)], check=True,
                              capture_output=True, text=True, timeout=120).stdout
     assert all(t.name in printed for t in topics(scenario.ros2, scenario.ids) if t.field != "events")

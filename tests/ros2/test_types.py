@@ -11,6 +11,7 @@ REP-2011 implementation computes it from the ``.msg`` text of the interface defi
 from __future__ import annotations
 
 import pytest
+from hypothesis import given, strategies as st
 import zenoh.ext as zext
 from mcap_ros2 import _dynamic as dyn
 from zenoh_ros2_sdk import attachment as sdk_attachment, qos as sdk_qos, utils as sdk_utils
@@ -107,3 +108,14 @@ def test_definitions_parse_with_mcap_ros2_support():
     dec = dyn.generate_dynamic("rosgraph_msgs/msg/Clock", types.definition("rosgraph_msgs/msg/Clock"))
     out = dec["rosgraph_msgs/msg/Clock"](cdr.encode("rosgraph_msgs/msg/Clock", {"clock": {"sec": 7, "nanosec": 9}}))
     assert (out.clock.sec, out.clock.nanosec) == (7, 9)
+
+
+@given(data=st.binary(max_size=64))
+def test_any_bytes_are_an_attachment_or_a_reason(data):
+    out = rmw.decode_attachment(data)
+    assert out in ("size", "gid_size") or rmw.attachment(*out) == data
+
+
+@given(seq=st.integers(-2**63, 2**63 - 1), ts=st.integers(-2**63, 2**63 - 1), g=st.binary(min_size=16, max_size=16))
+def test_attachments_round_trip(seq, ts, g):
+    assert rmw.decode_attachment(rmw.attachment(seq, ts, g)) == (seq, ts, g)
