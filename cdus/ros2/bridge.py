@@ -80,6 +80,7 @@ class Republisher:
         self.last = total_ticks(duration or scenario.duration, self.period)  # the run's last tick
         self.rejected: dict[str, int] = {}
         self.last_tick = -1
+        self.before: dict[str, tuple[float, float]] = {}  # per vehicle, (t, heading) of its previous row
 
     def _reject(self, reason: str) -> None:
         self.rejected[reason] = self.rejected.get(reason, 0) + 1
@@ -116,10 +117,12 @@ class Republisher:
         if row.tick > self.last_tick:
             self.last_tick = row.tick
             self.publish((None, "clock"), rf.clock(row.t))
+        rate = rf.yaw_rate(row.heading, row.t, self.before.get(vid))
+        self.before[vid] = (row.t, row.heading)
         if row.tick % self.every:
             return
         for which, value in rf.vehicle_messages(vid, row.t, row.q, row.heading, row.speed, row.omega, row.omega_rate,
-                                                frame):
+                                                frame, rate):
             self.publish(which, value)
 
 

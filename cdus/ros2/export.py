@@ -9,9 +9,9 @@ each vehicle's path once at the start, and the events the metrics list. Schemas 
 time in ns (a run starts at 0, 1 January 1970 to a viewer): the file opens in Foxglove and
 replays with ``ros2 bag play``.
 
-The trace has no speed: the odometry's twist is the speed between this row and the next,
-``|q[k+1] - q[k]| / Δt`` (the last row repeats the one before); the live bridge publishes the
-vehicle's own. Needs the ``mcap`` package (``pip install 'cdus[ros2]'``).
+The trace has no speed: the odometry's linear twist is the speed between this row and the
+next, ``|q[k+1] - q[k]| / Δt`` (the last row repeats the one before); the live bridge publishes
+the vehicle's own. The yaw rate is the heading's change since the row before, as the bridge's. Needs the ``mcap`` package (``pip install 'cdus[ros2]'``).
 """
 
 from __future__ import annotations
@@ -105,8 +105,10 @@ def export_mcap(run_dir: Path, out: Path, trace: Path | None = None, scenario: S
                 if not live[k, j]:
                     continue
                 qj = q[k, j] if scenario.vehicles[j].dim == 3 else q[k, j, :2]
+                before = (float(t[k - 1]), float(heading[k - 1, j])) if k else None
+                rate = rf.yaw_rate(float(heading[k, j]), tk, before)
                 for which, value in rf.vehicle_messages(vid, tk, qj, float(heading[k, j]), float(speed[k, j]),
-                                                        float(omega[k, j]), float(omega_rate[k, j]), frame):
+                                                        float(omega[k, j]), float(omega_rate[k, j]), frame, rate):
                     write(which, value, tk)
         for at, text in events:  # after the last row
             write((None, "events"), {"data": text}, at)

@@ -103,12 +103,22 @@ def pose(t: float, q: Sequence[float], heading: float, frame: str) -> dict:
             "pose": {"position": _point(q), "orientation": yaw(heading)}}
 
 
-def odometry(t: float, vid: str, q: Sequence[float], heading: float, speed: float, frame: str) -> dict:
-    """Pose in ``frame``; twist in the vehicle's frame: its speed along its heading (linear.x),
-    no yaw rate (telemetry carries none). Covariances zero: the emulator's state is exact."""
+def odometry(t: float, vid: str, q: Sequence[float], heading: float, speed: float, frame: str,
+             yaw_rate: float = 0.0) -> dict:
+    """Pose in ``frame``; twist in the vehicle's frame: its speed along its heading (linear.x) and
+    its yaw rate (angular.z, :func:`yaw_rate`). Covariances zero: the emulator's state is exact."""
     return {"header": {"stamp": stamp(t), "frame_id": frame}, "child_frame_id": child_frame(vid),
             "pose": {"pose": {"position": _point(q), "orientation": yaw(heading)}},
-            "twist": {"twist": {"linear": {"x": float(speed)}}}}
+            "twist": {"twist": {"linear": {"x": float(speed)}, "angular": {"z": float(yaw_rate)}}}}
+
+
+def yaw_rate(heading: float, t: float, before: tuple[float, float] | None) -> float:
+    """The heading's rate since ``before`` = (its time, its heading), the difference wrapped to
+    (-π, π]; 0 without an earlier row or time (telemetry carries headings, no rates)."""
+    if before is None or t <= before[0]:
+        return 0.0
+    d = math.remainder(heading - before[1], 2 * math.pi)
+    return d / (t - before[0])
 
 
 def transforms(t: float, rows: Iterable[tuple[str, Sequence[float], float]], frame: str) -> dict:
@@ -134,11 +144,11 @@ def path(points: Any, frame: str, t: float = 0.0) -> dict:
 
 
 def vehicle_messages(vid: str, t: float, q: Sequence[float], heading: float, speed: float, omega: float,
-                     omega_rate: float, frame: str) -> list[tuple[tuple[str | None, str], dict]]:
+                     omega_rate: float, frame: str, rate_of_yaw: float = 0.0) -> list[tuple[tuple[str | None, str], dict]]:
     """What one telemetry row of vehicle ``vid`` publishes: ((vehicle or None, field), message)
     for its pose, odometry, ω, ω̇ and its /tf transform; the bridge and the MCAP export alike."""
     return [((vid, "pose"), pose(t, q, heading, frame)),
-            ((vid, "odom"), odometry(t, vid, q, heading, speed, frame)),
+            ((vid, "odom"), odometry(t, vid, q, heading, speed, frame, rate_of_yaw)),
             ((vid, "omega"), value(omega)), ((vid, "omega_rate"), value(omega_rate)),
             ((None, "tf"), transforms(t, [(vid, q, heading)], frame))]
 

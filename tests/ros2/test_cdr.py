@@ -35,7 +35,7 @@ def test_pose_and_odometry_decode(t, vid, q, heading, speed):
     p = decode(fleet.POSE, cdr.encode(fleet.POSE, fleet.pose(t, q, heading, "world")))
     assert (p.pose.position.x, p.pose.position.y, p.pose.position.z) == q
     assert p.header.frame_id == "world"
-    assert p.header.stamp.sec + p.header.stamp.nanosec * 1e-9 == pytest.approx(t, abs=1e-9)
+    assert p.header.stamp.sec * 1_000_000_000 + p.header.stamp.nanosec == round(t * 1e9)
     qz, qw = p.pose.orientation.z, p.pose.orientation.w  # the body x axis, rotated, points along the heading
     assert (qw * qw - qz * qz, 2 * qw * qz) == (pytest.approx(math.cos(heading), abs=1e-12),
                                                 pytest.approx(math.sin(heading), abs=1e-12))
@@ -91,3 +91,11 @@ def test_the_topics_of_a_fleet():
     assert len(names) == 3 + 2 * 5
     assert [t.qos.transient_local for t in fleet.topics(Ros2Spec(), ["a"]) if t.field == "path"] == [True]
     assert json.loads(json.dumps(fleet.stamp(1.9999999999))) == {"sec": 2, "nanosec": 0}
+
+
+def test_the_yaw_rate_is_the_wrapped_heading_change():
+    assert fleet.yaw_rate(0.1, 1.0, None) == 0.0 and fleet.yaw_rate(0.1, 1.0, (1.0, 0.0)) == 0.0
+    assert fleet.yaw_rate(0.3, 1.1, (1.0, 0.2)) == pytest.approx(1.0)
+    assert fleet.yaw_rate(-3.1, 1.1, (1.0, 3.1)) == pytest.approx((2 * math.pi - 6.2) / 0.1)  # across ±π
+    o = decode(fleet.ODOM, cdr.encode(fleet.ODOM, fleet.odometry(1.0, "a", (0, 0), 0.0, 2.0, "world", -0.5)))
+    assert (o.twist.twist.linear.x, o.twist.twist.angular.z) == (2.0, -0.5)

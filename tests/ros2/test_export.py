@@ -65,6 +65,7 @@ def test_every_topic_with_its_schema_and_the_trace_values(run):
     _, o = msgs["/cdus/uav1/odom"][5]
     assert o.pose.pose.position.z == trace["q"][k, 3, 2] and o.child_frame_id == "uav1/base_link"
     assert o.twist.twist.linear.x == pytest.approx(np.linalg.norm(trace["q"][k + 1, 3] - trace["q"][k, 3]) * 50)
+    assert o.twist.twist.angular.z == pytest.approx((trace["heading"][k, 3] - trace["heading"][k - 1, 3]) * 50)
     assert msgs["/cdus/usv1/omega"][5][1].data == trace["omega"][k, 0]
     assert len(msgs["/tf"]) == 6 * 21 and {tr.child_frame_id for _, m in msgs["/tf"] for tr in m.transforms} == \
         {f"{v}/base_link" for v in scenario.ids}
