@@ -2,6 +2,7 @@
 
     python bench/lockstep_speed.py                    # lake_circle, 120 s simulated, 3 rounds
     python bench/lockstep_speed.py --duration 120 --repeat 5 --links direct
+    python bench/lockstep_speed.py --ros2 --duration 60 --repeat 2   # the ROS 2 bridge's cost
 
 In ONE run, interleaved so the machine's load affects all alike, each round runs:
 
@@ -9,7 +10,10 @@ In ONE run, interleaved so the machine's load affects all alike, each round runs
             per-neighbour-per-tick exchange, the same router and Zenoh runtime as
             `cdus launch`): the ceiling of lockstep through raw Zenoh;
   as is     `cdus launch CONFIG --clock lockstep` (broadcast = control for lake_circle);
-  10 Hz     the same with `--set rates.broadcast=10` (the lookahead: 5 ticks a broadcast).
+  10 Hz     the same with `--set rates.broadcast=10` (the lookahead: 5 ticks a broadcast);
+  as is --ros2   with --ros2 only: `as is` publishing the fleet to ROS 2 (docs/ros2.md), so
+            the bridge's cost is the ratio of the two, measured under the same load. Each
+            run also prints the agents' median CPU per tick (their logs) and the bridge's CPU.
 
 The ring's processes run one Zenoh worker thread (ZENOH_RUNTIME, as `cdus launch` gives its
 children); the launcher runs as shipped (its children on one worker thread, its own router on
@@ -31,6 +35,7 @@ import argparse
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -63,6 +68,20 @@ def reference(config: str, duration: float, extra: list[str], out: Path) -> tupl
                     "--trace-out", str(trace), "--metrics-out", str(metrics), *extra],
                    cwd=REPO, check=True, stdout=subprocess.DEVNULL)
     return trace, json.loads(metrics.read_text())
+
+
+def cpu_line(out: Path) -> str:
+    """The agents' median CPU per tick and the ROS 2 bridge's CPU, from the run's logs."""
+    per_tick = []
+    for log in (out / "logs").glob("*.log"):
+        text = log.read_text(errors="replace")
+        m = re.search(r"CPU in the run [0-9.]+ s \(([0-9]+) µs per tick\)", text)
+        if m and log.stem not in ("world", "ros2"):
+            per_tick.append(int(m.group(1)))
+    bridge = re.search(r"ros2 bridge: .*CPU ([0-9.]+) s", (out / "logs" / "ros2.log").read_text()) \
+        if (out / "logs" / "ros2.log").exists() else None
+    return (f"agents {np.median(per_tick):.0f} µs CPU/tick" if per_tick else "agents' CPU not logged") + \
+        (f", bridge {float(bridge.group(1)):.2f} s CPU" if bridge else "")
 
 
 def lockstep(config: str, duration: float, extra: list[str], out: Path, links: str, rerun: str
@@ -106,6 +125,7 @@ def main() -> None:
     ap.add_argument("--rerun", default="off",
                     help="the world's Rerun recording in the lockstep runs (default off: the ring records nothing; "
                          "`auto`, launch's default, saves a .rrd: about 40 %% of the world's CPU)")
+    ap.add_argument("--ros2", action="store_true", help="also run `as is` with --ros2 (the ROS 2 bridge), interleaved")
     ap.add_argument("--links", choices=("router", "direct"), default="router",
                     help="lockstep links; the ring runs the matching topology (router | peer)")
     args = ap.parse_args()
@@ -119,21 +139,22 @@ def main() -> None:
           f"{args.duration:g} s simulated ({ticks} ticks), {args.repeat} rounds, links {args.links}, "
           f"rerun {args.rerun}; "
           f"ring: {n} processes, {args.ring_ticks} ticks, {ring_mode}")
-    results: dict[str, list[tuple[float, float, str]]] = {c: [] for c in CASES}  # (ticks/s, ratio, load)
+    cases = {**CASES, **({"as is --ros2": ["--ros2"]} if args.ros2 else {})}
+    results: dict[str, list[tuple[float, float, str]]] = {c: [] for c in cases}  # (ticks/s, ratio, load)
     rings: list[float] = []
     with tempfile.TemporaryDirectory(prefix="cdus-ls-") as tmp:
         work = Path(tmp)
-        refs = {c: reference(config, args.duration, extra, work / f"ref{k}")
-                for k, (c, extra) in enumerate(CASES.items())}
+        refs = {c: reference(config, args.duration, [a for a in extra if a != "--ros2"], work / f"ref{k}")
+                for k, (c, extra) in enumerate(cases.items())}  # the bridge changes nothing of the run
         rings.append(raw_ring.run(n, args.ring_ticks, ring_mode)["ticks_per_s"])
         print(f"  ring            {rings[-1]:7.0f} ticks/s = {rings[-1] / sc.rates.control:5.1f}x real time  "
               f"({load()})", flush=True)
         for r in range(args.repeat):
             runs = {}
-            for k, (case, extra) in enumerate(CASES.items()):
+            for k, (case, extra) in enumerate(cases.items()):
                 wall, trace, m = lockstep(config, args.duration, extra, work / f"r{r}c{k}", args.links,
                                             args.rerun)
-                runs[case] = (ticks / wall, load(), identical(trace, m, *refs[case]))
+                runs[case] = (ticks / wall, load(), identical(trace, m, *refs[case]) + "; " + cpu_line(work / f"r{r}c{k}"))
             rings.append(raw_ring.run(n, args.ring_ticks, ring_mode)["ticks_per_s"])
             ceiling = 0.5 * (rings[-2] + rings[-1])
             for case, (tps, ld, same) in runs.items():
@@ -147,9 +168,12 @@ def main() -> None:
     for case, rs in results.items():
         xs = [t / sc.rates.control for t, _, _ in rs]
         ratios = [q for _, q, _ in rs]
-        target = "target >= 0.8 of the ring" if case == "as is" else "target >= 50x real time"
-        print(f"  {case:<6} {np.median(xs):5.1f}x real time, {np.median(ratios):4.2f} of the ring  ({target}); "
+        target = {"as is": "target >= 0.8 of the ring", "10 Hz": "target >= 50x real time"}.get(case, "")
+        print(f"  {case:<6} {np.median(xs):5.1f}x real time, {np.median(ratios):4.2f} of the ring  ({target or 'no target'}); "
               f"runs {', '.join(f'{x:.1f}x' for x in xs)}")
+    if args.ros2:
+        pairs = [b[0] / a[0] for a, b in zip(results["as is"], results["as is --ros2"])]
+        print(f"  --ros2 / as is, per round: {', '.join(f'{p:.2f}' for p in pairs)} (median {np.median(pairs):.2f})")
     print(load_line())
 
 

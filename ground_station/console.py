@@ -23,7 +23,7 @@ from typing import Any
 import zenoh
 
 from cdus.wire import keys
-from cdus.wire.access import GROUND_ROLE
+from cdus.wire.access import GROUND_ROLE, ROS2_ROLE
 from cdus.wire.transport import Transport, endpoint_host, open_session
 from cdus.wire.messages import StateMsg, decode_states, encode_control
 from cdus.wire.schemas import CommandReply, FleetEvent, decode_event, decode_reply, decode_settings, decode_status
@@ -90,7 +90,7 @@ class Answer:
                                                                                              EXIT_NO_ANSWER)
 
 
-NOT_VEHICLES = frozenset({keys.WORLD, keys.GROUND, "launcher"})  # liveliness tokens of the fleet that are no vehicle's
+NOT_VEHICLES = frozenset({keys.WORLD, keys.GROUND, "launcher", ROS2_ROLE})  # liveliness tokens of the fleet that are no vehicle's
 
 
 def vehicle_state(vid: str, world: dict | None, alive: set[str], tokens_in: bool = False) -> str:

@@ -24,7 +24,7 @@ LAYERS = {  # module prefix -> layer rank (longest prefix wins)
     "cdus.core": 1,
     "cdus.scenario": 2,
     "cdus.sim": 3,
-    "vehicle_agent": 4, "world_sim": 4, "ground_station": 4,
+    "vehicle_agent": 4, "world_sim": 4, "ground_station": 4, "cdus.ros2": 4,
     "cdus.app": 5, "cdus.__main__": 5, "cdus.api": 5,
 }
 EXACT = {"cdus": 5}  # the package itself (cdus/__init__.py): the public API's names, from cdus.api

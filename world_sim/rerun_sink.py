@@ -75,7 +75,7 @@ import numpy as np
 import pyarrow as pa
 import rerun as rr
 
-from cdus.core.paths import for_dimension, make_path, nearest_omega
+from cdus.sim.polyline import pad3 as _pad3, path_polyline
 from world_sim import blueprint as bp
 from cdus.core.metrics import closest_pairs
 from cdus.core.link import LINK_STATES
@@ -88,7 +88,6 @@ APP_ID = "cdus"
 FLUSH_EVERY = 5.0  # simulated seconds between batches sent to Rerun (bench/rerun_cost.py)
 TRAIL_SECONDS = 10.0  # length of a trail
 TRAIL_POINTS_EVERY = 10  # ticks between trail points (5 Hz at 50 Hz control)
-PATH_POINTS = 400  # samples of a closed path's period
 SEGMENT_EVERY = 10.0  # simulated seconds per file segment: what a crash can lose at most
 #: Measured .rrd size per vehicle and simulated second at 50 Hz: 7.6 kB (lake_circle, 60 s),
 #: 7.7 kB (lissajous_5x5); rounded up. A clean close needs twice the recording (the segments
@@ -113,34 +112,6 @@ def colour(kind: str, rank: int) -> tuple[int, int, int]:
     """The colour of the ``rank``-th vehicle of its kind."""
     palette = USV_COLOURS if kind == "usv" else UAV_COLOURS
     return palette[rank % len(palette)]
-
-
-def path_polyline(vehicle: Any, duration: float) -> np.ndarray:
-    """The path vehicle ``vehicle`` (a VehicleSpec) follows, as [M, 3] points (z = 0 on water).
-
-    A closed path: one period. An open one: ω over the run, ω0 + s·[-10, duration + 10] s
-    (steady state has ω̇ = s, the path's direction).
-    """
-    path = for_dimension(make_path(dict(vehicle.path)), vehicle.dim)
-    if path.period is not None:
-        ws = np.linspace(0.0, path.period, PATH_POINTS + 1)
-    else:
-        if vehicle.omega0 is not None:
-            w0 = vehicle.omega0
-        elif vehicle.start_position is not None:
-            w0 = nearest_omega(path, tuple(vehicle.start_position))
-        else:
-            w0 = 0.0
-        s = path.direction
-        n = int(min(5000, max(PATH_POINTS, 20 * (duration + 20.0))))
-        ws = w0 + s * np.linspace(-10.0, duration + 10.0, n)
-    return _pad3(np.array([path.eval(float(w))[0] for w in ws]))
-
-
-def _pad3(points: np.ndarray) -> np.ndarray:
-    out = np.zeros((len(points), 3))
-    out[:, : points.shape[1]] = points
-    return out
 
 
 def marker_size(lines: Sequence[np.ndarray]) -> float:

@@ -32,12 +32,13 @@ from cdus.scenario.config import ConfigError, load_scenario, parse_overrides
 from cdus.core.linkspec import POLICIES
 from cdus.scenario.model import RESTART_POLICIES, Scenario
 from cdus.wire import keys
-from cdus.wire.access import GROUND_ROLE
+from cdus.wire.access import GROUND_ROLE, ROS2_CLIENT_ROLE
 from cdus.wire.transport import Transport, client_of, endpoint, exposed_endpoints, router_listen
 from cdus.wire.transport import router as fleet_router
 from ground_station.__main__ import main as gs_main
 from world_sim.recording import parse_spec, recording_line
 from cdus.app.report import Progress, run_dir, summary_table
+from cdus.ros2.export import ExportError, export_mcap
 from cdus.sim.reports import late_event_lines
 from cdus.files import keep_json, metrics_fallbacks
 
@@ -51,6 +52,8 @@ def _overrides(args: argparse.Namespace) -> dict[str, Any]:
         out["scenario.duration"] = args.duration
     if getattr(args, "seed", None) is not None:
         out["scenario.seed"] = args.seed
+    if getattr(args, "ros2", False):
+        out["ros2.enabled"] = True
     return out
 
 
@@ -120,6 +123,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "router (on loopback: any process of this host) can then stop, retune, kill and steer "
                         "the fleet (docs/security.md); needed for --links direct and for outside tools that "
                         "attach without credentials")
+    p.add_argument("--ros2", action="store_true",
+                   help="publish the fleet as ROS 2 topics in rmw_zenoh's format on the fleet's router (the "
+                        "scenario's [ros2] table: domain, namespace, distro; docs/ros2.md)")
     p.set_defaults(func=cmd_launch)
 
     p = sub.add_parser("sweep", allow_abbrev=False,
@@ -152,6 +158,18 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the plot's format: sweep.png (default), or a vector sweep.pdf or sweep.svg for a paper")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_sweep)
+
+    p = sub.add_parser("export", allow_abbrev=False, help="a run's trace as ROS 2 messages in an MCAP file",
+                       description="Write a run (its trace and scenario) as the ROS 2 topics `cdus launch --ros2` "
+                                   "publishes, in an MCAP file Foxglove opens and `ros2 bag play` replays "
+                                   "(docs/ros2.md).")
+    p.add_argument("run_dir", metavar="RUN_DIR", help="the run's directory (cdus launch --logs)")
+    p.add_argument("--mcap", required=True, metavar="FILE", help="the MCAP file to write")
+    p.add_argument("--trace", metavar="PATH", help="the run's trace (default: RUN_DIR/trace.npz, what "
+                                                   "--trace-out RUN_DIR/trace.npz wrote)")
+    p.add_argument("--config", metavar="FILE", help="the run's scenario (default: RUN_DIR/scenario.json, which "
+                                                    "cdus launch writes); its [ros2] table sets the topics")
+    p.set_defaults(func=cmd_export)
 
     # `cdus gs ...` is handed to ground_station whole (see main); listed here for --help
     sub.add_parser("gs", help="ground station: watch and command a running fleet (cdus gs --help)", add_help=False)
@@ -302,6 +320,12 @@ def _launch_into(args: argparse.Namespace, scenario: Scenario, opts: LaunchOptio
     gs_config = f" --zenoh-config {cred.file(GROUND_ROLE)}" if cred is not None else ""
     print(f"  attach a ground station: cdus gs --fleet {opts.fleet} -e "
           f"{(client_of(router).connect or ('ENDPOINT',))[0]}{gs_config} status")
+    if scenario.ros2.enabled:
+        r2 = scenario.ros2
+        r2_config = f"ZENOH_SESSION_CONFIG_URI={cred.file(ROS2_CLIENT_ROLE)} " if cred is not None else ""
+        print(f"  ROS 2 ({r2.distro}): /clock, /tf and {r2.namespace}/<vehicle>/... in domain {r2.domain_id}; from a ROS "
+              f"2 machine: {r2_config}RMW_IMPLEMENTATION=rmw_zenoh_cpp ROS_DOMAIN_ID={r2.domain_id} ros2 topic list, "
+              f"its Zenoh connected to {(client_of(router).connect or ('ENDPOINT',))[0]} (docs/ros2.md)")
     try:
         status, la = launch(scenario, run, router, opts)
     except RunDirError as e:
@@ -342,6 +366,20 @@ def check_exposure(args: argparse.Namespace, router: Transport) -> tuple[str, ..
         return exposed_endpoints(router)
     except zenoh.ZError as e:
         raise ConfigError("command line", [("--zenoh-config", str(e).split(" at /")[0])]) from None
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    """`cdus export RUN_DIR --mcap FILE`."""
+    run = Path(args.run_dir)
+    scenario = load_scenario(args.config) if args.config else None
+    try:
+        counts = export_mcap(run, Path(args.mcap), Path(args.trace) if args.trace else None, scenario)
+    except ExportError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return EXIT_USAGE
+    print(f"{args.mcap}: {sum(counts.values())} messages on {len(counts)} topics "
+          f"(open it in Foxglove, or ros2 bag play {args.mcap})")
+    return EXIT_OK
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:

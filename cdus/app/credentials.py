@@ -9,7 +9,8 @@ certificates, plus the passwords) calls ``make_credentials``: it writes, in
     router.json5        the router's settings (authentication, TLS, the access-control list
                         of cdus.wire.access); the launcher applies the same settings to its
                         own router, and a world started by hand as the router reads this file
-    <role>.json5        a client config per role (world, ground, vehicle-<id>): user,
+    <role>.json5        a client config per role (world, ground, vehicle-<id>; ros2 and
+                        ros2-client with [ros2] enabled, docs/ros2.md): user,
                         password, certificate, the router's endpoints, multicast off
     ca.pem, <role>.pem/.key, router.pem/.key    with TLS
 
@@ -95,19 +96,20 @@ def nest(settings: dict[str, Any]) -> dict:
 
 
 def make_credentials(directory: str | os.PathLike, fleet: str, listeners: Mapping[str, Sequence[str]],
-                     listen: tuple[str, ...], mode: str = "password") -> Credentials:
+                     listen: tuple[str, ...], mode: str = "password", ros2: access.Ros2Grant | None = None) -> Credentials:
     """Generate the run's credentials in ``directory`` (see the module's docstring) for the
-    vehicles of ``listeners`` (vehicle id -> the ids its ω goes to, ``listeners_of``)."""
+    vehicles of ``listeners`` (vehicle id -> the ids its ω goes to, ``listeners_of``), and with
+    ``ros2`` for the ROS 2 bridge and ROS 2 machines (docs/ros2.md)."""
     listen = secure_endpoints(tuple(listen), mode)
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
     os.chmod(d, 0o700)
-    roles = access.roles(list(listeners))
+    roles = access.roles(list(listeners), ros2=ros2 is not None)
     passwords = {r: secrets.token_urlsafe(24) for r in roles}
     _write_private(d / "passwords", "".join(f"{r}:{pw}\n" for r, pw in passwords.items()))
     router = {
         "transport/auth/usrpwd/dictionary_file": str((d / "passwords").resolve()),
-        "access_control": access.fleet_acl(fleet, listeners, match_certificates=mode == "tls"),
+        "access_control": access.fleet_acl(fleet, listeners, match_certificates=mode == "tls", ros2=ros2),
     }
     client_tls: dict[str, Any] = {}
     if mode == "tls":

@@ -19,7 +19,8 @@ from cdus.app.launcher import LaunchOptions, RunDirInUse, RunDirLock, launch
 from cdus.scenario.config import ConfigError
 from cdus.scenario.model import Scenario
 from cdus.sim.build import listeners_of
-from cdus.wire.access import WORLD_ROLE, vehicle_role
+from cdus.ros2.fleet import grant
+from cdus.wire.access import ROS2_ROLE, WORLD_ROLE, vehicle_role
 from cdus.wire.transport import Transport
 from cdus.wire.transport import router as fleet_router
 
@@ -28,12 +29,15 @@ def secure_router(router: Transport, opts: LaunchOptions, scenario: Scenario, di
                   mode: str) -> tuple[Transport, Credentials]:
     """Credentials for this run; the router requires them, every child gets its own file."""
     ids = scenario.ids
+    ros2 = grant(scenario.ros2, ids) if scenario.ros2.enabled else None  # only a fleet that asked for it
     try:
         cred = make_credentials(directory, opts.fleet, {v: listeners_of(scenario, v) for v in ids}, router.listen,
-                                mode)
+                                mode, ros2=ros2)
     except CredentialsError as e:
         raise ConfigError("command line", [("--tls" if mode == "tls" else "--secure", str(e))]) from None
     opts.zenoh_configs = {"world": str(cred.file(WORLD_ROLE)), **{v: str(cred.file(vehicle_role(v))) for v in ids}}
+    if ros2 is not None:
+        opts.zenoh_configs[ROS2_ROLE] = str(cred.file(ROS2_ROLE))
     return replace(router, listen=cred.listen, extra=router.extra + cred.router_extra()), cred
 
 

@@ -58,6 +58,7 @@ from cdus.sim.build import metric_edges
 from cdus.sim.summary import run_metrics
 from cdus.sim.reports import ConsoleQuota
 from cdus.wire import keys
+from cdus.wire.access import ROS2_ROLE
 from cdus.wire.messages import CTL_OPS, LAUNCHER_OPS, decode_control, encode_control
 from cdus.wire.schemas import STATUS_KEY_ENV, FleetEvent, decode_event, decode_status, encode_event, signed_by
 from cdus.wire.text import printable
@@ -375,6 +376,10 @@ class Launcher:
     def world_env(self) -> dict[str, str]:
         """The world's environment: the children's, and the status key (the world's alone)."""
         return {**self.env, STATUS_KEY_ENV: self.status_key.hex()}
+    def _bridge(self) -> Child:
+        """The ROS 2 bridge ([ros2] enabled, docs/ros2.md): an observer, started after the world."""
+        argv = [sys.executable, "-m", "cdus.ros2", *self._common(ROS2_ROLE)]
+        return Child(ROS2_ROLE, argv, self.logs / "ros2.log", death_signal=signal.SIGTERM)
 
     def _agent(self, vid: str) -> Child:
         argv = [sys.executable, "-m", "vehicle_agent", *self._common(vid, self._agent_transport(vid)), "--id", vid]
@@ -560,6 +565,12 @@ class Launcher:
         missing = self._wait_alive(["world"], self.opts.ready_timeout)
         if missing:
             raise self._fail_start(missing, self.opts.ready_timeout)
+        if self.scenario.ros2.enabled:  # before the vehicles: it sees the run from its first tick
+            b = self.children[ROS2_ROLE] = self._bridge()
+            b.start(self.env)
+            missing = self._wait_alive([ROS2_ROLE], self.opts.ready_timeout)
+            if missing:
+                raise self._fail_start(missing, self.opts.ready_timeout)
         ids = [v.id for v in self.scenario.vehicles]
         for vid in ids:
             if vid not in self.opts.remote:
@@ -610,7 +621,7 @@ class Launcher:
         if self.stopping or self.finished:
             return
         for name, c in self.children.items():
-            if name != "world" and c.exit_code is None and c.poll() is not None:
+            if name not in (keys.WORLD, ROS2_ROLE) and c.exit_code is None and c.poll() is not None:
                 self._on_agent_exit(c, c.exit_code)
         now = self.clock()
         for c in self.children.values():

@@ -39,6 +39,7 @@ from cdus.scenario.sections import (
     default_path_tol, gains_section, guidance_section, metrics_section, rates_section, scenario_section, section,
     supervision_section,
 )
+from cdus.scenario.ros2 import ros2_section
 from cdus.scenario.vehicles import defaults_section, gain_bounds, vehicles_section
 
 # The entry points, and for their callers the error and the result types (defined in errors.py, model.py).
@@ -48,7 +49,7 @@ __all__ = [
 ]
 
 SECTIONS = ("scenario", "rates", "metrics", "gains", "guidance", "defaults", "supervision", "safety", "disturbance",
-            "observer", "graph", "link", "radio", "event", "vehicle")
+            "observer", "graph", "link", "radio", "ros2", "event", "vehicle")
 
 
 # --------------------------------------------------------------------------- entry points
@@ -335,6 +336,7 @@ def _resolve(p: Problems, data: Mapping[str, Any], source: str) -> Scenario | No
     changes = change_section(p, data.get("event", []), ids, {v.id: v.dim for v in specs}, edges, directed, base)
     radio_events = radio_event_section(p, data.get("event", []), "radio" in data,
                                        adhoc=radio is not None and radio.topology == "adhoc")
+    ros2 = ros2_section(p, section(p, data, "ros2"), ids)
     if p or link is None:
         return None
     return Scenario(
@@ -342,5 +344,5 @@ def _resolve(p: Problems, data: Mapping[str, Any], source: str) -> Scenario | No
         seed=header.seed, rates=rates, path_tol=path_tol, coord_tol=coord_tol, topology=topology,
         directed=directed, vehicles=tuple(v for v in fleet.specs if v is not None), edges=edges, link=link,
         events=events, supervision=supervision, raw=dict(data), safety=safety, radio=radio,
-        changes=changes, radio_events=radio_events,
+        changes=changes, radio_events=radio_events, ros2=ros2,
     )

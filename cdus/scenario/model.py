@@ -17,6 +17,7 @@ from cdus.core.linkspec import LinkSpec
 from cdus.core.proximity import sample_every
 from cdus.core.radio import RadioSpec
 from cdus.core.radiolink import RadioEvent
+from cdus.scenario.ros2 import Ros2Spec
 
 #: What the launcher does when a vehicle's process exits during the run (docs/config.md, [supervision]).
 RESTART_POLICIES = ("never", "on-failure", "always")
@@ -148,6 +149,7 @@ class Scenario:
         vehicles' ``phase``, or phases solved from the graph's deltas if it gives any."""
         return base_phases(self.ids, {v.id: v.phase for v in self.vehicles}, self.edges)
     radio_events: tuple[RadioEvent, ...] = ()  # [[event]] action = "radio": scheduled changes, by time
+    ros2: Ros2Spec = Ros2Spec()  # the [ros2] table: the fleet as ROS 2 topics (docs/ros2.md), off by default
 
     def vehicle(self, vid: str) -> VehicleSpec:
         for v in self.vehicles:

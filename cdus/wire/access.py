@@ -18,6 +18,18 @@ user name, and with TLS the same name as its certificate's common name):
     ground              a ground station: commands to the world, as queries the world
                         answers (world/cmd/gs) or as puts (to/+world+/cmd/gs, no answer)
 
+A fleet with ``[ros2] enabled`` (docs/ros2.md) has two more, and only then:
+
+    ros2                the ROS 2 bridge: reads the fleet as every member does; publishes
+                        exactly its topics' data keys (<domain>/<topic>/<type>/<hash>), the
+                        caches of its transient-local ones (<key>/@adv/**: queryable, token;
+                        the cache's replies carry the data key), its ROS graph tokens
+                        (@ros2_lv/<domain>/**) and alive/ros2
+    ros2-client         a ROS 2 machine (rmw_zenoh with this role's config file): subscribes
+                        to and queries those topics and their caches, watches and declares
+                        ROS graph tokens in the domain; publishes no data at all, and reads
+                        nothing of cdus/<fleet>/
+
 Every role may subscribe to and query anything under ``cdus/<fleet>/`` except the world's
 command queryable (``world/cmd/**``), which only the ground role may query (a deny rule for
 every other role: Zenoh's deny wins over an allow); nothing else may be published or
@@ -29,12 +41,15 @@ never reach the router.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Mapping, Sequence
 
 from cdus.wire import keys
 
 WORLD_ROLE = "world"
 GROUND_ROLE = "ground"
+ROS2_ROLE = "ros2"  # the bridge (cdus.ros2.bridge); also its process's name and alive/<name> token
+ROS2_CLIENT_ROLE = "ros2-client"
 
 #: every message kind Zenoh's access control knows (checked against eclipse-zenoh 1.10)
 MESSAGES = ("put", "delete", "declare_subscriber", "query", "reply", "declare_queryable",
@@ -47,9 +62,26 @@ def vehicle_role(vid: str) -> str:
     return f"vehicle-{vid}"
 
 
-def roles(vehicle_ids: list[str] | tuple[str, ...]) -> list[str]:
-    """Every role of a fleet: the world, the ground station, one per vehicle."""
-    return [WORLD_ROLE, GROUND_ROLE, *(vehicle_role(v) for v in vehicle_ids)]
+@dataclass(frozen=True)
+class Ros2Grant:
+    """What the ROS 2 side of a fleet may use: its domain and the data keys of its topics
+    (``cdus.ros2.rmw.topic_key`` of each; the caller computes them, this layer knows no ROS)."""
+
+    domain: int
+    topic_keys: tuple[str, ...]
+
+    def graph(self) -> str:
+        return f"@ros2_lv/{self.domain}/**"
+
+    def caches(self) -> list[str]:
+        return [f"{k}/@adv/**" for k in self.topic_keys]
+
+
+def roles(vehicle_ids: list[str] | tuple[str, ...], ros2: bool = False) -> list[str]:
+    """Every role of a fleet: the world, the ground station, one per vehicle (and the two ROS 2
+    roles when the fleet publishes to ROS 2)."""
+    return [WORLD_ROLE, GROUND_ROLE, *(vehicle_role(v) for v in vehicle_ids),
+            *((ROS2_ROLE, ROS2_CLIENT_ROLE) if ros2 else ())]
 
 
 def _rule(rule_id: str, messages: tuple[str, ...], key_exprs: list[str], flow: str = "ingress") -> dict:
@@ -57,7 +89,8 @@ def _rule(rule_id: str, messages: tuple[str, ...], key_exprs: list[str], flow: s
             "key_exprs": key_exprs}
 
 
-def fleet_acl(fleet: str, listeners: Mapping[str, Sequence[str]], match_certificates: bool = False) -> dict:
+def fleet_acl(fleet: str, listeners: Mapping[str, Sequence[str]], match_certificates: bool = False,
+              ros2: Ros2Grant | None = None) -> dict:
     """The ``access_control`` section of the router's Zenoh config for ``fleet``, whose
     vehicles are the keys of ``listeners`` (vehicle id -> the ids its ω is addressed to).
 
@@ -75,7 +108,7 @@ def fleet_acl(fleet: str, listeners: Mapping[str, Sequence[str]], match_certific
         subjects.append(s)
         return role
 
-    members = [subject(r) for r in roles(list(listeners))]
+    members = [subject(r) for r in roles(list(listeners)) + ([ROS2_ROLE] if ros2 else [])]
     rules += [_rule("fleet-out", MESSAGES, [everything], flow="egress"),
               _rule("fleet-read", READ, [everything])]
     policies.append({"id": "members", "rules": ["fleet-out", "fleet-read"], "subjects": members})
@@ -97,7 +130,9 @@ def fleet_acl(fleet: str, listeners: Mapping[str, Sequence[str]], match_certific
     no_commands = {**_rule("no-commands", ("query",), [f"{keys.prefix(f)}/world/cmd/**"]), "permission": "deny"}
     rules.append(no_commands)
     policies.append({"id": "not-ground", "rules": ["no-commands"],
-                     "subjects": [WORLD_ROLE, *(vehicle_role(v) for v in listeners)]})
+                     "subjects": [WORLD_ROLE, *(vehicle_role(v) for v in listeners), *([ROS2_ROLE] if ros2 else [])]})
+    if ros2 is not None:
+        _ros2_rules(f, ros2, rules, policies, subject(ROS2_CLIENT_ROLE))
 
     for vid, heard_by in listeners.items():
         role = vehicle_role(vid)
@@ -108,3 +143,18 @@ def fleet_acl(fleet: str, listeners: Mapping[str, Sequence[str]], match_certific
         policies.append({"id": role, "rules": [f"{role}-put", f"{role}-token", f"{role}-ping"], "subjects": [role]})
     return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects,
             "policies": policies}
+
+
+def _ros2_rules(f: str, g: Ros2Grant, rules: list, policies: list, client: str) -> None:
+    """The bridge's and a ROS 2 machine's rules (see the module's docstring)."""
+    ros = [*g.topic_keys, *g.caches(), g.graph()]
+    rules += [_rule("ros2-out", MESSAGES, ros, flow="egress"),
+              _rule("ros2-put", ("put", "reply"), list(g.topic_keys)),  # a cache replies with the data key
+              _rule("ros2-caches", ("declare_queryable", "reply", "liveliness_token"), g.caches()),
+              _rule("ros2-tokens", ("liveliness_token",), [g.graph(), keys.alive(f, ROS2_ROLE)]),
+              _rule("ros2-read", READ, ros)]
+    policies.append({"id": "ros2", "rules": ["ros2-out", "ros2-put", "ros2-caches", "ros2-tokens"],
+                     "subjects": [ROS2_ROLE]})
+    rules.append(_rule("ros2-client-tokens", ("liveliness_token",), [g.graph()]))
+    policies.append({"id": "ros2-client", "rules": ["ros2-out", "ros2-read", "ros2-client-tokens"],
+                     "subjects": [client]})

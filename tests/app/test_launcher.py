@@ -460,3 +460,13 @@ def test_no_status_is_believed_unless_signed_and_none_raises(tmp_path_factory, p
     signed = attachment is not None and attachment == status_signature(la.status_key, payload)
     assert sum(la.rejected.values()) + (la.status is not None) == 1
     assert la.status is None or signed
+def test_the_ros2_bridge_is_no_vehicle_to_restart_and_exists_only_when_asked(make, tmp_path):
+    la, c, clock, lines = make("always", EXIT_0)
+    bridge = la.children["ros2"] = Child("ros2", EXIT_3, la.logs / "ros2.log")
+    bridge.start(la.env)
+    exited(c)
+    bridge.proc.wait(timeout=60)
+    la._watch_agents()
+    assert c.restart_at is not None and bridge.restart_at is None and not any("ros2" in ln for ln in lines)
+    argv = la._bridge().argv
+    assert argv[1:3] == ["-m", "cdus.ros2"] and argv[argv.index("--fleet") + 1] == "t"

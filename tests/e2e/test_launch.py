@@ -31,6 +31,8 @@ def test_lockstep_reproduces_the_in_process_run(tmp_path, launches, links):
     assert_same_trace(tmp_path / "trace.npz", ref)
     metrics = json.loads((run / "metrics.json").read_text())
     assert metrics["mode"] == "lockstep" and metrics["completed"] is True
+    # nothing of the ROS 2 face in a fleet that did not ask for it (docs/ros2.md): no bridge, no role
+    assert not (run / "logs" / "ros2.log").exists() and not (run / "secure" / "ros2-client.json5").exists()
     for field in ("duration_s", "path_settle_s", "coord_settle_s", "final_path_error_max",
                   "final_coord_error_max", "omega_rate_final"):
         assert metrics[field] == pytest.approx(ref.metrics[field], abs=1e-9), field

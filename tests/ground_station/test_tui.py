@@ -88,7 +88,7 @@ def test_snapshot_shows_every_vehicle_with_its_state_kind_and_values():
 
 def test_names_that_are_not_the_worlds_vehicles_are_not_rows():
     gs = FakeGS()
-    gs.view.alive |= {"gs-operator2", "launcher"}
+    gs.view.alive |= {"gs-operator2", "launcher", "ros2"}  # ros2: the ROS 2 bridge (docs/ros2.md)
     gs.view.states["forged"] = gs.view.states["usv1"]
     assert [r[0] for r in snapshot(gs.view)["rows"]] == IDS
     gs.view.world = None  # before the world's first status: whoever is heard

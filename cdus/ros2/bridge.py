@@ -1,0 +1,217 @@
+"""Who publishes the fleet to ROS 2? A process of its own, reading what the world reads.
+
+The bridge (``python -m cdus.ros2``, started by ``cdus launch --ros2``) is one ROS 2 node in
+rmw_zenoh's format (:mod:`cdus.ros2.rmw`): a liveliness token for the node and one per
+publisher, so ``ros2 node list`` and ``ros2 topic list`` show them. It subscribes to the
+vehicles' telemetry (``to/*/state/*``) and the fleet's events on the fleet's own Zenoh and
+republishes them as the topics of :mod:`cdus.ros2.fleet`: per vehicle its pose, odometry, ω and
+ω̇ and a /tf transform every ``1/rate`` simulated seconds, /clock at every control tick (the
+first telemetry of a tick publishes its time, so /clock never goes back), each event as it
+comes, and the paths once, at the start, kept for late subscribers (transient local).
+
+It cannot slow the fleet: a sample is put in a bounded queue in Zenoh's callback and taken
+from there by the bridge's own thread, so a slow bridge drops its oldest telemetry (counted)
+and never holds up the router's link to it. A hostile or malformed sample is counted by reason
+and dropped. It stops when the world's liveliness token goes (the run is over) or on SIGTERM.
+"""
+
+from __future__ import annotations
+
+import collections
+import json
+import signal
+import threading
+import time
+from typing import Any, Callable
+
+import zenoh
+import zenoh.ext
+
+from cdus.ros2 import cdr, fleet as rf
+from cdus.ros2.rmw import Node, attachment, gid
+from cdus.scenario.model import Scenario
+from cdus.core.schedule import total_ticks
+from cdus.sim.polyline import path_polyline
+from cdus.wire import keys
+from cdus.wire.access import ROS2_ROLE
+from cdus.wire.messages import decode_states
+from cdus.wire.schemas import decode_event
+
+MAX_T = 2.0**31 - 1  # s: builtin_interfaces/Time's seconds are an int32
+QUEUE = 4096  # samples waiting for the bridge's thread; past this the oldest are dropped (counted)
+
+
+class Publisher:
+    """One ROS 2 publisher: its Zenoh publisher, its graph token, its GID and sequence number."""
+
+    def __init__(self, session: Any, node: Node, entity_id: int, topic: rf.Topic, key: str, distro: str):
+        self.topic = topic
+        if topic.qos.transient_local:  # what rmw_zenoh does: an advanced publisher with a cache
+            self.pub = zenoh.ext.declare_advanced_publisher(
+                session, key, cache=zenoh.ext.CacheConfig(max_samples=topic.qos.depth), publisher_detection=True)
+        else:
+            self.pub = session.declare_publisher(key)
+        self.token = session.liveliness().declare_token(
+            node.publisher_token(entity_id, topic.name, topic.type_name, topic.qos, distro))
+        self.gid = gid(node.zid, entity_id)
+        self.seq = 0
+        self.sent = 0
+
+    def publish(self, value: dict) -> None:
+        self.seq += 1
+        self.pub.put(cdr.encode(self.topic.type_name, value), attachment=attachment(self.seq, time.time_ns(), self.gid))
+        self.sent += 1
+
+    def close(self) -> None:
+        self.token.undeclare()
+        self.pub.undeclare()
+
+
+class Republisher:
+    """What the bridge makes of one sample of the fleet: telemetry rows into the vehicles' topics
+    and /clock, an event into the events topic. ``publish((vehicle or None, field), value)`` sends
+    a message; a malformed or forged sample is counted in ``rejected`` by reason and dropped."""
+
+    def __init__(self, scenario: Scenario, fleet: str, publish: Callable[[tuple[str | None, str], dict], None],
+                 duration: float | None = None):
+        self.fleet, self.publish, self.spec, self.ids = keys.check_fleet(fleet), publish, scenario.ros2, scenario.ids
+        self.every = rf.every(scenario.ros2, scenario.rates.control)
+        self.period = 1.0 / scenario.rates.control
+        self.last = total_ticks(duration or scenario.duration, self.period)  # the run's last tick
+        self.rejected: dict[str, int] = {}
+        self.last_tick = -1
+        self.before: dict[str, tuple[float, float]] = {}  # per vehicle, (t, heading) of its previous row
+
+    def _reject(self, reason: str) -> None:
+        self.rejected[reason] = self.rejected.get(reason, 0) + 1
+
+    def handle(self, key: str, payload: bytes) -> None:
+        """One sample from the fleet: telemetry rows or an event."""
+        if key == keys.world_events(self.fleet):
+            e = decode_event(payload, self.ids)
+            if isinstance(e, str):
+                self._reject(f"event {e}")
+                return
+            self.publish((None, "events"), {"data": json.dumps(e.as_dict(), ensure_ascii=False)})
+            return
+        kind, src = keys.leaf(key)
+        if kind != "state" or src not in self.ids:
+            self._reject("state unknown_sender")
+            return
+        rows = decode_states(payload, len(self.ids))
+        if isinstance(rows, str):
+            self._reject(f"state {rows}")
+            return
+        for row in rows:
+            vid = self.ids[row.sender]
+            if vid != src:  # a vehicle speaks only for itself
+                self._reject("state wrong_sender")
+                continue
+            if not (row.tick <= self.last and 0.0 <= row.t < MAX_T and abs(row.t - row.tick * self.period) <= self.period / 2):
+                self._reject("state tick_time")  # t_n = n T, n within the run: a forged tick would stop /clock
+                continue
+            self.publish_row(vid, row)
+
+    def publish_row(self, vid: str, row: Any) -> None:
+        frame = self.spec.world_frame
+        if row.tick > self.last_tick:
+            self.last_tick = row.tick
+            self.publish((None, "clock"), rf.clock(row.t))
+        rate = rf.yaw_rate(row.heading, row.t, self.before.get(vid))
+        self.before[vid] = (row.t, row.heading)
+        if row.tick % self.every:
+            return
+        for which, value in rf.vehicle_messages(vid, row.t, row.q, row.heading, row.speed, row.omega, row.omega_rate,
+                                                frame, rate):
+            self.publish(which, value)
+
+
+class Bridge:
+    def __init__(self, scenario: Scenario, fleet: str, session: Any, log: Callable[[str], None] = print,
+                 duration: float | None = None):
+        self.scenario, self.fleet, self.session, self.log = scenario, keys.check_fleet(fleet), session, log
+        spec = self.spec = scenario.ros2
+        self.ids = scenario.ids
+        self.node = Node(spec.domain_id, str(session.info.zid()), rf.node_name(fleet), spec.namespace)
+        self.dropped = 0
+        self.queue: collections.deque = collections.deque()
+        self.cond = threading.Condition()
+        self.world_seen = False
+        self.stop = False
+        self.node_token = session.liveliness().declare_token(self.node.token())
+        self.pubs: dict[tuple[str | None, str], Publisher] = {}
+        for entity_id, topic in enumerate(rf.topics(spec, self.ids), start=1):
+            self.pubs[(topic.vehicle, topic.field)] = Publisher(session, self.node, entity_id, topic,
+                                                                rf.key(spec, topic), spec.distro)
+        for v in scenario.vehicles:  # once: the advanced publisher keeps it for late subscribers
+            self.pubs[(v.id, "path")].publish(rf.path(path_polyline(v, scenario.duration), spec.world_frame))
+        self.republisher = Republisher(scenario, fleet, lambda which, value: self.pubs[which].publish(value), duration)
+        f = self.fleet
+        self.subs = [session.declare_subscriber(keys.any_state(f), self._enqueue),
+                     session.declare_subscriber(keys.world_events(f), self._enqueue),
+                     session.liveliness().declare_subscriber(keys.alive(f, keys.WORLD), self._on_world, history=True)]
+        self.alive = session.liveliness().declare_token(keys.alive(f, ROS2_ROLE))  # ready: the launcher waits for it
+
+    # ------------------------------------------------------------------ Zenoh's threads: never block
+    def _enqueue(self, sample: Any) -> None:
+        with self.cond:
+            if len(self.queue) >= QUEUE:
+                self.queue.popleft()
+                self.dropped += 1
+            self.queue.append((str(sample.key_expr), sample.payload.to_bytes()))
+            self.cond.notify()
+
+    def _on_world(self, sample: Any) -> None:
+        with self.cond:
+            if str(sample.kind).endswith("DELETE"):
+                self.stop = self.world_seen
+            else:
+                self.world_seen = True
+            self.cond.notify()
+
+    def request_stop(self) -> None:
+        with self.cond:
+            self.stop = True
+            self.cond.notify()
+
+    # ------------------------------------------------------------------ the bridge's thread
+    def run(self) -> int:
+        """Republish until the world is gone or a stop is asked for. Returns 0."""
+        while True:
+            with self.cond:
+                while not self.queue and not self.stop:
+                    self.cond.wait(timeout=1.0)
+                if self.stop and not self.queue:
+                    break
+                batch, self.queue = self.queue, collections.deque()
+            for key, payload in batch:
+                self.republisher.handle(key, payload)
+        return 0
+
+    def summary(self) -> str:
+        sent = sum(p.sent for p in self.pubs.values())
+        rej = ", ".join(f"{n} {r}" for r, n in sorted(self.republisher.rejected.items())) or "none"
+        return (f"ros2 bridge: {sent} messages published on {len(self.pubs)} topics (domain {self.spec.domain_id}, "
+                f"{self.spec.distro}); {self.dropped} telemetry samples dropped by a full queue; rejected: {rej}; "
+                f"CPU {time.process_time():.2f} s")
+
+    def close(self) -> None:
+        for s in self.subs:
+            s.undeclare()
+        self.alive.undeclare()
+        for p in self.pubs.values():
+            p.close()
+        self.node_token.undeclare()
+
+
+def run_bridge(scenario: Scenario, fleet: str, session: Any, duration: float | None = None) -> int:
+    bridge = Bridge(scenario, fleet, session, duration=duration)
+    signal.signal(signal.SIGTERM, lambda *_: bridge.request_stop())
+    signal.signal(signal.SIGINT, lambda *_: bridge.request_stop())
+    bridge.log(f"ros2 bridge up: node {bridge.node.namespace.rstrip('/')}/{bridge.node.name}, "
+               f"{len(bridge.pubs)} publishers in domain {scenario.ros2.domain_id}")
+    try:
+        return bridge.run()
+    finally:
+        bridge.log(bridge.summary())
+        bridge.close()
