@@ -245,6 +245,7 @@ class World:
         self.cpu_s = 0.0  # CPU time of the process over the run
         self.finished = False
         self.stop_requested = False
+        self._stop_tick: int | None = None  # the tick a stop command said the run ends after
         self.paused_at: float | None = None  # realtime: wall time of a fleet pause
         self.t0: float | None = None
         self.session: Any = None
@@ -651,6 +652,7 @@ class World:
         self.stop_requested = True
         # the tick of the event (and of the run's last record): the answer said the next one, a tick later
         tick = round(self._sim_now() / self.period)
+        self._stop_tick = tick
         return Verdict(True, "the run ends after this tick: its metrics are written", tick)
 
     def _cmd_fault_done(self, f: dict, by: str) -> Verdict | str:
@@ -1342,15 +1344,18 @@ class World:
                 pass
             for old in [k for k in st.rows if k < self.next_tick]:
                 st.rows.pop(old)
-        if self.stop_requested:
+        if self.stop_requested and self._stop_tick is None:  # a signal: no tick was said
             return
+        # a stop ends the run after the tick it said (the wall clock's, REALTIME_LAG ahead of the
+        # newest recorded: a stop said "t = 17.36 s" and the metrics ended at 17.2 s)
+        last = self.last_tick if self._stop_tick is None else min(self._stop_tick, self.last_tick)
         # give the final tick's telemetry a moment, then record what is left with the newest states
         end = time.monotonic() + 2.0
         live = [self.index[v] for v in st.alive]
-        while (any(st.acked.get(j, -1) < self.last_tick for j in live) and time.monotonic() < end
-               and not self.stop_requested):
+        while (any(st.acked.get(j, -1) < last for j in live) and time.monotonic() < end
+               and (not self.stop_requested or self._stop_tick is not None)):
             self._drain(block=True)
-        while self.next_tick <= self.last_tick and self._record(self.next_tick):
+        while self.next_tick <= last and self._record(self.next_tick):
             pass
 
     def _realtime_faults_due(self, now: float) -> None:
