@@ -48,8 +48,8 @@ from cdus.sim.build import (
 )
 from cdus.sim.lockstep import CatchUp, Decided, Fault, Grant, Join, Lockstep, RadioSample, Roster, Sense, horizon_window
 from cdus.sim.reports import (
-    ConsoleQuota, formation_changed, graph_event, link_state_event, path_changed, scheduled_change_events,
-    vehicle_back, vehicle_lost,
+    ConsoleQuota, formation_changed, graph_event, link_state_event, newest_events, path_changed,
+    scheduled_change_events, vehicle_back, vehicle_lost,
 )
 from cdus.sim.radio import RadioWatch, apply_radio_change, geometry_sample, radio_block, radio_change_problem
 from cdus.sim.sensing import sense_tick
@@ -1384,7 +1384,8 @@ class World:
         paused = self.lockstep.paused if self.clock == "lockstep" else self.paused_at is not None
         extra = replace(self._status_extra(), completion=completion)
         payload = encode_status(t, self.duration, self.clock, sorted(self.st.alive), self.ids, path, coord,
-                                self.events[-10:], paused, roster=dict(zip(self.ids, extra.states)), extra=extra)
+                                newest_events(self.events), paused, roster=dict(zip(self.ids, extra.states)),
+                                extra=extra)
         self._status_payload = payload  # what a status query is answered (bytes: replaced whole, never changed)
         self.pub_status.put(payload)
 
