@@ -115,3 +115,20 @@ def test_the_settled_picture_shows_the_fleet(lake_rrd):
     assert share(plots, lambda r, g, b: (np.max([r, g, b], 0) - np.min([r, g, b], 0)) > 80) > 0.005, "no curves"
     links = img[int(0.78 * h):int(0.95 * h), : int(0.35 * w)]  # the link timeline, bottom left
     assert share(links, lambda r, g, b: (g > 120) & (g - r > 40) & (g - b > 40)) > 0.05, "no link states (green)"
+
+
+def test_docs_screenshot_shoots_a_recording_it_is_given(lake_rrd, viewers, tmp_path):
+    """`docs/screenshot.py --rrd PATH`: the picture of a recording one has (issue 27: it could
+    only record lake_circle itself)."""
+    import sys
+
+    png, log = tmp_path / "given.png", tmp_path / "screenshot.log"
+    with open(log, "w") as out:
+        run = viewers([sys.executable, str(ROOT / "docs" / "screenshot.py"), "--rrd", str(lake_rrd), "--out", str(png)],
+                      out)
+        try:
+            code = run.wait(timeout=300)
+        except subprocess.TimeoutExpired:
+            pytest.fail("docs/screenshot.py --rrd took over 300 s:\n" + log.read_text())
+    assert code == 0, log.read_text()
+    _not_blank(_pixels(png))
