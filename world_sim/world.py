@@ -1416,15 +1416,20 @@ class World:
                       float(abs(omega[e.i] - omega[e.k] - delta)) if live[e.i] and live[e.k] else None)
                      for e, delta in zip(rec.edges, deltas)]
             closest = closest_live_pair(q, live, kinds, self.ids)
+        # a restarted vehicle's links and receipts add up over its processes, as in the metrics
         links: dict[tuple[str, str], tuple] = {}
-        for s in self.st.stats.values():
+        rx: list[tuple[int, int] | None] = [None] * len(self.ids)
+        for s in self._processes():  # the retired first: the newest process says a link's state
             if isinstance(s.faults, dict):
                 last_state = {c["link"]: c["state"] for c in s.faults["state_changes"]}
                 for name, c in s.faults["links"].items():
                     src, _, dst = name.partition("->")
-                    links[(src, dst)] = (src, dst, c["sent"], min(c["dropped"], c["sent"]), last_state.get(name))
-        rx = [None if (s := self.st.stats.get(vid)) is None else (s.sent_to_me, min(s.dropped, s.sent_to_me))
-              for vid in self.ids]
+                    _, _, sent, dropped, state = links.get((src, dst), (src, dst, 0, 0, None))
+                    links[(src, dst)] = (src, dst, sent + c["sent"], dropped + min(c["dropped"], c["sent"]),
+                                         last_state.get(name, state))
+            j = self.index[s.id]
+            sent, dropped = rx[j] or (0, 0)
+            rx[j] = (sent + s.sent_to_me, dropped + min(s.dropped, s.sent_to_me))
         return StatusExtra(kinds=kinds, states=states, edges=edges, links=[links[k] for k in sorted(links)], rx=rx,
                            safety_radius=self.scenario.safety.radius, closest=closest, path_errors=path_errors,
                            directed=self.scenario.directed)

@@ -184,3 +184,26 @@ def test_the_status_says_a_link_change_of_twelve_links_whole_not_the_newest_ten_
     assert texts[0] == "link loss=0.1 by gs:alice" and texts[2:] == ["fleet paused by gs:alice",
                                                                     "fleet resumed by gs:alice"], texts
     assert texts[1].startswith("12 links lossy (from t = 10.02 s): "), texts
+
+
+def test_a_restarted_vehicles_links_and_receipts_in_the_status_count_its_earlier_processes():
+    """Issue 27: the status's per-link counters (the console's and gs status's link table) were
+    the newest process's only, from zero after a restart, while the metrics add them up."""
+    w = started(world())
+
+    def report(incarnation: int, sent: int, dropped: int, state: str) -> None:
+        block = {"sent": sent, "dropped": dropped,
+                 "dropped_by": {"loss": dropped, "burst": 0, "down": 0, "partition": 0}, "duplicated": 0, "delayed": 0}
+        faults = {"total": block, "links": {"usv2->usv1": block},
+                  "state_changes": [{"t": 0.0, "link": "usv2->usv1", "state": state}]}
+        s = AgentStats(id="usv1", tick=sent, sent_to_me=sent, delivered=sent - dropped, dropped=dropped,
+                       faults=faults, incarnation=incarnation)
+        w._handle(Sample(keys.stats(FLEET, "usv1"), Payload(encode_stats(s))))
+
+    report(1, 100, 10, "lossy")
+    report(1, 120, 12, "lossy")  # the same process, later: its counts replace its earlier ones
+    report(2, 30, 3, "down")  # restarted: counting from zero
+    w._publish_status()
+    st = decode_status(w.pub_status.puts[-1])
+    assert st["links"] == [("usv2", "usv1", 150, 15, "down")]
+    assert st["rx"][0] == (150, 15) and st["rx"][1:] == [None] * 5
