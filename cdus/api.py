@@ -797,8 +797,9 @@ def run(scenario: Scenario | str | os.PathLike, *, clock: str = "inproc", policy
 
 
 class _PrintingSink:
-    """A sink that prints each event's console lines (``ConsoleQuota.printed``) on stdout and
-    hands everything on to ``inner``."""
+    """A sink that prints each event's console lines on stdout as the launcher does (held
+    ``ConsoleQuota.HOLD_S`` of simulated time, then in time order, a change of many links as one
+    line: ``ConsoleQuota.hold``) and hands everything on to ``inner``."""
 
     def __init__(self, inner: Any, console: ConsoleQuota):
         self.inner, self.console = inner, console
@@ -807,12 +808,19 @@ class _PrintingSink:
         self.inner.start(scenario)
 
     def update(self, recorder: Recorder) -> None:
+        if len(recorder):
+            self._print(self.console.due(float(recorder.view("t")[-1])))
         self.inner.update(recorder)
 
     def event(self, event: Any) -> None:
-        for line in self.console.printed(event):
-            print(line, flush=True)
+        self.console.hold(event, event.t)
+        self._print(self.console.due(event.t))
         self.inner.event(event)
+
+    @staticmethod
+    def _print(lines: list[str]) -> None:
+        for line in lines:
+            print(line, flush=True)
 
     def link_state(self, t: float, src: str, dst: str, state: str) -> None:
         self.inner.link_state(t, src, dst, state)
@@ -824,6 +832,7 @@ class _PrintingSink:
             view(t, watch)
 
     def close(self) -> None:
+        self._print(self.console.flush())  # the run is over: what is held, at once
         self.inner.close()
 
 

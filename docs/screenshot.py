@@ -2,6 +2,7 @@
 
     python docs/screenshot.py                       # 150 simulated s -> docs/lake_circle.png
     python docs/screenshot.py --duration 60 --out /tmp/shot.png --keep-rrd /tmp/lake.rrd
+    python docs/screenshot.py --rrd runs/<run>/recording.rrd --out /tmp/run.png   # a recording you have
 
 Needs a Vulkan driver; on Debian/Ubuntu ``apt-get install -y mesa-vulkan-drivers`` gives
 lavapipe (CPU rendering, no GPU, no X server). The viewer runs headless on 127.0.0.1 in
@@ -92,19 +93,28 @@ def shoot(rrd: Path, size: str = "1280x720", timeout: float = 120.0, port: int |
             viewer.wait()
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     from PIL import Image
 
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--duration", type=float, default=150.0, help="simulated seconds (coordination settles at ~124 s)")
+    ap.add_argument("--rrd", type=Path, help="shoot this recording (a run's recording.rrd, `--rerun save:PATH`) "
+                    "instead of recording lake_circle")
+    ap.add_argument("--duration", type=float, help="simulated seconds of lake_circle to record (default 150: "
+                    "coordination settles at ~124 s)")
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "lake_circle.png")
     ap.add_argument("--size", default="1280x720", help="viewer window, logical points")
-    ap.add_argument("--keep-rrd", type=Path, help="keep the recording here")
+    ap.add_argument("--keep-rrd", type=Path, help="keep the recording of lake_circle here")
     ap.add_argument("--timeout", type=float, default=120.0)
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
+    if args.rrd is not None:
+        if args.duration is not None or args.keep_rrd is not None:
+            ap.error("--rrd shoots a recording you have: --duration and --keep-rrd are for recording lake_circle")
+        if not args.rrd.is_file():
+            ap.error(f"--rrd {args.rrd}: no such file (a run's recording is <run dir>/recording.rrd)")
     with tempfile.TemporaryDirectory() as tmp:
-        rrd = args.keep_rrd or Path(tmp) / "lake_circle.rrd"
-        record(rrd, args.duration)
+        rrd = args.rrd or args.keep_rrd or Path(tmp) / "lake_circle.rrd"
+        if args.rrd is None:
+            record(rrd, 150.0 if args.duration is None else args.duration)
         png = shoot(rrd, args.size, args.timeout)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     # 256 colours are plenty for a flat UI and make the file ~4x smaller

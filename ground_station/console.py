@@ -27,6 +27,7 @@ from cdus.wire.access import GROUND_ROLE, ROS2_ROLE
 from cdus.wire.transport import Transport, endpoint_host, open_session
 from cdus.wire.messages import StateMsg, decode_states, encode_control
 from cdus.wire.schemas import CommandReply, FleetEvent, decode_event, decode_reply, decode_settings, decode_status
+from cdus.sim.reports import LINK_GROUP_S, group_link_states  # noqa: F401 (LINK_GROUP_S: the console's too)
 from cdus.wire.text import printable
 
 #: exit codes of `cdus gs` (docs/ground_station.md)
@@ -168,35 +169,6 @@ def status_table(view: FleetView, now: float | None = None) -> str:
         if view.rejected:
             rows.append(f"({view.rejected} malformed messages ignored)")
     return "\n".join(rows)
-
-
-_LINK_STATE = re.compile(r"link (\S+) (up|lossy|down) \(from t = ([0-9.]+) s\)")
-LINK_GROUP_S = 1.0  # s: link_state events of one state this close together are one change (a command's)
-
-
-def group_link_states(events: list[FleetEvent]) -> list[FleetEvent]:
-    """``events`` with each run of ``link_state`` events into one state within LINK_GROUP_S of
-    the run's first said once: a ground station's ``link loss=0.1`` makes one event per
-    directed link (12 on lake_circle), which filled the 8 lines of the status table. The others
-    are kept as they are, in order."""
-    out: list[FleetEvent] = []
-    groups: dict[str, tuple[int, float, list[str]]] = {}  # state -> (index in out, first t, links)
-    for e in events:
-        m = _LINK_STATE.fullmatch(e.text) if e.kind == "link_state" and e.link else None
-        if m is None:
-            out.append(e)
-            continue
-        state = m[2]
-        g = groups.get(state)
-        if g is None or not 0.0 <= e.t - g[1] <= LINK_GROUP_S or e.link in g[2]:
-            groups[state] = (len(out), e.t, [e.link])
-            out.append(e)
-            continue
-        g[2].append(e.link)
-        names = ", ".join(g[2][:4]) + (f" and {len(g[2]) - 4} more" if len(g[2]) > 4 else "")
-        out[g[0]] = FleetEvent.of(g[1], "link_state", f"{len(g[2])} links {state} (from t = {g[1]:.2f} s): {names}",
-                                  severity=out[g[0]].severity)
-    return out
 
 
 def _not_live(view: FleetView, vid: str) -> str | None:

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections import Counter
 from typing import Any, Callable
 
 import zenoh
@@ -36,6 +37,7 @@ from textual.widgets import DataTable, Footer, RichLog, Static
 from cdus.wire import keys
 from cdus.wire.schemas import FleetEvent
 from ground_station.alarms import Alarms
+from cdus.sim.reports import group_link_states
 from ground_station.console import NOT_VEHICLES, _text, num, vehicle_state
 
 REFRESH_S = 0.5
@@ -45,6 +47,20 @@ VEHICLE_COLUMNS = (("vehicle", 12), ("kind", 4), ("state", 6), ("t (s)", 9), ("x
                    ("z (m)", 6), ("ω", 10), ("ω̇", 7), ("|Φ| (m)", 8), ("edge err", 9), ("rx ω", 8), ("dropped", 7))
 EDGE_COLUMNS = (("edge", 25), ("error (rad)", 11))
 LINK_COLUMNS = (("link / receiver", 27), ("sent", 9), ("dropped", 8), ("state", 6))
+
+
+def before_line(events: list[FleetEvent]) -> str:
+    """The world's recent events, heard before this console came, as one line of its log (they
+    were a line each, up to ten "event (before)" lines the log started with): how many of each
+    kind, a link change of many links as one (group_link_states), the newest in full."""
+    grouped = group_link_states(sorted(events, key=lambda e: e.t))
+    if not grouped:
+        return ""
+    if len(grouped) == 1:
+        return f"event (before this console) {grouped[0].line()}"
+    kinds = Counter(e.kind for e in grouped)
+    return (f"before this console: {len(grouped)} events from t = {grouped[0].t:.2f} to {grouped[-1].t:.2f} s "
+            f"({', '.join(f'{n} {k}' for k, n in kinds.most_common())}); the newest: {grouped[-1].line()}")
 
 
 def send_command(gs: Any, op: str, vehicle: str | None = None) -> tuple[bool, str]:
@@ -261,10 +277,11 @@ class ConsoleApp(App):
             links = [(f"-> {v}", str(r[0]), str(r[1]), "") for v, r in zip(w.get("ids") or [], w.get("rx") or [])
                      if r is not None]
         _fill(self.query_one("#links", DataTable), links)
-        if w is not None and self._status_seen is None:  # what happened before the console came
-            for e in w.get("events") or []:
-                if isinstance(e, FleetEvent) and e.kind != "link_burst":
-                    self.log_line(f"event (before) {e.line()}")
+        if w is not None and self._status_seen is None:  # what happened before the console came: one line
+            line = before_line([e for e in w.get("events") or []
+                                if isinstance(e, FleetEvent) and e.kind != "link_burst"])
+            if line:
+                self.log_line(line)
         if w is not None:  # every refresh: a vehicle's token going is news before the next status
             self._status_seen = w
             for ch in self.alarms.update(alarm_status(w, snap["alive"], snap["now"], snap["heard"], snap["tokens_in"])):

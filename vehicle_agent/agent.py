@@ -230,6 +230,7 @@ class Agent:
         self.ticks_done = 0
         self._lat_sent = 0
         self._last_stats = 0.0
+        self._stats_tick = -1  # ticks_done when the counters were last published
         self.log = log or (lambda s: print(f"[{vid}] {s}", flush=True))
         self.session: Any = None
         self.token: Any = None
@@ -668,8 +669,8 @@ class Agent:
             while clock.granted < n or node.waiting_for(n) or self._samples_missing(n):
                 if self._stopping():
                     return
-                if self._states and clock.granted < n:  # the world may be waiting for these rows to grant
-                    self.flush_states()
+                if clock.granted < n and (self._states or self._stats_tick != self.ticks_done):
+                    self._report_rows()  # the world may be waiting for these rows to grant (or for a fault)
                 self._recv(never)
                 now_m = time.monotonic()
                 # back from an outage (the world's token came back), or granted and still waiting for
@@ -770,6 +771,17 @@ class Agent:
         self.log(f"rejoining at tick {tick} (t = {tick * self.period:.2f} s) from {where}, "
                  f"ω = {self.node.vehicle.omega:.3f}" + (" (near its neighbours' consensus)" if omegas else ""))
 
+    def _report_rows(self) -> None:
+        """Lockstep, waiting for the world: the counters, then the rows held. The world carries out
+        a vehicle fault at tick K once every live vehicle has reported K - 1, so a killed process's
+        counters then cover the messages its node decided (those sent before K - 1, as the
+        in-process fleet's node decides them): the run's per-link counters are whole after a kill.
+        Once per wait with ticks stepped since the last report: a grant wait is rare (the grant
+        runs a window ahead of the slowest vehicle), the once-a-second report the rest."""
+        if self._stats_tick != self.ticks_done:
+            self.publish_stats()
+        self.flush_states()
+
     def flush_states(self) -> None:
         if self._states and self.session is not None:
             self.pub_state.put(encode_states(self._states))
@@ -823,6 +835,7 @@ class Agent:
     def publish_stats(self) -> None:
         if self.session is not None:
             self.pub_stats.put(encode_stats(self.stats()))
+            self._stats_tick = self.ticks_done
 
     def _await_stop(self) -> None:
         """After the last tick, wait for the world's stop so it has received everything."""

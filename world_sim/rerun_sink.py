@@ -570,7 +570,14 @@ class RerunSink:
             columns += _strip_lists(ends.reshape(len(layout.uav), 2 * n, 3), np.full(n, 2))
         scalars = np.concatenate([recorder.path_error[lo:hi].T, recorder.omega_rate[lo:hi].T,
                                   recorder.edge_error(lo, hi).T])
-        columns += _lists(_SCALAR, pa.array(scalars.ravel()), _rows(scalars.size), len(scalars))
+        # an edge with an end not live has no error (an empty row: a gap in its plot), as the
+        # metrics leave it out: a killed vehicle's frozen ω made its edges' errors grow to ~10 rad
+        keep = np.ones(scalars.shape, dtype=bool)
+        if recorder.edges:
+            live = recorder.live[lo:hi]
+            keep[len(scalars) - len(recorder.edges):] = [live[:, e.i] & live[:, e.k] for e in recorder.edges]
+        offsets = pa.array(np.concatenate(([0], np.cumsum(keep.ravel()))).astype(np.int32))
+        columns += _lists(_SCALAR, pa.array(scalars.ravel()[keep.ravel()]), offsets, len(scalars))
         self.rec.send_record_batch(pa.RecordBatch.from_arrays(columns, schema=layout.ticks), index=bp.TIMELINE)
         first = -(-lo // UPDATE_EVERY) * UPDATE_EVERY
         self._send_trails(recorder, list(range(first, hi, UPDATE_EVERY)))

@@ -52,8 +52,8 @@ from cdus.sim.build import (
 )
 from cdus.sim.lockstep import CatchUp, Decided, Fault, Grant, Join, Lockstep, RadioSample, Roster, Sense, horizon_window
 from cdus.sim.reports import (
-    ConsoleQuota, formation_changed, graph_event, link_state_event, path_changed, scheduled_change_events,
-    vehicle_back, vehicle_lost,
+    ConsoleQuota, formation_changed, graph_event, link_state_event, newest_events, path_changed,
+    scheduled_change_events, vehicle_back, vehicle_lost,
 )
 from cdus.sim.radio import RadioWatch, apply_radio_change, geometry_sample, radio_block, radio_change_problem
 from cdus.sim.sensing import sense_tick
@@ -259,6 +259,7 @@ class World:
         self.cpu_s = 0.0  # CPU time of the process over the run
         self.finished = False
         self.stop_requested = False
+        self._stop_tick: int | None = None  # the tick a stop command said the run ends after
         self.paused_at: float | None = None  # realtime: wall time of a fleet pause
         self.t0: float | None = None
         self.session: Any = None
@@ -665,6 +666,7 @@ class World:
         self.stop_requested = True
         # the tick of the event (and of the run's last record): the answer said the next one, a tick later
         tick = round(self._sim_now() / self.period)
+        self._stop_tick = tick
         return Verdict(True, "the run ends after this tick: its metrics are written", tick)
 
     def _cmd_fault_done(self, f: dict, by: str) -> Verdict | str:
@@ -1356,15 +1358,18 @@ class World:
                 pass
             for old in [k for k in st.rows if k < self.next_tick]:
                 st.rows.pop(old)
-        if self.stop_requested:
+        if self.stop_requested and self._stop_tick is None:  # a signal: no tick was said
             return
+        # a stop ends the run after the tick it said (the wall clock's, REALTIME_LAG ahead of the
+        # newest recorded: a stop said "t = 17.36 s" and the metrics ended at 17.2 s)
+        last = self.last_tick if self._stop_tick is None else min(self._stop_tick, self.last_tick)
         # give the final tick's telemetry a moment, then record what is left with the newest states
         end = time.monotonic() + 2.0
         live = [self.index[v] for v in st.alive]
-        while (any(st.acked.get(j, -1) < self.last_tick for j in live) and time.monotonic() < end
-               and not self.stop_requested):
+        while (any(st.acked.get(j, -1) < last for j in live) and time.monotonic() < end
+               and (not self.stop_requested or self._stop_tick is not None)):
             self._drain(block=True)
-        while self.next_tick <= self.last_tick and self._record(self.next_tick):
+        while self.next_tick <= last and self._record(self.next_tick):
             pass
 
     def _realtime_faults_due(self, now: float) -> None:
@@ -1393,7 +1398,8 @@ class World:
         paused = self.lockstep.paused if self.clock == "lockstep" else self.paused_at is not None
         extra = replace(self._status_extra(), completion=completion)
         payload = encode_status(t, self.duration, self.clock, sorted(self.st.alive), self.ids, path, coord,
-                                self.events[-10:], paused, roster=dict(zip(self.ids, extra.states)), extra=extra)
+                                newest_events(self.events), paused, roster=dict(zip(self.ids, extra.states)),
+                                extra=extra)
         self._status_payload = payload  # what a status query is answered (bytes: replaced whole, never changed)
         if self._status_key is None:
             self.pub_status.put(payload)
@@ -1427,15 +1433,20 @@ class World:
                       float(abs(omega[e.i] - omega[e.k] - delta)) if live[e.i] and live[e.k] else None)
                      for e, delta in zip(rec.edges, deltas)]
             closest = closest_live_pair(q, live, kinds, self.ids)
+        # a restarted vehicle's links and receipts add up over its processes, as in the metrics
         links: dict[tuple[str, str], tuple] = {}
-        for s in self.st.stats.values():
+        rx: list[tuple[int, int] | None] = [None] * len(self.ids)
+        for s in self._processes():  # the retired first: the newest process says a link's state
             if isinstance(s.faults, dict):
                 last_state = {c["link"]: c["state"] for c in s.faults["state_changes"]}
                 for name, c in s.faults["links"].items():
                     src, _, dst = name.partition("->")
-                    links[(src, dst)] = (src, dst, c["sent"], min(c["dropped"], c["sent"]), last_state.get(name))
-        rx = [None if (s := self.st.stats.get(vid)) is None else (s.sent_to_me, min(s.dropped, s.sent_to_me))
-              for vid in self.ids]
+                    _, _, sent, dropped, state = links.get((src, dst), (src, dst, 0, 0, None))
+                    links[(src, dst)] = (src, dst, sent + c["sent"], dropped + min(c["dropped"], c["sent"]),
+                                         last_state.get(name, state))
+            j = self.index[s.id]
+            sent, dropped = rx[j] or (0, 0)
+            rx[j] = (sent + s.sent_to_me, dropped + min(s.dropped, s.sent_to_me))
         return StatusExtra(kinds=kinds, states=states, edges=edges, links=[links[k] for k in sorted(links)], rx=rx,
                            safety_radius=self.scenario.safety.radius, closest=closest, path_errors=path_errors,
                            directed=self.scenario.directed)

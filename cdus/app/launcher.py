@@ -526,11 +526,18 @@ class Launcher:
         if isinstance(e, str):
             self._reject(f"event {e}", "a malformed event")
             return
-        if not self.opts.quiet:
-            with self.cond:  # the quota is shared with the opening (main thread)
-                lines = self._console.printed(e)
-            for line in lines:
-                self.log(line)
+        if not self.opts.quiet:  # printed by the watch loop, in time order (_print_events)
+            with self.cond:  # the quota is shared with the main thread
+                self._console.hold(e, self.clock())
+
+    def _print_events(self, final: bool = False) -> None:
+        """The events heard HOLD_S ago or more (``final``: all), in time order, a link change of
+        many links as one line: they used to be printed as heard, a line per link, the links'
+        states a second late (with the agents' counters) after the events stamped later."""
+        with self.cond:
+            lines = self._console.flush() if final else self._console.due(self.clock())
+        for line in lines:
+            self.log(line)
 
     def _wait_alive(self, names: list[str], timeout: float) -> list[str]:
         """Wait for every name's liveliness token; returns the missing ones (early exits end the wait)."""
@@ -603,7 +610,9 @@ class Launcher:
             code = world.poll()
             if code is not None:
                 progress.done()
+                self._print_events(final=True)
                 return code
+            self._print_events()
             with self.cond:
                 requests, self.requests = self.requests, []
             for op, vid in requests:
@@ -845,6 +854,7 @@ def launch(scenario: Scenario, run_dir: Path, router: Transport, opts: LaunchOpt
         phase["stopping"] = phase["in_stop"] = True
         try:
             la.stop()
+            la._print_events(final=True)  # any heard while it stopped
         except KeyboardInterrupt:  # a second Ctrl-C: go straight to the kill
             for c in la.children.values():
                 c.signal_group(signal.SIGKILL)

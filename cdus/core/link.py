@@ -372,20 +372,28 @@ class LinkEmulator:
         return {"total": total.as_dict(), "links": links, "state_changes": changes}
 
 
+def _fault_counters(d: dict) -> LinkFaultCounters:
+    """A counter block of :meth:`LinkFaultCounters.as_dict` back into counters."""
+    return LinkFaultCounters(sent=d["sent"], dropped=d["dropped"], duplicated=d["duplicated"], delayed=d["delayed"],
+                             **d["dropped_by"])
+
+
 def merge_link_summaries(summaries: Iterable[dict]) -> dict:
-    """One summary from several :meth:`LinkEmulator.counters_summary` (e.g. one per agent,
-    each deciding its incoming links): links joined, totals added, state changes by time."""
+    """One summary from several :meth:`LinkEmulator.counters_summary` (e.g. one per agent
+    process, each deciding its incoming links): totals added, a link's counters added over the
+    processes that decided it (a restarted vehicle's old and new process: the new one counts
+    from zero), state changes by time."""
     total = LinkFaultCounters()
-    links: dict[str, dict] = {}
+    links: dict[str, LinkFaultCounters] = {}
     changes: list[dict] = []
     for s in summaries:
-        t = s["total"]
-        total.add(LinkFaultCounters(sent=t["sent"], dropped=t["dropped"], duplicated=t["duplicated"],
-                                    delayed=t["delayed"], **t["dropped_by"]))
-        links.update(s["links"])
+        total.add(_fault_counters(s["total"]))
+        for name, c in s["links"].items():
+            links.setdefault(name, LinkFaultCounters()).add(_fault_counters(c))
         changes.extend(s["state_changes"])
     changes.sort(key=lambda e: e["t"])
-    return {"total": total.as_dict(), "links": dict(sorted(links.items())), "state_changes": changes}
+    return {"total": total.as_dict(), "links": {k: links[k].as_dict() for k in sorted(links)},
+            "state_changes": changes}
 
 
 @dataclass

@@ -6,6 +6,7 @@ here, so one scenario gives the same kinds and texts whichever runs it.
 
 from __future__ import annotations
 
+import re
 from typing import Iterable, Sequence
 
 from cdus.core import graph as graphs
@@ -44,6 +45,58 @@ def link_state_event(t: float, link: str, state: str) -> FleetEvent:
     """A directed link ``src->dst`` became up | lossy | down at ``t`` (its first message that saw it)."""
     return FleetEvent.of(t, "link_state", f"link {link} {state} (from t = {t:.2f} s)",
                          severity="warn" if state == "down" else "info", link=link)
+
+
+_LINK_STATE = re.compile(r"link (\S+) (up|lossy|down) \(from t = ([0-9.]+) s\)")
+NEWEST_LOOK_BACK = 512  # events newest_events looks back for the rest of a link change
+LINK_GROUP_S = 1.0  # s: link_state events of one state this close together are one change (a command's)
+
+
+def group_link_states(events: list[FleetEvent]) -> list[FleetEvent]:
+    """``events`` with each run of ``link_state`` events into one state within LINK_GROUP_S of
+    the run's first said once, where the first was: a ground station's ``link loss=0.1`` makes
+    one event per directed link (12 on lake_circle), which filled the 8 lines of the status table
+    and made 12 lines of the launcher's. The others are kept as they are, in order."""
+    out: list[FleetEvent] = []
+    groups: dict[str, tuple[int, float, list[str]]] = {}  # state -> (index in out, first t, links)
+    for e in events:
+        m = _LINK_STATE.fullmatch(e.text) if e.kind == "link_state" and e.link else None
+        if m is None:
+            out.append(e)
+            continue
+        state = m[2]
+        g = groups.get(state)
+        if g is None or not 0.0 <= e.t - g[1] <= LINK_GROUP_S or e.link in g[2]:
+            groups[state] = (len(out), e.t, [e.link])
+            out.append(e)
+            continue
+        g[2].append(e.link)
+        names = ", ".join(g[2][:4]) + (f" and {len(g[2]) - 4} more" if len(g[2]) > 4 else "")
+        out[g[0]] = FleetEvent.of(g[1], "link_state", f"{len(g[2])} links {state} (from t = {g[1]:.2f} s): {names}",
+                                  severity=out[g[0]].severity)
+    return out
+
+
+def newest_events(events: Sequence[FleetEvent], n: int = 10) -> list[FleetEvent]:
+    """The newest ``n`` of ``events`` with each link change whole (:func:`group_link_states`), in
+    time order, for a status: a window of the newest 10 raw events cut a change of 12 links to
+    "6 links lossy ... and 2 more". The window is widened back over the ``link_state`` events
+    within LINK_GROUP_S of one in it (they arrive with each agent's counters, in no order of
+    time), and until it holds ``n`` once grouped; at most NEWEST_LOOK_BACK events back."""
+    end = len(events)
+    start = max(0, end - n)
+    while True:
+        states = [e.t for e in events[start:] if e.kind == "link_state"]
+        if states:
+            first = min(states)
+            for i in range(start - 1, max(0, end - NEWEST_LOOK_BACK) - 1, -1):
+                e = events[i]
+                if e.kind == "link_state" and e.t >= first - LINK_GROUP_S:
+                    start, first = i, min(first, e.t)
+        grouped = group_link_states(sorted(events[start:], key=lambda e: e.t))
+        if len(grouped) >= n or start <= max(0, end - NEWEST_LOOK_BACK):
+            return grouped[-n:]
+        start = max(0, start - (n - len(grouped)))
 
 
 def graph_event(t: float, ids: Sequence[str], pairs: Iterable[Pair], alive: Iterable[str]) -> FleetEvent:
@@ -162,11 +215,14 @@ class ConsoleQuota:
 
     :meth:`lines` returns the lines to print for ``event`` (maybe none)."""
 
+    HOLD_S = 1.5  # s an event is held by hold() before due() prints it (the agents report once a second)
+
     def __init__(self, per_link: int = 3, scenario: Scenario | None = None):
         self.per_link = per_link
         self.seen: dict[str | None, int] = {}
         self.design, self._lossy = design_lines(scenario) if scenario is not None else ("", {})
         self._design_said = False
+        self._held: list[tuple[float, FleetEvent]] = []  # (when heard, event): see hold()
 
     def opening(self) -> list[str]:
         """The design line, once, as :meth:`printed` would give it at t = 0, for a printer that
@@ -199,6 +255,35 @@ class ConsoleQuota:
     def printed(self, event: FleetEvent) -> list[str]:
         """The console lines of ``event`` as the launcher and ``cdus sim`` print them."""
         return [f"  event: {printable(line)}" for line in self.lines(event)]
+
+    # A printer that hears events out of time order (the launcher: link changes come with the
+    # agents' counters, up to a second late) holds each for HOLD_S of its own clock, then prints
+    # what is due in time order, a link change of many links as one line (group_link_states).
+
+    def hold(self, event: FleetEvent, now: float) -> None:
+        """``event`` heard at ``now`` (the printer's clock, seconds)."""
+        self._held.append((now, event))
+
+    def due(self, now: float) -> list[str]:
+        """The lines of the events held HOLD_S or longer at ``now``, in time order."""
+        ready = [e for at, e in self._held if now - at >= self.HOLD_S]
+        self._held = [(at, e) for at, e in self._held if now - at < self.HOLD_S]
+        return self._in_order(ready)
+
+    def flush(self) -> list[str]:
+        """The lines of every event held (the run is over)."""
+        ready, self._held = [e for _, e in self._held], []
+        return self._in_order(ready)
+
+    def _in_order(self, events: list[FleetEvent]) -> list[str]:
+        items: list[FleetEvent] = []
+        for e in sorted(events, key=lambda e: e.t):
+            lines = self.lines(e) if e.kind == "link_state" else None
+            if lines is not None and (not lines or lines[0] != e.line()):  # the design line, or nothing
+                items += [FleetEvent.of(e.t, "link_state", self.design)] if lines else []
+                continue
+            items.append(e)
+        return [line for e in group_link_states(items) for line in self.printed(e)]
 
 
 def formation_changed(tick: int, period: float, phases: Iterable[tuple[str, float]], by: str | None = None

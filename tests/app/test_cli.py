@@ -267,6 +267,34 @@ def test_sim_prints_the_fleets_events_as_launch_does(tmp_path, capsys):
     assert "event:" not in capsys.readouterr().out
 
 
+def test_sim_prints_a_change_of_many_links_as_one_line(tmp_path, capsys):
+    """Issue 27: a change of every link (a down window, a partition) was a line per link, twelve
+    on lake_circle. Now one line per change, in time order, as the launcher prints it."""
+    from cdus.app.cli import main
+
+    cfg = tmp_path / "down.toml"
+    cfg.write_text(open("configs/lake_circle.toml").read() + """
+[[link.partition]]
+from = 1.0
+to = 2.0
+groups = [["usv1", "usv2", "usv3"], ["uav1", "uav2", "uav3"]]
+
+[[link.down]]
+from = 3.0
+to = 3.5
+""")
+    assert main(["sim", str(cfg), "--duration", "5", "--rerun", "off", "--runs-dir", str(tmp_path / "runs")]) == 0
+    events = [line for line in capsys.readouterr().out.splitlines()
+              if line.startswith("  event: ") and "dropped in a row" not in line]
+    assert events == [
+        "  event: t = 1.00 s: 4 links down (from t = 1.00 s): uav3->usv1, uav1->usv3, usv3->uav1, usv1->uav3",
+        "  event: t = 2.00 s: 4 links up (from t = 2.00 s): uav3->usv1, uav1->usv3, usv3->uav1, usv1->uav3",
+        "  event: t = 3.00 s: 12 links down (from t = 3.00 s): usv2->usv1, uav3->usv1, usv1->usv2, usv3->usv2 "
+        "and 8 more",
+        "  event: t = 3.50 s: 12 links up (from t = 3.50 s): usv2->usv1, uav3->usv1, usv1->usv2, usv3->usv2 "
+        "and 8 more"], events
+
+
 def test_cdus_launch_says_the_events_past_the_end_once_where_it_starts(tmp_path, capsys, monkeypatch):
     started = _started(monkeypatch)
     main(["launch", CONFIG, "--logs", str(tmp_path / "run"), "--rerun", "off", "--insecure", "--duration", "2",

@@ -163,6 +163,7 @@ from hypothesis import given, settings, strategies as st  # noqa: E402
 from cdus.app.launcher import COMMAND_HZ, OMEGA_MARGIN, WORLD_LOST  # noqa: E402
 from cdus.wire.messages import LAUNCHER_OPS, encode_control  # noqa: E402
 from cdus.wire.schemas import FleetEvent, encode_event, encode_status, status_signature  # noqa: E402
+from cdus.sim.reports import ConsoleQuota, link_state_event, scheduled_fault  # noqa: E402
 
 
 class Sample:
@@ -241,8 +242,41 @@ def test_a_world_status_with_a_time_that_is_not_a_plausible_number_is_dropped(tm
 def test_events_are_printed_escaped(tmp_path):
     la, lines = quiet_launcher(tmp_path)
     la._on_event(Sample(encode_event(FleetEvent.of(1.0, "fleet", "paused\x1b[2J\r\nt = 99 s: all good"))))
+    la._print_events(final=True)
     assert lines and all("\x1b" not in ln and "\n" not in ln and "\r" not in ln for ln in lines), lines
     assert "\\x1b[2J\\r\\n" in lines[0]
+
+
+def test_events_are_printed_in_time_order_a_link_change_as_one_line(tmp_path):
+    """Issue 27: a ground station's `link loss=0.1` printed 12 lines, one per link, and a second
+    late (the links' states come with the agents' counters), after a kill stamped later. The
+    launcher holds each event HOLD_S of its clock, then prints what is due in time order."""
+    now = [100.0]
+    la, lines = quiet_launcher(tmp_path)
+    la.clock = lambda: now[0]
+
+    def hear(e):
+        la._on_event(Sample(encode_event(e)))
+
+    hear(FleetEvent.of(10.0, "link_changed", "link loss=0.1 by gs:alice"))
+    hear(scheduled_fault(515, 0.02, "kill", "usv2"))  # t = 10.3 s, heard before the links' states
+    now[0] += 0.5
+    for j, (a, b) in enumerate([("usv1", "usv2"), ("usv2", "usv1"), ("usv2", "usv3"), ("usv3", "usv2"),
+                                ("usv3", "uav1"), ("uav1", "usv3"), ("uav1", "uav2"), ("uav2", "uav1"),
+                                ("uav2", "uav3"), ("uav3", "uav2"), ("uav3", "usv1"), ("usv1", "uav3")]):
+        hear(link_state_event(10.02 + 0.02 * (j % 3), f"{a}->{b}", "lossy"))
+    la._print_events()
+    assert lines == []  # nothing held HOLD_S yet
+    now[0] += ConsoleQuota.HOLD_S
+    la._print_events()
+    assert lines == [
+        "  event: t = 10.00 s: link loss=0.1 by gs:alice",
+        "  event: t = 10.02 s: 12 links lossy (from t = 10.02 s): usv1->usv2, usv3->usv2, uav1->uav2, uav3->uav2 "
+        "and 8 more",
+        "  event: t = 10.30 s: scheduled kill of usv2 (t = 10.3 s)"], lines
+    hear(link_state_event(20.0, "usv1->usv2", "down"))
+    la._print_events(final=True)  # the run is over: what is held, at once
+    assert lines[-1] == "  event: t = 20.00 s: link usv1->usv2 down (from t = 20.00 s)"
 
 
 def test_rate_limits_are_set_for_realtime_runs_only(tmp_path):

@@ -121,29 +121,68 @@ vehicle = "usv2"
     assert not fleet_processes(fleet)
 
 
+def _lake_lockstep(tmp_path, launches, duration: float, extra: str) -> tuple:
+    """lake_circle for ``duration`` s with ``extra`` TOML appended, launched in lockstep (no
+    Rerun): (its config, its metrics), once every process of the fleet has gone."""
+    cfg = tmp_path / "lake.toml"
+    cfg.write_text(open("configs/lake_circle.toml").read().replace("duration = 250.0", f"duration = {duration}")
+                   + extra)
+    fleet = unique_fleet()
+    run = tmp_path / "run"
+    la = launches([str(cfg), "--clock", "lockstep", "--logs", str(run), "-q", "--rerun", "off"], fleet)
+    assert la.wait(timeout=120) == 0, la.output()
+    assert not fleet_processes(fleet)
+    return cfg, json.loads((run / "metrics.json").read_text())
+
+
+def test_per_link_counters_are_whole_after_a_kill_and_restarts_in_lockstep(tmp_path, launches):
+    """Issue 27: after a restart the per-link counters counted the new process only (per-link sums
+    65,000 against total.sent 70,898; `cdus sim` 70,998): the world kept each link of the newest
+    process, and a killed process's counters since its last once-a-second report were lost (in a
+    fast run, all of them). Now the links add up over a vehicle's processes, and an agent waiting
+    for the world reports its counters with its rows, so they equal the in-process run's, link by
+    link: a scheduled kill (usv2 at 3 s, restarted at 5 s) and a restart of a live vehicle (usv3
+    at 6 s), on lossy links."""
+    cfg, m = _lake_lockstep(tmp_path, launches, 8.0, """
+[link]
+loss = 0.2
+
+[[event]]
+at = 3.0
+action = "kill"
+vehicle = "usv2"
+
+[[event]]
+at = 5.0
+action = "restart"
+vehicle = "usv2"
+
+[[event]]
+at = 6.0
+action = "restart"
+vehicle = "usv3"
+""")
+    faults = m["link"]["faults"]
+    ref = InProcessFleet(load_scenario(cfg)).run().metrics["link"]["faults"]
+    assert faults["links"] == ref["links"]
+    assert faults["total"] == ref["total"]
+    assert sum(c["sent"] for c in faults["links"].values()) == faults["total"]["sent"] == 4396
+
+
 def test_a_kill_between_two_telemetry_batches_does_not_hold_the_lockstep_fleet(tmp_path, launches):
     """A kill at 0.5 s (tick 25): the killed agent has stepped ticks 20-24, still in its
     telemetry batch of 10, and then waits to be killed. It sends those rows first: the world
     carries out a kill only once every live vehicle has reported the tick before it. It used
     to wait with them unsent, and the fleet hung at tick 25 for good (the test above kills at
     tick 6500, a batch boundary, and a restart made it flush)."""
-    text = open("configs/lake_circle.toml").read().replace("duration = 250.0", "duration = 3.0")
-    text += """
+    _, m = _lake_lockstep(tmp_path, launches, 3.0, """
 [[event]]
 at = 0.5
 action = "kill"
 vehicle = "usv2"
-"""
-    cfg = tmp_path / "kill_only.toml"
-    cfg.write_text(text)
-    fleet = unique_fleet()
-    run = tmp_path / "run"
-    la = launches([str(cfg), "--clock", "lockstep", "--logs", str(run), "-q", "--rerun", "off"], fleet)
-    assert la.wait(timeout=120) == 0, la.output()
-    m = json.loads((run / "metrics.json").read_text())
+""")
     assert m["completed"] and m["duration_s"] == 3.0, (m["completion"], m["duration_s"])
     assert "usv2" not in m["live_final"] and "usv1" in m["live_final"]
-    assert not fleet_processes(fleet)
 
 
 def hostile_omega_payloads(rng: random.Random, n: int) -> list[bytes]:

@@ -6,6 +6,7 @@ run's ground credentials (<run>/secure/ground.json5), as the launcher's printed 
 from __future__ import annotations
 
 import json
+import re
 import time
 
 from cdus.wire.transport import free_tcp_port
@@ -50,10 +51,16 @@ def test_ground_station_watches_and_commands_a_running_fleet(tmp_path, launches)
             break
     assert "kill of usv2 by" in out and "3/4 vehicles alive" in out, out
 
-    assert gs(fleet, port, run, "stop").returncode == 0
+    stop = gs(fleet, port, run, "stop")
+    assert stop.returncode == 0
     assert la.wait(timeout=60) == 0, la.output()
     m = json.loads((run / "metrics.json").read_text())
     assert m["completed"] is False  # stopped early, by the operator
+    # the run ends after the tick the stop said, and the stop's event says it: the metrics ended
+    # REALTIME_LAG ticks earlier (a stop "from tick 4800 (t = 96.00 s)" against duration_s 95.84)
+    tick = int(re.search(r"applied from tick (\d+) \(t = ", stop.stdout)[1])
+    stopped = [e["t"] for e in m["events"] if e["kind"] == "fleet" and "stopped by" in e["text"]]
+    assert stopped == [m["duration_s"]] and m["duration_s"] == round(tick * 0.02, 9), (stop.stdout, m["duration_s"])
     assert m["link"]["faults"]["total"]["dropped_by"]["loss"] > 0
     kinds = [(e["kind"], e.get("vehicle")) for e in m["events"]]
     assert ("fault", "usv2") in kinds and ("link_changed", None) in kinds, m["events"]

@@ -80,20 +80,27 @@ def _not_blank(img: np.ndarray) -> None:
     assert len(np.unique(img.reshape(-1, 3) // 16, axis=0)) >= 30, "too few colours"
 
 
+def _picture(viewers, args: list[str], png, timeout: float) -> np.ndarray:
+    """Run ``args`` (started by ``viewers``, its output in a log beside ``png``) to its end; the
+    pixels of the ``png`` it wrote."""
+    log = png.with_suffix(".log")
+    with open(log, "w") as out:
+        run = viewers(args, out)
+        try:
+            code = run.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            pytest.fail(f"{args[:2]} took over {timeout:g} s:\n" + log.read_text())
+    assert code == 0, log.read_text()
+    return _pixels(png)
+
+
 def test_rerun_screenshot_to_renders_headless(lake_rrd, viewers, tmp_path):
     import rerun_cli
 
-    png, log = tmp_path / "shot.png", tmp_path / "viewer.log"
+    png = tmp_path / "shot.png"
     binary = os.path.join(os.path.dirname(rerun_cli.__file__), "rerun")  # the viewer itself, not the Python shim
-    with open(log, "w") as out:
-        viewer = viewers([binary, "--headless", "--bind", "127.0.0.1", "--port", str(free_tcp_port()),
-                          "--screenshot-to", str(png), "--window-size", "1280x720", str(lake_rrd)], out)
-        try:
-            code = viewer.wait(timeout=120)
-        except subprocess.TimeoutExpired:
-            pytest.fail("the headless viewer took over 120 s:\n" + log.read_text())
-    assert code == 0, log.read_text()
-    _not_blank(_pixels(png))
+    _not_blank(_picture(viewers, [binary, "--headless", "--bind", "127.0.0.1", "--port", str(free_tcp_port()),
+                                  "--screenshot-to", str(png), "--window-size", "1280x720", str(lake_rrd)], png, 120))
 
 
 def test_the_settled_picture_shows_the_fleet(lake_rrd):
@@ -115,3 +122,13 @@ def test_the_settled_picture_shows_the_fleet(lake_rrd):
     assert share(plots, lambda r, g, b: (np.max([r, g, b], 0) - np.min([r, g, b], 0)) > 80) > 0.005, "no curves"
     links = img[int(0.78 * h):int(0.95 * h), : int(0.35 * w)]  # the link timeline, bottom left
     assert share(links, lambda r, g, b: (g > 120) & (g - r > 40) & (g - b > 40)) > 0.05, "no link states (green)"
+
+
+def test_docs_screenshot_shoots_a_recording_it_is_given(lake_rrd, viewers, tmp_path):
+    """`docs/screenshot.py --rrd PATH`: the picture of a recording one has (issue 27: it could
+    only record lake_circle itself)."""
+    import sys
+
+    png = tmp_path / "given.png"
+    _not_blank(_picture(viewers, [sys.executable, str(ROOT / "docs" / "screenshot.py"), "--rrd", str(lake_rrd),
+                                  "--out", str(png)], png, 300))

@@ -12,7 +12,7 @@ from cdus.wire.messages import StateMsg
 from cdus.wire.schemas import CommandReply, FleetEvent
 from ground_station.console import Answer
 from ground_station.console import FleetView
-from ground_station.tui import ConfirmKill, ConsoleApp, send_command, snapshot, vehicle_state
+from ground_station.tui import ConfirmKill, ConsoleApp, before_line, send_command, snapshot, vehicle_state
 
 IDS = ["usv1", "usv2", "uav1"]
 
@@ -168,7 +168,7 @@ def test_keys_pause_resume_restart_the_selected_vehicle_and_the_fleet():
         async with app.run_test(size=(160, 50)) as pilot:
             await pilot.pause(0.1)
             assert "usv1 usv live" in text_of(app, "#vehicles")
-            assert "event (before) t = 0.50 s: an event from before" in text_of(app, "#log")
+            assert "event (before this console) t = 0.50 s: an event from before" in text_of(app, "#log")
             await pilot.press("down", "p")
             await settle(pilot, lambda: ("pause", "usv2") in gs.sent, "pause usv2")
             await pilot.press("r")
@@ -338,4 +338,29 @@ def test_when_every_token_is_gone_the_vehicles_are_lost_not_the_worlds_last_aliv
             with gs2.view.lock:
                 gs2.view.alive = {"world"}
             await settle(pilot, lambda: all(f"{v} lost" in text_of(app, "#alarms") for v in IDS), "every alarm")
+    run(go())
+
+
+def test_the_events_from_before_the_console_are_one_line_of_its_log():
+    """Issue 27: the log started with a line per event of the world's recent ones ("event
+    (before)" ten times, a link change a line per link). Now one line: how many of each kind, a
+    link change counted once, the newest in full."""
+    from cdus.sim.reports import link_state_event
+    links = ["usv1->usv2", "usv2->usv1", "usv2->uav1", "uav1->usv2", "usv1->uav1", "uav1->usv1"]
+    events = [FleetEvent.of(10.0, "link_changed", "link loss=0.1 by gs:alice"),
+              *(link_state_event(10.02, ln, "lossy") for ln in links),
+              FleetEvent.of(12.0, "fault", "kill of usv2 by gs:alice (t = 12 s)", vehicle="usv2")]
+    assert before_line(events) == ("before this console: 3 events from t = 10.00 to 12.00 s (1 link_changed, "
+                                   "1 link_state, 1 fault); the newest: t = 12.00 s: kill of usv2 by gs:alice "
+                                   "(t = 12 s)")
+    assert before_line([]) == ""
+
+    async def go():
+        gs = FakeGS()
+        gs.view.world = world(3.0, events=events)
+        app = ConsoleApp(gs, refresh_s=0.05)
+        async with app.run_test(size=(160, 50)) as pilot:
+            await settle(pilot, lambda: "before this console: 3 events" in text_of(app, "#log"), "the line")
+            log = text_of(app, "#log")
+            assert "lossy" not in log and log.count("before this console") == 1, log
     run(go())

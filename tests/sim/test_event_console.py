@@ -6,7 +6,9 @@ from __future__ import annotations
 
 from cdus.scenario.config import load_scenario
 from cdus.sim.fleet import InProcessFleet
-from cdus.sim.reports import ConsoleQuota, design_lines, link_state_event, scheduled_fault
+from hypothesis import given, settings, strategies as st
+
+from cdus.sim.reports import ConsoleQuota, design_lines, link_state_event, newest_events, scheduled_fault
 from cdus.wire.schemas import FleetEvent
 
 OVERRIDE = """
@@ -74,3 +76,29 @@ def test_the_opening_says_the_design_once_and_the_lossy_lines_then_add_nothing()
     assert ConsoleQuota(scenario=load_scenario("configs/lake_circle.toml")).opening() == []  # nothing lossy by design
     heard_first = ConsoleQuota(scenario=sc)  # a lossy state heard before the opening: said then, not again
     assert len(heard_first.printed(lossy[0])) == 1 and heard_first.opening() == []
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(2, 30), st.lists(st.floats(0.0, 20.0), max_size=30), st.integers(0, 9), st.booleans(),
+       st.randoms())
+def test_a_status_says_a_link_change_whole_wherever_its_events_fall(k, others, newer, late, rng):
+    """newest_events: a change of k links is never shown in part, wherever its events fall among
+    others heard; heard after them (the agents' counters come late) with up to 9 events after
+    it, it is one event of k links among the newest 10 (a window of 10 raw events cut it to
+    "6 links lossy ... and 2 more": issue 27)."""
+    change = [link_state_event(10.0 + 0.01 * rng.randrange(50), f"v{j}->w{j}", "lossy") for j in range(k)]
+    rng.shuffle(change)
+    before = [FleetEvent.of(t, "fleet", f"other {i}") for i, t in enumerate(others)]
+    if late:
+        heard = before + change
+    else:
+        heard = before + change
+        rng.shuffle(heard)
+    after = [FleetEvent.of(30.0 + i, "fleet", f"after {i}") for i in range(newer)]
+    shown = newest_events(heard + after)
+    assert len(shown) == min(10, len(before) + 1 + newer) and [e.t for e in shown] == sorted(e.t for e in shown)
+    assert shown[len(shown) - newer:] == after
+    grouped = [e for e in shown if e.kind == "link_state"]
+    assert all(e.text.startswith(f"{k} links lossy (from t = ") for e in grouped), grouped  # never a part
+    if late and max(others, default=0.0) <= 10.0:
+        assert len(grouped) == 1, shown

@@ -134,6 +134,40 @@ def test_one_sample_per_control_tick(recorded):
         np.testing.assert_allclose([x[0] for x in ce], recorder.edge_error()[:, m], rtol=0, atol=1e-12)
 
 
+def test_an_edge_with_an_end_not_live_has_no_error_in_the_recording(tmp_path):
+    """Issue 27: a killed vehicle's edges kept an error in the recording while it was dead (its
+    frozen ω against the live ones: growing to ~10 rad), which the metrics leave out. Now each
+    such tick is an empty row (a gap in the plot); the others are the recorder's errors."""
+    cfg = tmp_path / "kill.toml"
+    cfg.write_text(CONFIG.read_text().replace("duration = 250.0", "duration = 6.0") + """
+[[event]]
+at = 2.0
+action = "kill"
+vehicle = "usv2"
+
+[[event]]
+at = 4.0
+action = "restart"
+vehicle = "usv2"
+""")
+    path = tmp_path / "kill.rrd"
+    sink = make_sink(f"save:{path}")
+    res = InProcessFleet(load_scenario(cfg), sink=sink).run()
+    sink.close()
+    rec, recorder = Recording(path), res.recorder
+    live, err = recorder.view("live"), recorder.edge_error()
+    assert not live[150, 1] and live[150].sum() == 5  # usv2 dead from 2 s to 4 s
+    touching = 0
+    for m, e in enumerate(recorder.edges):
+        t, ce = rec.column(f"metrics/coord_error/{e.name}", "Scalars:scalars")
+        assert len(t) == len(recorder)  # a row every tick, empty where an end is not live
+        both = live[:, e.i] & live[:, e.k]
+        assert [len(x) for x in ce] == [1 if b else 0 for b in both], e.name
+        np.testing.assert_array_equal([x[0] for x in ce if x], err[both, m])
+        touching += not both.all()
+    assert touching == 2  # usv2's two edges of the ring
+
+
 def test_usv_heading_and_uav_altitude(recorded):
     sc, recorder, _, rec = recorded
     for j, v in enumerate(sc.vehicles):

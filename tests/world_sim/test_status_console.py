@@ -10,7 +10,7 @@ from hypothesis import given, settings, strategies as hs
 
 from cdus.wire import keys
 from cdus.wire.messages import StateMsg, encode_control, encode_states
-from cdus.wire.schemas import AgentStats, decode_status, encode_stats
+from cdus.wire.schemas import AgentStats, FleetEvent, decode_status, encode_stats
 from tests.fakes import Payload, Sample
 from tests.world_sim.test_world import EVENTS, FLEET, started, world
 from world_sim.world import closest_live_pair
@@ -153,3 +153,57 @@ def test_after_a_formation_change_the_status_edges_are_measured_against_the_new_
         else:  # from the change on: against the new offsets, as the header's coord_error_max
             assert all(e < 1e-9 for e in edges.values()), edges
             assert st["coord_error_max"] < 1e-9
+
+
+def _lossy_from(t: float, links: list[str]) -> dict:
+    """An agent's link fault summary (as LinkEmulator.counters_summary) with ``links`` lossy from ``t``."""
+    block = {"sent": 0, "dropped": 0, "dropped_by": {"loss": 0, "burst": 0, "down": 0, "partition": 0},
+             "duplicated": 0, "delayed": 0}
+    return {"total": block, "links": {ln: block for ln in links},
+            "state_changes": [{"t": t, "link": ln, "state": "lossy"} for ln in links]}
+
+
+def test_the_status_says_a_link_change_of_twelve_links_whole_not_the_newest_ten_events():
+    """Issue 27: the status carried the newest 10 events, so `gs status` said "6 links lossy ...
+    and 2 more" of a change of 12 links (two more events came after it). Now each change is whole."""
+    w = started(world())
+    w._note(FleetEvent.of(10.0, "link_changed", "link loss=0.1 by gs:alice"))
+    listening = {vid: [] for vid in w.ids}
+    for e in w.recorder.edges:  # each agent reports the links it decides, its incoming ones (a ring: both ways)
+        a, b = w.ids[e.i], w.ids[e.k]
+        listening[a].append(f"{b}->{a}")
+        listening[b].append(f"{a}->{b}")
+    for vid in w.ids:
+        s = AgentStats(id=vid, tick=520, faults=_lossy_from(10.02, listening[vid]))
+        w._handle(Sample(keys.stats(FLEET, vid), Payload(encode_stats(s))))
+    w._note(FleetEvent.of(10.5, "fleet", "fleet paused by gs:alice"))
+    w._note(FleetEvent.of(11.0, "fleet", "fleet resumed by gs:alice"))
+    assert sum(e.kind == "link_state" for e in w.events) == 12
+    w._publish_status()
+    texts = [e.text for e in decode_status(w.pub_status.puts[-1])["events"]]
+    assert texts[0] == "link loss=0.1 by gs:alice" and texts[2:] == ["fleet paused by gs:alice",
+                                                                    "fleet resumed by gs:alice"], texts
+    assert texts[1].startswith("12 links lossy (from t = 10.02 s): "), texts
+
+
+def test_a_restarted_vehicles_links_and_receipts_in_the_status_count_its_earlier_processes():
+    """Issue 27: the status's per-link counters (the console's and gs status's link table) were
+    the newest process's only, from zero after a restart, while the metrics add them up."""
+    w = started(world())
+
+    def report(incarnation: int, sent: int, dropped: int, state: str) -> None:
+        block = {"sent": sent, "dropped": dropped,
+                 "dropped_by": {"loss": dropped, "burst": 0, "down": 0, "partition": 0}, "duplicated": 0, "delayed": 0}
+        faults = {"total": block, "links": {"usv2->usv1": block},
+                  "state_changes": [{"t": 0.0, "link": "usv2->usv1", "state": state}]}
+        s = AgentStats(id="usv1", tick=sent, sent_to_me=sent, delivered=sent - dropped, dropped=dropped,
+                       faults=faults, incarnation=incarnation)
+        w._handle(Sample(keys.stats(FLEET, "usv1"), Payload(encode_stats(s))))
+
+    report(1, 100, 10, "lossy")
+    report(1, 120, 12, "lossy")  # the same process, later: its counts replace its earlier ones
+    report(2, 30, 3, "down")  # restarted: counting from zero
+    w._publish_status()
+    st = decode_status(w.pub_status.puts[-1])
+    assert st["links"] == [("usv2", "usv1", 150, 15, "down")]
+    assert st["rx"][0] == (150, 15) and st["rx"][1:] == [None] * 5
