@@ -200,3 +200,43 @@ def test_queries_of_status_settings_and_every_vehicles_last_past_their_rate_are_
     q = Query(keys.world_status(FLEET), None)
     w._on_status_query(q)
     assert len(q.replies) == 1
+
+
+@settings(max_examples=40, deadline=None)
+@given(hs.lists(hs.tuples(hs.sampled_from(["status", "settings", "last", "last_one", "command"]),
+                          hs.floats(0.0, 0.2)), max_size=200))
+def test_any_mix_of_queries_gets_one_answer_each_and_no_key_more_than_its_rate(asks):
+    """Whatever the mix and pace: every query is answered once (a reply, or an error that says
+    busy), no key answers more than its burst plus its rate over the time gone, what is refused
+    is counted, and a vehicle's own world/last/<id> is always answered."""
+    w, clock = clocked(started(world()))
+    w._publish_status()
+    from tests.world_sim.test_world import row, send_rows  # noqa: PLC0415
+    send_rows(w, "usv1", [row(0, 0)])
+    handlers = {"status": (keys.world_status(FLEET), w._on_status_query),
+                "settings": (keys.world_settings(FLEET), w._on_settings_query),
+                "last": (keys.world_last(FLEET, "*"), w._on_last_query),
+                "last_one": (keys.world_last(FLEET, "usv1"), w._on_last_query)}
+    start, answered, refused = clock.now, {k: 0 for k in handlers}, 0
+    commands = []
+    for kind, gap in asks:
+        clock.now += gap
+        if kind == "command":
+            commands.append(gains(w))
+            continue
+        key, handler = handlers[kind]
+        q = Query(key, None)
+        handler(q)
+        assert (len(q.replies) >= 1) != (len(q.errors) == 1), (kind, q.replies, q.errors)
+        answered[kind] += bool(q.replies)
+        refused += len(q.errors)
+    w._handle(_wake())
+    elapsed = clock.now - start
+    for kind in ("status", "settings", "last"):
+        assert answered[kind] <= ws.QUERIES_BURST + ws.QUERIES_PER_S * elapsed + 1e-6
+    assert answered["last_one"] == sum(1 for kind, _ in asks if kind == "last_one")
+    assert w.st.rejects["query_rate"] == refused
+    passed = sum(1 for q in commands if q.answer.reason != ws.RATE_REFUSAL)
+    assert all(q.answer is not None for q in commands)
+    assert passed <= ws.COMMANDS_BURST + ws.COMMANDS_PER_S * elapsed + 1e-6
+    assert w.st.rejects["rate"] == len(commands) - passed
