@@ -393,7 +393,8 @@ def test_a_flood_of_refused_commands_is_answered_and_counted_but_not_amplified_i
     assert w.st.rejects["gains"] == 500
     logged = [e for e in w.events if e.kind == "rejected"]
     assert ws.REJECTED_EVENTS_BURST <= len(logged) <= ws.REJECTED_EVENTS_BURST + 2
-    w._event_quotas["rejected"].at -= 1.0 / ws.REJECTED_EVENTS_PER_S  # a second later: one more, saying what was left out
+    w._event_quotas["rejected"].at -= 1.0 / ws.REJECTED_EVENTS_PER_S  # a second later: one more, saying
+    # what was left out
     ask(w, "set_gains", gains={"k": -2.0}, vehicle="")
     last = w.events[-1]
     assert last.kind == "rejected" and "-2.0" in last.text and "refused commands since the last one logged" in last.text

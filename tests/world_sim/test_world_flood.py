@@ -82,8 +82,8 @@ def test_a_flood_of_gains_in_one_grant_is_one_change_and_its_events_are_bounded(
     w.lockstep.granted += 7
     clock.now += 1.0
     assert gains(w, vehicle="usv1").answer.applied and gains(w).answer.applied
-    assert [(c.kept_for, c.tick) for c in w._commands] == [(None, w.lockstep.granted - 6), ("usv1", w.lockstep.granted + 1),
-                                                           (None, w.lockstep.granted + 1)]
+    g = w.lockstep.granted
+    assert [(c.kept_for, c.tick) for c in w._commands] == [(None, g - 6), ("usv1", g + 1), (None, g + 1)]
     last = [e for e in w.events if e.kind == "gains_changed"][-1]
     assert f"({500 - ws.CHANGE_EVENTS_BURST} changes by command since the last one logged were not" in last.text
     assert len([e for e in w.events if e.kind == "gains_changed"]) == ws.CHANGE_EVENTS_BURST + 1
