@@ -314,6 +314,7 @@ class World:
         now = self._quota_clock()
         self._quota_lock = threading.Lock()  # the quotas Zenoh's threads take
         self._command_quota = Quota(COMMANDS_PER_S, COMMANDS_BURST, now)
+        self._ground_key = keys.world_command(self.fleet, keys.GROUND)  # the key the quota is for
         self._query_quotas = {name: Quota(QUERIES_PER_S, QUERIES_BURST, now) for name in ("status", "settings", "last")}
         #: events a flood may not multiply (kind -> quota): refused commands, changes made by command
         self._event_quotas = {"rejected": Quota(REJECTED_EVENTS_PER_S, REJECTED_EVENTS_BURST, now),
@@ -467,7 +468,9 @@ class World:
         """A command as a query (Zenoh's thread): handed to the main thread, which answers it. Past
         the ground credentials' rate (COMMANDS_PER_S) or MAX_QUEUED_QUERIES waiting (a flood),
         answered at once: rejected, busy."""
-        if self._over_quota(self._command_quota, "rate"):
+        # the ground credentials' key only: a query on world/** (an open fleet, or a vehicle's if the
+        # router lets it through) must not spend the ground stations' rate; the main thread refuses it
+        if str(query.key_expr) == self._ground_key and self._over_quota(self._command_quota, "rate"):
             self._reply(query, "?", "", Verdict.no(RATE_REFUSAL))
             return
         if len(self._queries) >= MAX_QUEUED_QUERIES:

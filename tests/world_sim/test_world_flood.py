@@ -61,6 +61,14 @@ def test_commands_past_the_ground_credentials_rate_are_refused_busy_saying_so_an
     before = len(w.pub_ctl.puts)
     w._handle(Sample(keys.world_cmd(FLEET, keys.GROUND), Payload(encode_control("pause"))))
     assert not w.lockstep.paused and len(w.pub_ctl.puts) == before and w.st.rejects["rate"] == 36
+    # a query on another key (world/**, which the router may let a vehicle ask) does not spend it
+    clock.now += 1.0
+    for _ in range(ws.COMMANDS_BURST + 5):
+        q = Query(keys.world_command(FLEET, "usv1"), encode_control("pause"))
+        w._on_command_query(q)
+        w._handle(_wake())
+        assert "asked as 'gs'" in q.answer.reason
+    assert gains(w).answer.applied
     # the launcher's own are not the ground station's: never limited
     w._handle(Sample(keys.world_cmd(FLEET, keys.LAUNCHER), Payload(encode_control("stop"))))
     assert w.stop_requested
