@@ -31,7 +31,7 @@ import time
 from collections import Counter, deque
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, NamedTuple
 
 import numpy as np
 import zenoh
@@ -41,6 +41,7 @@ from cdus.core.link import LinkCounters, merge_link_summaries
 from cdus.core.node import gains_problem
 from cdus.core.radiolink import RadioCounters
 from cdus.core.metrics import Recorder
+from cdus.core.quota import Quota
 from cdus.core.schedule import total_ticks
 from cdus.files import METRICS_ELSEWHERE_EXIT, keep_json, metrics_fallbacks
 from cdus.scenario.config import ConfigError, nesting_problem
@@ -66,8 +67,8 @@ from cdus.wire.messages import (
 )
 from cdus.wire.schemas import (
     ID_RE, MAX_REASON, MAX_TEXT as MAX_EVENT_TEXT, ORIGIN_WORLD, AgentStats, CommandReply, FleetEvent,
-    STATUS_KEY_ENV, StatusExtra, decode_stats, encode_event, encode_reply, encode_settings, encode_status,
-    status_signature,
+    MAX_SETTINGS_CHANGES, STATUS_KEY_ENV, StatusExtra, decode_stats, encode_event, encode_reply,
+    encode_settings, encode_status, status_signature,
 )
 from cdus.wire.text import printable
 from cdus.wire.transport import Transport, open_session
@@ -112,6 +113,16 @@ DROP_WINDOW = 0.3  # s: liveliness losses this close together count as one (a la
 MAX_LOGGED_REJECTS = 200  # (sender, reason) pairs logged; beyond, counted only
 
 
+class _Change(NamedTuple):
+    """A run-time change the world sent to the vehicles (its ctl payload, numbered), kept for
+    (re)joiners and world/settings."""
+
+    kept_for: str | None  # one vehicle; None: every vehicle
+    payload: bytes
+    op: str
+    tick: int | None  # a gains change's tick (None for the others, which are all replayed)
+
+
 @dataclass(frozen=True)
 class Verdict:
     """What the world made of one command: applied from ``tick`` (``t`` s of simulated time; a
@@ -137,6 +148,27 @@ MAX_QUEUED_QUERIES = 256  # command queries waiting for the main thread; beyond,
 #: in the rejects) is not amplified into as many events; the next one logged says how many were not
 REJECTED_EVENTS_BURST = 20
 REJECTED_EVENTS_PER_S = 1.0
+#: the same for the changes commands made (gains, link, formation, path): a flood of valid commands
+#: is not a flood of events either; each change is still made, answered and listed in world/settings
+CHANGE_EVENTS_BURST = 20
+CHANGE_EVENTS_PER_S = 1.0
+#: commands from the ground credentials (every ground station together: Zenoh does not tell the
+#: world which session asked, and they share the credentials), queries and puts alike: at most
+#: COMMANDS_PER_S a second on average, COMMANDS_BURST at once; past it, answered at once, rejected
+#: "busy: at most ... commands per second" and counted as `rate` (docs/ground_station.md)
+COMMANDS_PER_S = 20.0
+COMMANDS_BURST = 40
+#: queries of the world's status, its settings and every vehicle's last telemetry (world/last/*, the
+#: ground station's; not a restarting vehicle's own world/last/<id>): at most QUERIES_PER_S a second
+#: on each of the three keys, QUERIES_BURST at once; past it, an error reply that says so, counted as
+#: `query_rate` (any member of a fleet may ask them, and Zenoh does not tell the world who asked)
+QUERIES_PER_S = 20.0
+QUERIES_BURST = 40
+#: command queries the main thread answers between two looks at the fleet (grants, recording): a
+#: burst of them waits its turn rather than holding the fleet's ticks
+ANSWERS_PER_PASS = 16
+RATE_REFUSAL = (f"busy: at most {COMMANDS_PER_S:g} commands per second from the ground credentials "
+                f"({COMMANDS_BURST} at once; a flood): try again")
 
 
 def closest_live_pair(q: np.ndarray, live: np.ndarray, kinds: list[str], ids: list[str]) -> tuple | None:
@@ -240,10 +272,13 @@ class World:
         self._realtime_faults = list(scenario.events)  # realtime: carried out when their time comes
         self.st = WorldState()
         self.pairs = [(e.i, e.k) for e in scenario.edges]
-        #: run-time commands (link, radio, gains, formation, path), for (re)joiners; each carries its
-        #: index here as ``seq`` so a process that hears it again applies it once
-        self._commands: list[tuple[str | None, bytes]] = []
-        self._make_settings()  # the settings reply (world/settings), made again at each change
+        #: run-time commands (link, radio, gains, formation, path), for (re)joiners and world/settings;
+        #: each carries a number of its own (``seq``) so a process that hears it again applies it once
+        self._commands: list[_Change] = []
+        self._seq = 0  # the next command's seq
+        self._settings_from: tuple = ()  # what the settings reply is made of now (_settings_changed)
+        self._settings_cache: tuple[tuple, bytes] | None = None  # (made of, reply): made on a query
+        self._settings_changed("")
         self._status_payload: bytes | None = None  # the newest status published (_publish_status)
         #: the launcher's per-run key (STATUS_KEY_ENV): each status is signed with it, so the
         #: launcher tells this world's statuses from forged ones; None: started by hand, unsigned
@@ -286,10 +321,18 @@ class World:
         self._queries: deque[Any] = deque()  # command queries -> main thread
         self._waiting: dict[int, tuple[Any, str, str]] = {}  # ref -> (query, op, by): lockstep faults
         self._next_ref = 0
-        self._busy = self._busy_counted = 0  # command queries answered busy (a flood)
-        self._rejected_tokens = float(REJECTED_EVENTS_BURST)  # 'rejected' events that may go out now
-        self._rejected_at = time.monotonic()
-        self._rejected_quiet = 0  # 'rejected' events not logged since the last one that was
+        #: what Zenoh's threads refused (busy, rate, query_rate), moved into st.rejects by the main thread
+        self._refused_offthread: Counter[str] = Counter()
+        self._refused_moved: Counter[str] = Counter()
+        self._quota_clock = time.monotonic  # the quotas' clock
+        now = self._quota_clock()
+        self._quota_lock = threading.Lock()  # the quotas Zenoh's threads take
+        self._command_quota = Quota(COMMANDS_PER_S, COMMANDS_BURST, now)
+        self._ground_key = keys.world_command(self.fleet, keys.GROUND)  # the key the quota is for
+        self._query_quotas = {name: Quota(QUERIES_PER_S, QUERIES_BURST, now) for name in ("status", "settings", "last")}
+        #: events a flood may not multiply (kind -> quota): refused commands, changes made by command
+        self._event_quotas = {"rejected": Quota(REJECTED_EVENTS_PER_S, REJECTED_EVENTS_BURST, now),
+                              "change": Quota(CHANGE_EVENTS_PER_S, CHANGE_EVENTS_BURST, now)}
         self._command_ref: int | None = None  # the ref of the command being handled, if it asked
         self._current_op = ""  # the op of the command being handled
         #: op -> handler(fields, by) -> Verdict | reason str | None | LATER (see Verdict); other
@@ -364,11 +407,35 @@ class World:
         self.stop_requested = True
         self._wake()
 
+    def _over_quota(self, quota: Quota, reason: str) -> bool:
+        """Zenoh's thread: has the asker of a query gone past ``quota``? Counted as ``reason``."""
+        with self._quota_lock:
+            if quota.take(self._quota_clock()):
+                return False
+            self._refused_offthread[reason] += 1
+            return True
+
+    def _query_refused(self, query: Any, name: str, key: str) -> bool:
+        """A query of the world's status, settings or every vehicle's last telemetry past its
+        quota (QUERIES_PER_S): answered at once with an error reply that says so, counted."""
+        if not self._over_quota(self._query_quotas[name], "query_rate"):
+            return False
+        try:
+            query.reply_err(f"busy: at most {QUERIES_PER_S:g} queries per second on {key} "
+                            f"(a flood); try again".encode())
+        except zenoh.ZError:
+            pass
+        return True
+
     def _on_last_query(self, query: Any) -> None:
         """A restarted agent asks where its vehicle was: reply with its newest telemetry. A ground
-        station asks ``world/last/*``: one reply per vehicle heard from (on its own key)."""
+        station asks ``world/last/*``: one reply per vehicle heard from (on its own key), at most
+        QUERIES_PER_S such queries a second (a vehicle's own key has no quota: a flood on it must
+        not keep a restarting vehicle from where it was; its reply is one row)."""
         vid = str(query.key_expr).rsplit("/", 1)[-1]
         wanted = self.ids if vid in ("*", "**") else [vid] if vid in self.index else []
+        if len(wanted) > 1 and self._query_refused(query, "last", keys.world_last(self.fleet, "*")):
+            return
         with self._lock:
             rows = [(v, self.st.latest.get(self.index[v])) for v in wanted]
         for v, m in rows:
@@ -379,25 +446,50 @@ class World:
         """A ground station attaching asks for the status at once rather than wait up to a second
         for the next one: the newest published (none before the first)."""
         payload = self._status_payload
-        if payload is not None:
+        if payload is not None and not self._query_refused(query, "status", keys.world_status(self.fleet)):
             query.reply(keys.world_status(self.fleet), payload)
 
     def _on_settings_query(self, query: Any) -> None:
-        """A ground station asks what the run's settings are now (``gs snapshot``): the reply the
-        main thread made at the newest change (:meth:`_make_settings`)."""
-        query.reply(keys.world_settings(self.fleet), self._settings)
+        """A ground station asks what the run's settings are now (``gs snapshot``): the reply is
+        made here, on the first query after a change, from what the main thread last said the
+        settings are made of (:meth:`_settings_changed`), and kept for the next queries. A change
+        costs the main thread no encoding (it cost the whole list's at each change: a flood of
+        commands was quadratic)."""
+        if self._query_refused(query, "settings", keys.world_settings(self.fleet)):
+            return
+        made_of = self._settings_from
+        cached = self._settings_cache
+        if cached is None or cached[0] is not made_of:
+            count, phases, link = made_of[1:]
+            kept = self._commands[max(0, count - MAX_SETTINGS_CHANGES):count]  # one atomic slice (the GIL)
+            cached = (made_of, encode_settings([(c.kept_for, c.payload) for c in kept], phases, link, total=count))
+            self._settings_cache = cached
+        query.reply(keys.world_settings(self.fleet), cached[1])
 
-    def _make_settings(self) -> None:
-        """The settings reply, made on the main thread when a change is made, so a query (on
-        Zenoh's thread) never reads the lists as they change."""
-        phases = self.recorder.formation.phases_at(2**62) if self.recorder.formation is not None else ()
-        self._settings = encode_settings(list(self._commands), list(zip(self.ids, phases)), self._link_table)
+    def _settings_changed(self, op: str) -> None:
+        """Main thread, at each change: what the settings reply is made of now (a new tuple, which
+        a query reads whole): the number of changes listed, the phases (made again only when a
+        change can move them) and the [link] table in force. O(1) for a gains change."""
+        old = self._settings_from
+        if op in ("gains", "link", "radio") and old:
+            phases = old[2]
+        else:
+            phases = (tuple(zip(self.ids, self.recorder.formation.phases_at(2**62)))
+                      if self.recorder.formation is not None else ())
+        self._settings_from = (object(), len(self._commands), phases, self._link_table)
 
     def _on_command_query(self, query: Any) -> None:
-        """A command as a query (Zenoh's thread): handed to the main thread, which answers it; past
-        MAX_QUEUED_QUERIES waiting (a flood), answered at once: rejected, busy."""
+        """A command as a query (Zenoh's thread): handed to the main thread, which answers it. Past
+        the ground credentials' rate (COMMANDS_PER_S) or MAX_QUEUED_QUERIES waiting (a flood),
+        answered at once: rejected, busy."""
+        # the ground credentials' key only: a query on world/** (an open fleet, or a vehicle's if the
+        # router lets it through) must not spend the ground stations' rate; the main thread refuses it
+        if str(query.key_expr) == self._ground_key and self._over_quota(self._command_quota, "rate"):
+            self._reply(query, "?", "", Verdict.no(RATE_REFUSAL))
+            return
         if len(self._queries) >= MAX_QUEUED_QUERIES:
-            self._busy += 1
+            with self._quota_lock:
+                self._refused_offthread["busy"] += 1
             self._reply(query, "?", "", Verdict.no("busy: too many commands waiting; try again"))
             return
         self._queries.append(query)
@@ -408,31 +500,42 @@ class World:
 
     # ------------------------------------------------------------------ receiving
     def _drain(self, block: bool) -> None:
-        """Handle what is waiting (and, if ``block``, wait for at least one sample)."""
-        if block:
-            self._handle(self.inbox.recv())
+        """Handle what is waiting (and, if ``block`` and no command waits, wait for at least one
+        sample), then answer at most ANSWERS_PER_PASS of the command queries waiting: the rest
+        wait for the next pass, after the fleet's grants and recording."""
+        if block and not self._queries:
+            self._handle(self.inbox.recv(), answer=False)
         while (sample := self.inbox.try_recv()) is not None:
-            self._handle(sample)
+            self._handle(sample, answer=False)
+        self._answer_waiting()
 
     def _handle_alive_news(self) -> None:
         while self._alive_news:
             name, up = self._alive_news.popleft()
             self._on_alive(name, up)
 
-    def _handle(self, sample: Any) -> None:
+    def _handle(self, sample: Any, answer: bool = True) -> None:
         """One sample of the inbox (anything anyone can put on a key addressed to the world):
-        handled, or counted by reason and dropped. Never raises."""
+        handled, or counted by reason and dropped. Never raises. ``answer``: then answer command
+        queries waiting (at most ANSWERS_PER_PASS)."""
         try:
             self._dispatch(sample)
         except Exception as e:  # a bug of ours, not the sender's: counted, logged once, the run goes on
             self._reject("?", "internal", f"{type(e).__name__}: {e}")
         self._handle_alive_news()
-        while self._queries:
+        if answer:
+            self._answer_waiting()
+
+    def _answer_waiting(self) -> None:
+        """Answer at most ANSWERS_PER_PASS command queries, oldest first; count what Zenoh's
+        threads refused meanwhile."""
+        for _ in range(min(ANSWERS_PER_PASS, len(self._queries))):
             self._answer(self._queries.popleft())
-        busy = self._busy  # counted by Zenoh's thread
-        if busy > self._busy_counted:
-            self.st.rejects["busy"] += busy - self._busy_counted
-            self._busy_counted = busy
+        with self._quota_lock:
+            refused = +self._refused_offthread
+        if refused != self._refused_moved:
+            self.st.rejects.update(refused - self._refused_moved)
+            self._refused_moved = refused
 
     def _dispatch(self, sample: Any) -> None:
         key = str(sample.key_expr)
@@ -616,7 +719,11 @@ class World:
 
     def _on_command(self, sender: str, payload: bytes) -> None:
         """A command put on ``to/+world+/cmd/<sender>`` (the launcher, older clients): carried out
-        as a query's would be; nobody is told the verdict (a vehicle fault is decided likewise)."""
+        as a query's would be; nobody is told the verdict (a vehicle fault is decided likewise). The
+        ground credentials' puts share their queries' rate (COMMANDS_PER_S): past it, counted as
+        `rate` and dropped."""
+        if sender == keys.GROUND and self._over_quota(self._command_quota, "rate"):
+            return
         self._command(sender, payload, None)
 
     def _command(self, sender: str, payload: bytes, ref: int | None) -> tuple[str, str, Verdict]:
@@ -716,7 +823,8 @@ class World:
         self._send_command(None, None, "link", link=f["link"], at=float(at))
         self.st.link_commanded = True
         self._note(FleetEvent.of(self._sim_now(), "link_changed",
-                                 f"link faults changed from t = {at:.2f} s by {by}: {printable(f['link'], 200)}"))
+                                 f"link faults changed from t = {at:.2f} s by {by}: {printable(f['link'], 200)}"),
+                   by_command=True)
         late = (f"t = {f['at']:g} s asked had passed: from the first time every receiver can take it"
                 if 0 <= f["at"] < at else "")
         return Verdict(True, late, max(0, math.ceil(at / self.period - 1e-9)), float(at))
@@ -798,7 +906,7 @@ class World:
             apply_radio_change(self.radio_watch.channel, change, float(at))
         self._note(FleetEvent.of(self._sim_now(), "radio_changed",
                                  f"radio changed from t = {at:.2f} s by {printable(sender, 64)}: "
-                                 f"{printable(change, 200)}"))
+                                 f"{printable(change, 200)}"), by_command=True)
         late = (f"t = {fields['at']:g} s asked had passed: from the first time every vehicle can take it"
                 if 0 <= fields["at"] < at else "")
         return Verdict(True, late, max(0, math.ceil(at / self.period - 1e-9)), float(at))
@@ -828,7 +936,8 @@ class World:
             return self._refuse(sender, "gains", f"gains {printable(gains, 120)}", late)
         self._send_command(targets, vehicle or None, "gains", gains=gains, tick=tick)
         self._note(FleetEvent.of(tick * self.period, "gains_changed",
-                                 f"gains {gains} for {vehicle or 'every vehicle'} from tick {tick} by {sender}"))
+                                 f"gains {gains} for {vehicle or 'every vehicle'} from tick {tick} by {sender}"),
+                   by_command=True)
         return Verdict(True, "", tick)
 
     def _change_tick(self) -> int:
@@ -886,7 +995,7 @@ class World:
         self.recorder.formation.add(tick, {self.index[vid]: theta for vid, theta in ordered})
         for lo in range(0, len(ordered), 32):  # a control map holds at most 64 entries (decode_control)
             self._send_command(None, None, "formation", phases=dict(ordered[lo:lo + 32]), tick=tick)
-        self._note(formation_changed(tick, self.period, ordered, sender))
+        self._note(formation_changed(tick, self.period, ordered, sender), by_command=True)
         return Verdict(True, "" if ordered else "no phase changed: the offsets given were in force", tick)
 
     def _relay_path(self, fields: dict, sender: str) -> Verdict | str:
@@ -904,7 +1013,7 @@ class World:
         if late:
             return self._refuse(sender, "path", f"path of {vid}", late)
         self._send_command([vid], vid, "path", vehicle=vid, path=table, tick=tick)
-        self._note(path_changed(tick, self.period, vid, sorted(table.items()), sender))
+        self._note(path_changed(tick, self.period, vid, sorted(table.items()), sender), by_command=True)
         return Verdict(True, "", tick)
 
     def _fleet_pause(self, pause: bool, by: str = "") -> Verdict | str:
@@ -988,24 +1097,47 @@ class World:
 
     def _send_command(self, to: list[str] | None, kept_for: str | None, op: str, **fields: Any) -> None:
         """A run-time command to the vehicles ``to`` (None: the ctl publisher, every vehicle), kept
-        for (re)joiners (``kept_for`` one vehicle, None all) and numbered by its place in that list
-        (``seq``: a process that hears it again applies it once)."""
-        payload = encode_control(op, **fields, seq=len(self._commands))
+        for (re)joiners (``kept_for`` one vehicle, None all) and numbered (``seq``: a process that
+        hears it again applies it once). A gains change for the same vehicles on the same tick as
+        the change kept last replaces it there (a vehicle applies both at that tick, the later
+        last: the earlier one never shows): a flood of them in one grant is one entry."""
+        seq = self._seq
+        self._seq += 1
+        payload = encode_control(op, **fields, seq=seq)
         if to is None:
             self.pub_ctl.put(payload)
         else:
             self.session.put(keys.ctl(self.fleet, to), payload)
-        self._commands.append((kept_for, payload))
-        self._make_settings()
+        change = _Change(kept_for, payload, op, fields["tick"] if op == "gains" else None)
+        last = self._commands[-1] if self._commands else None
+        if change.tick is not None and last is not None and (last.op, last.kept_for, last.tick) == (
+                op, kept_for, change.tick):
+            self._commands[-1] = change
+        else:
+            self._commands.append(change)
+        self._settings_changed(op)
 
     def _replay_commands(self, vid: str) -> None:
-        """A (re)started or resumed process missed the ground stations' link and gains commands
-        (a new one starts from the scenario file): send it each again, in order. Each applies
-        from the time or tick it did (link changes at once if that is past), so it ends where
-        the rest of the fleet is."""
-        for target, payload in self._commands:
-            if target is None or target == vid:
-                self.session.put(keys.ctl(self.fleet, [vid]), payload)
+        """A (re)started or resumed process missed the ground stations' run-time commands (a new
+        one starts from the scenario file): send it each again, in order. Each applies from the
+        time or tick it did (link changes at once if that is past), so it ends where the rest of
+        the fleet is. Of the gains changes that apply before the first tick it can step, only the
+        last is sent (it applies them all at that tick, the last last): a restart after a flood
+        of gains changes is sent the one in force and those still to come, not the history."""
+        first = self._first_step(vid)
+        mine = [c for c in self._commands if c.kept_for is None or c.kept_for == vid]
+        in_force = max((i for i, c in enumerate(mine) if c.tick is not None and c.tick <= first), default=None)
+        for i, c in enumerate(mine):
+            if c.tick is None or c.tick > first or i == in_force:
+                self.session.put(keys.ctl(self.fleet, [vid]), c.payload)
+
+    def _first_step(self, vid: str) -> int:
+        """A tick no later than the first one ``vid``'s process (restarted, resumed) can step now:
+        after the newest it reported or joins past (lockstep), the wall clock's less the slack
+        (realtime)."""
+        if self.clock == "lockstep":
+            return self.lockstep.acked.get(self.index[vid], -1) + 1
+        return self._tick_now() - math.ceil(REALTIME_SLACK / self.period)
 
     def _send_roster(self, ch: RosterChange, to: int | None = None) -> None:
         targets = self.ids if to is None else [self.ids[to]]
@@ -1013,24 +1145,24 @@ class World:
                          encode_control("roster", vehicle=self.ids[ch.vehicle], tick=ch.tick, state=ch.state,
                                         fresh=ch.fresh))
 
-    def _note(self, event: FleetEvent) -> None:
-        """An event the world built (from validated fields only), marked with its origin."""
+    def _note(self, event: FleetEvent, by_command: bool = False) -> None:
+        """An event the world built (from validated fields only), marked with its origin. A refused
+        command's (kind ``rejected``) and a change a command made (``by_command``) go out at most
+        as their quota lets (_event_quotas): the next one that does says how many did not."""
         if event.origin is None:
             event = replace(event, origin=ORIGIN_WORLD)
-        if event.kind == "rejected":
-            now = time.monotonic()
-            self._rejected_tokens = min(float(REJECTED_EVENTS_BURST), self._rejected_tokens
-                                        + (now - self._rejected_at) * REJECTED_EVENTS_PER_S)
-            self._rejected_at = now
-            if self._rejected_tokens < 1.0:
-                self._rejected_quiet += 1
+        kind = "change" if by_command else event.kind
+        quota = self._event_quotas.get(kind)
+        if quota is not None:
+            if not quota.take(self._quota_clock()):
                 return
-            self._rejected_tokens -= 1.0
-            if self._rejected_quiet:
-                more = (f" ({self._rejected_quiet} refused commands since the last one logged were not: "
-                        f"a flood; each was answered and counted in the world's rejects)")
+            held = quota.passed()
+            if held:
+                more = (f" ({held} refused commands since the last one logged were not: a flood; each was "
+                        f"answered and counted in the world's rejects)" if kind == "rejected" else
+                        f" ({held} changes by command since the last one logged were not: a flood; each was "
+                        f"made, answered and is listed in world/settings)")
                 event = replace(event, text=event.text[:MAX_EVENT_TEXT - len(more)] + more)
-                self._rejected_quiet = 0
         self.events.append(event)
         self.sink.event(event)
         for line in self._console.lines(event):

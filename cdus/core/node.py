@@ -42,6 +42,7 @@ Pure: no I/O, no clock; counters of what the link did are kept here.
 
 from __future__ import annotations
 
+import bisect
 import heapq
 import math
 from collections import defaultdict
@@ -107,6 +108,32 @@ def gains_problem(gains: dict, dim: int, *, control_hz: float | None = None, pla
         problem = gains_problem_for_rate(gains.get("k"), gains.get("c"), control_hz, plant=plant,
                                          physics_hz=physics_hz, weight_sum=weight_sum)
     return problem
+
+
+def _schedule(changes: list[tuple], change: tuple) -> None:
+    """Put ``change`` (a tuple whose first item is the tick it applies from) into ``changes``, kept
+    in tick order: appended when it is the latest, as the world's always are (O(1); a sort at each
+    made a flood of gains changes quadratic, and a restarted vehicle sent 18,000 of them spent
+    10 s of CPU on them); one at the tick of a change already there replaces it (a step applies
+    every change due, in order: the later is the one that shows)."""
+    i = bisect.bisect_right(changes, change[0], key=lambda g: g[0])
+    if i and changes[i - 1][0] == change[0]:
+        changes[i - 1] = change
+    else:
+        changes.insert(i, change)
+
+
+def _due(changes: list[tuple], n: int) -> tuple | None:
+    """Take the changes of ``changes`` (in tick order) due at tick ``n`` out: the last of them (the
+    one in force from ``n``), or None."""
+    i = 0
+    while i < len(changes) and changes[i][0] <= n:
+        i += 1
+    if i == 0:
+        return None
+    last = changes[i - 1]
+    del changes[:i]
+    return last
 
 
 def _gains_shape_problem(gains: dict, dim: int) -> str | None:
@@ -422,15 +449,13 @@ class VehicleNode:
             raise ValueError(f"unknown stale-neighbour policy {policy!r}; choose one of {', '.join(POLICIES)}")
         if not timeout > 0:
             raise ValueError(f"the policy's timeout must be > 0 s, got {timeout}")
-        self._policies.append((tick, policy, float(timeout)))
-        self._policies.sort(key=lambda g: g[0])
+        _schedule(self._policies, (tick, policy, float(timeout)))
 
     def set_gains(self, k: tuple[float, ...], c: float, tick: int) -> None:
         """New guidance gains from tick ``tick`` (or the next tick stepped)."""
         if len(k) != self.vehicle.dim or not all(x > 0 for x in k) or not c > 0:
             raise ValueError(f"gains need k > 0 ({self.vehicle.dim} values) and c > 0, got k = {k}, c = {c}")
-        self._gains.append((tick, tuple(float(x) for x in k), float(c)))
-        self._gains.sort(key=lambda g: g[0])
+        _schedule(self._gains, (tick, tuple(float(x) for x in k), float(c)))
 
     def set_formation(self, phases: dict[int, float], tick: int) -> None:
         """Phases ``{vehicle index: θ}`` (ω units) from tick ``tick`` (or the next tick
@@ -567,11 +592,12 @@ class VehicleNode:
         while pend and pend[0][0] <= n * T + 1e-12:
             _, _, msg, d = heapq.heappop(pend)
             self._offer(msg, n * T, d)
-        while self._gains and self._gains[0][0] <= n:
-            _, k, c = self._gains.pop(0)
-            self.vehicle.k, self.vehicle.c = k, c
-        while self._policies and self._policies[0][0] <= n:
-            _, self.table.policy, self.table.timeout = self._policies.pop(0)
+        gains = _due(self._gains, n)
+        if gains is not None:
+            _, self.vehicle.k, self.vehicle.c = gains
+        policy = _due(self._policies, n)
+        if policy is not None:
+            _, self.table.policy, self.table.timeout = policy
         self._apply_changes(n)
         v = self.vehicle
         try:

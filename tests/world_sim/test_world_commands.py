@@ -23,11 +23,16 @@ class Query:
         self.key_expr = key
         self.payload = None if payload is None else Payload(payload)
         self.replies: list[tuple[str, bytes]] = []
+        self.errors: list[bytes] = []
         self.dropped = False
 
     def reply(self, key, payload) -> None:
         assert not self.dropped, "replied after the query was finalized"
         self.replies.append((str(key), bytes(payload)))
+
+    def reply_err(self, payload) -> None:
+        assert not self.dropped, "replied after the query was finalized"
+        self.errors.append(bytes(payload))
 
     def drop(self) -> None:
         self.dropped = True
@@ -244,14 +249,20 @@ def test_by_query_only_ground_stations_command_not_a_launcher_or_a_vehicle():
 
 
 def test_a_flood_of_queries_is_answered_busy_past_what_waits_and_counted():
-    from world_sim.world import MAX_QUEUED_QUERIES
+    from cdus.core.quota import Quota
+    from world_sim.world import ANSWERS_PER_PASS, MAX_QUEUED_QUERIES
     w = started(world())
+    w._command_quota = Quota(1e9, 10**6)  # the rate is another test's: here, only the queue's bound
     qs = [Query(keys.world_command(FLEET, keys.GROUND), encode_control("set_gains", gains={"c": 2.0}, vehicle=""))
           for _ in range(MAX_QUEUED_QUERIES + 5)]
     for q in qs:
         w._on_command_query(q)  # Zenoh's thread: the main thread is busy elsewhere
     assert all(q.answer.reason.startswith("busy") for q in qs[MAX_QUEUED_QUERIES:])
-    w._handle(_wake())
+    w._handle(_wake())  # one pass answers ANSWERS_PER_PASS, the oldest first; the others wait their turn
+    assert [q.answer is not None for q in qs[:MAX_QUEUED_QUERIES]] == [True] * ANSWERS_PER_PASS + [False] * (
+        MAX_QUEUED_QUERIES - ANSWERS_PER_PASS)
+    while w._queries:
+        w._handle(_wake())
     assert all(q.answer.applied for q in qs[:MAX_QUEUED_QUERIES])
     assert w.st.rejects["busy"] == 5
 
@@ -372,15 +383,18 @@ def test_a_flood_of_refused_commands_is_answered_and_counted_but_not_amplified_i
     answered and counted, the event log takes a burst then one a second, and the next one
     logged says how many it left out."""
     import world_sim.world as ws
+    from cdus.core.quota import Quota
 
     w = started(world())
+    w._command_quota = Quota(1e9, 10**6)  # past the ground credentials' rate: another test's
     for _ in range(500):
         r = ask(w, "set_gains", gains={"k": -1.0}, vehicle="").answer
         assert r.status == "rejected" and "k must be" in r.reason
     assert w.st.rejects["gains"] == 500
     logged = [e for e in w.events if e.kind == "rejected"]
     assert ws.REJECTED_EVENTS_BURST <= len(logged) <= ws.REJECTED_EVENTS_BURST + 2
-    w._rejected_at -= 1.0 / ws.REJECTED_EVENTS_PER_S  # a second later: one more, saying what was left out
+    w._event_quotas["rejected"].at -= 1.0 / ws.REJECTED_EVENTS_PER_S  # a second later: one more, saying
+    # what was left out
     ask(w, "set_gains", gains={"k": -2.0}, vehicle="")
     last = w.events[-1]
     assert last.kind == "rejected" and "-2.0" in last.text and "refused commands since the last one logged" in last.text
