@@ -16,16 +16,16 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 __all__ = [
-    "CLOCKS", "ClosestPair", "ConfigError", "DivergedError", "DroppedBy", "Event", "FaultCounters", "LinkFaults", "LinkMetrics",
-    "LinkStateChange", "Metrics", "RejectedByReason", "Result", "RunError", "RunInterrupted", "SafetyInfo",
-    "Scenario", "Trace", "cell_statistics", "load", "override", "run", "sweep",
+    "CLOCKS", "ClosestPair", "ConfigError", "DivergedError", "DroppedBy", "Event", "FaultCounters", "Integrity",
+    "LinkFaults", "LinkMetrics", "LinkStateChange", "Metrics", "RejectedByReason", "Result", "RunError",
+    "RunInterrupted", "SafetyInfo", "Scenario", "Trace", "cell_statistics", "load", "override", "run", "sweep",
 ]
 
 if TYPE_CHECKING:  # for type checkers and editors; at run time __getattr__ loads them
     from cdus.api import (  # noqa: F401
-        CLOCKS, ClosestPair, ConfigError, DivergedError, DroppedBy, Event, FaultCounters, LinkFaults, LinkMetrics,
-        LinkStateChange, Metrics, RejectedByReason, Result, RunError, RunInterrupted, SafetyInfo, Scenario, Trace,
-        cell_statistics, load, override, run, sweep,
+        CLOCKS, ClosestPair, ConfigError, DivergedError, DroppedBy, Event, FaultCounters, Integrity, LinkFaults,
+        LinkMetrics, LinkStateChange, Metrics, RejectedByReason, Result, RunError, RunInterrupted, SafetyInfo,
+        Scenario, Trace, cell_statistics, load, override, run, sweep,
     )
 
 

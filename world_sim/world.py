@@ -92,6 +92,9 @@ REALTIME_SLACK = 1.0
 SUSPECT_REASONS = ("future", "conflict", "implausible")
 #: ... and those that say someone forges the world's own messages to the vehicles (an open fleet)
 SUSPECT_WORLD_REASONS = ("radio_conflict",)
+#: ... and those of the agents' watch of the world's liveliness token: a token on a key no process
+#: declares (a wildcard, ``alive/**``), a second world token while the world's is up (docs/security.md)
+SUSPECT_TOKEN_REASONS = ("token_key", "token_extra")
 SUSPECT_EVERY = 5.0  # s: at most one suspect event per (vehicle, reason) in this time
 #: s a lockstep world waits for a fleet that dropped all at once (the router or the network went,
 #: not the vehicles: their processes keep their state) before it declares them lost. A router
@@ -256,7 +259,13 @@ class World:
         self._rt_asked: dict[str, deque[tuple[object | None, str, float]]] = {}
         self._t_start = 0.0
         self._lock = threading.Lock()  # guards st.latest for the queryable's thread
-        self._alive_news: deque[tuple[str, bool]] = deque()  # liveliness callbacks -> main thread
+        self._alive_news: deque[tuple[str, bool]] = deque()  # liveliness callbacks (key, up) -> main thread
+        self.zid: str | None = None  # this process's Zenoh session id (its token's key ends with it)
+        self._token_of: dict[str, str] = {}  # vehicle -> the session id of the token taken as its process's
+        self._not_taken: set[str] = set()  # session ids of tokens refused once: never taken afterwards
+        #: what may have altered the run, by reason (docs/metrics.md, ``integrity``), and the first of each
+        self.integrity: Counter = Counter()
+        self._integrity_notes: dict[str, str] = {}
         self._logged_rejects: set[tuple[str, str]] = set()
         self._recorded: dict[int, StateMsg] = {}  # the row each vehicle was last recorded with
         #: per vehicle, its processes' filter interventions as last reported (stats, every ~1 s of
@@ -308,7 +317,8 @@ class World:
             s.declare_queryable(keys.world_status(f), self._on_status_query),
             s.declare_queryable(keys.any_world_command(f), self._on_command_query),
         ]
-        self.token = s.liveliness().declare_token(keys.alive(f, keys.WORLD))
+        self.zid = str(s.zid())
+        self.token = s.liveliness().declare_token(keys.alive(f, keys.WORLD, self.zid))
         self._ticker = threading.Thread(target=self._tick_thread, daemon=True, name="ticker")
         self._ticker.start()
         self.log(f"ready: fleet {f!r}, {len(self.ids)} vehicles, clock {self.clock}, "
@@ -335,15 +345,13 @@ class World:
                 return
 
     def _on_alive_sample(self, sample: Any) -> None:
-        """Liveliness news (Zenoh's thread): queued for the main thread, which a wake fetches. The
-        news itself never travels over the wire, so nobody else can fake it."""
-        name = keys.alive_name(str(sample.key_expr))
-        if name is not None:
-            self._alive_news.append((name, not str(sample.kind).endswith("DELETE")))
-            try:
-                self._wake()
-            except zenoh.ZError:
-                pass
+        """Liveliness news (Zenoh's thread): queued for the main thread (:meth:`_on_token`), which a
+        wake fetches. The wake carries nothing: the news never travels over the wire."""
+        self._alive_news.append((str(sample.key_expr), not str(sample.kind).endswith("DELETE")))
+        try:
+            self._wake()
+        except zenoh.ZError:
+            pass
 
     def request_stop(self) -> None:
         self.stop_requested = True
@@ -401,8 +409,8 @@ class World:
 
     def _handle_alive_news(self) -> None:
         while self._alive_news:
-            name, up = self._alive_news.popleft()
-            self._on_alive(name, up)
+            key, up = self._alive_news.popleft()
+            self._on_token(key, up)
 
     def _handle(self, sample: Any) -> None:
         """One sample of the inbox (anything anyone can put on a key addressed to the world):
@@ -519,13 +527,14 @@ class World:
         radio geometry sample for a tick (someone else speaks as the world): a ``suspect``
         event, at most one per (vehicle, reason) per SUSPECT_EVERY seconds."""
         now = time.monotonic()
-        for reason in SUSPECT_REASONS + SUSPECT_WORLD_REASONS:
+        for reason in SUSPECT_REASONS + SUSPECT_WORLD_REASONS + SUSPECT_TOKEN_REASONS:
             new = s.rejected_by_reason.get(reason, 0) - (old.rejected_by_reason.get(reason, 0) if old else 0)
             last = self._suspect_seen.get((vid, reason))
             if new <= 0 or last is not None and now - last < SUSPECT_EVERY:
                 continue
             self._suspect_seen[(vid, reason)] = now
-            what = "ω" if reason in SUSPECT_REASONS else "radio geometry not the world's"
+            what = ("ω" if reason in SUSPECT_REASONS else "radio geometry not the world's"
+                    if reason in SUSPECT_WORLD_REASONS else "a liveliness token not the world's")
             self._note(FleetEvent.of(self._sim_now(), "suspect",
                                      f"{vid} received {what} it cannot trust: {new} new {reason!r} rejects "
                                      f"({s.rejected_by_reason[reason]} in all)", vehicle=vid, origin=vid))
@@ -908,6 +917,66 @@ class World:
                                  + (f" by {by}" if by else "")))
         self._publish_status()  # at once: a ground station attaching is answered the newest status
         return Verdict(True, "", tick)
+
+    def _on_token(self, key: str, up: bool) -> None:
+        """A liveliness token came (``up``) or went: whose it is, then :meth:`_on_alive`.
+
+        A vehicle's process is the session whose token the world took for it: the first token
+        of that vehicle (``alive/<id>/<zid>``) while it has none; its loss is that token's going,
+        whatever other token of the vehicle is up. Zenoh merges tokens of one key (a second is no
+        news, and keeps the key up after the first goes): the session id in the key makes each
+        process's token its own. Ignored, and counted in :attr:`integrity`: a token on a key no
+        process declares (``alive/**``, a bare ``alive/usv2``: they intersect every watch), of a
+        name not in the fleet, a second token of a vehicle (or of the world) while one is up,
+        and any later token of a session refused once (docs/security.md, "Liveliness")."""
+        token = keys.alive_token(key)
+        if token is None:
+            if up:
+                self._tamper("token_key", f"a liveliness token on {printable(key, 80)}, no process's key: ignored")
+            return
+        name, zid = token
+        if name == keys.WORLD or name not in self.index:
+            if up and zid != self.zid:
+                self._tamper("token_extra" if name == keys.WORLD else "token_unknown",
+                             f"a liveliness token {printable(name, 64)} of session {zid}: "
+                             + ("not this world's" if name == keys.WORLD else "no process of this fleet"))
+            return
+        taken = self._token_of.get(name)
+        if not up:
+            if taken == zid:
+                del self._token_of[name]
+                self._on_alive(name, False)
+            return
+        if taken == zid:
+            return
+        if taken is None and zid not in self._not_taken and zid not in self._token_of.values():
+            self._token_of[name] = zid
+            self._on_alive(name, True)
+            return
+        self._not_taken.add(zid)
+        self._tamper("token_extra", f"a second liveliness token of {name} (session {zid}) while "
+                     + (f"session {taken}'s is up" if taken else "it has none it can take") + ": ignored")
+
+    def _tamper(self, reason: str, note: str) -> None:
+        """Something that may have altered the run (a forged or unexplained token): counted by
+        reason for the metrics (``integrity``), the first of each logged and made an event."""
+        self.integrity[reason] += 1
+        if reason not in self._integrity_notes:
+            self._integrity_notes[reason] = note
+            self._note(FleetEvent.of(self._sim_now(), "suspect", note + " (docs/security.md)"))
+
+    def integrity_block(self) -> dict:
+        """``integrity`` of the metrics JSON: ``tampered`` when the world, or a vehicle watching the
+        world's token, saw a token that is no process's (docs/metrics.md)."""
+        reasons = Counter(self.integrity)
+        notes = list(self._integrity_notes.values())
+        for s in self._processes():
+            for reason in SUSPECT_TOKEN_REASONS:
+                if s.rejected_by_reason.get(reason):
+                    reasons["vehicle_" + reason] += s.rejected_by_reason[reason]
+                    notes.append(f"{s.id} counted {s.rejected_by_reason[reason]} {reason!r}: a liveliness token "
+                                 f"on its watch of the world's that is not the world's")
+        return {"tampered": bool(reasons), "reasons": dict(sorted(reasons.items())), "notes": notes}
 
     def _on_alive(self, name: str, up: bool) -> None:
         st = self.st
@@ -1500,7 +1569,8 @@ class World:
                               policy=self.policy, events=self.events,
                               interventions=sum(s.interventions for s in self._processes()),
                               completed=completion == COMPLETED, completion=completion,
-                              rejected_by_reason=self.rejects_by_reason(), **never_up, **self._radio_metrics())
+                              rejected_by_reason=self.rejects_by_reason(), integrity=self.integrity_block(),
+                              **never_up, **self._radio_metrics())
         if self.metrics_out:
             write_json(self.metrics_out, metrics)
             self.log(f"metrics written to {self.metrics_out}")
