@@ -267,7 +267,7 @@ class Agent:
         self.pub_omega = s.declare_publisher(keys.omega(f, me, listeners_of(self.scenario, me)),
                                              congestion_control=block, express=OMEGA_EXPRESS)
         self.pub_state = s.declare_publisher(keys.state(f, me), congestion_control=block)
-        self.pub_stats = s.declare_publisher(keys.stats(f, me))
+        self.pub_stats = s.declare_publisher(keys.stats(f, me), congestion_control=block)  # the last one is the metrics'
         wake = s.declare_publisher(keys.wake(f, me), allowed_destination=zenoh.Locality.SESSION_LOCAL)
         self.waker = Waker(lambda: wake.put(b""), self.period)
         self.waker.start()

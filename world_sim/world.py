@@ -301,8 +301,16 @@ class World:
         s = self.session = open_session(self.transport)
         f = self.fleet
         self.inbox = s.declare_subscriber(keys.inbox(f, keys.WORLD), zenoh.handlers.FifoChannel(INBOX_CAPACITY))
-        self.pub_ctl = s.declare_publisher(keys.ctl(f, self.ids), congestion_control=zenoh.CongestionControl.BLOCK)
-        self.pub_launcher = s.declare_publisher(keys.launcher_cmd(f))
+        # Everything the vehicles and the launcher act on blocks rather than drops under congestion
+        # (Zenoh's default for a put is to drop): a grant, a roster change, a join, a command, a
+        # proximity sample or a fault request lost would change the run (_send). Blocking waits
+        # only for room in this session's queue to the router, which the router drains whatever
+        # the receivers do (it holds a message for a full link at most wait_before_close, then
+        # closes that link: cdus.wire.transport.BLOCK_BEFORE_CLOSE), as the grants always have.
+        # The status (said again every second) and the events (kept whole in metrics.json) drop.
+        block = zenoh.CongestionControl.BLOCK
+        self.pub_ctl = s.declare_publisher(keys.ctl(f, self.ids), congestion_control=block)
+        self.pub_launcher = s.declare_publisher(keys.launcher_cmd(f), congestion_control=block)
         self.pub_radio = (s.declare_publisher(keys.radio(f, self.ids), congestion_control=zenoh.CongestionControl.BLOCK)
                           if self.radio is not None else None)
         self.pub_status = s.declare_publisher(keys.world_status(f))
@@ -1047,9 +1055,14 @@ class World:
         if to is None:
             self.pub_ctl.put(payload)
         else:
-            self.session.put(keys.ctl(self.fleet, to), payload)
+            self._put(keys.ctl(self.fleet, to), payload)
         self._commands.append((kept_for, payload))
         self._make_settings()
+
+    def _put(self, key: str, payload: bytes) -> None:
+        """A put to some of the vehicles (a roster change, a join, a command, contacts, a radio
+        sample): blocking, never dropped under congestion, as the ctl publisher's (:meth:`open`)."""
+        self.session.put(key, payload, congestion_control=zenoh.CongestionControl.BLOCK)
 
     def _replay_commands(self, vid: str) -> None:
         """A (re)started or resumed process missed the ground stations' link and gains commands
@@ -1058,11 +1071,11 @@ class World:
         the rest of the fleet is."""
         for target, payload in self._commands:
             if target is None or target == vid:
-                self.session.put(keys.ctl(self.fleet, [vid]), payload)
+                self._put(keys.ctl(self.fleet, [vid]), payload)
 
     def _send_roster(self, ch: RosterChange, to: int | None = None) -> None:
         targets = self.ids if to is None else [self.ids[to]]
-        self.session.put(keys.ctl(self.fleet, targets),
+        self._put(keys.ctl(self.fleet, targets),
                          encode_control("roster", vehicle=self.ids[ch.vehicle], tick=ch.tick, state=ch.state,
                                         fresh=ch.fresh))
 
@@ -1144,7 +1157,7 @@ class World:
                 self._last_grant = time.monotonic()
                 self.pub_ctl.put(encode_control("grant", until=a.until))
             elif isinstance(a, Join):
-                self.session.put(keys.ctl(self.fleet, [self.ids[a.vehicle]]), encode_control("join", tick=a.tick))
+                self._put(keys.ctl(self.fleet, [self.ids[a.vehicle]]), encode_control("join", tick=a.tick))
                 if a.vehicle in self._catching:
                     self._catching[a.vehicle].join = a.tick
             elif isinstance(a, CatchUp):
@@ -1174,7 +1187,7 @@ class World:
         with self._lock:
             gone = {j: m.q for j, m in self.st.latest.items() if j not in positions}
         for j, msg in sense_tick(self.scenario, tick, positions, gone).items():
-            self.session.put(keys.contacts(self.fleet, self.ids[j]), encode_contacts(msg))
+            self._put(keys.contacts(self.fleet, self.ids[j]), encode_contacts(msg))
 
     def _send_geometry(self, tick: int, positions: dict[int, tuple]) -> None:
         """The radio geometry at ``tick`` (cdus.sim.radio), as the in-process fleet samples it: the
@@ -1196,7 +1209,7 @@ class World:
     def _replay_geometry(self, vid: str) -> None:
         """A (re)joining process needs the radio samples in force from its join on: the newest ones."""
         for _, payload in self._radio_sent:
-            self.session.put(keys.radio(self.fleet, [vid]), payload)
+            self._put(keys.radio(self.fleet, [vid]), payload)
 
     def _radio_realtime(self) -> None:
         """Realtime: once the clock has passed a radio sample tick, sample the newest telemetry of
@@ -1291,7 +1304,7 @@ class World:
             self._replay_commands(vid)
             self._replay_geometry(vid)
             if c.join is not None:  # last, as the first time: it starts stepping when it hears it
-                self.session.put(keys.ctl(self.fleet, [vid]), encode_control("join", tick=c.join))
+                self._put(keys.ctl(self.fleet, [vid]), encode_control("join", tick=c.join))
             self.pub_ctl.put(encode_control("grant", until=ls.granted))
 
     def _widen_horizon(self, now: float, mark: tuple[float, int]) -> tuple[float, int]:

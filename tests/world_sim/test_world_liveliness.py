@@ -6,6 +6,7 @@ from __future__ import annotations
 import zenoh
 from hypothesis import given, settings, strategies as hs
 
+from cdus.core.events import RosterChange
 from cdus.wire import keys
 from cdus.wire.schemas import AgentStats
 from tests.world_sim.test_world import FLEET, started, world
@@ -105,3 +106,25 @@ def test_no_token_but_a_vehicles_own_changes_whether_it_is_alive(news):
         hear(w, key, up)
     assert "usv1" in w.st.alive and w._token_of["usv1"] == "a0"
     assert w.st.alive == set(w._token_of)
+
+
+class Recording:
+    """A session that keeps each put's congestion control."""
+
+    def __init__(self) -> None:
+        self.puts: list[tuple[str, object]] = []
+
+    def put(self, key, payload, congestion_control=None, **kw) -> None:
+        self.puts.append((key, congestion_control))
+
+
+def test_roster_changes_joins_and_contacts_block_rather_than_drop_under_congestion(tmp_path):
+    w = world(tmp_path, events="\n[safety]\nenabled = true\n")
+    w.session = Recording()
+    w._send_roster(RosterChange(10, 1, "gone"))
+    w._send_command(["usv1"], "usv1", "gains", gains={"c": 1.0}, tick=5)
+    w._replay_commands("usv1")
+    w._send_contacts(0, {j: (0.0, 0.0) if j < 3 else (0.0, 0.0, 20.0) for j in range(6)})
+    kinds = {keys.leaf(k)[0] for k, _ in w.session.puts}
+    assert kinds == {"ctl", "contacts"}, w.session.puts
+    assert all(cc == zenoh.CongestionControl.BLOCK for _, cc in w.session.puts), w.session.puts
