@@ -303,7 +303,7 @@ class World:
         self.inbox = s.declare_subscriber(keys.inbox(f, keys.WORLD), zenoh.handlers.FifoChannel(INBOX_CAPACITY))
         # Everything the vehicles and the launcher act on blocks rather than drops under congestion
         # (Zenoh's default for a put is to drop): a grant, a roster change, a join, a command, a
-        # proximity sample or a fault request lost would change the run (_send). Blocking waits
+        # proximity sample or a fault request lost would change the run (_put). Blocking waits
         # only for room in this session's queue to the router, which the router drains whatever
         # the receivers do (it holds a message for a full link at most wait_before_close, then
         # closes that link: cdus.wire.transport.BLOCK_BEFORE_CLOSE), as the grants always have.
@@ -934,9 +934,9 @@ class World:
         whatever other token of the vehicle is up. Zenoh merges tokens of one key (a second is no
         news, and keeps the key up after the first goes): the session id in the key makes each
         process's token its own. Ignored, and counted in :attr:`integrity`: a token on a key no
-        process declares (``alive/**``, a bare ``alive/usv2``: they intersect every watch), of a
-        name not in the fleet, a second token of a vehicle (or of the world) while one is up,
-        and any later token of a session refused once (docs/security.md, "Liveliness")."""
+        process declares (``alive/**``: it intersects every watch), of a name not in the fleet, a second token of a vehicle (or of the world) while one is up,
+        and any later token of a session refused once, or of a session that holds another
+        vehicle's (docs/security.md, "Liveliness")."""
         token = keys.alive_token(key)
         if token is None:
             if up:
