@@ -934,9 +934,9 @@ class World:
         whatever other token of the vehicle is up. Zenoh merges tokens of one key (a second is no
         news, and keeps the key up after the first goes): the session id in the key makes each
         process's token its own. Ignored, and counted in :attr:`integrity`: a token on a key no
-        process declares (``alive/**``: it intersects every watch), of a name not in the fleet, a second token of a vehicle (or of the world) while one is up,
-        and any later token of a session refused once, or of a session that holds another
-        vehicle's (docs/security.md, "Liveliness")."""
+        process declares (``alive/**``: it intersects every watch), of a name not in the fleet,
+        a second token of a vehicle (or of the world) while one is up, and any later token of a
+        session refused once or holding another vehicle's (docs/security.md, "Liveliness")."""
         token = keys.alive_token(key)
         if token is None:
             if up:
