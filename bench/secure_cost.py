@@ -87,7 +87,7 @@ def run_receiver(a: argparse.Namespace) -> int:
             done.set()
 
     sub = s.declare_subscriber(keys.inbox(a.fleet, "b"), on)
-    token = s.liveliness().declare_token(keys.alive(a.fleet, "b"))
+    token = s.liveliness().declare_token(keys.alive(a.fleet, "b", str(s.zid())))
     ok = done.wait(timeout=a.n / a.hz * 5 + 30)
     token.undeclare()
     sub.undeclare()
@@ -101,7 +101,7 @@ def run_sender(a: argparse.Namespace) -> int:
 
     s = client(a.connect, a.zconf)
     ready = threading.Event()
-    ls = s.liveliness().declare_subscriber(keys.alive(a.fleet, "b"), lambda smp: ready.set(), history=True)
+    ls = s.liveliness().declare_subscriber(keys.alive_of(a.fleet, "b"), lambda smp: ready.set(), history=True)
     if not ready.wait(timeout=30):
         print("no receiver", file=sys.stderr)
         return 1

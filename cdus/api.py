@@ -49,10 +49,10 @@ from cdus.wire import keys
 from world_sim.recording import parse_spec
 
 __all__ = [  # the names of ``import cdus`` (cdus/__init__.py, docs/api.md; tests/api/test_public.py: one list)
-    "CLOCKS", "ClosestPair", "ConfigError", "DivergedError", "DroppedBy", "Event", "FaultCounters", "LinkFaults",
-    "LinkMetrics", "LinkStateChange", "Metrics", "RadioMetrics", "RejectedByReason", "Result", "RunError",
-    "RunInterrupted", "SafetyInfo", "Scenario", "SweepRow", "SweepTable", "CellStats", "Trace", "cell_statistics",
-    "load", "override", "run", "sweep",
+    "CLOCKS", "ClosestPair", "ConfigError", "DivergedError", "DroppedBy", "Event", "FaultCounters", "Integrity",
+    "LinkFaults", "LinkMetrics", "LinkStateChange", "Metrics", "RadioMetrics", "RejectedByReason", "Result",
+    "RunError", "RunInterrupted", "SafetyInfo", "Scenario", "SweepRow", "SweepTable", "CellStats", "Trace",
+    "cell_statistics", "load", "override", "run", "sweep",
 ]
 
 CLOCKS = ("inproc", "lockstep")  # how run() runs a scenario: `cdus sim`, `cdus launch --clock lockstep`
@@ -366,6 +366,28 @@ class RejectedByReason:
 
 
 @dataclass(frozen=True)
+class Integrity:
+    """``integrity``: whether something was seen that may have altered the run (a liveliness
+    token that is no process's, a second one of a process), the counts by reason and a
+    sentence for the first of each (docs/metrics.md, docs/security.md)."""
+
+    tampered: bool
+    reasons: dict[str, int]
+    notes: tuple[str, ...]
+
+    @classmethod
+    def from_dict(cls, d: Any) -> "Integrity":
+        t = _table(d, "integrity")
+        notes = t["notes"] if "notes" in t else _missing("integrity.", "notes")
+        if not isinstance(notes, list) or not all(isinstance(x, str) for x in notes):
+            raise _bad("integrity.notes", "a list of strings", notes)
+        return cls(_bool(t, "tampered", "integrity."), _counts(t.get("reasons"), "integrity.reasons"), tuple(notes))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"tampered": self.tampered, "reasons": dict(self.reasons), "notes": list(self.notes)}
+
+
+@dataclass(frozen=True)
 class Metrics:
     """One run's metrics JSON, typed: the fields and their meaning are docs/metrics.md's.
 
@@ -402,6 +424,7 @@ class Metrics:
     near_collision: bool | None
     interventions: int
     safety: SafetyInfo
+    integrity: Integrity | None = None  # None only in metrics written before it was (and the launcher's world_lost)
     rejected_by_reason: RejectedByReason | None = None
     radio: RadioMetrics | None = None  # with [radio] only
     interrupted: bool | None = None
@@ -458,6 +481,7 @@ class Metrics:
             near_collision=_bool(d, "near_collision", w) if "near_collision" in d else None,
             interventions=_int(d, "interventions", w),
             safety=SafetyInfo(_bool(safety, "enabled", "safety."), _num(safety, "radius_m", "safety.", null=True)),
+            integrity=Integrity.from_dict(d["integrity"]) if "integrity" in d else None,
             rejected_by_reason=rej,
             radio=RadioMetrics.from_dict(d["radio"]) if "radio" in d else None,
             interrupted=_bool(d, "interrupted", w) if "interrupted" in d else None,
@@ -488,6 +512,9 @@ class Metrics:
                 out[f.name] = [e.to_dict() for e in v]
             elif f.name == "safety":
                 out[f.name] = {"enabled": v.enabled, "radius_m": v.radius_m}
+            elif f.name == "integrity":
+                if v is not None:
+                    out[f.name] = v.to_dict()
             elif f.name == "rejected_by_reason":
                 if v is not None:
                     out[f.name] = {"world": dict(v.world), "vehicles": dict(v.vehicles)}

@@ -66,6 +66,7 @@ class FleetView:
     lock: threading.Lock = field(default_factory=threading.Lock)
     states: dict[str, StateMsg] = field(default_factory=dict)
     alive: set[str] = field(default_factory=set)
+    tokens: dict[str, set[str]] = field(default_factory=dict)  # name -> session ids of its tokens (keys.hold_token)
     world: dict | None = None
     events: list[FleetEvent] = field(default_factory=list)
     rejected: int = 0
@@ -319,15 +320,19 @@ class GroundStation:
                 del self.view.events[:-MAX_EVENTS]  # a flood of events cannot grow the console without bound
 
     def _on_alive(self, sample: Any) -> None:
-        who = keys.alive_name(str(sample.key_expr))
+        key, up = str(sample.key_expr), not str(sample.kind).endswith("DELETE")
         with self.view.lock:
-            if str(sample.kind).endswith("DELETE"):
-                self.view.alive.discard(who)
-            elif who and keys.FLEET_RE.match(who) and len(self.view.alive) < MAX_NAMES:
-                self.view.alive.add(who)
-                self.view.world_seen |= who == keys.WORLD
-            else:
+            if up and keys.alive_name(key) not in self.view.alive and len(self.view.alive) >= MAX_NAMES:
                 self.view.rejected += 1
+                return
+            news = keys.hold_token(self.view.tokens, key, up)
+            if news is None:  # a token on a key expression (alive/**) or no process's key
+                self.view.rejected += 1
+            elif news[1]:
+                self.view.alive.add(news[0])
+                self.view.world_seen |= news[0] == keys.WORLD
+            else:
+                self.view.alive.discard(news[0])
 
     def wait_for_status(self, timeout: float) -> bool:
         """Wait until the world's status has been heard: asked for at once (the world answers

@@ -106,6 +106,7 @@ RESEND_OMEGAS = 16
 #: said before that is lost too
 RESEND_EVERY = 1.0
 RESEND_FOR = 10.0
+WORLD_BACK = "the world's token is back after every world token went (an outage)"  # logged when taken
 #: lockstep: granted and still waiting for a neighbour's ω this long (s), the agent says its recent
 #: messages again every RESEND_EVERY s (receivers drop copies as stale): a router frozen for
 #: seconds can lose messages in flight without any session seeing the world's token go and come back
@@ -221,6 +222,9 @@ class Agent:
         self._resend_until = 0.0  # lockstep, monotonic s: back from an outage, say recent messages again till then
         self._resent_at = 0.0
         self._world_seen = None
+        self._token_news: deque[tuple[str, bool]] = deque()  # the world's liveliness (Zenoh's thread -> main)
+        self._world_tokens: set[str] = set()  # the session ids of the world's tokens up
+        self._world_left = False  # every world token went (this session was cut off): their return is news
         self._last_omegas: deque[bytes] = deque(  # lockstep: said again after an outage
             maxlen=max(RESEND_OMEGAS, 2 * MAX_GRANT_WINDOW // self.node.every + 2))
         #: telemetry sent, newest last: as much as the world can lack after an outage (this vehicle
@@ -264,16 +268,17 @@ class Agent:
         self.pub_omega = s.declare_publisher(keys.omega(f, me, listeners_of(self.scenario, me)),
                                              congestion_control=block, express=OMEGA_EXPRESS)
         self.pub_state = s.declare_publisher(keys.state(f, me), congestion_control=block)
-        self.pub_stats = s.declare_publisher(keys.stats(f, me))
+        self.pub_stats = s.declare_publisher(keys.stats(f, me), congestion_control=block)  # the last one is the metrics'
         wake = s.declare_publisher(keys.wake(f, me), allowed_destination=zenoh.Locality.SESSION_LOCAL)
         self.waker = Waker(lambda: wake.put(b""), self.period)
         self.waker.start()
         self._await_links()
         # Ready: the subscription is in place and every listener can hear us. The token tells
         # the world and the launcher.
-        self.token = s.liveliness().declare_token(keys.alive(f, me))
+        self.token = s.liveliness().declare_token(keys.alive(f, me, str(s.zid())))
         if self.clock_mode == "lockstep":  # the world's token back: this session was cut off (an outage)
-            self._world_seen = s.liveliness().declare_subscriber(keys.alive(f, keys.WORLD), self._on_world_token)
+            self._world_seen = s.liveliness().declare_subscriber(keys.alive_of(f, keys.WORLD), self._on_world_token,
+                                                                 history=True)
         spec = self.scenario.vehicle(me)
         self.log(f"ready: {spec.kind} on a {dict(spec.path)['family']} path, "
                  f"neighbours {[self.ids[k] for k in self.node.neighbours]}, clock {self.clock_mode}")
@@ -295,8 +300,8 @@ class Agent:
             for vid in list(waiting):
                 if any(r.ok is not None for r in s.get(keys.ping(f, vid), timeout=PING_TIMEOUT)):
                     waiting.remove(vid)
-                elif self.rejoin and not any(r.ok is not None for r in
-                                             s.liveliness().get(keys.alive(f, vid), timeout=PING_TIMEOUT)):
+                elif self.rejoin and not any(r.ok is not None and keys.alive_name(str(r.ok.key_expr)) == vid for r in
+                                             s.liveliness().get(keys.alive_of(f, vid), timeout=PING_TIMEOUT)):
                     self.log(f"listener {vid} is not alive: not waiting for it")
                     waiting.remove(vid)
             if waiting:
@@ -593,6 +598,8 @@ class Agent:
     def _drain(self, now: Callable[[], float | None]) -> None:
         while (sample := self.inbox.try_recv()) is not None:
             self._handle(sample, now())
+        if self._token_news:
+            self._world_token_news()
         omega = self._omega
         for k, ring in self._rings:  # realtime ω: at most OMEGA_RING each, the sender known by its ring
             for _ in range(OMEGA_RING):
@@ -789,11 +796,40 @@ class Agent:
         self._states = []
 
     def _on_world_token(self, sample: Any) -> None:
-        """Liveliness of the world as this session sees it: its token coming back means the link
-        to the router was cut and restored, and what was in flight then may be lost."""
-        if sample.kind == zenoh.SampleKind.PUT:
-            self._resend_until = time.monotonic() + RESEND_FOR
-            self._wake()
+        """Liveliness of the world as this session sees it (Zenoh's thread): handed to the main
+        thread (:meth:`_world_token_news`), which a wake fetches."""
+        self._token_news.append((str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT))
+        self._wake()
+
+    def _world_token_news(self) -> None:
+        """The world's tokens coming back after every one of them went means this session was
+        cut off from the router and is back, and what was in flight then may be lost: the
+        recent messages are said again (RESEND_FOR). Only a token on exactly the world's key
+        (``alive/world/<zid>``) counts: one on a key expression that intersects it (``alive/**``,
+        anyone's) is counted (``token_key``) and ignored, and so is a second world token while
+        one is up (``token_extra``: its coming and going is no news of this session's link)."""
+        while self._token_news:
+            key, up = self._token_news.popleft()
+            token = keys.alive_token(key)
+            if token is None or token[0] != keys.WORLD:
+                if up:  # counted once, when it comes
+                    self._reject(key, "token_key")
+                continue
+            zid, tokens = token[1], self._world_tokens
+            if not up:
+                if zid in tokens:
+                    tokens.discard(zid)
+                    self._world_left |= not tokens
+                continue
+            if zid in tokens:
+                continue
+            if tokens:
+                self._reject("world", "token_extra")
+            elif self._world_left:
+                self._world_left = False
+                self._resend_until = time.monotonic() + RESEND_FOR
+                self.log(f"{WORLD_BACK}: saying recent messages again for {RESEND_FOR:g} s")
+            tokens.add(zid)
 
     def _wake(self) -> None:
         if self.waker is not None:

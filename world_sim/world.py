@@ -98,6 +98,9 @@ REALTIME_SLACK = 1.0
 SUSPECT_REASONS = ("future", "conflict", "implausible")
 #: ... and those that say someone forges the world's own messages to the vehicles (an open fleet)
 SUSPECT_WORLD_REASONS = ("radio_conflict",)
+#: ... and those of the agents' watch of the world's liveliness token: a token on a key no process
+#: declares (a wildcard, ``alive/**``), a second world token while the world's is up (docs/security.md)
+SUSPECT_TOKEN_REASONS = ("token_key", "token_extra")
 SUSPECT_EVERY = 5.0  # s: at most one suspect event per (vehicle, reason) in this time
 #: s a lockstep world waits for a fleet that dropped all at once (the router or the network went,
 #: not the vehicles: their processes keep their state) before it declares them lost. A router
@@ -306,7 +309,13 @@ class World:
         self._rt_asked: dict[str, deque[tuple[object | None, str, float]]] = {}
         self._t_start = 0.0
         self._lock = threading.Lock()  # guards st.latest for the queryable's thread
-        self._alive_news: deque[tuple[str, bool]] = deque()  # liveliness callbacks -> main thread
+        self._alive_news: deque[tuple[str, bool]] = deque()  # liveliness callbacks (key, up) -> main thread
+        self.zid: str | None = None  # this process's Zenoh session id (its token's key ends with it)
+        self._token_of: dict[str, str] = {}  # vehicle -> the session id of the token taken as its process's
+        self._not_taken: set[str] = set()  # session ids of tokens refused once: never taken afterwards
+        #: what may have altered the run, by reason (docs/metrics.md, ``integrity``), and the first of each
+        self.integrity: Counter = Counter()
+        self._integrity_notes: dict[str, str] = {}
         self._logged_rejects: set[tuple[str, str]] = set()
         self._recorded: dict[int, StateMsg] = {}  # the row each vehicle was last recorded with
         #: per vehicle, its processes' filter interventions as last reported (stats, every ~1 s of
@@ -350,8 +359,16 @@ class World:
         s = self.session = open_session(self.transport)
         f = self.fleet
         self.inbox = s.declare_subscriber(keys.inbox(f, keys.WORLD), zenoh.handlers.FifoChannel(INBOX_CAPACITY))
-        self.pub_ctl = s.declare_publisher(keys.ctl(f, self.ids), congestion_control=zenoh.CongestionControl.BLOCK)
-        self.pub_launcher = s.declare_publisher(keys.launcher_cmd(f))
+        # Everything the vehicles and the launcher act on blocks rather than drops under congestion
+        # (Zenoh's default for a put is to drop): a grant, a roster change, a join, a command, a
+        # proximity sample or a fault request lost would change the run (_put). Blocking waits
+        # only for room in this session's queue to the router, which the router drains whatever
+        # the receivers do (it holds a message for a full link at most wait_before_close, then
+        # closes that link: cdus.wire.transport.BLOCK_BEFORE_CLOSE), as the grants always have.
+        # The status (said again every second) and the events (kept whole in metrics.json) drop.
+        block = zenoh.CongestionControl.BLOCK
+        self.pub_ctl = s.declare_publisher(keys.ctl(f, self.ids), congestion_control=block)
+        self.pub_launcher = s.declare_publisher(keys.launcher_cmd(f), congestion_control=block)
         self.pub_radio = (s.declare_publisher(keys.radio(f, self.ids), congestion_control=zenoh.CongestionControl.BLOCK)
                           if self.radio is not None else None)
         self.pub_status = s.declare_publisher(keys.world_status(f))
@@ -366,7 +383,8 @@ class World:
             s.declare_queryable(keys.world_status(f), self._on_status_query),
             s.declare_queryable(keys.any_world_command(f), self._on_command_query),
         ]
-        self.token = s.liveliness().declare_token(keys.alive(f, keys.WORLD))
+        self.zid = str(s.zid())
+        self.token = s.liveliness().declare_token(keys.alive(f, keys.WORLD, self.zid))
         self._ticker = threading.Thread(target=self._tick_thread, daemon=True, name="ticker")
         self._ticker.start()
         self.log(f"ready: fleet {f!r}, {len(self.ids)} vehicles, clock {self.clock}, "
@@ -393,15 +411,13 @@ class World:
                 return
 
     def _on_alive_sample(self, sample: Any) -> None:
-        """Liveliness news (Zenoh's thread): queued for the main thread, which a wake fetches. The
-        news itself never travels over the wire, so nobody else can fake it."""
-        name = keys.alive_name(str(sample.key_expr))
-        if name is not None:
-            self._alive_news.append((name, not str(sample.kind).endswith("DELETE")))
-            try:
-                self._wake()
-            except zenoh.ZError:
-                pass
+        """Liveliness news (Zenoh's thread): queued for the main thread (:meth:`_on_token`), which a
+        wake fetches. The wake carries nothing: the news never travels over the wire."""
+        self._alive_news.append((str(sample.key_expr), not str(sample.kind).endswith("DELETE")))
+        try:
+            self._wake()
+        except zenoh.ZError:
+            pass
 
     def request_stop(self) -> None:
         self.stop_requested = True
@@ -511,8 +527,8 @@ class World:
 
     def _handle_alive_news(self) -> None:
         while self._alive_news:
-            name, up = self._alive_news.popleft()
-            self._on_alive(name, up)
+            key, up = self._alive_news.popleft()
+            self._on_token(key, up)
 
     def _handle(self, sample: Any, answer: bool = True) -> None:
         """One sample of the inbox (anything anyone can put on a key addressed to the world):
@@ -637,13 +653,14 @@ class World:
         radio geometry sample for a tick (someone else speaks as the world): a ``suspect``
         event, at most one per (vehicle, reason) per SUSPECT_EVERY seconds."""
         now = time.monotonic()
-        for reason in SUSPECT_REASONS + SUSPECT_WORLD_REASONS:
+        for reason in SUSPECT_REASONS + SUSPECT_WORLD_REASONS + SUSPECT_TOKEN_REASONS:
             new = s.rejected_by_reason.get(reason, 0) - (old.rejected_by_reason.get(reason, 0) if old else 0)
             last = self._suspect_seen.get((vid, reason))
             if new <= 0 or last is not None and now - last < SUSPECT_EVERY:
                 continue
             self._suspect_seen[(vid, reason)] = now
-            what = "ω" if reason in SUSPECT_REASONS else "radio geometry not the world's"
+            what = ("ω" if reason in SUSPECT_REASONS else "radio geometry not the world's"
+                    if reason in SUSPECT_WORLD_REASONS else "a liveliness token not the world's")
             self._note(FleetEvent.of(self._sim_now(), "suspect",
                                      f"{vid} received {what} it cannot trust: {new} new {reason!r} rejects "
                                      f"({s.rejected_by_reason[reason]} in all)", vehicle=vid, origin=vid))
@@ -1034,6 +1051,66 @@ class World:
         self._publish_status()  # at once: a ground station attaching is answered the newest status
         return Verdict(True, "", tick)
 
+    def _on_token(self, key: str, up: bool) -> None:
+        """A liveliness token came (``up``) or went: whose it is, then :meth:`_on_alive`.
+
+        A vehicle's process is the session whose token the world took for it: the first token
+        of that vehicle (``alive/<id>/<zid>``) while it has none; its loss is that token's going,
+        whatever other token of the vehicle is up. Zenoh merges tokens of one key (a second is no
+        news, and keeps the key up after the first goes): the session id in the key makes each
+        process's token its own. Ignored, and counted in :attr:`integrity`: a token on a key no
+        process declares (``alive/**``: it intersects every watch), of a name not in the fleet,
+        a second token of a vehicle (or of the world) while one is up, and any later token of a
+        session refused once or holding another vehicle's (docs/security.md, "Liveliness")."""
+        token = keys.alive_token(key)
+        if token is None:
+            if up:
+                self._tamper("token_key", f"a liveliness token on {printable(key, 80)}, no process's key: ignored")
+            return
+        name, zid = token
+        if name == keys.WORLD or name not in self.index:
+            if up and zid != self.zid:
+                self._tamper("token_extra" if name == keys.WORLD else "token_unknown",
+                             f"a liveliness token {printable(name, 64)} of session {zid}: "
+                             + ("not this world's" if name == keys.WORLD else "no process of this fleet"))
+            return
+        taken = self._token_of.get(name)
+        if not up:
+            if taken == zid:
+                del self._token_of[name]
+                self._on_alive(name, False)
+            return
+        if taken == zid:
+            return
+        if taken is None and zid not in self._not_taken and zid not in self._token_of.values():
+            self._token_of[name] = zid
+            self._on_alive(name, True)
+            return
+        self._not_taken.add(zid)
+        self._tamper("token_extra", f"a second liveliness token of {name} (session {zid}) while "
+                     + (f"session {taken}'s is up" if taken else "it has none it can take") + ": ignored")
+
+    def _tamper(self, reason: str, note: str) -> None:
+        """Something that may have altered the run (a forged or unexplained token): counted by
+        reason for the metrics (``integrity``), the first of each logged and made an event."""
+        self.integrity[reason] += 1
+        if reason not in self._integrity_notes:
+            self._integrity_notes[reason] = note
+            self._note(FleetEvent.of(self._sim_now(), "suspect", note + " (docs/security.md)"))
+
+    def integrity_block(self) -> dict:
+        """``integrity`` of the metrics JSON: ``tampered`` when the world, or a vehicle watching the
+        world's token, saw a token that is no process's (docs/metrics.md)."""
+        reasons = Counter(self.integrity)
+        notes = list(self._integrity_notes.values())
+        for s in self._processes():
+            for reason in SUSPECT_TOKEN_REASONS:
+                if s.rejected_by_reason.get(reason):
+                    reasons["vehicle_" + reason] += s.rejected_by_reason[reason]
+                    notes.append(f"{s.id} counted {s.rejected_by_reason[reason]} {reason!r}: a liveliness token "
+                                 f"on its watch of the world's that is not the world's")
+        return {"tampered": bool(reasons), "reasons": dict(sorted(reasons.items())), "notes": notes}
+
     def _on_alive(self, name: str, up: bool) -> None:
         st = self.st
         if name not in self.index:
@@ -1107,7 +1184,7 @@ class World:
         if to is None:
             self.pub_ctl.put(payload)
         else:
-            self.session.put(keys.ctl(self.fleet, to), payload)
+            self._put(keys.ctl(self.fleet, to), payload)
         change = _Change(kept_for, payload, op, fields["tick"] if op == "gains" else None)
         last = self._commands[-1] if self._commands else None
         if change.tick is not None and last is not None and (last.op, last.kept_for, last.tick) == (
@@ -1116,6 +1193,11 @@ class World:
         else:
             self._commands.append(change)
         self._settings_changed(op)
+
+    def _put(self, key: str, payload: bytes) -> None:
+        """A put to some of the vehicles (a roster change, a join, a command, contacts, a radio
+        sample): blocking, never dropped under congestion, as the ctl publisher's (:meth:`open`)."""
+        self.session.put(key, payload, congestion_control=zenoh.CongestionControl.BLOCK)
 
     def _replay_commands(self, vid: str) -> None:
         """A (re)started or resumed process missed the ground stations' run-time commands (a new
@@ -1129,7 +1211,7 @@ class World:
         in_force = max((i for i, c in enumerate(mine) if c.tick is not None and c.tick <= first), default=None)
         for i, c in enumerate(mine):
             if c.tick is None or c.tick > first or i == in_force:
-                self.session.put(keys.ctl(self.fleet, [vid]), c.payload)
+                self._put(keys.ctl(self.fleet, [vid]), c.payload)
 
     def _first_step(self, vid: str) -> int:
         """A tick no later than the first one ``vid``'s process (restarted, resumed) can step now:
@@ -1141,7 +1223,7 @@ class World:
 
     def _send_roster(self, ch: RosterChange, to: int | None = None) -> None:
         targets = self.ids if to is None else [self.ids[to]]
-        self.session.put(keys.ctl(self.fleet, targets),
+        self._put(keys.ctl(self.fleet, targets),
                          encode_control("roster", vehicle=self.ids[ch.vehicle], tick=ch.tick, state=ch.state,
                                         fresh=ch.fresh))
 
@@ -1223,7 +1305,7 @@ class World:
                 self._last_grant = time.monotonic()
                 self.pub_ctl.put(encode_control("grant", until=a.until))
             elif isinstance(a, Join):
-                self.session.put(keys.ctl(self.fleet, [self.ids[a.vehicle]]), encode_control("join", tick=a.tick))
+                self._put(keys.ctl(self.fleet, [self.ids[a.vehicle]]), encode_control("join", tick=a.tick))
                 if a.vehicle in self._catching:
                     self._catching[a.vehicle].join = a.tick
             elif isinstance(a, CatchUp):
@@ -1253,7 +1335,7 @@ class World:
         with self._lock:
             gone = {j: m.q for j, m in self.st.latest.items() if j not in positions}
         for j, msg in sense_tick(self.scenario, tick, positions, gone).items():
-            self.session.put(keys.contacts(self.fleet, self.ids[j]), encode_contacts(msg))
+            self._put(keys.contacts(self.fleet, self.ids[j]), encode_contacts(msg))
 
     def _send_geometry(self, tick: int, positions: dict[int, tuple]) -> None:
         """The radio geometry at ``tick`` (cdus.sim.radio), as the in-process fleet samples it: the
@@ -1275,7 +1357,7 @@ class World:
     def _replay_geometry(self, vid: str) -> None:
         """A (re)joining process needs the radio samples in force from its join on: the newest ones."""
         for _, payload in self._radio_sent:
-            self.session.put(keys.radio(self.fleet, [vid]), payload)
+            self._put(keys.radio(self.fleet, [vid]), payload)
 
     def _radio_realtime(self) -> None:
         """Realtime: once the clock has passed a radio sample tick, sample the newest telemetry of
@@ -1370,7 +1452,7 @@ class World:
             self._replay_commands(vid)
             self._replay_geometry(vid)
             if c.join is not None:  # last, as the first time: it starts stepping when it hears it
-                self.session.put(keys.ctl(self.fleet, [vid]), encode_control("join", tick=c.join))
+                self._put(keys.ctl(self.fleet, [vid]), encode_control("join", tick=c.join))
             self.pub_ctl.put(encode_control("grant", until=ls.granted))
 
     def _widen_horizon(self, now: float, mark: tuple[float, int]) -> tuple[float, int]:
@@ -1660,7 +1742,8 @@ class World:
                               policy=self.policy, events=self.events,
                               interventions=sum(s.interventions for s in self._processes()),
                               completed=completion == COMPLETED, completion=completion,
-                              rejected_by_reason=self.rejects_by_reason(), **never_up, **self._radio_metrics())
+                              rejected_by_reason=self.rejects_by_reason(), integrity=self.integrity_block(),
+                              **never_up, **self._radio_metrics())
         if self.metrics_out:
             self._keep_metrics(metrics)
         if self.trace_out and len(self.recorder):

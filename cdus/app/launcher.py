@@ -325,6 +325,7 @@ class Launcher:
         self.cond = threading.Condition()
         self.alive: set[str] = set()
         self.ever_alive: set[str] = set()  # whose token was seen at least once
+        self._tokens: dict[str, set[str]] = {}  # name -> session ids of its tokens up (keys.hold_token)
         self.status: dict | None = None
         self.rejected: dict[str, int] = {}  # messages to the launcher dropped, by reason
         # what of the events to print (drop bursts per link are capped, links lossy by design said once)
@@ -487,13 +488,17 @@ class Launcher:
                 self.cond.notify_all()
 
     def _on_alive(self, sample: Any) -> None:
-        who = keys.alive_name(str(sample.key_expr))
         with self.cond:
-            if str(sample.kind).endswith("DELETE"):
-                self.alive.discard(who)
-            else:
+            news = keys.hold_token(self._tokens, str(sample.key_expr), not str(sample.kind).endswith("DELETE"))
+            if news is None:  # a token on a key expression (alive/**) or no process's key
+                self.rejected["token_key"] = self.rejected.get("token_key", 0) + 1
+                return
+            who, up = news
+            if up:
                 self.alive.add(who)
                 self.ever_alive.add(who)
+            else:
+                self.alive.discard(who)
             self.cond.notify_all()
 
     def _on_status(self, sample: Any) -> None:
@@ -717,8 +722,13 @@ class Launcher:
         t_last = float(st["t"]) if st else None
         events.append(FleetEvent.of(t_last or 0.0, "fault", f"the world process {how}; the launcher wrote these "
                                     "metrics from the world's last status", severity="error"))
+        ignored = self.rejected.get("token_key", 0)
+        integrity = {"tampered": bool(ignored), "reasons": {"token_key": ignored} if ignored else {},
+                     "notes": [f"the launcher ignored {ignored} liveliness tokens on keys no process declares"]
+                     if ignored else []}
         m = run_metrics(sc, rec, mode=self.opts.clock, link={}, wall_s=wall_s,
-                        policy=self.opts.policy or sc.link.policy, events=events, completed=False)
+                        policy=self.opts.policy or sc.link.policy, events=events, completed=False,
+                        integrity=integrity)
         m["completion"] = WORLD_LOST
         m["written_by"] = "launcher"
         if st:  # what the world last said, in the fields a reader looks at first (the trace is lost)

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any, Sequence, TextIO
 
 from cdus.scenario.model import VehicleSpec
+from cdus.wire.text import printable
 
 
 def run_dir(base: str | os.PathLike, scenario: str) -> Path:
@@ -127,6 +128,19 @@ def _settle(x: float | None, unknown: str | None = None) -> str:
     return f"{x:.2f} s"
 
 
+def integrity_lines(m: dict) -> list[str]:
+    """A line when something was seen that may have altered the run (metrics ``integrity``):
+    ``completed`` says the run reached its end, not that nobody meddled with it."""
+    integrity = m.get("integrity")
+    if not isinstance(integrity, dict) or integrity.get("tampered") is not True:
+        return []
+    notes = [printable(x, 160) for x in integrity.get("notes") or () if isinstance(x, str)]
+    reasons = integrity.get("reasons") if isinstance(integrity.get("reasons"), dict) else {}
+    counts = ", ".join(f"{printable(k, 40)} {v}" for k, v in reasons.items())
+    return [f"  TAMPERED: the result may have been altered ({counts}): " + "; ".join(notes[:3])
+            + (f"; and {len(notes) - 3} more" if len(notes) > 3 else "") + " (metrics integrity, docs/security.md)"]
+
+
 def summary_table(metrics: dict, vehicles: Sequence[VehicleSpec]) -> str:
     """The end-of-run table: per vehicle (the scenario's, in order), then per run."""
     m = metrics
@@ -154,6 +168,7 @@ def summary_table(metrics: dict, vehicles: Sequence[VehicleSpec]) -> str:
     elif m.get("completed") is False:
         lines.append(f"  NOT COMPLETED ({m.get('completion', 'interrupted')}): the run ended at "
                      f"{m['duration_s']:.1f} s; the settle times and errors below are of what ran")
+    lines += integrity_lines(m)
     head = f"  {'vehicle':<10} {'kind':<4} {'plant':<22} {'|Φ| final (m)':>14} {'ω̇ final':>10}"
     lines.append(head)
     lines.append("  " + "-" * (len(head) - 2))

@@ -47,9 +47,11 @@ def sum_counters(counters: Iterable[LinkCounters]) -> LinkCounters:
 
 def run_metrics(scenario: Scenario, recorder: Recorder, *, mode: str, link: dict[str, Any], wall_s: float,
                 policy: str, events: Sequence[FleetEvent] = (), completed: bool = True,
-                interventions: int = 0, completion: str | None = None, **extra: Any) -> dict[str, Any]:
+                interventions: int = 0, completion: str | None = None, integrity: dict[str, Any] | None = None,
+                **extra: Any) -> dict[str, Any]:
     """The metrics JSON (also of an empty or interrupted run). ``completion``: COMPLETED or why
-    not (COMPLETIONS); by default COMPLETED or "interrupted" after ``completed``."""
+    not (COMPLETIONS); by default COMPLETED or "interrupted" after ``completed``. ``integrity``:
+    what may have altered the run (a launched fleet's world finds it; in process, nothing can)."""
     completion = completion or (COMPLETED if completed else "interrupted")
     if completion not in COMPLETIONS or completed != (completion == COMPLETED):
         raise ValueError(f"completed {completed} with completion {completion!r}")
@@ -65,6 +67,7 @@ def run_metrics(scenario: Scenario, recorder: Recorder, *, mode: str, link: dict
     m.update(safety_figures(recorder, kinds, scenario.safety.radius))
     m["interventions"] = interventions
     m["safety"] = {"enabled": scenario.safety.enabled, "radius_m": scenario.safety.radius}
+    m["integrity"] = integrity or {"tampered": False, "reasons": {}, "notes": []}  # nothing seen to alter it
     m.update(extra)
     return m
 

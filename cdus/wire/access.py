@@ -8,12 +8,12 @@ user name, and with TLS the same name as its certificate's common name):
                         the proximity sensor's contacts (to/+<id>+/contacts),
                         fault requests to the launcher (to/+launcher+/cmd), its status
                         and events (world/status, world/events), the liveliness token
-                        alive/world; answers world/last/<id> queries and commands
+                        alive/world/<zid>; answers world/last/<id> queries and commands
                         (world/cmd/<from>)
     vehicle-<id>        publishes only its own keys: its ω to its listeners
                         (to/+<listeners>+/omega/<id>, the exact set of the scenario), its
                         telemetry and counters (to/+world+/state/<id>, stats/<id>), the
-                        liveliness token alive/<id>, and answers its link check
+                        liveliness token alive/<id>/<zid>, and answers its link check
                         (to/+<id>+/ping)
     ground              a ground station: commands to the world, as queries the world
                         answers (world/cmd/gs) or as puts (to/+world+/cmd/gs, no answer)
@@ -117,7 +117,7 @@ def fleet_acl(fleet: str, listeners: Mapping[str, Sequence[str]], match_certific
         _rule("world-put", ("put",), [f"{keys.prefix(f)}/to/*/ctl", f"{keys.prefix(f)}/to/*/contacts",
                                       f"{keys.prefix(f)}/to/*/radio",
                                       keys.launcher_cmd(f), keys.world_status(f), keys.world_events(f)]),
-        _rule("world-token", ("liveliness_token",), [keys.alive(f, keys.WORLD)]),
+        _rule("world-token", ("liveliness_token",), [keys.alive_of(f, keys.WORLD)]),
         _rule("world-last", ("declare_queryable", "reply"), [keys.world_last(f, "*"), keys.any_world_command(f),
                                                              keys.world_settings(f), keys.world_status(f)]),
     ]
@@ -138,7 +138,7 @@ def fleet_acl(fleet: str, listeners: Mapping[str, Sequence[str]], match_certific
         role = vehicle_role(vid)
         rules += [_rule(f"{role}-put", ("put",), [keys.omega(f, vid, heard_by), keys.state(f, vid),
                                                   keys.stats(f, vid)]),
-                  _rule(f"{role}-token", ("liveliness_token",), [keys.alive(f, vid)]),
+                  _rule(f"{role}-token", ("liveliness_token",), [keys.alive_of(f, vid)]),
                   _rule(f"{role}-ping", ("declare_queryable", "reply"), [keys.ping(f, vid)])]
         policies.append({"id": role, "rules": [f"{role}-put", f"{role}-token", f"{role}-ping"], "subjects": [role]})
     return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects,

@@ -15,7 +15,8 @@ through one subscription (``to/$*+<me>+$*/**``, :func:`inbox`) and waits in one 
     cdus/<fleet>/to/+launcher+/cmd      scheduled vehicle faults, the world to the launcher
     cdus/<fleet>/to/+<id>+/wake         a process waking itself (session-local, never sent)
     cdus/<fleet>/to/+<id>+/ping         queryable: a vehicle answers once it can hear (link check)
-    cdus/<fleet>/alive/<id>             liveliness token of a process (readiness and loss)
+    cdus/<fleet>/alive/<id>/<zid>       liveliness token of a process: readiness and loss (<zid>: its
+                                        Zenoh session's id, so each process's token is its own)
     cdus/<fleet>/world/status           the world's status, about once a second
     cdus/<fleet>/world/events           fleet events as they happen (cdus.wire.schemas)
     cdus/<fleet>/world/last/<id>        queryable: a vehicle's newest telemetry
@@ -99,15 +100,29 @@ def ping(fleet: str, vid: str) -> str:
     return f"cdus/{fleet}/to/+{vid}+/ping"
 
 
-def alive(fleet: str, name: str) -> str:
-    return f"cdus/{fleet}/alive/{name}"
+ZID_RE = re.compile(r"^[0-9a-f]{1,32}$")  # a Zenoh session id as str(session.zid()) spells it
+
+
+def alive(fleet: str, name: str, zid: str) -> str:
+    """The liveliness token of process ``name`` whose Zenoh session id is ``zid``. The id makes
+    each process's token a key of its own: Zenoh merges the tokens of one key (a second one on it
+    is never news, and its holder keeps the key up after the first goes), so on a bare
+    ``alive/<name>`` anyone's token would hide that process's loss (docs/security.md, "Liveliness")."""
+    return f"cdus/{fleet}/alive/{name}/{zid}"
+
+
+def alive_of(fleet: str, name: str) -> str:
+    """Every token of process ``name`` (one per session that declared one)."""
+    return f"cdus/{fleet}/alive/{name}/*"
 
 
 def any_alive(fleet: str) -> str:
-    return f"cdus/{fleet}/alive/*"
+    """What a process watches: every token of the fleet. A token on a wildcard key (``alive/**``)
+    intersects it too, and arrives with that key: :func:`alive_token` refuses it."""
+    return f"cdus/{fleet}/alive/*/*"
 
 
-ANY_FLEET_WORLD = "cdus/*/alive/world"  # every fleet's world at a router (a mistyped --fleet's hint)
+ANY_FLEET_WORLD = "cdus/*/alive/world/*"  # every fleet's world at a router (a mistyped --fleet's hint)
 
 
 def fleet_of(key: str) -> str | None:
@@ -164,7 +179,35 @@ def leaf(key: str) -> tuple[str, str]:
     return "", ""
 
 
-def alive_name(key: str) -> str | None:
-    """The process name in ``cdus/<fleet>/alive/<name>``."""
+def alive_token(key: str) -> tuple[str, str] | None:
+    """(name, zid) of a token exactly as :func:`alive` makes it, ``cdus/<fleet>/alive/<name>/<zid>``;
+    None for any other key a liveliness watch can deliver: a token declared on a key expression
+    (``alive/**``, ``alive/*/x``, which intersects every watch), a bare ``alive/<name>``, a name
+    or session id that is not one."""
     parts = key.split("/")
-    return parts[3] if len(parts) == 4 and parts[2] == "alive" else None
+    if (len(parts) == 5 and parts[0] == "cdus" and parts[2] == "alive" and FLEET_RE.match(parts[1])
+            and FLEET_RE.match(parts[3]) and ZID_RE.match(parts[4])):
+        return parts[3], parts[4]
+    return None
+
+
+def hold_token(held: dict[str, set[str]], key: str, up: bool) -> tuple[str, bool] | None:
+    """One token came (``up``) or went: ``held`` (name -> the session ids of its tokens up) is
+    updated; returns (name, whether the name holds a token now), None if ``key`` is no token's
+    (:func:`alive_token`). For a watcher that only asks "is it up" (the launcher, a ground
+    station); the world asks whose (world_sim)."""
+    token = alive_token(key)
+    if token is None:
+        return None
+    name, zid = token
+    ids = held.setdefault(name, set())
+    (ids.add if up else ids.discard)(zid)
+    if not ids:
+        del held[name]
+    return name, bool(ids)
+
+
+def alive_name(key: str) -> str | None:
+    """The process name of a token key (:func:`alive_token`), None if ``key`` is not one."""
+    token = alive_token(key)
+    return None if token is None else token[0]

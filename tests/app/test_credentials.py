@@ -132,8 +132,15 @@ def test_each_role_may_publish_only_its_own_keys(tmp_path, mode):
         usv1.put(keys.launcher_cmd(fleet), encode_control("kill", vehicle="usv2"))
         usv1.put(keys.state(fleet, "usv2"), b"x")
         usv1.put(keys.contacts(fleet, "usv2"), b"x")  # the world's proximity sensor
-        usv1.liveliness().declare_token(keys.alive(fleet, "usv2"))
-        usv1.liveliness().declare_token(keys.alive(fleet, "usv1"))
+        # tokens: another vehicle's (with its own session id or usv2's name bare), a wildcard that
+        # would intersect every watch of the fleet (docs/security.md, "Liveliness"); its own
+        zid1 = str(usv1.zid())
+        for forged in (keys.alive(fleet, "usv2", zid1), f"cdus/{fleet}/alive/usv2", f"cdus/{fleet}/alive/**",
+                       keys.alive(fleet, keys.WORLD, zid1), keys.alive_of(fleet, "usv2")):
+            usv1.liveliness().declare_token(forged)
+        ground.liveliness().declare_token(f"cdus/{fleet}/alive/**")
+        ground.liveliness().declare_token(keys.alive(fleet, "usv2", str(ground.zid())))
+        usv1.liveliness().declare_token(keys.alive(fleet, "usv1", zid1))
         usv1.put(keys.state(fleet, "usv1"), b"x")
         usv1.put(mine, omega)
         # the ground station: commands to the world, not ω, not the world's own keys
@@ -154,8 +161,8 @@ def test_each_role_may_publish_only_its_own_keys(tmp_path, mode):
         ground.put("elsewhere", b"x")
         for last in (mine, keys.world_cmd(fleet, keys.GROUND), keys.ctl(fleet, ["usv2"])):
             heard.wait_for(last)  # each session's puts arrive in order: what is missing was refused
-        heard.wait_for(keys.alive(fleet, "usv1"))
-        assert heard.tokens == {keys.alive(fleet, "usv1")}
+        heard.wait_for(keys.alive(fleet, "usv1", zid1))
+        assert heard.tokens == {keys.alive(fleet, "usv1", zid1)}
         assert sorted(heard.puts) == sorted([keys.state(fleet, "usv1"), mine, keys.world_cmd(fleet, keys.GROUND),
                                              keys.world_events(fleet), keys.contacts(fleet, "usv1"),
                                              keys.ctl(fleet, ["usv2"])])

@@ -152,11 +152,11 @@ def test_watch_writes_versioned_json_lines_and_ends_when_the_world_leaves(capsys
     from ground_station.__main__ import _watch
 
     gs = station([], world_up=False)
-    gs._on_alive(Alive("cdus/f/alive/world", b""))
+    gs._on_alive(Alive("cdus/f/alive/world/e1", b""))
     gs._on_status(Sample("cdus/f/world/status", encode_status(1.0, 10.0, "realtime", [], ["usv1"], None, None, [],
                                                               False)))
     gs._on_event(Sample("cdus/f/world/events", encode_event(FleetEvent.of(1.0, "fleet", "fleet paused by gs:x"))))
-    gs._on_alive(Gone("cdus/f/alive/world", b""))  # the run is over
+    gs._on_alive(Gone("cdus/f/alive/world/e1", b""))  # the run is over
     assert _watch(gs, 0.1) == 0
     lines = [json.loads(ln) for ln in capsys.readouterr().out.splitlines()]
     assert [ln["kind"] for ln in lines] == ["event", "status", "end"] and all(ln["v"] == 1 for ln in lines)
@@ -168,17 +168,17 @@ def test_watch_says_how_the_run_ended_from_the_worlds_last_status(capsys):
     from ground_station.__main__ import _watch
 
     gs = station([], world_up=False)
-    gs._on_alive(Alive("cdus/f/alive/world", b""))
-    gs._on_alive(Alive("cdus/f/alive/usv1", b""))
+    gs._on_alive(Alive("cdus/f/alive/world/e1", b""))
+    gs._on_alive(Alive("cdus/f/alive/usv1/a1", b""))
     gs._on_status(Sample("cdus/f/world/status", encode_status(10.0, 10.0, "lockstep", ["usv1"], ["usv1"], None, None,
                                                               [], False, extra=StatusExtra(completion="completed"))))
     gs._on_state(Sample("cdus/f/to/+world+/state/usv1", encode_states([StateMsg(0, 500, 10.0, (1.0, 2.0), 0.3, 10.0, -9.9,
                                                                       -1.0, 0.06)])))
-    gs._on_alive(Gone("cdus/f/alive/usv1", b""))  # it leaves with the run's end
+    gs._on_alive(Gone("cdus/f/alive/usv1/a1", b""))  # it leaves with the run's end
     snap = gs.snapshot()
     assert (snap["run"], snap["completion"]) == ("finishing", "completed")
     assert snap["vehicles"][0]["reason"] == "the run ended"
-    gs._on_alive(Gone("cdus/f/alive/world", b""))
+    gs._on_alive(Gone("cdus/f/alive/world/e1", b""))
     assert _watch(gs, 0.1) == 0
     lines = [json.loads(ln) for ln in capsys.readouterr().out.splitlines()]
     assert lines[-1] == {"v": 1, "kind": "end", "fleet": "f", "reason": "the world left: the run is over",
@@ -280,9 +280,10 @@ def test_the_live_table_ends_when_the_world_leaves_or_goes_silent():
 
 def test_fleets_here_names_each_fleet_whose_world_is_up_and_nothing_forged():
     gs = station([])
-    replies = [Reply("cdus/lake_demo/alive/world", b""), Reply("cdus/other/alive/world", b""),
-               Reply("cdus/lake_demo/alive/world", b""), Reply("cdus/third/alive/usv1", b""),
-               Reply("cdus/bad name/alive/world", b""), Reply("elsewhere/x/alive/world", b""), Reply("k", None, b"e")]
+    replies = [Reply("cdus/lake_demo/alive/world/e1", b""), Reply("cdus/other/alive/world/e2", b""),
+               Reply("cdus/lake_demo/alive/world/e1", b""), Reply("cdus/third/alive/usv1/e3", b""),
+               Reply("cdus/bad name/alive/world/e4", b""), Reply("elsewhere/x/alive/world/e5", b""),
+               Reply("k", None, b"e")]
     gs.session.liveliness = lambda: type("L", (), {"get": lambda self, key, timeout=None: iter(replies)})()
     assert gs.fleets_here() == ["lake_demo", "other"]
 

@@ -214,8 +214,8 @@ def test_forged_names_are_not_tracked():
     class Alive(Sample):
         kind = "SampleKind.PUT"
 
-    gs._on_alive(Alive("cdus/f/alive/\x1b[2J", b""))
-    gs._on_alive(Alive("cdus/f/alive/usv1", b""))
+    gs._on_alive(Alive("cdus/f/alive/\x1b[2J/e1", b""))
+    gs._on_alive(Alive("cdus/f/alive/usv1/a1", b""))
     assert gs.view.alive == {"usv1"} and gs.view.rejected == 3
 
 

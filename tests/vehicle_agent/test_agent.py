@@ -68,7 +68,7 @@ class Liveliness:
     def declare_token(self, key: str) -> Token:
         return Token()
 
-    def declare_subscriber(self, key: str, callback) -> Token:
+    def declare_subscriber(self, key: str, callback, **kw) -> Token:
         Liveliness.callbacks.append((key, callback))
         return Token()
 
@@ -88,6 +88,9 @@ class Session:
 
     def liveliness(self) -> Liveliness:
         return Liveliness()
+
+    def zid(self) -> str:
+        return "a9e1"
 
     def put(self, key, payload, **kw) -> None:
         self.puts.append((key, bytes(payload)))

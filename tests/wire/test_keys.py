@@ -32,7 +32,7 @@ def test_an_inbox_takes_every_message_addressed_to_it_and_nothing_else(me):
 
 def test_other_fleets_and_the_worlds_own_keys_are_not_in_an_inbox():
     assert not hears("usv1", keys.omega("g", "usv2", ["usv1"]))  # another fleet
-    assert not hears("world", keys.world_status("f")) and not hears("world", keys.alive("f", "usv1"))
+    assert not hears("world", keys.world_status("f")) and not hears("world", keys.alive("f", "usv1", "a1"))
 
 
 def test_fleet_names_are_checked():
@@ -45,7 +45,26 @@ def test_fleet_names_are_checked():
 def test_leaf_and_alive_name_parse_what_the_builders_make():
     assert keys.leaf(keys.state("f", "usv1")) == ("state", "usv1")
     assert keys.leaf(keys.omega("f", "usv1", ["usv2"])) == ("omega", "usv1")
-    assert keys.alive_name(keys.alive("f", "uav3")) == "uav3"
+    assert keys.alive_name(keys.alive("f", "uav3", "9f0a")) == "uav3"
+    assert keys.alive_token(keys.alive("f", "world", "0123456789abcdef0123456789abcdef")) == (
+        "world", "0123456789abcdef0123456789abcdef")
+
+
+def test_a_token_key_is_exactly_a_process_name_and_a_session_id():
+    """What a liveliness watch of ``alive/*/*`` can deliver besides a process's own token: a token
+    declared on a key expression (it intersects every watch, and arrives with its own key), a bare
+    name (the key before session ids: anyone's token on it hid that process's loss), junk."""
+    for key in ("cdus/f/alive/**", "cdus/f/alive/*/*", "cdus/f/alive/usv2/*", "cdus/f/alive/usv2/**",
+                "cdus/f/alive/usv2", "cdus/f/alive/$*/a1", "cdus/f/alive/usv2/a1/x", "cdus/f/alive/usv2/A1",
+                "cdus/f/alive/usv2/" + "a" * 33, "cdus/f/alive//a1", "cdus/f/alive/u v/a1", "cdus/f/to/usv2/a1",
+                "cdus/bad name/alive/usv2/a1", "other/f/alive/usv2/a1", ""):
+        assert keys.alive_token(key) is None and keys.alive_name(key) is None, key
+    held: dict[str, set[str]] = {}
+    assert keys.hold_token(held, "cdus/f/alive/**", True) is None and held == {}
+    assert keys.hold_token(held, keys.alive("f", "usv2", "a1"), True) == ("usv2", True)
+    assert keys.hold_token(held, keys.alive("f", "usv2", "b2"), True) == ("usv2", True)
+    assert keys.hold_token(held, keys.alive("f", "usv2", "a1"), False) == ("usv2", True)  # b2's is up
+    assert keys.hold_token(held, keys.alive("f", "usv2", "b2"), False) == ("usv2", False) and held == {}
 
 
 def test_fleet_of_names_the_fleet_of_a_key_in_a_fleets_space_only():

@@ -566,7 +566,7 @@ def test_a_stop_that_overtakes_the_last_liveliness_tokens_is_an_interruption_not
     for vid in w.ids[:-1]:
         w._on_alive(vid, True)
     w._handle(Sample(keys.world_cmd(FLEET, keys.LAUNCHER), Payload(encode_control("stop"))))
-    w._alive_news.append((w.ids[-1], True))  # the last token, heard after the stop
+    w._alive_news.append((keys.alive(w.fleet, w.ids[-1], "a3"), True))  # the last token, heard after the stop
     w.session = None
     m = w.run()
     assert m["completion"] == "interrupted" and "never_up" not in m, (m["completion"], m.get("never_up"))
