@@ -38,7 +38,7 @@ from cdus.wire import keys
 from cdus.wire.schemas import FleetEvent
 from ground_station.alarms import Alarms
 from cdus.sim.reports import group_link_states
-from ground_station.console import NOT_VEHICLES, _text, num, vehicle_state
+from ground_station.console import NOT_VEHICLES, _text, num, row_ids, vehicle_state
 
 REFRESH_S = 0.5
 STALE_S = 3.0  # the world publishes its status every second: this long without one is news
@@ -95,9 +95,7 @@ def snapshot(view: Any) -> dict[str, Any]:
         over = view.world_seen and keys.WORLD not in view.alive  # the world has left (its last status unheard)
         events = list(view.events[-200:])
         rejected = view.rejected
-    # the world's ids when it has spoken (other names on the fleet's keys are not vehicles of the run:
-    # ground stations' tokens, forgeries); before that, whoever sends telemetry or holds a token
-    ids = [v for v in (w or {}).get("ids") or [] if isinstance(v, str)] or sorted(set(states) | alive)
+    ids = row_ids(w, states, alive)
     kinds = dict(zip((w or {}).get("ids") or [], (w or {}).get("kinds") or []))
     rx = dict(zip((w or {}).get("ids") or [], (w or {}).get("rx") or []))
     edges = (w or {}).get("edges") or []
