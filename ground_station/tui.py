@@ -37,7 +37,7 @@ from textual.widgets import DataTable, Footer, RichLog, Static
 from cdus.wire import keys
 from cdus.wire.schemas import FleetEvent
 from ground_station.alarms import Alarms
-from cdus.sim.reports import group_link_states
+from cdus.sim.reports import EventHold, group_link_states
 from ground_station.console import NOT_VEHICLES, _text, num, row_ids, vehicle_state
 
 REFRESH_S = 0.5
@@ -216,6 +216,7 @@ class ConsoleApp(App):
         self._status_seen: Any = None
         self._status_at = time.monotonic()
         self._last_event: FleetEvent | None = None  # the newest event already in the log (by identity)
+        self._held = EventHold()  # live events, held a moment to be logged in time order (see refresh)
 
     def compose(self) -> ComposeResult:
         yield Static(Text(f"fleet {self.gs.fleet}"), id="header")
@@ -290,9 +291,13 @@ class ConsoleApp(App):
         start = next((i + 1 for i in range(len(events) - 1, -1, -1) if events[i] is self._last_event), 0)
         for e in events[start:]:
             if isinstance(e, FleetEvent) and e.kind != "link_burst":
-                self.log_line(f"event {e.line()}" + (f"  [{e.severity.upper()}]" if e.severity != "info" else ""))
+                self._held.hold(e, now)
         if events:
             self._last_event = events[-1]
+        # as the launcher prints them: held a moment, in time order, a change of many links one line
+        ready = self._held.flush() if snap["over"] or (w or {}).get("completion") else self._held.due(now)
+        for e in group_link_states(ready):
+            self.log_line(f"event {e.line()}" + (f"  [{e.severity.upper()}]" if e.severity != "info" else ""))
 
     def _show_alarms(self) -> None:
         active = sorted(self.alarms.active.values(), key=lambda a: a.t)
