@@ -95,6 +95,16 @@ class Answer:
 NOT_VEHICLES = frozenset({keys.WORLD, keys.GROUND, "launcher", ROS2_ROLE})  # liveliness tokens of the fleet that are no vehicle's
 
 
+def row_ids(world: dict | None, states: Any, alive: set[str]) -> list[str]:
+    """The vehicles a table shows a row for: the world's ids when it has spoken (other names on
+    the fleet's keys are not vehicles of the run: ground stations' tokens, the ROS 2 bridge's,
+    forgeries); before that, whoever sends telemetry or holds a token that is no process of the
+    fleet's own (NOT_VEHICLES)."""
+    known = (world or {}).get("ids")
+    known = [v for v in known if isinstance(v, str)] if isinstance(known, list) else []
+    return known or sorted(set(states) | (set(alive) - NOT_VEHICLES))
+
+
 def vehicle_state(vid: str, world: dict | None, alive: set[str], tokens_in: bool = False) -> str:
     """live / paused / lost / ended (left when the run was over): the world's roster where its status has it, else its liveliness;
     a vehicle whose liveliness token is gone is lost unless the roster says it is paused.
@@ -125,7 +135,7 @@ def status_table(view: FleetView, now: float | None = None) -> str:
         w = view.world
         known = (w or {}).get("ids")
         known = [k for k in known if isinstance(k, str)] if isinstance(known, list) else []
-        ids = sorted(set(view.states) | (view.alive - {keys.WORLD}) | set(known))
+        ids = row_ids(w, view.states, view.alive)
         vehicles = view.alive - NOT_VEHICLES
         rows = [f"{'vehicle':<10} {'alive':<5} {'t (s)':>8} {'|Φ| (m)':>9} {'ω':>11} {'ω̇':>8}  position"]
         for vid in ids:

@@ -37,8 +37,8 @@ from textual.widgets import DataTable, Footer, RichLog, Static
 from cdus.wire import keys
 from cdus.wire.schemas import FleetEvent
 from ground_station.alarms import Alarms
-from cdus.sim.reports import group_link_states
-from ground_station.console import NOT_VEHICLES, _text, num, vehicle_state
+from cdus.sim.reports import EventHold, group_link_states
+from ground_station.console import NOT_VEHICLES, _text, num, row_ids, vehicle_state
 
 REFRESH_S = 0.5
 STALE_S = 3.0  # the world publishes its status every second: this long without one is news
@@ -95,9 +95,7 @@ def snapshot(view: Any) -> dict[str, Any]:
         over = view.world_seen and keys.WORLD not in view.alive  # the world has left (its last status unheard)
         events = list(view.events[-200:])
         rejected = view.rejected
-    # the world's ids when it has spoken (other names on the fleet's keys are not vehicles of the run:
-    # ground stations' tokens, forgeries); before that, whoever sends telemetry or holds a token
-    ids = [v for v in (w or {}).get("ids") or [] if isinstance(v, str)] or sorted(set(states) | alive)
+    ids = row_ids(w, states, alive)
     kinds = dict(zip((w or {}).get("ids") or [], (w or {}).get("kinds") or []))
     rx = dict(zip((w or {}).get("ids") or [], (w or {}).get("rx") or []))
     edges = (w or {}).get("edges") or []
@@ -218,6 +216,7 @@ class ConsoleApp(App):
         self._status_seen: Any = None
         self._status_at = time.monotonic()
         self._last_event: FleetEvent | None = None  # the newest event already in the log (by identity)
+        self._held = EventHold()  # live events, held a moment to be logged in time order (see refresh)
 
     def compose(self) -> ComposeResult:
         yield Static(Text(f"fleet {self.gs.fleet}"), id="header")
@@ -292,9 +291,13 @@ class ConsoleApp(App):
         start = next((i + 1 for i in range(len(events) - 1, -1, -1) if events[i] is self._last_event), 0)
         for e in events[start:]:
             if isinstance(e, FleetEvent) and e.kind != "link_burst":
-                self.log_line(f"event {e.line()}" + (f"  [{e.severity.upper()}]" if e.severity != "info" else ""))
+                self._held.hold(e, now)
         if events:
             self._last_event = events[-1]
+        # as the launcher prints them: held a moment, in time order, a change of many links one line
+        ready = self._held.flush() if snap["over"] or (w or {}).get("completion") else self._held.due(now)
+        for e in group_link_states(ready):
+            self.log_line(f"event {e.line()}" + (f"  [{e.severity.upper()}]" if e.severity != "info" else ""))
 
     def _show_alarms(self) -> None:
         active = sorted(self.alarms.active.values(), key=lambda a: a.t)

@@ -525,12 +525,16 @@ class RerunSink:
             return
         self._stream = None
         reason = getattr(error, "strerror", None) or str(error)
-        kept = " ".join(f"{shlex.quote(str(_parts(f)))}/*.rrd" for f in self.files)
-        _warn(f"the Rerun recording stopped: {reason}; the run goes on. What was recorded before stays "
-              f"readable: rerun {kept}")
+        # only segments that exist are named: a disk full from the start leaves none, and an
+        # empty PATH.parts/*.rrd told to open "what was recorded before" is a glob of nothing
+        have = [f for f in self.files if any(_parts(f).glob("*.rrd"))]
+        kept = " ".join(f"{shlex.quote(str(_parts(f)))}/*.rrd" for f in have)
+        before = (f"What was recorded before stays readable: rerun {kept}" if have
+                  else "Nothing was recorded before it (no segment could be written).")
+        _warn(f"the Rerun recording stopped: {reason}; the run goes on. {before}")
         if self.on_stop is not None:
             self.on_stop(f"the Rerun recording into {', '.join(map(str, self.files))} stopped: {reason}; the run "
-                         f"goes on (what was recorded before: rerun {kept})")
+                         f"goes on ({f'what was recorded before: rerun {kept}' if have else 'nothing was recorded'})")
         if self._file_rec is not None:
             self.rec.streams.remove(self._file_rec)
             try:
@@ -542,6 +546,11 @@ class RerunSink:
             for partial in _parts(f).glob("*.rrd.partial"):
                 try:
                     partial.unlink()
+                except OSError:
+                    pass
+            if f not in have:  # nothing in it: no directory left to look into
+                try:
+                    _parts(f).rmdir()
                 except OSError:
                     pass
         self._off = not self.rec.streams

@@ -436,14 +436,16 @@ def plain_log_axis(ax: Any) -> None:
 
 
 def plain_number(y: float) -> str:
-    """A tick value: ``0.02``, ``5``, ``100``; a power of ten outside 1e-3 .. 1e4 as ``10^k``."""
+    """A tick value: ``0.02``, ``0.25``, ``5``, ``100``; a power of ten outside 1e-3 .. 1e4 as
+    ``10^k``. Every digit the tick has (to 6), none of a float's rounding (0.1 + 0.2 is ``0.3``):
+    a log axis within a decade is ticked every 0.05 by matplotlib, and one digit read 0.25 as 0.2."""
     if y <= 0 or not math.isfinite(y):
         return ""
     k = math.floor(math.log10(y) + 1e-9)
     mantissa = y / 10 ** k
     if -3 <= k <= 4:
-        return f"{y:.{max(0, -k)}f}" if k < 0 else f"{y:g}"
-    return f"$10^{{{k}}}$" if abs(mantissa - 1) < 1e-6 else f"${mantissa:g}\\times10^{{{k}}}$"
+        return f"{y:.6g}"
+    return f"$10^{{{k}}}$" if abs(mantissa - 1) < 1e-6 else f"${mantissa:.6g}\\times10^{{{k}}}$"
 
 
 PLOT_FORMATS = ("png", "pdf", "svg")  # --plot-format: sweep.png, or a vector file for a paper

@@ -202,6 +202,38 @@ def late_event_lines(scenario: Scenario, duration: float | None = None) -> list[
     return lines
 
 
+class EventHold:
+    """Events heard out of time order (link changes come with the agents' counters, up to a
+    second late), each held HOLD_S of the hearer's clock, then given back in time order: what
+    the launcher, ``cdus sim`` (:class:`ConsoleQuota`) and the console's log print from."""
+
+    HOLD_S = 1.5  # s an event is held before due() gives it (the agents report once a second)
+
+    def __init__(self) -> None:
+        self._held: list[tuple[float, FleetEvent]] = []  # (when heard, event)
+
+    def hold(self, event: FleetEvent, now: float) -> None:
+        """``event`` heard at ``now`` (the hearer's clock, seconds)."""
+        self._held.append((now, event))
+
+    def due(self, now: float) -> list[FleetEvent]:
+        """The events held HOLD_S or longer at ``now``, and with them every one held stamped no
+        later than the newest of those (heard later, it would otherwise come after an event it
+        preceded, and a link change heard over two batches be said in two), in time order."""
+        ready = [e.t for at, e in self._held if now - at >= self.HOLD_S]
+        if not ready:
+            return []
+        upto = max(ready)
+        out = sorted((e for at, e in self._held if now - at >= self.HOLD_S or e.t <= upto), key=lambda e: e.t)
+        self._held = [(at, e) for at, e in self._held if not (now - at >= self.HOLD_S or e.t <= upto)]
+        return out
+
+    def flush(self) -> list[FleetEvent]:
+        """Every event held (the run is over), in time order."""
+        ready, self._held = [e for _, e in self._held], []
+        return sorted(ready, key=lambda e: e.t)
+
+
 class ConsoleQuota:
     """What to print of a stream of events, the launcher's and ``cdus sim``'s alike
     (:meth:`printed`): every event, but
@@ -215,14 +247,14 @@ class ConsoleQuota:
 
     :meth:`lines` returns the lines to print for ``event`` (maybe none)."""
 
-    HOLD_S = 1.5  # s an event is held by hold() before due() prints it (the agents report once a second)
+    HOLD_S = EventHold.HOLD_S  # s an event is held by hold() before due() prints it
 
     def __init__(self, per_link: int = 3, scenario: Scenario | None = None):
         self.per_link = per_link
         self.seen: dict[str | None, int] = {}
         self.design, self._lossy = design_lines(scenario) if scenario is not None else ("", {})
         self._design_said = False
-        self._held: list[tuple[float, FleetEvent]] = []  # (when heard, event): see hold()
+        self._held = EventHold()  # see hold()
 
     def opening(self) -> list[str]:
         """The design line, once, as :meth:`printed` would give it at t = 0, for a printer that
@@ -262,22 +294,19 @@ class ConsoleQuota:
 
     def hold(self, event: FleetEvent, now: float) -> None:
         """``event`` heard at ``now`` (the printer's clock, seconds)."""
-        self._held.append((now, event))
+        self._held.hold(event, now)
 
     def due(self, now: float) -> list[str]:
         """The lines of the events held HOLD_S or longer at ``now``, in time order."""
-        ready = [e for at, e in self._held if now - at >= self.HOLD_S]
-        self._held = [(at, e) for at, e in self._held if now - at < self.HOLD_S]
-        return self._in_order(ready)
+        return self._in_order(self._held.due(now))
 
     def flush(self) -> list[str]:
         """The lines of every event held (the run is over)."""
-        ready, self._held = [e for _, e in self._held], []
-        return self._in_order(ready)
+        return self._in_order(self._held.flush())
 
     def _in_order(self, events: list[FleetEvent]) -> list[str]:
         items: list[FleetEvent] = []
-        for e in sorted(events, key=lambda e: e.t):
+        for e in events:
             lines = self.lines(e) if e.kind == "link_state" else None
             if lines is not None and (not lines or lines[0] != e.line()):  # the design line, or nothing
                 items += [FleetEvent.of(e.t, "link_state", self.design)] if lines else []

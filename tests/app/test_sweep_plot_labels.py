@@ -153,10 +153,24 @@ def test_the_log_axis_is_labelled_with_plain_numbers_only_at_major_ticks(monkeyp
     assert all(m in ("0.001", "0.01", "0.1", "1", "10") or m.startswith("$10^{") for m in major), major
 
 
+def test_a_log_axis_within_a_decade_says_each_tick_s_own_value(monkeypatch, tmp_path):
+    """Seen in a README-style sweep (lake_circle, 20% loss, 40 s): final errors 0.22-0.60 rad,
+    where only 0.5 of 1, 2 and 5 times the decades falls, so matplotlib ticks every 0.05 and the
+    labels read 0.2, 0.2, 0.3, 0.4, 0.4, 0.5, 0.5, 0.6, 0.6, 0.7: 0.25 said 0.2, 0.35 said 0.4."""
+    cells = [_cell((("link.delay.base", x),), [10.0], [0.22, 0.6]) for x in (0, 0.1, 0.2)]
+    fig = drawn_figure(monkeypatch, ["link.delay.base"], cells, tmp_path / "p.png")
+    major, _ = _log_labels(fig)
+    axis, (lo, hi) = fig.axes[1].yaxis, fig.axes[1].get_ylim()
+    ticks = [t.get_position()[1] for t in axis.get_ticklabels() if lo <= t.get_position()[1] <= hi]
+    assert len(major) >= 2 and len(set(major)) == len(major), major
+    assert [float(m) for m in major] == pytest.approx(ticks), (major, ticks)
+
+
 def test_plain_numbers():
     assert [plain_number(y) for y in (0.02, 0.5, 1.0, 5.0, 100.0, 1e-3)] == ["0.02", "0.5", "1", "5", "100", "0.001"]
     assert plain_number(1e-5) == "$10^{-5}$" and plain_number(2e-5) == r"$2\times10^{-5}$"
     assert plain_number(1e6) == "$10^{6}$" and plain_number(0.0) == ""
+    assert [plain_number(y) for y in (0.25, 0.35, 0.1 + 0.2, 2.5e-5)] == ["0.25", "0.35", "0.3", r"$2.5\times10^{-5}$"]
 
 
 @pytest.mark.parametrize("fmt, magic", [("pdf", b"%PDF-"), ("svg", b"<svg")])

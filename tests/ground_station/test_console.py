@@ -333,3 +333,21 @@ def test_a_mistyped_fleet_is_told_the_fleet_its_credentials_are_for_or_the_fleet
         "; fleets running there: lake_demo, other (did you mean --fleet lake_demo?)")
     assert _other_fleets(["zzz"], "lake_dem") == "; fleets running there: zzz"
     assert _other_fleets([f"f{j:02d}" for j in range(12)], "x").endswith("f09 and 2 more")
+
+
+def test_status_table_has_no_row_for_the_fleets_own_non_vehicle_tokens():
+    """`cdus gs status` on a `cdus launch --ros2` fleet showed the ROS 2 bridge's token
+    (alive/ros2) as a vehicle row, "ros2  NO  -  (no data yet)"; the console did not (one rule
+    for both: ground_station.console.row_ids)."""
+    view = FleetView()
+    view.world_seen = True
+    view.states["usv1"] = StateMsg(0, 500, 10.0, (1.0, 2.0), 0.3, 10.0, -9.9, -1.0, 0.06)
+    view.states["forged"] = view.states["usv1"]
+    view.alive = {"usv1", "world", "ros2", "launcher"}
+    view.world = {"t": 10.0, "duration": 250.0, "clock": "realtime", "alive": ["usv1"],
+                  "ids": ["usv1"], "path_error_max": 0.06, "coord_error_max": 0.5}
+    rows = [ln.split()[0] for ln in status_table(view).splitlines()[1:] if not ln.startswith("world:")]
+    assert rows == ["usv1"]
+    view.world = None  # before the world's first status: whoever is heard, but no process of the fleet's own
+    rows = [ln.split()[0] for ln in status_table(view).splitlines()[1:] if not ln.startswith("world:")]
+    assert rows == ["forged", "usv1"]

@@ -231,8 +231,8 @@ def test_wire_strings_cannot_reach_the_terminal_as_markup():
             gs.view.events.append(FleetEvent.of(1.0, "fleet", "[bold red]not markup[/]"))
         app = ConsoleApp(gs, refresh_s=0.05)
         async with app.run_test(size=(160, 50)) as pilot:
-            await pilot.pause(0.2)
-            assert "[bold red]not markup[/]" in text_of(app, "#log")
+            # logged after the console's hold (EventHold.HOLD_S); as markup it would never show as written
+            await settle(pilot, lambda: "[bold red]not markup[/]" in text_of(app, "#log"), "the event as written")
     run(go())
 
 
@@ -363,4 +363,31 @@ def test_the_events_from_before_the_console_are_one_line_of_its_log():
             await settle(pilot, lambda: "before this console: 3 events" in text_of(app, "#log"), "the line")
             log = text_of(app, "#log")
             assert "lossy" not in log and log.count("before this console") == 1, log
+    run(go())
+
+
+def test_a_change_of_many_links_heard_over_a_second_is_one_log_line_in_time_order():
+    """Seen in tmux on a realtime lake_circle (`cdus gs ... link loss=0`): the console logged
+    twelve 'event t = 25.80 s: link X up' lines, as heard, while the launcher, `cdus sim` and
+    `gs status` say such a change in one line. The console now holds each event a moment
+    (cdus.sim.reports.EventHold, as the launcher) and logs them in time order, grouped."""
+    from cdus.sim.reports import link_state_event
+
+    async def go():
+        gs = FakeGS()
+        app = ConsoleApp(gs, refresh_s=0.05)
+        links = [f"{a}->{b}" for a in ("usv1", "usv2", "uav1") for b in ("usv1", "usv2", "uav1", "uav2") if a != b][:8]
+        async with app.run_test(size=(160, 50)) as pilot:
+            await settle(pilot, lambda: "usv1" in text_of(app, "#vehicles"), "the table")
+            with gs.view.lock:  # a kill stamped after the change, heard before the links' states
+                gs.view.events.append(FleetEvent.of(26.0, "fault", "kill of usv2 by gs:x", severity="warn"))
+                gs.view.events += [link_state_event(25.8, ln, "up") for ln in links[:5]]
+            await pilot.pause(0.3)
+            with gs.view.lock:
+                gs.view.events += [link_state_event(25.8, ln, "up") for ln in links[5:]]
+            await settle(pilot, lambda: "kill of usv2" in text_of(app, "#log"), "the kill")
+            log = text_of(app, "#log")
+            assert "8 links up (from t = 25.80 s)" in log, log
+            assert not any(f"link {ln} up" in log for ln in links), log  # no line per link
+            assert log.index("8 links up") < log.index("kill of usv2")  # in time order, not as heard
     run(go())

@@ -102,3 +102,28 @@ def test_a_status_says_a_link_change_whole_wherever_its_events_fall(k, others, n
     assert all(e.text.startswith(f"{k} links lossy (from t = ") for e in grouped), grouped  # never a part
     if late and max(others, default=0.0) <= 10.0:
         assert len(grouped) == 1, shown
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(st.floats(0, 20), st.floats(0, 30)), max_size=40), st.lists(st.floats(0, 25), max_size=20))
+def test_held_events_come_out_each_once_in_time_order_and_never_early(heard, polls):
+    """EventHold (the launcher's and the console's): every event held comes out once; each batch
+    is in time order; an event comes out before HOLD_S only with one stamped no earlier that did."""
+    from cdus.sim.reports import EventHold
+
+    hold, out = EventHold(), []
+    events = sorted(((at, FleetEvent.of(t, "fleet", f"e{i}")) for i, (at, t) in enumerate(heard)), key=lambda x: x[0])
+    when = {id(e): at for at, e in events}
+    clock = sorted(set(polls) | {at for at, _ in events})
+    for now in clock:
+        for at, e in events:
+            if at == now:
+                hold.hold(e, now)
+        batch = hold.due(now)
+        assert [e.t for e in batch] == sorted(e.t for e in batch)
+        if batch:
+            upto = max(e.t for e in batch if now - when[id(e)] >= EventHold.HOLD_S)
+            assert all(now - when[id(e)] >= EventHold.HOLD_S or e.t <= upto for e in batch)
+        out += batch
+    out += hold.flush()
+    assert sorted(id(e) for e in out) == sorted(id(e) for _, e in events)

@@ -455,6 +455,19 @@ def test_a_write_that_fails_stops_the_recording_with_one_warning_and_the_run_goe
         assert rerun_cli("rrd", "verify", str(seg)).returncode == 0, seg
 
 
+def test_a_recording_that_fails_at_its_first_segment_names_nothing_as_recorded(tmp_path):
+    """Seen with `cdus sim --metrics-out` on a full 64 KiB tmpfs: "What was recorded before stays
+    readable: rerun FULL/recording.rrd.parts/*.rrd" for a directory left empty, a glob of nothing."""
+    path = tmp_path / "none.rrd"
+    proc = _child(str(path), "3", "2.0", "1000")  # 1 kB: the first segment (the scene) cannot be written
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 0, err
+    assert err.count("warning: the Rerun recording stopped") == 1, err
+    assert "Nothing was recorded before it" in err and "stays readable" not in err, err
+    assert "(nothing was recorded)" in out and "what was recorded before" not in out, out
+    assert not (tmp_path / "none.rrd.parts").exists() and not path.exists()
+
+
 def test_a_full_disk_warns_at_the_start_and_stops_the_recording_cleanly(tmp_path):
     mount = tmp_path / "tiny"
     mount.mkdir()
