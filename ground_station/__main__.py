@@ -96,8 +96,8 @@ def build_parser(prog: str = "cdus gs") -> argparse.ArgumentParser:
                    help="this ground station's name in the fleet's event log (gs:NAME; default: host-pid)")
     add_transport_args(p, default_mode="client")
     sub = p.add_subparsers(dest="action", required=True, metavar="ACTION")
-    st = sub.add_parser("status", help="a live table of the fleet")
-    st.add_argument("--once", action="store_true", help="print one table and exit")
+    st = sub.add_parser("status", help="a live table of the fleet (one table when stdout is no terminal)")
+    st.add_argument("--once", action="store_true", help="print one table and exit (the default in a pipe)")
     st.add_argument("--json", action="store_true", help="print one JSON snapshot (versioned) and exit")
     st.add_argument("--interval", type=_positive, default=1.0, help="seconds between refreshes")
     wa = sub.add_parser("watch", help="a stream: one JSON line per status (every --interval s) and per event")
@@ -442,7 +442,7 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
             if args.json:
                 print(json.dumps(gs.snapshot(settings=True), indent=2))
                 return 0
-            if args.once:
+            if args.once or not sys.stdout.isatty():  # a pipe or a file gets one table, no screen clears
                 print(status_table(gs.view))
                 return 0
             while True:

@@ -33,6 +33,9 @@ def test_ground_station_watches_and_commands_a_running_fleet(tmp_path, launches)
     for vid in ("usv1", "usv2", "uav1", "uav2"):
         assert vid in res.stdout
     assert "world: t =" in res.stdout
+    # piped (run_cli captures stdout): one table, no screen clears, no waiting for the run's end
+    piped = gs(fleet, port, run, "status")
+    assert piped.returncode == 0 and "\033[2J" not in piped.stdout and piped.stdout.count("world: t =") == 1
 
     typo = run_cli(["gs", "--fleet", fleet + "x", "-e", f"tcp/127.0.0.1:{port}",
                     "--zenoh-config", str(run / "secure" / "ground.json5"), "status", "--once"], timeout=60)
