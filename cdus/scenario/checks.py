@@ -22,6 +22,8 @@ import difflib
 import math
 from typing import Any, Iterable, Iterator, Mapping, Sequence
 
+from cdus.wire.bounds import BOUNDS, Bound, finite
+
 ANY_VEHICLE = "*"  # the wildcard of link.override/down src and dst
 
 
@@ -79,7 +81,7 @@ def did_you_mean(word: Any, options: Iterable[str]) -> str:
 
 
 def is_number(v: Any) -> bool:
-    """An int or a float, never a boolean."""
+    """An int or a float, never a boolean (finite or not: :func:`cdus.wire.bounds.finite` says that)."""
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
@@ -88,13 +90,17 @@ def join(prefix: str, key: Any) -> str:
     return f"{prefix}.{key}" if prefix else str(key)
 
 
-def _bounds(gt: float | None, ge: float | None, le: float | None) -> str:
-    parts = [f"{op} {num(x)}" for op, x in ((">", gt), (">=", ge), ("<=", le)) if x is not None]
-    return (" " + " and ".join(parts)) if parts else ""
+def _bounds(b: Bound) -> str:
+    text = b.text()
+    return f" {text}" if text else ""
 
 
-def _in_range(v: float, gt: float | None, ge: float | None, le: float | None) -> bool:
-    return ((gt is None or v > gt) and (ge is None or v >= ge) and (le is None or v <= le))
+def _as_bound(key: str | None, gt: float | None, ge: float | None, le: float | None, allow_inf: bool) -> Bound:
+    """The field's bound from cdus.wire.bounds.BOUNDS (``key``), or one from gt/ge/le."""
+    if key is not None:
+        return BOUNDS[key]
+    lo, lo_open = (gt, True) if gt is not None else (ge, False) if ge is not None else (-math.inf, False)
+    return Bound(lo, math.inf if le is None else le, lo_open=lo_open, inf_ok=allow_inf)
 
 
 def names(ids: Iterable[str], most: int = 10) -> str:
@@ -180,17 +186,20 @@ class Problems:
 
     # ---- scalars
 
-    def number(self, v: Any, field: str, *, gt: float | None = None, ge: float | None = None,
-               le: float | None = None, unit: str = "", note: str = "", allow_inf: bool = False) -> float | None:
-        """A finite number (or ±inf with ``allow_inf``) within the bounds, as a float."""
-        want = f"a number{_bounds(gt, ge, le)}{unit}"
+    def number(self, v: Any, field: str, key: str | None = None, *, gt: float | None = None,
+               ge: float | None = None, le: float | None = None, unit: str = "", note: str = "",
+               allow_inf: bool = False) -> float | None:
+        """A finite number (or +inf where the bound allows it) within the bounds, as a float:
+        the bound of ``key`` in cdus.wire.bounds.BOUNDS, else the one gt/ge/le give."""
+        b = _as_bound(key, gt, ge, le, allow_inf)
+        want = f"a number{_bounds(b)}{unit}"
         if not is_number(v):
             self.add(field, f"must be {want}, got {describe(v)}{note}")
             return None
-        if math.isnan(v) or (math.isinf(v) and not allow_inf):
-            self.add(field, f"must be a finite number{_bounds(gt, ge, le)}{unit}, got {show(v)}{note}")
+        if not finite(v) and not (b.inf_ok and v == math.inf):
+            self.add(field, f"must be a finite number{_bounds(b)}{unit}, got {show(v)}{note}")
             return None
-        if not _in_range(v, gt, ge, le):
+        if not b.holds(v):
             self.add(field, f"must be {want}, got {show(v)}{note}")
             return None
         return float(v)
@@ -205,7 +214,7 @@ class Problems:
 
     def integer(self, v: Any, field: str, *, ge: int | None = None, unit: str = "", note: str = "") -> int | None:
         """An integer (not a float, not a boolean) >= ``ge``."""
-        want = f"an integer{_bounds(None, ge, None)}{unit}"
+        want = f"an integer{_bounds(_as_bound(None, None, ge, None, False))}{unit}"
         if not isinstance(v, int) or isinstance(v, bool):
             self.add(field, f"must be {want}, got {describe(v)}{note}")
             return None
@@ -253,12 +262,16 @@ class Problems:
 
     # ---- compounds
 
-    def vector(self, v: Any, field: str, n: int, what: str, note: str = "") -> tuple[float, ...] | None:
-        """A list of ``n`` finite numbers (``what`` they are, e.g. "a usv position [x, y] in m")."""
-        if isinstance(v, list) and len(v) == n and all(is_number(x) and math.isfinite(x) for x in v):
+    def vector(self, v: Any, field: str, n: int, what: str, note: str = "", key: str | None = None
+               ) -> tuple[float, ...] | None:
+        """A list of ``n`` finite numbers (``what`` they are, e.g. "a usv position [x, y] in m"),
+        each within the bound of ``key`` (cdus.wire.bounds.BOUNDS) if given."""
+        b = BOUNDS[key] if key is not None else None
+        if isinstance(v, list) and len(v) == n and all(finite(x) and (b is None or b.holds(x)) for x in v):
             return tuple(float(x) for x in v)
         got = f"{len(v)} numbers {show(v)}" if isinstance(v, list) and all(map(is_number, v)) else describe(v)
-        self.add(field, f"must be a list of {n} numbers ({what}), got {got}{note}")
+        self.add(field, f"must be a list of {n} numbers"
+                        f"{'' if b is None else ' ' + b.text()} ({what}), got {got}{note}")
         return None
 
     def table(self, v: Any, field: str, example: str, note: str = "") -> dict | None:
