@@ -35,7 +35,7 @@ DEFAULT_PRESET = "cybership2"
 #: plant -> regulator -> allowed regulator_gains keys; the first regulator is the default.
 REGULATORS: dict[str, dict[str, tuple[str, ...]]] = {
     "usv_3dof": {"heading": ("b_u", "b_r", "k_psi"), "paper": ("b1", "b2", "b3")},
-    "uav_double_integrator": {"pd": ("b", "k_v")},
+    "uav_double_integrator": {"pd": ("b",)},
 }
 LIMIT_KEYS = ("speed", "accel", "tau_u", "tau_r", "yaw_rate")
 VEHICLE_KEYS = ("id", "kind", "plant", "preset", "epsilon", "regulator", "regulator_gains", "phase",

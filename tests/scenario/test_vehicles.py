@@ -172,6 +172,10 @@ BAD = {
     "regulator on ideal": (v0(regulator="heading"), "regulator: the ideal plant has no regulator"),
     "regulator gain": (v0(plant="usv_3dof", regulator_gains={"b1": 1}),
                        "regulator_gains.b1: unknown regulator gain; the heading regulator takes: b_u, b_r, k_psi"),
+    # the pd regulator has one gain: k_v was listed (and in docs/config.md) but UAVGains does not take
+    # it, so a config giving it crashed the run with a TypeError
+    "pd k_v": (v2(plant="uav_double_integrator", regulator_gains={"k_v": 2.0}),
+               "regulator_gains.k_v: unknown regulator gain; the pd regulator takes: b"),
     "regulator gain value": (v0(plant="usv_3dof", regulator_gains={"b_u": 0}),
                              "regulator_gains.b_u: must be a number > 0, got 0"),
     "negative c": (v0(gains={"c": -2}), 'vehicle[0] (id "usv1").gains.c: must be a number > 0, got -2'),
