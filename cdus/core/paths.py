@@ -404,6 +404,10 @@ def _build_lissajous(s, beta, direction):
     n = len(c)
     amp = _vector(s, "amplitude", (n,))
     fr = _vector(s, "frequency", (n,))
+    slow = [f for f in fr if f != 0 and not abs(f) >= MIN_RATE]
+    if slow:  # a frequency of 1e-308 put a turning point at ω = π / 2e-309 = inf
+        raise PathError("frequency", f"must contain numbers that are 0 or at least {MIN_RATE:g} in size, got "
+                                     f"{slow[0]:g}: a vehicle cannot follow such a path (its numbers overflow)")
     ph = _vector(s, "phase", (n,), (0.0,) * n)
     return Lissajous(c, amp, fr, ph, beta, direction)
 

@@ -13,7 +13,7 @@ from cdus.wire.schemas import CommandReply, decode_reply
 from tests.fakes import Payload
 from world_sim.world import LINK_LEAD
 
-from .test_world import FLEET, row, send_rows, started, world
+from .test_world import FLEET, ctl_ops, row, send_rows, started, world
 
 
 class Query:
@@ -469,3 +469,22 @@ def test_a_fleet_pause_is_in_the_status_a_query_is_answered_at_once():
     q = Query(keys.world_status(FLEET), None)
     w._on_status_query(q)
     assert decode_status(q.replies[0][1])["paused"] is False
+
+
+def test_a_link_value_past_its_bound_is_refused_by_name_and_never_relayed():
+    """Issue 27: `link delay.base=1e308` was answered "applied from tick 1851" and every agent died
+    (OverflowError in cdus.core.schedule.needed_seq). Every number of a link table has its bound
+    (cdus.wire.bounds): the world checks the merged table with it, names the field, counts it."""
+    w = started(world())
+    table0, links0 = dict(w._link_table), [c for c in ctl_ops(w) if c.op == "link"]
+    for table, field in [({"delay": {"base": 1e308}}, "link.delay.base"), ({"delay": {"jitter": 1e300}}, "link.delay.jitter"),
+                         ({"timeout": 1e308}, "link.timeout"), ({"delay": {"base": -0.5}}, "link.delay.base"),
+                         ({"override": [{"src": "usv1", "delay": {"base": 3601.0}}]}, "link.override[0].delay.base"),
+                         ({"down": [{"from": 2e9, "to": 3e9}]}, "link.down[0].from")]:
+        before = w.st.rejects["link"]
+        q = ask(w, "link", link=table, at=-1.0)
+        assert q.answer.status == "rejected" and field in q.answer.reason, (table, q.answer)
+        assert w.st.rejects["link"] == before + 1
+    assert w._link_table == table0 and [c for c in ctl_ops(w) if c.op == "link"] == links0  # nothing relayed
+    q = ask(w, "link", link={"delay": {"base": 3600.0}}, at=-1.0)  # the bound itself is a value
+    assert q.answer.status == "applied", q.answer
