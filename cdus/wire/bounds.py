@@ -59,8 +59,7 @@ class Bound:
         if self.holds(x):
             return None
         kind = "a finite number" if not self.inf_ok else "a number"
-        got = repr(x) if isinstance(x, (bool, str)) or not isinstance(x, (int, float)) else (
-            f"{x:g}" if isinstance(x, float) else str(x))
+        got = f"{x:g}" if isinstance(x, float) else repr(x)  # an int as written, a bool or a string as Python spells it
         return f"must be {kind} {self.text()}{what}, got {got}"
 
 

@@ -63,6 +63,8 @@ def test_the_range_and_the_refusal_in_words():
     assert BOUNDS["path.radius"].problem(True) == "must be a finite number > 0 and <= 1e+06, got True"
     assert BOUNDS["path.radius"].problem("x") == "must be a finite number > 0 and <= 1e+06, got 'x'"
     assert BOUNDS["event.at"].problem(7) is None
+    assert BOUNDS["event.at"].problem(10**20) == "must be a finite number >= 0 and <= 1e+09, got 100000000000000000000"
+    assert BOUNDS["event.at"].problem(None) == "must be a finite number >= 0 and <= 1e+09, got None"
 
 
 def test_the_shorthands():
