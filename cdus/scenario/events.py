@@ -32,7 +32,6 @@ into ``Scenario.changes`` (cdus.core.formation). docs/config.md is the user refe
 
 from __future__ import annotations
 
-import math
 from typing import Any, Mapping, Sequence
 
 from cdus.core.events import ACTIONS, Event

@@ -10,13 +10,12 @@ both raise :class:`ConfigError` with every problem.
 
 from __future__ import annotations
 
-import math
 from typing import Any, Mapping, Sequence
 
 from cdus.core.radio import (
     ACCESSES, FADINGS, KINDS, MODULATIONS, POLARIZATIONS, PROPAGATIONS, TOPOLOGIES, RadioChannel, RadioSpec,
 )
-from cdus.scenario.checks import IdList, Problems, describe, is_number, show
+from cdus.scenario.checks import IdList, Problems, describe, show
 from cdus.scenario.errors import ConfigError
 from cdus.wire.bounds import BOUNDS
 
