@@ -4,9 +4,18 @@ fake queries record the replies."""
 
 from __future__ import annotations
 
+import copy
+import math
+
 import msgpack
+import pytest
 from hypothesis import given, settings, strategies as hs
 
+from cdus.core.linkspec import Delay
+from cdus.core.node import gains_problem
+from cdus.core.schedule import delivery_tick
+from cdus.scenario.events import check_path
+from cdus.scenario.link import merge_link_tables, validate_link
 from cdus.wire import keys
 from cdus.wire.messages import CTL_OPS, LAUNCHER_OPS, decode_control, encode_control
 from cdus.wire.schemas import CommandReply, decode_reply
@@ -488,3 +497,65 @@ def test_a_link_value_past_its_bound_is_refused_by_name_and_never_relayed():
     assert w._link_table == table0 and [c for c in ctl_ops(w) if c.op == "link"] == links0  # nothing relayed
     q = ask(w, "link", link={"delay": {"base": 3600.0}}, at=-1.0)  # the bound itself is a value
     assert q.answer.status == "applied", q.answer
+
+
+#: each run-time command that carries numbers, with values that apply; the walk below puts each
+#: extreme into each of its numbers (radio: lake_circle has no [radio]; its numbers are the
+#: scenario's, walked in tests/scenario/test_bounds_walk.py)
+NUMERIC_COMMANDS = [
+    ("link", {"link": {"delay": {"base": 0.1, "jitter": 0.01}, "timeout": 1.0, "loss": 0.1, "duplicate": 0.1,
+                       "burst": {"p": 0.1, "r": 0.5}, "override": [{"src": "usv1", "delay": {"base": 0.1}}],
+                       "down": [{"from": 1.0, "to": 2.0}]}, "at": 1.0}),
+    ("set_gains", {"gains": {"k": 1.5, "c": 2.0}, "vehicle": ""}),
+    ("set_gains", {"gains": {"k": [1.5, 1.5]}, "vehicle": "usv1"}),
+    ("formation", {"phases": {"usv2": 2.0, "uav1": 0.5}, "offsets": []}),
+    ("path", {"vehicle": "uav1", "path": {"family": "circle", "center": [0.0, 0.0, 20.0], "radius": 5.0, "speed": 1.0}}),
+]
+
+
+def _numbers(x, path=()):
+    if isinstance(x, dict):
+        for k, v in x.items():
+            yield from _numbers(v, path + (k,))
+    elif isinstance(x, list):
+        for j, v in enumerate(x):
+            yield from _numbers(v, path + (j,))
+    elif isinstance(x, float):
+        yield path
+
+
+WALK = [(op, fields, path) for op, fields in NUMERIC_COMMANDS for path in _numbers(fields)]
+
+
+@pytest.mark.parametrize("op, fields, path", WALK, ids=[f"{op}:{'.'.join(map(str, p))}" for op, _, p in WALK])
+def test_every_number_of_a_command_at_its_extremes_is_refused_by_name_or_applied_within_its_bound(op, fields, path):
+    """Issue 27: a command the world answered "applied" crashed every agent. Each number of each
+    command at 1e308, -1e308, 1e-308, ±inf, nan, -0.0, -1: the world refuses it naming the key
+    (a non-finite float field of the command map itself: the decoder's non_finite), or applies a
+    value the agents' own checks take and whose delivery tick is a number."""
+    key = next(str(k) for k in reversed(path) if isinstance(k, str))
+    for value in (1e308, -1e308, 1e-308, math.inf, -math.inf, math.nan, -0.0, -1.0):
+        w = started(world())
+        sent = copy.deepcopy(fields)
+        node = sent
+        for k in path[:-1]:
+            node = node[k]
+        node[path[-1]] = value
+        r = ask(w, op, **sent).answer
+        if r.status == "rejected":
+            assert key in r.reason or (len(path) == 1 and "non_finite" in r.reason), (value, r.reason)
+            continue
+        assert r.status == "applied", r
+        payloads = w.pub_ctl.puts + [p for k, p in w.session.puts if "/ctl" in k]  # to all, to some
+        relayed = [c for c in map(lambda p: decode_control(p, CTL_OPS), payloads)
+                   if c.op == {"set_gains": "gains"}.get(op, op)][-1]
+        if op == "link":
+            spec = validate_link(merge_link_tables(w.scenario.link_table, relayed.fields["link"]), w.ids, "agent")
+            for d in [spec.delay] + [Delay(**dict(o.delay)) for o in spec.overrides]:
+                assert isinstance(delivery_tick(0, d.base + d.jitter, w.period), int)
+        elif op == "set_gains":
+            assert gains_problem(relayed.fields["gains"], 2, **w.scenario.gain_context("usv1")) is None
+        elif op == "path":
+            assert not isinstance(check_path(relayed.fields["path"], 3), tuple)
+        else:
+            assert all(abs(x) <= 1e9 for x in relayed.fields["phases"].values())
