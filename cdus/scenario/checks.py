@@ -4,11 +4,14 @@ Every section validator of the scenario file (and the run-time link commands) co
 its problems in a :class:`Problems` and checks values with its methods, so one kind of
 mistake reads the same wherever it is made:
 
-    rates.control: must be a number > 0 Hz, got -1
-    rates.control: must be a number > 0 Hz, got the string "fast"
+    rates.control: must be a number >= 0.001 and <= 100000 Hz, got -1
+    rates.control: must be a number >= 0.001 and <= 100000 Hz, got the string "fast"
     scenario.durration: unknown key; did you mean "duration"? valid keys here: name, description, ...
     graph.topology: unknown topology "rign" (did you mean "ring"?); choose one of ring, chain, ...
     link.down[0].src: "usv9" is not a vehicle (did you mean "usv1"?); ids are usv1, usv2 or "*" (any vehicle)
+
+A number's range is its field's bound in :data:`cdus.wire.bounds.BOUNDS` (``p.number(v, field,
+"rates.control")``), written once for the config, the run-time commands and the wire alike.
 
 The rule for "got": a value of the wrong type is described with its type ("the string
 "fast""), a value of the right type out of range is shown as written ("-1"); values are
