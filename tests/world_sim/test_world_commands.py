@@ -5,7 +5,6 @@ fake queries record the replies."""
 from __future__ import annotations
 
 import copy
-import math
 
 import msgpack
 import pytest
@@ -20,6 +19,7 @@ from cdus.wire import keys
 from cdus.wire.messages import CTL_OPS, LAUNCHER_OPS, decode_control, encode_control
 from cdus.wire.schemas import CommandReply, decode_reply
 from tests.fakes import Payload
+from tests.scenario.test_bounds_walk import EXTREMES, numbers
 from world_sim.world import LINK_LEAD
 
 from .test_world import FLEET, ctl_ops, row, send_rows, started, world
@@ -513,18 +513,7 @@ NUMERIC_COMMANDS = [
 ]
 
 
-def _numbers(x, path=()):
-    if isinstance(x, dict):
-        for k, v in x.items():
-            yield from _numbers(v, path + (k,))
-    elif isinstance(x, list):
-        for j, v in enumerate(x):
-            yield from _numbers(v, path + (j,))
-    elif isinstance(x, float):
-        yield path
-
-
-WALK = [(op, fields, path) for op, fields in NUMERIC_COMMANDS for path in _numbers(fields)]
+WALK = [(op, fields, path) for op, fields in NUMERIC_COMMANDS for path in numbers(fields)]
 
 
 @pytest.mark.parametrize("op, fields, path", WALK, ids=[f"{op}:{'.'.join(map(str, p))}" for op, _, p in WALK])
@@ -534,7 +523,7 @@ def test_every_number_of_a_command_at_its_extremes_is_refused_by_name_or_applied
     (a non-finite float field of the command map itself: the decoder's non_finite), or applies a
     value the agents' own checks take and whose delivery tick is a number."""
     key = next(str(k) for k in reversed(path) if isinstance(k, str))
-    for value in (1e308, -1e308, 1e-308, math.inf, -math.inf, math.nan, -0.0, -1.0):
+    for value in EXTREMES:
         w = started(world())
         sent = copy.deepcopy(fields)
         node = sent
