@@ -19,7 +19,6 @@ Zenoh (lockstep runs) and Rerun (``rerun=`` other than ``off``) only when a run 
 from __future__ import annotations
 
 import json
-import math
 import os
 import tempfile
 import threading
@@ -44,6 +43,7 @@ from cdus.scenario.config import MAX_NESTING, ConfigError, load_scenario, nestin
 from cdus.scenario.model import Scenario
 from cdus.sim.fleet import InProcessFleet
 from cdus.sim.reports import ConsoleQuota
+from cdus.wire.bounds import finite
 from cdus.sim.sink import NullSink
 from cdus.wire import keys
 from world_sim.recording import parse_spec
@@ -808,8 +808,7 @@ def run(scenario: Scenario | str | os.PathLike, *, clock: str = "inproc", policy
             raise _arg_error(where, name, f"expected True or False, got {value!r}")
     if tls and not secure:
         raise _arg_error(where, "tls", "TLS is a mode of the secured fleet: give secure=True with tls=True")
-    if isinstance(ready_timeout, bool) or not isinstance(ready_timeout, (int, float)) \
-            or not (math.isfinite(ready_timeout) and ready_timeout > 0):
+    if not (finite(ready_timeout) and ready_timeout > 0):
         raise _arg_error(where, "ready_timeout", f"expected seconds > 0, got {ready_timeout!r}")
     name = scenario.name.replace(".", "_") if fleet is None else fleet
     try:
@@ -960,8 +959,7 @@ def sweep(config: str | os.PathLike | Scenario, grid: Mapping[str, Sequence[Any]
         raise _arg_error(where, "plot_format", f"{plot_format!r} is not one of {', '.join(app_sweep.PLOT_FORMATS)}")
     if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
         raise _arg_error(where, "jobs", f"expected a number of parallel runs >= 1 (or None), got {jobs!r}")
-    if duration is not None and (isinstance(duration, bool) or not isinstance(duration, (int, float))
-                                 or not (math.isfinite(duration) and duration > 0)):
+    if duration is not None and not (finite(duration) and duration > 0):
         raise _arg_error(where, "duration", f"expected simulated seconds > 0 (or None), got {duration!r}")
     if not isinstance(grid, Mapping):
         raise _arg_error(where, "grid", f"expected a mapping of dotted keys to lists of values, e.g. "

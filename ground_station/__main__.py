@@ -42,6 +42,7 @@ from cdus.core.paths import PathError, make_path
 from cdus.scenario.config import ConfigError, parse_value
 from cdus.scenario.link import validate_link
 from cdus.sim.radio import radio_change_problem
+from cdus.wire.bounds import BOUNDS
 from cdus.wire.keys import FLEET_RE
 from cdus.wire.transport import add_transport_args, transport_from_args, with_default_endpoint
 from cdus.files import write_json
@@ -150,10 +151,6 @@ def nested(settings: list[str]) -> dict:
     return out
 
 
-def _positive_number(x) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and 0 < x < float("inf")
-
-
 def check_gains(gains: dict, vehicle: str | None) -> None:
     """k: a finite number > 0 (every axis) or, for one vehicle (--vehicle), one per axis; c: a finite
     number > 0 (`gains k=inf` said "must be a number > 0, got inf", which it is)."""
@@ -167,11 +164,11 @@ def check_gains(gains: dict, vehicle: str | None) -> None:
         if vehicle is None:
             raise ConfigError("command line", [("k", "one value per axis needs --vehicle (boats have 2 axes, "
                                                      "drones 3); a single number sets every axis")])
-        if not k or not all(_positive_number(x) for x in k):
+        if not k or not all(BOUNDS["gains.k"].holds(x) for x in k):
             raise ConfigError("command line", [("k", f"must be finite numbers > 0, got {k}")])
-    elif not _positive_number(k):
+    elif not BOUNDS["gains.k"].holds(k):
         raise ConfigError("command line", [("k", f"must be a finite number > 0, got {k!r}")])
-    if "c" in gains and not _positive_number(gains["c"]):
+    if "c" in gains and not BOUNDS["gains.c"].holds(gains["c"]):
         raise ConfigError("command line", [("c", f"must be a finite number > 0, got {gains['c']!r}")])
 
 
@@ -205,10 +202,10 @@ def formation_fields(settings: list[str]) -> dict:
             if k is None:
                 raise ConfigError("command line", [(f"offsets.{i}", "write offsets.I.K=Δ (I listens to K)")])
             offsets.append({"i": i, "k": k, "delta": d})
-    for name, v in [(f"phases.{k}", x) for k, x in phases.items()] + \
-                   [(f"offsets.{o['i']}.{o['k']}", o["delta"]) for o in offsets]:
-        if not (isinstance(v, (int, float)) and not isinstance(v, bool) and abs(v) < float("inf")):
-            raise ConfigError("command line", [(name, f"must be a finite number (ω units), got {v!r}")])
+    for name, v, b in [(f"phases.{k}", x, BOUNDS["vehicle.phase"]) for k, x in phases.items()] + \
+                      [(f"offsets.{o['i']}.{o['k']}", o["delta"], BOUNDS["graph.edge.delta"]) for o in offsets]:
+        if not b.holds(v):
+            raise ConfigError("command line", [(name, b.problem(v, " (ω units)"))])
     return {"phases": phases, "offsets": offsets}
 
 

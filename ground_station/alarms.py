@@ -23,11 +23,11 @@ last (the same status read again at a later time) change no growth; a time going
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any
 
 from cdus.core import graph as graphs
+from cdus.wire.bounds import finite
 
 KINDS = ("vehicle_lost", "no_spanning_tree", "error_growing", "separation")
 GROW_S = 3.0  # s of simulated time an error must grow for
@@ -68,7 +68,7 @@ class _Growth:
 
 
 def _num(x: Any) -> float | None:
-    return float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) else None
+    return float(x) if finite(x) else None
 
 
 @dataclass

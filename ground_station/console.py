@@ -24,6 +24,7 @@ import zenoh
 
 from cdus.wire import keys
 from cdus.wire.access import GROUND_ROLE, ROS2_ROLE
+from cdus.wire.bounds import finite
 from cdus.wire.transport import Transport, endpoint_host, open_session
 from cdus.wire.messages import StateMsg, decode_states, encode_control
 from cdus.wire.schemas import CommandReply, FleetEvent, decode_event, decode_reply, decode_settings, decode_status
@@ -367,7 +368,7 @@ class GroundStation:
         """The world's simulated time, None before its status or if it is not a finite number."""
         with self.view.lock:
             t = None if self.view.world is None else self.view.world.get("t")
-        return float(t) if isinstance(t, (int, float)) and not isinstance(t, bool) and math.isfinite(t) else None
+        return float(t) if finite(t) else None
 
     def fetch_last(self, timeout: float = 2.0) -> int:
         """Ask the world for every vehicle's newest telemetry (``world/last/*``): a fleet that is

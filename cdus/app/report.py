@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any, Sequence, TextIO
 
 from cdus.scenario.model import VehicleSpec
+from cdus.wire.bounds import finite
 from cdus.wire.text import printable
 
 
@@ -96,7 +97,7 @@ WORLD_LOST = "world_lost"
 def _world_lost_t(m: dict) -> float | None:
     """The time of the world's last status in a world_lost record; None: it gave none."""
     t = (m.get("world_lost") or {}).get("last_status_t") if isinstance(m.get("world_lost"), dict) else None
-    return float(t) if isinstance(t, (int, float)) and not isinstance(t, bool) and math.isfinite(t) else None
+    return float(t) if finite(t) else None
 
 
 def _lost_words(m: dict) -> str:

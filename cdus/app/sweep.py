@@ -50,6 +50,7 @@ from cdus.files import write_json
 from cdus.scenario.config import ConfigError, load_scenario, parse_scenario, parse_value
 from cdus.scenario.model import Scenario
 from cdus.sim.fleet import InProcessFleet
+from cdus.wire.bounds import finite
 from cdus.wire.text import printable
 
 __all__ = ["sweep", "SweepResult", "SweepInterrupted", "parse_grid", "check_grid", "plan", "Run", "FIELDS",
@@ -290,7 +291,7 @@ class _Tally:
                 c.ok += 1
                 for f in STAT_FIELDS:
                     v = row.get(f)
-                    if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v):
+                    if finite(v):
                         c.values[f].append(float(v))
             else:
                 self.failed += 1
@@ -481,7 +482,7 @@ def plot(keys: list[str], cells: list[CellSummary], path: Path, title: str = "")
             series.setdefault(tuple(value_label(k, values[k]) for k in others), []).append(c)
     xs_all = [dict(c.cell)[x_key] if x_key else "all runs" for c in cells if c.runs]
     # an inf value (radio.shadowing_distance = inf) has no place on a numeric axis: the values as categories
-    numeric = all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in xs_all)
+    numeric = all(finite(x) for x in xs_all)
     categories = list(dict.fromkeys(canonical(x) for x in xs_all))
 
     def pos(x: Any) -> float:

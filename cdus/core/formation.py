@@ -31,10 +31,7 @@ from dataclasses import dataclass
 from typing import Any, Iterable, Mapping, Sequence
 
 from cdus.core import graph as graphs
-
-#: |θ| above this (ω units) is refused where a phase enters: ω itself is a time-like number
-#: (it runs at 1/s), and no formation needs offsets beyond ~30 years of it
-MAX_PHASE = 1e9
+from cdus.wire.bounds import MAX_PHASE  # noqa: F401 (|θ| above it is refused where a phase enters)
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,7 @@ re-evaluate a at every physics step h = 1/physics with ω extrapolated, so the s
 argument holds at h: **k_j h < 2**. Measured on lake_circle_dynamic (physics 200 Hz):
 k = 396 runs, k = 404 diverges (DivergedError at 1.4 s).
 
-**Regulator gains** (b, k_v; b_u, b_r, k_psi; b1, b2, b3): each is the rate of a
+**Regulator gains** (b; b_u, b_r, k_psi; b1, b2, b3): each is the rate of a
 first-order error loop stepped at h (exact or Heun steps with the input held), which
 contracts when |1 - b h| < 1 (Heun: |1 - bh + (bh)²/2| < 1): **b h < 2**.
 
@@ -37,6 +37,8 @@ from __future__ import annotations
 
 import math
 from typing import Iterable, Sequence
+
+from cdus.wire.bounds import finite as _number
 
 #: Plants whose regulator re-evaluates the guidance at every physics step.
 DYNAMIC_PLANTS = ("usv_3dof", "uav_double_integrator")
@@ -62,10 +64,6 @@ def c_bound(control_hz: float, weight_sum: float) -> float:
 def regulator_bound(physics_hz: float) -> float:
     """The largest regulator gain (exclusive): 2 × the physics rate."""
     return REGULATOR_LIMIT * physics_hz
-
-
-def _number(x: object) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
 
 def gains_problem_for_rate(k: float | Sequence[float] | None, c: float | None, control_hz: float, *,

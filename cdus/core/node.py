@@ -58,6 +58,7 @@ from cdus.core.paths import Path, Vec
 from cdus.core.safety import Contact
 from cdus.core.schedule import delay_floor, delivery_tick, first_seq_at, needed_seq, send_tick
 from cdus.core.vehicle import DivergedError, Telemetry, Vehicle
+from cdus.wire.bounds import BOUNDS
 from cdus.wire.messages import OmegaMsg
 
 REJECT_REASONS = ("not_a_neighbour", "inconsistent", "future", "stale", "conflict", "implausible", "gone")
@@ -138,7 +139,7 @@ def _due(changes: list[tuple], n: int) -> tuple | None:
 
 def _gains_shape_problem(gains: dict, dim: int) -> str | None:
     def ok(x) -> bool:
-        return isinstance(x, (int, float)) and not isinstance(x, bool) and 0 < x < math.inf
+        return BOUNDS["gains.k"].holds(x)
 
     extra = sorted(set(gains) - {"k", "c"})
     if extra or not gains:
@@ -149,7 +150,7 @@ def _gains_shape_problem(gains: dict, dim: int) -> str | None:
             return f"k must be {dim} numbers > 0 for this vehicle, got {list(k)}"
     elif not ok(k):
         return f"k must be a number > 0, got {k!r}"
-    if "c" in gains and not ok(gains["c"]):
+    if "c" in gains and not BOUNDS["gains.c"].holds(gains["c"]):
         return f"c must be a number > 0, got {gains['c']!r}"
     return None
 

@@ -17,6 +17,8 @@ from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any, Callable, Mapping, Protocol
 
+from cdus.wire.bounds import BOUNDS, MAX_PHASE, MIN_RATE, finite
+
 Vec = tuple[float, ...]
 
 TAU = 2.0 * math.pi
@@ -324,7 +326,7 @@ def make_path(spec: Mapping[str, Any]) -> Path:
     beta = _number(spec, "beta", 1.0)
     if beta == 0:
         raise PathError("beta", "must be non-zero (speed scaling f(βω))")
-    direction = _number(spec, "direction", -1.0)
+    direction = _number(spec, "direction", -1.0, bounded=False)
     if direction not in (-1.0, 1.0):
         raise PathError("direction", f"must be -1 (the paper's choice) or +1, got {direction}")
     if "speed" in spec:
@@ -334,21 +336,37 @@ def make_path(spec: Mapping[str, Any]) -> Path:
             raise PathError("speed", f"only circle and line have a constant on-path speed; use beta for {family}")
         speed = _positive(spec, "speed")
         beta = speed / (_positive(spec, "radius") if family == "circle" else 1.0)
+    if not abs(beta) >= MIN_RATE or not BOUNDS["path.beta"].holds(beta):
+        what = "speed / radius" if "speed" in spec and family == "circle" else "speed" if "speed" in spec else "beta"
+        raise PathError("speed" if "speed" in spec else "beta",
+                        f"{what} (β, the speed scaling f(βω)) must be within ±{BOUNDS['path.beta'].hi:g} and at "
+                        f"least {MIN_RATE:g} in size, got {beta:g}: a vehicle cannot follow such a path (its "
+                        f"numbers overflow, or its lap 2π/β does)")
     return builder(spec, beta, direction)
 
 
-def _number(spec: Mapping[str, Any], key: str, default: float | None = None) -> float:
+def _number(spec: Mapping[str, Any], key: str, default: float | None = None, bounded: bool = True) -> float:
+    """A finite number within its bound (cdus.wire.bounds.BOUNDS["path.<key>"])."""
     v = spec.get(key, default)
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+    if not finite(v):
         raise PathError(key, f"must be a finite number, got {v!r}")
+    b = BOUNDS[f"path.{key}"] if bounded else None
+    if b is not None and not b.holds(v):
+        raise PathError(key, f"{b.problem(v, _UNITS.get(key, ''))}: a vehicle cannot follow such a path (its "
+                             f"numbers overflow)")
     return float(v)
 
 
+#: what the numbers of a path are, in a refusal
+_UNITS = {"radius": " m", "a": " m", "b": " m", "scale": " m", "height": " m", "d": " m", "speed": " m/s",
+          "rotation": " rad", "beta": " (speed scaling f(βω))"}
+
+
 def _positive(spec: Mapping[str, Any], key: str) -> float:
-    v = _number(spec, key)
-    if v <= 0:
-        raise PathError(key, f"must be > 0, got {v}")
-    return v
+    v = spec.get(key)
+    if finite(v) and v <= 0:
+        raise PathError(key, f"must be > 0, got {float(v)}")
+    return _number(spec, key)
 
 
 def _vector(spec: Mapping[str, Any], key: str, dims: tuple[int, ...] = (2, 3), default: Any = None) -> Vec:
@@ -357,9 +375,13 @@ def _vector(spec: Mapping[str, Any], key: str, dims: tuple[int, ...] = (2, 3), d
         want = " or ".join(str(d) for d in dims)
         raise PathError(key, f"must be a list of {want} numbers, got {v!r}")
     out = []
+    b = BOUNDS[f"path.{key}"]
     for x in v:
-        if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
+        if not finite(x):
             raise PathError(key, f"must contain finite numbers, got {v!r}")
+        if not b.holds(x):
+            raise PathError(key, f"must contain numbers {b.text()} (m, or a rate), got {x:g}: a vehicle cannot "
+                                 f"follow such a path (its numbers overflow)")
         out.append(float(x))
     return tuple(out)
 
@@ -382,6 +404,10 @@ def _build_lissajous(s, beta, direction):
     n = len(c)
     amp = _vector(s, "amplitude", (n,))
     fr = _vector(s, "frequency", (n,))
+    slow = [f for f in fr if f != 0 and not abs(f) >= MIN_RATE]
+    if slow:  # a frequency of 1e-308 put a turning point at ω = π / 2e-309 = inf
+        raise PathError("frequency", f"must contain numbers that are 0 or at least {MIN_RATE:g} in size, got "
+                                     f"{slow[0]:g}: a vehicle cannot follow such a path (its numbers overflow)")
     ph = _vector(s, "phase", (n,), (0.0,) * n)
     return Lissajous(c, amp, fr, ph, beta, direction)
 
@@ -423,6 +449,20 @@ def for_dimension(path: Path, dim: int) -> Path:
         return Planar(path)
     raise PathError("path", f"a {dim}-D vehicle needs a {dim}-D path; this one is {path.dim}-D "
                             f"(give the center/origin a z component)")
+
+
+#: the ω at which a path is evaluated before a vehicle takes it (:func:`not_finite_at`): its
+#: phases are within ±MAX_PHASE
+PROBE_OMEGAS = (0.0, 1.0, -1.0, 1e3, -1e3, 1e6, -1e6, MAX_PHASE, -MAX_PHASE)
+
+
+def not_finite_at(path: Path) -> float | None:
+    """The first of :data:`PROBE_OMEGAS` at which f, f' or f'' of ``path`` is not finite (a
+    vehicle cannot follow it), None if there is none."""
+    for w in PROBE_OMEGAS:
+        if not all(math.isfinite(x) for v in path.eval(w) for x in v):
+            return w
+    return None
 
 
 # --------------------------------------------------------------------------- geometry

@@ -4,11 +4,14 @@ Every section validator of the scenario file (and the run-time link commands) co
 its problems in a :class:`Problems` and checks values with its methods, so one kind of
 mistake reads the same wherever it is made:
 
-    rates.control: must be a number > 0 Hz, got -1
-    rates.control: must be a number > 0 Hz, got the string "fast"
+    rates.control: must be a number >= 0.001 and <= 100000 Hz, got -1
+    rates.control: must be a number >= 0.001 and <= 100000 Hz, got the string "fast"
     scenario.durration: unknown key; did you mean "duration"? valid keys here: name, description, ...
     graph.topology: unknown topology "rign" (did you mean "ring"?); choose one of ring, chain, ...
     link.down[0].src: "usv9" is not a vehicle (did you mean "usv1"?); ids are usv1, usv2 or "*" (any vehicle)
+
+A number's range is its field's bound in :data:`cdus.wire.bounds.BOUNDS` (``p.number(v, field,
+"rates.control")``), written once for the config, the run-time commands and the wire alike.
 
 The rule for "got": a value of the wrong type is described with its type ("the string
 "fast""), a value of the right type out of range is shown as written ("-1"); values are
@@ -22,6 +25,7 @@ import difflib
 import math
 from typing import Any, Iterable, Iterator, Mapping, Sequence
 
+from cdus.wire.bounds import BOUNDS, Bound, finite
 from cdus.wire.text import is_printable, printable
 
 ANY_VEHICLE = "*"  # the wildcard of link.override/down src and dst
@@ -81,7 +85,7 @@ def did_you_mean(word: Any, options: Iterable[str]) -> str:
 
 
 def is_number(v: Any) -> bool:
-    """An int or a float, never a boolean."""
+    """An int or a float, never a boolean (finite or not: :func:`cdus.wire.bounds.finite` says that)."""
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
@@ -90,13 +94,17 @@ def join(prefix: str, key: Any) -> str:
     return f"{prefix}.{key}" if prefix else str(key)
 
 
-def _bounds(gt: float | None, ge: float | None, le: float | None) -> str:
-    parts = [f"{op} {num(x)}" for op, x in ((">", gt), (">=", ge), ("<=", le)) if x is not None]
-    return (" " + " and ".join(parts)) if parts else ""
+def _bounds(b: Bound) -> str:
+    text = b.text()
+    return f" {text}" if text else ""
 
 
-def _in_range(v: float, gt: float | None, ge: float | None, le: float | None) -> bool:
-    return ((gt is None or v > gt) and (ge is None or v >= ge) and (le is None or v <= le))
+def _as_bound(key: str | None, gt: float | None, ge: float | None, le: float | None, allow_inf: bool) -> Bound:
+    """The field's bound from cdus.wire.bounds.BOUNDS (``key``), or one from gt/ge/le."""
+    if key is not None:
+        return BOUNDS[key]
+    lo, lo_open = (gt, True) if gt is not None else (ge, False) if ge is not None else (-math.inf, False)
+    return Bound(lo, math.inf if le is None else le, lo_open=lo_open, inf_ok=allow_inf)
 
 
 def names(ids: Iterable[str], most: int = 10) -> str:
@@ -182,17 +190,20 @@ class Problems:
 
     # ---- scalars
 
-    def number(self, v: Any, field: str, *, gt: float | None = None, ge: float | None = None,
-               le: float | None = None, unit: str = "", note: str = "", allow_inf: bool = False) -> float | None:
-        """A finite number (or ±inf with ``allow_inf``) within the bounds, as a float."""
-        want = f"a number{_bounds(gt, ge, le)}{unit}"
+    def number(self, v: Any, field: str, key: str | None = None, *, gt: float | None = None,
+               ge: float | None = None, le: float | None = None, unit: str = "", note: str = "",
+               allow_inf: bool = False) -> float | None:
+        """A finite number (or +inf where the bound allows it) within the bounds, as a float:
+        the bound of ``key`` in cdus.wire.bounds.BOUNDS, else the one gt/ge/le give."""
+        b = _as_bound(key, gt, ge, le, allow_inf)
+        want = f"a number{_bounds(b)}{unit}"
         if not is_number(v):
             self.add(field, f"must be {want}, got {describe(v)}{note}")
             return None
-        if math.isnan(v) or (math.isinf(v) and not allow_inf):
-            self.add(field, f"must be a finite number{_bounds(gt, ge, le)}{unit}, got {show(v)}{note}")
+        if not finite(v) and not (b.inf_ok and v == math.inf):
+            self.add(field, f"must be a finite number{_bounds(b)}{unit}, got {show(v)}{note}")
             return None
-        if not _in_range(v, gt, ge, le):
+        if not b.holds(v):
             self.add(field, f"must be {want}, got {show(v)}{note}")
             return None
         return float(v)
@@ -207,7 +218,7 @@ class Problems:
 
     def integer(self, v: Any, field: str, *, ge: int | None = None, unit: str = "", note: str = "") -> int | None:
         """An integer (not a float, not a boolean) >= ``ge``."""
-        want = f"an integer{_bounds(None, ge, None)}{unit}"
+        want = f"an integer{_bounds(_as_bound(None, None, ge, None, False))}{unit}"
         if not isinstance(v, int) or isinstance(v, bool):
             self.add(field, f"must be {want}, got {describe(v)}{note}")
             return None
@@ -261,12 +272,16 @@ class Problems:
 
     # ---- compounds
 
-    def vector(self, v: Any, field: str, n: int, what: str, note: str = "") -> tuple[float, ...] | None:
-        """A list of ``n`` finite numbers (``what`` they are, e.g. "a usv position [x, y] in m")."""
-        if isinstance(v, list) and len(v) == n and all(is_number(x) and math.isfinite(x) for x in v):
+    def vector(self, v: Any, field: str, n: int, what: str, note: str = "", key: str | None = None
+               ) -> tuple[float, ...] | None:
+        """A list of ``n`` finite numbers (``what`` they are, e.g. "a usv position [x, y] in m"),
+        each within the bound of ``key`` (cdus.wire.bounds.BOUNDS) if given."""
+        b = BOUNDS[key] if key is not None else None
+        if isinstance(v, list) and len(v) == n and all(finite(x) and (b is None or b.holds(x)) for x in v):
             return tuple(float(x) for x in v)
         got = f"{len(v)} numbers {show(v)}" if isinstance(v, list) and all(map(is_number, v)) else describe(v)
-        self.add(field, f"must be a list of {n} numbers ({what}), got {got}{note}")
+        self.add(field, f"must be a list of {n} numbers"
+                        f"{'' if b is None else ' ' + b.text()} ({what}), got {got}{note}")
         return None
 
     def table(self, v: Any, field: str, example: str, note: str = "") -> dict | None:

@@ -32,36 +32,28 @@ into ``Scenario.changes`` (cdus.core.formation). docs/config.md is the user refe
 
 from __future__ import annotations
 
-import math
 from typing import Any, Mapping, Sequence
 
 from cdus.core.events import ACTIONS, Event
 from cdus.core.formation import MAX_PHASE, FormationChange, PathChange, phases_from_offsets
-from cdus.core.paths import FAMILIES, Path, PathError, for_dimension, make_path, turning_point
+from cdus.core.paths import FAMILIES, Path, PathError, for_dimension, make_path, not_finite_at, turning_point
 from cdus.scenario.checks import IdList, Problems, describe, is_number, quote, show
-from cdus.scenario.vehicles import retrace_message
+from cdus.scenario.vehicles import not_finite_message, retrace_message
 from cdus.core.radiolink import RadioEvent
 from cdus.scenario.errors import ConfigError
+from cdus.wire.bounds import BOUNDS
 from cdus.scenario.radio import validate_radio_update
 
 EVENT_KEYS = ("at", "action", "vehicle", "duration", "phases", "offsets", "path")
-#: s, the latest event time: past it a time is no tick (1e308 s × the control rate overflows), and
-#: it is the latest time a run-time change takes (cdus.wire.messages.MAX_LINK_AT)
-MAX_EVENT_AT = 1e9
 REQUIRED = ("at", "action", "vehicle")
 #: the actions that change the formation or a path (the others are vehicle faults)
 CHANGE_ACTIONS = ("formation", "path")
 ALL_ACTIONS = ACTIONS + CHANGE_ACTIONS
 OFFSET_KEYS = ("i", "k", "delta")
 PATH_EXAMPLE = '{ family = "circle", center = [0, 0], radius = 10 }'
-#: every number of a path given as an [[event]] or by a ground station (metres, or a rate): a
-#: circle of radius 1e308 or a Lissajous of frequency 1e300 overflowed the vehicle that took it
-#: (its process ended: DivergedError) after the world had answered "applied"
-MAX_PATH_NUMBER = 1e6
 #: ω units: how far a formation's given offsets may be from the ones its phases give (float64
 #: sums along the graph's tree round; a lap is 2π/β, ~30 ω units at β = 0.2)
 OFFSET_TOL = 1e-6
-PROBE_OMEGAS = (0.0, 1.0, -1.0, 1e3, -1e3, 1e6, -1e6, MAX_PHASE, -MAX_PHASE)
 
 
 def event_section(p: Problems, raw: Any, ids: Sequence[str] | None) -> tuple[Event, ...]:
@@ -124,7 +116,7 @@ def _event(p: Problems, e: dict, field: str, ids: Sequence[str] | None) -> list[
                                     'vehicle = "usv2"')
     if missing:
         return []
-    at = p.number(e["at"], f"{field}.at", ge=0, le=MAX_EVENT_AT, unit=" (s of simulated time)")
+    at = p.number(e["at"], f"{field}.at", "event.at", unit=" (s of simulated time)")
     action = p.choice(e["action"], f"{field}.action", ALL_ACTIONS, "action")
     vehicle = p.vehicle(e["vehicle"], f"{field}.vehicle", ids)
     duration = None
@@ -132,7 +124,7 @@ def _event(p: Problems, e: dict, field: str, ids: Sequence[str] | None) -> list[
         if action is not None and action != "pause":
             p.add(f"{field}.duration", f"only a pause takes a duration (this event is a {quote(action)}); remove it")
         else:
-            duration = p.number(e["duration"], f"{field}.duration", gt=0, le=MAX_EVENT_AT,
+            duration = p.number(e["duration"], f"{field}.duration", "event.duration",
                                 unit=" s (then the vehicle resumes)")
     if p.since(mark) or at is None or action is None or vehicle is None:
         return []
@@ -165,7 +157,7 @@ def change_section(p: Problems, raw: Any, ids: Sequence[str] | None, dims: Mappi
         if "at" not in e:
             p.missing(f"{field}.at", f'a {e["action"]} event needs at (s of simulated time), e.g. at = 60.0')
             continue
-        at = p.number(e["at"], f"{field}.at", ge=0, le=MAX_EVENT_AT, unit=" (s of simulated time)")
+        at = p.number(e["at"], f"{field}.at", "event.at", unit=" (s of simulated time)")
         if "duration" in e:
             p.add(f"{field}.duration", f"only a pause takes a duration (this event is a {quote(e['action'])}); remove it")
         if at is not None:
@@ -213,17 +205,11 @@ def check_path(table: Mapping[str, Any], dim: int) -> Path | tuple[str, str]:
     """The path a table gives a vehicle of ``dim`` axes, checked as the config's paths are
     (cdus.core.paths.make_path), or ``(key, message)``: the key at fault ("" for the table)
     and what is wrong. Never raises on any data."""
-    for key, value in table.items():
-        big = [x for x in (value if isinstance(value, (list, tuple)) else [value])
-               if is_number(x) and not abs(x) <= MAX_PATH_NUMBER]
-        if big:
-            return str(key), (f"must be within ±{MAX_PATH_NUMBER:g} (metres, or a rate), got {show(big[0])}: a vehicle "
-                              f"cannot follow such a path (its numbers overflow)")
-    try:
+    try:  # every number within its bound (cdus.wire.bounds), checked by make_path
         followed = for_dimension(make_path(table), dim)
-        for w in PROBE_OMEGAS:  # the numbers every vehicle will compute from it stay finite
-            if not all(math.isfinite(x) for v in followed.eval(w) for x in v):
-                return "", f"its values are not finite numbers at ω = {w:g}: a vehicle cannot follow it"
+        w = not_finite_at(followed)  # the numbers every vehicle will compute from it stay finite
+        if w is not None:
+            return "", not_finite_message(w)
         turn = turning_point(followed)
         if turn is not None:  # a retraced Lissajous, refused as the config refuses it
             return "phase", retrace_message(dict(table), turn, dim)
@@ -293,7 +279,7 @@ def check_phases(table: Any, ids: Sequence[str]) -> dict[str, float] | tuple[str
     for vid, theta in table.items():
         if not isinstance(vid, str) or vid not in known:
             return "", f"{show(vid)} is not a vehicle; ids are {', '.join(list(ids)[:10])}"
-        if not is_number(theta) or not math.isfinite(theta) or abs(theta) > MAX_PHASE:
+        if not BOUNDS["vehicle.phase"].holds(theta):
             got = show(theta) if is_number(theta) else describe(theta)
             return vid, f"must be a finite number of ω units within ±{MAX_PHASE:g} (θ; a lap is 2π/β), got {got}"
         out[vid] = float(theta)
@@ -322,7 +308,7 @@ def check_offsets(raw: Any, ids: Sequence[str], edges: Sequence[Any], directed: 
         for key, v in (("i", i), ("k", k)):
             if not isinstance(v, str) or v not in known:
                 return f"{where}.{key}", f"{show(v)} is not a vehicle; ids are {', '.join(list(ids)[:10])}"
-        if not is_number(d) or not math.isfinite(d) or abs(d) > MAX_PHASE:
+        if not BOUNDS["graph.edge.delta"].holds(d):
             got = show(d) if is_number(d) else describe(d)
             return f"{where}.delta", f"must be a finite number of ω units within ±{MAX_PHASE:g}, got {got}"
         if (i, k) not in pairs:
@@ -396,7 +382,7 @@ def radio_event_section(p: Problems, raw: Any, has_radio: bool, adhoc: bool = Fa
         if "at" not in e:
             p.missing(f"{field}.at", 'a radio event needs at, and tx_power and/or station, e.g. at = 60.0, '
                                      'action = "radio", tx_power = 5.0')
-        at = (p.number(e["at"], f"{field}.at", ge=0, le=MAX_EVENT_AT, unit=" (s of simulated time)")
+        at = (p.number(e["at"], f"{field}.at", "event.at", unit=" (s of simulated time)")
               if "at" in e else None)
         try:
             tx, station = validate_radio_update({k: v for k, v in e.items() if k in ("tx_power", "station")},

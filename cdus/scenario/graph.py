@@ -51,7 +51,7 @@ def graph_section(p: Problems, gr: Mapping[str, Any], fleet: Fleet) -> tuple[str
     directed = p.boolean(gr.get("directed", False), "graph.directed") or False
     weight = DEFAULT_WEIGHT
     if "weight" in gr:
-        weight = p.number(gr["weight"], "graph.weight", gt=0, unit=" (a_ik)") or DEFAULT_WEIGHT
+        weight = p.number(gr["weight"], "graph.weight", "graph.weight", unit=" (a_ik)") or DEFAULT_WEIGHT
     ids = fleet.known if fleet.complete else None  # None: some id is bad, so references are not checked
     hub = _hub(p, gr, topology, ids)
     explicit = _explicit_pairs(p, gr, topology, ids)
@@ -140,8 +140,8 @@ def _edge_tables(p: Problems, gr: Mapping[str, Any], ids: Sequence[str] | None) 
         if missing:
             continue
         i, k = p.vehicle(et["i"], f"{where}.i", ids), p.vehicle(et["k"], f"{where}.k", ids)
-        w = p.number(et["weight"], f"{where}.weight", gt=0, unit=" (a_ik)") if "weight" in et else None
-        d = p.number(et["delta"], f"{where}.delta", unit=" (Δ_ik, the target of ω_i - ω_k)") if "delta" in et else None
+        w = p.number(et["weight"], f"{where}.weight", "graph.weight", unit=" (a_ik)") if "weight" in et else None
+        d = p.number(et["delta"], f"{where}.delta", "graph.edge.delta", unit=" (Δ_ik, the target of ω_i - ω_k)") if "delta" in et else None
         if i is None or k is None:
             continue
         if i == k:

@@ -72,7 +72,7 @@ def link_section(p: Problems, link: Any, ids: Ids) -> LinkSpec | None:
         policy = p.choice(t["policy"], "link.policy", POLICIES, "stale-neighbour policy") or DEFAULT_POLICY
     timeout = DEFAULT_TIMEOUT
     if "timeout" in t:
-        timeout = p.number(t["timeout"], "link.timeout", gt=0,
+        timeout = p.number(t["timeout"], "link.timeout", "link.timeout",
                            unit=" (s a neighbour may stay silent under policy timeout)") or DEFAULT_TIMEOUT
     seed = p.integer(t["seed"], "link.seed", ge=0, unit=" (leave it out to use scenario.seed)") if "seed" in t else None
     delay = Delay(**{**Delay().__dict__, **_delay_fields(p, t["delay"], "link.delay")}) if "delay" in t else Delay()
@@ -104,7 +104,7 @@ def _delay_fields(p: Problems, v: Any, field: str) -> dict[str, Any]:
     for key, what in (("base", " (s, the mean delay; the minimum for pareto)"),
                       ("jitter", " (s, the spread: ± for uniform, σ for normal, tail mean for pareto)")):
         if key in d:
-            out[key] = p.number(d[key], f"{field}.{key}", ge=0, unit=what)
+            out[key] = p.number(d[key], f"{field}.{key}", f"link.delay.{key}", unit=what)
     if "distribution" in d:
         out["distribution"] = p.choice(d["distribution"], f"{field}.distribution", DISTRIBUTIONS, "distribution")
     if "reorder" in d:
@@ -146,9 +146,9 @@ def _override(p: Problems, o: dict, field: str, ids: Ids) -> Override | None:
 
 def _window(p: Problems, w: dict, field: str) -> tuple[float, float] | None:
     """[from, to) in simulated seconds; ``to`` may be left out (until the end)."""
-    start = p.number(w.get("from", 0.0), f"{field}.from", ge=0, unit=" (s of simulated time)")
-    end = p.number(w.get("to", math.inf), f"{field}.to", gt=0,
-                   unit=" (s of simulated time, exclusive; leave it out for 'until the end')", allow_inf=True)
+    start = p.number(w.get("from", 0.0), f"{field}.from", "link.window.from", unit=" (s of simulated time)")
+    end = p.number(w.get("to", math.inf), f"{field}.to", "link.window.to",
+                   unit=" (s of simulated time, exclusive; leave it out for 'until the end')")
     if start is None or end is None:
         return None
     if not end > start:

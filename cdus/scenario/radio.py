@@ -10,40 +10,38 @@ both raise :class:`ConfigError` with every problem.
 
 from __future__ import annotations
 
-import math
 from typing import Any, Mapping, Sequence
 
 from cdus.core.radio import (
     ACCESSES, FADINGS, KINDS, MODULATIONS, POLARIZATIONS, PROPAGATIONS, TOPOLOGIES, RadioChannel, RadioSpec,
 )
-from cdus.scenario.checks import IdList, Problems, describe, is_number, show
+from cdus.scenario.checks import IdList, Problems, describe, show
 from cdus.scenario.errors import ConfigError
+from cdus.wire.bounds import BOUNDS
 
-#: (key, lower bound, strict?, upper bound, unit/what) of every number of [radio];
-#: a bound None is open; ``inf`` marks the keys that accept inf.
-NUMBERS: dict[str, tuple[float | None, bool, float | None, str]] = {
-    "relay_delay": (0.0, False, 10.0, " s (the station's relay adds it to every message)"),
-    "sample_period": (0.0, True, 60.0, " s (the world samples the positions this often)"),
-    "frequency": (1.0e6, False, 1.0e11, " Hz (the carrier, e.g. 5.18e9)"),
-    "exponent": (1.0, False, 8.0, " (log-distance path-loss exponent n; 2 = free space)"),
-    "d0": (0.01, False, 1000.0, " m (reference distance of the log-distance model, the near-field bound)"),
-    "pl0": (0.0, False, 250.0, " dB (loss at d0; leave it out for the free-space loss at d0)"),
-    "permittivity": (1.0, False, 200.0, " (relative permittivity of the water: 80 fresh, 70 at 5 GHz sea)"),
-    "conductivity": (0.0, False, 100.0, " S/m (of the water: 0.01 fresh, 4 sea)"),
-    "shadowing_sigma": (0.0, False, 30.0, " dB (std of the log-normal shadowing; 0 = none)"),
-    "shadowing_distance": (0.01, False, None, " m (decorrelation distance; inf = not correlated in space)"),
-    "shadowing_time": (0.001, False, None, " s (decorrelation time; inf = the shadowing does not change with time)"),
-    "rician_k": (0.0, False, 100.0, " (Rician K factor, linear: line-of-sight power / scattered power)"),
-    "nakagami_m": (0.5, False, 100.0, " (Nakagami m; 1 = Rayleigh)"),
-    "tx_power": (-50.0, False, 50.0, " dBm (transmit power)"),
-    "noise_floor": (-250.0, False, 0.0, " dBm (leave it out for kTB + noise_figure)"),
-    "bandwidth": (1.0e3, False, 1.0e10, " Hz (the noise bandwidth)"),
-    "noise_figure": (0.0, False, 50.0, " dB (of the receiver)"),
-    "capacity": (1.0e3, False, 1.0e11, " bit/s (the channel's bit rate: airtime and Eb/N0)"),
-    "preamble": (0.0, False, 1.0, " s (per-message overhead on the air: preamble, inter-frame space)"),
-    "slot": (0.0, True, 1.0, " s (the CSMA vulnerable window)"),
+#: key -> the unit and what it is, of every number of [radio]; its bound is cdus.wire.bounds.BOUNDS["radio.<key>"]
+NUMBERS: dict[str, str] = {
+    "relay_delay": " s (the station's relay adds it to every message)",
+    "sample_period": " s (the world samples the positions this often)",
+    "frequency": " Hz (the carrier, e.g. 5.18e9)",
+    "exponent": " (log-distance path-loss exponent n; 2 = free space)",
+    "d0": " m (reference distance of the log-distance model, the near-field bound)",
+    "pl0": " dB (loss at d0; leave it out for the free-space loss at d0)",
+    "permittivity": " (relative permittivity of the water: 80 fresh, 70 at 5 GHz sea)",
+    "conductivity": " S/m (of the water: 0.01 fresh, 4 sea)",
+    "shadowing_sigma": " dB (std of the log-normal shadowing; 0 = none)",
+    "shadowing_distance": " m (decorrelation distance; inf = not correlated in space)",
+    "shadowing_time": " s (decorrelation time; inf = the shadowing does not change with time)",
+    "rician_k": " (Rician K factor, linear: line-of-sight power / scattered power)",
+    "nakagami_m": " (Nakagami m; 1 = Rayleigh)",
+    "tx_power": " dBm (transmit power)",
+    "noise_floor": " dBm (leave it out for kTB + noise_figure)",
+    "bandwidth": " Hz (the noise bandwidth)",
+    "noise_figure": " dB (of the receiver)",
+    "capacity": " bit/s (the channel's bit rate: airtime and Eb/N0)",
+    "preamble": " s (per-message overhead on the air: preamble, inter-frame space)",
+    "slot": " s (the CSMA vulnerable window)",
 }
-INF_OK = ("shadowing_distance", "shadowing_time")
 INTEGERS = {"seed": (0, " (leave it out to use link.seed or scenario.seed)"),
             "header": (0, " bytes (added to the ω message's wire size: MAC, IP, UDP, Zenoh headers)"),
             "queue": (1, " messages (per transmitter, before it drops)")}
@@ -53,8 +51,8 @@ CHOICES = {"topology": (TOPOLOGIES, "radio topology"), "propagation": (PROPAGATI
            "polarization": (POLARIZATIONS, "polarization"), "fading": (FADINGS, "fading"),
            "modulation": (MODULATIONS, "modulation"), "access": (ACCESSES, "medium access")}
 ANTENNA_KEYS = KINDS + ("station",)
-MAX_HEIGHT = 1000.0  # m
-MAX_COORDINATE = 1.0e7  # m
+MAX_HEIGHT = BOUNDS["radio.antenna"].hi  # m
+MAX_COORDINATE = BOUNDS["radio.station"].hi  # m
 RADIO_KEYS = tuple(CHOICES) + tuple(NUMBERS) + tuple(INTEGERS) + ("station", "antenna", "antenna_override")
 UPDATE_KEYS = ("tx_power", "station")
 
@@ -129,14 +127,12 @@ def radio_section(p: Problems, radio: Any, ids: Ids) -> RadioSpec | None:
 
 
 def _number(p: Problems, v: Any, key: str) -> float | None:
-    low, strict, high, unit = NUMBERS[key]
-    return p.number(v, f"radio.{key}", gt=low if strict else None, ge=None if strict else low, le=high, unit=unit,
-                    allow_inf=key in INF_OK)
+    return p.number(v, f"radio.{key}", f"radio.{key}", unit=NUMBERS[key])
 
 
 def _station(p: Problems, v: Any, field: str) -> tuple[float, float, float] | None:
-    ok = isinstance(v, list) and len(v) in (2, 3) and all(is_number(x) and math.isfinite(x) for x in v)
-    if not ok or any(abs(x) > MAX_COORDINATE for x in v) or (len(v) == 3 and v[2] < 0):
+    ok = isinstance(v, list) and len(v) in (2, 3) and all(BOUNDS["radio.station"].holds(x) for x in v)
+    if not ok or (len(v) == 3 and v[2] < 0):
         p.add(field, f"must be the station's position [x, y] or [x, y, z] in m (finite, within ±{MAX_COORDINATE:g}; "
                      f"z >= 0: the base of its mast above the water, default 0), got {describe(v)}")
         return None
@@ -152,7 +148,7 @@ def _antenna(p: Problems, v: Any) -> tuple[float, float, float] | None:
     out = list(default)
     for j, key in enumerate(ANTENNA_KEYS):
         if key in t:
-            h = p.number(t[key], f"radio.antenna.{key}", ge=0, le=MAX_HEIGHT,
+            h = p.number(t[key], f"radio.antenna.{key}", "radio.antenna",
                          unit=" m (antenna height above the vehicle's position; a boat's is above the water)")
             out[j] = default[j] if h is None else h
     return (out[0], out[1], out[2])
@@ -167,7 +163,7 @@ def _overrides(p: Problems, v: Any, ids: Ids) -> tuple[tuple[str, float], ...]:
     for vid, h in v.items():
         where = f"radio.antenna_override.{vid}"
         got = p.vehicle(vid, where, ids)
-        height = p.number(h, where, ge=0, le=MAX_HEIGHT, unit=f" m (the antenna height of {show(vid)})")
+        height = p.number(h, where, "radio.antenna", unit=f" m (the antenna height of {show(vid)})")
         if got is not None and height is not None:
             out.append((got, height))
     return tuple(sorted(out))

@@ -13,10 +13,8 @@ from typing import Any, Mapping, Sequence
 from cdus.core.observer import DEFAULT_BANDWIDTH
 from cdus.scenario.checks import Problems
 from cdus.scenario.model import DEFAULT_SAFETY, Safety, VehicleSpec
+from cdus.wire.bounds import BOUNDS
 
-# γ of ḣ ≥ -γh, at most: faster than any control loop can act on (1e300 was accepted and made
-# the filter ask for speeds of 1e300, which ended the run as a "diverged" vehicle)
-MAX_GAMMA = 1000.0
 SAFETY_UNITS = {"radius": " m", "gamma": " 1/s", "range": " m", "rate": " Hz"}
 #: [disturbance] sub-table -> the vehicle kind it pushes and its dimension
 DISTURBANCE_KINDS = {"current": ("usv", 2), "wind": ("uav", 3)}
@@ -34,15 +32,15 @@ def safety_section(p: Problems, sf: Mapping[str, Any]) -> Safety:
             out[key] = DEFAULT_SAFETY[key] if got is None else got
     for key, unit in SAFETY_UNITS.items():
         if key in sf:
-            out[key] = p.number(sf[key], f"safety.{key}", gt=0, le=MAX_GAMMA if key == "gamma" else None,
-                                unit=unit) or DEFAULT_SAFETY[key]
+            out[key] = p.number(sf[key], f"safety.{key}", f"safety.{key}", unit=unit) or DEFAULT_SAFETY[key]
     if "latency" in sf:
-        got = p.number(sf["latency"], "safety.latency", ge=0,
+        got = p.number(sf["latency"], "safety.latency", "safety.latency",
                        unit=" s (contacts are used from the next control tick at the earliest)")
         out["latency"] = DEFAULT_SAFETY["latency"] if got is None else got
     if "sidestep" in sf:
-        got = p.number(sf["sidestep"], "safety.sidestep", ge=0, unit=" (below 1; 0 turns the sidestep off)")
-        if got is not None and got >= 1.0:
+        side = BOUNDS["safety.sidestep"]
+        got = p.number(sf["sidestep"], "safety.sidestep", ge=side.lo, unit=" (below 1; 0 turns the sidestep off)")
+        if got is not None and not side.holds(got):
             p.add("safety.sidestep", f"must be below 1 (a fraction of |u_ref|; 0 turns the sidestep off), got {got:g}")
             got = None
         out["sidestep"] = DEFAULT_SAFETY["sidestep"] if got is None else got
@@ -71,11 +69,11 @@ def disturbance_section(p: Problems, dt: Mapping[str, Any]) -> dict[str, tuple[t
         got: dict[str, Any] = {}
         if "constant" in tbl:
             got["constant"] = p.vector(tbl["constant"], f"{field}.constant", dim,
-                                       f"the {name} on every {kind} in m/s, one per axis")
+                                       f"the {name} on every {kind} in m/s, one per axis", key="disturbance.constant")
         if "gust" in tbl:
-            got["gust"] = p.number(tbl["gust"], f"{field}.gust", ge=0, unit=" m/s (std of the gusts)")
+            got["gust"] = p.number(tbl["gust"], f"{field}.gust", "disturbance.gust", unit=" m/s (std of the gusts)")
         if "gust_tau" in tbl:
-            got["gust_tau"] = p.number(tbl["gust_tau"], f"{field}.gust_tau", gt=0,
+            got["gust_tau"] = p.number(tbl["gust_tau"], f"{field}.gust_tau", "disturbance.gust_tau",
                                        unit=" s (correlation time of the gusts)")
         out[kind] = tuple(sorted((k, x) for k, x in got.items() if x is not None))
     return out
@@ -88,7 +86,7 @@ def observer_section(p: Problems, ob: Mapping[str, Any]) -> float | None:
                         false=" (off)")
     bandwidth = DEFAULT_BANDWIDTH
     if "bandwidth" in ob:
-        bandwidth = p.number(ob["bandwidth"], "observer.bandwidth", gt=0,
+        bandwidth = p.number(ob["bandwidth"], "observer.bandwidth", "observer.bandwidth",
                              unit=" rad/s (well above the path gain k, well below the physics rate)") \
             or DEFAULT_BANDWIDTH
     return bandwidth if enabled else None

@@ -17,7 +17,7 @@ from typing import Any, Mapping, Sequence
 
 from cdus.core.gain_bounds import gains_problem_for_rate, regulator_gains_problem
 from cdus.core.limits import default_limits
-from cdus.core.paths import FAMILIES, Path, PathError, for_dimension, make_path, turning_point
+from cdus.core.paths import FAMILIES, Path, PathError, for_dimension, make_path, not_finite_at, turning_point
 from cdus.core.plants import USV_PRESETS
 from cdus.scenario.checks import IdList, Problems, describe, is_number, quote, show
 from cdus.scenario.model import Edge, Rates, VehicleSpec
@@ -35,7 +35,7 @@ DEFAULT_PRESET = "cybership2"
 #: plant -> regulator -> allowed regulator_gains keys; the first regulator is the default.
 REGULATORS: dict[str, dict[str, tuple[str, ...]]] = {
     "usv_3dof": {"heading": ("b_u", "b_r", "k_psi"), "paper": ("b1", "b2", "b3")},
-    "uav_double_integrator": {"pd": ("b", "k_v")},
+    "uav_double_integrator": {"pd": ("b",)},
 }
 LIMIT_KEYS = ("speed", "accel", "tau_u", "tau_r", "yaw_rate")
 VEHICLE_KEYS = ("id", "kind", "plant", "preset", "epsilon", "regulator", "regulator_gains", "phase",
@@ -264,7 +264,7 @@ def _epsilon(p: Problems, t: _Merged, plant: str | None) -> tuple[tuple[float, .
         p.add(t.field("epsilon"), "give either preset or epsilon, not both")
         return None, None
     if "epsilon" in t.v:
-        eps = p.vector(t.v["epsilon"], t.field("epsilon"), 7, "ε1..ε7", t.note("epsilon"))
+        eps = p.vector(t.v["epsilon"], t.field("epsilon"), 7, "ε1..ε7", t.note("epsilon"), "vehicle.epsilon")
         if eps is not None and (eps[2] == 0 or eps[4] == 0):
             p.add(t.field("epsilon"), f"ε3 and ε5 must be non-zero (they scale the inputs τ_u and τ_r: "
                                       f"ε3 = 1/m11, ε5 = 1/m33), got {show(t.v['epsilon'])}{t.note('epsilon')}")
@@ -313,10 +313,11 @@ def _regulator_name(p: Problems, t: _Merged, plant: str, regs: Mapping[str, Any]
 
 def _positive_pairs(p: Problems, t: _Merged, table: Mapping[str, Any], allowed: tuple[str, ...],
                     name: str) -> tuple[tuple[str, float], ...]:
+    # their bound: vehicle.regulator_gains, vehicle.limits (cdus.wire.bounds)
     """The allowed keys of ``table`` whose values are numbers > 0, as sorted (key, value) pairs."""
     pairs = []
     for key in sorted(k for k in table if k in allowed):
-        x = p.number(table[key], t.field(name, key), gt=0, note=t.note(name, key))
+        x = p.number(table[key], t.field(name, key), f"vehicle.{name}", note=t.note(name, key))
         if x is not None:
             pairs.append((key, x))
     return tuple(pairs)
@@ -325,7 +326,7 @@ def _positive_pairs(p: Problems, t: _Merged, table: Mapping[str, Any], allowed: 
 def _phase(p: Problems, t: _Merged) -> float:
     if "phase" not in t.v:
         return 0.0
-    phase = p.number(t.v["phase"], t.field("phase"), unit=" (θ_i, in ω units)", note=t.note("phase"))
+    phase = p.number(t.v["phase"], t.field("phase"), "vehicle.phase", unit=" (θ_i, in ω units)", note=t.note("phase"))
     return 0.0 if phase is None else phase
 
 
@@ -340,6 +341,10 @@ def _path(p: Problems, t: _Merged, dim: int | None) -> tuple[Path | None, tuple]
     try:
         built = make_path(spec)
         followed = for_dimension(built, dim) if dim is not None else None
+        w = not_finite_at(followed) if followed is not None else None
+        if w is not None:
+            p.add(t.field("path"), not_finite_message(w) + t.note("path"))
+            return None, ()
         turn = turning_point(followed) if followed is not None else None
         if turn is not None:
             p.add(t.field("path", "phase"), retrace_message(spec, turn, dim) + t.note("path", "phase"))
@@ -355,6 +360,11 @@ def _path(p: Problems, t: _Merged, dim: int | None) -> tuple[Path | None, tuple]
     except (TypeError, ValueError) as e:  # a malformed value the path module did not anticipate
         p.add(t.field("path"), f"invalid path: {e}{t.note('path')}")
     return None, ()
+
+
+def not_finite_message(w: float) -> str:
+    """Why a path whose values are not finite at ω = ``w`` is refused."""
+    return f"its values are not finite numbers at ω = {w:g}: a vehicle cannot follow it"
 
 
 #: a vehicle of each dimension in words (KINDS: usv 2-D, uav 3-D)
@@ -394,7 +404,7 @@ def _start(p: Problems, t: _Merged, kind: str | None, seed: int,
         if kind == "uav":
             p.add(t.field("start", "heading"), "a uav has no heading; remove it (headings are for usv starts)")
         else:
-            heading = p.number(st["heading"], t.field("start", "heading"), unit=" (rad)",
+            heading = p.number(st["heading"], t.field("start", "heading"), "vehicle.start.heading", unit=" (rad)",
                                note=t.note("start", "heading"))
     if kind is None:
         return None, None
@@ -405,7 +415,8 @@ def _start(p: Problems, t: _Merged, kind: str | None, seed: int,
     if "position" in st:
         dim = KINDS[kind]
         pos = p.vector(st["position"], t.field("start", "position"), dim,
-                       f"a {kind} position {'[x, y]' if dim == 2 else '[x, y, z]'} in m", t.note("start", "position"))
+                       f"a {kind} position {'[x, y]' if dim == 2 else '[x, y, z]'} in m", t.note("start", "position"),
+                       "vehicle.start.position")
         return pos, (0.0 if kind == "usv" and heading is None else heading)
     if has_region:
         return _region_start(p, t, st, kind, heading, random.Random(f"{seed}/{vid}"))
@@ -423,7 +434,7 @@ def _region_start(p: Problems, t: _Merged, st: Mapping, kind: str, heading: floa
                                              f"(only {other} is given)")
             return None, None
         corners.append(p.vector(st[key], t.field("start", key), dim, f"a {kind} box corner in m",
-                                t.note("start", key)))
+                                t.note("start", key), "vehicle.start.region"))
     lo, hi = corners
     if lo is None or hi is None:
         return None, None
@@ -442,7 +453,7 @@ def _region_start(p: Problems, t: _Merged, st: Mapping, kind: str, heading: floa
 def _omega0(p: Problems, t: _Merged) -> float | None:
     if "omega0" not in t.v or t.v["omega0"] == "nearest":
         return None
-    return p.number(t.v["omega0"], t.field("omega0"), unit=' (or "nearest": the ω of the path point nearest '
+    return p.number(t.v["omega0"], t.field("omega0"), "vehicle.omega0", unit=' (or "nearest": the ω of the path point nearest '
                                                           'the start)', note=t.note("omega0"))
 
 
@@ -493,12 +504,13 @@ def _disturbance(p: Problems, t: _Merged, kind: str | None) -> tuple[tuple[str, 
     out: dict[str, Any] = {}
     if "constant" in dt and kind is not None:
         out["constant"] = p.vector(dt["constant"], t.field("disturbance", "constant"), KINDS[kind],
-                                   f"a {kind} current/wind in m/s, one per axis", t.note("disturbance", "constant"))
+                                   f"a {kind} current/wind in m/s, one per axis", t.note("disturbance", "constant"),
+                                   "disturbance.constant")
     if "gust" in dt:
-        out["gust"] = p.number(dt["gust"], t.field("disturbance", "gust"), ge=0, unit=" m/s (std)",
+        out["gust"] = p.number(dt["gust"], t.field("disturbance", "gust"), "disturbance.gust", unit=" m/s (std)",
                                note=t.note("disturbance", "gust"))
     if "gust_tau" in dt:
-        out["gust_tau"] = p.number(dt["gust_tau"], t.field("disturbance", "gust_tau"), gt=0, unit=" s",
+        out["gust_tau"] = p.number(dt["gust_tau"], t.field("disturbance", "gust_tau"), "disturbance.gust_tau", unit=" s",
                                    note=t.note("disturbance", "gust_tau"))
     return tuple(sorted((k, x) for k, x in out.items() if x is not None))
 

@@ -26,6 +26,8 @@ from typing import Any, Sequence
 
 import msgpack
 
+from cdus.wire.bounds import BOUNDS, finite
+
 OMEGA_VERSION = 1
 MAX_OMEGA_PAYLOAD = 33  # 32 up to 256 vehicles (uint8 sender), 33 beyond (uint16)
 F32_MAX = 3.0e38  # ω̇ is clamped to the float32 range on the wire
@@ -299,7 +301,7 @@ def decode_geometry(payload: bytes, n_vehicles: int | None = None,
 
 CONTROL_VERSION = 1
 MAX_CONTROL_PAYLOAD = 4096
-MAX_LINK_AT = 1e9  # s: a link change's latest time (the agents refuse a later one; past the run's end it never applies)
+MAX_LINK_AT = BOUNDS["link.at"].hi  # s: a link change's latest time (the agents refuse a later one; past the run's end it never applies)
 
 #: world -> vehicles (``ctl``), per op the fields it carries (name -> type)
 CTL_OPS: dict[str, dict[str, type]] = {
@@ -390,7 +392,7 @@ def decode_control(payload: bytes, ops: dict[str, dict[str, type]]) -> Control |
             val = float(val)
         if type(val) is not typ:
             return "type"
-        if typ is float and not math.isfinite(val):
+        if typ is float and not finite(val):
             return "non_finite"
         out[name] = val
     if ops is CTL_OPS and op in SEQUENCED and "seq" in obj:

@@ -26,6 +26,7 @@ from typing import Any, Collection
 
 import msgpack
 
+from cdus.wire.bounds import finite as _number
 from cdus.wire.messages import CTL_OPS, MAX_CONTROL_PAYLOAD, MSGPACK_ERRORS, SEQUENCED, decode_control
 from cdus.wire.text import printable
 
@@ -591,10 +592,6 @@ def _unpack(payload: bytes, limit: int = 4096) -> dict | str:
     except RecursionError:  # nesting deeper than the interpreter's stack
         return "malformed"
     return obj if isinstance(obj, dict) else "malformed"
-
-
-def _number(x: Any) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
 
 def _strings(x: Any) -> bool:

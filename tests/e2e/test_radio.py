@@ -11,7 +11,7 @@ import time
 import numpy as np
 import pytest
 
-from cdus.scenario.config import load_scenario
+from cdus.scenario.config import load_scenario, parse_value
 from cdus.sim.fleet import InProcessFleet
 
 from .conftest import ROOT, assert_same_trace, fleet_processes, unique_fleet
@@ -231,19 +231,23 @@ def test_forged_radio_geometry_is_refused_by_a_secured_fleet_and_detected_on_an_
 
 
 def test_a_lockstep_fleet_beyond_the_geometry_bounds_runs_and_equals_the_in_process_run(tmp_path, launches):
-    """range_out with its circle's centre 20,000 km out (beyond the geometry's ±1e7 m): every
-    agent refused the world's first sample (`radio_range`) and waited for it at tick 1 forever.
-    Now the world sends such a vehicle as not live: nobody is heard, the run ends, and it
-    equals the in-process run."""
+    """range_out with its drones beyond the geometry's ±1e7 m: every agent refused the world's
+    first sample (`radio_range`) and waited for it at tick 1 forever. Now the world sends such a
+    vehicle as not live: nobody is heard, the run ends, and it equals the in-process run. (A path
+    is within ±1e6 m, cdus.wire.bounds: the drones fly out there, a line from 900 km out at
+    1,000 km/s, past 1e7 m after 9.1 s.)"""
     fleet = unique_fleet()
     run = tmp_path / "run"
-    sets = {f"vehicle.{v}.path.center": "[2e7,0.0,30.0]" for v in ("uav1", "uav2", "uav3", "uav4")}
-    la = launches(["configs/range_out.toml", "--clock", "lockstep", "--duration", "2", "--logs", str(run), "-q",
+    line = "{family='line',origin=[-9e5,0.0,30.0],heading=[1.0,0.0,0.0],speed=1e6}"
+    sets = {"rates.control": "10", "rates.broadcast": "10", **{
+        f"vehicle.{v}.{k}": x for v in ("uav1", "uav2", "uav3", "uav4") for k, x in (("path", line), ("phase", "0.0"))}}
+    la = launches(["configs/range_out.toml", "--clock", "lockstep", "--duration", "12", "--logs", str(run), "-q",
                    *[a for k, v in sets.items() for a in ("--set", f"{k}={v}")]], fleet)
     assert la.wait(timeout=120) == 0, la.output()
     metrics = json.loads((run / "metrics.json").read_text())
-    ref = InProcessFleet(load_scenario("configs/range_out.toml", {"scenario.duration": 2.0, **{
-        k: [2.0e7, 0.0, 30.0] for k in sets}})).run()
+    ref = InProcessFleet(load_scenario("configs/range_out.toml", {"scenario.duration": 12.0, **{
+        k: parse_value(v) for k, v in sets.items()}})).run()
+    assert abs(ref.recorder.q[:ref.recorder._n]).max() > 1e7  # they got out there
     assert metrics["radio"] == ref.metrics["radio"]
     assert metrics["radio"]["dropped_by"]["range"] == metrics["radio"]["sent"] > 0
     assert not {k for k in metrics["rejected_by_reason"]["vehicles"] if k.startswith("radio_")}

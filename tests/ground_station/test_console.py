@@ -76,6 +76,17 @@ def test_status_table_before_anything_is_heard():
     (["--fleet", "f", "gains", "k=[1,2]"], "needs --vehicle"),
     (["--fleet", "f", "gains", "x=1"], "gains are k"),
     (["--fleet", "f", "link", "loss=3"], "link.loss"),
+    # issue 27: answered "applied" by the world, it crashed every agent (OverflowError in needed_seq)
+    (["--fleet", "f", "link", "delay.base=1e308"], "link.delay.base: must be a number >= 0 and <= 3600"),
+    (["--fleet", "f", "link", "delay.jitter=inf"], "link.delay.jitter: must be a finite number >= 0 and <= 3600"),
+    (["--fleet", "f", "link", "timeout=1e308"], "link.timeout: must be a number > 0 and <= 1e+09"),
+    (["--fleet", "f", "formation", "phases.usv1=1e308"], "phases.usv1: must be a finite number >= -1e+09 and <= 1e+09"),
+    (["--fleet", "f", "formation", "offsets.usv2.usv1=nan"], "offsets.usv2.usv1: must be a finite number >= -1e+09"),
+    (["--fleet", "f", "path", "--vehicle", "usv1", "family=circle", "center=[0,0]", "radius=1e300"],
+     "radius: must be a finite number > 0 and <= 1e+06 m, got 1e+300"),
+    (["--fleet", "f", "path", "--vehicle", "usv1", "family=circle", "center=[1e308,0]", "radius=5"],
+     "center: must contain numbers >= -1e+06 and <= 1e+06"),
+    (["--fleet", "f", "radio", "tx_power=1e308"], "radio.tx_power: must be a number >= -50 and <= 50"),
 ])
 def test_bad_commands_are_refused_before_connecting(argv, says, capsys):
     assert gs_main(["-e", "tcp/127.0.0.1:1", *argv]) == 2  # nothing listens there: it never got that far

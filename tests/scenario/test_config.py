@@ -204,7 +204,7 @@ def test_config_error_survives_pickling():
 def test_a_section_override_is_checked_like_the_file():
     assert "x.toml: supervision.max_restarts: must be an integer >= 0" in problems(
         base(), {"supervision.max_restarts": -2})
-    assert problems(base(), {"rates.control": -1}).startswith("x.toml: rates.control: must be a number > 0 Hz, got -1")
+    assert problems(base(), {"rates.control": -1}).startswith("x.toml: rates.control: must be a number >= 0.001 and <= 100000 Hz, got -1")
 
 
 

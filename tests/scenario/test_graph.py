@@ -74,7 +74,7 @@ BAD = {
                                                             '"ring"?); choose one of ring, chain, complete, star, '
                                                             "explicit"),
     "directed": (section("graph", directed="yes"), 'graph.directed: must be true or false, got the string "yes"'),
-    "weight": (section("graph", weight=0), "graph.weight: must be a number > 0 (a_ik), got 0"),
+    "weight": (section("graph", weight=0), "graph.weight: must be a number > 0 and <= 1e+06 (a_ik), got 0"),
     "unknown vehicle in graph": (section("graph", topology="explicit", edges=[["usv1", "usv9"]]),
                                  'graph.edges[0]: "usv9" is not a vehicle'),
     "edges not pairs": (section("graph", topology="explicit", edges=[["usv1"]]),

@@ -43,7 +43,7 @@ BAD = [
     ({"loss": True}, "link.loss", "must be a probability in [0, 1] (Bernoulli loss), got the boolean true"),
     ({"policy": "hodl"}, "link.policy", 'unknown stale-neighbour policy "hodl" (did you mean "hold"?); '
                                         "choose one of hold, timeout, extrapolate"),
-    ({"timeout": 0}, "link.timeout", "must be a number > 0 (s a neighbour may stay silent under policy timeout), got 0"),
+    ({"timeout": 0}, "link.timeout", "must be a number > 0 and <= 1e+09 (s a neighbour may stay silent under policy timeout), got 0"),
     ({"timeout": float("inf")}, "link.timeout", "must be a finite number > 0"),
     ({"seed": -1}, "link.seed", "must be an integer >= 0"),
     ({"seed": 1.5}, "link.seed", "must be an integer >= 0"),

@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 
 from cdus.core.radio import Geometry, RadioChannel, RadioSpec
 from cdus.scenario.config import ConfigError, parse_scenario
+from cdus.wire.bounds import BOUNDS
 from cdus.scenario.radio import (
     CHOICES, INTEGERS, NUMBERS, RADIO_KEYS, channel_for, validate_radio, validate_radio_update,
 )
@@ -194,8 +195,8 @@ def plausible(key):
     if key in CHOICES:
         return st.one_of(st.sampled_from(CHOICES[key][0]), VALUES)
     if key in NUMBERS:
-        lo, _, hi, _ = NUMBERS[key]
-        return st.one_of(st.floats(lo or 0.0, hi if hi is not None else 1e6), VALUES)
+        b = BOUNDS[f"radio.{key}"]
+        return st.one_of(st.floats(b.lo, min(b.hi, 1e6)), VALUES)
     if key in INTEGERS:
         return st.one_of(st.integers(0, 100), VALUES)
     if key == "station":

@@ -26,9 +26,9 @@ def test_safety_values_and_the_tick_schedule():
 
 @pytest.mark.parametrize("table, text", [
     ({"enabled": "yes"}, 'safety.enabled: must be true (on) or false (off), got the string "yes"'),
-    ({"radius": 0}, "safety.radius: must be a number > 0 m, got 0"),
-    ({"rate": -1}, "safety.rate: must be a number > 0 Hz, got -1"),
-    ({"latency": -0.1}, "safety.latency: must be a number >= 0 s"),
+    ({"radius": 0}, "safety.radius: must be a number > 0 and <= 1e+06 m, got 0"),
+    ({"rate": -1}, "safety.rate: must be a number >= 0.001 and <= 100000 Hz, got -1"),
+    ({"latency": -0.1}, "safety.latency: must be a number >= 0 and <= 1e+09 s"),
     ({"range": 1.0}, "safety.range: must be above safety.radius (2 m)"),
     ({"sidestep": 1.5}, "safety.sidestep: must be below 1"),
     ({"radus": 1.0}, 'safety.radus: unknown key; did you mean "radius"?'),
@@ -69,10 +69,10 @@ def test_fleet_disturbance_goes_to_its_kind_unless_a_vehicle_sets_its_own():
 
 @pytest.mark.parametrize("section, table, text", [
     ("disturbance", {"current": {"constant": [0.3, 0.1, 0.0]}},
-     "disturbance.current.constant: must be a list of 2 numbers (the current on every usv in m/s"),
-    ("disturbance", {"wind": {"gust": -1}}, "disturbance.wind.gust: must be a number >= 0 m/s"),
+     "disturbance.current.constant: must be a list of 2 numbers >= -1000 and <= 1000 (the current on every usv in m/s"),
+    ("disturbance", {"wind": {"gust": -1}}, "disturbance.wind.gust: must be a number >= 0 and <= 1000 m/s"),
     ("disturbance", {"breeze": {}}, "disturbance.breeze: unknown key"),
-    ("observer", {"bandwidth": 0}, "observer.bandwidth: must be a number > 0 rad/s"),
+    ("observer", {"bandwidth": 0}, "observer.bandwidth: must be a number > 0 and <= 1e+06 rad/s"),
     ("observer", {"enabled": 1}, "observer.enabled: must be true"),
 ])
 def test_bad_disturbance_and_observer(section, table, text):

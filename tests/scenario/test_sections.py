@@ -40,7 +40,7 @@ def test_a_bad_rate_is_not_compared_with_the_others():
 BAD = {
     "unknown key": (section("scenario", durration=3), 'scenario.durration: unknown key; did you mean "duration"?'),
     "string for number": (section("rates", control="fast"),
-                          'rates.control: must be a number > 0 Hz, got the string "fast"'),
+                          'rates.control: must be a number >= 0.001 and <= 100000 Hz, got the string "fast"'),
     "bool for number": (section("scenario", duration=True), "scenario.duration: must be a number > 0 and <= 1e+07 s, "
                                                             "got the boolean true"),
     "missing name": (drop("scenario", "name"), "scenario.name: missing"),
@@ -52,7 +52,7 @@ BAD = {
                                                             "1e+07 s, got -5"),
     "endless duration": (section("scenario", duration=1e308), "scenario.duration: must be a number > 0 and <= "
                                                               "1e+07 s, got 1e+308"),
-    "zero rate": (section("rates", broadcast=0), "rates.broadcast: must be a number > 0 Hz, got 0"),
+    "zero rate": (section("rates", broadcast=0), "rates.broadcast: must be a number >= 0.001 and <= 100000 Hz, got 0"),
     "physics < control": (section("rates", physics=100, control=200), "rates.physics: must be >= rates.control "
                                                                        "(200 Hz)"),
     "broadcast > control": (section("rates", broadcast=100), "rates.broadcast: must be <= rates.control (50 Hz)"),
@@ -60,7 +60,7 @@ BAD = {
                                                                                "rates.control (20 Hz)"),
     "rates not a table": (lambda d: d.update(rates=5), "rates: must be a table, e.g. a [rates] section, got the "
                                                        "number 5"),
-    "zero tolerance": (section("metrics", coord_tol=0.0), "metrics.coord_tol: must be a number > 0 rad, got 0.0"),
+    "zero tolerance": (section("metrics", coord_tol=0.0), "metrics.coord_tol: must be a number > 0 and <= 1e+09 rad, got 0.0"),
     "tolerance key": (section("metrics", path_tolerance=1), 'metrics.path_tolerance: unknown key; did you mean '
                                                             '"path_tol"?'),
     "zero k": (section("gains", k=0), "gains.k: must be a number > 0, got 0"),
@@ -78,7 +78,7 @@ BAD = {
                            "supervision.max_restarts: must be an integer >= 0 (restarts of one vehicle's process), "
                            "got the number 2.0"),
     "backoff": (section("supervision", backoff_s=0),
-                "supervision.backoff_s: must be a number > 0 s (the wait before a vehicle's first restart), got 0"),
+                "supervision.backoff_s: must be a number > 0 and <= 3600 s (the wait before a vehicle's first restart), got 0"),
     "supervision key": (section("supervision", backoff=1), 'supervision.backoff: unknown key; did you mean '
                                                            '"backoff_s"?'),
 }

@@ -157,7 +157,7 @@ BAD = {
                        'preset: unknown preset "cybership3" (did you mean "cybership2"?); choose one of cybership2'),
     "preset and epsilon": (v0(plant="usv_3dof", preset="cybership2", epsilon=[1] * 7), "preset or epsilon, not both"),
     "epsilon zero": (v0(plant="usv_3dof", epsilon=[1, 1, 0, 1, 1, 1, 1]), "ε3 and ε5 must be non-zero"),
-    "epsilon length": (v0(plant="usv_3dof", epsilon=[1, 1]), "epsilon: must be a list of 7 numbers (ε1..ε7), got 2 "
+    "epsilon length": (v0(plant="usv_3dof", epsilon=[1, 1]), "epsilon: must be a list of 7 numbers >= -1000 and <= 1000 (ε1..ε7), got 2 "
                                                              "numbers [1, 1]"),
     "preset on ideal": (v0(preset="cybership2"), 'only used by plant = "usv_3dof"'),
     "unknown plant": (v0(plant="usv3dof"), 'unknown plant "usv3dof" (did you mean "usv_3dof"?)'),
@@ -172,6 +172,10 @@ BAD = {
     "regulator on ideal": (v0(regulator="heading"), "regulator: the ideal plant has no regulator"),
     "regulator gain": (v0(plant="usv_3dof", regulator_gains={"b1": 1}),
                        "regulator_gains.b1: unknown regulator gain; the heading regulator takes: b_u, b_r, k_psi"),
+    # the pd regulator has one gain: k_v was listed (and in docs/config.md) but UAVGains does not take
+    # it, so a config giving it crashed the run with a TypeError
+    "pd k_v": (v2(plant="uav_double_integrator", regulator_gains={"k_v": 2.0}),
+               "regulator_gains.k_v: unknown regulator gain; the pd regulator takes: b"),
     "regulator gain value": (v0(plant="usv_3dof", regulator_gains={"b_u": 0}),
                              "regulator_gains.b_u: must be a number > 0, got 0"),
     "negative c": (v0(gains={"c": -2}), 'vehicle[0] (id "usv1").gains.c: must be a number > 0, got -2'),
@@ -195,12 +199,12 @@ BAD = {
                                                                              "not on y"),
     "region half": (v0(start={"region_min": [0, 5]}), "start.region_max: missing"),
     "uav heading": (v2(start={"heading": 1.0}), "a uav has no heading"),
-    "omega0": (v0(omega0="near"), 'omega0: must be a number (or "nearest": the ω of the path point nearest the '
+    "omega0": (v0(omega0="near"), 'omega0: must be a number >= -1e+09 and <= 1e+09 (or "nearest": the ω of the path point nearest the '
                                   'start), got the string "near"'),
-    "phase": (v0(phase="pi"), 'phase: must be a number (θ_i, in ω units), got the string "pi"'),
+    "phase": (v0(phase="pi"), 'phase: must be a number >= -1e+09 and <= 1e+09 (θ_i, in ω units), got the string "pi"'),
     "limits key": (v0(limits={"sped": 1}), 'limits.sped: unknown key; did you mean "speed"?'),
     "limits not a table": (v0(limits=2), "limits: must be a table, e.g. limits = { speed = 2.0 }, got the number 2"),
-    "gust": (v0(disturbance={"gust": -0.1}), "disturbance.gust: must be a number >= 0 m/s (std), got -0.1"),
+    "gust": (v0(disturbance={"gust": -0.1}), "disturbance.gust: must be a number >= 0 and <= 1000 m/s (std), got -0.1"),
     "disturbance length": (v2(disturbance={"constant": [1, 0]}), "disturbance.constant: must be a list of 3 numbers"),
     "defaults id": (section("defaults", id="x"), "defaults.id: an id cannot be a default"),
     "defaults key": (section("defaults", phse=1), 'defaults.phse: unknown key; did you mean "phase"?'),

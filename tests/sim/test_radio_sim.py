@@ -235,8 +235,15 @@ def test_the_sample_the_runners_send_is_one_every_vehicle_takes():
 
 
 def test_a_fleet_beyond_the_geometry_bounds_is_out_of_range_not_unradioed():
-    sc = load_scenario("configs/range_out.toml", {"scenario.duration": 1.0, **{
-        f"vehicle.{v}.path.center": [2.0e7, 0.0, 30.0] for v in ("uav1", "uav2", "uav3", "uav4")}})
-    radio = InProcessFleet(sc).run().metrics["radio"]
+    # a path is within ±1e6 m (cdus.wire.bounds), so the drones fly out past the geometry bound
+    # (1e7 m): a line from 900 km out at 1,000 km/s, 12 s
+    line = {"family": "line", "origin": [-9e5, 0.0, 30.0], "heading": [1.0, 0.0, 0.0], "speed": 1e6}
+    sc = load_scenario("configs/range_out.toml", {"scenario.duration": 12.0, "rates.control": 10.0,
+                                                  "rates.broadcast": 10.0, **{
+        f"vehicle.{v}.{key}": value for v in ("uav1", "uav2", "uav3", "uav4")
+        for key, value in (("path", line), ("phase", 0.0))}})
+    run = InProcessFleet(sc).run()
+    assert abs(run.recorder.q[:run.recorder._n]).max() > 1e7  # they got out there
+    radio = run.metrics["radio"]
     assert radio["sent"] > 0 and radio["no_geometry"] == 0
     assert radio["dropped_by"]["range"] == radio["sent"]  # nobody is heard out there

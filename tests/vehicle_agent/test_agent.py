@@ -231,6 +231,19 @@ def test_unexpected_keys_and_bad_commands_are_rejected_not_raised(fake):
     assert any("link command rejected" in ln and "loss" in ln for ln in lines)
 
 
+def test_a_relayed_link_delay_past_its_bound_is_counted_and_dropped(fake):
+    """Issue 27: a link change of delay.base = 1e308 reached every agent and each died in
+    cdus.core.schedule.needed_seq (OverflowError). The agent checks what the world relays with the
+    same bounds (cdus.wire.bounds): counted by reason, dropped, the link as it was."""
+    a, s, lines = fake()
+    table = dict(a.link_table)
+    for bad in ({"delay": {"base": 1e308}}, {"delay": {"jitter": 1e308}}, {"timeout": 1e308}):
+        ctl(s, "link", link=bad, at=1.0)
+    a._drain(lambda: None)
+    assert a.rejected["bad_link_command"] == 3 and a.link_table == table
+    assert any("link command rejected" in ln and "link.delay.base" in ln for ln in lines)
+
+
 def test_gains_and_link_commands_apply(fake):
     a, s, lines = fake()
     ctl(s, "gains", gains={"k": 2.0, "c": 3.0}, tick=4)

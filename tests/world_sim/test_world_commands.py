@@ -4,16 +4,25 @@ fake queries record the replies."""
 
 from __future__ import annotations
 
+import copy
+
 import msgpack
+import pytest
 from hypothesis import given, settings, strategies as hs
 
+from cdus.core.linkspec import Delay
+from cdus.core.node import gains_problem
+from cdus.core.schedule import delivery_tick
+from cdus.scenario.events import check_path
+from cdus.scenario.link import merge_link_tables, validate_link
 from cdus.wire import keys
 from cdus.wire.messages import CTL_OPS, LAUNCHER_OPS, decode_control, encode_control
 from cdus.wire.schemas import CommandReply, decode_reply
 from tests.fakes import Payload
+from tests.scenario.test_bounds_walk import EXTREMES, numbers
 from world_sim.world import LINK_LEAD
 
-from .test_world import FLEET, row, send_rows, started, world
+from .test_world import FLEET, ctl_ops, row, send_rows, started, world
 
 
 class Query:
@@ -483,3 +492,73 @@ def test_a_fleet_pause_is_in_the_status_a_query_is_answered_at_once():
     q = Query(keys.world_status(FLEET), None)
     w._on_status_query(q)
     assert decode_status(q.replies[0][1])["paused"] is False
+
+
+def test_a_link_value_past_its_bound_is_refused_by_name_and_never_relayed():
+    """Issue 27: `link delay.base=1e308` was answered "applied from tick 1851" and every agent died
+    (OverflowError in cdus.core.schedule.needed_seq). Every number of a link table has its bound
+    (cdus.wire.bounds): the world checks the merged table with it, names the field, counts it."""
+    w = started(world())
+    table0, links0 = dict(w._link_table), [c for c in ctl_ops(w) if c.op == "link"]
+    for table, field in [({"delay": {"base": 1e308}}, "link.delay.base"), ({"delay": {"jitter": 1e300}}, "link.delay.jitter"),
+                         ({"timeout": 1e308}, "link.timeout"), ({"delay": {"base": -0.5}}, "link.delay.base"),
+                         ({"override": [{"src": "usv1", "delay": {"base": 3601.0}}]}, "link.override[0].delay.base"),
+                         ({"down": [{"from": 2e9, "to": 3e9}]}, "link.down[0].from")]:
+        before = w.st.rejects["link"]
+        q = ask(w, "link", link=table, at=-1.0)
+        assert q.answer.status == "rejected" and field in q.answer.reason, (table, q.answer)
+        assert w.st.rejects["link"] == before + 1
+    assert w._link_table == table0 and [c for c in ctl_ops(w) if c.op == "link"] == links0  # nothing relayed
+    q = ask(w, "link", link={"delay": {"base": 3600.0}}, at=-1.0)  # the bound itself is a value
+    assert q.answer.status == "applied", q.answer
+
+
+#: each run-time command that carries numbers, with values that apply; the walk below puts each
+#: extreme into each of its numbers (radio: lake_circle has no [radio]; its numbers are the
+#: scenario's, walked in tests/scenario/test_bounds_walk.py)
+NUMERIC_COMMANDS = [
+    ("link", {"link": {"delay": {"base": 0.1, "jitter": 0.01}, "timeout": 1.0, "loss": 0.1, "duplicate": 0.1,
+                       "burst": {"p": 0.1, "r": 0.5}, "override": [{"src": "usv1", "delay": {"base": 0.1}}],
+                       "down": [{"from": 1.0, "to": 2.0}]}, "at": 1.0}),
+    ("set_gains", {"gains": {"k": 1.5, "c": 2.0}, "vehicle": ""}),
+    ("set_gains", {"gains": {"k": [1.5, 1.5]}, "vehicle": "usv1"}),
+    ("formation", {"phases": {"usv2": 2.0, "uav1": 0.5}, "offsets": []}),
+    ("path", {"vehicle": "uav1", "path": {"family": "circle", "center": [0.0, 0.0, 20.0], "radius": 5.0, "speed": 1.0}}),
+]
+
+
+WALK = [(op, fields, path) for op, fields in NUMERIC_COMMANDS for path in numbers(fields)]
+
+
+@pytest.mark.parametrize("op, fields, path", WALK, ids=[f"{op}:{'.'.join(map(str, p))}" for op, _, p in WALK])
+def test_every_number_of_a_command_at_its_extremes_is_refused_by_name_or_applied_within_its_bound(op, fields, path):
+    """Issue 27: a command the world answered "applied" crashed every agent. Each number of each
+    command at 1e308, -1e308, 1e-308, ±inf, nan, -0.0, -1: the world refuses it naming the key
+    (a non-finite float field of the command map itself: the decoder's non_finite), or applies a
+    value the agents' own checks take and whose delivery tick is a number."""
+    key = next(str(k) for k in reversed(path) if isinstance(k, str))
+    for value in EXTREMES:
+        w = started(world())
+        sent = copy.deepcopy(fields)
+        node = sent
+        for k in path[:-1]:
+            node = node[k]
+        node[path[-1]] = value
+        r = ask(w, op, **sent).answer
+        if r.status == "rejected":
+            assert key in r.reason or (len(path) == 1 and "non_finite" in r.reason), (value, r.reason)
+            continue
+        assert r.status == "applied", r
+        payloads = w.pub_ctl.puts + [p for k, p in w.session.puts if "/ctl" in k]  # to all, to some
+        relayed = [c for c in map(lambda p: decode_control(p, CTL_OPS), payloads)
+                   if c.op == {"set_gains": "gains"}.get(op, op)][-1]
+        if op == "link":
+            spec = validate_link(merge_link_tables(w.scenario.link_table, relayed.fields["link"]), w.ids, "agent")
+            for d in [spec.delay] + [Delay(**dict(o.delay)) for o in spec.overrides]:
+                assert isinstance(delivery_tick(0, d.base + d.jitter, w.period), int)
+        elif op == "set_gains":
+            assert gains_problem(relayed.fields["gains"], 2, **w.scenario.gain_context("usv1")) is None
+        elif op == "path":
+            assert not isinstance(check_path(relayed.fields["path"], 3), tuple)
+        else:
+            assert all(abs(x) <= 1e9 for x in relayed.fields["phases"].values())
