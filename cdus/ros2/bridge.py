@@ -137,6 +137,7 @@ class Bridge:
         self.queue: collections.deque = collections.deque()
         self.cond = threading.Condition()
         self.world_seen = False
+        self.world_tokens: set[str] = set()  # the world's sessions whose tokens are up (_on_world)
         self.stop = False
         self.node_token = session.liveliness().declare_token(self.node.token())
         self.pubs: dict[tuple[str | None, str], Publisher] = {}
@@ -149,8 +150,8 @@ class Bridge:
         f = self.fleet
         self.subs = [session.declare_subscriber(keys.any_state(f), self._enqueue),
                      session.declare_subscriber(keys.world_events(f), self._enqueue),
-                     session.liveliness().declare_subscriber(keys.alive(f, keys.WORLD), self._on_world, history=True)]
-        self.alive = session.liveliness().declare_token(keys.alive(f, ROS2_ROLE))  # ready: the launcher waits for it
+                     session.liveliness().declare_subscriber(keys.alive_of(f, keys.WORLD), self._on_world, history=True)]
+        self.alive = session.liveliness().declare_token(keys.alive(f, ROS2_ROLE, str(session.zid())))  # ready: the launcher waits for it
 
     # ------------------------------------------------------------------ Zenoh's threads: never block
     def _enqueue(self, sample: Any) -> None:
@@ -162,10 +163,17 @@ class Bridge:
             self.cond.notify()
 
     def _on_world(self, sample: Any) -> None:
+        """The world's tokens, exactly as keys.alive makes them (a wildcard or bare key is
+        nobody's: ignored): the world is gone once every token it was seen with is."""
+        token = keys.alive_token(str(sample.key_expr))
+        if token is None or token[0] != keys.WORLD:
+            return
         with self.cond:
             if str(sample.kind).endswith("DELETE"):
-                self.stop = self.world_seen
+                self.world_tokens.discard(token[1])
+                self.stop = self.stop or (self.world_seen and not self.world_tokens)
             else:
+                self.world_tokens.add(token[1])
                 self.world_seen = True
             self.cond.notify()
 

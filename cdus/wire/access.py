@@ -151,7 +151,7 @@ def _ros2_rules(f: str, g: Ros2Grant, rules: list, policies: list, client: str) 
     rules += [_rule("ros2-out", MESSAGES, ros, flow="egress"),
               _rule("ros2-put", ("put", "reply"), list(g.topic_keys)),  # a cache replies with the data key
               _rule("ros2-caches", ("declare_queryable", "reply", "liveliness_token"), g.caches()),
-              _rule("ros2-tokens", ("liveliness_token",), [g.graph(), keys.alive(f, ROS2_ROLE)]),
+              _rule("ros2-tokens", ("liveliness_token",), [g.graph(), keys.alive_of(f, ROS2_ROLE)]),
               _rule("ros2-read", READ, ros)]
     policies.append({"id": "ros2", "rules": ["ros2-out", "ros2-put", "ros2-caches", "ros2-tokens"],
                      "subjects": [ROS2_ROLE]})

@@ -33,7 +33,7 @@ def test_the_bridge_may_put_exactly_its_topics():
     g = grant(SPEC, list(LISTENERS))
     rules = {r["id"]: r for r in access.fleet_acl("f", LISTENERS, ros2=g)["rules"]}
     assert rules["ros2-put"]["key_exprs"] == [key(SPEC, t) for t in topics(SPEC, list(LISTENERS))]
-    assert rules["ros2-tokens"]["key_exprs"] == ["@ros2_lv/4/**", "cdus/f/alive/ros2"]
+    assert rules["ros2-tokens"]["key_exprs"] == ["@ros2_lv/4/**", "cdus/f/alive/ros2/*"]
     assert all(k.startswith("4/") for k in rules["ros2-put"]["key_exprs"])
 
 
@@ -63,12 +63,13 @@ def test_a_router_enforces_it(tmp_path):
         bridge.put("5/lake/usv1/pose", b"x")  # nor in another domain
         bridge.liveliness().declare_token("@ros2_lv/5/x/0/0/NN/%/%/n")
         client.liveliness().declare_token("@ros2_lv/4/c/0/0/NN/%/%/rviz")  # a ROS node's own presence: allowed
-        bridge.liveliness().declare_token(keys.alive(fleet, access.ROS2_ROLE))
+        mine = keys.alive(fleet, access.ROS2_ROLE, str(bridge.zid()))
+        bridge.liveliness().declare_token(mine)
         bridge.put(pose, b"ok")
         heard.wait_for(pose)
-        heard.wait_for(keys.alive(fleet, access.ROS2_ROLE))
+        heard.wait_for(mine)
         assert heard.puts == [pose]
-        assert heard.tokens == {keys.alive(fleet, access.ROS2_ROLE)}
+        assert heard.tokens == {mine}
         assert set(tokens) == {"@ros2_lv/4/c/0/0/NN/%/%/rviz"}
         # the client hears the bridge's topic; the bridge hears the fleet; the client does not
         got, by_bridge, by_client = [], [], []

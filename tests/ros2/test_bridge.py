@@ -78,3 +78,27 @@ def test_any_finite_row_publishes_or_is_rejected(tick, t, q):
     r, out = republisher()
     r.handle(keys.state("f", "usv1"), encode_states([row(0, tick, q, t)]))
     assert bool(out) != bool(r.rejected)
+
+
+class _Token:
+    def __init__(self, key: str, up: bool):
+        self.key_expr, self.kind = key, "SampleKind.PUT" if up else "SampleKind.DELETE"
+
+
+def test_the_bridge_stops_when_the_worlds_own_tokens_go_not_a_forged_one():
+    """The bridge runs until the world is gone. Only tokens exactly as keys.alive makes them are
+    the world's (issue 27, broken 4): a wildcard token held then dropped on an open fleet, or
+    another process's, must not stop it; the world's last session's token going does."""
+    import threading
+
+    from cdus.ros2.bridge import Bridge
+
+    b = Bridge.__new__(Bridge)  # its liveliness handling alone, without a session
+    b.cond, b.world_seen, b.world_tokens, b.stop = threading.Condition(), False, set(), False
+    world, other = keys.alive("f", keys.WORLD, "a1b2"), keys.alive("f", "usv1", "c3d4")
+    for key, up in ((world, True), ("cdus/f/alive/**", True), ("cdus/f/alive/**", False),
+                    (other, True), (other, False), ("cdus/f/alive/world", False)):
+        b._on_world(_Token(key, up))
+        assert not b.stop, key
+    b._on_world(_Token(world, False))
+    assert b.stop
