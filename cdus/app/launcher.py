@@ -646,6 +646,11 @@ class Launcher:
         for name, c in self.children.items():
             if name not in (keys.WORLD, ROS2_ROLE) and c.exit_code is None and c.poll() is not None:
                 self._on_agent_exit(c, c.exit_code)
+        bridge = self.children.get(ROS2_ROLE)
+        if bridge is not None and bridge.exit_code is None and bridge.poll() not in (None, 0):
+            rc = bridge.exit_code  # 0: it saw the world go (the run's end); else killed or failed mid-run
+            how = f"exited with status {rc}" if rc > 0 else f"was killed by signal {-rc}"
+            self.log(f"  the ROS 2 bridge {how}: the ROS 2 topics stop, the run goes on; its log: {bridge.log_path}")
         now = self.clock()
         for c in self.children.values():
             if c.restart_at is not None and now >= c.restart_at:
