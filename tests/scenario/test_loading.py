@@ -152,6 +152,15 @@ def test_a_pipe_with_a_writer_is_read_as_the_config():
     assert (sc.name, sc.ids, sc.duration) == (whole.name, whole.ids, whole.duration)
 
 
+@pytest.mark.parametrize("bad", ["../../escaped", "/tmp/abs", "a\\b", "runs/x"])
+def test_a_scenario_name_with_a_path_separator_is_refused_where_it_enters(bad):
+    """`cdus sim` names its run directory runs/<name>-<time>: a name of "../../escaped" made
+    ../../escaped-<time>/ (seen, with its metrics.json) and "/x" an absolute path. Refused,
+    naming the field, with a name that would do."""
+    with pytest.raises(ConfigError, match=r"scenario\.name: must not contain / or \\ \(it names the run directory"):
+        parse_scenario({**base(), "scenario": {"name": bad}})
+
+
 def test_a_scenario_name_with_escape_sequences_is_refused_where_it_enters():
     """Issue 27: a scenario.name with escape sequences reached the terminal raw from `cdus sim`
     (its summary, its progress line, the run directory's name). It is printed and names files:
