@@ -57,6 +57,10 @@ def export_mcap(run_dir: Path, out: Path, trace: Path | None = None, scenario: S
         raise ExportError("--mcap needs the mcap package: pip install 'cdus[ros2]' (or pip install mcap)") from None
     trace = trace or run_dir / TRACE_NAME
     if not trace.exists():
+        if _completion(run_dir) == "world_lost":  # it was asked for: the world died before the run's end
+            raise ExportError(f"no trace at {trace}: the world process was lost before the run's end "
+                              f"({run_dir / METRICS_NAME}: world_lost), and a trace is written at the end only; "
+                              f"run it again (or give --trace PATH)")
         raise ExportError(f"no trace at {trace}: run the fleet with --trace-out {run_dir / TRACE_NAME} "
                           f"(or give --trace PATH)")
     if scenario is None:
@@ -134,6 +138,14 @@ def _write(w: Any, scenario: Scenario, run_dir: Path, ids: list[str], data: dict
         write((None, "events"), {"data": text}, at)
     w.finish()
     return counts
+
+
+def _completion(run_dir: Path) -> Any:
+    """The run's metrics' ``completion`` (None when they cannot be read)."""
+    try:
+        return json.loads((run_dir / METRICS_NAME).read_text()).get("completion")
+    except (OSError, ValueError, AttributeError, RecursionError):
+        return None
 
 
 def _events(run_dir: Path) -> list[tuple[float, str]]:

@@ -92,6 +92,11 @@ def test_a_run_without_a_trace_says_how_to_get_one(tmp_path, capsys):
         export_mcap(tmp_path, tmp_path / "x.mcap")
     assert cdus_main(["export", str(tmp_path / "nothing"), "--mcap", str(tmp_path / "x.mcap")]) == 2
     assert "no trace at" in capsys.readouterr().err
+    lost = tmp_path / "lost"  # a SIGKILLed world: asked for a trace, never wrote it (the launcher's metrics)
+    lost.mkdir()
+    (lost / "metrics.json").write_text(json.dumps({"completed": False, "completion": "world_lost"}))
+    with pytest.raises(ExportError, match=r"the world process was lost before the run's end .* end only"):
+        export_mcap(lost, tmp_path / "x.mcap")
 
 
 def _spoil(d, tmp_path, how):
