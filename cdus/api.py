@@ -24,7 +24,6 @@ import tempfile
 import threading
 import time
 import warnings
-import zipfile
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
@@ -36,7 +35,7 @@ from cdus.app.report import Progress
 from cdus.app.sweeptable import CellStats, SweepTable, cell_statistics
 from cdus.app.sweepstore import SweepRow
 from cdus.core.linkspec import POLICIES
-from cdus.core.metrics import Recorder
+from cdus.core.metrics import TRACE_ARRAYS, Recorder, read_trace, trace_shape_problem
 from cdus.core.vehicle import DivergedError
 from cdus.extras import needs
 from cdus.scenario.config import MAX_NESTING, ConfigError, load_scenario, nesting_problem, parse_scenario
@@ -540,7 +539,6 @@ class Metrics:
 # --------------------------------------------------------------------------- the trace
 
 
-TRACE_ARRAYS = ("t", "q", "heading", "omega", "omega_rate", "path_error", "edge_error", "live")
 
 
 @dataclass(frozen=True, eq=False)
@@ -564,13 +562,10 @@ class Trace:
     interventions: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        T, N, E = len(self.t), len(self.ids), len(self.edge_names)
-        want = {"t": (T,), "q": (T, N, 3), "heading": (T, N), "omega": (T, N), "omega_rate": (T, N),
-                "path_error": (T, N), "edge_error": (T, E), "live": (T, N), "interventions": (T, N)}
-        for name, shape in want.items():
-            if getattr(self, name) is not None and getattr(self, name).shape != shape:
-                raise ValueError(f"trace: {name} has shape {getattr(self, name).shape}, expected {shape} "
-                                 f"({T} ticks, {N} vehicles, {E} edges)")
+        why = trace_shape_problem({k: getattr(self, k) for k in (*TRACE_ARRAYS, "interventions")},
+                                  len(self.ids), len(self.edge_names))
+        if why is not None:
+            raise ValueError(f"trace: {why}")
 
     def __len__(self) -> int:
         return len(self.t)
@@ -587,32 +582,8 @@ class Trace:
     @classmethod
     def from_npz(cls, path: str | os.PathLike) -> "Trace":
         """Read a ``--trace-out`` file (``.npz``)."""
-        where = os.fspath(path)
-        try:
-            z = np.load(path, allow_pickle=False)
-            if not isinstance(z, np.lib.npyio.NpzFile):  # a plain .npy: one array
-                raise ValueError("a single array, not an .npz archive")
-            with z:
-                missing = [k for k in (*TRACE_ARRAYS, "ids", "edge_names") if k not in z.files]
-                if missing:
-                    raise ValueError(f"no {', '.join(missing)}")
-                names = [*TRACE_ARRAYS, "ids", "edge_names"] + (["interventions"] if "interventions" in z.files
-                                                                else [])
-                arrays = {k: z[k] for k in names}
-        except (EOFError, zipfile.BadZipFile, ValueError, UnicodeError) as e:  # OSError (no such file) as it is
-            raise ValueError(f"{where}: not a cdus trace: {e}") from None
-        for k, a in arrays.items():  # a member that is not a .npy comes back as bytes
-            text = k in ("ids", "edge_names")
-            if not isinstance(a, np.ndarray) or (a.ndim != 1 if text else a.ndim == 0 or a.dtype.kind not in "biuf"):
-                what = type(a).__name__ if not isinstance(a, np.ndarray) else f"{a.ndim}-d {a.dtype}"
-                raise ValueError(f"{where}: not a cdus trace: {k} is {what}, expected "
-                                 + ("a 1-d array of names" if text else "a numeric array"))
-        ids, edge_names = arrays.pop("ids"), arrays.pop("edge_names")
-        arrays.setdefault("interventions", None)
-        try:
-            return cls(ids=tuple(str(x) for x in ids), edge_names=tuple(str(x) for x in edge_names), **arrays)
-        except ValueError as e:  # the shapes do not fit together
-            raise ValueError(f"{where}: not a cdus trace: {e}") from None
+        arrays = read_trace(os.fspath(path))
+        return cls(**arrays)
 
     def save(self, path: str | os.PathLike) -> None:
         """Write as ``--trace-out`` does (a compressed ``.npz``; :meth:`from_npz` reads it)."""

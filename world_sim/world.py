@@ -204,6 +204,11 @@ class WorldState:
     alive: set[str] = field(default_factory=set)
     stats: dict[str, AgentStats] = field(default_factory=dict)  # the newest of each vehicle's process
     retired: list[AgentStats] = field(default_factory=list)  # the last of each process a restart replaced
+    #: per vehicle, how many times its liveliness token went; and that count when its newest
+    #: process's stats were first believed: a new process (incarnation) is believed only after
+    #: the old one's token went, so stats forged with ever-new incarnations cannot pile up
+    downs: dict[str, int] = field(default_factory=dict)
+    downs_at_stats: dict[str, int] = field(default_factory=dict)
     latencies: LinkCounters = field(default_factory=LinkCounters)  # every sample the agents sent, thinned
     link_commanded: bool = False  # a ground station changed the link faults during the run
     link_changes: set[tuple[float, str, str]] = field(default_factory=set)
@@ -634,8 +639,12 @@ class World:
             return self._reject(vid, "sender_mismatch")
         old = self.st.stats.get(vid)
         if old is not None and old.incarnation != s.incarnation:  # a restarted process: its counters start anew
+            if self.st.downs.get(vid, 0) == self.st.downs_at_stats.get(vid, 0):  # the old one never went away
+                return self._reject(vid, "incarnation")  # forged (a genuine restart's next report is believed)
             self.st.retired.append(old)
             old = None
+        if old is None:
+            self.st.downs_at_stats[vid] = self.st.downs.get(vid, 0)
         self.st.stats[vid] = s
         j = self.index[vid]
         self._interventions[j] = s.interventions + sum(x.interventions for x in self.st.retired if x.id == vid)
@@ -1119,6 +1128,7 @@ class World:
             st.alive.add(name)
         else:
             st.alive.discard(name)
+            st.downs[name] = st.downs.get(name, 0) + 1
         if self.finished:
             return  # agents leaving after the stop are not news
         j = self.index[name]

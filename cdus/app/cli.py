@@ -292,6 +292,9 @@ def cmd_launch(args: argparse.Namespace) -> int:
         lock = RunDirLock(run)
     except RunDirInUse as e:
         raise ConfigError("command line", [("--logs", str(e))]) from None
+    except RunDirError as e:  # a read-only directory, a lock file that is a symlink or a directory
+        print(f"error: {e}", file=sys.stderr)
+        return EXIT_FAIL
     with lock:
         return _launch_into(args, scenario, opts, router, exposed, run, made)
 

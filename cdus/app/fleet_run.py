@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Callable
 
 from cdus.app.credentials import Credentials, CredentialsError, make_credentials
-from cdus.app.launcher import LaunchOptions, RunDirInUse, RunDirLock, launch
+from cdus.app.launcher import LaunchOptions, RunDirError, RunDirInUse, RunDirLock, launch
 from cdus.scenario.config import ConfigError
 from cdus.scenario.model import Scenario
 from cdus.sim.build import listeners_of
@@ -51,7 +51,7 @@ def run_lockstep(scenario: Scenario, run: Path, *, fleet: str, policy: str | Non
     ConfigError naming run_dir."""
     try:
         lock = RunDirLock(run)
-    except RunDirInUse as e:  # another fleet runs into it now: nothing is started or touched
+    except (RunDirInUse, RunDirError) as e:  # another fleet runs into it now, or it cannot be held: nothing is started
         raise ConfigError("run", [("run_dir", str(e))]) from None
     with lock:
         return _run_held(scenario, run, fleet, policy, rerun, secure, tls, ready_timeout, quiet, log)

@@ -39,6 +39,7 @@ import shlex
 import shutil
 import signal
 import socket
+import stat
 import subprocess
 import sys
 import tempfile
@@ -146,6 +147,10 @@ class RunDirInUse(Exception):
     """Another launcher runs into this run directory now: nothing was started."""
 
 
+class RunDirError(Exception):
+    """The run directory cannot be written (a full disk, a read-only directory): nothing was started."""
+
+
 LOCK_NAME = ".launch.lock"  # in the run directory: flock'ed by the launcher running into it
 
 
@@ -156,10 +161,23 @@ class RunDirLock:
     is free again; the file stays (removing it would race a launcher taking it)."""
 
     def __init__(self, run: Path):
-        run.mkdir(parents=True, exist_ok=True)
         self.path = run / LOCK_NAME
-        # close-on-exec: the children never hold it (they die with the launcher anyway)
-        self.fd: int | None = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        try:  # a read-only or full directory, a lock that is a symlink (never followed) or not a file: RunDirError
+            run.mkdir(parents=True, exist_ok=True)
+            # close-on-exec: the children never hold it (they die with the launcher anyway); non-blocking: a FIFO
+            self.fd: int | None = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC | os.O_NOFOLLOW
+                                          | os.O_NONBLOCK, 0o644)
+        except OSError as e:
+            not_file = e.errno in (errno.ELOOP, errno.EISDIR)
+            why = "a symbolic link (never followed)" if e.errno == errno.ELOOP else e.strerror or str(e)
+            raise RunDirError(f"cannot hold the run directory {run} ({e.filename}: {why}); nothing was started; "
+                              + (f"remove {self.path} or give another --logs" if not_file else
+                                 "make it writable or give another --logs")) from None
+        if not stat.S_ISREG(os.fstat(self.fd).st_mode):
+            os.close(self.fd)
+            self.fd = None
+            raise RunDirError(f"cannot hold the run directory {run}: {self.path} is not a regular file; nothing "
+                              f"was started; remove it or give another --logs")
         try:
             fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
@@ -178,10 +196,6 @@ class RunDirLock:
 
     def __exit__(self, *exc: Any) -> None:
         self.release()
-
-
-class RunDirError(Exception):
-    """The run directory cannot be written (a full disk, a read-only directory): nothing was started."""
 
 
 class ListenError(Exception):
@@ -637,6 +651,11 @@ class Launcher:
         for name, c in self.children.items():
             if name not in (keys.WORLD, ROS2_ROLE) and c.exit_code is None and c.poll() is not None:
                 self._on_agent_exit(c, c.exit_code)
+        bridge = self.children.get(ROS2_ROLE)
+        if bridge is not None and bridge.exit_code is None and bridge.poll() not in (None, 0):
+            rc = bridge.exit_code  # 0: it saw the world go (the run's end); else killed or failed mid-run
+            how = f"exited with status {rc}" if rc > 0 else f"was killed by signal {-rc}"
+            self.log(f"  the ROS 2 bridge {how}: the ROS 2 topics stop, the run goes on; its log: {bridge.log_path}")
         now = self.clock()
         for c in self.children.values():
             if c.restart_at is not None and now >= c.restart_at:

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import bisect
 import math
+import zipfile
 from dataclasses import dataclass
 from typing import Any, Iterable, Sequence
 
@@ -218,6 +219,58 @@ class Recorder:
             edge_error=self.edge_error(), edge_names=np.array([e.name for e in self.edges]), live=self.view("live"),
             interventions=self.view("interventions"),
         )
+
+
+TRACE_ARRAYS = ("t", "q", "heading", "omega", "omega_rate", "path_error", "edge_error", "live")
+
+
+def trace_shape_problem(arrays: dict[str, Any], n_ids: int, n_edges: int) -> str | None:
+    """Why the arrays of a trace (T ticks of ``n_ids`` vehicles and ``n_edges`` edges) do not fit
+    together, or None. ``interventions`` may be None (a trace written before it was kept)."""
+    T = len(arrays["t"])
+    want = {"t": (T,), "q": (T, n_ids, 3), "heading": (T, n_ids), "omega": (T, n_ids),
+            "omega_rate": (T, n_ids), "path_error": (T, n_ids), "edge_error": (T, n_edges), "live": (T, n_ids),
+            "interventions": (T, n_ids)}
+    for name, shape in want.items():
+        a = arrays.get(name)
+        if a is not None and a.shape != shape:
+            return f"{name} has shape {a.shape}, expected {shape} ({T} ticks, {n_ids} vehicles, {n_edges} edges)"
+    return None
+
+
+def read_trace(path: Any) -> dict[str, Any]:
+    """The arrays of a ``--trace-out`` file (:meth:`Recorder.save_trace`), checked: every one
+    there, numeric (``ids`` and ``edge_names`` tuples of names), shapes that fit together, times
+    finite. A file that is not such a trace (truncated, empty, a pickle, another archive) is a
+    ValueError "PATH: not a cdus trace: why"; OSError (no such file, a directory) as it is."""
+    where = str(path)
+    try:
+        z = np.load(path, allow_pickle=False)
+        if not isinstance(z, np.lib.npyio.NpzFile):  # a plain .npy: one array
+            raise ValueError("a single array, not an .npz archive")
+        with z:
+            missing = [k for k in (*TRACE_ARRAYS, "ids", "edge_names") if k not in z.files]
+            if missing:
+                raise ValueError(f"no {', '.join(missing)}")
+            names = [*TRACE_ARRAYS, "ids", "edge_names"] + (["interventions"] if "interventions" in z.files else [])
+            arrays = {k: z[k] for k in names}
+    except (EOFError, zipfile.BadZipFile, ValueError, UnicodeError) as e:
+        raise ValueError(f"{where}: not a cdus trace: {e}") from None
+    for k, a in arrays.items():  # a member that is not a .npy comes back as bytes
+        text = k in ("ids", "edge_names")
+        if not isinstance(a, np.ndarray) or (a.ndim != 1 if text else a.ndim == 0 or a.dtype.kind not in "biuf"):
+            what = type(a).__name__ if not isinstance(a, np.ndarray) else f"{a.ndim}-d {a.dtype}"
+            raise ValueError(f"{where}: not a cdus trace: {k} is {what}, expected "
+                             + ("a 1-d array of names" if text else "a numeric array"))
+    arrays["ids"] = tuple(str(x) for x in arrays["ids"])
+    arrays["edge_names"] = tuple(str(x) for x in arrays["edge_names"])
+    arrays.setdefault("interventions", None)
+    why = trace_shape_problem(arrays, len(arrays["ids"]), len(arrays["edge_names"]))
+    if why is None and not np.all(np.isfinite(arrays["t"])):
+        why = "t has a time that is not finite"
+    if why is not None:
+        raise ValueError(f"{where}: not a cdus trace: {why}")
+    return arrays
 
 
 def _finite(x: float) -> float | None:

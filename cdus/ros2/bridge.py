@@ -5,8 +5,9 @@ rmw_zenoh's format (:mod:`cdus.ros2.rmw`): a liveliness token for the node and o
 publisher, so ``ros2 node list`` and ``ros2 topic list`` show them. It subscribes to the
 vehicles' telemetry (``to/*/state/*``) and the fleet's events on the fleet's own Zenoh and
 republishes them as the topics of :mod:`cdus.ros2.fleet`: per vehicle its pose, odometry, ω and
-ω̇ and a /tf transform every ``1/rate`` simulated seconds, /clock at every control tick (the
-first telemetry of a tick publishes its time, so /clock never goes back), each event as it
+ω̇ and a /tf transform every ``1/rate`` simulated seconds, /clock at every control tick (once
+two live vehicles have reported it, one when one is live: /clock never goes back, and no one
+vehicle can push it ahead and freeze it), each event as it
 comes, and the paths once, at the start, kept for late subscribers (transient local).
 
 It cannot slow the fleet: a sample is put in a bounded queue in Zenoh's callback and taken
@@ -38,6 +39,7 @@ from cdus.wire.messages import decode_states
 from cdus.wire.schemas import decode_event
 
 MAX_T = 2.0**31 - 1  # s: builtin_interfaces/Time's seconds are an int32
+GONE = object()  # in the queue: (GONE, name) when a liveliness token goes
 QUEUE = 4096  # samples waiting for the bridge's thread; past this the oldest are dropped (counted)
 
 
@@ -81,6 +83,29 @@ class Republisher:
         self.rejected: dict[str, int] = {}
         self.last_tick = -1
         self.before: dict[str, tuple[float, float]] = {}  # per vehicle, (t, heading) of its previous row
+        #: per vehicle, the newest tick it reported; /clock is the second newest of them while two
+        #: or more vehicles are live (the newest with one): no one vehicle moves the fleet's clock.
+        #: Before, the first row of a tick published it: one forged row at the run's last tick (from
+        #: a vehicle's own credentials) froze /clock for the rest of the run.
+        self.newest: dict[str, int] = {}
+        self.gone_ids: set[str] = set()  # vehicles whose liveliness token went, until they report again
+
+    def gone(self, vid: str) -> None:
+        """A vehicle's liveliness token went (killed, ended): its ticks no longer hold /clock back."""
+        if vid in self.ids:
+            self.newest.pop(vid, None)
+            self.gone_ids.add(vid)
+            self._clock()
+
+    def _clock(self) -> None:
+        need = 2 if len(self.ids) - len(self.gone_ids) >= 2 else 1
+        ticks = sorted(self.newest.values())
+        if len(ticks) < need:
+            return
+        tick = ticks[-need]
+        if tick > self.last_tick:
+            self.last_tick = tick
+            self.publish((None, "clock"), rf.clock(tick * self.period))
 
     def _reject(self, reason: str) -> None:
         self.rejected[reason] = self.rejected.get(reason, 0) + 1
@@ -114,9 +139,10 @@ class Republisher:
 
     def publish_row(self, vid: str, row: Any) -> None:
         frame = self.spec.world_frame
-        if row.tick > self.last_tick:
-            self.last_tick = row.tick
-            self.publish((None, "clock"), rf.clock(row.t))
+        if row.tick > self.newest.get(vid, -1):
+            self.newest[vid] = row.tick
+            self.gone_ids.discard(vid)  # restarted
+            self._clock()
         rate = rf.yaw_rate(row.heading, row.t, self.before.get(vid))
         self.before[vid] = (row.t, row.heading)
         if row.tick % self.every:
@@ -150,8 +176,11 @@ class Bridge:
         f = self.fleet
         self.subs = [session.declare_subscriber(keys.any_state(f), self._enqueue),
                      session.declare_subscriber(keys.world_events(f), self._enqueue),
-                     session.liveliness().declare_subscriber(keys.alive_of(f, keys.WORLD), self._on_world, history=True)]
-        self.alive = session.liveliness().declare_token(keys.alive(f, ROS2_ROLE, str(session.zid())))  # ready: the launcher waits for it
+                     session.liveliness().declare_subscriber(keys.alive_of(f, keys.WORLD), self._on_world,
+                                                             history=True),
+                     session.liveliness().declare_subscriber(keys.any_alive(f), self._on_alive)]
+        # ready: the launcher waits for it
+        self.alive = session.liveliness().declare_token(keys.alive(f, ROS2_ROLE, str(session.zid())))
 
     # ------------------------------------------------------------------ Zenoh's threads: never block
     def _enqueue(self, sample: Any) -> None:
@@ -161,6 +190,12 @@ class Bridge:
                 self.dropped += 1
             self.queue.append((str(sample.key_expr), sample.payload.to_bytes()))
             self.cond.notify()
+
+    def _on_alive(self, sample: Any) -> None:
+        if str(sample.kind).endswith("DELETE"):  # handled in order with the telemetry, on the bridge's thread
+            with self.cond:
+                self.queue.append((GONE, keys.alive_name(str(sample.key_expr)) or ""))
+                self.cond.notify()
 
     def _on_world(self, sample: Any) -> None:
         """The world's tokens, exactly as keys.alive makes them (a wildcard or bare key is
@@ -193,7 +228,10 @@ class Bridge:
                     break
                 batch, self.queue = self.queue, collections.deque()
             for key, payload in batch:
-                self.republisher.handle(key, payload)
+                if key is GONE:
+                    self.republisher.gone(payload)
+                else:
+                    self.republisher.handle(key, payload)
         return 0
 
     def summary(self) -> str:

@@ -20,6 +20,7 @@ import copy
 import json
 import os
 import re
+import select
 import stat
 import tomllib
 from typing import Any, Iterable, Mapping
@@ -70,17 +71,19 @@ def load_scenario(path: str | os.PathLike, overrides: Mapping[str, Any] | None =
     """Read, override, validate and resolve a scenario file. Raises :class:`ConfigError`."""
     source = os.fspath(path)
     try:
-        # O_NONBLOCK: a FIFO opens at once (it is refused below) instead of waiting for a writer for ever
+        # O_NONBLOCK: a FIFO opens at once instead of waiting for a writer for ever
         fd = os.open(source, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
         mode = os.fstat(fd).st_mode
-        if not stat.S_ISREG(mode):
+        if stat.S_ISFIFO(mode):  # a pipe: `cdus sim <(...)`, /dev/stdin; one nobody writes into is refused
+            raw = _read_pipe(fd, source)
+        elif not stat.S_ISREG(mode):
             os.close(fd)
-            what = "a directory" if stat.S_ISDIR(mode) else "a named pipe (FIFO)" if stat.S_ISFIFO(mode) \
-                else "a device or socket"
+            what = "a directory" if stat.S_ISDIR(mode) else "a device or socket"
             raise ConfigError(source, [("file", f"is {what}, not a regular file; give the path of a scenario "
                                                 f".toml file (see configs/ for examples)")])
-        with open(fd, "rb") as fh:
-            raw = fh.read(MAX_FILE_BYTES + 1)
+        else:
+            with open(fd, "rb") as fh:
+                raw = fh.read(MAX_FILE_BYTES + 1)
     except FileNotFoundError:
         raise ConfigError(source, [("file", "not found; give the path of a scenario .toml file "
                                             "(see configs/ for examples)")]) from None
@@ -92,6 +95,33 @@ def load_scenario(path: str | os.PathLike, overrides: Mapping[str, Any] | None =
                                             f"out, takes under 1 MB); give a scenario .toml file, not a data file")])
     data = parse_text(raw, source, json_format=source.endswith(".json"))
     return parse_scenario(data, source, overrides)
+
+
+PIPE_WAIT_S = 5.0  # how long a config that is a pipe may stay silent before it is refused
+
+
+def _read_pipe(fd: int, source: str) -> bytes:
+    """The whole of a pipe given as the config (up to the size limit, + 1 byte), or a
+    ConfigError when nothing comes for PIPE_WAIT_S (a named pipe nobody writes into hung
+    `cdus sim` for ever). Closes ``fd``."""
+    chunks, size = [], 0
+    try:
+        while size <= MAX_FILE_BYTES:
+            if not select.select([fd], [], [], PIPE_WAIT_S)[0]:
+                raise ConfigError(source, [("file", f"is a named pipe (FIFO) nothing was written into within "
+                                                    f"{PIPE_WAIT_S:g} s; give the path of a scenario .toml file "
+                                                    f"(see configs/ for examples)")])
+            try:
+                chunk = os.read(fd, 1 << 16)
+            except BlockingIOError:
+                continue
+            if not chunk:  # the writer closed it: the whole file
+                break
+            chunks.append(chunk)
+            size += len(chunk)
+    finally:
+        os.close(fd)
+    return b"".join(chunks)
 
 
 def parse_text(raw: bytes, source: str, json_format: bool = False) -> dict:

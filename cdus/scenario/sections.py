@@ -48,6 +48,10 @@ def scenario_section(p: Problems, sc: Mapping[str, Any]) -> Header:
         p.missing("scenario.name", 'every scenario needs a name, e.g. [scenario] name = "lake_circle"')
     else:
         name = p.string(sc["name"], "scenario.name", nonempty=True, one_line=True) or ""
+        if "/" in name or "\\" in name:  # runs/<name>-<time>: "../../x" or "/x" made a directory anywhere
+            p.add("scenario.name", f"must not contain / or \\ (it names the run directory, runs/<name>-<time>), "
+                                   f"got '{name}'; e.g. {name.replace('/', '_').replace(chr(92), '_').strip('._')!r}")
+            name = ""
     description = p.string(sc.get("description", ""), "scenario.description") or ""
     duration = DEFAULT_DURATION
     if "duration" in sc:

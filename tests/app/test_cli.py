@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import pytest
@@ -325,6 +326,33 @@ def test_a_launch_into_a_run_directory_in_use_starts_nothing_and_touches_nothing
         assert (run / "secure" / "ground.json5").read_bytes() == ground and len(started) == 1
     main(["launch", CONFIG, "--logs", str(run), "--rerun", "off"])  # it ended: the directory is free
     assert len(started) == 2
+
+
+@pytest.mark.parametrize("bad", ["symlink", "directory", "fifo", "run_is_a_file"])
+def test_a_run_directory_that_cannot_be_held_starts_nothing_and_says_why(tmp_path, capsys, monkeypatch, bad):
+    """A lock file that is a symlink was followed (its target, outside the run directory, created);
+    one that is a directory, or a run directory that cannot be made (read-only, under a file), was
+    an OSError traceback from RunDirLock. Each is an error naming the path, exit 1, nothing started."""
+    started = _started(monkeypatch)
+    run = tmp_path / "run"
+    run.mkdir()
+    lock = run / ".launch.lock"
+    target = tmp_path / "elsewhere"
+    if bad == "symlink":
+        lock.symlink_to(target)
+    elif bad == "directory":
+        lock.mkdir()
+    elif bad == "fifo":
+        os.mkfifo(lock)
+    else:
+        (tmp_path / "file").write_text("")
+        run = tmp_path / "file" / "run"
+    assert main(["launch", CONFIG, "--logs", str(run), "--rerun", "off"]) == 1
+    out, err = capsys.readouterr()
+    assert f"cannot hold the run directory {run}" in err and "nothing was started" in err, err
+    assert "Traceback" not in err and not started and not target.exists()
+    assert "symbolic link" in err if bad == "symlink" else True
+    assert not (run / "secure").exists() if bad != "run_is_a_file" else True
 
 
 @pytest.mark.parametrize("argv, meant", [

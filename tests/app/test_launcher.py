@@ -501,6 +501,12 @@ def test_the_ros2_bridge_is_no_vehicle_to_restart_and_exists_only_when_asked(mak
     exited(c)
     bridge.proc.wait(timeout=60)
     la._watch_agents()
-    assert c.restart_at is not None and bridge.restart_at is None and not any("ros2" in ln for ln in lines)
+    assert c.restart_at is not None and bridge.restart_at is None and not any("vehicle ros2" in ln for ln in lines)
+    # said once (before, nothing: a SIGKILLed bridge's ROS 2 topics stopped with no word from the launcher)
+    said = [ln for ln in lines if "ROS 2 bridge" in ln]
+    assert said == [f"  the ROS 2 bridge exited with status 3: the ROS 2 topics stop, the run goes on; its log: "
+                    f"{la.logs / 'ros2.log'}"]
+    la._watch_agents()
+    assert len([ln for ln in lines if "ROS 2 bridge" in ln]) == 1
     argv = la._bridge().argv
     assert argv[1:3] == ["-m", "cdus.ros2"] and argv[argv.index("--fleet") + 1] == "t"

@@ -92,6 +92,74 @@ def test_a_run_without_a_trace_says_how_to_get_one(tmp_path, capsys):
         export_mcap(tmp_path, tmp_path / "x.mcap")
     assert cdus_main(["export", str(tmp_path / "nothing"), "--mcap", str(tmp_path / "x.mcap")]) == 2
     assert "no trace at" in capsys.readouterr().err
+    lost = tmp_path / "lost"  # a SIGKILLed world: asked for a trace, never wrote it (the launcher's metrics)
+    lost.mkdir()
+    (lost / "metrics.json").write_text(json.dumps({"completed": False, "completion": "world_lost"}))
+    with pytest.raises(ExportError, match=r"the world process was lost before the run's end .* end only"):
+        export_mcap(lost, tmp_path / "x.mcap")
+
+
+def _spoil(d, tmp_path, how):
+    """A copy of the run in ``d`` with its trace (or the output) spoiled as ``how`` says."""
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "metrics.json").write_text((d / "metrics.json").read_text())
+    whole = (d / "trace.npz").read_bytes()
+    arrays = dict(np.load(d / "trace.npz"))
+    if how == "truncated":
+        (bad / "trace.npz").write_bytes(whole[:len(whole) // 2])
+    elif how == "empty":
+        (bad / "trace.npz").write_bytes(b"")
+    elif how == "a directory":
+        (bad / "trace.npz").mkdir()
+    elif how in ("no q", "t not finite", "t past a stamp", "rows cut"):
+        if how == "no q":
+            del arrays["q"]
+        elif how == "rows cut":
+            arrays["q"] = arrays["q"][:-3]
+        else:
+            arrays["t"] = arrays["t"].copy()
+            arrays["t"][3] = np.nan if how == "t not finite" else 1e300
+        np.savez(bad / "trace.npz", **arrays)
+    else:
+        (bad / "trace.npz").write_bytes(whole)
+    return bad
+
+
+@pytest.mark.parametrize("how, said", [
+    ("truncated", "not a cdus trace"), ("empty", "not a cdus trace"), ("no q", "not a cdus trace: no q"),
+    ("rows cut", "q has shape"), ("t not finite", "not finite"), ("t past a stamp", "int32"),
+    ("a directory", "cannot read the trace"), ("out is a directory", "cannot write"),
+    ("out on a read-only path", "cannot write"),
+])
+def test_a_corrupt_run_or_an_unwritable_output_is_said_not_a_traceback(run, tmp_path, capsys, how, said):
+    """Before: a truncated or empty trace.npz was a zipfile/EOFError traceback, a time that is NaN
+    or past int32 seconds a ValueError/struct traceback mid-file, an --mcap that cannot be written
+    an OSError traceback. Each is an error naming the file, exit 2, no half .mcap left."""
+    d, scenario, _ = run
+    bad = _spoil(d, tmp_path, how)
+    out = tmp_path / "x.mcap"
+    if how == "out is a directory":
+        out.mkdir()
+    elif how == "out on a read-only path":
+        out = bad / "trace.npz" / "x.mcap"  # under a file: ENOTDIR, as a read-only disk's EROFS
+    assert cdus_main(["export", str(bad), "--mcap", str(out), "--config", str(CONFIG)]) == 2
+    err = capsys.readouterr().err
+    assert said in err and "Traceback" not in err, err
+    assert not out.is_file()
+
+
+def test_events_at_times_a_stamp_cannot_carry_are_left_out(run, tmp_path):
+    """A metrics.json whose events have a NaN, negative or huge time (hand-edited, corrupt): those
+    are left out, not a traceback in the stamp's encoding."""
+    d, scenario, _ = run
+    bad = _spoil(d, tmp_path, "whole")
+    m = json.loads((d / "metrics.json").read_text())
+    m["events"] = [{"t": float("nan"), "kind": "x"}, {"t": 1e300, "kind": "y"}, {"t": -5, "kind": "z"},
+                   {"t": 1.0, "kind": "fleet", "text": "kept"}]
+    (bad / "metrics.json").write_text(json.dumps(m))
+    counts = export_mcap(bad, tmp_path / "x.mcap", scenario=scenario)
+    assert counts["/cdus/events"] == 1
 
 
 def test_speeds_are_the_forward_differences():

@@ -113,21 +113,52 @@ def test_cdus_sim_exits_2_on_deep_nesting_without_a_traceback(tmp_path, body):
     assert "Traceback" not in r.stderr and str(f) in r.stderr and "nested deeper" in r.stderr
 
 
-def test_a_fifo_or_a_directory_given_as_the_config_is_refused_at_once(tmp_path):
+def test_a_fifo_nobody_writes_into_or_a_directory_given_as_the_config_is_refused(tmp_path, monkeypatch):
     """Issue 27: a FIFO given as the config hung `cdus sim` (open waited for a writer for ever).
-    Refused, naming what it is; the CLI exits 2 (run in a child so a regression hangs only it,
-    and is killed)."""
+    One nothing is written into is refused after PIPE_WAIT_S, naming what it is; the CLI exits 2
+    (run in a child so a regression hangs only it, and is killed)."""
     import os
+
+    from cdus.scenario import config
 
     fifo = tmp_path / "pipe.toml"
     os.mkfifo(fifo)
-    res = subprocess.run([sys.executable, "-m", "cdus.app.cli", "sim", str(fifo), "-q"], capture_output=True,
-                         text=True, timeout=30)  # first: a hang is killed here, not in this process below
-    assert res.returncode == 2 and "not a regular file" in res.stderr and "nothing was started" in res.stderr
-    with pytest.raises(ConfigError, match=r"file: is a named pipe \(FIFO\), not a regular file"):
+    res = subprocess.run([sys.executable, "-c", "import sys; import cdus.scenario.config as c; c.PIPE_WAIT_S = 0.2; "
+                          "from cdus.app.cli import main; sys.exit(main(sys.argv[1:]))", "sim", str(fifo), "-q"],
+                         capture_output=True, text=True, timeout=30)  # first: a hang is killed here, not below
+    assert res.returncode == 2 and "named pipe (FIFO) nothing was written into" in res.stderr, res.stderr
+    assert "nothing was started" in res.stderr
+    monkeypatch.setattr(config, "PIPE_WAIT_S", 0.2)
+    with pytest.raises(ConfigError, match=r"file: is a named pipe \(FIFO\) nothing was written into within 0.2 s"):
         load_scenario(fifo)
     with pytest.raises(ConfigError, match=r"file: is a directory, not a regular file"):
         load_scenario(tmp_path)
+
+
+def test_a_pipe_with_a_writer_is_read_as_the_config():
+    """`cdus sim <(...)` and `... | cdus sim /dev/stdin` read the config from a pipe; 0642f64
+    refused every pipe ("is a named pipe (FIFO), not a regular file"), which worked before it."""
+    import os
+
+    text = (ROOT / "configs" / "lake_circle.toml").read_bytes()
+    r, w = os.pipe()
+    try:
+        os.write(w, text)  # a few KiB: within the pipe's buffer
+        os.close(w)
+        sc = load_scenario(f"/dev/fd/{r}")
+    finally:
+        os.close(r)
+    whole = load_scenario(ROOT / "configs" / "lake_circle.toml")
+    assert (sc.name, sc.ids, sc.duration) == (whole.name, whole.ids, whole.duration)
+
+
+@pytest.mark.parametrize("bad", ["../../escaped", "/tmp/abs", "a\\b", "runs/x"])
+def test_a_scenario_name_with_a_path_separator_is_refused_where_it_enters(bad):
+    """`cdus sim` names its run directory runs/<name>-<time>: a name of "../../escaped" made
+    ../../escaped-<time>/ (seen, with its metrics.json) and "/x" an absolute path. Refused,
+    naming the field, with a name that would do."""
+    with pytest.raises(ConfigError, match=r"scenario\.name: must not contain / or \\ \(it names the run directory"):
+        parse_scenario({**base(), "scenario": {"name": bad}})
 
 
 def test_a_scenario_name_with_escape_sequences_is_refused_where_it_enters():

@@ -106,6 +106,7 @@ def test_the_world_records_each_vehicles_interventions_as_its_processes_report_t
     record(0)
     send(AgentStats(id="usv2", tick=1, interventions=3))
     record(1)
+    w._on_alive("usv2", False)  # killed: its token goes
     send(AgentStats(id="usv2", tick=2, interventions=1, incarnation=9))  # a restarted process counts anew
     send(AgentStats(id="uav1", tick=2, interventions=2))
     record(2)

@@ -202,6 +202,7 @@ def test_a_restarted_vehicles_links_and_receipts_in_the_status_count_its_earlier
 
     report(1, 100, 10, "lossy")
     report(1, 120, 12, "lossy")  # the same process, later: its counts replace its earlier ones
+    w._on_alive("usv1", False)  # killed: its token goes
     report(2, 30, 3, "down")  # restarted: counting from zero
     w._publish_status()
     st = decode_status(w.pub_status.puts[-1])
