@@ -218,3 +218,29 @@ def test_a_full_disk_at_the_end_keeps_a_completed_run(tmp_path, full_fs):
     assert f"could not write the trace to {full_fs / 'trace.npz'}: No space left on device" in out
     assert f"recording: none; {full_fs / 'rec.rrd'} was not written" in res.stdout
     assert not fleet_processes(fleet)
+
+
+def test_a_second_launch_into_a_running_fleets_directory_is_refused_and_changes_nothing(tmp_path, launches):
+    """Issue 27, broken 5, against a launched fleet: two `cdus launch` with one --logs overwrote
+    each other (logs interleaved, one metrics.json replacing the other, the second replacing the
+    first's secure/ground.json5 while the first ran: its printed ground-station line stopped
+    working). The second is refused before it writes anything; the first runs to its end with
+    its own credentials, logs and metrics."""
+    fleet = unique_fleet()
+    run = tmp_path / "run"
+    la = launches(["configs/lake_circle.toml", "--clock", "realtime", "--duration", "8", "--logs", str(run),
+                   "--rerun", "off", "-q"], fleet)  # realtime: still running while the second one tries
+    la.wait_for(f"fleet '{fleet}' up")
+    ground = (run / "secure" / "ground.json5").read_bytes()
+    logs = {p.name: p.stat().st_size for p in (run / "logs").iterdir()}
+    second = run_cli(["launch", "configs/lake_circle.toml", "--fleet", fleet + "b", "--duration", "2",
+                      "--logs", str(run), "--rerun", "off", "-q"], timeout=60)
+    assert second.returncode == 2, second.stdout + second.stderr
+    assert f"another `cdus launch` is running into {run}" in second.stderr and "nothing was started" in second.stderr
+    assert (run / "secure" / "ground.json5").read_bytes() == ground
+    assert not fleet_processes(fleet + "b")
+    assert la.wait() == 0, la.output()
+    m = json.loads((run / "metrics.json").read_text())
+    assert m["completed"] is True and m["duration_s"] == pytest.approx(8.0, abs=0.1)
+    assert set(p.name for p in (run / "logs").iterdir()) == set(logs)  # no second fleet's logs among them
+    assert all(fleet + "b" not in (run / "logs" / name).read_text(errors="replace") for name in logs)
