@@ -264,6 +264,11 @@ def remote_ids(values: list[str], scenario: Scenario) -> tuple[str, ...]:
     return out
 
 
+#: completions of a run that ended early through no one's asking (an operator's stop is asked for):
+#: `cdus launch` exits 1 for them, as for a world that failed, not 0 beside "completed: false"
+NOT_COMPLETED_FAILS = ("vehicles_lost", "router_lost")
+
+
 def cmd_launch(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.config, _overrides(args))
     try:
@@ -343,6 +348,10 @@ def _launch_into(args: argparse.Namespace, scenario: Scenario, opts: LaunchOptio
         print(summary_table(metrics, scenario.vehicles))
         elsewhere = f" (not {la.metrics_out}: it could not be written)" if la.metrics_at != la.metrics_out else ""
         print(f"  metrics: {la.metrics_at}{elsewhere}\n  logs: {la.logs}")
+        if status == 0 and metrics.get("completion") in NOT_COMPLETED_FAILS:  # the run failed, honestly said
+            print(f"error: the run did not complete: {metrics['completion']} (the lines above say which vehicles "
+                  f"were lost); exit 1", file=sys.stderr)
+            status = EXIT_FAIL
     else:
         print(f"no metrics file was written (the lines above say why); logs: {la.logs}", file=sys.stderr)
         status = status or EXIT_FAIL

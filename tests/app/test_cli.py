@@ -406,3 +406,10 @@ def test_a_launch_into_a_full_disk_starts_nothing_and_says_why(full_fs, capsys):
     assert main(["launch", CONFIG, "--logs", str(full_fs / "run2"), "--rerun", "off", "--insecure"]) == 1
     assert f"error: cannot write into the run directory {full_fs / 'run2'}: No space left on device" \
         in capsys.readouterr().err
+
+
+def test_the_completions_a_launch_fails_on_are_completions():
+    from cdus.app.cli import NOT_COMPLETED_FAILS
+    from cdus.wire.schemas import COMPLETED, COMPLETIONS
+
+    assert set(NOT_COMPLETED_FAILS) < set(COMPLETIONS) and COMPLETED not in NOT_COMPLETED_FAILS

@@ -115,8 +115,10 @@ def test_two_vehicles_killed_with_restarts_off_is_not_a_completed_run(tmp_path, 
         line = [ln for ln in fleet_processes(fleet) if f"--id {vid}" in ln]
         assert line, fleet_processes(fleet)
         os.kill(int(line[0].split()[0]), signal.SIGKILL)
-    la.wait(timeout=180)
+    code = la.wait(timeout=180)
     m = json.loads((run / "metrics.json").read_text())
     assert m["completed"] is False and m["completion"] == "vehicles_lost", la.output()
+    # a run that failed exits 1, not 0 beside "completed: false" (attacker review)
+    assert code == 1 and "error: the run did not complete: vehicles_lost" in la.output(), (code, la.output())
     assert m["final_path_error"]["usv2"] != 0.0
     assert not fleet_processes(fleet)
