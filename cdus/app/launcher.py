@@ -896,6 +896,12 @@ def launch(scenario: Scenario, run_dir: Path, router: Transport, opts: LaunchOpt
     if la.metrics_at is None:  # interrupted, or a world that exited 0: what it wrote while stopping
         la.metrics_at = la.find_world_metrics(marks) or (
             la.metrics_out if status == 0 and la.metrics_out.exists() else None)  # e.g. a pipe: no mark changes
+    world = la.children.get(keys.WORLD)
+    if (la.metrics_at is None and world is not None and world.exit_code is not None
+            and world.exit_code not in (0, METRICS_ELSEWHERE_EXIT)):
+        # a world that died before it could write anything (while the fleet came up, or killed
+        # while it stopped): the launcher says so in the metrics, as for a world lost mid-run
+        la.write_world_lost(world.exit_code, time.perf_counter() - t0)
     if la.rejected:
         la.log(f"  the launcher dropped {sum(la.rejected.values())} messages: "
                + ", ".join(f"{n} {r}" for r, n in sorted(la.rejected.items())))

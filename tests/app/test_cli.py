@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 from pathlib import Path
 
 import pytest
@@ -413,3 +414,22 @@ def test_the_completions_a_launch_fails_on_are_completions():
     from cdus.wire.schemas import COMPLETED, COMPLETIONS
 
     assert set(NOT_COMPLETED_FAILS) < set(COMPLETIONS) and COMPLETED not in NOT_COMPLETED_FAILS
+
+
+def test_a_world_that_dies_while_the_fleet_comes_up_leaves_metrics_that_say_so(tmp_path, capsys, monkeypatch):
+    """Attacker review: a world killed before it had finished starting left no metrics.json at
+    all. The launcher writes world_lost metrics (completed: false) as for a world lost mid-run."""
+    from cdus.app import launcher as launcher_mod
+
+    def dying_world(self):
+        argv = [sys.executable, "-c", "import os, signal; os.kill(os.getpid(), signal.SIGKILL)"]
+        return launcher_mod.Child("world", argv, self.logs / "world.log")
+
+    monkeypatch.setattr(launcher_mod.Launcher, "_world", dying_world)
+    run = tmp_path / "run"
+    assert main(["launch", CONFIG, "--logs", str(run), "--rerun", "off", "--duration", "2", "-q"]) == 1
+    out, err = capsys.readouterr()
+    m = json.loads((run / "metrics.json").read_text())
+    assert (m["completed"], m["completion"], m["written_by"]) == (False, "world_lost", "launcher"), m
+    assert m["world_lost"]["world_exit"] == -9 and m["world_lost"]["last_status_t"] is None
+    assert "the fleet did not come up" in out + err and "Traceback" not in out + err
