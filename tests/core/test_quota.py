@@ -36,3 +36,11 @@ def test_never_more_than_the_burst_plus_the_rate_over_the_time_elapsed(rate, bur
         passed += q.take(now)
     assert passed <= burst + rate * now + 1e-9
     assert passed <= len(gaps)
+
+
+def test_a_new_quota_starts_at_time_zero_and_a_bad_one_says_why():
+    """mutmut on quota.py: the default start time and the refusal's words were untested."""
+    q = Quota(rate=1.0, burst=1)
+    assert q.take(0.0) and not q.take(0.5) and q.take(1.0)  # refilled one second after t = 0
+    with pytest.raises(ValueError, match=r"a quota needs rate > 0 and burst >= 1, got rate = 0, burst = 1"):
+        Quota(rate=0, burst=1)

@@ -72,3 +72,11 @@ def test_fleet_of_names_the_fleet_of_a_key_in_a_fleets_space_only():
     assert keys.fleet_of("cdus/f/x") == "f"
     for key in ("cdus/f", "cdus", "other/f/alive/world", "cdus/bad name/alive/world", "cdus//alive/world"):
         assert keys.fleet_of(key) is None, key
+
+
+def test_leaf_and_recipients_at_their_edges():
+    """mutmut on keys.py: leaf and recipients had no test of their own (12 survivors)."""
+    assert keys.leaf("cdus/f/to/+w+/ctl") == ("ctl", "")
+    assert keys.leaf("cdus/f/to/+w+/omega/usv1") == ("omega", "usv1")
+    assert keys.leaf("cdus/f/to/+w+") == ("", "") and keys.leaf("cdus/f/alive/usv1/ab") == ("", "")
+    assert keys.recipients([]) == "+" and keys.recipients(["a"]) == "+a+" and keys.recipients("ab") == "+a+b+"
