@@ -131,6 +131,12 @@ def fleet_acl(fleet: str, listeners: Mapping[str, Sequence[str]], match_certific
     rules.append(no_commands)
     policies.append({"id": "not-ground", "rules": ["no-commands"],
                      "subjects": [WORLD_ROLE, *(vehicle_role(v) for v in listeners), *([ROS2_ROLE] if ros2 else [])]})
+    # a vehicle asks the world only where vehicles were (world/last/*, on a restart); its status and
+    # settings are the operators' (a vehicle's credentials flooding those queries slowed a lockstep run)
+    rules.append({**_rule("no-status-queries", ("query",), [keys.world_status(f), keys.world_settings(f)]),
+                  "permission": "deny"})
+    policies.append({"id": "vehicles-no-status", "rules": ["no-status-queries"],
+                     "subjects": [vehicle_role(v) for v in listeners]})
     if ros2 is not None:
         _ros2_rules(f, ros2, rules, policies, subject(ROS2_CLIENT_ROLE))
 

@@ -181,6 +181,17 @@ def test_each_role_may_publish_only_its_own_keys(tmp_path, mode):
         while not any(r.ok is not None for r in asker.get(keys.ping(fleet, "usv1"), timeout=1.0)):
             assert time.monotonic() < deadline, "usv1 never answered its own link check"
         assert not any(r.ok is not None for r in asker.get(keys.ping(fleet, "usv2"), timeout=1.0))
+        # the world's status and settings answer the ground station, not a vehicle (a vehicle's
+        # query flood on them slowed a lockstep run: issue 27); where vehicles were, both
+        for key in (keys.world_status(fleet), keys.world_settings(fleet), keys.world_last(fleet, "usv2")):
+            world.declare_queryable(key, lambda q: q.reply(str(q.key_expr), b"ok"))
+        deadline = time.monotonic() + 10
+        while not any(r.ok is not None for r in ground.get(keys.world_status(fleet), timeout=1.0)):
+            assert time.monotonic() < deadline, "the world never answered the ground station's status query"
+        assert any(r.ok is not None for r in ground.get(keys.world_settings(fleet), timeout=1.0))
+        assert any(r.ok is not None for r in usv1.get(keys.world_last(fleet, "usv2"), timeout=1.0))
+        for key in (keys.world_status(fleet), keys.world_settings(fleet)):
+            assert not any(r.ok is not None for r in usv1.get(key, timeout=1.0)), key
     finally:
         for s in sessions:
             s.close()
