@@ -107,7 +107,11 @@ def test_a_flood_of_valid_commands_is_bounded_answered_and_changes_nothing(tmp_p
             assert settings is not None
             ticks = [c["fields"]["tick"] for c in settings["changes"] if c["op"] == "gains"]
             assert ticks and len(ticks) == len(set(ticks)) and settings["total"] <= len(applied), settings
-            assert command(gs, "resume", busy).applied
+            # a lockstep pause holds back new grants only: the world widens its window with the
+            # fleet's speed, so a pause late in the run can find every tick granted already and the
+            # run ends while paused (docs/ground_station.md, the effect tick of `pause`)
+            resumed = command(gs, "resume", busy)
+            assert resumed.applied or resumed.reason == "the run is over", resumed
         else:  # a machine fast enough to end the run during the flood: nothing left to ask
             assert "ending" in paused.reason or "over" in paused.reason, paused
     finally:
