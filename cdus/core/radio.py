@@ -1,5 +1,11 @@
 """Does a message get through the radio? A channel model from the geometry (docs/radio.md).
 
+Its parts have rooms of their own: the path loss between two antennas
+(:mod:`cdus.core.propagation`), the packet error rate at an SNR and the airtime
+(:mod:`cdus.core.reception`), the fading and the shadowing (:mod:`cdus.core.fading`). This
+module holds the ``[radio]`` spec, the geometry, and the channel that puts them together
+per message, with the shared medium and the counters.
+
 The ``[radio]`` table (built by :mod:`cdus.scenario.radio` into a :class:`RadioSpec`)
 decides each message on top of the hand-set link faults: the path loss between the two
 antennas (log-distance, or the exact two-ray model over water), log-normal shadowing
@@ -26,16 +32,19 @@ from __future__ import annotations
 import bisect
 import math
 from dataclasses import dataclass, fields
-from typing import TYPE_CHECKING, Iterable, Sequence
+from typing import Iterable, Sequence
 
+from cdus.core.fading import ShadowField, _LOG10_GRID, fading_gain, fading_grid, fading_mean
 from cdus.core.link import stream_key, uniform
+from cdus.core.propagation import C_LIGHT, free_space_db, path_loss_db, two_ray_loss_db, water_permittivity
+from cdus.core.reception import airtime, per_curve, per_from_snr
 from cdus.wire.messages import OmegaMsg, encode_omega
 
-if TYPE_CHECKING:  # numpy is imported where it is used: an agent without [radio] loads none
-    import numpy as np
+# the names' old home: `from cdus.core.radio import ...` keeps working for what moved to a room of its own
+from cdus.core.fading import FEATURES, gamma_draw, normal_pair  # noqa: F401
+from cdus.core.propagation import EPSILON_0, MIN_HEIGHT, reflection_coefficient  # noqa: F401
+from cdus.core.reception import ber, erfc_vec, q_function  # noqa: F401
 
-C_LIGHT = 299_792_458.0  # m/s
-EPSILON_0 = 8.8541878128e-12  # F/m
 THERMAL_DBM_HZ = -174.0  # kT at 290 K, dBm/Hz
 STATION = "station"  # the base station's name in the random streams and the counters
 CAUSES = ("range", "fading", "collision", "queue")
@@ -46,10 +55,14 @@ MODULATIONS = ("bpsk", "qpsk", "16qam", "64qam")
 POLARIZATIONS = ("vertical", "horizontal")
 ACCESSES = ("csma", "aloha")
 KINDS = ("usv", "uav")
-MIN_HEIGHT = 0.01  # m: an antenna at or below the water is taken 1 cm above it (two-ray needs h > 0)
-FEATURES = 64  # random Fourier features of the shadowing field
 DEFAULT_RATE = 50.0  # Hz: the default [rates] broadcast
 MAX_CACHED = 8192  # legs (link x epoch x geometry) kept before the cache is emptied
+
+
+def __getattr__(name: str):  # FADING_GRID, as it was a module constant (cdus.core.fading's now)
+    if name == "FADING_GRID":
+        return fading_grid()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def omega_size(n_vehicles: int) -> int:
@@ -122,292 +135,6 @@ class RadioSpec:
     def loss_d0(self) -> float:
         """PL0 (dB): given, or the free-space loss at d0."""
         return self.pl0 if self.pl0 is not None else free_space_db(self.d0, self.frequency)
-
-
-# --------------------------------------------------------------------------- propagation
-
-
-def free_space_db(d: float, frequency: float) -> float:
-    """Friis free-space loss (dB) at distance d (m): 20 log10(4π d f / c)."""
-    return 20.0 * math.log10(4.0 * math.pi * d * frequency / C_LIGHT)
-
-
-def path_loss_db(d: float, exponent: float, d0: float, pl0: float) -> float:
-    """Log-distance loss (dB): PL0 + 10 n log10(d / d0), d taken as d0 below d0."""
-    return pl0 + 10.0 * exponent * math.log10(max(d, d0) / d0)
-
-
-def reflection_coefficient(sin_psi: float, cos_psi: float, eps: complex, polarization: str) -> complex:
-    """Fresnel reflection coefficient of a flat surface of complex relative permittivity ``eps``
-    at grazing angle ψ: Γ_h = (sin ψ - √(ε - cos²ψ)) / (sin ψ + √(ε - cos²ψ)),
-    Γ_v = (ε sin ψ - √(ε - cos²ψ)) / (ε sin ψ + √(ε - cos²ψ))."""
-    import numpy as np  # here, not at the top: an agent without [radio] loads no numpy (tests/vehicle_agent)
-
-    root = complex(np.sqrt(complex(eps - cos_psi * cos_psi)))
-    if polarization == "horizontal":
-        return (sin_psi - root) / (sin_psi + root)
-    return (eps * sin_psi - root) / (eps * sin_psi + root)
-
-
-def water_permittivity(permittivity: float, conductivity: float, frequency: float) -> complex:
-    """ε_c = ε_r - j σ / (2π f ε0) (≈ ε_r - j 60 σ λ)."""
-    return complex(permittivity, -conductivity / (2.0 * math.pi * frequency * EPSILON_0))
-
-
-def two_ray_loss_db(d: float, ht: float, hr: float, frequency: float, eps: complex,
-                    polarization: str = "vertical", d_min: float = 1.0) -> float:
-    """The exact two-ray loss (dB) over a flat reflecting surface, isotropic antennas:
-
-        PL = -20 log10( λ/(4π) · | 1/r1 + Γ(ψ) e^{-j k (r2 - r1)} / r2 | )
-
-    with r1 = √(d² + (ht - hr)²) the direct path, r2 = √(d² + (ht + hr)²) the reflected one,
-    k = 2π/λ, ψ the grazing angle (sin ψ = (ht + hr)/r2) and Γ the Fresnel coefficient of the
-    surface. d (m) is the horizontal distance, ht, hr (m) the heights above the surface
-    (at least MIN_HEIGHT); with r1 < ``d_min`` (the near field) it is evaluated at the
-    horizontal distance where r1 = d_min. Far beyond the
-    crossover 4π ht hr / λ, Γ -> -1 and PL -> 40 log10 d - 20 log10(ht hr).
-    """
-    ht, hr = max(ht, MIN_HEIGHT), max(hr, MIN_HEIGHT)
-    lam = C_LIGHT / frequency
-    r1 = math.hypot(d, ht - hr)
-    r2 = math.hypot(d, ht + hr)
-    if r1 < d_min:  # inside the near field: evaluated where the direct path is d_min long
-        d = math.sqrt(d_min * d_min - (ht - hr) ** 2)
-        r1, r2 = d_min, math.hypot(d, ht + hr)
-    dr = 4.0 * ht * hr / (r1 + r2)  # r2 - r1 without cancellation
-    gamma = reflection_coefficient((ht + hr) / r2, d / r2, eps, polarization)
-    k = 2.0 * math.pi / lam
-    total = 1.0 / r1 + gamma * complex(math.cos(k * dr), -math.sin(k * dr)) / r2
-    mag = abs(total) * lam / (4.0 * math.pi)
-    return -20.0 * math.log10(mag) if mag > 0.0 else math.inf
-
-
-# --------------------------------------------------------------------------- reception
-
-
-def q_function(x: float) -> float:
-    """Q(x) = P(N(0, 1) > x) = erfc(x / √2) / 2."""
-    return 0.5 * math.erfc(x / math.sqrt(2.0))
-
-
-def ber(ebn0: float, modulation: str) -> float:
-    """Bit error rate at Eb/N0 = ``ebn0`` (linear), coherent detection, Gray coding, uncoded:
-    bpsk, qpsk: Q(√(2 Eb/N0)); M-QAM: (4/k)(1 - 1/√M) Q(√(3k/(M-1) Eb/N0)), k = log2 M
-    (the nearest-neighbour approximation); at most 1/2."""
-    if ebn0 <= 0.0:
-        return 0.5
-    if modulation in ("bpsk", "qpsk"):
-        b = q_function(math.sqrt(2.0 * ebn0))
-    else:
-        m = 16 if modulation == "16qam" else 64
-        kb = math.log2(m)
-        b = (4.0 / kb) * (1.0 - 1.0 / math.sqrt(m)) * q_function(math.sqrt(3.0 * kb / (m - 1) * ebn0))
-    return min(b, 0.5)
-
-
-def per_from_snr(snr_db: float, size_bytes: int, modulation: str = "bpsk", bandwidth: float = 20.0e6,
-                 rate: float = 6.0e6) -> float:
-    """Packet error rate: 1 - (1 - BER)^(8 · size), BER at Eb/N0 = SNR · bandwidth / rate (the
-    SNR is measured over ``bandwidth``, the bits come at ``rate``)."""
-    if not snr_db > -300.0:  # also nan: no signal
-        return 1.0 if size_bytes > 0 else 0.0
-    ebn0 = 10.0 ** (min(snr_db, 300.0) / 10.0) * bandwidth / rate
-    b = ber(ebn0, modulation)
-    if b <= 0.0:
-        return 0.0
-    if b >= 0.5 and size_bytes > 0:
-        return -math.expm1(8 * size_bytes * math.log1p(-0.5))
-    return -math.expm1(8 * size_bytes * math.log1p(-b))
-
-
-def erfc_vec(x: np.ndarray) -> np.ndarray:
-    """erfc over an array (x >= 0), relative error < 1.2e-7 (Numerical Recipes' erfcc, a
-    Chebyshev fit); the per-message decisions use math.erfc."""
-    import numpy as np
-
-    z = np.abs(x)
-    t = 1.0 / (1.0 + 0.5 * z)
-    poly = -z * z - 1.26551223 + t * (1.00002368 + t * (0.37409196 + t * (0.09678418 + t * (
-        -0.18628806 + t * (0.27886807 + t * (-1.13520398 + t * (1.48851587 + t * (-0.82215223 + t * 0.17087277))))))))
-    r = t * np.exp(poly)
-    return np.where(x >= 0.0, r, 2.0 - r)
-
-
-def _q_vec(x: np.ndarray) -> np.ndarray:
-    return 0.5 * erfc_vec(x / math.sqrt(2.0))
-
-
-def per_curve(snr_db: np.ndarray, size_bytes: int, modulation: str, bandwidth: float, rate: float) -> np.ndarray:
-    """:func:`per_from_snr` over an array of SNRs (dB)."""
-    import numpy as np
-
-    ebn0 = 10.0 ** (np.clip(np.nan_to_num(snr_db, nan=-300.0), -300.0, 300.0) / 10.0) * bandwidth / rate
-    if modulation in ("bpsk", "qpsk"):
-        b = _q_vec(np.sqrt(2.0 * ebn0))
-    else:
-        m = 16 if modulation == "16qam" else 64
-        kb = math.log2(m)
-        b = (4.0 / kb) * (1.0 - 1.0 / math.sqrt(m)) * _q_vec(np.sqrt(3.0 * kb / (m - 1) * ebn0))
-    b = np.minimum(b, 0.5)
-    return -np.expm1(8 * size_bytes * np.log1p(-b))
-
-
-def airtime(size_bytes: int, capacity: float, preamble: float) -> float:
-    """Seconds one message holds the medium: preamble + 8 · size / capacity."""
-    return preamble + 8.0 * size_bytes / capacity
-
-
-# --------------------------------------------------------------------------- random draws
-
-
-def normal_pair(u1: float, u2: float) -> tuple[float, float]:
-    """Two independent N(0, 1) from two uniforms in [0, 1) (Box-Muller)."""
-    r = math.sqrt(-2.0 * math.log(1.0 - u1))
-    a = 2.0 * math.pi * u2
-    return r * math.cos(a), r * math.sin(a)
-
-
-def fading_gain(fading: str, k_factor: float, m: float, key: int, seq: int) -> float:
-    """One power gain |h|² of mean 1 for message ``seq`` of the stream ``key``.
-
-    rician: h = √(K/(K+1)) + √(1/(K+1)) · CN(0, 1) (a line-of-sight part and a scattered one);
-    nakagami: |h|² ~ Gamma(m, 1/m), drawn by Marsaglia-Tsang (2000) from the uniforms
-    ``key`` at 64 seq + j, j < 64 (for m < 1: Gamma(m + 1) · U^(1/m)). none: 1.
-    """
-    if fading == "rician":
-        z1, z2 = normal_pair(uniform(key, 2 * seq), uniform(key, 2 * seq + 1))
-        s = math.sqrt(1.0 / (2.0 * (k_factor + 1.0)))
-        re = math.sqrt(k_factor / (k_factor + 1.0)) + s * z1
-        return re * re + (s * z2) ** 2
-    if fading == "nakagami":
-        return gamma_draw(m, key, seq) / m
-    return 1.0
-
-
-def gamma_draw(shape: float, key: int, seq: int) -> float:
-    """Gamma(shape, 1) from the uniforms of ``key`` at 64 seq + j (Marsaglia & Tsang 2000)."""
-    base = 64 * seq
-    j = 0
-    boost = 1.0
-    a = shape
-    if a < 1.0:
-        boost = uniform(key, base + 63) ** (1.0 / a)
-        a += 1.0
-    d = a - 1.0 / 3.0
-    c = 1.0 / math.sqrt(9.0 * d)
-    while j < 60:
-        z, _ = normal_pair(uniform(key, base + j), uniform(key, base + j + 1))
-        u = uniform(key, base + j + 2)
-        j += 3
-        v = 1.0 + c * z
-        if v <= 0.0:
-            continue
-        v = v * v * v
-        if math.log(1.0 - u) < 0.5 * z * z + d - d * v + d * math.log(v):
-            return d * v * boost
-    return d * boost  # 20 rejections in a row: P < 1e-25
-
-
-def fading_mean(f: np.ndarray, fading: str, k_factor: float, m: float) -> float:
-    """E[f(g)] over the power gain g of the fading, f given on :data:`FADING_GRID` (trapezoid in
-    ln g; the density vanishes past the grid's ends for K <= 100, m >= 0.5)."""
-    import numpy as np
-
-    w = _fading_weights(fading, k_factor, m)
-    return float(np.dot(w, f))
-
-
-_GRID: list = []  # FADING_GRID, made when first needed (numpy is imported only by a [radio] run)
-
-
-def fading_grid() -> np.ndarray:
-    """The power gains of the fading quadrature: 3,001 points, log-spaced from 1e-12 to 60."""
-    if not _GRID:
-        import numpy as np
-
-        _GRID.append(np.exp(np.linspace(math.log(1e-12), math.log(60.0), 3001)))
-    return _GRID[0]
-
-
-def _LOG10_GRID():
-    """log10 of the fading grid (dB / 10 of every gain), made once."""
-    if len(_GRID) < 2:
-        import numpy as np
-
-        _GRID.append(np.log10(fading_grid()))
-    return _GRID[1]
-
-
-def __getattr__(name: str):  # FADING_GRID, as it was a module constant
-    if name == "FADING_GRID":
-        return fading_grid()
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-_WEIGHTS: dict[tuple, np.ndarray] = {}
-
-
-def _fading_weights(fading: str, k_factor: float, m: float) -> np.ndarray:
-    key = (fading, k_factor, m)
-    w = _WEIGHTS.get(key)
-    if w is not None:
-        return w
-    import numpy as np
-
-    g = fading_grid()
-    if fading == "rician":
-        kk = k_factor
-        z = 2.0 * np.sqrt(kk * (kk + 1.0) * g)
-        # ln I0(z) = z + ln(i0e(z)); numpy's i0 overflows past ~700, so use the scaled form
-        big = np.maximum(z, 700.0)
-        log_i0 = np.where(z < 700.0, np.log(np.i0(np.minimum(z, 700.0))), big - 0.5 * np.log(2.0 * np.pi * big))
-        logpdf = math.log(kk + 1.0) - kk - (kk + 1.0) * g + log_i0
-    else:
-        logpdf = m * math.log(m) - math.lgamma(m) + (m - 1.0) * np.log(g) - m * g
-    dens = np.exp(logpdf) * g  # density in ln g
-    h = np.diff(np.log(g))
-    w = np.zeros_like(g)
-    w[:-1] += 0.5 * h * dens[:-1]
-    w[1:] += 0.5 * h * dens[1:]
-    w /= w.sum()  # the grid holds all but < 1e-9 of the mass; renormalised
-    _WEIGHTS[key] = w
-    return w
-
-
-class ShadowField:
-    """Log-normal shadowing of one (unordered) link as a Gaussian random field, in dB.
-
-    S(x) = σ √(2/M) Σ_m cos(w_m · x + φ_m), M = :data:`FEATURES`, x = (p_a / D, p_b / D, t / T)
-    (the two antenna positions, the sample time; D = shadowing_distance, T = shadowing_time,
-    an infinite scale drops its coordinates), w_m = Z_m / |g_m| (Z_m ~ N(0, I_7), g_m ~ N(0, 1):
-    the 7-D Cauchy law, whose characteristic function is exp(-|Δ|)) and φ_m ~ U(0, 2π). Over
-    the draws of the features: mean 0, variance σ², correlation exp(-√((Δd/D)² + (Δt/T)²)) with
-    Δd² = |Δp_a|² + |Δp_b|² (Gudmundson's exp(-Δd/D) when one end moves); close to Gaussian
-    (excess kurtosis -1.5/M). The features are drawn once from the link's own stream.
-    """
-
-    __slots__ = ("w", "phi", "amp")
-
-    def __init__(self, key: int, sigma: float):
-        w = []
-        for i in range(FEATURES):
-            z = []
-            for j in range(4):
-                z.extend(normal_pair(uniform(key, 8 * i + 2 * j), uniform(key, 8 * i + 2 * j + 1)))
-            g = max(abs(z[7]), 1e-12)  # |w| < 1e13: w · x stays finite (P(|g| < 1e-12) ~ 1e-12)
-            w.append(tuple(zk / g for zk in z[:7]))
-        self.w = tuple(w)
-        self.phi = tuple(2.0 * math.pi * uniform(key, 8 * FEATURES + i) for i in range(FEATURES))
-        self.amp = sigma * math.sqrt(2.0 / FEATURES)
-
-    def __call__(self, x: Sequence[float]) -> float:
-        """S(x), in plain float arithmetic and math.cos (no BLAS, no SIMD paths: the same bits
-        in every process)."""
-        x0, x1, x2, x3, x4, x5, x6 = (float(v) for v in x)
-        total = 0.0
-        for (w0, w1, w2, w3, w4, w5, w6), phi in zip(self.w, self.phi):
-            total += math.cos(w0 * x0 + w1 * x1 + w2 * x2 + w3 * x3 + w4 * x4 + w5 * x5 + w6 * x6 + phi)
-        return self.amp * total
 
 
 # --------------------------------------------------------------------------- geometry and decisions

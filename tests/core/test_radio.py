@@ -1,4 +1,5 @@
-"""The radio channel's math (cdus/core/radio.py, docs/radio.md).
+"""The radio channel (cdus/core/radio.py, docs/radio.md); its parts' math has tests of its own
+(test_propagation.py, test_reception.py, test_fading.py).
 
 Statistical checks bound the deviation by the sample size: a normal (CLT) bound at a
 Bonferroni-corrected alpha (ALPHA over the checks of one test), or an exact Poisson-binomial
@@ -8,7 +9,6 @@ the bounds say the answer is what the model predicts, not a tolerance picked to 
 
 from __future__ import annotations
 
-import cmath
 import math
 import random
 from dataclasses import replace
@@ -16,15 +16,10 @@ from statistics import NormalDist
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
-from cdus.core.link import stream_key
-from cdus.core.radio import (
-    C_LIGHT, FADING_GRID, Geometry, RadioChannel, RadioSpec, ShadowField, airtime, ber, erfc_vec, fading_gain,
-    fading_mean, free_space_db, omega_size, path_loss_db, per_curve, per_from_snr, two_ray_loss_db,
-    water_permittivity,
-)
+from cdus.core.radio import C_LIGHT, Geometry, RadioChannel, RadioSpec, airtime, omega_size, path_loss_db
 from cdus.wire.messages import OmegaMsg, encode_omega
 
 ALPHA = 1e-3  # family-wise false-alarm rate of each statistical test
@@ -44,13 +39,6 @@ def chan(ids=("a", "b"), kinds=("usv", "usv"), seed=1, **kw) -> RadioChannel:
 # --------------------------------------------------------------------------- propagation
 
 
-@pytest.mark.parametrize("d", [1.0, 10.0, 100.0, 1000.0])
-def test_free_space_is_friis(d):
-    f = 2.4e9
-    lam = C_LIGHT / f
-    assert free_space_db(d, f) == pytest.approx(-10 * math.log10((lam / (4 * math.pi * d)) ** 2), abs=1e-9)
-
-
 @pytest.mark.parametrize("d,n,d0,pl0", [(1.0, 2.0, 1.0, 40.0), (10.0, 2.0, 1.0, 40.0), (250.0, 3.0, 1.0, 47.0),
                                         (1000.0, 2.7, 10.0, 60.0), (0.5, 3.0, 1.0, 40.0)])
 def test_log_distance_at_known_distances(d, n, d0, pl0):
@@ -68,94 +56,7 @@ def test_log_distance_default_pl0_is_free_space_at_d0():
     assert spec.loss_d0 == pytest.approx(46.73, abs=0.01)  # the textbook 5.18 GHz figure at 1 m
 
 
-def two_ray_reference(d: float, ht: float, hr: float, f: float, er: float, sigma: float, pol: str) -> float:
-    """The two-ray field written out independently: direct and reflected complex amplitudes."""
-    lam = C_LIGHT / f
-    k = 2 * math.pi / lam
-    r1 = math.sqrt(d * d + (ht - hr) ** 2)
-    r2 = math.sqrt(d * d + (ht + hr) ** 2)
-    psi = math.atan2(ht + hr, d)
-    eps = er - 1j * sigma / (2 * math.pi * f * 8.8541878128e-12)
-    root = cmath.sqrt(eps - math.cos(psi) ** 2)
-    if pol == "horizontal":
-        gamma = (math.sin(psi) - root) / (math.sin(psi) + root)
-    else:
-        gamma = (eps * math.sin(psi) - root) / (eps * math.sin(psi) + root)
-    field = cmath.exp(-1j * k * r1) / r1 + gamma * cmath.exp(-1j * k * r2) / r2
-    return -20 * math.log10(lam / (4 * math.pi) * abs(field))
-
-
-@pytest.mark.parametrize("pol", ["vertical", "horizontal"])
-@pytest.mark.parametrize("d,ht,hr", [(5.0, 1.0, 1.0), (50.0, 1.0, 1.0), (217.0, 1.0, 1.0), (800.0, 1.0, 1.5),
-                                     (120.0, 30.0, 1.0), (2000.0, 10.0, 1.0)])
-@pytest.mark.parametrize("water", [(80.0, 0.01), (70.0, 4.0)])
-def test_two_ray_at_known_distances(pol, d, ht, hr, water):
-    f = 5.18e9
-    eps = water_permittivity(water[0], water[1], f)
-    got = two_ray_loss_db(d, ht, hr, f, eps, pol, 1.0)
-    assert got == pytest.approx(two_ray_reference(d, ht, hr, f, water[0], water[1], pol), abs=1e-6)
-
-
-def test_two_ray_far_field_is_the_crossover_form():
-    """Beyond the crossover 4π ht hr / λ the loss tends to 40 log d - 20 log(ht hr) (Γ -> -1)."""
-    f, ht, hr = 5.18e9, 1.0, 1.0
-    eps = water_permittivity(80.0, 0.01, f)
-    crossover = 4 * math.pi * ht * hr * f / C_LIGHT
-    for mult in (20.0, 50.0, 100.0):
-        d = mult * crossover
-        assert two_ray_loss_db(d, ht, hr, f, eps, "horizontal") == pytest.approx(
-            40 * math.log10(d) - 20 * math.log10(ht * hr), abs=0.2)
-
-
-@given(st.floats(1.0, 5000.0), st.floats(0.0, 50.0), st.floats(0.0, 50.0))
-@settings(max_examples=200, deadline=None)
-def test_two_ray_never_beats_free_space_by_more_than_6_db(d, ht, hr):
-    """|1/r1 + Γ e^{..}/r2| <= 2/r1 (|Γ| <= 1), so the loss is at least free space at r1 - 6.02 dB."""
-    f = 5.18e9
-    got = two_ray_loss_db(d, ht, hr, f, water_permittivity(80.0, 0.01, f), "vertical", 1.0)
-    r1 = max(math.hypot(d, max(ht, 0.01) - max(hr, 0.01)), 1.0)
-    assert got >= free_space_db(r1, f) - 20 * math.log10(2.0) - 1e-9
-
-
 # --------------------------------------------------------------------------- reception
-
-
-def test_ber_at_textbook_points():
-    ebn0 = 10 ** (9.6 / 10)  # BPSK reaches 1e-5 at 9.6 dB
-    assert ber(ebn0, "bpsk") == pytest.approx(0.5 * math.erfc(math.sqrt(ebn0)), rel=1e-12)
-    assert 0.9e-5 < ber(ebn0, "bpsk") < 1.1e-5
-    assert ber(ebn0, "qpsk") == ber(ebn0, "bpsk")
-    x = 10 ** (10.0 / 10)
-    assert ber(x, "16qam") == pytest.approx(3 / 8 * math.erfc(math.sqrt(0.4 * x)), rel=1e-12)
-    assert ber(x, "64qam") == pytest.approx(7 / 24 * math.erfc(math.sqrt(x / 7)), rel=1e-12)
-    assert ber(0.0, "bpsk") == 0.5
-
-
-def test_per_is_one_minus_bit_survival():
-    snr, size = 3.0, 96
-    b = ber(10 ** (snr / 10) * 20e6 / 6e6, "bpsk")
-    assert per_from_snr(snr, size, "bpsk", 20e6, 6e6) == pytest.approx(1 - (1 - b) ** (8 * size), rel=1e-12)
-
-
-def test_vector_erfc_and_per_curve_agree_with_math():
-    x = np.linspace(0.0, 8.0, 401)
-    exact = np.array([math.erfc(v) for v in x])
-    assert np.all(np.abs(erfc_vec(x) - exact) <= 1.2e-7 * exact + 1e-300)
-    snr = np.linspace(-10, 20, 61)
-    for mod in ("bpsk", "16qam"):
-        curve = per_curve(snr, 96, mod, 20e6, 6e6)
-        scalar = np.array([per_from_snr(s, 96, mod, 20e6, 6e6) for s in snr])
-        assert np.all(np.abs(curve - scalar) <= 1e-6)
-
-
-@given(st.sampled_from(["bpsk", "qpsk", "16qam", "64qam"]), st.floats(-30.0, 40.0), st.floats(0.0, 10.0),
-       st.integers(1, 2000), st.integers(0, 2000))
-@settings(max_examples=300, deadline=None)
-def test_per_is_monotone_in_snr_and_size(mod, snr, dsnr, size, dsize):
-    p = per_from_snr(snr, size, mod)
-    assert 0.0 <= p <= 1.0
-    assert per_from_snr(snr + dsnr, size, mod) <= p + 1e-15  # more SNR, fewer errors
-    assert per_from_snr(snr, size + dsize, mod) >= p - 1e-15  # a longer message, more errors
 
 
 def test_delivery_falls_off_smoothly_with_range():
@@ -177,37 +78,6 @@ def test_message_size_is_the_omega_wire_size_plus_header():
 # --------------------------------------------------------------------------- shadowing and fading
 
 
-def field_values(n: int, sigma: float, points) -> np.ndarray:
-    """Shadowing of n independent links (one seed each) at each point x (the field's input)."""
-    out = np.empty((n, len(points)))
-    for i in range(n):
-        f = ShadowField(stream_key(i, "a", "b", "radio-shadow"), sigma)
-        for j, x in enumerate(points):
-            out[i, j] = f(np.asarray(x, dtype=float))
-    return out
-
-
-def test_shadowing_mean_variance_and_correlation_in_space_and_time():
-    """Over independent links: mean 0, variance σ², corr(Δ) = exp(-|Δ|) in the scaled input
-    (Gudmundson's exp(-Δd/D) for one end moving Δd, exp(-Δt/T) in time)."""
-    n, sigma = 3000, 6.0
-    base = np.array([0.3, -1.2, 0.02, 2.0, 0.5, 0.04, 7.0])
-    moves = {"one end 0.5 D": (0, 0.5), "one end 1 D": (1, 1.0), "other end 2 D": (4, 2.0),
-             "time 0.25 T": (6, 0.25), "time 1 T": (6, 1.0)}
-    points = [base] + [base + np.eye(7)[axis] * step for axis, step in moves.values()]
-    v = field_values(n, sigma, points)
-    z = z_bound(2 + len(moves))
-    x0 = v[:, 0]
-    assert abs(x0.mean()) <= z * sigma / math.sqrt(n)
-    m4 = np.mean((x0 - x0.mean()) ** 4)
-    assert abs(x0.var() - sigma ** 2) <= z * math.sqrt((m4 - x0.var() ** 2) / n)
-    for j, (name, (axis, step)) in enumerate(moves.items(), start=1):
-        r = np.corrcoef(x0, v[:, j])[0, 1]
-        rho = math.exp(-step)
-        # Fisher's z: atanh(r) ~ N(atanh(ρ), 1/(n - 3))
-        assert abs(math.atanh(r) - math.atanh(rho)) <= z / math.sqrt(n - 3), (name, r, rho)
-
-
 def test_channel_shadowing_is_reciprocal_and_follows_positions():
     ch = chan(shadowing_sigma=5.0, shadowing_distance=20.0)
     g1 = Geometry.of(0, [(0.0, 0.0), (100.0, 0.0)])
@@ -222,24 +92,6 @@ def test_channel_shadowing_is_reciprocal_and_follows_positions():
         timed.delivery_probability(0, 1, g1)
     timed = chan(shadowing_sigma=5.0, shadowing_time=2.0, tick_period=0.02)
     assert timed.shadowing(0, 1, (0, 0, 1), (100, 0, 1), g1) != timed.shadowing(0, 1, (0, 0, 1), (100, 0, 1), g2)
-
-
-@pytest.mark.parametrize("kind,param", [("rician", 0.0), ("rician", 3.0), ("rician", 10.0), ("nakagami", 0.6),
-                                        ("nakagami", 1.0), ("nakagami", 2.5)])
-def test_fading_moments(kind, param):
-    """E[g] = 1; Var[g] = (1 + 2K)/(1 + K)² (Rician), 1/m (Nakagami); the quadrature weights
-    give the same two moments."""
-    n = 20000
-    k, m = (param, 1.0) if kind == "rician" else (10.0, param)
-    key = stream_key(3, "a", "b", "radio-fading")
-    g = np.array([fading_gain(kind, k, m, key, s) for s in range(n)])
-    var = (1 + 2 * k) / (1 + k) ** 2 if kind == "rician" else 1.0 / m
-    z = z_bound(2)
-    assert abs(g.mean() - 1.0) <= z * math.sqrt(var / n)
-    d2 = (g - g.mean()) ** 2
-    assert abs(g.var() - var) <= z * d2.std() / math.sqrt(n)
-    assert fading_mean(FADING_GRID, kind, k, m) == pytest.approx(1.0, abs=1e-4)
-    assert fading_mean(FADING_GRID ** 2, kind, k, m) - 1.0 == pytest.approx(var, rel=1e-3, abs=1e-4)
 
 
 # --------------------------------------------------------------------------- determinism
@@ -437,17 +289,6 @@ def test_counters_by_cause_and_update_epochs():
     ch.update(3.0, station=(1.0, 2.0))
     assert ch.epochs[-1] == (3.0, -10.0, (1.0, 2.0, 0.0))
     assert replace(RadioSpec(), tx_power=1.0).tx_power == 1.0
-
-
-def test_two_ray_near_field_is_evaluated_where_the_direct_path_is_d0():
-    f = 5.18e9
-    eps = water_permittivity(80.0, 0.01, f)
-    at_d0 = two_ray_loss_db(1.0, 1.0, 1.0, f, eps)
-    assert two_ray_loss_db(0.0, 1.0, 1.0, f, eps) == at_d0 == two_ray_loss_db(1e-300, 1.0, 1.0, f, eps)
-    assert two_ray_loss_db(0.2, 1.0, 1.5, f, eps) == pytest.approx(two_ray_reference(math.sqrt(0.75), 1.0, 1.5, f, 80.0,
-                                                                                     0.01, "vertical"), abs=1e-9)
-    assert math.isfinite(per_from_snr(float("nan"), 10)) and per_from_snr(float("nan"), 10) == 1.0
-    assert per_from_snr(1e6, 10) == 0.0
 
 
 def test_channel_shadowing_follows_the_configured_distance_and_time():
