@@ -16,7 +16,8 @@ from typing import Any, Iterator, Mapping
 import numpy as np
 
 from cdus.app.stats import Stat
-from cdus.app.sweep import STAT_FIELDS, SweepResult
+from cdus.app.sweep import SweepResult
+from cdus.app.sweepcells import STAT_FIELDS
 from cdus.app.sweepstore import FIELD_TYPES, ROW_COLUMNS, SweepRow, canonical, cell_label, grid_type, table_schema, \
     typed_columns
 from cdus.extras import needs

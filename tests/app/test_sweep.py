@@ -1,59 +1,23 @@
 import csv
-import json
-import math
 
 import pyarrow.parquet as pq
 import pytest
 
-from cdus.app.stats import Stat
-from cdus.app.sweep import (
-    CellSummary, Run, axis_label, check_grid, normalize_grid, parse_grid, plan, plot, run_text, summarize, sweep,
-)
+from cdus.app.sweep import Run, normalize_grid, parse_grid, run_text, summarize, sweep
 from cdus.scenario.config import ConfigError, load_scenario
 
 
-def test_grid_values_are_parsed_as_config_values():
-    grid = parse_grid(["link.loss=0,0.25", "link.policy=hold,extrapolate", "vehicle.usv1.gains.k=[1,2],[3,4]"])
-    assert grid == [("link.loss", [0, 0.25]), ("link.policy", ["hold", "extrapolate"]),
-                    ("vehicle.usv1.gains.k", [[1, 2], [3, 4]])]
-    runs = plan(grid, [1, 2])
-    assert len(runs) == 2 * 2 * 2 * 2
-    assert runs[0].cell == (("link.loss", 0), ("link.policy", "hold"), ("vehicle.usv1.gains.k", [1, 2]))
-    assert runs[1] == Run(runs[0].cell, 2)  # seeds innermost
-    assert runs[-1].cell == (("link.loss", 0.25), ("link.policy", "extrapolate"), ("vehicle.usv1.gains.k", [3, 4]))
-
-
-@pytest.mark.parametrize("bad", ["link.loss", "=1,2", "link.loss="])
-def test_a_malformed_axis_is_a_config_error(bad):
-    with pytest.raises(ConfigError, match="KEY=V1,V2"):
-        parse_grid([bad])
-
-
-def test_a_grid_is_a_mapping_or_pairs_each_key_and_value_once():
-    assert normalize_grid({"link.loss": [0, 0.1], "link.policy": "hold"}) == \
-        [("link.loss", [0, 0.1]), ("link.policy", ["hold"])]
-    assert normalize_grid(None) == []
-    with pytest.raises(ConfigError, match="link.loss: given twice"):
-        normalize_grid([("link.loss", [0]), ("link.loss", [1])])
-    with pytest.raises(ConfigError, match="a value is given twice"):
-        normalize_grid({"link.loss": [0.1, 0.1]})
-    with pytest.raises(ConfigError, match="no values"):
-        normalize_grid({"link.loss": []})
-    with pytest.raises(ConfigError, match="scenario.seed: is what --seeds"):
-        normalize_grid({"scenario.seed": [1, 2]})
-
-
 def test_a_sweep_writes_results_summary_and_plot_and_records_failures(tmp_path, monkeypatch):
-    import cdus.app.sweep as engine
+    import cdus.app.sweepworker as worker
     from cdus.core.vehicle import DivergedError
 
-    class Diverging(engine.InProcessFleet):  # the runs of loss 0.6 diverge: recorded, the sweep goes on
+    class Diverging(worker.InProcessFleet):  # the runs of loss 0.6 diverge: recorded, the sweep goes on
         def run(self, *a, **k):
             if self.scenario.link.loss == 0.6:
                 raise DivergedError("vehicle c1: its state is no longer finite at t = 3.00 s")
             return super().run(*a, **k)
 
-    monkeypatch.setattr(engine, "InProcessFleet", Diverging)  # jobs=1 runs in this process
+    monkeypatch.setattr(worker, "InProcessFleet", Diverging)  # jobs=1 runs in this process
     grid = parse_grid(["link.loss=0,0.3,0.6"])
     res = sweep("configs/concentric_circles.toml", grid, [1, 2], tmp_path, jobs=1, duration=20.0, quiet=True)
     rows = res.rows()
@@ -96,15 +60,6 @@ def test_the_parquet_table_has_the_grid_values_as_typed_columns(tmp_path):
     assert [float(r["final_coord_error_max"]) for r in table] == [r["final_coord_error_max"] for r in rows]
 
 
-def test_the_grid_is_checked_cell_by_cell_with_its_values_together():
-    grid = parse_grid(["link.burst.p=0.01,0.05", "link.burst.r=0.25"])
-    check_grid("configs/lake_circle.toml", grid)  # p and r together make a burst
-    with pytest.raises(ConfigError, match="link.burst.r: missing"):
-        check_grid("configs/lake_circle.toml", parse_grid(["link.burst.p=0.01,0.05"]))
-    with pytest.raises(ConfigError, match="link.loss"):
-        check_grid("configs/lake_circle.toml", parse_grid(["link.loss=0.1,2"]))
-
-
 def test_table_values_label_their_cells(tmp_path):
     grid = parse_grid(["link.burst={p=0.01,r=0.5},{p=0.05,r=0.5}"])
     res = sweep("configs/lake_circle.toml", grid, [1], tmp_path, jobs=1, duration=2.0, quiet=True)
@@ -136,60 +91,6 @@ def test_progress_lines_round_and_say_never():
     text = run_text(run, {"status": "ok", "coord_settle_s": None, "final_coord_error_max": 0.0784})
     assert "coord settle never," in text and "None" not in text and "0.0784 rad" in text
     assert run_text(Run((), 1), {"status": "failed", "reason": "boom"}) == "(base), seed 1: FAILED: boom"
-
-
-def test_axis_labels_are_words_with_units_where_known():
-    assert axis_label("link.loss") == "Loss probability"
-    assert axis_label("link.delay.base") == "Link delay (s)"
-    assert axis_label("rates.control") == "Control rate (Hz)"
-    assert axis_label("graph.topology") == "Graph topology"
-    # a key the table does not know: its own parts in words, the unit from its last part
-    assert axis_label("link.rule.0.loss") == "Link rule 0 loss (fraction)"
-    assert axis_label("vehicle.usv1.gains.k") == "Vehicle usv1 gains k"
-    assert axis_label("rates.sensor_x") == "Rates sensor x (Hz)"
-
-
-def _cell(value, ok, settle, error):
-    c = CellSummary((("link.delay.base", value),), runs=ok, ok=ok)
-    c.values["coord_settle_s"] = settle
-    c.values["final_coord_error_max"] = error
-    c.finish(seed=0)
-    return c
-
-
-def test_the_plot_marks_runs_that_never_settled_and_says_when_no_run_settled(tmp_path):
-    cells = [_cell(0.0, 3, [10.0, 12.0, 11.0], [0.01, 0.02, 0.015]), _cell(0.1, 3, [20.0], [0.05, 0.06, 0.07])]
-    drawn = plot(["link.delay.base"], cells, tmp_path / "a.png")
-    assert drawn == {"empty": [], "never": ["2/3 never"], "offsets": {None: 0.0}}
-    nothing = [_cell(0.1, 2, [], [0.1, 0.2]), _cell(0.2, 2, [], [0.2, 0.3])]
-    drawn = plot(["link.delay.base"], nothing, tmp_path / "b.png")
-    assert drawn["empty"] == ["no run settled"] and drawn["never"] == ["2/2 never", "2/2 never"]
-    assert (tmp_path / "b.png").stat().st_size > 10_000
-    assert "| 0.1 | 2/2 | 0/2 | never |" in summarize(["link.delay.base"], nothing)
-
-
-def test_summary_cells_show_mean_sd_and_interval():
-    c = _cell(0.0, 3, [10.0, 12.0, 11.0], [0.01, 0.02, 0.015])
-    st = c.stats["coord_settle_s"]
-    assert st.n == 3 and st.mean == 11.0 and math.isclose(st.std, 1.0)
-    assert st.lo <= 11.0 <= st.hi
-    line = summarize(["link.delay.base"], [c]).splitlines()[2]
-    assert line.startswith("| 0.0 | 3/3 | 3/3 | 11.0 ± 1.0 [") and "0.0150 ± 0.0050 [" in line
-    assert isinstance(st, Stat)
-    json.dumps(st.__dict__)  # plain numbers, no numpy types
-
-
-def test_a_grid_of_words_and_tables_plots_as_categories(tmp_path):
-    cells = []
-    for policy in ("hold", "extrapolate"):
-        c = CellSummary((("link.policy", policy), ("link.burst", {"p": 0.01, "r": 0.5})), runs=2, ok=2)
-        c.values["coord_settle_s"] = [10.0, 11.0]
-        c.values["final_coord_error_max"] = [0.01, 0.02]
-        c.finish(seed=0)
-        cells.append(c)
-    drawn = plot(["link.policy", "link.burst"], cells, tmp_path / "c.png", "t")
-    assert drawn == {"empty": [], "never": [], "offsets": {None: 0.0}}
-    assert (tmp_path / "c.png").stat().st_size > 10_000
 
 
 def test_the_cli_refuses_no_seeds(tmp_path, capsys):

@@ -21,7 +21,8 @@ import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from cdus.app.sweep import _Plan, sweep
+from cdus.app.sweep import sweep
+from cdus.app.sweepplan import _Plan
 from cdus.app.sweepstore import FIELDS, scan_rows, write_tables
 from cdus.scenario.config import ConfigError
 
@@ -141,7 +142,7 @@ def test_another_sweep_that_took_the_directory_meanwhile_is_not_mixed_into(tmp_p
 
 def _die_on_seed_2(scenario, clock):
     """A run task whose worker dies on seed 2 (as the OOM killer would do it)."""
-    from cdus.app.sweep import run_task
+    from cdus.app.sweepworker import run_task
 
     if scenario.seed == 2:
         os._exit(9)

@@ -17,7 +17,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from cdus.app.cli import main
-from cdus.app.sweep import _Plan, sweep
+from cdus.app.sweep import sweep
+from cdus.app.sweepplan import _Plan
 from cdus.app.sweepstore import scan_rows
 from cdus.scenario.config import ConfigError
 

@@ -6,7 +6,9 @@ from matplotlib.figure import Figure
 from cdus.app.stats import describe
 import pytest
 
-from cdus.app.sweep import CellSummary, dodge_offsets, plain_number, plot, value_label
+from cdus.app.sweepcells import CellSummary, summarize
+from cdus.app.sweepplot import axis_label, dodge_offsets, plain_number, plot, value_label
+from tests.app.test_sweepcells import cell_of
 
 
 def _cell(cell, settle, error):
@@ -182,3 +184,38 @@ def test_the_plot_is_written_as_a_vector_file_the_same_each_time(tmp_path, fmt, 
     data = (tmp_path / f"a.{fmt}").read_bytes()
     assert magic in data[:400]
     assert data == (tmp_path / f"b.{fmt}").read_bytes()  # no creation date: the same rows, the same file
+
+
+def test_axis_labels_are_words_with_units_where_known():
+    assert axis_label("link.loss") == "Loss probability"
+    assert axis_label("link.delay.base") == "Link delay (s)"
+    assert axis_label("rates.control") == "Control rate (Hz)"
+    assert axis_label("graph.topology") == "Graph topology"
+    # a key the table does not know: its own parts in words, the unit from its last part
+    assert axis_label("link.rule.0.loss") == "Link rule 0 loss (fraction)"
+    assert axis_label("vehicle.usv1.gains.k") == "Vehicle usv1 gains k"
+    assert axis_label("rates.sensor_x") == "Rates sensor x (Hz)"
+
+
+def test_the_plot_marks_runs_that_never_settled_and_says_when_no_run_settled(tmp_path):
+    cells = [cell_of(0.0, 3, [10.0, 12.0, 11.0], [0.01, 0.02, 0.015]), cell_of(0.1, 3, [20.0], [0.05, 0.06, 0.07])]
+    drawn = plot(["link.delay.base"], cells, tmp_path / "a.png")
+    assert drawn == {"empty": [], "never": ["2/3 never"], "offsets": {None: 0.0}}
+    nothing = [cell_of(0.1, 2, [], [0.1, 0.2]), cell_of(0.2, 2, [], [0.2, 0.3])]
+    drawn = plot(["link.delay.base"], nothing, tmp_path / "b.png")
+    assert drawn["empty"] == ["no run settled"] and drawn["never"] == ["2/2 never", "2/2 never"]
+    assert (tmp_path / "b.png").stat().st_size > 10_000
+    assert "| 0.1 | 2/2 | 0/2 | never |" in summarize(["link.delay.base"], nothing)
+
+
+def test_a_grid_of_words_and_tables_plots_as_categories(tmp_path):
+    cells = []
+    for policy in ("hold", "extrapolate"):
+        c = CellSummary((("link.policy", policy), ("link.burst", {"p": 0.01, "r": 0.5})), runs=2, ok=2)
+        c.values["coord_settle_s"] = [10.0, 11.0]
+        c.values["final_coord_error_max"] = [0.01, 0.02]
+        c.finish(seed=0)
+        cells.append(c)
+    drawn = plot(["link.policy", "link.burst"], cells, tmp_path / "c.png", "t")
+    assert drawn == {"empty": [], "never": [], "offsets": {None: 0.0}}
+    assert (tmp_path / "c.png").stat().st_size > 10_000
