@@ -1,4 +1,5 @@
-"""A sweep's directory on disk: the manifest, the streamed rows, and the tables made from them.
+"""Where does a sweep keep what it did? Its directory on disk: the manifest, the streamed
+rows, and the tables made from them.
 
 ``manifest.json``  what the sweep is (the resolved config's digest, the grid, the clock): a
                    re-run with the same ``--out`` resumes only the same sweep.
@@ -22,6 +23,7 @@ from pathlib import Path
 from typing import Any, Iterator, Sequence
 
 from cdus.files import write_json
+from cdus.scenario.checks import is_number
 from cdus.scenario.config import ConfigError
 
 MANIFEST, ROWS, CSV, PARQUET = "manifest.json", "results.jsonl", "results.csv", "results.parquet"
@@ -303,7 +305,7 @@ def grid_type(values: Sequence[Any]) -> str:
         return "bool"
     if values and all(isinstance(v, int) and not isinstance(v, bool) for v in values):
         return "int64"
-    if values and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+    if values and all(is_number(v) for v in values):
         return "float64"
     if values and all(isinstance(v, str) for v in values):
         return "string"
@@ -314,7 +316,7 @@ def _typed(value: Any, kind: str) -> Any:
     """A value as its column's type; None where it is not one (never an exception)."""
     if value is None:
         return None
-    number = isinstance(value, (int, float)) and not isinstance(value, bool)
+    number = is_number(value)
     if kind == "float64":
         try:
             return float(value) if number else None
