@@ -69,30 +69,19 @@ from cdus.wire.messages import (
 )
 from cdus.wire.schemas import AgentStats, encode_stats
 from cdus.wire.transport import Transport, open_session
+from vehicle_agent.clocks import Clock, pick
+from vehicle_agent.lockstep import LOG_WAIT
+from vehicle_agent.realtime import OMEGA_RING
+from vehicle_agent.waker import Waker
 
-#: telemetry rows per message. Lockstep: at most GRANT_WINDOW, the least grant window: a vehicle
-#: waiting for a neighbour's ω holds fewer unsent rows than the window, so that neighbour is
-#: always granted its tick (and one waiting for a grant sends what it holds at once)
-STATE_BATCH = {"lockstep": 50, "realtime": 5}
-assert STATE_BATCH["lockstep"] <= GRANT_WINDOW
 STATS_PERIOD = 1.0  # s of wall time between counter reports
 BURSTS_PER_STATS = 100  # drop bursts one report carries; a report goes early once half as many wait
-STALL_TICKS = 10  # realtime: this many periods late means the process was frozen, not just slow
 END_WAIT = 10.0  # s to wait for the world's stop after the last tick
-INBOX_CAPACITY = 4096  # samples; when full, Zenoh's delivery to this session waits (nothing grows)
-OMEGA_RING = 16  # realtime: ω samples kept per neighbour between drains (<= MAX_NAP apart), newest first
-#: lockstep: a neighbour may have a grant this agent has not received yet; one grant moves at
-#: most MAX_GRANT_WINDOW past the slowest live vehicle's acknowledged tick, which is <= ours
-LOCKSTEP_SEQ_MARGIN = 2 * MAX_GRANT_WINDOW
-REALTIME_SLACK = 0.25  # s: a realtime ω may be stamped this far past this agent's wall-clock tick
 T0_PAST = 86400.0  # s: a realtime t0 (start, resume) older than the run's duration plus this is not ours
 T0_AHEAD = 60.0  # s: ... nor one further in the future than this
-RATE_MARGIN = 4.0  # realtime: a sender's ω rate allowed, in multiples of its broadcast rate
-RATE_BURST = 64  # realtime: ω a sender may send back to back (a stall's catch-up is < STALL_TICKS)
 _KINDS = ("omega", "state", "stats", "ctl", "contacts", "cmd", "wake", "last")  # named in a reject reason
 MAX_LOGGED = 256  # (sender, reason) pairs logged; past that, rejects are only counted
 MAX_COMMAND_NESTING = 2  # a link or gains table nests its containers at most this deep (delay = {...})
-LOG_WAIT = 5.0  # s of waiting before saying what for
 #: lockstep: when this session was cut off from the router (the world's liveliness token went and
 #: came back: a router frozen or restarted, a network cut), what was in flight may be lost and
 #: the fleet would wait for it: the agent says its newest ω and telemetry again (receivers take
@@ -101,17 +90,11 @@ LOG_WAIT = 5.0  # s of waiting before saying what for
 #: lookahead (a least link delay of D ticks lets it step D ticks past its neighbours' newest ω) and,
 #: on a one-way link, a grant window; the agent keeps 2 x MAX_GRANT_WINDOW ticks' worth (Agent.__init__)
 RESEND_OMEGAS = 16
-#: said again every RESEND_EVERY s while stuck, for RESEND_FOR s after the world's token came back:
+#: said again every lockstep.RESEND_EVERY s while stuck, for RESEND_FOR s after the world's token came back:
 #: the token can arrive before the router knows the neighbours' subscriptions again, and what is
 #: said before that is lost too
-RESEND_EVERY = 1.0
 RESEND_FOR = 10.0
 WORLD_BACK = "the world's token is back after every world token went (an outage)"  # logged when taken
-#: lockstep: granted and still waiting for a neighbour's ω this long (s), the agent says its recent
-#: messages again every RESEND_EVERY s (receivers drop copies as stale): a router frozen for
-#: seconds can lose messages in flight without any session seeing the world's token go and come back
-STUCK_RESEND = 2.0
-MAX_NAP = 0.05  # s: realtime sleeps at most this long between checks for a stop or a pause
 PING_TIMEOUT = 1.0  # s for a link check's reply (it is immediate when nobody answers)
 PING_RETRY = 0.02  # s between link checks
 #: the ω publisher's express flag (Zenoh: sent at once, never held for a batch); compared in the
@@ -119,83 +102,15 @@ PING_RETRY = 0.02  # s between link checks
 OMEGA_EXPRESS = False
 
 
-@dataclass
-class Clock:
-    """What the world has said about time: grants (lockstep) or t0 (realtime)."""
-
-    begun: bool = False  # lockstep: the run started (at tick 0) or we were told where to join
-    join: int = 0
-    granted: int = -1
-    t0: float | None = None
-    paused: bool = False
-    stop: bool = False
-
-
-class Waker(threading.Thread):
-    """Pokes the agent's own inbox (a session-local put) so its blocking wait returns: at every
-    tick time ``t0 + n T`` of the realtime clock (when ``t0`` is set), at an ``alarm``, and
-    when a signal arrives (``signal.set_wakeup_fd(waker.wfd)``)."""
-
-    def __init__(self, put: Callable[[], None], period: float):
-        super().__init__(daemon=True, name="waker")
-        self.put = put
-        self.period = period
-        self.t0: float | None = None  # the realtime clock's origin (wall s), None: no ticking
-        self.alarm: float | None = None
-        self.closed = False
-        self.rfd, self.wfd = os.pipe()
-        os.set_blocking(self.wfd, False)
-
-    def interrupt(self) -> None:
-        """Re-read t0 and the alarm now."""
-        os.write(self.wfd, b"\xff")
-
-    def close(self) -> None:
-        self.closed = True
-        self.interrupt()
-
-    def _deadline(self, now: float) -> float | None:
-        t0, alarm = self.t0, self.alarm
-        tick = None if t0 is None else t0 + (math.floor((now - t0) / self.period) + 1) * self.period
-        return min((d for d in (tick, alarm) if d is not None), default=None)
-
-    def run(self) -> None:
-        while not self.closed:
-            now = time.time()
-            deadline = self._deadline(now)
-            ready, _, _ = select.select([self.rfd], [], [], None if deadline is None else max(0.0, deadline - now))
-            if ready:
-                data = os.read(self.rfd, 64)
-                if data.strip(b"\xff") and not self.poke():  # a signal number: wake the main thread
-                    return
-                continue
-            while time.time() < deadline:  # never early: the main loop compares with the same clock
-                time.sleep(deadline - time.time())
-            if self.alarm is not None and time.time() >= self.alarm:
-                self.alarm = None
-            if not self.poke():
-                return
-
-    def poke(self) -> bool:
-        """Wake the main loop; False once the session is closed (the agent is exiting)."""
-        try:
-            self.put()
-        except zenoh.ZError:
-            return False
-        return True
-
-
 class Agent:
     def __init__(self, scenario: Scenario, vid: str, fleet: str, transport: Transport, clock: str = "realtime",
                  policy: str | None = None, duration: float | None = None, log: Callable[[str], None] | None = None,
                  rejoin: bool = False):
-        if clock not in CLOCKS:
-            raise ValueError(f"clock must be one of {CLOCKS}, got {clock!r}")
         self.scenario = scenario
         self.id = vid
         self.fleet = keys.check_fleet(fleet)
         self.transport = transport
-        self.clock_mode = clock
+        self.loop = pick(clock, scenario.rates.broadcast)  # the clock's strategy: chosen here, once
         self.rejoin = rejoin  # a restart: listeners that are not alive are not waited for
         self.listeners = listeners_of(scenario, vid)
         self.ids = list(scenario.ids)
@@ -205,18 +120,13 @@ class Agent:
         self.last_tick = total_ticks(scenario.duration if duration is None else duration, self.period)
         link = with_radio(scenario, link_emulator_for(scenario))  # [radio]: the channel under the link faults
         self.node: VehicleNode = build_node(scenario, vid, link, policy=policy, last_tick=self.last_tick)
-        if clock == "lockstep":  # scheduled faults land on their ticks; realtime hears of them by liveliness
-            for change in plan_roster(scenario.events, self.ids, self.period):
-                self.node.on_roster(change)
+        self.loop.plan(self)
         self.link_table: dict = scenario.link_table
         self.clock = Clock()
-        self.state_batch = STATE_BATCH[clock]
         self.rejected: Counter = Counter()  # by reason, every reject (the node's ω ones too, but "gone")
         self._commands_seen: set[int] = set()  # the world's run-time commands applied, by their seq
         self.commands_heard_again = 0  # replays of those (a catch-up said again): not applied twice
         self._rings: list[tuple[int, Any]] = []  # realtime: (neighbour, its ω subscription: a ring channel)
-        self._bucket: dict[int, tuple[float, float]] = {}  # realtime ω rate per neighbour: (tokens, when)
-        self._rate = RATE_MARGIN * scenario.rates.broadcast  # ω per s a neighbour may send
         self._logged: set[tuple[str, str]] = set()
         self._states: list[StateMsg] = []
         self._resend_until = 0.0  # lockstep, monotonic s: back from an outage, say recent messages again till then
@@ -250,16 +160,7 @@ class Agent:
         # the exact key each neighbour's ω arrives on (its listener set is known): no parsing
         self._omega_from = {keys.omega(f, self.ids[k], listeners_of(self.scenario, self.ids[k])): k
                             for k in self.node.neighbours}
-        if self.clock_mode == "lockstep":  # one FIFO for everything: a genuine message is never lost
-            self.inbox = s.declare_subscriber(keys.inbox(f, me), zenoh.handlers.FifoChannel(INBOX_CAPACITY))
-        else:
-            # Realtime: the world's one-chunk keys (ctl, contacts, wake) through the FIFO, each
-            # neighbour's ω through a ring of its own that Zenoh overwrites oldest first, so a
-            # flood on one key costs this process at most OMEGA_RING samples per drain, not one
-            # Python wake-up per message (the newest ω is the one that matters).
-            self.inbox = s.declare_subscriber(keys.inbox(f, me)[:-2] + "*", zenoh.handlers.FifoChannel(INBOX_CAPACITY))
-            self._rings = [(k, s.declare_subscriber(key, zenoh.handlers.RingChannel(OMEGA_RING)))
-                           for key, k in self._omega_from.items()]
+        self.inbox, self._rings = self.loop.subscribe(s, f, me, self._omega_from)
         # declared after the subscriptions, on the same session: whoever gets a reply holds them
         self.pinged = s.declare_queryable(keys.ping(f, me), lambda q: q.reply(keys.ping(f, me), b""))
         # Block rather than drop under congestion: losses are the link emulator's job, and a
@@ -276,12 +177,10 @@ class Agent:
         # Ready: the subscription is in place and every listener can hear us. The token tells
         # the world and the launcher.
         self.token = s.liveliness().declare_token(keys.alive(f, me, str(s.zid())))
-        if self.clock_mode == "lockstep":  # the world's token back: this session was cut off (an outage)
-            self._world_seen = s.liveliness().declare_subscriber(keys.alive_of(f, keys.WORLD), self._on_world_token,
-                                                                 history=True)
+        self._world_seen = self.loop.watch_world(s, f, self._on_world_token)
         spec = self.scenario.vehicle(me)
         self.log(f"ready: {spec.kind} on a {dict(spec.path)['family']} path, "
-                 f"neighbours {[self.ids[k] for k in self.node.neighbours]}, clock {self.clock_mode}")
+                 f"neighbours {[self.ids[k] for k in self.node.neighbours]}, clock {self.loop.name}")
 
     def _await_links(self) -> None:
         """Wait until every vehicle listening to this one can hear it.
@@ -337,35 +236,6 @@ class Agent:
             self._logged.add((sender, reason))
             self.log(f"rejected a message from {printable(sender, 64)!r}: {reason} (counted; logged once)")
 
-    def _horizon(self) -> int | None:
-        """The newest tick a genuine neighbour can have broadcast at, as this agent knows time:
-        lockstep, its grant (or join) plus :data:`LOCKSTEP_SEQ_MARGIN`; realtime, its wall-clock
-        tick plus :data:`REALTIME_SLACK` (from tick 0 while the start is not known)."""
-        clock = self.clock
-        if self.rejoin and not (clock.begun if self.clock_mode == "lockstep" else clock.t0 is not None):
-            return None  # a restart that does not know where the run is yet: the run's last tick bounds
-        if self.clock_mode == "lockstep":
-            return max(clock.granted, clock.join) + LOCKSTEP_SEQ_MARGIN
-        slack = math.ceil(REALTIME_SLACK / self.period)
-        if clock.t0 is None:
-            return slack
-        return max(0, math.floor((time.time() - clock.t0) / self.period)) + slack
-
-    def _over_rate(self, k: int) -> bool:
-        """Realtime: has neighbour ``k`` sent more than it can (a token bucket at RATE_MARGIN times
-        its broadcast rate, RATE_BURST deep)? Lockstep takes everything: a genuine message is
-        never dropped there, and a sender's ω is bounded by the grant window."""
-        if self.clock_mode != "realtime":
-            return False
-        now = time.monotonic()
-        tokens, last = self._bucket.get(k, (float(RATE_BURST), now))
-        tokens = min(float(RATE_BURST), tokens + (now - last) * self._rate)
-        if tokens < 1.0:
-            self._bucket[k] = (tokens, now)
-            return True
-        self._bucket[k] = (tokens - 1.0, now)
-        return False
-
     def _handle(self, sample: Any, now: float | None) -> None:
         """One sample from the inbox. ``now``: simulated arrival time (realtime) or None."""
         key = str(sample.key_expr)
@@ -385,18 +255,17 @@ class Agent:
 
     def _omega(self, k: int, sample: Any, now: float | None) -> None:
         """An ω sample on neighbour ``k``'s key (the inbox's, or its realtime ring's)."""
-        if self._over_rate(k):  # before decoding: a flood costs a lookup and a subtraction
+        if self.loop.over_rate(k):  # before decoding: a flood costs a lookup and a subtraction
             return self._reject(self.ids[k], "rate")
         msg = decode_omega(sample.payload.to_bytes(), expected_sender=k, n_vehicles=len(self.ids))
         if isinstance(msg, str):
             return self._reject(self.ids[k], msg)
-        self.node.horizon = self._horizon()
+        self.node.horizon = self.loop.horizon(self.clock, self.period, self.rejoin)
         reason = self.node.on_message(msg, now)
         if reason is not None:
             self._reject(self.ids[k], reason)
-        elif k in self._bucket:  # only what is rejected spends a sender's budget
-            tokens, when = self._bucket[k]
-            self._bucket[k] = (min(float(RATE_BURST), tokens + 1.0), when)
+        else:
+            self.loop.refund(k)
 
     def _ctl_problem(self, op: str, f: dict) -> str | None:
         """What is out of range in a control message from the world (None: nothing): ticks within
@@ -471,9 +340,7 @@ class Agent:
         elif op == "pause":
             clock.paused = True
         elif op == "resume":
-            clock.paused = False
-            if self.clock_mode == "realtime":
-                clock.t0 = f["t0"]
+            self.loop.resume(clock, f["t0"])
         elif op == "link":
             self._update_link(f["link"], f["at"])
         elif op == "gains":
@@ -614,10 +481,7 @@ class Agent:
     def run(self) -> int:
         """Step to the last tick (or a stop). Returns the number of ticks stepped."""
         cpu0 = time.process_time()
-        if self.clock_mode == "lockstep":
-            self._run_lockstep()
-        else:
-            self._run_realtime()
+        self.loop.run(self)
         self.cpu_s = time.process_time() - cpu0  # every thread of the process, Zenoh's included
         self._await_stop()
         return self.ticks_done
@@ -631,7 +495,7 @@ class Agent:
         tel = out.telemetry
         self._states.append(StateMsg(self.index, n, tel.t, tuple(tel.q), tel.heading, tel.speed,
                                      tel.omega, tel.omega_rate, tel.path_error))
-        if len(self._states) >= self.state_batch or n >= self.last_tick:
+        if len(self._states) >= self.loop.state_batch or n >= self.last_tick:
             self.flush_states()
         self.ticks_done = n + 1
         now = time.monotonic()
@@ -639,124 +503,6 @@ class Agent:
         if now - self._last_stats > STATS_PERIOD or len(bursts.done) - bursts.reported >= BURSTS_PER_STATS // 2:
             self._last_stats = now
             self.publish_stats()
-
-    def _run_lockstep(self) -> None:
-        clock, node = self.clock, self.node
-        never: Callable[[], None] = lambda: None
-        while not clock.begun and not self._stopping():
-            self._recv(never)
-        if self._stopping():
-            return
-        n = clock.join
-        if n > 0:  # the run is under way: a restarted process
-            self._rejoin(n)
-        # the first tick stepped after a join or a resume is reported at once, not in a batch: the
-        # world says a caught-up process's catch-up again while it has reported nothing (what it
-        # would hear again after stepping past it is a replay that must not change the run)
-        report_next = True
-        waited_since = time.monotonic()
-        while n <= self.last_tick:
-            state, fresh = node.own_state_at(n)
-            if state != "live":  # paused (or gone) by the roster: skip to where it resumes
-                back = node.resume_tick(n)
-                if back is None:
-                    if self._states:  # its last rows: the world records (and carries out a kill) only with them
-                        self.flush_states()
-                    if self._stopping():
-                        return
-                    self._recv(never)
-                    continue
-                v = node.vehicle
-                node.rejoin(back, v.q, v.heading, v.omega)
-                self.log(f"paused from tick {n}; resuming at tick {back} where the vehicle was")
-                n = back
-                report_next = True
-                continue
-            stuck_since = time.monotonic()
-            while clock.granted < n or node.waiting_for(n) or self._samples_missing(n):
-                if self._stopping():
-                    return
-                if clock.granted < n and (self._states or self._stats_tick != self.ticks_done):
-                    self._report_rows()  # the world may be waiting for these rows to grant (or for a fault)
-                self._recv(never)
-                now_m = time.monotonic()
-                # back from an outage (the world's token came back), or granted and still waiting for
-                # ω after STUCK_RESEND s (an outage this session did not see as one: a frozen router
-                # that kept the leases): what was in flight may be lost, say it again
-                stuck = clock.granted >= n and now_m - stuck_since > STUCK_RESEND
-                if (now_m < self._resend_until or stuck) and now_m - self._resent_at >= RESEND_EVERY:
-                    self._resent_at = now_m
-                    self._resend()
-                if now_m - stuck_since > 0.5 and self.waker is not None and self.waker.alarm is None:
-                    # a long wait (rare): make sure the loop wakes to resend even if nothing arrives
-                    self.waker.alarm = time.time() + max(RESEND_EVERY, STUCK_RESEND - (now_m - stuck_since)) + 0.05
-                    self.waker.interrupt()
-                if time.monotonic() - waited_since > LOG_WAIT:
-                    waited_since = time.monotonic()
-                    missing = node.waiting_for(n)
-                    why = ("the world's grant" if clock.granted < n else f"ω from {[self.ids[k] for k in missing]}"
-                           if missing else "the world's samples (proximity contacts, radio geometry)")
-                    self.log(f"tick {n}: still waiting for {why}")
-            if self._stopping():
-                return
-            self._tick(n)
-            if report_next:
-                report_next = False
-                self.flush_states()
-            waited_since = time.monotonic()
-            n += 1
-
-    def _samples_missing(self, n: int) -> bool:
-        """Lockstep: does tick ``n`` need a sample of the world's that has not arrived? The proximity
-        sensor's contacts in force at n, the radio geometry in force at n - 1 (the messages
-        decided at n were sent before it). The world sends both before it grants that far, so
-        this never waits on the world for the tick at hand (docs/radio.md, "Integration")."""
-        node = self.node
-        return node.contacts_missing(n) or node.geometry_missing(n)
-
-    def _run_realtime(self) -> None:
-        clock, node, T = self.clock, self.node, self.period
-        assert self.waker is not None
-        never: Callable[[], None] = lambda: None
-        while clock.t0 is None and not self._stopping():
-            self._recv(never)
-        if self._stopping():
-            return
-        arrival = lambda: time.time() - clock.t0  # noqa: E731 (simulated time of arrival)
-        n = max(0, math.ceil((time.time() - clock.t0) / T))
-        if n > 0:  # the run is under way: a restarted process
-            self._rejoin(n)
-        while n <= self.last_tick:
-            if clock.paused:
-                while clock.paused and not self._stopping():
-                    self._recv(arrival)
-                continue
-            target = clock.t0 + n * T
-            # Sleep to the tick, then take what arrived: one wake-up per tick, not one per
-            # message (arrivals are stamped when taken, so within one period of the truth).
-            drained = False  # the drain after the last nap is the tick's: no second one at once
-            while (rest := target - time.time()) > 0 and not self._stopping() and not clock.paused:
-                time.sleep(min(rest, MAX_NAP))
-                self._drain(arrival)
-                drained = True
-            if self._stopping():
-                return
-            if clock.paused:
-                continue
-            if not drained:  # late: no nap before this tick
-                self._drain(arrival)
-            late = time.time() - target
-            if late > STALL_TICKS * T:  # frozen (SIGSTOP) or starved: skip to now, where we were
-                n = math.ceil((time.time() - clock.t0) / T)
-                v = node.vehicle
-                node.rejoin(n, v.q, v.heading, v.omega)
-                self.log(f"stalled for {late:.2f} s: resuming at tick {n} from where the vehicle was")
-                if n > self.last_tick:
-                    break
-            self._tick(n)
-            if time.time() > clock.t0 + (n + 1) * T:
-                self.missed_deadlines += 1
-            n += 1
 
     def _rejoin(self, tick: int) -> None:
         """Join a run under way at ``tick``: where the world last saw this vehicle, with ω near

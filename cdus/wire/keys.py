@@ -58,6 +58,12 @@ def inbox(fleet: str, me: str) -> str:
     return f"cdus/{fleet}/to/$*+{me}+$*/**"
 
 
+def inbox_leaves(fleet: str, me: str) -> str:
+    """The keys addressed to ``me`` that end right after the recipients (``ctl``, ``contacts``,
+    ``radio``, ``wake``): a realtime agent's FIFO, its neighbours' ω having rings of their own."""
+    return f"cdus/{fleet}/to/$*+{me}+$*/*"
+
+
 def omega(fleet: str, src: str, listeners: Iterable[str]) -> str:
     return f"cdus/{fleet}/to/{recipients(listeners)}/omega/{src}"
 

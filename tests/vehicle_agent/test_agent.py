@@ -20,6 +20,8 @@ from cdus.wire.transport import Transport
 from tests.fakes import Payload, Sample
 from vehicle_agent import agent as agent_module
 from vehicle_agent.agent import Agent
+from vehicle_agent import lockstep, realtime
+from vehicle_agent.waker import Waker
 
 FLEET = "tfake"
 ME = "usv1"  # listens to usv2 and uav3 on the lake ring
@@ -332,7 +334,7 @@ def test_stats_round_trip_and_send_only_new_latency_samples(fake):
 
 
 def test_the_waker_deadline_is_the_next_tick_or_the_alarm():
-    w = agent_module.Waker(lambda: None, 0.02)
+    w = Waker(lambda: None, 0.02)
     assert w._deadline(5.0) is None
     w.t0 = 1.0
     assert w._deadline(1.03) == pytest.approx(1.04)
@@ -410,12 +412,12 @@ def test_a_realtime_flood_on_one_key_is_cut_at_the_senders_rate_before_decoding(
     decoded = []
     real = agent_module.decode_omega
     monkeypatch.setattr(agent_module, "decode_omega", lambda *x, **kw: decoded.append(1) or real(*x, **kw))
-    for _ in range(10 * agent_module.RATE_BURST):
+    for _ in range(10 * realtime.RATE_BURST):
         omega_from(s, a, "usv2", 0)
     a._drain(lambda: 0.0)
-    assert len(decoded) <= agent_module.RATE_BURST + 5  # a few tokens refill while it drains
-    assert a.rejected["rate"] >= 9 * agent_module.RATE_BURST - 5
-    assert sum(a.rejected.values()) == 10 * agent_module.RATE_BURST - 1  # all but the first
+    assert len(decoded) <= realtime.RATE_BURST + 5  # a few tokens refill while it drains
+    assert a.rejected["rate"] >= 9 * realtime.RATE_BURST - 5
+    assert sum(a.rejected.values()) == 10 * realtime.RATE_BURST - 1  # all but the first
 
 
 # ------------------------------------------------------------------ properties (issue 15)
@@ -496,7 +498,7 @@ def test_hostile_samples_out_of_window_or_malformed_never_change_a_lockstep_agen
             w = data.draw(st.floats(allow_nan=False))
             n_hostile[0] += 1
             if how == "future":
-                q = data.draw(st.integers(5 + agent_module.LOCKSTEP_SEQ_MARGIN + 1, 2**32 - 1))
+                q = data.draw(st.integers(5 + lockstep.LOCKSTEP_SEQ_MARGIN + 1, 2**32 - 1))
                 forged(s, a, vid, q, q * a.period, w)
             elif how == "inconsistent":
                 forged(s, a, vid, seq, data.draw(st.floats().filter(lambda t: t != seq * a.period)), w)
@@ -520,7 +522,7 @@ def test_a_restarted_agent_takes_omega_from_a_run_under_way_before_it_knows_wher
     a._drain(lambda: None)
     assert not a.rejected and a.node.seen_seq[a.ids.index("usv2")] == 300
     b, s, lines = fake(duration=100.0)  # a first start: a tick beyond what anyone can have been granted
-    omega_from(s, b, "usv2", agent_module.LOCKSTEP_SEQ_MARGIN + 1)
+    omega_from(s, b, "usv2", lockstep.LOCKSTEP_SEQ_MARGIN + 1)
     b._drain(lambda: None)
     assert b.rejected == {"future": 1}
 
@@ -528,7 +530,7 @@ def test_a_restarted_agent_takes_omega_from_a_run_under_way_before_it_knows_wher
 def test_genuine_omega_does_not_spend_its_senders_rate_budget(fake):
     a, s, lines = fake(clock="realtime", duration=10.0)
     a.clock.t0 = time.time() - 5.0  # the run is at tick ~250
-    for seq in range(3 * agent_module.RATE_BURST):  # more genuine messages than the bucket holds
+    for seq in range(3 * realtime.RATE_BURST):  # more genuine messages than the bucket holds
         omega_from(s, a, "usv2", seq)
     a._drain(lambda: 5.0)
     assert not a.rejected

@@ -41,7 +41,7 @@ def test_a_geometry_sample_round_trips_and_is_what_tick_1_waits_for(agent):
     every, lag = node.radio.every, node.radio.lag
     assert not node.geometry_missing(every + lag)  # sent at every + lag - 1: still sample 0
     assert node.geometry_missing(every + lag + 1)  # sent at every + lag: sample `every` is in force
-    assert agent._samples_missing(every + lag + 1)
+    assert agent.loop.samples_missing(agent, every + lag + 1)
     assert agent.rejected == {}
 
 

@@ -80,3 +80,14 @@ def test_leaf_and_recipients_at_their_edges():
     assert keys.leaf("cdus/f/to/+w+/omega/usv1") == ("omega", "usv1")
     assert keys.leaf("cdus/f/to/+w+") == ("", "") and keys.leaf("cdus/f/alive/usv1/ab") == ("", "")
     assert keys.recipients([]) == "+" and keys.recipients(["a"]) == "+a+" and keys.recipients("ab") == "+a+b+"
+
+
+def test_inbox_leaves_takes_the_one_chunk_keys_addressed_to_me_and_no_omega():
+    """A realtime agent's FIFO (its neighbours' ω have rings of their own)."""
+    leaves = zenoh.KeyExpr(keys.inbox_leaves("f", "usv1"))
+    for key in (keys.ctl("f", ["usv2", "usv1"]), keys.contacts("f", "usv1"), keys.radio("f", ["usv1"]),
+                keys.wake("f", "usv1")):
+        assert leaves.intersects(zenoh.KeyExpr(key)), key
+    for key in (keys.omega("f", "usv2", ["usv1"]), keys.ctl("f", ["usv11"]), keys.ctl("g", ["usv1"]),
+                keys.state("f", "usv1")):
+        assert not leaves.intersects(zenoh.KeyExpr(key)), key
