@@ -33,43 +33,34 @@ sender is bounded: in realtime, ω beyond what a sender can send (its broadcast 
 
 from __future__ import annotations
 
-import math
-import os
 import random
-import select
 import signal
 import sys
-import threading
 import time
 from collections import Counter, deque
-from dataclasses import dataclass
 from typing import Any, Callable
 
 import zenoh
 
-from cdus.core.events import RosterChange, event_tick, plan_roster
 from cdus.core.link import burst_events
-from cdus.core.node import VehicleNode, gains_problem
+from cdus.core.node import VehicleNode
 from cdus.core.radiolink import as_point
 from cdus.core.vehicle import DivergedError
-from cdus.scenario.config import ConfigError, nesting_problem
 from cdus.scenario.model import Scenario
-from cdus.scenario.link import merge_link_tables, validate_link
-from cdus.scenario.events import check_path, check_phases
 from cdus.sim.build import build_node, link_emulator_for, link_faults_of, listeners_of, with_radio
-from cdus.sim.radio import apply_radio_change, radio_change_problem
 from cdus.sim.sensing import contacts_of
-from cdus.core.schedule import CLOCKS, total_ticks
-from cdus.sim.lockstep import GRANT_WINDOW, MAX_GRANT_WINDOW
+from cdus.core.schedule import total_ticks
+from cdus.sim.lockstep import MAX_GRANT_WINDOW
 from cdus.wire.text import printable
 from cdus.wire import keys
 from cdus.wire.messages import (
-    CTL_OPS, MAX_LINK_AT, MAX_STATE_ROWS, StateMsg, decode_contacts, decode_control, decode_geometry, decode_omega,
+    MAX_STATE_ROWS, StateMsg, decode_contacts, decode_geometry, decode_omega,
     decode_states, encode_omega, encode_states,
 )
 from cdus.wire.schemas import AgentStats, encode_stats
 from cdus.wire.transport import Transport, open_session
 from vehicle_agent.clocks import Clock, pick
+from vehicle_agent.control import Control
 from vehicle_agent.lockstep import LOG_WAIT
 from vehicle_agent.realtime import OMEGA_RING
 from vehicle_agent.waker import Waker
@@ -77,11 +68,8 @@ from vehicle_agent.waker import Waker
 STATS_PERIOD = 1.0  # s of wall time between counter reports
 BURSTS_PER_STATS = 100  # drop bursts one report carries; a report goes early once half as many wait
 END_WAIT = 10.0  # s to wait for the world's stop after the last tick
-T0_PAST = 86400.0  # s: a realtime t0 (start, resume) older than the run's duration plus this is not ours
-T0_AHEAD = 60.0  # s: ... nor one further in the future than this
 _KINDS = ("omega", "state", "stats", "ctl", "contacts", "cmd", "wake", "last")  # named in a reject reason
 MAX_LOGGED = 256  # (sender, reason) pairs logged; past that, rejects are only counted
-MAX_COMMAND_NESTING = 2  # a link or gains table nests its containers at most this deep (delay = {...})
 #: lockstep: when this session was cut off from the router (the world's liveliness token went and
 #: came back: a router frozen or restarted, a network cut), what was in flight may be lost and
 #: the fleet would wait for it: the agent says its newest ω and telemetry again (receivers take
@@ -121,11 +109,9 @@ class Agent:
         link = with_radio(scenario, link_emulator_for(scenario))  # [radio]: the channel under the link faults
         self.node: VehicleNode = build_node(scenario, vid, link, policy=policy, last_tick=self.last_tick)
         self.loop.plan(self)
-        self.link_table: dict = scenario.link_table
         self.clock = Clock()
+        self.control = Control(self)  # the world's control messages: clock, roster, run-time commands
         self.rejected: Counter = Counter()  # by reason, every reject (the node's ω ones too, but "gone")
-        self._commands_seen: set[int] = set()  # the world's run-time commands applied, by their seq
-        self.commands_heard_again = 0  # replays of those (a catch-up said again): not applied twice
         self._rings: list[tuple[int, Any]] = []  # realtime: (neighbour, its ω subscription: a ring channel)
         self._logged: set[tuple[str, str]] = set()
         self._states: list[StateMsg] = []
@@ -267,92 +253,15 @@ class Agent:
         else:
             self.loop.refund(k)
 
-    def _ctl_problem(self, op: str, f: dict) -> str | None:
-        """What is out of range in a control message from the world (None: nothing): ticks within
-        the run, a grant not past its last tick, a realtime t0 near now, a known roster vehicle."""
-        last = self.last_tick
-        if op == "grant" and not 0 <= f["until"] <= last:
-            return "grant_range"
-        if op == "join" and not 0 <= f["tick"] <= last:
-            return "join_range"
-        if op == "gains" and not 0 <= f["tick"] < 2**31:  # past the run's end it never applies: harmless
-            return "gains_range"
-        if op == "roster" and (f["vehicle"] not in self.ids or f["state"] not in ("live", "paused", "gone")
-                               or not 0 <= f["tick"] <= last + 1):
-            return "bad_roster"
-        if op in ("start", "resume"):
-            now = time.time()
-            if not now - T0_PAST - last * self.period <= f["t0"] <= now + T0_AHEAD:
-                return "t0_range"
-        # a radio command's own reason: radio_range is the geometry's (a coordinate or a tick out of range)
-        name = "radio_command" if op == "radio" else op
-        if op in ("link", "radio") and not 0.0 <= f["at"] <= MAX_LINK_AT:
-            return f"{name}_range"
-        if op in ("link", "gains", "radio") and nesting_problem(f[op], MAX_COMMAND_NESTING):
-            return f"{name}_range"
-        if op in ("formation", "path"):
-            return self._change_problem(op, f)
-        return None
-
-    def _change_problem(self, op: str, f: dict) -> str | None:
-        """A formation or path change's tick and shape (its contents: :meth:`_set_formation`,
-        :meth:`_set_path`)."""
-        if not 0 <= f["tick"] < 2**31:  # past the run's end it never applies: harmless
-            return f"{op}_range"
-        if nesting_problem(f[op if op == "path" else "phases"], MAX_COMMAND_NESTING):
-            return f"{op}_range"
-        if op == "path" and f["vehicle"] != self.id:
-            return "path_vehicle"  # the world sends a path to its vehicle only
-        return None
-
     def _on_ctl(self, payload: bytes) -> None:
-        c = decode_control(payload, CTL_OPS)
-        if isinstance(c, str):
-            return self._reject("world", c)
-        op, f = c.op, c.fields
-        problem = self._ctl_problem(op, f)
-        if problem is not None:
-            return self._reject("world", problem)
-        seq = f.get("seq")
-        if seq is not None:  # a numbered run-time command: once, however often it is heard
-            if seq in self._commands_seen:
-                self.commands_heard_again += 1
-                return None
-            # only a command applied uses its number: a refused one (counted) would else lock the
-            # world's own command with that number out (an open fleet: anyone may publish first)
-            refused = sum(self.rejected.values())
-            self._apply_ctl(op, f)
-            if sum(self.rejected.values()) == refused:
-                self._commands_seen.add(seq)
-            return None
-        self._apply_ctl(op, f)
-
-    def _apply_ctl(self, op: str, f: dict) -> None:
-        clock = self.clock
-        if op == "grant":
-            clock.granted = max(clock.granted, f["until"])
-        elif op == "join":
-            clock.begun, clock.join = True, f["tick"]
-        elif op == "start":
-            clock.t0 = f["t0"]
-        elif op == "roster":
-            self._on_roster(f)
-        elif op == "pause":
-            clock.paused = True
-        elif op == "resume":
-            self.loop.resume(clock, f["t0"])
-        elif op == "link":
-            self._update_link(f["link"], f["at"])
-        elif op == "gains":
-            self._set_gains(f["gains"], f["tick"])
-        elif op == "formation":
-            self._set_formation(f["phases"], f["tick"])
-        elif op == "path":
-            self._set_path(f["path"], f["tick"])
-        elif op == "radio":
-            self._update_radio(f["radio"], f["at"])
-        elif op == "stop":
-            clock.stop = True
+        """A control message from the world (vehicle_agent.control): a refusal counted by its reason."""
+        outcome = self.control.take(payload)
+        if outcome.reason is None:
+            return
+        if outcome.detail is None:
+            return self._reject("world", outcome.reason)
+        self.rejected[outcome.reason] += 1
+        self.log(printable(outcome.detail, 240))
 
     def _on_contacts(self, payload: bytes) -> None:
         """The world's proximity sensor: this vehicle's contacts of a sample tick (counted and
@@ -385,76 +294,6 @@ class Agent:
             same = held is not None and held.positions == tuple(None if q is None else as_point(q)
                                                                 for q in msg.positions)
             self._reject("world", "radio_stale" if same else "radio_conflict")
-
-    def _update_radio(self, change: dict, at: float) -> None:
-        """A run-time radio change (tx_power, station) for messages sent from ``at`` on."""
-        problem = "this scenario has no [radio] table" if self.node.radio is None else radio_change_problem(change)
-        if problem is None:
-            try:
-                apply_radio_change(self.node.radio.channel, change, at)
-            except ValueError as e:
-                problem = str(e)
-        if problem is not None:
-            self.rejected["bad_radio_command"] += 1
-            self.log(f"radio command rejected: {printable(problem, 200)}")
-            return
-        self.log(f"radio changed from t = {at:.2f} s: {printable(change, 200)}")
-
-    def _on_roster(self, f: dict) -> None:
-        j = self.ids.index(f["vehicle"])
-        news = self.node.on_roster(RosterChange(f["tick"], j, f["state"], f["fresh"]))
-        if news and j in self.node.neighbours:  # a catch-up said again is not logged again
-            self.log(f"neighbour {f['vehicle']} {f['state']} from tick {f['tick']}")
-
-    def _update_link(self, table: dict, at: float) -> None:
-        """Merge ``table`` over the current [link] table (sub-tables key by key: ``delay.jitter``
-        keeps ``delay.base``); it applies to messages sent from ``at`` on. A ``policy`` or
-        ``timeout`` in it changes the stale-neighbour policy from the first tick at or after ``at``."""
-        merged = merge_link_tables(self.link_table, table)
-        try:
-            spec = validate_link(merged, self.ids, "link command")
-            at = self.node.set_link(spec, at)
-            if "policy" in table or "timeout" in table:
-                self.node.set_policy(spec.policy, spec.timeout, event_tick(at, self.period))
-        except (ConfigError, ValueError) as e:
-            self.rejected["bad_link_command"] += 1
-            self.log(f"link command rejected: {e}")
-            return
-        self.link_table = merged
-        self.log(f"link faults changed from t = {at:.2f} s: {table}")
-
-    def _set_gains(self, gains: dict, tick: int) -> None:
-        v = self.node.vehicle
-        problem = gains_problem(gains, v.dim, **self.scenario.gain_context(self.id))  # as the world checked
-        if problem is not None:
-            self.rejected["bad_gains_command"] += 1
-            self.log(f"gains command rejected: {problem}")
-            return
-        k = gains.get("k", v.k)
-        k = tuple(float(x) for x in k) if isinstance(k, (list, tuple)) else (float(k),) * v.dim
-        c = float(gains.get("c", v.c))
-        self.node.set_gains(k, c, tick)
-        self.log(f"gains k = {tuple(k)}, c = {c} from tick {tick}")
-
-    def _set_formation(self, phases: dict, tick: int) -> None:
-        """New phases from ``tick`` (checked as the world and the config check them)."""
-        checked = check_phases(phases, self.ids)
-        if isinstance(checked, tuple):
-            self.rejected["bad_formation_command"] += 1
-            self.log(f"formation command rejected: {printable(' '.join(checked), 200)}")
-            return
-        self.node.set_formation({self.ids.index(vid): theta for vid, theta in checked.items()}, tick)
-        self.log(f"formation phases {printable(checked, 200)} from tick {tick}")
-
-    def _set_path(self, table: dict, tick: int) -> None:
-        """A new path for this vehicle from ``tick`` (checked as the config's paths are)."""
-        path = check_path(table, self.node.vehicle.dim)
-        if isinstance(path, tuple):
-            self.rejected["bad_path_command"] += 1
-            self.log(f"path command rejected: {printable(' '.join(path), 200)}")
-            return
-        self.node.set_path(path, tick)
-        self.log(f"path {printable(table, 200)} from tick {tick}")
 
     def _recv(self, now: Callable[[], float | None]) -> None:
         """Block for the next sample, then take everything else that is waiting."""

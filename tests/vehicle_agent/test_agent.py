@@ -238,11 +238,11 @@ def test_a_relayed_link_delay_past_its_bound_is_counted_and_dropped(fake):
     cdus.core.schedule.needed_seq (OverflowError). The agent checks what the world relays with the
     same bounds (cdus.wire.bounds): counted by reason, dropped, the link as it was."""
     a, s, lines = fake()
-    table = dict(a.link_table)
+    table = dict(a.control.link_table)
     for bad in ({"delay": {"base": 1e308}}, {"delay": {"jitter": 1e308}}, {"timeout": 1e308}):
         ctl(s, "link", link=bad, at=1.0)
     a._drain(lambda: None)
-    assert a.rejected["bad_link_command"] == 3 and a.link_table == table
+    assert a.rejected["bad_link_command"] == 3 and a.control.link_table == table
     assert any("link command rejected" in ln and "link.delay.base" in ln for ln in lines)
 
 
@@ -252,7 +252,7 @@ def test_gains_and_link_commands_apply(fake):
     ctl(s, "link", link={"loss": 0.5}, at=1.0)
     a._drain(lambda: None)
     assert not a.rejected
-    assert a.link_table["loss"] == 0.5
+    assert a.control.link_table["loss"] == 0.5
     assert any("gains k = (2.0, 2.0), c = 3.0 from tick 4" in ln for ln in lines)
 
 
@@ -263,7 +263,7 @@ def test_a_link_command_merges_sub_tables_and_switches_the_stale_policy_at_its_t
     ctl(s, "link", link={"policy": "extrapolate"}, at=1.0)
     a._drain(lambda: None)
     assert not a.rejected
-    assert a.link_table["delay"] == {"base": 0.2, "jitter": 0.001}
+    assert a.control.link_table["delay"] == {"base": 0.2, "jitter": 0.001}
     assert a.node.link.epochs[-1][1].delay.base == 0.2
     table = a.node.table
     assert table.policy == "hold"  # from tick 50 (t = 1.0 s at 50 Hz) on
@@ -285,16 +285,16 @@ def test_a_numbered_command_heard_again_is_applied_once(fake):
     ctl(s, "link", link={"loss": 0.1, "delay": {"base": 0.2}}, at=1.0, seq=0)  # the replay, in order
     ctl(s, "gains", gains={"c": 3.0}, tick=4, seq=2)
     a._drain(lambda: None)
-    assert a.link_table["loss"] == 0.3 and list(a.node.link.epochs) == epochs and not a.rejected
-    assert a.commands_heard_again == 1 and sum("gains" in ln for ln in lines) == 1
+    assert a.control.link_table["loss"] == 0.3 and list(a.node.link.epochs) == epochs and not a.rejected
+    assert a.control.heard_again == 1 and sum("gains" in ln for ln in lines) == 1
     ctl(s, "link", link={"loss": 0.1}, at=1.0, seq=1)  # heard again, whatever it says: once
     ctl(s, "gains", gains={"c": 3.0}, tick=4, seq=2)
     a._drain(lambda: None)
-    assert a.link_table["loss"] == 0.3 and a.commands_heard_again == 3
+    assert a.control.link_table["loss"] == 0.3 and a.control.heard_again == 3
     ctl(s, "link", link={"loss": 0.2}, at=3.0)  # without a number (an older world): applied as ever
     ctl(s, "link", link={"loss": 0.25}, at=3.0, seq=True)  # not a number: refused, counted
     a._drain(lambda: None)
-    assert a.link_table["loss"] == 0.2 and a.rejected["seq"] == 1
+    assert a.control.link_table["loss"] == 0.2 and a.rejected["seq"] == 1
 
 
 def test_a_link_command_without_a_policy_keeps_the_one_the_agent_runs(fake):
@@ -399,11 +399,11 @@ def test_a_conflicting_replay_is_counted(fake):
 ])
 def test_control_fields_out_of_range_are_counted_and_dropped(fake, op, fields, reason):
     a, s, lines = fake(duration=0.1)
-    before = (a.clock.granted, a.clock.join, a.clock.t0, dict(a.link_table))
+    before = (a.clock.granted, a.clock.join, a.clock.t0, dict(a.control.link_table))
     ctl(s, op, **fields)
     a._drain(lambda: None)
     assert a.rejected == {reason: 1}
-    assert (a.clock.granted, a.clock.join, a.clock.t0, dict(a.link_table)) == before
+    assert (a.clock.granted, a.clock.join, a.clock.t0, dict(a.control.link_table)) == before
     assert not a.node._gains
 
 

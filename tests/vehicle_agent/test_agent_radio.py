@@ -161,7 +161,7 @@ def test_a_refused_numbered_radio_command_does_not_use_up_its_number(agent):
     agent._on_ctl(encode_control("radio", radio={"tx_power": 9.0}, at=6.0, seq=1))  # heard again: once
     assert [e[:2] for e in agent.node.radio.channel.epochs] == [(-math.inf, 24.0), (3.0, 5.0), (4.0, 7.0),
                                                                 (5.0, 8.0)]
-    assert agent.commands_heard_again == 1 and agent.rejected == {"bad_radio_command": 2}
+    assert agent.control.heard_again == 1 and agent.rejected == {"bad_radio_command": 2}
 
 
 anything = st.recursive(st.none() | st.booleans() | floats | st.text(max_size=4),
