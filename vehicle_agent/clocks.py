@@ -12,6 +12,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from cdus.core.schedule import CLOCKS
+from vehicle_agent.lockstep import Lockstep
+from vehicle_agent.realtime import Realtime
+
+#: each clock's strategy by its name (cdus.core.schedule.CLOCKS)
+STRATEGIES: dict[str, type[Lockstep] | type[Realtime]] = {"lockstep": Lockstep, "realtime": Realtime}
+assert tuple(STRATEGIES) == CLOCKS
 
 
 @dataclass
@@ -26,12 +32,9 @@ class Clock:
     stop: bool = False
 
 
-def pick(name: str, rate: float):
-    """The strategy of clock ``name`` (one of cdus.core.schedule.CLOCKS); ``rate``: the ω per s a
-    neighbour may send (realtime's rate limit)."""
-    from vehicle_agent.lockstep import Lockstep
-    from vehicle_agent.realtime import Realtime
-
-    if name not in CLOCKS:
+def pick(name: str, rate: float) -> Lockstep | Realtime:
+    """The strategy of clock ``name`` (one of cdus.core.schedule.CLOCKS); ``rate``: the broadcast
+    rate, ω per s, a neighbour sends (realtime's rate limit)."""
+    if name not in STRATEGIES:
         raise ValueError(f"clock must be one of {CLOCKS}, got {name!r}")
-    return Lockstep() if name == "lockstep" else Realtime(rate)
+    return STRATEGIES[name](rate)

@@ -15,6 +15,8 @@ import zenoh
 from cdus.core.events import plan_roster
 from cdus.sim.lockstep import GRANT_WINDOW, MAX_GRANT_WINDOW
 from cdus.wire import keys
+from vehicle_agent.outage import RESEND_EVERY
+from vehicle_agent.rejoin import rejoin
 
 if TYPE_CHECKING:
     from vehicle_agent.agent import Agent
@@ -33,7 +35,6 @@ LOCKSTEP_SEQ_MARGIN = 2 * MAX_GRANT_WINDOW
 #: again every RESEND_EVERY s (receivers drop copies as stale): a router frozen for seconds can lose
 #: messages in flight without any session seeing the world's token go and come back
 STUCK_RESEND = 2.0
-RESEND_EVERY = 1.0
 LOG_WAIT = 5.0  # s of waiting before saying what for
 
 
@@ -42,6 +43,9 @@ class Lockstep:
 
     name = "lockstep"
     state_batch = STATE_BATCH
+
+    def __init__(self, rate: float):
+        """``rate`` (a neighbour's broadcast rate) bounds nothing here: every message is taken."""
 
     def plan(self, agent: Agent) -> None:
         """Scheduled faults land on their ticks (realtime hears of them by liveliness)."""
@@ -76,14 +80,13 @@ class Lockstep:
 
     def run(self, agent: Agent) -> None:
         clock, node = agent.clock, agent.node
-        never: Callable[[], None] = lambda: None
-        while not clock.begun and not agent._stopping():
-            agent._recv(never)
-        if agent._stopping():
+        while not clock.begun and not agent.stopping():
+            agent.wait()
+        if agent.stopping():
             return
         n = clock.join
         if n > 0:  # the run is under way: a restarted process
-            agent._rejoin(n)
+            rejoin(agent, n)
         # the first tick stepped after a join or a resume is reported at once, not in a batch: the
         # world says a caught-up process's catch-up again while it has reported nothing (what it
         # would hear again after stepping past it is a replay that must not change the run)
@@ -94,11 +97,11 @@ class Lockstep:
             if state != "live":  # paused (or gone) by the roster: skip to where it resumes
                 back = node.resume_tick(n)
                 if back is None:
-                    if agent._states:  # its last rows: the world records (and carries out a kill) only with them
-                        agent.flush_states()
-                    if agent._stopping():
+                    if agent.report.states:  # its last rows: the world records (and carries out a kill) only with them
+                        agent.report.flush()
+                    if agent.stopping():
                         return
-                    agent._recv(never)
+                    agent.wait()
                     continue
                 v = node.vehicle
                 node.rejoin(back, v.q, v.heading, v.omega)
@@ -108,19 +111,18 @@ class Lockstep:
                 continue
             stuck_since = time.monotonic()
             while clock.granted < n or node.waiting_for(n) or self.samples_missing(agent, n):
-                if agent._stopping():
+                if agent.stopping():
                     return
-                if clock.granted < n and (agent._states or agent._stats_tick != agent.ticks_done):
-                    agent._report_rows()  # the world may be waiting for these rows to grant (or for a fault)
-                agent._recv(never)
+                if clock.granted < n and agent.report.behind():
+                    agent.report.catch_up()  # the world may be waiting for these rows to grant (or for a fault)
+                agent.wait()
                 now_m = time.monotonic()
                 # back from an outage (the world's token came back), or granted and still waiting for
                 # ω after STUCK_RESEND s (an outage this session did not see as one: a frozen router
                 # that kept the leases): what was in flight may be lost, say it again
                 stuck = clock.granted >= n and now_m - stuck_since > STUCK_RESEND
-                if (now_m < agent._resend_until or stuck) and now_m - agent._resent_at >= RESEND_EVERY:
-                    agent._resent_at = now_m
-                    agent._resend()
+                if agent.outage.resend_due(now_m, stuck):
+                    agent.report.resend()
                 if now_m - stuck_since > 0.5 and agent.waker is not None and agent.waker.alarm is None:
                     # a long wait (rare): make sure the loop wakes to resend even if nothing arrives
                     agent.waker.alarm = time.time() + max(RESEND_EVERY, STUCK_RESEND - (now_m - stuck_since)) + 0.05
@@ -131,12 +133,12 @@ class Lockstep:
                     why = ("the world's grant" if clock.granted < n else f"ω from {[agent.ids[k] for k in missing]}"
                            if missing else "the world's samples (proximity contacts, radio geometry)")
                     agent.log(f"tick {n}: still waiting for {why}")
-            if agent._stopping():
+            if agent.stopping():
                 return
-            agent._tick(n)
+            agent.step(n)
             if report_next:
                 report_next = False
-                agent.flush_states()
+                agent.report.flush()
             waited_since = time.monotonic()
             n += 1
 

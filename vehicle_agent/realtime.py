@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any, Callable
 import zenoh
 
 from cdus.wire import keys
+from vehicle_agent.rejoin import rejoin
 
 if TYPE_CHECKING:
     from vehicle_agent.agent import Agent
@@ -90,34 +91,33 @@ class Realtime:
 
     def run(self, agent: Agent) -> None:
         clock, node, T = agent.clock, agent.node, agent.period
-        never: Callable[[], None] = lambda: None
-        while clock.t0 is None and not agent._stopping():
-            agent._recv(never)
-        if agent._stopping():
+        while clock.t0 is None and not agent.stopping():
+            agent.wait()
+        if agent.stopping():
             return
         arrival = lambda: time.time() - clock.t0  # noqa: E731 (simulated time of arrival)
         n = max(0, math.ceil((time.time() - clock.t0) / T))
         if n > 0:  # the run is under way: a restarted process
-            agent._rejoin(n)
+            rejoin(agent, n)
         while n <= agent.last_tick:
             if clock.paused:
-                while clock.paused and not agent._stopping():
-                    agent._recv(arrival)
+                while clock.paused and not agent.stopping():
+                    agent.wait(arrival)
                 continue
             target = clock.t0 + n * T
             # Sleep to the tick, then take what arrived: one wake-up per tick, not one per
             # message (arrivals are stamped when taken, so within one period of the truth).
             drained = False  # the drain after the last nap is the tick's: no second one at once
-            while (rest := target - time.time()) > 0 and not agent._stopping() and not clock.paused:
+            while (rest := target - time.time()) > 0 and not agent.stopping() and not clock.paused:
                 time.sleep(min(rest, MAX_NAP))
-                agent._drain(arrival)
+                agent.drain(arrival)
                 drained = True
-            if agent._stopping():
+            if agent.stopping():
                 return
             if clock.paused:
                 continue
             if not drained:  # late: no nap before this tick
-                agent._drain(arrival)
+                agent.drain(arrival)
             late = time.time() - target
             if late > STALL_TICKS * T:  # frozen (SIGSTOP) or starved: skip to now, where we were
                 n = math.ceil((time.time() - clock.t0) / T)
@@ -126,7 +126,7 @@ class Realtime:
                 agent.log(f"stalled for {late:.2f} s: resuming at tick {n} from where the vehicle was")
                 if n > agent.last_tick:
                     break
-            agent._tick(n)
+            agent.step(n)
             if time.time() > clock.t0 + (n + 1) * T:
                 agent.missed_deadlines += 1
             n += 1

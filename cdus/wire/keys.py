@@ -185,6 +185,15 @@ def leaf(key: str) -> tuple[str, str]:
     return "", ""
 
 
+def leaf_kind(key: str) -> str:
+    """The kind of an addressed key that ends with it, exactly ``cdus/<fleet>/to/<set>/<kind>``
+    (:func:`ctl`, :func:`contacts`, :func:`radio`, :func:`wake`, :func:`ping`, :func:`launcher_cmd`):
+    ``.../to/+usv1+/ctl`` -> "ctl"; "" for any other key (one with a source after its kind, or
+    more or fewer chunks)."""
+    parts = key.split("/")
+    return parts[4] if len(parts) == 5 and parts[0] == "cdus" and parts[2] == "to" else ""
+
+
 def alive_token(key: str) -> tuple[str, str] | None:
     """(name, zid) of a token exactly as :func:`alive` makes it, ``cdus/<fleet>/alive/<name>/<zid>``;
     None for any other key a liveliness watch can deliver: a token declared on a key expression

@@ -20,7 +20,7 @@ from cdus.wire.transport import Transport
 from tests.fakes import Payload, Sample
 from vehicle_agent import agent as agent_module
 from vehicle_agent.agent import Agent
-from vehicle_agent import lockstep, realtime
+from vehicle_agent import intake as intake_module, lockstep, realtime
 from vehicle_agent.waker import Waker
 
 FLEET = "tfake"
@@ -209,7 +209,7 @@ def test_malformed_omega_is_counted_and_logged_once_per_sender_and_reason(fake):
     for _ in range(3):
         omega_from(s, a, "usv2", 0, payload=b"\xc1garbage")
     omega_from(s, a, "uav3", 0, payload=msgpack.packb([1, 1, 0, 0.0, 1.0, -1.0]))  # usv2's index on uav3's key
-    a._drain(lambda: None)
+    a.drain()
     assert sum(a.rejected.values()) == 4
     assert len([ln for ln in lines if "rejected a message from 'usv2'" in ln]) == 1
     assert len([ln for ln in lines if "rejected a message from 'uav3'" in ln]) == 1
@@ -224,7 +224,7 @@ def test_unexpected_keys_and_bad_commands_are_rejected_not_raised(fake):
     ctl(s, "gains", gains={"k": "big"}, tick=3)
     ctl(s, "link", link={"loss": 2.0}, at=1.0)
     s.inbox.q.append(Sample(keys.ctl(FLEET, [ME]), Payload(b"\x93\x01")))  # not a control map
-    a._drain(lambda: None)
+    a.drain()
     assert a.rejected["unexpected_state"] == 1
     assert a.rejected["bad_roster"] == 2
     assert a.rejected["bad_gains_command"] == 1
@@ -241,7 +241,7 @@ def test_a_relayed_link_delay_past_its_bound_is_counted_and_dropped(fake):
     table = dict(a.control.link_table)
     for bad in ({"delay": {"base": 1e308}}, {"delay": {"jitter": 1e308}}, {"timeout": 1e308}):
         ctl(s, "link", link=bad, at=1.0)
-    a._drain(lambda: None)
+    a.drain()
     assert a.rejected["bad_link_command"] == 3 and a.control.link_table == table
     assert any("link command rejected" in ln and "link.delay.base" in ln for ln in lines)
 
@@ -250,7 +250,7 @@ def test_gains_and_link_commands_apply(fake):
     a, s, lines = fake()
     ctl(s, "gains", gains={"k": 2.0, "c": 3.0}, tick=4)
     ctl(s, "link", link={"loss": 0.5}, at=1.0)
-    a._drain(lambda: None)
+    a.drain()
     assert not a.rejected
     assert a.control.link_table["loss"] == 0.5
     assert any("gains k = (2.0, 2.0), c = 3.0 from tick 4" in ln for ln in lines)
@@ -261,7 +261,7 @@ def test_a_link_command_merges_sub_tables_and_switches_the_stale_policy_at_its_t
     ctl(s, "link", link={"delay": {"base": 0.2}}, at=1.0)
     ctl(s, "link", link={"delay": {"jitter": 0.001}}, at=1.0)  # delay.base stays
     ctl(s, "link", link={"policy": "extrapolate"}, at=1.0)
-    a._drain(lambda: None)
+    a.drain()
     assert not a.rejected
     assert a.control.link_table["delay"] == {"base": 0.2, "jitter": 0.001}
     assert a.node.link.epochs[-1][1].delay.base == 0.2
@@ -280,20 +280,20 @@ def test_a_numbered_command_heard_again_is_applied_once(fake):
     a, s, lines = fake()
     ctl(s, "link", link={"loss": 0.1, "delay": {"base": 0.2}}, at=1.0, seq=0)
     ctl(s, "link", link={"loss": 0.3}, at=2.0, seq=1)
-    a._drain(lambda: None)
+    a.drain()
     epochs = list(a.node.link.epochs)
     ctl(s, "link", link={"loss": 0.1, "delay": {"base": 0.2}}, at=1.0, seq=0)  # the replay, in order
     ctl(s, "gains", gains={"c": 3.0}, tick=4, seq=2)
-    a._drain(lambda: None)
+    a.drain()
     assert a.control.link_table["loss"] == 0.3 and list(a.node.link.epochs) == epochs and not a.rejected
     assert a.control.heard_again == 1 and sum("gains" in ln for ln in lines) == 1
     ctl(s, "link", link={"loss": 0.1}, at=1.0, seq=1)  # heard again, whatever it says: once
     ctl(s, "gains", gains={"c": 3.0}, tick=4, seq=2)
-    a._drain(lambda: None)
+    a.drain()
     assert a.control.link_table["loss"] == 0.3 and a.control.heard_again == 3
     ctl(s, "link", link={"loss": 0.2}, at=3.0)  # without a number (an older world): applied as ever
     ctl(s, "link", link={"loss": 0.25}, at=3.0, seq=True)  # not a number: refused, counted
-    a._drain(lambda: None)
+    a.drain()
     assert a.control.link_table["loss"] == 0.2 and a.rejected["seq"] == 1
 
 
@@ -301,7 +301,7 @@ def test_a_link_command_without_a_policy_keeps_the_one_the_agent_runs(fake):
     a, s, lines = fake()
     a.node.table.policy = "timeout"  # as `--policy timeout` sets it
     ctl(s, "link", link={"loss": 0.1}, at=0.0)
-    a._drain(lambda: None)
+    a.drain()
     a.node.step(0)
     assert a.node.table.policy == "timeout"
 
@@ -311,11 +311,11 @@ def test_clock_messages_set_the_agents_clock(fake):
     t0 = time.time()
     ctl(s, "start", t0=t0)
     ctl(s, "pause")
-    a._drain(lambda: None)
+    a.drain()
     assert a.clock.t0 == t0 and a.clock.paused
     ctl(s, "resume", t0=t0 + 5.0)
     ctl(s, "stop")
-    a._drain(lambda: None)
+    a.drain()
     assert a.clock.t0 == t0 + 5.0 and not a.clock.paused and a.clock.stop
 
 
@@ -382,7 +382,7 @@ def test_a_conflicting_replay_is_counted(fake):
     ctl(s, "grant", until=5)
     omega_from(s, a, "usv2", 0)
     forged(s, a, "usv2", 0, 0.0, 1.5)
-    a._drain(lambda: None)
+    a.drain()
     assert a.rejected["conflict"] == 1 and a.stats().rejected == 1
 
 
@@ -401,7 +401,7 @@ def test_control_fields_out_of_range_are_counted_and_dropped(fake, op, fields, r
     a, s, lines = fake(duration=0.1)
     before = (a.clock.granted, a.clock.join, a.clock.t0, dict(a.control.link_table))
     ctl(s, op, **fields)
-    a._drain(lambda: None)
+    a.drain()
     assert a.rejected == {reason: 1}
     assert (a.clock.granted, a.clock.join, a.clock.t0, dict(a.control.link_table)) == before
     assert not a.node._gains
@@ -410,11 +410,11 @@ def test_control_fields_out_of_range_are_counted_and_dropped(fake, op, fields, r
 def test_a_realtime_flood_on_one_key_is_cut_at_the_senders_rate_before_decoding(fake, monkeypatch):
     a, s, lines = fake(clock="realtime", duration=0.1)
     decoded = []
-    real = agent_module.decode_omega
-    monkeypatch.setattr(agent_module, "decode_omega", lambda *x, **kw: decoded.append(1) or real(*x, **kw))
+    real = intake_module.decode_omega
+    monkeypatch.setattr(intake_module, "decode_omega", lambda *x, **kw: decoded.append(1) or real(*x, **kw))
     for _ in range(10 * realtime.RATE_BURST):
         omega_from(s, a, "usv2", 0)
-    a._drain(lambda: 0.0)
+    a.drain(lambda: 0.0)
     assert len(decoded) <= realtime.RATE_BURST + 5  # a few tokens refill while it drains
     assert a.rejected["rate"] >= 9 * realtime.RATE_BURST - 5
     assert sum(a.rejected.values()) == 10 * realtime.RATE_BURST - 1  # all but the first
@@ -453,19 +453,19 @@ def test_the_agents_handler_never_raises_and_counts_every_omega_it_does_not_take
             vid = data.draw(st.sampled_from(sorted(keyset)))
             before_seq, before_rej = dict(a.node.seen_seq), sum(a.rejected.values())
             before_in = len(a.node._inbox) + a.node._order  # a gap filled is taken without a newer seq
-            a._handle(Sample(keyset[vid], Payload(_payload(data, omegas))), 0.0 if clock == "realtime" else None)
+            a.feed(keyset[vid], _payload(data, omegas), 0.0 if clock == "realtime" else None)
             if a.node.seen_seq != before_seq or len(a.node._inbox) + a.node._order != before_in:
                 taken += 1
             else:
                 assert sum(a.rejected.values()) == before_rej + 1
                 rejected += 1
         elif kind == "ctl":
-            a._handle(Sample(keys.ctl(FLEET, [ME]), Payload(_payload(data, _CTL))), None)
+            a.feed(keys.ctl(FLEET, [ME]), _payload(data, _CTL), None)
         elif kind == "contacts":
-            a._handle(Sample(f"cdus/{FLEET}/to/+{ME}+/contacts", Payload(data.draw(st.binary(max_size=64)))), None)
+            a.feed(f"cdus/{FLEET}/to/+{ME}+/contacts", data.draw(st.binary(max_size=64)), None)
         else:
             key = data.draw(st.sampled_from([f"cdus/{FLEET}/to/+{ME}+/", f"cdus/{FLEET}/x", "a/b/to/c/\x1b[31m/z"]))
-            a._handle(Sample(key + data.draw(st.text(max_size=10)), Payload(b"")), None)
+            a.feed(key + data.draw(st.text(max_size=10)), b"", None)
     stats = a.stats()
     assert decode_stats(encode_stats(stats)) == stats
     assert all("\x1b" not in ln for ln in lines)
@@ -519,11 +519,11 @@ def test_a_restarted_agent_takes_omega_from_a_run_under_way_before_it_knows_wher
     a, s, lines = fake(duration=10.0)
     a.rejoin = True
     omega_from(s, a, "usv2", 300)  # far past any window of a process that has not joined yet
-    a._drain(lambda: None)
+    a.drain()
     assert not a.rejected and a.node.seen_seq[a.ids.index("usv2")] == 300
     b, s, lines = fake(duration=100.0)  # a first start: a tick beyond what anyone can have been granted
     omega_from(s, b, "usv2", lockstep.LOCKSTEP_SEQ_MARGIN + 1)
-    b._drain(lambda: None)
+    b.drain(lambda: None)
     assert b.rejected == {"future": 1}
 
 
@@ -532,14 +532,14 @@ def test_genuine_omega_does_not_spend_its_senders_rate_budget(fake):
     a.clock.t0 = time.time() - 5.0  # the run is at tick ~250
     for seq in range(3 * realtime.RATE_BURST):  # more genuine messages than the bucket holds
         omega_from(s, a, "usv2", seq)
-    a._drain(lambda: 5.0)
+    a.drain(lambda: 5.0)
     assert not a.rejected
 
 
 def test_gains_past_the_bound_for_the_rate_are_refused_by_the_agent_too(fake):
     a, s, lines = fake()
     ctl(s, "gains", gains={"k": 1e300}, tick=3)
-    a._drain(lambda: None)
+    a.drain()
     assert a.rejected["bad_gains_command"] == 1 and not a.node._gains
     assert any("too large" in ln for ln in lines)
 
@@ -551,11 +551,11 @@ def test_after_an_outage_an_agent_says_again_every_omega_its_lookahead_can_have_
     a, s, lines = fake(duration=2.0, **{"link.delay.base": 0.5})
     a.clock.begun, a.clock.granted = True, a.last_tick
     for n in range(40):
-        a._tick(n)
-    sent = list(a.pub_omega.puts)
-    a.pub_omega.puts.clear()
-    a._resend()
-    assert a.pub_omega.puts == sent  # all 40, in order
+        a.step(n)
+    sent = list(a.report.pub_omega.puts)
+    a.report.pub_omega.puts.clear()
+    a.report.resend()
+    assert a.report.pub_omega.puts == sent  # all 40, in order
 
 
 def test_after_an_outage_an_agent_says_again_the_telemetry_a_grant_window_can_hold(fake):
@@ -564,11 +564,11 @@ def test_after_an_outage_an_agent_says_again_the_telemetry_a_grant_window_can_ho
     a, s, lines = fake(duration=10.0)
     a.clock.begun, a.clock.granted = True, a.last_tick
     for n in range(300):
-        a._tick(n)
-    a.flush_states()
-    a.pub_state.puts.clear()
-    a._resend()
-    rows = [r for p in a.pub_state.puts for r in decode_states(p, len(a.ids))]
+        a.step(n)
+    a.report.flush()
+    a.report.pub_state.puts.clear()
+    a.report.resend()
+    rows = [r for p in a.report.pub_state.puts for r in decode_states(p, len(a.ids))]
     assert [r.tick for r in rows] == list(range(300))
 
 

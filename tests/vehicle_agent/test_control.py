@@ -59,5 +59,5 @@ def test_a_hostile_control_message_is_applied_or_refused_and_counted_once_from_i
     out = make().control.take(payload)
     assert out.applied == (out.reason is None and not out.again)
     b = make()
-    b._on_ctl(payload)  # the same message as the agent takes it: counted from its outcome alone
+    b.feed("cdus/tunit/to/+usv1+/ctl", payload)  # as the agent takes it: counted from its outcome alone
     assert b.rejected == ({} if out.reason is None else {out.reason: 1})

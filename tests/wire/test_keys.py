@@ -91,3 +91,14 @@ def test_inbox_leaves_takes_the_one_chunk_keys_addressed_to_me_and_no_omega():
     for key in (keys.omega("f", "usv2", ["usv1"]), keys.ctl("f", ["usv11"]), keys.ctl("g", ["usv1"]),
                 keys.state("f", "usv1")):
         assert not leaves.intersects(zenoh.KeyExpr(key)), key
+
+
+def test_leaf_kind_is_the_kind_of_a_key_that_ends_with_it_and_nothing_else():
+    assert keys.leaf_kind(keys.ctl("f", ["a", "b"])) == "ctl"
+    assert keys.leaf_kind(keys.contacts("f", "a")) == "contacts"
+    assert keys.leaf_kind(keys.radio("f", ["a"])) == "radio"
+    assert keys.leaf_kind(keys.wake("f", "a")) == "wake"
+    assert keys.leaf_kind(keys.ping("f", "a")) == "ping"
+    for key in (keys.omega("f", "a", ["b"]), keys.state("f", "a"), keys.world_status("f"), "cdus/f/to/+a+/x/ctl",
+                "cdus/f/to/+a+/ctl/", "x/f/to/+a+/ctl", "cdus/f/from/+a+/ctl", "ctl", "", "cdus/f/to/+a+"):
+        assert keys.leaf_kind(key) == "", key
