@@ -9,8 +9,7 @@ from hypothesis import HealthCheck, given, settings, strategies as st
 
 from cdus.wire import keys
 from cdus.wire.messages import encode_control
-from tests.fakes import Payload, Sample
-from tests.vehicle_agent.test_agent import FLEET, ME, ctl, fake  # noqa: F401 (the fixture)
+from tests.vehicle_agent.fake_session import FLEET, ME, ctl
 
 REASONS = {"formation_range", "path_range", "path_vehicle", "bad_formation_command", "bad_path_command", "type",
            "malformed", "oversized", "unknown_op", "version", "non_finite"}

@@ -7,7 +7,7 @@ import zenoh
 from hypothesis import HealthCheck, given, settings, strategies as hs
 
 from cdus.wire import keys
-from tests.vehicle_agent.test_agent import FLEET, Liveliness, fake  # noqa: F401 (the fixture)
+from tests.vehicle_agent.fake_session import FLEET, Liveliness
 from vehicle_agent.agent import WORLD_BACK
 
 W = keys.alive(FLEET, keys.WORLD, "e1")  # the world's token
