@@ -147,3 +147,13 @@ def forged(session: Session, a: Agent, vid: str, seq: int, t: float, omega: floa
     j = a.ids.index(vid)
     key = keys.omega(FLEET, vid, listeners_of(a.scenario, vid))
     session.inbox.q.append(Sample(key, Payload(encode_omega(OmegaMsg(j, seq, t, omega, rate)))))
+
+
+def granted(session: Session, a: Agent, until: int = 5, seqs: int = 5) -> None:
+    """The world's join at tick 0 and grant to ``until``, and both neighbours' broadcasts of
+    ticks 0 .. ``seqs`` - 1."""
+    ctl(session, "join", tick=0)
+    ctl(session, "grant", until=until)
+    for seq in range(seqs):
+        omega_from(session, a, "usv2", seq)
+        omega_from(session, a, "uav3", seq)

@@ -10,7 +10,7 @@ from cdus.sim.build import listeners_of
 from cdus.wire import keys
 from cdus.wire.messages import decode_omega, decode_states
 from cdus.wire.schemas import decode_stats
-from tests.vehicle_agent.fake_session import FLEET, ME, ctl, forged, omega_from, stop_when_idle
+from tests.vehicle_agent.fake_session import FLEET, ME, ctl, forged, granted, omega_from, stop_when_idle
 from vehicle_agent import lockstep
 
 
@@ -36,11 +36,7 @@ def test_a_lockstep_run_steps_each_granted_tick_once_its_neighbours_broadcasts_a
 
 def test_a_lockstep_agent_does_not_step_past_its_grant(fake):
     a, s, lines = fake(duration=0.1)
-    ctl(s, "join", tick=0)
-    ctl(s, "grant", until=2)
-    for seq in range(5):
-        omega_from(s, a, "usv2", seq)
-        omega_from(s, a, "uav3", seq)
+    granted(s, a, until=2)
     with pytest.raises(AssertionError, match="empty inbox"):
         a.run()  # it waits for a grant beyond tick 2 that never comes
     assert a.ticks_done == 3

@@ -5,16 +5,12 @@ from __future__ import annotations
 
 from cdus.wire.messages import decode_states
 from cdus.wire.schemas import decode_stats, encode_stats
-from tests.vehicle_agent.fake_session import ctl, omega_from, stop_when_idle
+from tests.vehicle_agent.fake_session import granted, stop_when_idle
 
 
 def test_stats_round_trip_and_send_only_new_latency_samples(fake):
     a, s, lines = fake(duration=0.1)
-    ctl(s, "join", tick=0)
-    ctl(s, "grant", until=5)
-    for seq in range(5):
-        omega_from(s, a, "usv2", seq)
-        omega_from(s, a, "uav3", seq)
+    granted(s, a, until=5)
     stop_when_idle(s)
     a.run()
     first = a.stats()
