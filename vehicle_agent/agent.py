@@ -107,7 +107,7 @@ class Agent:
         r.pub_state = s.declare_publisher(keys.state(f, me), congestion_control=block)
         r.pub_stats = s.declare_publisher(keys.stats(f, me), congestion_control=block)  # the last one is the metrics'
         wake = s.declare_publisher(keys.wake(f, me), allowed_destination=zenoh.Locality.SESSION_LOCAL)
-        self.waker = Waker(lambda: wake.put(b""), self.period)
+        self.waker = Waker(lambda: wake.put(b""))
         self.waker.start()
         self._await_links()
         # Ready: the subscription is in place and every listener can hear us. The token tells
