@@ -35,7 +35,7 @@ from _fleet import REPO, Launch, load_line, role
 from cdus.wire import keys
 from cdus.scenario.config import load_scenario
 from cdus.wire.transport import Transport, free_tcp_port, open_session
-from vehicle_agent.agent import STATE_BATCH
+from vehicle_agent.clocks import STRATEGIES
 from cdus.wire.messages import OmegaMsg, StateMsg, encode_omega, encode_states
 from cdus.core.schedule import broadcast_every, total_ticks
 
@@ -56,7 +56,7 @@ def position_bytes(seq: int = 5000) -> int:
 def state_bytes(sc, clock: str) -> float:
     """Mean telemetry payload per control tick of one vehicle (its batch / rows)."""
     per_tick = []
-    batch = STATE_BATCH[clock]
+    batch = STRATEGIES[clock].state_batch
     for v in sc.vehicles:
         q = tuple([1.234567] * v.dim)
         rows = [StateMsg(v.index, 5000 + r, 100.0 + r * 0.02, q, 1.2, 9.9, -100.0, -1.0, 0.01) for r in range(batch)]
@@ -168,8 +168,8 @@ def main() -> None:
           f"{p * rate * mean_lis:8.0f}")
     print(f"  positions / ω: {p / w:.2f}x the bytes ({p * rate * (1 + mean_lis) - w * rate * (1 + mean_lis):.0f} "
           f"B/s more per vehicle through the router)")
-    print(f"  {'telemetry to the world (state, batch ' + str(STATE_BATCH['realtime']) + ')':<46} "
-          f"{st * STATE_BATCH['realtime']:6.0f} {sc.rates.control / STATE_BATCH['realtime']:6g} "
+    print(f"  {'telemetry to the world (state, batch ' + str(STRATEGIES['realtime'].state_batch) + ')':<46} "
+          f"{st * STRATEGIES['realtime'].state_batch:6.0f} {sc.rates.control / STRATEGIES['realtime'].state_batch:6g} "
           f"{st * sc.rates.control:8.0f} {st * sc.rates.control:8.0f}  (to the world only)")
 
     with tempfile.TemporaryDirectory(prefix="cdus-bw-") as tmp:

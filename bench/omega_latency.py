@@ -17,7 +17,7 @@ half a period apart (the raw payload also carries its index, for the warm-up). T
 receiver is a real vehicle_agent Agent (vehicle 1) opened on the router, in lockstep
 (granted the whole run): its main thread blocks on the agent's inbox channel as the
 agent's lockstep loop does (a realtime agent takes ω once per tick, from per-neighbour
-rings: its latency is the tick's) and hands each sample to the agent's own `_handle`,
+rings: its latency is the tick's) and hands each sample to the agent's own `feed`,
 which decodes and validates it and gives it to the node, which takes it (genuine ω:
 nothing rejected, so the node's checks all run). The bench stamps when recv() returns
 and when the node has taken the message (a one-line wrapper), by seq, and joins them with
@@ -165,7 +165,7 @@ def run_receiver(args) -> int:
     agent.open()  # the agent's own inbox subscription, publishers and liveliness token
     on_message = agent.node.on_message
 
-    def timed_on_message(msg, arrival=None):  # what Agent._handle calls once the ω is decoded
+    def timed_on_message(msg, arrival=None):  # what Agent.feed calls once the ω is decoded
         reason = on_message(msg, arrival)
         t = time.time_ns()  # the node has taken it (or rejected it: counted below)
         if msg.seq >= WARMUP:
@@ -184,7 +184,7 @@ def run_receiver(args) -> int:
         while not done.is_set() and time.monotonic() < deadline:  # as the agent's main loop waits
             sample = agent.inbox.recv()
             woke[0] = time.time_ns()
-            agent._handle(sample, None)
+            agent.feed(str(sample.key_expr), sample.payload.to_bytes())
         rejected = dict(agent.rejected)
         token.undeclare()
         del subs

@@ -58,6 +58,12 @@ def inbox(fleet: str, me: str) -> str:
     return f"cdus/{fleet}/to/$*+{me}+$*/**"
 
 
+def inbox_leaves(fleet: str, me: str) -> str:
+    """The keys addressed to ``me`` that end right after the recipients (``ctl``, ``contacts``,
+    ``radio``, ``wake``): a realtime agent's FIFO, its neighbours' ω having rings of their own."""
+    return f"cdus/{fleet}/to/$*+{me}+$*/*"
+
+
 def omega(fleet: str, src: str, listeners: Iterable[str]) -> str:
     return f"cdus/{fleet}/to/{recipients(listeners)}/omega/{src}"
 
@@ -177,6 +183,15 @@ def leaf(key: str) -> tuple[str, str]:
     if len(parts) >= 5 and parts[2] == "to":
         return parts[4], parts[5] if len(parts) > 5 else ""
     return "", ""
+
+
+def leaf_kind(key: str) -> str:
+    """The kind of an addressed key that ends with it, exactly ``cdus/<fleet>/to/<set>/<kind>``
+    (:func:`ctl`, :func:`contacts`, :func:`radio`, :func:`wake`, :func:`ping`, :func:`launcher_cmd`):
+    ``.../to/+usv1+/ctl`` -> "ctl"; "" for any other key (one with a source after its kind, or
+    more or fewer chunks)."""
+    parts = key.split("/")
+    return parts[4] if len(parts) == 5 and parts[0] == "cdus" and parts[2] == "to" else ""
 
 
 def alive_token(key: str) -> tuple[str, str] | None:

@@ -80,3 +80,42 @@ def test_leaf_and_recipients_at_their_edges():
     assert keys.leaf("cdus/f/to/+w+/omega/usv1") == ("omega", "usv1")
     assert keys.leaf("cdus/f/to/+w+") == ("", "") and keys.leaf("cdus/f/alive/usv1/ab") == ("", "")
     assert keys.recipients([]) == "+" and keys.recipients(["a"]) == "+a+" and keys.recipients("ab") == "+a+b+"
+
+
+def test_inbox_leaves_takes_the_one_chunk_keys_addressed_to_me_and_no_omega():
+    """A realtime agent's FIFO (its neighbours' ω have rings of their own)."""
+    leaves = zenoh.KeyExpr(keys.inbox_leaves("f", "usv1"))
+    for key in (keys.ctl("f", ["usv2", "usv1"]), keys.contacts("f", "usv1"), keys.radio("f", ["usv1"]),
+                keys.wake("f", "usv1")):
+        assert leaves.intersects(zenoh.KeyExpr(key)), key
+    for key in (keys.omega("f", "usv2", ["usv1"]), keys.ctl("f", ["usv11"]), keys.ctl("g", ["usv1"]),
+                keys.state("f", "usv1")):
+        assert not leaves.intersects(zenoh.KeyExpr(key)), key
+
+
+def test_leaf_kind_is_the_kind_of_a_key_that_ends_with_it_and_nothing_else():
+    assert keys.leaf_kind(keys.ctl("f", ["a", "b"])) == "ctl"
+    assert keys.leaf_kind(keys.contacts("f", "a")) == "contacts"
+    assert keys.leaf_kind(keys.radio("f", ["a"])) == "radio"
+    assert keys.leaf_kind(keys.wake("f", "a")) == "wake"
+    assert keys.leaf_kind(keys.ping("f", "a")) == "ping"
+    for key in (keys.omega("f", "a", ["b"]), keys.state("f", "a"), keys.world_status("f"), "cdus/f/to/+a+/x/ctl",
+                "cdus/f/to/+a+/ctl/", "x/f/to/+a+/ctl", "cdus/f/from/+a+/ctl", "ctl", "", "cdus/f/to/+a+"):
+        assert keys.leaf_kind(key) == "", key
+
+
+from hypothesis import given, strategies as hs  # noqa: E402
+
+_chunk = hs.text(alphabet="ab+*$-_", max_size=4) | hs.sampled_from(["cdus", "to", "ctl", "omega", ""])
+_keys = hs.tuples(hs.sampled_from(["cdus", "x", ""]), _chunk, hs.sampled_from(["to", "alive", "x"]),
+                  hs.lists(_chunk, max_size=4)).map(lambda t: "/".join([t[0], t[1], t[2], *t[3]]))
+
+
+@given(_keys | hs.text(max_size=30))
+def test_leaf_kind_names_a_kind_only_for_a_key_of_exactly_that_shape(key):
+    kind = keys.leaf_kind(key)
+    parts = key.split("/")
+    if kind:
+        assert key == f"cdus/{parts[1]}/to/{parts[3]}/{kind}" and "/" not in kind
+    else:
+        assert len(parts) != 5 or parts[0] != "cdus" or parts[2] != "to" or parts[4] == ""

@@ -324,7 +324,7 @@ def test_any_radio_command_is_answered_and_a_relayed_one_is_what_every_vehicle_t
             return
         a = Agent(sc, "usv1", "tunit", Transport(), clock=clock, log=lambda s: None)
         for p in relayed:
-            a._on_ctl(p)
+            a.feed(f"cdus/tunit/to/+usv1+/ctl", p)
         assert a.rejected == {} and a.node.radio.channel.epochs == w.radio_watch.channel.epochs
 
     check()

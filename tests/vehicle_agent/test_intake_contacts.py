@@ -8,6 +8,8 @@ from cdus.wire.messages import ContactsMsg, encode_contacts
 from cdus.wire.transport import Transport
 from vehicle_agent.agent import Agent
 
+CONTACTS = "cdus/tunit/to/+usv_a1+/contacts"  # cdus.wire.keys.contacts
+
 
 @pytest.fixture
 def agent():
@@ -31,11 +33,11 @@ def agent():
     (msgpack.packb([1, 2**62, [[1, 0.5, [1.0, 2.0]]]]), "contacts_range"),  # past the run: never freed
 ])
 def test_a_malformed_contacts_message_is_counted_and_dropped(agent, payload, reason):
-    agent._on_contacts(payload)
+    agent.feed(CONTACTS, payload)
     assert agent.rejected == {reason: 1}
     assert agent.stats().rejected == 1
     assert agent.node.contacts_missing(1)  # nothing was taken: tick 1 still waits for tick 0's sample
-    agent._on_contacts(encode_contacts(ContactsMsg(0, ((1, 0.5, (1.0, 2.0)),))))
+    agent.feed(CONTACTS, encode_contacts(ContactsMsg(0, ((1, 0.5, (1.0, 2.0)),))))
     assert not agent.node.contacts_missing(1)
     (c,) = agent.node.contacts_at(1)
     assert (c.id, c.share, c.q) == ("usv_b1", 0.5, (1.0, 2.0))
@@ -46,9 +48,9 @@ def test_a_contact_of_the_wrong_dimension_does_not_stop_the_vehicle():
     """A forged (or buggy) 3-D contact for a boat is dropped; the boat steps on."""
     sc = load_scenario("configs/crossing_dynamic.toml")
     a = Agent(sc, "usv_a1", "tunit", Transport(), clock="lockstep", log=lambda s: None)
-    a._on_contacts(msgpack.packb([1, 0, [[1, 0.5, [1.0, 2.0, 3.0]]]]))
+    a.feed(CONTACTS, msgpack.packb([1, 0, [[1, 0.5, [1.0, 2.0, 3.0]]]]))
     assert a.rejected == {"contacts_dimension": 1}
-    a._on_contacts(encode_contacts(ContactsMsg(0, ((1, 0.5, (1.0, 2.0)),))))
+    a.feed(CONTACTS, encode_contacts(ContactsMsg(0, ((1, 0.5, (1.0, 2.0)),))))
     for n in range(3):
         a.node.step(n)
     assert a.node.tick == 3

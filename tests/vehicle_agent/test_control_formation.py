@@ -9,8 +9,7 @@ from hypothesis import HealthCheck, given, settings, strategies as st
 
 from cdus.wire import keys
 from cdus.wire.messages import encode_control
-from tests.fakes import Payload, Sample
-from tests.vehicle_agent.test_agent import FLEET, ME, ctl, fake  # noqa: F401 (the fixture)
+from tests.vehicle_agent.fake_session import FLEET, ME, ctl
 
 REASONS = {"formation_range", "path_range", "path_vehicle", "bad_formation_command", "bad_path_command", "type",
            "malformed", "oversized", "unknown_op", "version", "non_finite"}
@@ -20,7 +19,7 @@ def test_formation_and_path_commands_apply_from_their_tick(fake):
     a, s, lines = fake()
     ctl(s, "formation", phases={"usv2": 1.5, "uav3": -2.0}, tick=3)
     ctl(s, "path", vehicle=ME, path={"family": "circle", "center": [1.0, 2.0], "radius": 4.0}, tick=2)
-    a._drain(lambda: None)
+    a.drain()
     assert not a.rejected
     node = a.node
     now = node.formation.phases_at(3)
@@ -39,12 +38,12 @@ def test_bad_formation_and_path_commands_are_counted_by_reason(fake):
     ctl(s, "path", vehicle=ME, path={"family": "line", "origin": [0, 0], "heading": [0, 0]}, tick=1)
     ctl(s, "path", vehicle=ME, path={"family": "circle", "center": {"a": {"b": {"c": 1}}}, "radius": 1}, tick=1)
     ctl(s, "path", vehicle=ME, path={"family": 7}, tick=1)
-    a._drain(lambda: None)
+    a.drain()
     assert dict(a.rejected) == {"bad_formation_command": 2, "formation_range": 1, "path_vehicle": 1,
                                 "bad_path_command": 2, "path_range": 1}
     assert a.node.formation.ticks == () and not a.node._paths
     ctl(s, "path", vehicle=ME, path={"family": "circle", "center": [0, 0, 3], "radius": 1}, tick=1)
-    a._drain(lambda: None)
+    a.drain()
     assert len(a.node._paths) == 1  # a boat on a 3-D path follows its x, y, as in the config
 
 
@@ -76,7 +75,7 @@ def test_hostile_formation_and_path_fields_never_raise_and_every_reject_is_count
             payload = encode_control(op, **fields)
         except (OverflowError, TypeError, ValueError):
             continue
-        a._handle(Sample(keys.ctl(FLEET, [ME]), Payload(payload)), None)
+        a.feed(keys.ctl(FLEET, [ME]), payload, None)
         took = len(a.node._paths) > n_paths or len(a.node.formation.ticks) > n_formation
         assert took != (sum(a.rejected.values()) == before + 1)  # taken, or counted once
         applied += took

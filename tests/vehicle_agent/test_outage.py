@@ -7,7 +7,7 @@ import zenoh
 from hypothesis import HealthCheck, given, settings, strategies as hs
 
 from cdus.wire import keys
-from tests.vehicle_agent.test_agent import FLEET, Liveliness, fake  # noqa: F401 (the fixture)
+from tests.vehicle_agent.fake_session import FLEET, Liveliness
 from vehicle_agent.agent import WORLD_BACK
 
 W = keys.alive(FLEET, keys.WORLD, "e1")  # the world's token
@@ -22,7 +22,7 @@ class Token:
 def watch(a):
     """The agent's callback for the world's token, as declared in open()."""
     callback = next(cb for k, cb in reversed(Liveliness.callbacks) if k == keys.alive_of(FLEET, keys.WORLD))
-    return lambda k, up=True: (callback(Token(k, up)), a._drain(lambda: None))
+    return lambda k, up=True: (callback(Token(k, up)), a.drain())
 
 
 def test_a_wildcard_token_is_counted_and_never_taken_for_the_worlds_return(fake):
@@ -36,7 +36,7 @@ def test_a_wildcard_token_is_counted_and_never_taken_for_the_worlds_return(fake)
     hear(keys.alive(FLEET, keys.WORLD, "f0"))  # a second world while the world's is up
     hear(keys.alive(FLEET, keys.WORLD, "f0"), up=False)
     hear(keys.alive(FLEET, keys.WORLD, "f0"))
-    assert a._resend_until == 0.0
+    assert a.outage.resend_until == 0.0
     assert a.rejected == {"token_key": 6, "token_extra": 2}
     assert a.stats().rejected_by_reason == {"token_key": 6, "token_extra": 2}
 
@@ -48,12 +48,12 @@ def test_the_worlds_token_back_after_every_world_token_went_is_an_outage(fake):
     hear(keys.alive(FLEET, keys.WORLD, "f0"))
     hear(W, up=False)  # the forger's is still up: this session still hears the router
     hear(W)
-    assert a._resend_until == 0.0
+    assert a.outage.resend_until == 0.0
     hear(W, up=False)
     hear(keys.alive(FLEET, keys.WORLD, "f0"), up=False)  # every world token gone: cut off
     assert not any(WORLD_BACK in ln for ln in lines)
     hear(W)
-    assert a._resend_until > 0.0 and any(WORLD_BACK in ln for ln in lines)
+    assert a.outage.resend_until > 0.0 and any(WORLD_BACK in ln for ln in lines)
 
 
 junk = hs.one_of(hs.sampled_from([f"cdus/{FLEET}/alive/**", f"cdus/{FLEET}/alive/world", f"cdus/{FLEET}/alive/*/*",
@@ -70,4 +70,4 @@ def test_while_the_worlds_own_token_is_up_nothing_else_makes_the_agent_say_its_m
     hear(W)
     for key, up in news:
         hear(key, up)
-    assert a._resend_until == 0.0
+    assert a.outage.resend_until == 0.0

@@ -12,13 +12,13 @@ from hypothesis import strategies as st
 from cdus.scenario.config import load_scenario
 from cdus.wire.messages import GeometryMsg, decode_geometry, encode_control, encode_geometry
 from cdus.wire.transport import Transport
-from tests.fakes import Payload, Sample
 from vehicle_agent.agent import Agent
 
 SC = load_scenario("configs/range_out.toml")
 N = len(SC.ids)
 GOOD = GeometryMsg(0, ((50.0, 0.0, 30.0), (52.0, 0.0, 30.0), (57.0, 0.0, 30.0), None))
 KEY = "cdus/tunit/to/+uav1+uav2+uav3+uav4+/radio"
+CTL = "cdus/tunit/to/+uav1+uav2+uav3+uav4+/ctl"
 
 
 def make_agent(sc=SC, vid="uav1"):
@@ -35,13 +35,12 @@ def test_a_geometry_sample_round_trips_and_is_what_tick_1_waits_for(agent):
     node = agent.node
     assert not node.geometry_missing(0)  # tick 0 decides nothing
     assert node.geometry_missing(1)  # tick 1 decides what tick 0 sent: sample 0 is in force then
-    agent._omega_from = {}  # open() sets it (the ω keys): none here
-    agent._handle(Sample(KEY, Payload(encode_geometry(GOOD))), None)
+    agent.feed(KEY, encode_geometry(GOOD), None)
     assert not node.geometry_missing(1)
     every, lag = node.radio.every, node.radio.lag
     assert not node.geometry_missing(every + lag)  # sent at every + lag - 1: still sample 0
     assert node.geometry_missing(every + lag + 1)  # sent at every + lag: sample `every` is in force
-    assert agent._samples_missing(every + lag + 1)
+    assert agent.loop.samples_missing(agent, every + lag + 1)
     assert agent.rejected == {}
 
 
@@ -60,21 +59,21 @@ def test_a_geometry_sample_round_trips_and_is_what_tick_1_waits_for(agent):
     (encode_geometry(GeometryMsg(1, (None,) * N)), "radio_tick"),  # not a sample tick
 ], ids=lambda x: x if isinstance(x, str) else None)
 def test_a_malformed_geometry_sample_is_counted_and_dropped(agent, payload, reason):
-    agent._on_geometry(payload)
+    agent.feed(KEY, payload)
     assert agent.rejected == {reason: 1}
     assert agent.stats().rejected == 1
     assert agent.node.geometry_missing(1)  # nothing was taken
-    agent._on_geometry(encode_geometry(GOOD))
+    agent.feed(KEY, encode_geometry(GOOD))
     assert not agent.node.geometry_missing(1)
-    agent._on_geometry(encode_geometry(GOOD))  # said again (the world, to a joining process): the first stands
-    agent._on_geometry(encode_geometry(GeometryMsg(0, ((0.0, 0.0, 1.0),) * N)))  # a different one: someone else's
+    agent.feed(KEY, encode_geometry(GOOD))  # said again (the world, to a joining process): the first stands
+    agent.feed(KEY, encode_geometry(GeometryMsg(0, ((0.0, 0.0, 1.0),) * N)))  # a different one: someone else's
     assert agent.rejected == {reason: 1, "radio_stale": 1, "radio_conflict": 1}
     assert agent.node.radio.geometry_at(0).positions[0] == (50.0, 0.0, 30.0)
 
 
 def test_a_geometry_sample_without_radio_is_counted_and_dropped():
     a = make_agent(load_scenario("configs/crossing.toml"), "usv_a1")
-    a._on_geometry(encode_geometry(GeometryMsg(0, (None,) * 4)))
+    a.feed(KEY, encode_geometry(GeometryMsg(0, (None,) * 4)))
     assert a.rejected == {"radio_unexpected": 1}
     assert a.node.radio is None and not a.node.geometry_missing(5)
 
@@ -95,7 +94,7 @@ junk = st.recursive(st.none() | st.booleans() | floats | st.text(max_size=4) | s
 def test_hostile_geometry_never_raises_and_every_reject_is_counted(payload):
     a = make_agent()
     before = a.node.radio.newest
-    a._on_geometry(payload)
+    a.feed(KEY, payload)
     msg = decode_geometry(payload, N, [v.dim for v in SC.vehicles])
     taken = a.node.radio.newest != before
     if isinstance(msg, str):
@@ -112,7 +111,7 @@ def test_hostile_geometry_never_raises_and_every_reject_is_counted(payload):
     ({"station": "x"}, False), ({"power": 3}, False), ({}, False),
 ])
 def test_a_radio_command_applies_from_its_time_or_is_counted(agent, change, taken):
-    agent._on_ctl(encode_control("radio", radio=change, at=2.0))
+    agent.feed(CTL, encode_control("radio", radio=change, at=2.0))
     epochs = agent.node.radio.channel.epochs
     if taken:
         assert len(epochs) == 2 and epochs[1][0] == 2.0 and agent.rejected == {}
@@ -121,8 +120,8 @@ def test_a_radio_command_applies_from_its_time_or_is_counted(agent, change, take
 
 
 def test_a_radio_command_out_of_range_is_rejected_before_it_applies(agent):
-    agent._on_ctl(encode_control("radio", radio={"tx_power": 5.0}, at=-1.0))
-    agent._on_ctl(encode_control("radio", radio={"a": {"b": {"c": {}}}}, at=1.0))
+    agent.feed(CTL, encode_control("radio", radio={"tx_power": 5.0}, at=-1.0))
+    agent.feed(CTL, encode_control("radio", radio={"a": {"b": {"c": {}}}}, at=1.0))
     assert agent.rejected == {"radio_command_range": 2}  # not the geometry's radio_range: told apart
     assert len(agent.node.radio.channel.epochs) == 1
 
@@ -138,9 +137,9 @@ def test_a_second_sample_for_a_tick_never_replaces_the_first_and_is_a_conflict_u
     ``suspect`` event)."""
     a = make_agent()
     tick -= tick % a.node.radio.every
-    a._on_geometry(encode_geometry(GeometryMsg(tick, tuple(first))))
+    a.feed(KEY, encode_geometry(GeometryMsg(tick, tuple(first))))
     held = a.node.radio.held(tick)
-    a._on_geometry(encode_geometry(GeometryMsg(tick, tuple(second))))
+    a.feed(KEY, encode_geometry(GeometryMsg(tick, tuple(second))))
     assert a.node.radio.held(tick) is held
     same = [None if q is None else tuple(q) for q in first] == [None if q is None else tuple(q) for q in second]
     assert a.rejected == {"radio_stale" if same else "radio_conflict": 1}
@@ -152,16 +151,16 @@ def test_a_refused_numbered_radio_command_does_not_use_up_its_number(agent):
     before one in force) had its number taken all the same, so the world's own command with that
     number (on an open fleet anyone may publish on ctl first) was then dropped as heard again:
     one refused message locked the world's change out. Only a command applied uses its number."""
-    agent._on_ctl(encode_control("radio", radio={"tx_power": 1e9}, at=2.0, seq=0))  # refused: out of range
-    agent._on_ctl(encode_control("radio", radio={"tx_power": 5.0}, at=3.0, seq=1))
-    agent._on_ctl(encode_control("radio", radio={"tx_power": 6.0}, at=1.0, seq=2))  # refused: before t = 3
+    agent.feed(CTL, encode_control("radio", radio={"tx_power": 1e9}, at=2.0, seq=0))  # refused: out of range
+    agent.feed(CTL, encode_control("radio", radio={"tx_power": 5.0}, at=3.0, seq=1))
+    agent.feed(CTL, encode_control("radio", radio={"tx_power": 6.0}, at=1.0, seq=2))  # refused: before t = 3
     assert agent.rejected == {"bad_radio_command": 2}
-    agent._on_ctl(encode_control("radio", radio={"tx_power": 7.0}, at=4.0, seq=0))  # the world's
-    agent._on_ctl(encode_control("radio", radio={"tx_power": 8.0}, at=5.0, seq=2))
-    agent._on_ctl(encode_control("radio", radio={"tx_power": 9.0}, at=6.0, seq=1))  # heard again: once
+    agent.feed(CTL, encode_control("radio", radio={"tx_power": 7.0}, at=4.0, seq=0))  # the world's
+    agent.feed(CTL, encode_control("radio", radio={"tx_power": 8.0}, at=5.0, seq=2))
+    agent.feed(CTL, encode_control("radio", radio={"tx_power": 9.0}, at=6.0, seq=1))  # heard again: once
     assert [e[:2] for e in agent.node.radio.channel.epochs] == [(-math.inf, 24.0), (3.0, 5.0), (4.0, 7.0),
                                                                 (5.0, 8.0)]
-    assert agent.commands_heard_again == 1 and agent.rejected == {"bad_radio_command": 2}
+    assert agent.control.heard_again == 1 and agent.rejected == {"bad_radio_command": 2}
 
 
 anything = st.recursive(st.none() | st.booleans() | floats | st.text(max_size=4),
@@ -181,9 +180,9 @@ def test_a_hostile_radio_command_is_applied_or_counted_and_never_keeps_the_world
     fields = {"radio": change, "at": at, "seq": seq}
     if extra:
         fields["junk"] = 1
-    a._on_ctl(msgpack.packb({"v": 1, "op": "radio", **fields}))
+    a.feed(CTL, msgpack.packb({"v": 1, "op": "radio", **fields}))
     applied = len(a.node.radio.channel.epochs) == 2
     assert applied != (sum(a.rejected.values()) == 1), (a.rejected, a.node.radio.channel.epochs)
     if type(seq) is int and 0 <= seq < 2**53:
-        a._on_ctl(encode_control("radio", radio={"tx_power": 3.0}, at=1.0e6, seq=seq))
+        a.feed(CTL, encode_control("radio", radio={"tx_power": 3.0}, at=1.0e6, seq=seq))
         assert (a.node.radio.channel.epochs[-1][:2] == (1.0e6, 3.0)) != applied

@@ -1,0 +1,84 @@
+"""Was this session cut off from the world, and must the agent say its recent messages again?
+
+Lockstep only (the clock strategy declares the watch): when every world liveliness token went
+and one came back (a router frozen or restarted, a network cut), what was in flight may be lost
+and the fleet would wait for it, so the agent says its newest ω and telemetry again for
+:data:`RESEND_FOR` s (vehicle_agent.report). Only a token on exactly the world's key
+(``alive/world/<zid>``, cdus.wire.keys.alive_token) counts.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from typing import TYPE_CHECKING, Any
+
+import zenoh
+
+from cdus.wire import keys
+
+if TYPE_CHECKING:
+    from vehicle_agent.agent import Agent
+
+#: said again every RESEND_EVERY s while stuck, for RESEND_FOR s after the world's token came back:
+#: the token can arrive before the router knows the neighbours' subscriptions again, and what is
+#: said before that is lost too
+RESEND_EVERY = 1.0
+RESEND_FOR = 10.0
+WORLD_BACK = "the world's token is back after every world token went (an outage)"  # logged when taken
+
+
+class Outage:
+    """The world's tokens as this session sees them, and until when to say things again."""
+
+    def __init__(self, agent: Agent):
+        self.agent = agent
+        self.news: deque[tuple[str, bool]] = deque()  # the world's liveliness (Zenoh's thread -> main)
+        self.tokens: set[str] = set()  # the session ids of the world's tokens up
+        self.left = False  # every world token went (this session was cut off): their return is news
+        self.resend_until = 0.0  # monotonic s: back from an outage, say recent messages again till then
+        self.resent_at = 0.0
+
+    def on_token(self, sample: Any) -> None:
+        """Liveliness of the world as this session sees it (Zenoh's thread): handed to the main
+        thread (:meth:`take_news`), which a wake fetches."""
+        self.news.append((str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT))
+        self.agent.wake()
+
+    def take_news(self) -> None:
+        """The world's tokens coming back after every one of them went means this session was
+        cut off from the router and is back: the recent messages are said again (RESEND_FOR).
+        A token on a key expression that intersects the world's (``alive/**``, anyone's) is
+        counted (``token_key``) and ignored, and so is a second world token while one is up
+        (``token_extra``: its coming and going is no news of this session's link)."""
+        reject = self.agent.intake.reject
+        while self.news:
+            key, up = self.news.popleft()
+            token = keys.alive_token(key)
+            if token is None or token[0] != keys.WORLD:
+                if up:  # counted once, when it comes
+                    reject(key, "token_key")
+                continue
+            zid, tokens = token[1], self.tokens
+            if not up:
+                if zid in tokens:
+                    tokens.discard(zid)
+                    self.left |= not tokens
+                continue
+            if zid in tokens:
+                continue
+            if tokens:
+                reject(keys.WORLD, "token_extra")
+            elif self.left:
+                self.left = False
+                self.resend_until = time.monotonic() + RESEND_FOR
+                self.agent.log(f"{WORLD_BACK}: saying recent messages again for {RESEND_FOR:g} s")
+            tokens.add(zid)
+
+    def resend_due(self, now: float, stuck: bool) -> bool:
+        """Say the recent messages again now? Back from an outage (till ``resend_until``) or
+        ``stuck`` (granted and waiting too long), at most every RESEND_EVERY s (``now``: monotonic)."""
+        if (now < self.resend_until or stuck) and now - self.resent_at >= RESEND_EVERY:
+            self.resent_at = now
+            return True
+        return False
