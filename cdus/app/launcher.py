@@ -60,7 +60,10 @@ from cdus.sim.summary import run_metrics
 from cdus.sim.reports import ConsoleQuota
 from cdus.wire import keys
 from cdus.wire.access import ROS2_ROLE
+from cdus.commands.parse import parse_wire
+from cdus.commands.vehicle import Kill, PauseVehicle, Restart, ResumeVehicle, VehicleFault
 from cdus.wire.messages import CTL_OPS, LAUNCHER_OPS, decode_control, encode_control
+from cdus.wire.rejected import Rejected
 from cdus.wire.schemas import STATUS_KEY_ENV, FleetEvent, decode_event, decode_status, encode_event, signed_by
 from cdus.wire.text import printable
 from cdus.wire.transport import (
@@ -348,7 +351,7 @@ class Launcher:
         self.session = None
         self.stopping = False
         self.finished = False
-        self.requests: list[tuple[str, str]] = []  # scheduled faults asked for by the world
+        self.requests: list[VehicleFault] = []  # scheduled faults asked for by the world
         self.env = dict(os.environ)
         self.env["ZENOH_RUNTIME"] = children_runtime()  # the user's, else CHILD_RUNTIME (not the router's)
         self.env["PYTHONUNBUFFERED"] = "1"
@@ -448,18 +451,23 @@ class Launcher:
         """The world asks for a vehicle fault; the supervise loop carries it out. Only faults on
         the scenario's vehicles started here: never the world, an unknown or a remote id."""
         c = decode_control(sample.payload.to_bytes(), LAUNCHER_OPS)
-        if isinstance(c, str):
-            self._reject(f"command {c}", f"a malformed command on {printable(str(sample.key_expr))}")
+        fault = c if isinstance(c, str) else parse_wire(c.op, c.fields)
+        if isinstance(fault, Rejected) and fault.field == "vehicle":
+            self._reject("command not_a_vehicle", f"{c.op} {printable(c.fields['vehicle'], 64)}: not a vehicle id")
             return
-        vid = c.fields["vehicle"]
+        if isinstance(fault, (str, Rejected)):
+            self._reject(f"command {fault if isinstance(fault, str) else 'type'}",
+                         f"a malformed command on {printable(str(sample.key_expr))}")
+            return
+        vid, op = fault.vehicle, fault.NAMES.op
         if vid not in self.scenario.ids:
-            self._reject("command not_a_vehicle", f"{c.op} {printable(vid, 64)}: not a vehicle of the scenario")
+            self._reject("command not_a_vehicle", f"{op} {printable(vid, 64)}: not a vehicle of the scenario")
             return
         if vid not in self.children:
-            self._reject("command remote", f"{c.op} {printable(vid, 64)}: started on another host, not here")
+            self._reject("command remote", f"{op} {printable(vid, 64)}: started on another host, not here")
             return
         with self.cond:
-            self.requests.append((c.op, vid))
+            self.requests.append(fault)
             self.cond.notify_all()
 
     def _reject(self, reason: str, what: str) -> None:
@@ -469,18 +477,20 @@ class Launcher:
         if n == 1:
             self.log(f"  rejected: {what} ({reason}; further ones are only counted)")
 
-    def _carry_out(self, op: str, vid: str) -> None:
+    def _carry_out(self, fault: VehicleFault) -> None:
+        """A vehicle fault (cdus.commands.vehicle) on a process started here: a signal, or a new process."""
+        vid = fault.vehicle
         c = self.children[vid]
-        if op in ("kill", "restart"):
+        if isinstance(fault, (Kill, Restart)):
             c.restart_at = None  # the fault decides, not a pending restart by the policy
-        if op == "kill":
+        if isinstance(fault, Kill):
             c.intended_exit = True
             c.signal_group(signal.SIGKILL)
-        elif op == "pause_vehicle":
+        elif isinstance(fault, PauseVehicle):
             c.signal_group(signal.SIGSTOP)
-        elif op == "resume_vehicle":
+        elif isinstance(fault, ResumeVehicle):
             c.signal_group(signal.SIGCONT)
-        elif op == "restart":
+        elif isinstance(fault, Restart):
             if c.running():
                 c.intended_exit = True
                 c.signal_group(signal.SIGKILL)
@@ -488,7 +498,8 @@ class Launcher:
             c.poll()
             c.restarts += 1
             c.start(self.env)
-        self.log(f"  fault: {op.replace('_vehicle', '')} {vid}")
+        op = fault.NAMES.op
+        self.log(f"  fault: {fault.NAMES.event} {vid}")
         try:
             self.session.put(keys.world_cmd(self.fleet, keys.LAUNCHER), encode_control("fault_done", vehicle=vid))
         except zenoh.ZError as e:
@@ -634,8 +645,8 @@ class Launcher:
             self._print_events()
             with self.cond:
                 requests, self.requests = self.requests, []
-            for op, vid in requests:
-                self._carry_out(op, vid)
+            for fault in requests:
+                self._carry_out(fault)
             self._watch_agents()
             with self.cond:
                 if not self.requests:

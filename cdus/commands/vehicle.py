@@ -88,6 +88,7 @@ class Restart(_VehicleFault):
     FRESH: ClassVar[bool] = True
 
 
+VehicleFault = Kill | PauseVehicle | ResumeVehicle | Restart
 VEHICLE_FAULTS: tuple[type[_VehicleFault], ...] = (Kill, PauseVehicle, ResumeVehicle, Restart)
 #: the scenario's event actions for a vehicle's process (cdus.core.events.ACTIONS, in that order)
 FAULT_EVENTS = tuple(f.NAMES.event for f in VEHICLE_FAULTS)
