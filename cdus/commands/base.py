@@ -81,6 +81,11 @@ def when(fields: Mapping[str, Any], key: str = "at") -> float | None | Rejected:
     return None if v < 0 else float(v)
 
 
+def keyed_table(fields: Mapping[str, Any], allowed: tuple[str, ...], key: str, example: str) -> dict | Rejected:
+    """``fields[key]`` as a table, once no key of ``fields`` is outside ``allowed``."""
+    return unknown_keys(fields, allowed) or table(fields, key, example)
+
+
 def unknown_keys(fields: Mapping[str, Any], allowed: tuple[str, ...]) -> Rejected | None:
     """The first key of ``fields`` outside ``allowed``, refused (sorted: the same one every time)."""
     extra = sorted(str(k) for k in fields if k not in allowed)

@@ -14,7 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, ClassVar, Mapping, Sequence
 
-from cdus.commands.base import Applied, Names, Rejected, _shown, freeze, table, thaw, unknown_keys, vehicle_id
+from cdus.commands.base import Applied, Names, Rejected, _shown, freeze, keyed_table, thaw, unknown_keys, vehicle_id
 from cdus.scenario.config import nesting_problem
 from cdus.scenario.events import check_offsets, check_path, check_phases, offsets_to_phases
 from cdus.wire.bounds import BOUNDS
@@ -123,15 +123,10 @@ class Path:
     def parse(cls, fields: Mapping[str, Any]) -> "Path | Rejected":
         """From ``{"vehicle": id, "path": {family, ...}}`` (checked for any dimension: a 3-D
         path's third coordinate is the vehicle's to take or refuse when applied)."""
-        bad = unknown_keys(fields, cls.KEYS)
-        if bad is not None:
-            return bad
+        raw = keyed_table(fields, cls.KEYS, "path", '{ family = "circle", center = [0, 0], radius = 10 }')
         vid = vehicle_id(fields)
-        if isinstance(vid, Rejected):
-            return vid
-        raw = table(fields, "path", '{ family = "circle", center = [0, 0], radius = 10 }')
-        if isinstance(raw, Rejected):
-            return raw
+        if isinstance(raw, Rejected) or isinstance(vid, Rejected):
+            return raw if isinstance(raw, Rejected) else vid
         if nesting_problem(raw, PATH_DEPTH):
             return Rejected("nested too deep", "path")
         found = None

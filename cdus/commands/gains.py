@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, ClassVar, Mapping
 
-from cdus.commands.base import Applied, Names, Rejected, _shown, table, unknown_keys, vehicle_id
+from cdus.commands.base import Applied, Names, Rejected, _shown, keyed_table, unknown_keys, vehicle_id
 from cdus.core.gain_bounds import gains_problem_for_rate
 from cdus.wire.bounds import BOUNDS
 
@@ -71,15 +71,10 @@ class Gains:
     @classmethod
     def parse(cls, fields: Mapping[str, Any]) -> "Gains | Rejected":
         """From ``{"gains": {k, c}, "vehicle": id | "" (every vehicle)}``."""
-        bad = unknown_keys(fields, cls.KEYS)
-        if bad is not None:
-            return bad
+        raw = keyed_table(fields, cls.KEYS, "gains", "{ k = 2.0, c = 0.5 }")
         vid = vehicle_id(fields, empty_ok=True) if fields.get("vehicle") is not None else ""
-        if isinstance(vid, Rejected):
-            return vid
-        raw = table(fields, "gains", "{ k = 2.0, c = 0.5 }")
-        if isinstance(raw, Rejected):
-            return raw
+        if isinstance(raw, Rejected) or isinstance(vid, Rejected):
+            return raw if isinstance(raw, Rejected) else vid
         kc = gains_table(raw, one_vehicle=bool(vid))
         if isinstance(kc, Rejected):
             return kc

@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, ClassVar, Mapping, Sequence
 
-from cdus.commands.base import Applied, Names, Rejected, config_rejected, freeze, table, thaw, unknown_keys, when
+from cdus.commands.base import Applied, Names, Rejected, config_rejected, freeze, keyed_table, thaw, when
 from cdus.commands.effect import tick_of
 from cdus.scenario.config import nesting_problem
 from cdus.scenario.errors import ConfigError
@@ -37,10 +37,7 @@ class Link:
     @classmethod
     def parse(cls, fields: Mapping[str, Any]) -> "Link | Rejected":
         """From ``{"link": {...}, "at": s | < 0 | None}``."""
-        bad = unknown_keys(fields, cls.KEYS)
-        if bad is not None:
-            return bad
-        raw = table(fields, "link", "{ loss = 0.3 }")
+        raw = keyed_table(fields, cls.KEYS, "link", "{ loss = 0.3 }")
         if isinstance(raw, Rejected):
             return raw
         if nesting_problem(raw, LINK_DEPTH):

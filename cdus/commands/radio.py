@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, ClassVar, Mapping
 
-from cdus.commands.base import Applied, Names, Rejected, config_rejected, table, unknown_keys, when
+from cdus.commands.base import Applied, Names, Rejected, config_rejected, keyed_table, when
 from cdus.commands.effect import tick_of
 from cdus.scenario.errors import ConfigError
 from cdus.scenario.radio import validate_radio_update
@@ -37,10 +37,7 @@ class Radio:
     @classmethod
     def parse(cls, fields: Mapping[str, Any]) -> "Radio | Rejected":
         """From ``{"radio": {tx_power, station}, "at": s | < 0 | None}``."""
-        bad = unknown_keys(fields, cls.KEYS)
-        if bad is not None:
-            return bad
-        raw = table(fields, "radio", "{ tx_power = 10.0 }")
+        raw = keyed_table(fields, cls.KEYS, "radio", "{ tx_power = 10.0 }")
         if isinstance(raw, Rejected):
             return raw
         try:
