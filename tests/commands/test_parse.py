@@ -8,14 +8,13 @@ import math
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from cdus.commands.base import Applied, Rejected
+from cdus.commands.base import Rejected
 from cdus.commands.changes import Formation, Path
-from cdus.commands.effect import effect_time, effect_tick, lead_ticks, never_applies
-from cdus.commands.gains import Gains, expand_k
+from cdus.commands.gains import Gains
 from cdus.commands.parse import BY_CLI, BY_EVENT, BY_OP, COMMANDS, decode_command, parse_cli, parse_event, parse_wire, wire_of
 from cdus.commands.radio import Radio
 from cdus.commands.vehicle import FAULT_EVENTS, Kill, PauseVehicle, Restart, ResumeVehicle
-from cdus.core.events import ACTIONS, RosterChange
+from cdus.core.events import ACTIONS
 from cdus.scenario.events import CHANGE_ACTIONS
 from cdus.wire.messages import COMMAND_OPS, LAUNCHER_OPS, encode_control
 
@@ -111,61 +110,34 @@ def test_every_name_round_trips_and_is_defined_once():
     assert Radio.NAMES.event == "radio"
 
 
-def test_the_effect_tick_is_one_rule_for_both_clocks():
-    assert effect_tick(41, 1) == 42  # lockstep: past the grant
-    assert lead_ticks(0.02) == 25 and lead_ticks(1.0) == 1 and lead_ticks(0.5) == 1 and lead_ticks(0.3) == 2
-    assert effect_tick(100, lead_ticks(0.02)) == 125  # realtime: 0.5 s ahead of the wall clock's tick
-    assert effect_tick(-1, 0) == 1
-    assert effect_time(None, 41, 1, 0.1) == (pytest.approx(4.2), "")
-    assert effect_time(9.0, 41, 1, 0.1) == (9.0, "")
-    t, note = effect_time(1.0, 41, 1, 0.1)
-    assert t == pytest.approx(4.2) and "had passed" in note
-    assert never_applies(10, 10, 0.1) is None and "never apply" in never_applies(11, 10, 0.1).reason
+@pytest.mark.parametrize("command", [
+    Gains((1.0, 2.0), 0.5, "usv1"), Gains(2.0, None), parse_cli("link", ["loss=0.3", "delay.base=0.1"], at=3.0),
+    parse_cli("radio", ["tx_power=5", "station=[0,1,2]"]), parse_cli("formation", ["offsets.usv2.usv1=1"]),
+    parse_cli("formation", ["phases.usv2=1"]), parse_cli("path", ["family=circle", "center=[0,0]", "radius=5"], vehicle="u"),
+    Kill("u"), Restart("u"), PauseVehicle("u"), ResumeVehicle("u"), parse_cli("stop"),
+])
+def test_what_a_command_sends_reads_back_as_itself(command):
+    op, fields = wire_of(command)
+    assert parse_wire(op, fields) == command and decode_command(encode_control(op, **fields)) == command
 
 
-def test_expand_k_and_the_vehicle_rule():
-    assert expand_k(2.0, 3) == (2.0, 2.0, 2.0) and expand_k((1.0, 2.0), 2) == (1.0, 2.0)
-    g = Gains((1.0, 2.0), None, "usv1")
-    assert g.for_vehicle(3, (1.0, 1.0, 1.0), 1.0).field == "k"
-    assert g.for_vehicle(2, (5.0, 5.0), 0.7) == ((1.0, 2.0), 0.7)
-    assert "too large" in Gains(100.0, None).for_vehicle(2, (1.0, 1.0), 1.0, control_hz=10.0).reason
-    assert Gains(None, 0.3).for_vehicle(2, (1.0, 1.0), 1.0, control_hz=10.0) == ((1.0, 1.0), 0.3)
-
-
-class _Node:
-    """What a command calls on a VehicleNode, recorded."""
-
-    def __init__(self, index=0, dim=2):
-        self.index, self.period, self.calls = index, 0.1, []
-        self.vehicle = type("V", (), {"dim": dim, "k": (1.0,) * dim, "c": 1.0, "plant": "ideal", "physics_steps": 1})()
-        self.table = type("T", (), {"links": ()})()
-
-    def on_roster(self, ch):
-        self.calls.append(ch)
-
-    def set_gains(self, k, c, tick):
-        self.calls.append(("gains", k, c, tick))
-
-    def set_formation(self, phases, tick):
-        self.calls.append(("formation", phases, tick))
-
-    def set_path(self, path, tick):
-        self.calls.append(("path", path.dim, tick))
-
-
-def test_applying_a_command_returns_its_outcome():
-    ids = ["usv1", "usv2"]
-    n = _Node()
-    assert Restart("usv2").apply(n, 7, ids) == Applied(7)
-    assert n.calls == [RosterChange(7, 1, "gone"), RosterChange(7, 1, "live", True)]
-    assert Kill("usv9").apply(n, 7, ids).field == "vehicle"
-    assert Gains(2.0, None).apply(n, 8) == Applied(8) and n.calls[-1] == ("gains", (2.0, 2.0), 1.0, 8)
-    assert isinstance(Gains(50.0, None).apply(n, 8), Rejected)  # k·T >= 2 at 10 Hz: refused, nothing set
-    assert n.calls[-1][0] == "gains" and n.calls[-1][1] == (2.0, 2.0)
-    assert parse_cli("formation", ["phases.usv2=3"]).apply(n, 9, ids) == Applied(9)
-    assert n.calls[-1] == ("formation", {1: 3.0}, 9)
-    assert parse_cli("formation", ["offsets.usv2.usv1=3"]).apply(n, 9, ids).field == "offsets"
-    p = parse_cli("path", ["family=circle", "center=[0,0]", "radius=5"], vehicle="usv1")
-    assert p.apply(n, 10, ids) == Applied(10) and n.calls[-1] == ("path", 2, 10)
-    assert p.apply(_Node(index=1), 10, ids).field == "vehicle"
-    assert isinstance(parse_cli("stop").apply(n, 1), Rejected)
+def test_the_cli_settings_and_the_entries_refusals():
+    assert parse_cli("nope") == Rejected("no command 'nope'; commands are " + ", ".join(BY_CLI), "action")
+    assert parse_cli("stop", ["x=1"]) == Rejected("stop takes no KEY=VALUE settings", "x=1")
+    assert parse_cli("link", ["loss"]) == Rejected("expected KEY=VALUE, e.g. loss=0.3", "loss")
+    assert parse_cli("link", ["=1"]).field == "=1"
+    assert parse_cli("gains", ["k=1", "k.x=2"]) == Rejected("given both a value and, in k.x=2, fields of it; give one", "k")
+    assert parse_cli("link", ["delay.base=1", "delay=2"]) == Rejected(
+        "given both fields of it and, in delay=2, a value; give one", "delay")
+    assert parse_cli("formation", ["phases.a=1", "offsets.b.c=1"]).field == "formation"
+    assert parse_cli("formation", ["speed=3"]).field == "speed"
+    assert parse_cli("formation", ["phases=3"]).field == "phases"
+    assert parse_cli("formation", ["offsets.usv2=1"]) == Rejected("write offsets.I.K=Δ (I listens to K)", "offsets.usv2")
+    assert parse_cli("gains", ["k=2"], vehicle="usv1") == Gains(2.0, None, "usv1")
+    assert parse_cli("kill", vehicle=None).field == "vehicle"
+    assert parse_cli("link", ["loss=0.1"]).at is None
+    assert parse_event({"action": "dance"}).field == "action" and parse_event({}).field == "action"
+    assert parse_event({"at": 1.0, "action": "kill", "vehicle": "usv1", "x": 2}).field == "x"
+    assert parse_wire(3, {}).field == "op"
+    assert decode_command(b"\xc1") == Rejected("malformed")
+    assert decode_command(encode_control("kill", vehicle=3)) == Rejected("type")
