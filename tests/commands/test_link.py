@@ -39,3 +39,17 @@ def test_merged_over_the_table_in_force_and_applied():
     assert [c[0] for c in n.calls] == ["link", "policy"] and n.calls[1][3] == 10
     n = RecordedNode()
     assert Link.parse({"link": {"loss": 0.2}}).apply(n, 2.0) == Applied(20, 2.0) and len(n.calls) == 1
+
+
+def test_a_vehicle_the_fleet_lacks_is_refused_once_the_ids_are_known_and_the_policy_applied_as_given():
+    c = Link.parse({"link": {"override": [{"src": "usv9", "loss": 0.5}]}})
+    assert isinstance(c, Link)  # no ids yet: any name
+    assert c.merged({}, ["usv1", "usv2"]).field == "override[0].src"
+    assert c.apply(RecordedNode(), 2.0, ({}, ["usv1", "usv2"])).field == "override[0].src"
+    assert c.apply(RecordedNode(), 2.0) == Applied(20, 2.0)  # no ids: not checked
+    n = RecordedNode()
+    assert Link.parse({"link": {"timeout": 3.0}}).apply(n, 2.0, ({"policy": "extrapolate"}, ["usv1"])) == Applied(20, 2.0)
+    assert n.calls[1] == ("policy", "extrapolate", 3.0, 20)
+    n = RecordedNode()
+    n.set_link = lambda spec, at: (_ for _ in ()).throw(ValueError("cannot change at run time"))
+    assert Link.parse({"link": {"loss": 0.1}}).apply(n, 1.0) == Rejected("cannot change at run time")
