@@ -38,11 +38,16 @@ from dataclasses import replace
 
 import zenoh
 
-from cdus.core.paths import PathError, make_path
-from cdus.scenario.config import ConfigError, parse_value
+from cdus.commands.base import Rejected
+from cdus.commands.changes import Formation, Path
+from cdus.commands.fleet import Pause, Resume, Stop
+from cdus.commands.gains import Gains
+from cdus.commands.link import Link
+from cdus.commands.parse import BY_CLI, Command, parse_cli, wire_of
+from cdus.commands.radio import Radio
+from cdus.commands.vehicle import VEHICLE_FAULTS
+from cdus.scenario.config import ConfigError
 from cdus.scenario.link import validate_link
-from cdus.sim.radio import radio_change_problem
-from cdus.wire.bounds import BOUNDS
 from cdus.wire.keys import FLEET_RE
 from cdus.wire.transport import add_transport_args, transport_from_args, with_default_endpoint
 from cdus.files import write_json
@@ -51,7 +56,8 @@ from ground_station.console import (
     status_table,
 )
 
-VEHICLE_ACTIONS = {"kill": "kill", "restart": "restart", "pause-vehicle": "pause", "resume-vehicle": "resume"}
+#: a vehicle's faults by their CLI word (cdus.commands.vehicle): kill, pause-vehicle, resume-vehicle, restart
+VEHICLE_ACTIONS = {f.NAMES.cli: f for f in VEHICLE_FAULTS}
 
 
 GS_CONNECT_TIMEOUT_MS = 5000  # a ground station is interactive: say soon that nobody is there
@@ -108,22 +114,22 @@ def build_parser(prog: str = "cdus gs") -> argparse.ArgumentParser:
     sn.add_argument("file", metavar="FILE")
     sub.add_parser("console", help="the live console: vehicles, edges, links, alarms; keys to pause, resume, "
                                    "kill and restart a vehicle or pause and resume the fleet (docs/console.md)")
-    for op in ("pause", "resume", "stop"):
-        sub.add_parser(op, help=f"{op} the whole fleet")
-    ln = sub.add_parser("link", help="change link faults at run time: KEY=VALUE of the [link] table")
+    for cmd in (Pause, Resume, Stop):
+        sub.add_parser(cmd.NAMES.cli, help=f"{cmd.NAMES.cli} the whole fleet")
+    ln = sub.add_parser(Link.NAMES.cli, help="change link faults at run time: KEY=VALUE of the [link] table")
     ln.add_argument("settings", nargs="+", metavar="KEY=VALUE", help="e.g. loss=0.3 delay.base=0.1 policy=extrapolate")
     ln.add_argument("--at", type=_sim_time,
                     help="simulated time from which they apply (default: now + 0.5 s; a past time means now)")
-    rd = sub.add_parser("radio", help="change the radio at run time ([radio] scenarios): tx_power=DBM station=[x,y,z]")
+    rd = sub.add_parser(Radio.NAMES.cli, help="change the radio at run time ([radio] scenarios): tx_power=DBM station=[x,y,z]")
     rd.add_argument("settings", nargs="+", metavar="KEY=VALUE", help="e.g. tx_power=20 (dBm) station=[0,-60,0] (x, y and the mast's base z above the water, m; the antenna is radio.antenna.station above it)")
     rd.add_argument("--at", type=_sim_time,
                     help="simulated time from which it applies (default: now + 0.5 s; a past time means now)")
-    gn = sub.add_parser("gains", help="change guidance gains: k=... c=...")
+    gn = sub.add_parser(Gains.NAMES.cli, help="change guidance gains: k=... c=...")
     gn.add_argument("settings", nargs="+", metavar="KEY=VALUE")
     gn.add_argument("--vehicle", help="one vehicle (default: all)")
     _change_parsers(sub)
-    for name in VEHICLE_ACTIONS:
-        v = sub.add_parser(name, help=f"{name.replace('-vehicle', '')} one vehicle's process (via the launcher)")
+    for name, fault in VEHICLE_ACTIONS.items():
+        v = sub.add_parser(name, help=f"{fault.NAMES.event} one vehicle's process (via the launcher)")
         v.add_argument("vehicle")
     for action in sub.choices.values():  # also after the action (`kill usv2 --timeout 60`), as people type it
         action.allow_abbrev = False  # as the top level: `--time 5` is not taken for --timeout
@@ -133,93 +139,23 @@ def build_parser(prog: str = "cdus gs") -> argparse.ArgumentParser:
     return p
 
 
-def nested(settings: list[str]) -> dict:
-    """["loss=0.3", "delay.base=0.1"] -> {"loss": 0.3, "delay": {"base": 0.1}}."""
-    out: dict = {}
-    for item in settings:
-        key, sep, value = item.partition("=")
-        if not sep or not key:
-            raise ConfigError("command line", [(item, "expected KEY=VALUE, e.g. loss=0.3")])
-        node = out
-        parts = key.split(".")
-        for n, part in enumerate(parts[:-1]):
-            node = node.setdefault(part, {})
-            if not isinstance(node, dict):  # `k=1 k.x=2`: a TypeError (a traceback) before
-                raise ConfigError("command line", [(".".join(parts[:n + 1]), f"given both a value and, in {item}, "
-                                                                             "fields of it; give one")])
-        node[parts[-1]] = parse_value(value)
-    return out
-
-
-def check_gains(gains: dict, vehicle: str | None) -> None:
-    """k: a finite number > 0 (every axis) or, for one vehicle (--vehicle), one per axis; c: a finite
-    number > 0 (`gains k=inf` said "must be a number > 0, got inf", which it is)."""
-    bad = sorted(set(gains) - {"k", "c"})
-    if bad:
-        raise ConfigError("command line", [(bad[0], "gains are k (a number or, with --vehicle, one per axis) and c")])
-    if not gains:
-        raise ConfigError("command line", [("gains", "give k=... and/or c=...")])
-    k = gains.get("k", 1.0)
-    if isinstance(k, list):
-        if vehicle is None:
-            raise ConfigError("command line", [("k", "one value per axis needs --vehicle (boats have 2 axes, "
-                                                     "drones 3); a single number sets every axis")])
-        if not k or not all(BOUNDS["gains.k"].holds(x) for x in k):
-            raise ConfigError("command line", [("k", f"must be finite numbers > 0, got {k}")])
-    elif not BOUNDS["gains.k"].holds(k):
-        raise ConfigError("command line", [("k", f"must be a finite number > 0, got {k!r}")])
-    if "c" in gains and not BOUNDS["gains.c"].holds(gains["c"]):
-        raise ConfigError("command line", [("c", f"must be a finite number > 0, got {gains['c']!r}")])
+def parsed(args: argparse.Namespace) -> Command:
+    """The command the arguments name (cdus.commands.parse.parse_cli), checked before anything is
+    sent; a ConfigError (exit 2) naming the argument at fault."""
+    got = parse_cli(args.action, getattr(args, "settings", ()), vehicle=getattr(args, "vehicle", None),
+                    at=getattr(args, "at", None))
+    if isinstance(got, Rejected):
+        raise ConfigError("command line", [(got.field or args.action, got.reason)])
+    return got
 
 
 def _change_parsers(sub) -> None:
     """``formation`` and ``path``: a formation or path change at run time (docs/config.md, [[event]])."""
-    fm = sub.add_parser("formation", help="new formation: phases.ID=θ (ω units) or offsets.I.K=Δ (I listens to K)")
+    fm = sub.add_parser(Formation.NAMES.cli, help="new formation: phases.ID=θ (ω units) or offsets.I.K=Δ (I listens to K)")
     fm.add_argument("settings", nargs="+", metavar="KEY=VALUE", help="e.g. phases.usv2=10.47 or offsets.usv2.usv1=2.09")
-    pa = sub.add_parser("path", help="a new path for one vehicle: family=... and its parameters")
+    pa = sub.add_parser(Path.NAMES.cli, help="a new path for one vehicle: family=... and its parameters")
     pa.add_argument("settings", nargs="+", metavar="KEY=VALUE", help="e.g. family=circle center=[0,0,20] radius=15")
     pa.add_argument("--vehicle", required=True, help="the vehicle that follows it")
-
-
-def formation_fields(settings: list[str]) -> dict:
-    """``phases.ID=θ ...`` or ``offsets.I.K=Δ ...`` -> the ``formation`` command's fields
-    ``{"phases": {id: θ}, "offsets": [{i, k, delta}]}``, numbers checked (the world checks the
-    ids, the edges and the cycles)."""
-    table = nested(settings)
-    bad = sorted(set(table) - {"phases", "offsets"})
-    if bad or len(table) != 1:
-        raise ConfigError("command line", [(bad[0] if bad else "formation",
-                                            "give phases.ID=θ ... (ω units) or offsets.I.K=Δ ... (I listens to K), "
-                                            "not both")])
-    phases = table.get("phases", {})
-    for name in ("phases", "offsets"):  # `phases=3`, `offsets=[1]`: an AttributeError (a traceback) before
-        if not isinstance(table.get(name, {}), dict):
-            raise ConfigError("command line", [(name, "write phases.ID=θ (ω units) or offsets.I.K=Δ (I listens to "
-                                                      f"K), got {name}={table[name]!r}")])
-    offsets = []
-    for i, row in table.get("offsets", {}).items():
-        for k, d in (row.items() if isinstance(row, dict) else [(None, row)]):
-            if k is None:
-                raise ConfigError("command line", [(f"offsets.{i}", "write offsets.I.K=Δ (I listens to K)")])
-            offsets.append({"i": i, "k": k, "delta": d})
-    for name, v, b in [(f"phases.{k}", x, BOUNDS["vehicle.phase"]) for k, x in phases.items()] + \
-                      [(f"offsets.{o['i']}.{o['k']}", o["delta"], BOUNDS["graph.edge.delta"]) for o in offsets]:
-        if not b.holds(v):
-            raise ConfigError("command line", [(name, b.problem(v, " (ω units)"))])
-    return {"phases": phases, "offsets": offsets}
-
-
-def path_fields(settings: list[str]) -> dict:
-    """``family=circle center=[0,0,20] ...`` -> a path table, checked as the config's paths are
-    (the world checks it against the vehicle's dimension)."""
-    table = nested(settings)
-    try:
-        make_path(table)
-    except PathError as e:
-        raise ConfigError("command line", [(e.field, e.message)]) from None
-    except (TypeError, ValueError) as e:
-        raise ConfigError("command line", [("path", f"invalid path: {e}")]) from None
-    return table
 
 
 def _check_vehicle(vid: str, ids: list, field: str = "vehicle") -> None:
@@ -228,14 +164,43 @@ def _check_vehicle(vid: str, ids: list, field: str = "vehicle") -> None:
                                                    f"{', '.join(ids)}")])
 
 
-def check_formation_vehicles(change: dict, ids: list) -> None:
+def check_formation_vehicles(change: Formation, ids: list) -> None:
     """Every id a formation change names is one of the fleet's; the error names the argument
     that held it (``phases.usv9``, ``offsets.usv2.usv9``), not a ``vehicle`` the user never typed."""
-    for vid in change["phases"]:
+    for vid, _ in change.phases:
         _check_vehicle(vid, ids, f"phases.{vid}")
-    for o in change["offsets"]:
-        for vid in (o["i"], o["k"]):
-            _check_vehicle(vid, ids, f"offsets.{o['i']}.{o['k']}")
+    for i, k, _ in change.offsets:
+        for vid in (i, k):
+            _check_vehicle(vid, ids, f"offsets.{i}.{k}")
+
+
+def what_of(command: Command, fleet: str) -> str:
+    """How a reply names a command: ``gains {'k': 2.0} for every vehicle``, ``kill usv2``."""
+    if isinstance(command, (Pause, Resume, Stop)):
+        return f"{command.NAMES.cli} of fleet {fleet!r}"
+    if isinstance(command, Link):
+        return f"link faults {command.link_table()}"
+    if isinstance(command, Radio):
+        return f"radio {command.change()}"
+    if isinstance(command, Gains):
+        return f"gains {command.fields()['gains']} for {command.vehicle or 'every vehicle'}"
+    if isinstance(command, Formation):
+        return f"formation {command.fields()['phases'] or command.fields()['offsets']}"
+    if isinstance(command, Path):
+        return f"path {command.path_table()} for {command.vehicle}"
+    return f"{command.NAMES.cli} {command.vehicle}"
+
+
+def _command(gs: GroundStation, command: Command, ids: list, timeout: float) -> int:
+    """Check ``command``'s ids against the fleet's, send it, print what became of it: the exit code."""
+    if isinstance(command, Link):
+        validate_link(command.link_table(), ids, "command line")
+    elif isinstance(command, Formation):
+        check_formation_vehicles(command, ids)
+    elif getattr(command, "vehicle", None) is not None:
+        _check_vehicle(command.vehicle, ids, "vehicle" if type(command) in VEHICLE_FAULTS else "--vehicle")
+    op, fields = wire_of(command)
+    return _report(gs.command(op, timeout=timeout, **fields), what_of(command, gs.fleet))
 
 
 def _report(answer: Answer, what: str) -> int:
@@ -397,22 +362,8 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
         return EXIT_USAGE
     try:
         # what can be checked before connecting
-        if args.action == "gains":
-            gains = nested(args.settings)
-            check_gains(gains, args.vehicle)
-        elif args.action == "link":
-            table = nested(args.settings)
-            validate_link(table, None, "command line")
-        elif args.action == "formation":
-            change = formation_fields(args.settings)
-        elif args.action == "path":
-            change = path_fields(args.settings)
-        elif args.action == "radio":
-            change = nested(args.settings)
-            problem = radio_change_problem(change)
-            if problem is not None:
-                raise ConfigError("command line", [("radio", problem)])
-        elif args.action == "snapshot" and args.file in ("", "-"):  # wrote a file named '-', or said 'Is a directory (.)'
+        command = parsed(args) if args.action in BY_CLI else None
+        if args.action == "snapshot" and args.file in ("", "-"):  # wrote a file named '-', or said 'Is a directory (.)'
             raise ConfigError("command line", [("FILE", f"{args.file!r} names no file: give a file name (status --json "
                                                         "prints the same object on stdout)")])
         elif args.action == "snapshot" and os.path.isdir(args.file):
@@ -460,32 +411,8 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
                 return EXIT_USAGE
             print(f"fleet {args.fleet!r} saved to {args.file}")
             return 0
-        elif args.action in ("pause", "resume", "stop"):
-            return _report(gs.command(args.action, timeout=args.timeout), f"{args.action} of fleet {args.fleet!r}")
-        elif args.action == "link":
-            validate_link(table, ids, "command line")
-            at = -1.0 if args.at is None else float(args.at)
-            return _report(gs.command("link", timeout=args.timeout, link=table, at=at), f"link faults {table}")
-        elif args.action == "radio":
-            at = -1.0 if args.at is None else float(args.at)
-            return _report(gs.command("radio", timeout=args.timeout, radio=change, at=at), f"radio {change}")
-        elif args.action == "gains":
-            if args.vehicle is not None:
-                _check_vehicle(args.vehicle, ids, "--vehicle")
-            return _report(gs.command("set_gains", timeout=args.timeout, gains=gains, vehicle=args.vehicle or ""),
-                           f"gains {gains} for {args.vehicle or 'every vehicle'}")
-        elif args.action == "formation":
-            check_formation_vehicles(change, ids)
-            return _report(gs.command("formation", timeout=args.timeout, **change),
-                           f"formation {change['phases'] or change['offsets']}")
-        elif args.action == "path":
-            _check_vehicle(args.vehicle, ids, "--vehicle")
-            return _report(gs.command("path", timeout=args.timeout, vehicle=args.vehicle, path=change),
-                           f"path {change} for {args.vehicle}")
         else:
-            _check_vehicle(args.vehicle, ids)
-            op = {"pause-vehicle": "pause_vehicle", "resume-vehicle": "resume_vehicle"}.get(args.action, args.action)
-            return _report(gs.command(op, timeout=args.timeout, vehicle=args.vehicle), f"{args.action} {args.vehicle}")
+            return _command(gs, command, ids, args.timeout)
     except ConfigError as e:
         print(f"error: {e}", file=sys.stderr)
         return EXIT_USAGE

@@ -34,6 +34,8 @@ from textual.message import Message
 from textual.screen import ModalScreen
 from textual.widgets import DataTable, Footer, RichLog, Static
 
+from cdus.commands.base import Rejected
+from cdus.commands.parse import parse_cli, parse_event
 from cdus.wire import keys
 from cdus.wire.schemas import FleetEvent
 from ground_station.alarms import Alarms
@@ -70,9 +72,12 @@ def send_command(gs: Any, op: str, vehicle: str | None = None) -> tuple[bool, st
     timeout (GroundStation.command: applied from a tick, rejected with the reason, denied, or no
     answer)."""
     what = f"{op} {vehicle}" if vehicle else f"{op} fleet"
-    wire = {"pause": "pause_vehicle", "resume": "resume_vehicle"}.get(op, op) if vehicle else op
+    # the vehicle's fault by its event word (pause -> pause_vehicle), or the fleet's command
+    command = parse_event({"action": op, "vehicle": vehicle}) if vehicle else parse_cli(op)
+    if isinstance(command, Rejected):
+        return False, f"{what}: FAILED, {_text(str(command), 200)}"
     try:
-        answer = gs.command(wire, **({"vehicle": vehicle} if vehicle else {}))
+        answer = gs.command(command.NAMES.op, **command.fields())
     except (zenoh.ZError, ValueError, RuntimeError, AttributeError) as e:
         return False, f"{what}: FAILED, {_text(str(e), 200)}"
     r = answer.reply

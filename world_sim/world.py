@@ -353,7 +353,7 @@ class World:
         #: parts add theirs here (formation, path, radio)
         self.command_handlers: dict[str, Callable[[dict, str], Any]] = {
             "stop": self._cmd_stop, "pause": self._cmd_pause, "resume": self._cmd_resume,
-            "set_gains": self._cmd_gains, "link": self._cmd_link, "fault_done": self._cmd_fault_done,
+            "set_gains": self._cmd_gains, "gains": self._cmd_gains, "link": self._cmd_link, "fault_done": self._cmd_fault_done,
             "formation": self._relay_formation, "path": self._relay_path, "radio": self._cmd_radio,
             "kill": self._cmd_vehicle_fault, "pause_vehicle": self._cmd_vehicle_fault,
             "resume_vehicle": self._cmd_vehicle_fault, "restart": self._cmd_vehicle_fault,

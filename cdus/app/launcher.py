@@ -1,4 +1,5 @@
-"""The launcher: start the world and one process per vehicle, supervise them, stop them all.
+"""How is a fleet of processes brought up, watched and stopped? The launcher: the world and one
+process per vehicle, supervised, then stopped all together.
 
 The launcher opens the fleet's Zenoh router itself (loopback TCP by default), so it sees
 every liveliness token without polling: it starts world_sim, waits for the world's token,
@@ -20,17 +21,13 @@ that exits ``METRICS_ELSEWHERE_EXIT`` ended its run but could not write its metr
 (a full disk): the launcher finds them where the world kept them (cdus.files.metrics_fallbacks)
 instead. A run directory is held (:class:`RunDirLock`) while a fleet runs into it.
 
-The launcher's command key (``to/+launcher+/cmd``) carries out faults on the scenario's
-own vehicles only: anything else (``kill world``, an unknown id, a malformed message) is
-counted by reason, logged once per reason (escaped) and dropped.
+Its rooms: cdus.app.children (one child process), cdus.app.preflight (the run directory's lock,
+the router's endpoints and rate limits), cdus.app.faults (the vehicle faults the world asks
+for) and cdus.app.world_lost (the metrics of a lost world); their names import from here too.
 """
 
 from __future__ import annotations
 
-import ctypes
-import ctypes.util
-import errno
-import fcntl
 import json
 import math
 import os
@@ -39,7 +36,6 @@ import shlex
 import shutil
 import signal
 import socket
-import stat
 import subprocess
 import sys
 import tempfile
@@ -51,16 +47,21 @@ from typing import Any, Callable
 
 import zenoh
 
+from cdus.app.children import LOG_TAIL, PR_SET_PDEATHSIG, Child, die_with_parent  # noqa: F401 (cdus.app.launcher's names)
+from cdus.app.preflight import (  # noqa: F401 (cdus.app.launcher's names)
+    COMMAND_HZ, LOCK_NAME, OMEGA_MARGIN, ListenError, RunDirError, RunDirInUse, RunDirLock, check_listen,
+    listen_problem, rate_limits,
+)
+from cdus.app.faults import FaultDispatch
+from cdus.app.world_lost import WorldLostMetrics
 from cdus.scenario.model import DEFAULT_RESTART, Scenario, Supervision
-from cdus.app.report import WORLD_LOST, Progress
-from cdus.core.metrics import Recorder
-from cdus.files import METRICS_ELSEWHERE_EXIT, keep_json, metrics_fallbacks, write_json
-from cdus.sim.build import metric_edges
-from cdus.sim.summary import run_metrics
+from cdus.app.report import WORLD_LOST, Progress  # noqa: F401 (WORLD_LOST: cdus.app.launcher's name)
+from cdus.files import METRICS_ELSEWHERE_EXIT, metrics_fallbacks, write_json
 from cdus.sim.reports import ConsoleQuota
 from cdus.wire import keys
 from cdus.wire.access import ROS2_ROLE
-from cdus.wire.messages import CTL_OPS, LAUNCHER_OPS, decode_control, encode_control
+from cdus.commands.vehicle import VehicleFault
+from cdus.wire.messages import CTL_OPS, decode_control, encode_control
 from cdus.wire.schemas import STATUS_KEY_ENV, FleetEvent, decode_event, decode_status, encode_event, signed_by
 from cdus.wire.text import printable
 from cdus.wire.transport import (
@@ -70,58 +71,11 @@ from cdus.wire.transport import (
 
 LINKS = ("direct", "router")  # how ω travels between neighbours (docs/architecture.md)
 GRACE_S = 5.0
-LOG_TAIL = 15
 # Fewer Zenoh runtime threads per child process (cdus.wire.transport.CHILD_RUNTIME; the router,
 # this process, keeps Zenoh's: ROUTER_RUNTIME): on a small machine running many processes the
 # default thread pools cost more in context switches than they give. A user's own ZENOH_RUNTIME
 # wins, for every process.
 ZENOH_RUNTIME = CHILD_RUNTIME
-
-
-# Children die with the launcher: prctl(PR_SET_PDEATHSIG, SIGTERM) in the child between fork
-# and exec. The kernel sends the signal when the *thread* that forked the child exits, so
-# children are only ever started from the launcher's main thread (start, supervise, stop).
-PR_SET_PDEATHSIG = 1
-_LIBC = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True) if sys.platform == "linux" else None
-_PRCTL = _LIBC.prctl if _LIBC is not None else None  # looked up now: the child only calls it
-
-
-def die_with_parent(parent_pid: int, sig: int = signal.SIGTERM) -> Callable[[], None] | None:
-    """A ``preexec_fn`` asking the kernel for ``sig`` when the parent dies (Linux), and exiting
-    at once if the parent is already gone (it died between fork and prctl). None elsewhere."""
-    if _PRCTL is None:
-        return None
-    signum = int(sig)
-
-    def preexec() -> None:  # runs in the forked child: no imports, no allocations of note
-        _PRCTL(PR_SET_PDEATHSIG, signum, 0, 0, 0)
-        if os.getppid() != parent_pid:
-            os._exit(1)
-    return preexec
-
-
-# Router-side rate limits (Zenoh's own ``downsampling``, realtime runs only: it is wall-clock
-# based, and a lockstep run goes many times faster than real time and must lose nothing).
-# Zenoh keeps one timer per rule and per incoming link (flow ingress): a flooder's link gets
-# its own budget, so a flood on vehicle v's ω key reaches v's listeners at most
-# OMEGA_MARGIN x the broadcast rate, and v's own messages, on v's own link, are not starved.
-# The margin absorbs jitter: Zenoh drops a message that follows the previous one of its
-# link by less than 1 / rate (no burst allowance), so a genuine ω is dropped only if it
-# arrives less than a quarter period after the one before.
-OMEGA_MARGIN = 4.0
-COMMAND_HZ = 10.0  # the world's command inbox (ground stations): one command per `cdus gs` call
-
-
-def rate_limits(fleet: str, ids: tuple[str, ...] | list[str], broadcast_hz: float) -> list[dict]:
-    """The router's ``downsampling`` section: every vehicle's ω (any listener set) at
-    OMEGA_MARGIN x ``broadcast_hz``, the world's command inbox at COMMAND_HZ, per incoming
-    link. Not the world's ctl or the launcher's key: the world sends genuine bursts there
-    (several faults in one tick); under --secure only the world may publish them."""
-    omega = [{"key_expr": f"{keys.prefix(fleet)}/to/*/omega/{vid}", "freq": OMEGA_MARGIN * broadcast_hz}
-             for vid in ids]
-    # any recipient set: the world also hears to/+world+x+/cmd/..., which a flooder could pick
-    commands = [{"key_expr": f"{keys.prefix(fleet)}/to/*/cmd/*", "freq": COMMAND_HZ}]
-    return [{"id": "cdus-rate-limits", "flows": ["ingress"], "messages": ["put"], "rules": omega + commands}]
 
 
 _PRINT_LOCK = threading.Lock()
@@ -141,163 +95,6 @@ def print_line(s: str) -> None:
 
 class LaunchError(Exception):
     """The fleet could not be brought up; the message says who failed and why."""
-
-
-class RunDirInUse(Exception):
-    """Another launcher runs into this run directory now: nothing was started."""
-
-
-class RunDirError(Exception):
-    """The run directory cannot be written (a full disk, a read-only directory): nothing was started."""
-
-
-LOCK_NAME = ".launch.lock"  # in the run directory: flock'ed by the launcher running into it
-
-
-class RunDirLock:
-    """An exclusive hold on a run directory while a fleet runs into it (logs, credentials,
-    metrics): ``flock`` on ``<run>/.launch.lock``, as ``cdus sweep`` holds its ``--out``. The
-    kernel lets go when the holder dies (even by SIGKILL), so the directory of a dead launcher
-    is free again; the file stays (removing it would race a launcher taking it)."""
-
-    def __init__(self, run: Path):
-        self.path = run / LOCK_NAME
-        try:  # a read-only or full directory, a lock that is a symlink (never followed) or not a file: RunDirError
-            run.mkdir(parents=True, exist_ok=True)
-            # close-on-exec: the children never hold it (they die with the launcher anyway); non-blocking: a FIFO
-            self.fd: int | None = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC | os.O_NOFOLLOW
-                                          | os.O_NONBLOCK, 0o644)
-        except OSError as e:
-            not_file = e.errno in (errno.ELOOP, errno.EISDIR)
-            why = "a symbolic link (never followed)" if e.errno == errno.ELOOP else e.strerror or str(e)
-            raise RunDirError(f"cannot hold the run directory {run} ({e.filename}: {why}); nothing was started; "
-                              + (f"remove {self.path} or give another --logs" if not_file else
-                                 "make it writable or give another --logs")) from None
-        if not stat.S_ISREG(os.fstat(self.fd).st_mode):
-            os.close(self.fd)
-            self.fd = None
-            raise RunDirError(f"cannot hold the run directory {run}: {self.path} is not a regular file; nothing "
-                              f"was started; remove it or give another --logs")
-        try:
-            fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            os.close(self.fd)
-            self.fd = None
-            raise RunDirInUse(f"another `cdus launch` is running into {run} now (it holds {self.path}); wait for "
-                              f"it to end or give another --logs") from None
-
-    def release(self) -> None:
-        if self.fd is not None:
-            os.close(self.fd)
-            self.fd = None
-
-    def __enter__(self) -> "RunDirLock":
-        return self
-
-    def __exit__(self, *exc: Any) -> None:
-        self.release()
-
-
-class ListenError(Exception):
-    """The router could not listen where it was asked (a busy port, an address not of this
-    host): a usage error; nothing was started."""
-
-
-_STREAM_PROTOCOLS = ("tcp", "tls", "ws")  # over TCP
-_DATAGRAM_PROTOCOLS = ("udp", "quic")  # over UDP
-
-
-def listen_problem(ep: str) -> str | None:
-    """Why the router cannot listen on ``ep`` (an IP endpoint whose address is taken or not of
-    this host), or None (free, port 0, or not an IP endpoint: Zenoh says). Binds the address as
-    Zenoh will (SO_REUSEADDR: a port in TIME_WAIT is free) and lets it go at once."""
-    proto = ep.partition("/")[0]
-    if proto not in _STREAM_PROTOCOLS + _DATAGRAM_PROTOCOLS:
-        return None
-    rest = ep.partition("/")[2].split("#", 1)[0].split("?", 1)[0]
-    host, _, port = rest.rpartition(":")
-    host = host[1:-1] if host.startswith("[") and host.endswith("]") else host
-    if not port.isdigit() or int(port) == 0:
-        return None
-    kind = socket.SOCK_STREAM if proto in _STREAM_PROTOCOLS else socket.SOCK_DGRAM
-    try:
-        infos = socket.getaddrinfo(host, int(port), type=kind)
-    except socket.gaierror as e:
-        return f"{host!r} is not an address of this host ({e.strerror})"
-    for family, socktype, protocol, _, address in infos:
-        with socket.socket(family, socktype, protocol) as s:
-            s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-            try:
-                s.bind(address)
-            except OSError as e:
-                return f"{e.strerror or e} (another process is listening there?)" \
-                    if e.errno == errno.EADDRINUSE else str(e.strerror or e)
-    return None
-
-
-def check_listen(endpoints: tuple[str, ...] | list[str]) -> None:
-    """Raise ListenError naming the first endpoint the router cannot listen on."""
-    for ep in endpoints:
-        why = listen_problem(ep)
-        if why is not None:
-            raise ListenError(f"the router cannot listen on {ep}: {why}; choose another endpoint "
-                              f"(or leave out --listen for a free port on 127.0.0.1)")
-
-
-@dataclass
-class Child:
-    name: str
-    argv: list[str]
-    log_path: Path
-    proc: subprocess.Popen | None = None
-    restarts: int = 0  # every restart: scheduled faults and supervision
-    supervised_restarts: int = 0  # restarts by the restart policy (bounded by max_restarts)
-    restart_at: float | None = None  # when the policy restarts it (the launcher's clock), None: not due
-    given_up: bool = False  # the policy's restarts are used up: it stays down
-    exit_code: int | None = None
-    log_file: Any = None
-    intended_exit: bool = False  # killed on purpose (a scheduled fault): not a failure to restart
-    restart_args: tuple[str, ...] = ()  # added when it is started again (an agent rejoins)
-    # what the kernel sends it when the launcher dies: the world SIGTERM (it writes its metrics);
-    # an agent SIGKILL (it has nothing to save, and one paused by a fault, SIGSTOPped, would
-    # hold a SIGTERM pending for ever)
-    death_signal: int = signal.SIGKILL
-
-    def start(self, env: dict[str, str]) -> None:
-        self.log_file = open(self.log_path, "ab")
-        argv = self.argv + list(self.restart_args if self.restarts else ())
-        self.proc = subprocess.Popen(argv, stdout=self.log_file, stderr=subprocess.STDOUT,
-                                     stdin=subprocess.DEVNULL, start_new_session=True, env=env,
-                                     preexec_fn=die_with_parent(os.getpid(), self.death_signal))
-        self.exit_code = None
-        self.intended_exit = False
-
-    def poll(self) -> int | None:
-        if self.proc is None:
-            return None
-        code = self.proc.poll()
-        if code is not None and self.exit_code is None:
-            self.exit_code = code
-            self.log_file.close()
-        return code
-
-    def running(self) -> bool:
-        return self.proc is not None and self.proc.poll() is None
-
-    def signal_group(self, sig: int) -> None:
-        if self.proc is None:
-            return
-        try:
-            os.killpg(self.proc.pid, sig)
-        except (ProcessLookupError, PermissionError):
-            pass
-
-    def tail(self, n: int = LOG_TAIL) -> str:
-        try:
-            lines = self.log_path.read_text(errors="replace").splitlines()
-        except OSError:
-            return "(no log)"
-        return "\n".join("    | " + ln for ln in lines[-n:]) or "    | (empty log)"
 
 
 @dataclass
@@ -320,7 +117,7 @@ class LaunchOptions:
 
 
 @dataclass
-class Launcher:
+class Launcher(FaultDispatch, WorldLostMetrics):
     scenario: Scenario
     run_dir: Path
     router: Transport
@@ -348,7 +145,7 @@ class Launcher:
         self.session = None
         self.stopping = False
         self.finished = False
-        self.requests: list[tuple[str, str]] = []  # scheduled faults asked for by the world
+        self.requests: list[VehicleFault] = []  # scheduled faults asked for by the world
         self.env = dict(os.environ)
         self.env["ZENOH_RUNTIME"] = children_runtime()  # the user's, else CHILD_RUNTIME (not the router's)
         self.env["PYTHONUNBUFFERED"] = "1"
@@ -443,56 +240,6 @@ class Launcher:
             s.declare_subscriber(keys.ctl(f, [v.id for v in self.scenario.vehicles]), self._on_ctl),
             s.declare_subscriber(keys.launcher_cmd(f), self._on_fault_request),
         ]
-
-    def _on_fault_request(self, sample: Any) -> None:
-        """The world asks for a vehicle fault; the supervise loop carries it out. Only faults on
-        the scenario's vehicles started here: never the world, an unknown or a remote id."""
-        c = decode_control(sample.payload.to_bytes(), LAUNCHER_OPS)
-        if isinstance(c, str):
-            self._reject(f"command {c}", f"a malformed command on {printable(str(sample.key_expr))}")
-            return
-        vid = c.fields["vehicle"]
-        if vid not in self.scenario.ids:
-            self._reject("command not_a_vehicle", f"{c.op} {printable(vid, 64)}: not a vehicle of the scenario")
-            return
-        if vid not in self.children:
-            self._reject("command remote", f"{c.op} {printable(vid, 64)}: started on another host, not here")
-            return
-        with self.cond:
-            self.requests.append((c.op, vid))
-            self.cond.notify_all()
-
-    def _reject(self, reason: str, what: str) -> None:
-        """Count a dropped message by reason; log the first of each reason (escaped text only)."""
-        with self.cond:
-            n = self.rejected[reason] = self.rejected.get(reason, 0) + 1
-        if n == 1:
-            self.log(f"  rejected: {what} ({reason}; further ones are only counted)")
-
-    def _carry_out(self, op: str, vid: str) -> None:
-        c = self.children[vid]
-        if op in ("kill", "restart"):
-            c.restart_at = None  # the fault decides, not a pending restart by the policy
-        if op == "kill":
-            c.intended_exit = True
-            c.signal_group(signal.SIGKILL)
-        elif op == "pause_vehicle":
-            c.signal_group(signal.SIGSTOP)
-        elif op == "resume_vehicle":
-            c.signal_group(signal.SIGCONT)
-        elif op == "restart":
-            if c.running():
-                c.intended_exit = True
-                c.signal_group(signal.SIGKILL)
-                c.proc.wait()
-            c.poll()
-            c.restarts += 1
-            c.start(self.env)
-        self.log(f"  fault: {op.replace('_vehicle', '')} {vid}")
-        try:
-            self.session.put(keys.world_cmd(self.fleet, keys.LAUNCHER), encode_control("fault_done", vehicle=vid))
-        except zenoh.ZError as e:
-            self.log(f"  could not tell the world the {op} of {vid} is done: {e}")
 
     def _on_ctl(self, sample: Any) -> None:
         c = decode_control(sample.payload.to_bytes(), CTL_OPS)
@@ -634,8 +381,8 @@ class Launcher:
             self._print_events()
             with self.cond:
                 requests, self.requests = self.requests, []
-            for op, vid in requests:
-                self._carry_out(op, vid)
+            for fault in requests:
+                self._carry_out(fault)
             self._watch_agents()
             with self.cond:
                 if not self.requests:
@@ -702,74 +449,6 @@ class Launcher:
                                  allowed_destination=zenoh.Locality.REMOTE)
             except zenoh.ZError as e:
                 self.log(f"  could not publish that: {e}")
-
-    def metrics_mark(self, path: Path | None = None) -> tuple | None:
-        """What the metrics file (or ``path``) is now (None: absent), to tell later whether the world wrote it."""
-        try:
-            st = os.stat(path or self.metrics_out)
-        except OSError:
-            return None
-        return (st.st_ino, st.st_mtime_ns, st.st_size)
-
-    def world_fallbacks(self) -> list[Path]:
-        """Where the world keeps its metrics when it cannot write them to metrics_out (a full disk;
-        cdus.files.metrics_fallbacks, as the world computes them)."""
-        w = self.children.get(keys.WORLD)
-        if w is None or w.proc is None:
-            return []
-        return metrics_fallbacks(self.metrics_out, self.run_dir, f"{self.fleet}-{w.proc.pid}")
-
-    def find_world_metrics(self, marks: dict[Path, tuple | None]) -> Path | None:
-        """Where the world wrote its metrics in this run: metrics_out or a fallback that changed
-        since ``marks`` (their :meth:`metrics_mark` before the run); None: it wrote none."""
-        for place in (self.metrics_out, *self.world_fallbacks()):
-            now = self.metrics_mark(place)
-            if now is not None and now != marks.get(place):
-                return place
-        return None
-
-    def write_world_lost(self, code: int, wall_s: float) -> dict:
-        """The world died without writing its metrics: write what the launcher knows (an empty
-        record, ``completed: false``, ``completion: "world_lost"``, the world's last status)."""
-        sc = self.scenario
-        if self.opts.duration is not None:
-            sc = replace(sc, duration=self.opts.duration)
-        rec = Recorder(list(sc.ids), [v.dim for v in sc.vehicles], metric_edges(sc))
-        st = self.status or {}
-        events = list(st.get("events") or [])
-        how = f"exited with status {code}" if code >= 0 else f"was killed by signal {-code}"
-        t_last = float(st["t"]) if st else None
-        events.append(FleetEvent.of(t_last or 0.0, "fault", f"the world process {how}; the launcher wrote these "
-                                    "metrics from the world's last status", severity="error"))
-        ignored = self.rejected.get("token_key", 0)
-        integrity = {"tampered": bool(ignored), "reasons": {"token_key": ignored} if ignored else {},
-                     "notes": [f"the launcher ignored {ignored} liveliness tokens on keys no process declares"]
-                     if ignored else []}
-        m = run_metrics(sc, rec, mode=self.opts.clock, link={}, wall_s=wall_s,
-                        policy=self.opts.policy or sc.link.policy, events=events, completed=False,
-                        integrity=integrity)
-        m["completion"] = WORLD_LOST
-        m["written_by"] = "launcher"
-        if st:  # what the world last said, in the fields a reader looks at first (the trace is lost)
-            m["duration_s"] = t_last
-            m["realtime_factor"] = t_last / wall_s if wall_s > 0 else None
-            m["final_path_error_max"] = st.get("path_error_max")
-            m["final_coord_error_max"] = st.get("coord_error_max")
-            m["live_final"] = sorted(set(st.get("alive") or ()) & set(sc.ids))
-        m["world_lost"] = {
-            "world_exit": code, "last_status_t": t_last,
-            "last_status": {k: st.get(k) for k in ("alive", "path_error_max", "coord_error_max", "paused")} if st else None,
-            "alive_tokens": sorted(self.alive & set(sc.ids)),  # the scenario's names only, not whatever was declared
-            "restarts": {n: c.restarts for n, c in self.children.items() if n != keys.WORLD and c.restarts},
-            "rejected_by_launcher": dict(self.rejected),
-        }
-        self.metrics_at = keep_json(self.metrics_out, m, metrics_fallbacks(self.metrics_out, self.run_dir,
-                                                                           f"{self.fleet}-launcher-{os.getpid()}"),
-                                    self.log)
-        if self.metrics_at is None:  # no disk takes them: the terminal does
-            self.log("the metrics could be written nowhere; here they are:")
-            self.log(json.dumps(m))
-        return m
 
     def stop(self) -> None:
         """The shutdown ladder: ask, wait, SIGTERM, wait, SIGKILL. Idempotent."""

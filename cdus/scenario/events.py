@@ -34,21 +34,23 @@ from __future__ import annotations
 
 from typing import Any, Mapping, Sequence
 
-from cdus.core.events import ACTIONS, Event
+from cdus.commands.base import Rejected
+from cdus.commands.radio import Radio
+from cdus.commands.vehicle import BY_EVENT as FAULT_BY_EVENT, FAULT_EVENTS
+from cdus.core.events import Event
 from cdus.core.formation import MAX_PHASE, FormationChange, PathChange, phases_from_offsets
 from cdus.core.paths import FAMILIES, Path, PathError, for_dimension, make_path, not_finite_at, turning_point
 from cdus.scenario.checks import IdList, Problems, describe, is_number, quote, show
 from cdus.scenario.vehicles import not_finite_message, retrace_message
 from cdus.core.radiolink import RadioEvent
-from cdus.scenario.errors import ConfigError
 from cdus.wire.bounds import BOUNDS
-from cdus.scenario.radio import validate_radio_update
 
 EVENT_KEYS = ("at", "action", "vehicle", "duration", "phases", "offsets", "path")
 REQUIRED = ("at", "action", "vehicle")
-#: the actions that change the formation or a path (the others are vehicle faults)
+#: the actions that change the formation or a path (the others are vehicle faults): the event names of
+#: cdus.commands.changes.Formation and Path (which import this module's checks; tests/commands pins them equal)
 CHANGE_ACTIONS = ("formation", "path")
-ALL_ACTIONS = ACTIONS + CHANGE_ACTIONS
+ALL_ACTIONS = FAULT_EVENTS + CHANGE_ACTIONS
 OFFSET_KEYS = ("i", "k", "delta")
 PATH_EXAMPLE = '{ family = "circle", center = [0, 0], radius = 10 }'
 #: ω units: how far a formation's given offsets may be from the ones its phases give (float64
@@ -128,7 +130,11 @@ def _event(p: Problems, e: dict, field: str, ids: Sequence[str] | None) -> list[
                                 unit=" s (then the vehicle resumes)")
     if p.since(mark) or at is None or action is None or vehicle is None:
         return []
-    events = [Event(at, action, vehicle)]
+    fault = FAULT_BY_EVENT[action].parse({"vehicle": vehicle})  # the run-time command's own parse
+    if isinstance(fault, Rejected):
+        p.add(f"{field}.{fault.field or 'vehicle'}", fault.reason)
+        return []
+    events = [Event(at, fault.NAMES.event, fault.vehicle)]
     if duration is not None:
         events.append(Event(at + duration, "resume", vehicle))
     return events
@@ -384,13 +390,11 @@ def radio_event_section(p: Problems, raw: Any, has_radio: bool, adhoc: bool = Fa
                                      'action = "radio", tx_power = 5.0')
         at = (p.number(e["at"], f"{field}.at", "event.at", unit=" (s of simulated time)")
               if "at" in e else None)
-        try:
-            tx, station = validate_radio_update({k: v for k, v in e.items() if k in ("tx_power", "station")},
-                                                f"{field}")
-        except ConfigError as err:
-            for name, message in err.problems:
-                p.add(f"{field}.{name.removeprefix('radio.')}" if name != "radio" else field, message)
+        change = Radio.parse({"radio": {k: v for k, v in e.items() if k in Radio.CHANGE_KEYS}})  # a command's parse
+        if isinstance(change, Rejected):
+            p.add(f"{field}.{change.field}" if change.field not in (None, "radio") else field, change.reason)
             continue
+        tx, station = change.tx_power, change.station
         if adhoc and station is not None:
             p.add(f"{field}.station", 'the [radio] table\'s topology is "adhoc": no station relays the messages, '
                                       'so moving one changes nothing; remove station (keep tx_power) or set '

@@ -15,6 +15,7 @@ import re
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
+from cdus.commands.gains import expand_k
 from cdus.core.gain_bounds import gains_problem_for_rate, regulator_gains_problem
 from cdus.core.limits import default_limits
 from cdus.core.paths import FAMILIES, Path, PathError, for_dimension, make_path, not_finite_at, turning_point
@@ -474,9 +475,9 @@ def _gains(p: Problems, t: _Merged, kind: str | None, fleet_gains: Mapping) -> t
                                      f"({'x, y' if dim == 2 else 'x, y, z'}), got {len(k_raw)}: {show(k_raw)}{note}")
         return (), c
     if isinstance(k_raw, list) and all(is_number(x) and x > 0 for x in k_raw):
-        return tuple(float(x) for x in k_raw), c
+        return expand_k(tuple(k_raw), dim), c
     if is_number(k_raw) and k_raw > 0:
-        return (float(k_raw),) * dim, c
+        return expand_k(k_raw, dim), c  # the one per-axis expansion (a run-time gains command's too)
     return (), c
 
 

@@ -26,6 +26,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable
 
+from cdus.commands.base import Rejected, freeze
+from cdus.commands.changes import Formation, Path
 from cdus.core.events import RosterChange, event_tick, plan_roster
 from cdus.core.link import LinkModel, burst_events
 from cdus.core.metrics import Recorder
@@ -34,7 +36,7 @@ from cdus.core.schedule import broadcast_every, total_ticks
 from cdus.core.vehicle import Telemetry, Vehicle
 from cdus.scenario.model import Scenario
 from cdus.sim.build import (
-    build_node, formation_schedule, link_faults_of, link_model_for, metric_edges, path_of, radio_schedule,
+    build_node, formation_schedule, link_faults_of, link_model_for, metric_edges, radio_schedule,
     sensor_schedule, with_radio,
 )
 from cdus.sim.sensing import contacts_of, sense_tick
@@ -94,7 +96,7 @@ class InProcessFleet:
         self.recorder.set_formation(formation_schedule(scenario), self.period)
         #: changes to report at their tick: tick -> events (the scenario's, then set_formation/set_path's)
         self._change_events = scheduled_change_events(scenario, self.period)
-        self._commanded: list[tuple[str, tuple, int]] = []  # run-time changes, for restarted nodes
+        self._commanded: list[tuple[Formation | Path, int]] = []  # run-time changes, for restarted nodes
         self.events: list[FleetEvent] = []
         self._last: list[Telemetry] = [node.vehicle.telemetry() for node in self.nodes]  # newest of each vehicle
         self._was_live = [True] * len(self.ids)
@@ -114,15 +116,17 @@ class InProcessFleet:
                           last_tick=self.end_tick, joined_at=joined_at)
         for change in self.roster:
             node.on_roster(change)
-        for kind, args, tick in getattr(self, "_commanded", ()):  # a restart hears them again, in order
-            self._apply(node, kind, args, tick)
+        for command, tick in getattr(self, "_commanded", ()):  # a restart hears them again, in order
+            self._apply(node, command, tick)
         return node
 
-    def _apply(self, node: VehicleNode, kind: str, args: tuple, tick: int) -> None:
-        if kind == "formation":
-            node.set_formation(args[0], tick)
-        elif self.ids[node.index] == args[0]:
-            node.set_path(path_of(args[1], node.vehicle.dim), tick)
+    def _apply(self, node: VehicleNode, command: Formation | Path, tick: int) -> None:
+        """A formation for every node, a path for its vehicle's (cdus.commands.changes)."""
+        if isinstance(command, Path) and command.vehicle != self.ids[node.index]:
+            return
+        out = command.apply(node, tick, self.ids)
+        if isinstance(out, Rejected):  # the caller validated it: a refusal here is a bug, said as one
+            raise ValueError(f"{command.NAMES.cli} command refused: {out}")
 
     def set_formation(self, phases: dict[str, float], tick: int, by: str | None = None) -> None:
         """New phases (θ, ω units) for the vehicles named, from ``tick`` (not before the next
@@ -130,10 +134,11 @@ class InProcessFleet:
         fleet of processes. The phases are taken as validated (cdus.scenario.events.check_phases)."""
         tick = max(tick, self.tick)
         index = {vid: j for j, vid in enumerate(self.ids)}
-        update = {index[vid]: float(theta) for vid, theta in phases.items()}
-        self._commanded.append(("formation", (update,), tick))
+        command = Formation(tuple((vid, float(theta)) for vid, theta in phases.items()))
+        update = {index[vid]: theta for vid, theta in command.phases}
+        self._commanded.append((command, tick))
         for node in self.nodes:
-            node.set_formation(update, tick)
+            self._apply(node, command, tick)
         self.recorder.formation.add(tick, update)
         ordered = sorted(update.items())
         self._change_events.setdefault(tick, []).append(
@@ -144,8 +149,9 @@ class InProcessFleet:
         from ``tick`` (not before the next tick stepped)."""
         tick = max(tick, self.tick)
         j = self.ids.index(vid)
-        self._commanded.append(("path", (vid, dict(table)), tick))
-        self._apply(self.nodes[j], "path", (vid, dict(table)), tick)
+        command = Path(vid, freeze(dict(table)))
+        self._commanded.append((command, tick))
+        self._apply(self.nodes[j], command, tick)
         self._change_events.setdefault(tick, []).append(
             path_changed(tick, self.period, vid, sorted(dict(table).items()), by))
 

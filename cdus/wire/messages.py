@@ -325,12 +325,14 @@ CTL_OPS: dict[str, dict[str, type]] = {
 SEQUENCED = ("link", "gains", "formation", "path", "radio")
 MAX_SEQ = 2**53
 
-#: anyone -> the world (``to/+world+/cmd/<from>``); ``link`` and ``gains`` tables are checked by their owners
+#: anyone -> the world (``to/+world+/cmd/<from>``); each op is a command of cdus.commands (its parse
+#: checks the tables: cdus.commands.parse.decode_command gives the typed command or Rejected)
 COMMAND_OPS: dict[str, dict[str, type]] = {
     "pause": {},
     "resume": {},
     "stop": {},
-    "set_gains": {"gains": dict, "vehicle": str},  # vehicle "" = every vehicle
+    "gains": {"gains": dict, "vehicle": str},  # vehicle "" = every vehicle (cdus.commands.gains)
+    "set_gains": {"gains": dict, "vehicle": str},  # its older spelling: a ground station of 0.x before the commands room
     "link": {"link": dict, "at": float},  # at < 0: as soon as possible
     # phases {id: θ} or offsets [{i, k, delta}, ...] (exactly one non-empty); from the next tick the world can
     "formation": {"phases": dict, "offsets": list},

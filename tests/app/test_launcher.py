@@ -11,6 +11,7 @@ import sys
 
 import pytest
 
+from cdus.commands.vehicle import Kill
 from cdus.app.launcher import Child, LaunchOptions, Launcher
 from cdus.scenario.config import load_scenario
 from cdus.scenario.model import MAX_BACKOFF_S, Supervision
@@ -198,7 +199,7 @@ def test_the_launchers_key_moves_the_scenarios_own_vehicles_only(tmp_path):
     la._on_fault_request(Sample(encode_control("kill", vehicle="\x1b]0;pwned\x07")))
     la._on_fault_request(Sample(b"\x92\x01"))
     la._on_fault_request(Sample(encode_control("kill", vehicle="usv2")))
-    assert la.requests == [("kill", "usv2")]
+    assert la.requests == [Kill("usv2")]
     assert la.rejected == {"command not_a_vehicle": 5, "command remote": 1, "command malformed": 1}
     assert len(lines) == 3 and not any("\x1b" in ln or "\x07" in ln for ln in lines), lines
 
@@ -217,7 +218,7 @@ def test_no_message_on_the_launchers_key_escapes_or_goes_uncounted(tmp_path_fact
     la.children["world"] = Child("world", SLEEP, la.logs / "world.log")
     la._on_fault_request(Sample(payload))
     assert len(la.requests) + sum(la.rejected.values()) == 1
-    assert all(vid == "usv1" for _, vid in la.requests)
+    assert all(fault.vehicle == "usv1" for fault in la.requests)
 
 
 def status(t: float) -> bytes:

@@ -6,10 +6,9 @@ from __future__ import annotations
 import pytest
 from hypothesis import given, settings, strategies as hs
 
-from cdus.scenario.config import ConfigError
-from cdus.scenario.link import validate_link
-from cdus.sim.radio import radio_change_problem
-from ground_station.__main__ import check_gains, formation_fields, main, nested, path_fields
+from cdus.commands.parse import BY_CLI, parse_cli
+from cdus.wire.rejected import Rejected
+from ground_station.__main__ import main
 
 _keys = hs.sampled_from(["phases", "offsets", "phases.usv1", "offsets.usv2", "offsets.usv2.usv1", "k", "c", "k.x",
                          "family", "center", "radius", "loss", "delay.base", "delay", "tx_power", "station", "a.b.c",
@@ -20,11 +19,11 @@ _settings = hs.lists(hs.tuples(_keys, _values).map(lambda kv: "=".join(kv)) | hs
                      max_size=4)
 
 
-def _only_usage_errors(fn, settings_):
-    try:
-        fn(settings_)
-    except ConfigError:
-        pass
+def _parsed_or_rejected(action, settings_, vehicle=None):
+    got = parse_cli(action, settings_, vehicle=vehicle)
+    assert isinstance(got, (Rejected, BY_CLI[action])), got
+    if isinstance(got, Rejected):
+        assert got.reason and (got.field is None or isinstance(got.field, str))
 
 
 @settings(max_examples=400, deadline=None)
@@ -32,12 +31,10 @@ def _only_usage_errors(fn, settings_):
 def test_every_local_check_of_the_settings_is_a_usage_error_never_a_traceback(s):
     """`formation phases=3` (or offsets=[1], or phases.usv1=1 phases=2) raised AttributeError: a
     traceback and exit 1 (read as 'rejected by the fleet'); `gains k=1 k.x=2` a TypeError."""
-    _only_usage_errors(formation_fields, s)
-    _only_usage_errors(path_fields, s)
-    _only_usage_errors(lambda x: check_gains(nested(x), None), s)
-    _only_usage_errors(lambda x: check_gains(nested(x), "usv1"), s)
-    _only_usage_errors(lambda x: validate_link(nested(x), None, "command line"), s)
-    _only_usage_errors(lambda x: radio_change_problem(nested(x)), s)
+    for action in ("formation", "link", "radio", "gains"):
+        _parsed_or_rejected(action, s)
+    _parsed_or_rejected("path", s, "uav1")
+    _parsed_or_rejected("gains", s, "usv1")
 
 
 @pytest.mark.parametrize("args", [["formation", "phases=3"], ["formation", "offsets=[1]"],

@@ -4,13 +4,17 @@ from __future__ import annotations
 
 import pytest
 
+from cdus.commands.changes import Formation, Path
+from cdus.commands.parse import parse_cli
 from cdus.scenario.config import ConfigError
-from ground_station.__main__ import build_parser, formation_fields, main, path_fields
+from cdus.wire.rejected import Rejected
+from ground_station.__main__ import build_parser, main
 
 
 def test_phases_and_offsets_become_the_commands_fields():
-    assert formation_fields(["phases.usv2=1.5", "phases.uav1=0"]) == {"phases": {"usv2": 1.5, "uav1": 0}, "offsets": []}
-    assert formation_fields(["offsets.usv2.usv1=2.0"]) == {
+    assert parse_cli("formation", ["phases.usv2=1.5", "phases.uav1=0"]).fields() == {
+        "phases": {"usv2": 1.5, "uav1": 0}, "offsets": []}
+    assert parse_cli("formation", ["offsets.usv2.usv1=2.0"]).fields() == {
         "phases": {}, "offsets": [{"i": "usv2", "k": "usv1", "delta": 2.0}]}
 
 
@@ -22,19 +26,17 @@ def test_phases_and_offsets_become_the_commands_fields():
     (["speed=3"], "speed"),
 ])
 def test_bad_formation_arguments_name_the_field(settings, field):
-    with pytest.raises(ConfigError) as info:
-        formation_fields(settings)
-    assert info.value.problems[0][0] == field
+    got = parse_cli("formation", settings)
+    assert isinstance(got, Rejected) and got.field == field
 
 
 def test_a_path_is_checked_as_the_configs_paths_are():
-    assert path_fields(["family=circle", "center=[0,0,20]", "radius=15"]) == {
+    assert parse_cli("path", ["family=circle", "center=[0,0,20]", "radius=15"], vehicle="uav1").path_table() == {
         "family": "circle", "center": [0, 0, 20], "radius": 15}
     for settings, field in ((["family=cirle"], "family"), (["family=circle", "center=[0,0]", "radius=-1"], "radius"),
                             (["family=circle", "radius=1"], "center")):
-        with pytest.raises(ConfigError) as info:
-            path_fields(settings)
-        assert info.value.problems[0][0] == field
+        got = parse_cli("path", settings, vehicle="uav1")
+        assert isinstance(got, Rejected) and got.field == f"path.{field}", got
 
 
 def test_the_subcommands_parse_and_bad_arguments_exit_2_before_connecting(capsys):
@@ -101,8 +103,8 @@ def test_an_unknown_vehicle_in_a_formation_names_the_argument_that_held_it(setti
     from ground_station.__main__ import check_formation_vehicles
     ids = ["usv1", "usv2", "usv3"]
     with pytest.raises(ConfigError) as info:
-        check_formation_vehicles(formation_fields(settings), ids)
+        check_formation_vehicles(parse_cli("formation", settings), ids)
     assert info.value.problems[0][0] == field
     assert "its vehicles are usv1, usv2, usv3" in info.value.problems[0][1]
-    check_formation_vehicles(formation_fields(["phases.usv2=1", "phases.usv3=2"]), ids)  # known ids pass
-    check_formation_vehicles(formation_fields(["offsets.usv3.usv1=2"]), ids)
+    check_formation_vehicles(parse_cli("formation", ["phases.usv2=1", "phases.usv3=2"]), ids)  # known ids pass
+    check_formation_vehicles(parse_cli("formation", ["offsets.usv3.usv1=2"]), ids)
