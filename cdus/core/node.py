@@ -53,7 +53,8 @@ from cdus.core.formation import FormationSchedule
 from cdus.core.gain_bounds import gains_problem_for_rate
 from cdus.core.link import DropBursts, LinkCounters, LinkModel
 from cdus.core.linkspec import LinkSpec
-from cdus.core.neighbours import POLICIES, NeighbourLink, NeighbourTable, consensus_target
+from cdus.core.neighbours import NeighbourLink, NeighbourTable, consensus_target
+from cdus.core.policies import make_policy
 from cdus.core.paths import Path, Vec
 from cdus.core.safety import Contact
 from cdus.core.schedule import delay_floor, delivery_tick, first_seq_at, needed_seq, send_tick
@@ -446,8 +447,7 @@ class VehicleNode:
 
     def set_policy(self, policy: str, timeout: float, tick: int) -> None:
         """A new stale-neighbour policy (and its timeout, s) from tick ``tick`` on."""
-        if policy not in POLICIES:
-            raise ValueError(f"unknown stale-neighbour policy {policy!r}; choose one of {', '.join(POLICIES)}")
+        make_policy(policy, timeout)  # an unknown name is refused here, naming the known ones
         if not timeout > 0:
             raise ValueError(f"the policy's timeout must be > 0 s, got {timeout}")
         _schedule(self._policies, (tick, policy, float(timeout)))
@@ -598,7 +598,7 @@ class VehicleNode:
             _, self.vehicle.k, self.vehicle.c = gains
         policy = _due(self._policies, n)
         if policy is not None:
-            _, self.table.policy, self.table.timeout = policy
+            self.table.set_policy(policy[1], policy[2])
         self._apply_changes(n)
         v = self.vehicle
         try:
