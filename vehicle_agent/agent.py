@@ -546,9 +546,9 @@ class Agent:
         merged = merge_link_tables(self.link_table, table)
         try:
             spec = validate_link(merged, self.ids, "link command")
-            at = self.node.set_link(spec, at)
+            at = self.node.set_link(spec, at).or_raise().at
             if "policy" in table or "timeout" in table:
-                self.node.set_policy(spec.policy, spec.timeout, event_tick(at, self.period))
+                self.node.set_policy(spec.policy, spec.timeout, event_tick(at, self.period)).or_raise()
         except (ConfigError, ValueError) as e:
             self.rejected["bad_link_command"] += 1
             self.log(f"link command rejected: {e}")
