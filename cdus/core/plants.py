@@ -142,23 +142,34 @@ class Plant(Protocol):
         """The dynamic safety filter's model of this plant at ``state`` (cdus.core.safety)."""
 
 
-def _heading_of(v: Vec) -> float:
-    return math.atan2(v[1], v[0])
+class _PointMass:
+    """What the ideal plant and the double integrator share: a state (q, velocity) at rest
+    with zero velocity, heading along the velocity."""
+
+    _state: type
+
+    def start(self, q: Vec, heading: float) -> Any:
+        return self._state(tuple(q), (0.0,) * len(q))
+
+    def at_rest(self, state: Any, q: Vec, heading: float | None) -> Any:
+        return self._state(q, (0.0,) * len(q))
+
+    def heading(self, state: Any) -> float:
+        v = self.velocity(state)
+        return math.atan2(v[1], v[0])
+
+    def finite(self, state: Any) -> bool:
+        return math.isfinite(sum(state.q) + sum(self.velocity(state)))
 
 
 @dataclass(frozen=True)
-class IdealPlant:
+class IdealPlant(_PointMass):
     """``ideal``: q̇ = a + d, the velocity reference realised exactly (:func:`step_ideal`)."""
 
     name: str = "ideal"
     velocity_level: bool = True
     exact_when_held: bool = True
-
-    def start(self, q: Vec, heading: float) -> PointState:
-        return PointState(tuple(q), (0.0,) * len(q))
-
-    def at_rest(self, state: PointState, q: Vec, heading: float | None) -> PointState:
-        return PointState(q, (0.0,) * len(q))
+    _state = PointState
 
     def step(self, state: PointState, u: Vec, d: Vec, h: float) -> PointState:
         return step_ideal(state, u, d, h)
@@ -166,41 +177,24 @@ class IdealPlant:
     def velocity(self, state: PointState) -> Vec:
         return state.v
 
-    def heading(self, state: PointState) -> float:
-        return _heading_of(state.v)
-
-    def finite(self, state: PointState) -> bool:
-        return math.isfinite(sum(state.q) + sum(state.v))
-
     def point(self, state: PointState, d: Vec, limits: Any) -> Point:
         raise TypeError("the ideal plant is filtered at the velocity level, not by the dynamic filter")
 
 
 @dataclass(frozen=True)
-class DoubleIntegrator:
+class DoubleIntegrator(_PointMass):
     """``uav_double_integrator``: q̇ = p + d, ṗ = τ (:func:`step_uav`)."""
 
     name: str = "uav_double_integrator"
     velocity_level: bool = False
     exact_when_held: bool = False
-
-    def start(self, q: Vec, heading: float) -> UAVState:
-        return UAVState(tuple(q), (0.0,) * len(q))
-
-    def at_rest(self, state: UAVState, q: Vec, heading: float | None) -> UAVState:
-        return UAVState(q, (0.0,) * len(q))
+    _state = UAVState
 
     def step(self, state: UAVState, u: Vec, d: Vec, h: float) -> UAVState:
         return step_uav(state, u, d, h)
 
     def velocity(self, state: UAVState) -> Vec:
         return state.p
-
-    def heading(self, state: UAVState) -> float:
-        return _heading_of(state.p)
-
-    def finite(self, state: UAVState) -> bool:
-        return math.isfinite(sum(state.q) + sum(state.p))
 
     def point(self, state: UAVState, d: Vec, limits: Any) -> Point:
         return uav_point(state.q, state.p, d, limits.accel)

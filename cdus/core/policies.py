@@ -36,17 +36,20 @@ class StalePolicy(Protocol):
         message (``latest``, taken at ``received_at``) is used at ``t``."""
 
 
+def _newest(links: tuple, latest: Mapping[int, Any]):
+    """(link, its neighbour's newest message) for the links whose neighbour has sent one."""
+    for ln in links:
+        m = latest.get(ln.k)
+        if m is not None:
+            yield ln, m
+
+
 @dataclass(frozen=True)
 class Hold:
     name: str = "hold"
 
     def terms(self, links, latest, received_at, t) -> list[Term]:
-        out = []
-        for ln in links:
-            m = latest.get(ln.k)
-            if m is not None:
-                out.append((ln.weight, m.omega, 0.0, ln.delta))
-        return out
+        return [(ln.weight, m.omega, 0.0, ln.delta) for ln, m in _newest(links, latest)]
 
 
 @dataclass(frozen=True)
@@ -55,13 +58,8 @@ class Timeout:
     name: str = "timeout"
 
     def terms(self, links, latest, received_at, t) -> list[Term]:
-        out = []
-        for ln in links:
-            m = latest.get(ln.k)
-            if m is None or t - received_at[ln.k] > self.timeout:
-                continue
-            out.append((ln.weight, m.omega, 0.0, ln.delta))
-        return out
+        return [(ln.weight, m.omega, 0.0, ln.delta) for ln, m in _newest(links, latest)
+                if not t - received_at[ln.k] > self.timeout]
 
 
 @dataclass(frozen=True)
@@ -69,12 +67,8 @@ class Extrapolate:
     name: str = "extrapolate"
 
     def terms(self, links, latest, received_at, t) -> list[Term]:
-        out = []
-        for ln in links:
-            m = latest.get(ln.k)
-            if m is not None:
-                out.append((ln.weight, m.omega + m.omega_rate * (t - m.t_send), m.omega_rate, ln.delta))
-        return out
+        return [(ln.weight, m.omega + m.omega_rate * (t - m.t_send), m.omega_rate, ln.delta)
+                for ln, m in _newest(links, latest)]
 
 
 #: policy name -> build(timeout s) (the first is the default)
