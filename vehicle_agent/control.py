@@ -178,11 +178,16 @@ class Control:
         merged = merge_link_tables(self.link_table, table)
         try:
             spec = validate_link(merged, a.ids, "link command")
-            at = a.node.set_link(spec, f["at"])
-            if "policy" in table or "timeout" in table:
-                a.node.set_policy(spec.policy, spec.timeout, event_tick(at, a.period))
         except (ConfigError, ValueError) as e:
             return refused("bad_link_command", f"link command rejected: {e}")
+        done = a.node.set_link(spec, f["at"])
+        if not done:
+            return refused("bad_link_command", f"link command rejected: {done.reason}")
+        at = done.at
+        if "policy" in table or "timeout" in table:
+            policy = a.node.set_policy(spec.policy, spec.timeout, event_tick(at, a.period))
+            if not policy:
+                return refused("bad_link_command", f"link command rejected: {policy.reason}")
         self.link_table = merged
         a.log(f"link faults changed from t = {at:.2f} s: {table}")
         return APPLIED
@@ -196,7 +201,9 @@ class Control:
         k = gains.get("k", v.k)
         k = tuple(float(x) for x in k) if isinstance(k, (list, tuple)) else (float(k),) * v.dim
         c = float(gains.get("c", v.c))
-        a.node.set_gains(k, c, tick)
+        done = a.node.set_gains(k, c, tick)
+        if not done:
+            return refused("bad_gains_command", f"gains command rejected: {done.reason}")
         a.log(f"gains k = {tuple(k)}, c = {c} from tick {tick}")
         return APPLIED
 
@@ -206,7 +213,9 @@ class Control:
         checked = check_phases(f["phases"], a.ids)
         if isinstance(checked, tuple):
             return refused("bad_formation_command", f"formation command rejected: {' '.join(checked)}")
-        a.node.set_formation({a.ids.index(vid): theta for vid, theta in checked.items()}, tick)
+        done = a.node.set_formation({a.ids.index(vid): theta for vid, theta in checked.items()}, tick)
+        if not done:
+            return refused("bad_formation_command", f"formation command rejected: {done.reason}")
         a.log(f"formation phases {printable(checked, 200)} from tick {tick}")
         return APPLIED
 
@@ -216,7 +225,9 @@ class Control:
         path = check_path(table, a.node.vehicle.dim)
         if isinstance(path, tuple):
             return refused("bad_path_command", f"path command rejected: {' '.join(path)}")
-        a.node.set_path(path, tick)
+        done = a.node.set_path(path, tick)
+        if not done:
+            return refused("bad_path_command", f"path command rejected: {done.reason}")
         a.log(f"path {printable(table, 200)} from tick {tick}")
         return APPLIED
 

@@ -14,11 +14,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from cdus.core.policies import POLICIES as _STALE_POLICIES
+
 
 DISTRIBUTIONS = ("uniform", "normal", "pareto")
 ANY = "*"
 
-POLICIES = ("hold", "timeout", "extrapolate")  # stale-neighbour policies (cdus.core.neighbours)
+POLICIES = tuple(_STALE_POLICIES)  # the stale-neighbour policies' names (cdus.core.policies)
 DEFAULT_POLICY = "hold"
 DEFAULT_TIMEOUT = 1.5  # s, the public Paparazzi relative's (docs/control.md §6)
 

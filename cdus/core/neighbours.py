@@ -2,21 +2,17 @@
 
 A receiver keeps, per neighbour, the newest accepted message (older sequence numbers
 are rejected as stale or duplicates) and turns the table into the consensus term of the
-guidance with a stale-neighbour policy (docs/link.md):
-
-- ``hold``: use the last value as it is;
-- ``timeout``: like hold, but a neighbour silent for longer than ``timeout`` s drops out of
-  the sum (the public Paparazzi relative uses 1.5 s);
-- ``extrapolate``: ω_k + ω̇_k (t - t_send), which removes most of the τ·|ω̇| bias a
-  delay τ causes (docs/control.md §6).
+guidance with a stale-neighbour policy (``hold``, ``timeout``, ``extrapolate``: the objects
+of cdus.core.policies; docs/link.md).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from cdus.core.guidance import Consensus
-from cdus.core.linkspec import POLICIES
+from cdus.core.linkspec import POLICIES  # noqa: F401 (re-exported: the policies' names)
+from cdus.core.policies import StalePolicy, make_policy
 from cdus.wire.messages import OmegaMsg
 
 
@@ -43,19 +39,41 @@ def consensus_target(links: tuple[NeighbourLink, ...], omegas: dict[int, float])
     return num / den if den > 0 else None
 
 
-@dataclass
 class NeighbourTable:
-    links: tuple[NeighbourLink, ...]
-    policy: str = "hold"
-    timeout: float = 1.5
-    latest: dict[int, OmegaMsg] = field(default_factory=dict)
-    received_at: dict[int, float] = field(default_factory=dict)
-    rejected_stale: int = 0
+    """The newest message of each neighbour and the stale-neighbour policy that turns them into
+    the consensus term. ``policy`` and ``timeout`` are the scenario's names; setting either
+    builds the policy object (cdus.core.policies) the sum uses, refusing an unknown name."""
 
-    def __post_init__(self) -> None:
-        if self.policy not in POLICIES:
-            raise ValueError(f"unknown stale-neighbour policy {self.policy!r}; choose one of {', '.join(POLICIES)}")
+    def __init__(self, links: tuple[NeighbourLink, ...], policy: str = "hold", timeout: float = 1.5):
+        self.links = links
+        self.latest: dict[int, OmegaMsg] = {}
+        self.received_at: dict[int, float] = {}
+        self.rejected_stale = 0
+        self._timeout = timeout
+        self._stale: StalePolicy = make_policy(policy, timeout)
         self._known = {ln.k for ln in self.links}
+
+    def set_policy(self, name: str, timeout: float) -> None:
+        """Use the policy ``name`` with ``timeout`` (s) from now on."""
+        self._stale = make_policy(name, timeout)
+        self._timeout = timeout
+
+    @property
+    def policy(self) -> str:
+        return self._stale.name
+
+    @policy.setter
+    def policy(self, name: str) -> None:
+        self._stale = make_policy(name, self._timeout)
+
+    @property
+    def timeout(self) -> float:
+        return self._timeout
+
+    @timeout.setter
+    def timeout(self, seconds: float) -> None:
+        self._timeout = seconds
+        self._stale = make_policy(self._stale.name, seconds)
 
     def accepts(self, sender: int) -> bool:
         return sender in self._known
@@ -78,18 +96,7 @@ class NeighbourTable:
 
     def consensus(self, t: float) -> Consensus:
         """The coupling term for a control period starting at time ``t``."""
-        terms = []
-        for ln in self.links:
-            m = self.latest.get(ln.k)
-            if m is None:
-                continue
-            if self.policy == "timeout" and t - self.received_at[ln.k] > self.timeout:
-                continue
-            if self.policy == "extrapolate":
-                terms.append((ln.weight, m.omega + m.omega_rate * (t - m.t_send), m.omega_rate, ln.delta))
-            else:
-                terms.append((ln.weight, m.omega, 0.0, ln.delta))
-        return Consensus.from_terms(terms)
+        return Consensus.from_terms(self._stale.terms(self.links, self.latest, self.received_at, t))
 
     def ages(self, t: float) -> dict[int, float]:
         return {k: t - m.t_send for k, m in self.latest.items()}

@@ -29,7 +29,8 @@ Zenoh, and both therefore step the same ticks with the same inputs (docs/archite
   runner waits for the sample a tick's decisions need (``geometry_missing``).
 - ``set_link(spec, at)``, ``set_policy(policy, timeout, tick)``, ``set_gains(k, c,
   tick)``, ``set_formation(phases, tick)`` and ``set_path(path, tick)``: run-time changes,
-  applied in simulated time so every runner applies them alike (cdus.core.formation).
+  applied in simulated time so every runner applies them alike (cdus.core.formation); each
+  returns its outcome, ``Applied(tick)`` or ``Refused(reason)`` (cdus.core.changes).
 - ``waiting_for(n)``: the neighbours whose broadcast tick ``n`` needs and has not
   arrived (deterministic runners wait for them; a realtime one does not).
 - ``step(n)``: the tick: usable messages into the neighbour table, the controller's
@@ -37,122 +38,35 @@ Zenoh, and both therefore step the same ticks with the same inputs (docs/archite
   broadcast ticks), the safety filter on the velocity reference (if on), then the plant
   to the next tick. Returns the :class:`Outbox`.
 
-Pure: no I/O, no clock; counters of what the link did are kept here.
+Pure: no I/O, no clock; counters of what the link did are kept here. The node is three
+rooms: this one (its state, the roster, the sensors, the schedule of what a tick waits for,
+the tick), cdus.core.intake (what it takes from the wire: ``on_message`` and the link's
+decisions) and cdus.core.changes (the run-time changes and their outcomes).
 """
 
 from __future__ import annotations
 
-import bisect
 import heapq
 import math
 from collections import defaultdict
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
+from cdus.core.changes import (  # noqa: F401 (gains_problem, Applied, Refused, Outcome: importable from here too)
+    Applied, Outcome, Refused, RunTimeChanges, _due, gains_problem,
+)
 from cdus.core.events import RosterChange
 from cdus.core.formation import FormationSchedule
-from cdus.core.gain_bounds import gains_problem_for_rate
+from cdus.core.intake import (  # noqa: F401 (the intake's vocabulary, importable from here too)
+    CANDIDATES, GAP, GAP_RATE_SLACK, HEAL, HOSTILE_REASONS, RECENT, REJECT_REASONS, Intake, _Neighbour,
+    omega_plausible,
+)
 from cdus.core.link import DropBursts, LinkCounters, LinkModel
-from cdus.core.linkspec import LinkSpec
-from cdus.core.neighbours import POLICIES, NeighbourLink, NeighbourTable, consensus_target
+from cdus.core.neighbours import NeighbourLink, NeighbourTable, consensus_target
 from cdus.core.paths import Path, Vec
 from cdus.core.safety import Contact
-from cdus.core.schedule import delay_floor, delivery_tick, first_seq_at, needed_seq, send_tick
+from cdus.core.schedule import delay_floor, first_seq_at, needed_seq, send_tick
 from cdus.core.vehicle import DivergedError, Telemetry, Vehicle
-from cdus.wire.bounds import BOUNDS
 from cdus.wire.messages import OmegaMsg
-
-REJECT_REASONS = ("not_a_neighbour", "inconsistent", "future", "stale", "conflict", "implausible", "gone")
-#: reasons a hostile or broken sender shows (the world turns new counts of them into an event)
-HOSTILE_REASONS = ("future", "conflict", "implausible")
-RECENT = 8  # messages kept per sender to tell a duplicate ("stale") from a forgery ("conflict")
-GAP = 64  # seqs skipped by a newer message that are still taken if they come (an outage's resends)
-CANDIDATES = 4  # messages kept per seq that agree with the sender's past (the genuine one among forgeries)
-HEAL = 3  # consecutive messages consistent with each other but not with the sender's past: a new past
-#: slack of the loose check over a gap of several ticks (rad/s on the mean rate; docs/architecture.md)
-GAP_RATE_SLACK = 1.0
-
-
-def omega_plausible(prev: OmegaMsg, msg: OmegaMsg, period: float) -> bool:
-    """Can a genuine sender that sent ``prev`` send ``msg`` next (``msg.seq > prev.seq``)?
-
-    A vehicle's ω at tick n is ω at tick n - 1 plus T ω̇_n, where ω̇_n is the mean rate over
-    that period and is what the message carries (cdus.core.vehicle.Vehicle.control), packed as
-    float32 (relative error <= 2^-24). So for consecutive ticks the relation is exact up to
-    rounding. Over a gap of g > 1 ticks (a broadcast period of several control ticks, or
-    messages lost) only the end rates are known: the mean rate must lie within the end rates'
-    half spread, plus their mean (a sender frozen meanwhile kept its ω), plus
-    :data:`GAP_RATE_SLACK`, around their mean. A restart or a rejoin moves ω freely; the caller skips
-    the check where the roster explains the gap (and heals after :data:`HEAL` messages).
-    """
-    g = round((msg.t_send - prev.t_send) / period)
-    if g <= 0:
-        return False
-    d = msg.omega - prev.omega
-    ulp = 4 * math.ulp(max(abs(msg.omega), abs(prev.omega), 1.0))
-    if g == 1:
-        return abs(d - period * msg.omega_rate) <= period * abs(msg.omega_rate) * 2.0 ** -21 + ulp
-    span = g * period
-    mid = 0.5 * (prev.omega_rate + msg.omega_rate)
-    # a sender frozen meanwhile (a realtime stall) kept its ω: a mean rate of 0 is allowed too
-    return abs(d - span * mid) <= span * (0.5 * abs(msg.omega_rate - prev.omega_rate) + abs(mid) + GAP_RATE_SLACK) \
-        + ulp
-
-
-def gains_problem(gains: dict, dim: int, *, control_hz: float | None = None, plant: str = "ideal",
-                  physics_hz: float | None = None, weight_sum: float = 0.0) -> str | None:
-    """What is wrong with a run-time gains command ``{"k": number | [per axis], "c": number}``
-    for a vehicle of ``dim`` axes (None: nothing). Numbers must be finite and > 0, and, given
-    the vehicle's rates, plant and edge-weight sum, within what the discrete controller takes
-    (cdus.core.gain_bounds: the same bound the scenario's validation applies)."""
-    problem = _gains_shape_problem(gains, dim)
-    if problem is None and control_hz is not None:
-        problem = gains_problem_for_rate(gains.get("k"), gains.get("c"), control_hz, plant=plant,
-                                         physics_hz=physics_hz, weight_sum=weight_sum)
-    return problem
-
-
-def _schedule(changes: list[tuple], change: tuple) -> None:
-    """Put ``change`` (a tuple whose first item is the tick it applies from) into ``changes``, kept
-    in tick order: appended when it is the latest, as the world's always are (O(1); a sort at each
-    made a flood of gains changes quadratic, and a restarted vehicle sent 18,000 of them spent
-    10 s of CPU on them); one at the tick of a change already there replaces it (a step applies
-    every change due, in order: the later is the one that shows)."""
-    i = bisect.bisect_right(changes, change[0], key=lambda g: g[0])
-    if i and changes[i - 1][0] == change[0]:
-        changes[i - 1] = change
-    else:
-        changes.insert(i, change)
-
-
-def _due(changes: list[tuple], n: int) -> tuple | None:
-    """Take the changes of ``changes`` (in tick order) due at tick ``n`` out: the last of them (the
-    one in force from ``n``), or None."""
-    i = 0
-    while i < len(changes) and changes[i][0] <= n:
-        i += 1
-    if i == 0:
-        return None
-    last = changes[i - 1]
-    del changes[:i]
-    return last
-
-
-def _gains_shape_problem(gains: dict, dim: int) -> str | None:
-    def ok(x) -> bool:
-        return BOUNDS["gains.k"].holds(x)
-
-    extra = sorted(set(gains) - {"k", "c"})
-    if extra or not gains:
-        return f"gains are k and c, got {sorted(gains)}"
-    k = gains.get("k", 1.0)
-    if isinstance(k, (list, tuple)):
-        if len(k) != dim or not all(ok(x) for x in k):
-            return f"k must be {dim} numbers > 0 for this vehicle, got {list(k)}"
-    elif not ok(k):
-        return f"k must be a number > 0, got {k!r}"
-    if "c" in gains and not BOUNDS["gains.c"].holds(gains["c"]):
-        return f"c must be a number > 0, got {gains['c']!r}"
-    return None
 
 
 @dataclass(frozen=True)
@@ -164,22 +78,7 @@ class Outbox:
     omega: OmegaMsg | None
 
 
-@dataclass
-class _Neighbour:
-    """What a receiver knows of one neighbour's liveness."""
-
-    state: str = "live"
-    since: int = 0  # tick of its newest (re)start: nothing it sent before is used
-    changes: list[RosterChange] = field(default_factory=list)  # not yet applied, by tick
-    change_ticks: list[int] = field(default_factory=list)  # ticks of every change heard of (newest RECENT)
-    #: seq -> the messages heard with it that agreed with the sender's past (the one taken first),
-    #: newest RECENT seqs: the past a new message must agree with, and what tells a copy from a forgery
-    recent: dict[int, list[OmegaMsg]] = field(default_factory=dict)
-    chain: list[OmegaMsg] = field(default_factory=list)  # implausible messages consistent with each other
-    missing: set[int] = field(default_factory=set)  # seqs skipped by a newer one (lost in flight), newest GAP
-
-
-class VehicleNode:
+class VehicleNode(Intake, RunTimeChanges):
     """The tick protocol of vehicle ``index`` (see the module docstring).
 
     ``period`` is the control period (s), ``every`` the control ticks per ω broadcast,
@@ -237,143 +136,6 @@ class VehicleNode:
         self.radio = link if hasattr(link, "on_geometry") else None
 
     # ------------------------------------------------------------------ inputs
-    def on_message(self, msg: OmegaMsg, arrival: float | None = None) -> str | None:
-        """Take a validated ω message from the wire; returns a reject reason or None.
-
-        Checked in this order, every reject counted by reason: the sender is a neighbour; its
-        send time is the one its seq implies (``inconsistent``); the seq is within what the
-        sender can have sent (``future``: past :attr:`horizon` or the run's last tick); it is
-        newer than the newest taken (``stale``: a copy, ``conflict``: the same seq with other
-        content), unless it fills a seq a newer one skipped; and ω agrees with a message of
-        the nearest older seq that agreed with the sender's past (``implausible``,
-        :func:`omega_plausible`; every such message is kept as a candidate of its seq, so a
-        forgery taken first cannot make the genuine sender implausible). A rejected message
-        never advances the sender's newest seq, so nobody else's message can lock a sender out.
-        """
-        k = msg.sender
-        peer = self._peers.get(k)
-        if peer is None:
-            return self._reject("not_a_neighbour")
-        tick = msg.seq * self.every
-        if msg.t_send != tick * self.period:  # Vehicle.t = tick * T exactly, tick = seq * every
-            return self._reject("inconsistent")
-        if tick > self.last_tick or (self.horizon is not None and tick > self.horizon):
-            return self._reject("future")
-        if tick < self._deaf_before:
-            return None  # sent while this vehicle's process was gone: it never heard it (see rejoin)
-        newest = self.seen_seq.get(k, -1)
-        if msg.seq <= newest:
-            if msg in peer.recent.get(msg.seq, ()):
-                return self._reject("stale")  # a copy of what was taken or heard
-            if msg.seq in peer.missing and self._plausible(peer, msg, tick):
-                return self._fill(peer, msg, arrival)  # a message lost in flight, said again
-            if msg.seq in peer.recent:
-                # Someone else sends with this seq. Keep it as a candidate if it agrees with the
-                # sender's past, so that if it is the genuine one its successor is not judged
-                # against a forgery taken before it (that would lock the sender out).
-                if self._plausible(peer, msg, tick):
-                    taken = peer.recent[msg.seq][0]
-                    if arrival is None and taken in self._inbox and not self._plausible(peer, taken, tick):
-                        # The one taken first disagrees with the past as it is known now (it came
-                        # before its predecessor): it was the forgery, and it is not decided yet.
-                        self._inbox[self._inbox.index(taken)] = msg
-                        peer.recent[msg.seq] = [msg]
-                        return self._reject("implausible")  # counted for the forgery
-                    self._remember(peer, msg)
-                return self._reject("conflict")
-            return self._reject("implausible" if msg.seq in peer.missing else "stale")
-        if not self._plausible(peer, msg, tick):
-            chain = peer.chain
-            if chain and msg.seq > chain[-1].seq and omega_plausible(chain[-1], msg, self.period):
-                chain.append(msg)
-            else:
-                chain[:] = [msg]
-            if len(chain) < HEAL:
-                return self._reject("implausible")
-        peer.chain.clear()
-        if newest >= 0 and msg.seq > newest + 1:  # skipped ones may still come (a resend after an outage)
-            lo = max(newest + 1, msg.seq - GAP, -(-max(self.joined_at, self._deaf_before) // self.every))
-            peer.missing.update(range(lo, msg.seq))
-        if peer.missing:
-            peer.missing = {g for g in peer.missing if g > msg.seq - GAP}
-        self.seen_seq[k] = msg.seq
-        self._take(peer, msg, arrival)
-        return None
-
-    def _plausible(self, peer: _Neighbour, msg: OmegaMsg, tick: int) -> bool:
-        """Does ``msg`` agree with any message heard at the nearest older seq that itself agreed
-        with the sender's past (or is there no such past, or does the roster explain a jump)?"""
-        older = [q for q in peer.recent if q < msg.seq]
-        if not older:
-            return True
-        return any(self._explained(peer, prev, tick) or omega_plausible(prev, msg, self.period)
-                   for prev in peer.recent[max(older)])
-
-    def _remember(self, peer: _Neighbour, msg: OmegaMsg) -> None:
-        """Keep ``msg`` among its seq's candidates (at most CANDIDATES; the newest RECENT seqs)."""
-        cands = peer.recent.setdefault(msg.seq, [])
-        if msg not in cands and len(cands) < CANDIDATES:
-            cands.append(msg)
-        while len(peer.recent) > RECENT:
-            del peer.recent[min(peer.recent)]
-
-    def _take(self, peer: _Neighbour, msg: OmegaMsg, arrival: float | None) -> None:
-        self._remember(peer, msg)
-        if arrival is None:
-            self._inbox.append(msg)
-        else:
-            for d in self._decide(msg):
-                self._order += 1
-                heapq.heappush(self._pending, (arrival + d, self._order, msg, d))
-
-    def _fill(self, peer: _Neighbour, msg: OmegaMsg, arrival: float | None) -> str | None:
-        """Take ``msg``, a seq that a newer message skipped (checked by the caller).
-
-        A newer message was judged without ``msg``, against an older past. Deterministic
-        runners re-judge every newer one not decided yet against the past as it is known now:
-        one that disagrees came before its predecessor and was a forgery (the genuine sender's
-        messages of one link arrive in send order, a resend after an outage excepted, and a
-        resend agrees with what follows). It is withdrawn, so the node waits for its seq again
-        instead of deciding the forgery in the genuine one's place (the Spoofer of
-        tests/e2e/test_hostile.py under load: its seq s + 1, made from the genuine s, can reach a
-        receiver before the genuine s, and passed the loose check over the 2-tick gap)."""
-        peer.missing.discard(msg.seq)
-        self._take(peer, msg, arrival)
-        if arrival is None and self._rejudge(msg.sender, peer, msg.seq):
-            return self._reject("implausible")  # counted for the forgery withdrawn
-        return None
-
-    def _rejudge(self, k: int, peer: _Neighbour, seq: int) -> int:
-        """Deterministic runners, after the gap ``seq`` of sender ``k`` was filled: re-judge the
-        undecided messages taken with a newer seq, oldest first, against the past as now known;
-        withdraw those that disagree (another candidate of their seq that agrees takes their
-        place). Returns how many were withdrawn."""
-        withdrawn, emptied = 0, set()
-        for q in sorted(s for s in peer.recent if s > seq):
-            taken = peer.recent[q][0]
-            if taken not in self._inbox or self._plausible(peer, taken, q * self.every):
-                continue
-            self._inbox.remove(taken)
-            withdrawn += 1
-            others = [m for m in peer.recent[q][1:] if self._plausible(peer, m, q * self.every)]
-            if others:  # the genuine one came after it, as a conflict, and agrees with the past
-                peer.recent[q] = [others[0]]
-                self._inbox.append(others[0])
-            else:
-                del peer.recent[q]
-                emptied.add(q)
-        if emptied:  # the sender's newest is the newest seq still taken; a withdrawn one below it is a gap
-            newest = max(peer.recent, default=seq)
-            peer.missing = {g for g in peer.missing if g < newest} | {q for q in emptied if q < newest}
-            self.seen_seq[k] = newest
-        return withdrawn
-
-    def _explained(self, peer: _Neighbour, last: OmegaMsg, tick: int) -> bool:
-        """Does the roster explain a jump of ω between ``last`` and a message sent at ``tick``
-        (a change of the sender's liveness in between: a restart, a pause, a resume)?"""
-        t0 = send_tick(last.t_send, self.period)
-        return any(t0 < c <= tick for c in peer.change_ticks)
-
     def on_roster(self, change: RosterChange) -> bool:
         """A liveness change of a neighbour or of this vehicle, effective at ``change.tick``
         (or at the next tick stepped, if that has passed). A change told again is ignored: applied
@@ -432,69 +194,6 @@ class VehicleNode:
         decided at ``n`` were sent before it, so the sample in force at ``n - 1`` (deterministic
         runners wait for it; the world sends it before granting past it)."""
         return self.radio is not None and n - 1 >= self.joined_at and self.radio.missing(n - 1)
-
-    def set_link(self, spec: LinkSpec, at: float) -> float:
-        """New link faults for messages sent from simulated time ``at`` on (not before the
-        newest change). Returns the time they apply from."""
-        epochs = getattr(self.link, "epochs", None)
-        if epochs is None:
-            raise ValueError("this vehicle's link model cannot change at run time")
-        at = max(at, epochs[-1][0])
-        self.link.update(spec, at)
-        self._floors.clear()  # the lookahead's delay bounds (waiting_for)
-        return at
-
-    def set_policy(self, policy: str, timeout: float, tick: int) -> None:
-        """A new stale-neighbour policy (and its timeout, s) from tick ``tick`` on."""
-        if policy not in POLICIES:
-            raise ValueError(f"unknown stale-neighbour policy {policy!r}; choose one of {', '.join(POLICIES)}")
-        if not timeout > 0:
-            raise ValueError(f"the policy's timeout must be > 0 s, got {timeout}")
-        _schedule(self._policies, (tick, policy, float(timeout)))
-
-    def set_gains(self, k: tuple[float, ...], c: float, tick: int) -> None:
-        """New guidance gains from tick ``tick`` (or the next tick stepped)."""
-        if len(k) != self.vehicle.dim or not all(x > 0 for x in k) or not c > 0:
-            raise ValueError(f"gains need k > 0 ({self.vehicle.dim} values) and c > 0, got k = {k}, c = {c}")
-        _schedule(self._gains, (tick, tuple(float(x) for x in k), float(c)))
-
-    def set_formation(self, phases: dict[int, float], tick: int) -> None:
-        """Phases ``{vehicle index: θ}`` (ω units) from tick ``tick`` (or the next tick
-        stepped); every other vehicle keeps its phase. Δ_ik becomes θ_i - θ_k on every link."""
-        if self.formation is None:  # built without the scenario's phases: derive this node's own
-            self.formation = FormationSchedule(self._local_phases())
-        self.formation.add(tick, phases)
-
-    def _local_phases(self) -> list[float]:
-        """Phases that reproduce this node's Δs, θ_i = 0 and θ_k = -Δ_ik (a node built alone)."""
-        n = max((ln.k for ln in self._base_links), default=0)
-        theta = [0.0] * (max(n, self.index) + 1)
-        for ln in self._base_links:
-            theta[ln.k] = -ln.delta
-        return theta
-
-    def set_path(self, path: Path, tick: int) -> None:
-        """A new path (of this vehicle's dimension) from tick ``tick`` (or the next tick stepped);
-        ω carries on."""
-        if path.dim != self.vehicle.dim:
-            raise ValueError(f"a {self.vehicle.dim}-D vehicle needs a {self.vehicle.dim}-D path, got {path.dim}-D")
-        self._paths.append((tick, path))
-        self._paths.sort(key=lambda g: g[0])
-
-    def _apply_changes(self, n: int) -> None:
-        """The path and formation changes due at tick ``n``."""
-        while self._paths and self._paths[0][0] <= n:
-            self.vehicle.path = self._paths.pop(0)[1]
-        f = self.formation
-        if f is None:
-            return
-        count = f.count_by(n)
-        if count == self._formation_at:
-            return
-        self._formation_at = count
-        theta = f.phases_at(n)
-        me = self.index
-        self.table.links = tuple(NeighbourLink(ln.k, ln.weight, theta[me] - theta[ln.k]) for ln in self._base_links)
 
     # ------------------------------------------------------------------ the schedule
     def live_at(self, k: int, n: int) -> bool:
@@ -598,7 +297,7 @@ class VehicleNode:
             _, self.vehicle.k, self.vehicle.c = gains
         policy = _due(self._policies, n)
         if policy is not None:
-            _, self.table.policy, self.table.timeout = policy
+            self.table.set_policy(policy[1], policy[2])
         self._apply_changes(n)
         v = self.vehicle
         try:
@@ -644,10 +343,6 @@ class VehicleNode:
         self.state = "live"
 
     # ------------------------------------------------------------------ internals
-    def _reject(self, reason: str) -> str:
-        self.rejected[reason] += 1
-        return reason
-
     def _apply_roster(self, n: int) -> None:
         for k, peer in self._peers.items():
             while peer.changes and peer.changes[0].tick <= n:
@@ -661,48 +356,6 @@ class VehicleNode:
     def _apply_self(self, n: int) -> None:
         while self._self_changes and self._self_changes[0].tick <= n:
             self.state = self._self_changes.pop(0).state
-
-    def _decide(self, msg: OmegaMsg) -> tuple[float, ...]:
-        """The link's decision on ``msg`` at this receiver (the delay of each copy), counted."""
-        delays = self.link.decide(msg.sender, self.index, msg.seq, msg.t_send)
-        c = self.counters
-        c.sent += 1
-        self.bursts.feed(msg.sender, self.index, not delays, msg.t_send)
-        if not delays:
-            c.dropped += 1
-        elif len(delays) > 1:
-            c.duplicated += len(delays) - 1
-        return delays
-
-    def _route(self, n: int) -> None:
-        """Decide the messages sent before tick ``n`` (in the order received, which is send
-        order per link); keep the others until their turn."""
-        T = self.period
-        early = []
-        if len(self._inbox) > 1:  # in send order per link (a gap filled late arrives after newer ones)
-            self._inbox.sort(key=lambda m: (m.t_send, m.sender))
-        for msg in self._inbox:
-            m = send_tick(msg.t_send, T)
-            if m >= n:  # from a neighbour already at or past us: decide it when it can matter
-                early.append(msg)
-            else:
-                for d in self._decide(msg):
-                    self._due[delivery_tick(m, d, T)].append((msg, d))
-        self._inbox = early
-
-    def _offer(self, msg: OmegaMsg, now: float, delay: float) -> None:
-        """A message becomes usable: into the table, unless its sender is gone or it was sent
-        before the sender's current incarnation."""
-        peer = self._peers[msg.sender]
-        if peer.state == "gone" or send_tick(msg.t_send, self.period) < peer.since:
-            self.counters.rejected += 1
-            self.rejected["gone"] += 1
-            return
-        if self.table.offer(msg, now):
-            self.counters.delivered += 1
-            self.counters.record_latency(delay)
-        else:
-            self.counters.rejected += 1
 
 
 def _insert(changes: list[RosterChange], change: RosterChange) -> None:

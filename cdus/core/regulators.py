@@ -4,12 +4,16 @@ Each regulator is a pure function of the plant state and the guidance reference:
 path, the vehicle's ω and ω̇ (held from the last control instant and extrapolated
 linearly), and the gains K. It evaluates a = s f'(ω) - K Φ and its time derivative in
 closed form, so the tracking errors vanish exponentially, as Remark 2 needs.
+
+Each is also an object (:class:`Regulator`: :class:`PD`, :class:`Heading`, :class:`Paper`)
+built once with the vehicle for its plant (cdus.core.models names them).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any, Protocol
 
 from cdus.core.guidance import desired_velocity, desired_velocity_rate
 from cdus.core.observer import compensate
@@ -185,3 +189,59 @@ def usv_paper(state: USVState, path: Path, w: float, wdot: float, k: Vec, eps: t
     r_ref_dot = 0.0 if r_ref_prev is None else (r_ref - r_ref_prev) / h
     tau_r = (-e4 * state.r - gains.b2 * (state.r - r_ref) + r_ref_dot) / e5
     return clip(tau_u, limits.tau_u), clip(tau_r, limits.tau_r), r_ref
+
+
+# --------------------------------------------------------------------------- the regulators as objects
+
+
+class Regulator(Protocol):
+    """A regulator as :class:`cdus.core.vehicle.Vehicle` calls it at every physics step (built
+    once with the vehicle, for its plant, by cdus.core.models): the plant's input that tracks
+    the guidance at ``state``, the path and ω (``w``, ``wdot``), the gains ``k``, the limits,
+    the estimated disturbance ``d_hat`` and the safety filter's ``shift``, over a step of ``h``
+    s. A regulator may keep state between steps (the paper's keeps r^r)."""
+
+    name: str
+
+    def command(self, state: Any, path: Path, w: float, wdot: float, k: Vec, limits: Limits,
+                d_hat: Vec | None, shift: Vec | None, h: float) -> Vec:
+        """The plant's input for the next ``h`` s."""
+
+
+@dataclass(frozen=True)
+class PD:
+    """``pd`` of ``uav_double_integrator``: :func:`uav_pd`."""
+
+    gains: UAVGains
+    name: str = "pd"
+
+    def command(self, state, path, w, wdot, k, limits, d_hat, shift, h) -> Vec:
+        return uav_pd(state, path, w, wdot, k, self.gains, limits, d_hat, shift)
+
+
+@dataclass(frozen=True)
+class Heading:
+    """``heading`` of ``usv_3dof``: :func:`usv_heading` (the default)."""
+
+    eps: tuple[float, ...]
+    gains: HeadingGains
+    name: str = "heading"
+
+    def command(self, state, path, w, wdot, k, limits, d_hat, shift, h) -> Vec:
+        return usv_heading(state, path, w, wdot, k, self.eps, self.gains, limits, d_hat, shift)
+
+
+@dataclass
+class Paper:
+    """``paper`` of ``usv_3dof``: :func:`usv_paper`, keeping r^r of the step before for ṙ^r
+    (it is kept over a rejoin too, as it always was)."""
+
+    eps: tuple[float, ...]
+    gains: PaperGains
+    name: str = "paper"
+    r_ref_prev: float | None = None
+
+    def command(self, state, path, w, wdot, k, limits, d_hat, shift, h) -> Vec:
+        tu, tr, self.r_ref_prev = usv_paper(state, path, w, wdot, k, self.eps, self.gains, self.r_ref_prev, h,
+                                            limits, d_hat, shift)
+        return tu, tr

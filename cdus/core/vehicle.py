@@ -17,6 +17,10 @@ runner; it does no I/O and reads no clock. One control period is:
    physics step (cdus.core.safety.dynamic_filter), the contacts extrapolated over the
    sample's age (docs/safety.md).
 
+The plant and its regulator are objects the vehicle is built with (cdus.core.plants.Plant,
+cdus.core.regulators.Regulator; cdus.core.models names them): the loop calls them, it
+compares no names.
+
 With a speed limit the guidance itself is scaled (guidance.integrate_omega's σ), so ω
 does not run ahead of a vehicle that cannot keep up (docs/safety.md).
 """
@@ -32,12 +36,11 @@ from cdus.core.disturbance import Disturbance
 from cdus.core.guidance import Consensus, desired_velocity, integrate_omega, omega_law
 from cdus.core.observer import ESO, known_velocity
 from cdus.core.safety import (
-    Contact, FilterInfo, Point, SafetyParams, Track, dynamic_filter, safety_filter, uav_point, usv_point,
+    Contact, FilterInfo, Point, SafetyParams, Track, dynamic_filter, safety_filter,
 )
 from cdus.core.paths import Path, Vec, nearest_omega
-from cdus.core.plants import (
-    PointState, UAVState, USVState, step_ideal, step_uav, step_usv,
-)
+from cdus.core.plants import Plant
+from cdus.core.regulators import Regulator
 
 
 @dataclass(frozen=True)
@@ -71,14 +74,12 @@ class Vehicle:
     path: Path
     k: Vec
     c: float
-    plant: str
-    regulator: str | None
+    plant: Plant
+    regulator: Regulator | None  # None: a velocity-level plant (the ideal one) takes the reference as is
     control_period: float
     physics_steps: int
     state: Any
     omega: float
-    eps: tuple[float, ...] | None = None
-    reg_gains: Any = None
     limits: reg.Limits = reg.NO_LIMITS
     disturbance: Disturbance | None = None
     safety: SafetyParams | None = None  # the collision-avoidance filter, None: off
@@ -91,7 +92,6 @@ class Vehicle:
     t: float = 0.0
     omega_rate: float = 0.0
     started: bool = False
-    _r_ref_prev: float | None = field(default=None, repr=False)
     interventions: int = 0  # control steps at which the safety filter changed the reference
     last_filter: FilterInfo | None = field(default=None, repr=False)
     _shift: Vec | None = field(default=None, repr=False)  # the filter's u - u_ref, held over the period
@@ -125,15 +125,7 @@ class Vehicle:
         self.t = tick * self.control_period
         self.started = False
         if q is not None:
-            q = tuple(q)[: self.dim]
-            zero = (0.0,) * self.dim
-            st = self.state
-            if isinstance(st, USVState):
-                self.state = USVState(q[0], q[1], st.psi if heading is None else heading, 0.0, 0.0, 0.0)
-            elif isinstance(st, UAVState):
-                self.state = UAVState(q, zero)
-            else:
-                self.state = PointState(q, zero)
+            self.state = self.plant.at_rest(self.state, tuple(q)[: self.dim], heading)
         hint = self.omega if omega_hint is None else omega_hint
         half = self.path.period / 2.0 if self.path.period else 0.0
         self.omega = nearest_omega(self.path, self.q, hint - half)
@@ -149,18 +141,11 @@ class Vehicle:
 
     @property
     def velocity(self) -> Vec:
-        st = self.state
-        if isinstance(st, USVState):
-            return st.world_velocity()
-        return st.v if isinstance(st, PointState) else st.p
+        return self.plant.velocity(self.state)
 
     @property
     def heading(self) -> float:
-        st = self.state
-        if isinstance(st, USVState):
-            return st.psi
-        v = self.velocity
-        return math.atan2(v[1], v[0])
+        return self.plant.heading(self.state)
 
     def path_error(self) -> float:
         """|Φ| = |q - f(ω)|."""
@@ -197,7 +182,7 @@ class Vehicle:
         ``sample_tick``: the control tick the sensor sampled ``contacts`` at (None: now).
         Without a filter, nothing. Returns what the filter did.
 
-        For a plant other than ``ideal`` this also prepares the dynamic filter
+        For a plant that is not velocity-level this also prepares the dynamic filter
         (cdus.core.safety.dynamic_filter) that :meth:`advance` runs at every physics step on
         the regulator's inputs: each contact's velocity is estimated from the two newest
         samples this vehicle used (docs/safety.md, "robust to the sensor")."""
@@ -214,7 +199,8 @@ class Vehicle:
         a = reg.clip_norm(raw, self.limits.speed)
         self._track(contacts, self.tick if sample_tick is None else sample_tick)
         params = self.safety
-        if self.plant != "ideal":  # the reference keeps clear of R, the dynamic filter holds R
+        velocity_level = self.plant.velocity_level
+        if not velocity_level:  # the reference keeps clear of R, the dynamic filter holds R
             params = replace(params, radius=params.radius * (1.0 + SHAPER_MARGIN))
             seen = contacts
         else:  # where the contacts are now, at their estimated velocities (docs/safety.md)
@@ -232,7 +218,7 @@ class Vehicle:
             # unclipped reference and clip after (a - d̂ + shift), so for them it is taken from
             # the unclipped one: both then fly u (a boat far off its path, |a| above the speed
             # limit, otherwise tracked a reference still pointing into the contact and froze).
-            base = a if self.plant == "ideal" else raw
+            base = a if velocity_level else raw
             self._shift = tuple(x - y for x, y in zip(u, base))
             self.interventions += 1
         return info
@@ -279,11 +265,7 @@ class Vehicle:
         return out
 
     def _me(self, d: Vec) -> Point:
-        st = self.state
-        lim = self.limits
-        if isinstance(st, USVState):
-            return usv_point(st.x, st.y, st.psi, st.u, st.v, st.r, self.eps, d, lim.tau_u, lim.tau_r, lim.speed)
-        return uav_point(st.q, st.p, d, lim.accel)
+        return self.plant.point(self.state, d, self.limits)
 
     def advance(self) -> None:
         """Move the plant over one control period at the physics rate."""
@@ -294,47 +276,35 @@ class Vehicle:
         zero = (0.0,) * self.dim
         shift = self._shift
         eso = self._eso
-        if self.plant == "ideal":
+        plant = self.plant
+        if self.regulator is None:  # a velocity-level plant flies the reference held over the period
             a = reg.clip_norm(desired_velocity(self.path, self.q, self.omega, self.k), self.limits.speed)
             if shift is not None:
                 a = tuple(x + y for x, y in zip(a, shift))
-            if dist is None and eso is None:
-                self.state = step_ideal(self.state, a, zero, T)
+            if dist is None and eso is None and plant.exact_when_held:
+                self.state = plant.step(self.state, a, zero, T)
             else:
                 for _ in range(n):
                     cmd = a if eso is None else tuple(x - y for x, y in zip(a, eso.d_hat))
                     before = self.state
-                    self.state = step_ideal(before, cmd, dist.step(h) if dist is not None else zero, h)
+                    self.state = plant.step(before, cmd, dist.step(h) if dist is not None else zero, h)
                     if eso is not None:
                         eso = eso.update(self.state.q, known_velocity(before, self.state, cmd), h)
         else:
             w0, wd = self.omega, self.omega_rate
             guarded = self._tracks is not None and self.safety is not None
             self._dyn_intervened = False
+            regulator, path, k, limits = self.regulator, self.path, self.k, self.limits
             for j in range(n):
                 w = w0 + wd * j * h
                 d = dist.step(h) if dist is not None else zero
                 st = self.state
                 d_hat = eso.d_hat if eso is not None else None
-                if self.plant == "uav_double_integrator":
-                    tau = reg.uav_pd(st, self.path, w, wd, self.k, self.reg_gains, self.limits, d_hat, shift)
-                    if guarded:
-                        tau = self._filtered(tau, self.t + j * h, d)
-                    self.state = step_uav(st, tau, d, h)
-                elif self.regulator == "paper":
-                    tu, tr, self._r_ref_prev = reg.usv_paper(st, self.path, w, wd, self.k, self.eps,
-                                                             self.reg_gains, self._r_ref_prev, h, self.limits,
-                                                             d_hat, shift)
-                    if guarded:
-                        tu, tr = self._filtered((tu, tr), self.t + j * h, d)
-                    self.state = step_usv(st, tu, tr, self.eps, d, h)
-                else:
-                    tu, tr = reg.usv_heading(st, self.path, w, wd, self.k, self.eps, self.reg_gains, self.limits,
-                                             d_hat, shift)
-                    if guarded:
-                        tu, tr = self._filtered((tu, tr), self.t + j * h, d)
-                    self.state = step_usv(st, tu, tr, self.eps, d, h)
-                if not math.isfinite(_state_sum(self.state)):
+                u = regulator.command(st, path, w, wd, k, limits, d_hat, shift, h)
+                if guarded:
+                    u = self._filtered(u, self.t + j * h, d)
+                self.state = plant.step(st, u, d, h)
+                if not plant.finite(self.state):
                     raise DivergedError(f"vehicle {self.id}: its state is no longer finite at t = "
                                         f"{self.t + j * h:.2f} s (the vehicle diverged): {st}")
                 if eso is not None:
@@ -353,9 +323,3 @@ class DivergedError(ArithmeticError):
     """A vehicle's simulated state became non-finite: the run cannot go on; the message says
     which vehicle, when and from what state."""
 
-
-def _state_sum(state: Any) -> float:
-    """A sum that is non-finite as soon as any component of a plant state is."""
-    if isinstance(state, USVState):
-        return state.x + state.y + state.psi + state.u + state.v + state.r
-    return sum(state.q) + sum(state.p)

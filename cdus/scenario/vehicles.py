@@ -18,6 +18,7 @@ from typing import Any, Mapping, Sequence
 from cdus.commands.gains import expand_k
 from cdus.core.gain_bounds import gains_problem_for_rate, regulator_gains_problem
 from cdus.core.limits import default_limits
+from cdus.core.models import DEFAULT_PRESET, PLANTS as MODELS
 from cdus.core.paths import FAMILIES, Path, PathError, for_dimension, make_path, not_finite_at, turning_point
 from cdus.core.plants import USV_PRESETS
 from cdus.scenario.checks import IdList, Problems, describe, is_number, quote, show
@@ -25,19 +26,13 @@ from cdus.scenario.model import Edge, Rates, VehicleSpec
 from cdus.scenario.sections import DEFAULT_GAINS, gain_values
 
 KINDS: dict[str, int] = {"usv": 2, "uav": 3}  # kind -> dimension
-PLANTS: dict[str, tuple[str, ...]] = {  # plant -> kinds it models
-    "ideal": ("usv", "uav"),
-    "usv_3dof": ("usv",),
-    "uav_double_integrator": ("uav",),
-}
+#: plant -> kinds it models (the vehicle models' one table: cdus.core.models.PLANTS)
+PLANTS: dict[str, tuple[str, ...]] = {name: m.kinds for name, m in MODELS.items()}
 #: usv_3dof parameter presets ε1..ε7 (a CyberShip II-like 3-DOF model).
 PRESETS: dict[str, tuple[float, ...]] = USV_PRESETS
-DEFAULT_PRESET = "cybership2"
 #: plant -> regulator -> allowed regulator_gains keys; the first regulator is the default.
 REGULATORS: dict[str, dict[str, tuple[str, ...]]] = {
-    "usv_3dof": {"heading": ("b_u", "b_r", "k_psi"), "paper": ("b1", "b2", "b3")},
-    "uav_double_integrator": {"pd": ("b",)},
-}
+    name: {r: rm.gain_keys for r, rm in m.regulators.items()} for name, m in MODELS.items() if m.regulators}
 LIMIT_KEYS = ("speed", "accel", "tau_u", "tau_r", "yaw_rate")
 VEHICLE_KEYS = ("id", "kind", "plant", "preset", "epsilon", "regulator", "regulator_gains", "phase",
                 "path", "start", "omega0", "gains", "limits", "disturbance")

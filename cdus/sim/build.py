@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 
+from cdus.core import models
 from cdus.core import regulators as reg
 from cdus.core.events import event_tick
 from cdus.core.formation import FormationChange, FormationSchedule, PathChange
@@ -21,7 +22,6 @@ from cdus.core.radiolink import RadioLink
 from cdus.core.node import VehicleNode
 from cdus.core.schedule import broadcast_every, total_ticks
 from cdus.core.paths import for_dimension, make_path, nearest_omega
-from cdus.core.plants import USV_PRESETS, PointState, UAVState, USVState
 from cdus.core.safety import SafetyParams
 from cdus.core.vehicle import Vehicle
 from cdus.scenario.model import Rates, Safety, Scenario, VehicleSpec
@@ -42,7 +42,6 @@ def build_vehicle(spec: VehicleSpec, rates: Rates, seed: int, safety: Safety | N
     period = 1.0 / rates.control
     steps = max(1, math.ceil(rates.physics / rates.control - 1e-9))
     limits = reg.Limits(**dict(spec.limits))
-    gains = dict(spec.regulator_gains)
     if spec.start_position is None:
         w0 = spec.phase if spec.omega0 is None else spec.omega0
         f, f1, _ = path.eval(w0)
@@ -58,19 +57,9 @@ def build_vehicle(spec: VehicleSpec, rates: Rates, seed: int, safety: Safety | N
     s = path.direction
     heading = spec.start_heading if spec.start_heading is not None else math.atan2(s * f1[1], s * f1[0])
     zero = (0.0,) * dim
-    eps = None
-    if spec.plant == "ideal":
-        state: PointState | UAVState | USVState = PointState(q0, zero)
-        reg_gains = None
-    elif spec.plant == "uav_double_integrator":
-        state = UAVState(q0, zero)
-        reg_gains = reg.UAVGains(**gains)
-    elif spec.plant == "usv_3dof":
-        eps = tuple(spec.epsilon) if spec.epsilon else USV_PRESETS[spec.preset or "cybership2"]
-        state = USVState(q0[0], q0[1], heading, 0.0, 0.0, 0.0)
-        reg_gains = reg.PaperGains(**gains) if spec.regulator == "paper" else reg.HeadingGains(**gains)
-    else:  # config validation makes this unreachable
-        raise ValueError(f"unknown plant {spec.plant!r}")
+    plant, regulator = models.build(spec.plant, spec.regulator, {"epsilon": spec.epsilon, "preset": spec.preset},
+                                    dict(spec.regulator_gains))
+    state = plant.start(q0, heading)
     dist = None
     if spec.disturbance:
         d = dict(spec.disturbance)
@@ -79,8 +68,8 @@ def build_vehicle(spec: VehicleSpec, rates: Rates, seed: int, safety: Safety | N
                             float(d.get("gust_tau", 2.0))),
             dim, seed, spec.id)
     return Vehicle(id=spec.id, kind=spec.kind, dim=dim, path=path, k=tuple(spec.k), c=spec.c,
-                   plant=spec.plant, regulator=spec.regulator, control_period=period,
-                   physics_steps=steps, state=state, omega=float(w0), eps=eps, reg_gains=reg_gains,
+                   plant=plant, regulator=regulator, control_period=period,
+                   physics_steps=steps, state=state, omega=float(w0),
                    limits=limits, disturbance=dist, safety=safety_params(safety or Safety(), limits),
                    observer=spec.observer, scale_omega=spec.scale_omega)
 

@@ -80,8 +80,8 @@ def test_a_node_takes_new_offsets_and_a_new_path_exactly_from_their_tick():
         node.step(n)
         assert node.table.links[0].delta == (-2.0 if n < 3 else 0.0 - 0.5), n
         assert node.vehicle.path is (old if n < 2 else new), n
-    with pytest.raises(ValueError):
-        node.set_path(make_path({"family": "circle", "center": [0, 0, 1], "radius": 3.0}), 9)  # 3-D for a boat
+    refused = node.set_path(make_path({"family": "circle", "center": [0, 0, 1], "radius": 3.0}), 9)  # 3-D for a boat
+    assert not refused and refused.reason == "a 2-D vehicle needs a 2-D path, got 3-D" and not node._paths
 
 
 def test_a_node_built_alone_derives_phases_from_its_own_links():

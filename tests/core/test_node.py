@@ -9,7 +9,7 @@ from hypothesis import given, settings, strategies as st
 from cdus.core.events import RosterChange
 from cdus.core.link import IdealLink, LinkEmulator
 from cdus.core.linkspec import Delay, LinkSpec
-from cdus.core.node import VehicleNode
+from cdus.core.node import Refused, VehicleNode
 from cdus.scenario.config import parse_scenario
 from cdus.sim.build import build_node
 from cdus.wire.messages import OmegaMsg
@@ -206,8 +206,8 @@ def test_gains_change_on_their_tick():
     assert a.vehicle.c == 2.0
     a.step(2)
     assert a.vehicle.k == (3.0, 3.0) and a.vehicle.c == 4.0
-    with pytest.raises(ValueError):
-        a.set_gains((1.0,), 1.0, tick=3)
+    assert a.set_gains((1.0,), 1.0, tick=3) == Refused("gains need k > 0 (2 values) and c > 0, got k = (1.0,), c = 1.0")
+    assert a.vehicle.k == (3.0, 3.0) and not a._gains  # refused: nothing scheduled
 
 
 def test_a_flood_of_gains_changes_keeps_one_per_tick_and_applies_the_last_due():

@@ -84,7 +84,7 @@ def test_a_run_time_link_change_reaches_the_emulator_under_the_radio():
     sc = load_scenario("configs/lake_radio.toml", {"link.loss": 0.1})
     link = link_model_for(sc)
     node = build_node(sc, "usv1", link)
-    at = node.set_link(dataclasses.replace(sc.link, loss=0.5), 3.0)
+    at = node.set_link(dataclasses.replace(sc.link, loss=0.5), 3.0).at
     assert at == 3.0 and [s for s, _ in link.inner.epochs] == [float("-inf"), 3.0]
     assert isinstance(sc.link, LinkSpec)
 
