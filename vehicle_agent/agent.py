@@ -567,7 +567,7 @@ class Agent:
         k = tuple(float(x) for x in k) if isinstance(k, (list, tuple)) else (float(k),) * v.dim
         c = float(gains.get("c", v.c))
         self.node.set_gains(k, c, tick)
-        self.log(f"gains k = {tuple(k)}, c = {c} from tick {tick}")
+        self.log(f"gains k = {tuple(k)}, c = {c} from tick {tick}{self._too_late(tick)}")
 
     def _set_formation(self, phases: dict, tick: int) -> None:
         """New phases from ``tick`` (checked as the world and the config check them)."""
@@ -577,7 +577,12 @@ class Agent:
             self.log(f"formation command rejected: {printable(' '.join(checked), 200)}")
             return
         self.node.set_formation({self.ids.index(vid): theta for vid, theta in checked.items()}, tick)
-        self.log(f"formation phases {printable(checked, 200)} from tick {tick}")
+        self.log(f"formation phases {printable(checked, 200)} from tick {tick}{self._too_late(tick)}")
+
+    def _too_late(self, tick: int) -> str:
+        """What a change from ``tick`` heard after stepping it says in the log: the node applies
+        it from the next tick stepped (docs/ground_station.md, the effect tick)."""
+        return "" if tick >= self.ticks_done else f" (heard too late: from tick {self.ticks_done})"
 
     def _set_path(self, table: dict, tick: int) -> None:
         """A new path for this vehicle from ``tick`` (checked as the config's paths are)."""

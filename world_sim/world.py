@@ -51,7 +51,7 @@ from cdus.scenario.events import check_offsets, check_path, check_phases, offset
 from cdus.sim.build import (
     build_vehicle, formation_schedule, metric_edges, radio_channel_for, radio_schedule, sensor_schedule,
 )
-from cdus.sim.lockstep import CatchUp, Decided, Fault, Grant, Join, Lockstep, RadioSample, Roster, Sense, horizon_window
+from cdus.sim.lockstep import Decided, Lockstep
 from cdus.sim.reports import (
     ConsoleQuota, formation_changed, graph_event, link_state_event, newest_events, path_changed,
     scheduled_change_events, vehicle_back, vehicle_lost,
@@ -72,28 +72,16 @@ from cdus.wire.schemas import (
 )
 from cdus.wire.text import printable
 from cdus.wire.transport import Transport, open_session
+from world_sim.verdict import LATER, Verdict
+from world_sim.clocks import (  # noqa: F401 (the clocks' figures, importable from here as before)
+    CATCHUP_RESEND, CATCHUP_RESEND_MAX, DROP_WINDOW, FAULT_TIMEOUT, GRANT_RESEND, HORIZON_EVERY, HORIZON_S,
+    JOIN_TIMEOUT, LINK_LEAD, OUTAGE_GRACE, REALTIME_LAG, REALTIME_SLACK, RT_FAULT_CONFIRM, STATUS_PERIOD,
+    LockstepClock, RealtimeClock, pick_clock,
+)
 
-REALTIME_LAG = 8  # ticks the world waits before recording a realtime tick (> the telemetry batch)
-STATUS_PERIOD = 1.0  # s
-FAULT_TIMEOUT = 10.0  # s the launcher may take to carry out a fault
-JOIN_TIMEOUT = 30.0  # s a restarted process may take to come up
-STOP_GRACE_ALIVE_S = 0.5  # s a stop before the start waits for liveliness tokens already on their way
-GRANT_RESEND = 0.5  # s: grants and start times are said again for processes that missed them
-#: lockstep: a resumed or restarted process that has reported no tick this long (s) after its
-#: catch-up gets the catch-up again (a resumed process whose session lapsed reconnects: the world
-#: sees its token back before the router has its subscriptions again, and what it sent then was
-#: lost; the process then waited for its roster for ever, and its neighbours for its ω)
-CATCHUP_RESEND = 1.0
-CATCHUP_RESEND_MAX = 8.0
-#: realtime: a ground station's vehicle fault is answered when the launcher says it carried it
-#: out; none within this (s): not carried out (a --remote vehicle, a launcher gone)
-RT_FAULT_CONFIRM = 5.0
-LINK_LEAD = 0.5  # s of simulated time between a link command and when it applies, if not given
 INBOX_CAPACITY = 8192
+STOP_GRACE_ALIVE_S = 0.5  # s a stop before the start waits for liveliness tokens already on their way
 RADIO_KEEP = 8  # radio geometry samples kept to send a (re)joining vehicle (it needs those in force from its join)
-#: realtime: telemetry may be this far (s) ahead of the world's own clock (clock skew between
-#: hosts, a batch sent at once); beyond it, a row is from a tick nobody can have stepped yet
-REALTIME_SLACK = 1.0
 #: the reject reasons of the agents' ω checks that say someone forges a vehicle's ω (docs/metrics.md)
 SUSPECT_REASONS = ("future", "conflict", "implausible")
 #: ... and those that say someone forges the world's own messages to the vehicles (an open fleet)
@@ -102,17 +90,6 @@ SUSPECT_WORLD_REASONS = ("radio_conflict",)
 #: declares (a wildcard, ``alive/**``), a second world token while the world's is up (docs/security.md)
 SUSPECT_TOKEN_REASONS = ("token_key", "token_extra")
 SUSPECT_EVERY = 5.0  # s: at most one suspect event per (vehicle, reason) in this time
-#: s a lockstep world waits for a fleet that dropped all at once (the router or the network went,
-#: not the vehicles: their processes keep their state) before it declares them lost. A router
-#: frozen or restarted comes back in seconds, and the agents' sessions reconnect every <= 0.5 s
-#: (cdus.wire.transport), so 30 s covers that with room; a fleet gone longer is not coming back.
-OUTAGE_GRACE = 30.0
-#: lockstep: the grant window is about this much wall time at the fleet's speed (measured every
-#: HORIZON_EVERY s), so the vehicles rarely meet a grant, and a command that applies past every
-#: grant (an operator's kill, link or gains) lands this soon
-HORIZON_S = 0.25
-HORIZON_EVERY = 0.25
-DROP_WINDOW = 0.3  # s: liveliness losses this close together count as one (a lapsed router drops them all)
 MAX_LOGGED_REJECTS = 200  # (sender, reason) pairs logged; beyond, counted only
 
 
@@ -126,24 +103,6 @@ class _Change(NamedTuple):
     tick: int | None  # a gains change's tick (None for the others, which are all replayed)
 
 
-@dataclass(frozen=True)
-class Verdict:
-    """What the world made of one command: applied from ``tick`` (``t`` s of simulated time; a
-    link change's exact time), or rejected with a reason (nothing changed). A command handler
-    returns a Verdict, a reason string (rejected), None (applied from the next tick nobody has
-    stepped) or LATER (a lockstep vehicle fault: Lockstep decides it, a Decided action answers)."""
-
-    applied: bool
-    reason: str = ""
-    tick: int | None = None
-    t: float | None = None
-
-    @staticmethod
-    def no(reason: str) -> "Verdict":
-        return Verdict(False, reason)
-
-
-LATER = Verdict(True, "decided when its tick comes")  # a sentinel: never sent as it is
 MAX_WAITING = 1024  # queries held for a lockstep fault's decision; beyond, answered at once
 MAX_QUEUED_QUERIES = 256  # command queries waiting for the main thread; beyond, answered busy at once
 #: refused commands go to the event log (published, logged, kept in metrics.json) at most this
@@ -219,16 +178,6 @@ class WorldState:
         return sum(self.rejects.values())
 
 
-@dataclass
-class _CatchingUp:
-    """A process caught up (lockstep), until it reports a tick past ``acked``."""
-
-    acked: int  # the newest tick it had reported when caught up
-    at: float  # monotonic s: say the catch-up again then
-    join: int | None = None  # the join tick of a restart
-    told: bool = False  # the log says it once
-    every: float = CATCHUP_RESEND / 2  # s between resends, doubled each time (CATCHUP_RESEND_MAX at most)
-
 
 class World:
     def __init__(self, scenario: Scenario, fleet: str, transport: Transport, clock: str = "lockstep",
@@ -238,7 +187,6 @@ class World:
         self.scenario = scenario
         self.fleet = keys.check_fleet(fleet)
         self.transport = transport
-        self.clock = clock
         self.ids = list(scenario.ids)
         self.index = {vid: j for j, vid in enumerate(self.ids)}
         self.period = 1.0 / scenario.rates.control
@@ -266,7 +214,6 @@ class World:
         self._dims = [v.dim for v in scenario.vehicles]  # a geometry entry has the vehicle's dimension
         self._radio_rows: dict[int, dict[int, tuple]] = {}  # radio sample tick -> vehicle -> q (lockstep)
         self._radio_sent: deque[tuple[int, bytes]] = deque(maxlen=RADIO_KEEP)  # newest samples, for joiners
-        self._next_radio = 0  # realtime: the next radio sample tick
         #: the world's own channel: utilisation, link probabilities and splits of each sample
         self.radio_watch = None if self.radio is None else RadioWatch(
             self.ids, [(e.i, e.k) for e in scenario.edges], radio_channel_for(scenario), self.period)
@@ -276,9 +223,10 @@ class World:
                                  radio_every=self.radio[0] if self.radio else None,
                                  radio_lag=self.radio[1] if self.radio else 1)
         self._sample_rows: dict[int, dict[int, tuple]] = {}  # sample tick -> vehicle -> q (lockstep)
-        self._next_sample = 0  # realtime: the next sample tick
-        self._realtime_faults = list(scenario.events)  # realtime: carried out when their time comes
         self.st = WorldState()
+        #: the clock, chosen here once: LockstepClock or RealtimeClock (world_sim.clocks)
+        self.clock: LockstepClock | RealtimeClock = pick_clock(clock, self)
+        self._radio_from_rows = self.radio is not None and self.clock.radio_from_rows
         self.pairs = [(e.i, e.k) for e in scenario.edges]
         #: run-time commands (link, radio, gains, formation, path), for (re)joiners and world/settings;
         #: each carries a number of its own (``seq``) so a process that hears it again applies it once
@@ -292,7 +240,6 @@ class World:
         #: launcher tells this world's statuses from forged ones; None: started by hand, unsigned
         self._status_key = _status_key(os.environ.get(STATUS_KEY_ENV))
         self._console = ConsoleQuota(scenario=scenario)
-        self._rt_expect: dict[str, set[str]] = {}  # realtime: liveliness changes a fault we asked for explains
         self._faulted: dict[str, str] = {}  # "killed" | "paused", by the faults carried out (both clocks)
         self.log = log or _say
         self.next_tick = 0  # next tick to record
@@ -303,15 +250,7 @@ class World:
         self.finished = False
         self.stop_requested = False
         self._stop_tick: int | None = None  # the tick a stop command said the run ends after
-        self.paused_at: float | None = None  # realtime: wall time of a fleet pause
-        self.t0: float | None = None
         self.session: Any = None
-        self._fault_since: float | None = None
-        self._catching: dict[int, _CatchingUp] = {}  # lockstep: caught-up processes not heard from since
-        #: realtime: vid -> (query ref, action, monotonic deadline) of the faults the launcher has not
-        #: yet said it carried out, oldest first (ref None: the scenario's, nobody waits: the
-        #: launcher says `fault_done` for each fault in the order asked, theirs too)
-        self._rt_asked: dict[str, deque[tuple[object | None, str, float]]] = {}
         self._t_start = 0.0
         self._lock = threading.Lock()  # guards st.latest for the queryable's thread
         self._alive_news: deque[tuple[str, bool]] = deque()  # liveliness callbacks (key, up) -> main thread
@@ -327,11 +266,8 @@ class World:
         #: wall time): what the recorder's rows carry, so the marks in Rerun lag the counts by that much
         self._interventions = [0] * len(self.ids)
         self._suspect_seen: dict[tuple[str, str], float] = {}  # (vehicle, reason) -> last suspect event
-        self._drops_since: float | None = None  # monotonic time of the first undecided liveliness loss
-        self._outage_since: float | None = None  # the whole fleet dropped at once: waiting for it
         self.completion: str | None = None  # why the run ended early (docs/metrics.md, completion)
         self.outage_grace = OUTAGE_GRACE
-        self._rt_lost: set[str] = set()  # realtime: lost with nobody asking, not back
         self._queries: deque[Any] = deque()  # command queries -> main thread
         self._waiting: dict[int, tuple[Any, str, str]] = {}  # ref -> (query, op, by): lockstep faults
         self._next_ref = 0
@@ -409,7 +345,7 @@ class World:
     def _tick_thread(self) -> None:
         """Wakes the main loop a few times a second (status, re-sent grants, timeouts)."""
         while self.session is not None and not self.finished:
-            time.sleep(min(0.25, self.period * 5) if self.clock == "realtime" else 0.25)
+            time.sleep(self.clock.wake_every)
             try:
                 self._wake()
             except zenoh.ZError:
@@ -585,13 +521,6 @@ class World:
         self.log(f"rejected from {printable(sender, 64)}: {reason}"
                  + (f" ({printable(detail, 200)})" if detail else "") + more)
 
-    def _tick_limit(self) -> int:
-        """The newest tick a vehicle can have stepped: the grant (lockstep), the wall clock's tick
-        plus REALTIME_SLACK (realtime; before the start, the first ticks)."""
-        if self.clock == "lockstep":
-            return self.lockstep.granted
-        return self._tick_now() + math.ceil(REALTIME_SLACK / self.period)
-
     def _on_state(self, vid: str, payload: bytes) -> None:
         if vid not in self.index:
             return self._reject(vid, "unknown_sender")
@@ -601,7 +530,7 @@ class World:
         j = self.index[vid]
         if any(m.sender != j for m in rows):
             return self._reject(vid, "sender_mismatch")
-        limit = self._tick_limit()
+        limit = self.clock.tick_limit()
         if any(m.tick > limit for m in rows):  # the whole batch: it cannot all be genuine
             return self._reject(vid, "future", f"tick {max(m.tick for m in rows)} > {limit}")
         st = self.st
@@ -615,7 +544,7 @@ class World:
                     continue
             if every and m.tick % every == 0 and m.tick > self.lockstep.sensed:
                 self._sample_rows.setdefault(m.tick, {}).setdefault(j, m.q)
-            if (self.radio is not None and self.clock == "lockstep" and m.tick % self.radio[0] == 0
+            if (self._radio_from_rows and m.tick % self.radio[0] == 0
                     and m.tick > self.lockstep.radioed):  # realtime samples from the newest telemetry
                 self._radio_rows.setdefault(m.tick, {}).setdefault(j, m.q)
             if newest is None or m.tick >= newest.tick:
@@ -738,7 +667,7 @@ class World:
             tick = undecided.get(ref)
             self._reply(query, op, by, Verdict.no(reason + ("" if tick is None else f" (before its tick {tick})")))
         self._waiting.clear()
-        self._rt_asked.clear()
+        self.clock.forget_faults()
         while self._queries:
             q = self._queries.popleft()
             self._reply(q, "?", "", Verdict.no(reason))
@@ -784,9 +713,15 @@ class World:
         return c.op, by, out
 
     def _effect_tick(self) -> int:
-        """The first tick a command can change: one nobody has been granted (lockstep), the wall
-        clock's next (realtime)."""
-        return self.lockstep.granted + 1 if self.clock == "lockstep" else self._tick_now() + 1
+        """The first tick a run-time change applies from, on every vehicle alike: the clock's one
+        rule (world_sim.clocks, ``effect_tick``), used by every handler."""
+        return self.clock.effect_tick()
+
+    def _effect_time(self, at: float) -> float:
+        """The simulated time a change asked for ``at`` (s; < 0: as soon as possible) applies from:
+        ``at``, never before the effect tick (a past ``at`` means "now")."""
+        earliest = self._effect_tick() * self.period
+        return max(at, earliest) if at >= 0 else max(self._sim_now() + LINK_LEAD, earliest)
 
     def _cmd_stop(self, f: dict, by: str) -> Verdict | str:
         if self.stop_requested:
@@ -807,9 +742,7 @@ class World:
             self._reject(by, "sender")
             return "only the launcher reports a fault carried out"
         if f["vehicle"] in self.index:
-            self.lockstep.on_fault_done(self.index[f["vehicle"]])
-            if self.clock != "lockstep":
-                self._rt_fault_done(f["vehicle"])
+            self.clock.fault_done(f["vehicle"])
         return Verdict(True, "", max(0, self.lockstep.granted))
 
     def _cmd_pause(self, f: dict, by: str) -> Verdict | str | None:
@@ -837,11 +770,9 @@ class World:
             self._note(FleetEvent.of(self._sim_now(), "rejected",
                                      f"link command from {printable(by, 64)}: {printable(str(e), 200)}"))
             return printable(str(e), 280)
-        # Never before what a vehicle may already have sent (lockstep: past the grant), so
-        # every receiver applies it from the same message on; a past --at means "now".
-        earliest = ((self.lockstep.granted + 1) * self.period if self.clock == "lockstep"
-                    else self._sim_now() + self.period)
-        at = max(f["at"], earliest) if f["at"] >= 0 else max(self._sim_now() + LINK_LEAD, earliest)
+        # Never before the effect tick (what a vehicle may already have sent), so every receiver
+        # applies it from the same message on; a past --at means "now".
+        at = self._effect_time(f["at"])
         late = self._never_applies(max(0, math.ceil(at / self.period - 1e-9)))
         if late:
             return self._refuse(by, "link", "link command", late)
@@ -863,47 +794,7 @@ class World:
             return f"no vehicle {printable(vid, 64)!r} in this fleet (its vehicles: {', '.join(self.ids)})"
         op = self._current_op
         action = {"pause_vehicle": "pause", "resume_vehicle": "resume"}.get(op, op)
-        if self.clock == "lockstep":
-            tick = self.lockstep.vehicle_fault(action, self.index[vid], by=by, ref=self._command_ref)
-            return LATER if self._command_ref is not None else Verdict(True, "", tick)
-        moot = self._rt_moot(vid, action)
-        if moot:
-            self._note(FleetEvent.of(self._sim_now(), "rejected", f"{action} of {vid} by {by}: {moot}", vehicle=vid))
-            return moot
-        self.pub_launcher.put(encode_control(op, vehicle=vid))
-        self._expect_news(vid, action)
-        self._note(FleetEvent.of(self._sim_now(), "fault", f"{action} of {vid} by {by}", vehicle=vid))
-        # every fault asked holds its place (the launcher says fault_done for each, in order): one
-        # put or past MAX_WAITING, nobody waiting (ref None), too, or its word answers a later query
-        self._rt_asked.setdefault(vid, deque()).append((self._command_ref, action,
-                                                        time.monotonic() + RT_FAULT_CONFIRM))
-        if self._command_ref is not None:  # answered when the launcher says it is done (_rt_fault_done)
-            return LATER
-        return Verdict(True, "realtime: the launcher carries it out now", self._tick_now())
-
-    def _rt_fault_done(self, vid: str) -> None:
-        """Realtime: the launcher carried out a fault on ``vid``: the oldest ground station's
-        fault on it waiting is answered, applied from the present tick."""
-        waiting = self._rt_asked.get(vid)
-        if waiting:
-            ref, _, _ = waiting.popleft()
-            if ref is not None:  # else a scheduled fault's: not a ground station's answer
-                self._decided(Decided(ref, self._tick_now()))
-
-    def _rt_faults_unconfirmed(self, now: float) -> None:
-        """Realtime: the ground stations' faults the launcher has not confirmed in RT_FAULT_CONFIRM s
-        are answered: not carried out."""
-        for vid, waiting in self._rt_asked.items():
-            while waiting and waiting[0][2] <= now:
-                ref, action, _ = waiting.popleft()
-                if ref is None:  # a scheduled fault's (the launcher's log says why it was not done)
-                    continue
-                why = (f"the launcher did not say it carried out the {action} of {vid} within "
-                       f"{RT_FAULT_CONFIRM:g} s: not done here (a vehicle started with --remote on another "
-                       "host is faulted there; see the launcher's log)")
-                self._note(FleetEvent.of(self._sim_now(), "fault_missed", f"the {action} of {vid} was not "
-                                         "confirmed by the launcher", vehicle=vid))
-                self._decided(Decided(ref, self._tick_now(), why))
+        return self.clock.vehicle_fault(vid, action, op, by, self._command_ref)
 
     def _relay_radio(self, fields: dict, sender: str) -> Verdict | str | None:
         """A ground station's radio change ``{"radio": {tx_power, station}, "at": s}``: checked,
@@ -916,9 +807,7 @@ class World:
         problem = radio_change_problem(change, self.radio_watch.channel.spec.topology)
         if problem is not None:
             return problem
-        earliest = ((self.lockstep.granted + 1) * self.period if self.clock == "lockstep"
-                    else self._sim_now() + self.period)
-        at = max(fields["at"], earliest) if fields["at"] >= 0 else max(self._sim_now() + LINK_LEAD, earliest)
+        at = self._effect_time(fields["at"])
         end = self.last_tick * self.period
         if at > end:  # it would never apply, and epochs go in time order: it would refuse every later change
             return (f"--at {at:g} s is past the run's end (t = {end:g} s): it would never apply; give --at "
@@ -956,7 +845,7 @@ class World:
             self._note(FleetEvent.of(self._sim_now(), "rejected",
                                      f"gains {printable(gains, 120)} from {sender}: {why}"))
             return why
-        tick = self.lockstep.granted + 1 if self.clock == "lockstep" else self._tick_now() + 1
+        tick = self._effect_tick()
         late = self._never_applies(tick)
         if late:
             return self._refuse(sender, "gains", f"gains {printable(gains, 120)}", late)
@@ -965,14 +854,6 @@ class World:
                                  f"gains {gains} for {vehicle or 'every vehicle'} from tick {tick} by {sender}"),
                    by_command=True)
         return Verdict(True, "", tick)
-
-    def _change_tick(self) -> int:
-        """The first tick a run-time change can apply from on every vehicle alike: past the grant
-        in lockstep (no vehicle may have stepped it yet), a moment ahead of the wall clock's tick
-        in realtime."""
-        if self.clock == "lockstep":
-            return self.lockstep.granted + 1
-        return self._tick_now() + max(1, math.ceil(LINK_LEAD / self.period))
 
     def _never_applies(self, tick: int) -> str | None:
         """Why a change from ``tick`` would never apply (past the run's last tick: near the end the
@@ -994,12 +875,12 @@ class World:
         """A ground station's formation change: phases ``{id: θ}`` or offsets ``[{i, k, delta}]``
         (exactly one), checked as the config's are (offsets with the Δs in force on the other
         edges must close around every cycle) and turned into phases, relayed to every vehicle
-        with the tick they apply from (:meth:`_change_tick`), and measured against from that
+        with the tick they apply from (:meth:`_effect_tick`), and measured against from that
         tick. Returns the verdict (applied from that tick), else the reason it was refused."""
         phases, offsets = fields["phases"], fields["offsets"]
         if bool(phases) == bool(offsets):
             return self._refuse(sender, "formation", "formation", "give either phases or offsets (exactly one)")
-        tick = self._change_tick()
+        tick = self._effect_tick()
         late = self._never_applies(tick)
         if late:
             return self._refuse(sender, "formation", "formation", late)
@@ -1034,7 +915,7 @@ class World:
         if isinstance(path, (tuple, str)):
             why = path if isinstance(path, str) else f"path{'.' + path[0] if path[0] else ''}: {path[1]}"
             return self._refuse(sender, "path", f"path of {vid}", why)
-        tick = self._change_tick()
+        tick = self._effect_tick()
         late = self._never_applies(tick)
         if late:
             return self._refuse(sender, "path", f"path of {vid}", late)
@@ -1043,18 +924,9 @@ class World:
         return Verdict(True, "", tick)
 
     def _fleet_pause(self, pause: bool, by: str = "") -> Verdict | str:
-        if pause == (self.lockstep.paused if self.clock == "lockstep" else self.paused_at is not None):
+        if pause == self.clock.paused():
             return "the fleet is already paused" if pause else "the fleet is not paused"  # not news
-        tick = self._effect_tick() if self.clock == "lockstep" else self._tick_now()
-        if self.clock == "lockstep":
-            (self.lockstep.pause if pause else self.lockstep.resume)()
-        elif pause and self.paused_at is None:
-            self.paused_at = time.time()
-            self.pub_ctl.put(encode_control("pause"))
-        elif not pause and self.paused_at is not None and self.t0 is not None:
-            self.t0 += time.time() - self.paused_at  # the fleet's clock stood still
-            self.paused_at = None
-            self.pub_ctl.put(encode_control("resume", t0=self.t0))
+        tick = self.clock.pause(pause)
         self._note(FleetEvent.of(self._sim_now(), "fleet", ("fleet paused" if pause else "fleet resumed")
                                  + (f" by {by}" if by else "")))
         self._publish_status()  # at once: a ground station attaching is answered the newest status
@@ -1132,38 +1004,9 @@ class World:
         if self.finished:
             return  # agents leaving after the stop are not news
         j = self.index[name]
-        if self.clock == "lockstep":
-            self.lockstep.on_alive(j, up)
-            if self.lockstep.pending and self._drops_since is None:
-                self._drops_since = time.monotonic()
-            self._act(self.lockstep.poll())
-        elif self.started:
-            n = self._tick_now()
-            if up:
-                self._rt_lost.discard(name)
-                if self._faulted.get(name) == "paused":  # a stopped process declares nothing: this one runs
-                    del self._faulted[name]
-                self._send_roster(RosterChange(n, j, "live", fresh=True))
-                self.pub_ctl.put(encode_control("start", t0=self.t0))
-                self._replay_commands(name)
-                self._note(vehicle_back(n * self.period, name))
-            else:
-                self._send_roster(RosterChange(n, j, "gone"))
-                expected = self._rt_expect.get(name, set())
-                if "down" in expected:  # the fault we asked for, already reported as such
-                    expected.discard("down")
-                else:
-                    self._rt_lost.add(name)
-                    self._note(vehicle_lost(n * self.period, name))
+        self.clock.on_alive(name, j, up)
         if self.started:
             self._check_graph()
-
-    def _expect_news(self, vid: str, action: str) -> None:
-        """Realtime: the liveliness changes a kill | pause | resume | restart we asked the
-        launcher for will cause (a paused process's token lapses with the lease)."""
-        self._rt_expect[vid] = {"kill": {"down"}, "pause": {"down"}, "resume": set(),
-                                "restart": {"down"}}.get(action, set())
-        self._note_fault(vid, action)
 
     def _note_fault(self, vid: str, action: str) -> None:
         """Keep which vehicles a fault killed or paused (realtime: asked of the launcher; lockstep:
@@ -1173,14 +1016,6 @@ class World:
             self._faulted[vid] = "killed" if action == "kill" else "paused"
         elif action in ("resume", "restart") and (action == "restart" or self._faulted.get(vid) == "paused"):
             self._faulted.pop(vid, None)
-
-    def _rt_moot(self, vid: str, action: str) -> str | None:
-        """Realtime: why a ground station's fault would do nothing (as Lockstep finds it on its
-        tick: a pause of a vehicle not live, a resume of a live or killed one, a kill of a killed
-        one), else None."""
-        now = self._faulted.get(vid) or ("live" if vid in self.st.alive else "gone")
-        moot = {"pause": now != "live", "resume": now in ("live", "killed"), "kill": now == "killed"}.get(action)
-        return f"{vid} is {now} (nothing done)" if moot else None
 
     def _send_command(self, to: list[str] | None, kept_for: str | None, op: str, **fields: Any) -> None:
         """A run-time command to the vehicles ``to`` (None: the ctl publisher, every vehicle), kept
@@ -1216,20 +1051,12 @@ class World:
         the fleet is. Of the gains changes that apply before the first tick it can step, only the
         last is sent (it applies them all at that tick, the last last): a restart after a flood
         of gains changes is sent the one in force and those still to come, not the history."""
-        first = self._first_step(vid)
+        first = self.clock.first_step(vid)
         mine = [c for c in self._commands if c.kept_for is None or c.kept_for == vid]
         in_force = max((i for i, c in enumerate(mine) if c.tick is not None and c.tick <= first), default=None)
         for i, c in enumerate(mine):
             if c.tick is None or c.tick > first or i == in_force:
                 self._put(keys.ctl(self.fleet, [vid]), c.payload)
-
-    def _first_step(self, vid: str) -> int:
-        """A tick no later than the first one ``vid``'s process (restarted, resumed) can step now:
-        after the newest it reported or joins past (lockstep), the wall clock's less the slack
-        (realtime)."""
-        if self.clock == "lockstep":
-            return self.lockstep.acked.get(self.index[vid], -1) + 1
-        return self._tick_now() - math.ceil(REALTIME_SLACK / self.period)
 
     def _send_roster(self, ch: RosterChange, to: int | None = None) -> None:
         targets = self.ids if to is None else [self.ids[to]]
@@ -1266,22 +1093,13 @@ class World:
         """The live graph after a liveliness change, at the tick of the roster change it belongs
         to when there is one (lockstep: a kill at 150 s is news of tick 7500, not of the newest
         tick recorded, 7499), as the in-process fleet stamps it."""
-        news = self.lockstep.news_tick if self.clock == "lockstep" else None
+        news = self.clock.news_tick()
         t = self._sim_now() if news is None else news * self.period
         self._note(graph_event(t, self.ids, self.pairs, self.st.alive))
 
     def _sim_now(self) -> float:
-        """The fleet's present in simulated seconds: the newest tick recorded (lockstep), the wall
-        clock's tick (realtime)."""
-        if self.clock == "realtime":
-            return self._tick_now() * self.period
-        return max(0, self.next_tick - 1) * self.period
-
-    def _tick_now(self) -> int:
-        if self.t0 is None:
-            return 0
-        now = self.paused_at if self.paused_at is not None else time.time()
-        return max(0, int((now - self.t0) / self.period))
+        """The fleet's present in simulated seconds (the clock's)."""
+        return self.clock.sim_now()
 
     # ------------------------------------------------------------------ the run
     def run(self) -> dict:
@@ -1303,39 +1121,9 @@ class World:
         cpu0 = time.process_time()
         self.sink.start(self.scenario)
         if not self.stop_requested:
-            self._run_lockstep() if self.clock == "lockstep" else self._run_realtime()
+            self.clock.run()
         self.cpu_s = time.process_time() - cpu0
         return self.finish()
-
-    def _act(self, actions: list) -> None:
-        for a in actions:
-            if isinstance(a, Roster):
-                self._send_roster(a.change, a.to)
-            elif isinstance(a, Grant):
-                self._last_grant = time.monotonic()
-                self.pub_ctl.put(encode_control("grant", until=a.until))
-            elif isinstance(a, Join):
-                self._put(keys.ctl(self.fleet, [self.ids[a.vehicle]]), encode_control("join", tick=a.tick))
-                if a.vehicle in self._catching:
-                    self._catching[a.vehicle].join = a.tick
-            elif isinstance(a, CatchUp):
-                self._replay_commands(self.ids[a.vehicle])
-                self._replay_geometry(self.ids[a.vehicle])
-                self._catching[a.vehicle] = _CatchingUp(self.lockstep.acked.get(a.vehicle, -1),
-                                                        time.monotonic() + CATCHUP_RESEND)
-            elif isinstance(a, Sense):
-                self._send_contacts(a.tick, self._sample_rows.pop(a.tick, {}))
-            elif isinstance(a, RadioSample):
-                self._send_geometry(a.tick, self._radio_rows.pop(a.tick, {}))
-            elif isinstance(a, Fault):
-                self._fault_since = time.monotonic()
-                self._note_fault(self.ids[a.vehicle], {"pause_vehicle": "pause", "resume_vehicle": "resume"}.get(
-                    a.op, a.op))
-                self.pub_launcher.put(encode_control(a.op, vehicle=self.ids[a.vehicle]))
-            elif isinstance(a, FleetEvent):
-                self._note(a)
-            elif isinstance(a, Decided):
-                self._decided(a)
 
     def _send_contacts(self, tick: int, positions: dict[int, tuple]) -> None:
         """The proximity sensor at ``tick``: each sampled vehicle its contacts (cdus.sim.sensing);
@@ -1369,132 +1157,6 @@ class World:
         for _, payload in self._radio_sent:
             self._put(keys.radio(self.fleet, [vid]), payload)
 
-    def _radio_realtime(self) -> None:
-        """Realtime: once the clock has passed a radio sample tick, sample the newest telemetry of
-        the vehicles alive under that tick (once each of them has sent some; never past the run)."""
-        if self.radio is None or self.t0 is None or self.paused_at is not None:
-            return
-        n = self._tick_now()
-        if n < self._next_radio or n > self.last_tick:
-            return
-        every = self.radio[0]
-        # a vehicle a fault paused or killed is not live in the sample (as in lockstep), and one
-        # paused from the start, which reports nothing, holds no sample back
-        alive = {self.index[v] for v in self.st.alive if v not in self._faulted}
-        with self._lock:
-            positions = {j: m.q for j, m in self.st.latest.items() if j in alive}
-        if not self.st.latest or len(positions) < len(alive):
-            return  # a live vehicle not heard from yet (the start): it would look out of range
-        self._next_radio = (n // every + 1) * every
-        self._send_geometry(n // every * every, positions)
-
-    def _sense_realtime(self) -> None:
-        """Realtime: once the clock has passed a sample tick, sample the newest telemetry of the
-        vehicles alive and publish their contacts under the present tick."""
-        if self.sensing is None or self.t0 is None or self.paused_at is not None:
-            return
-        n = self._tick_now()
-        if n < self._next_sample:
-            return
-        every = self.sensing[0]
-        self._next_sample = (n // every + 1) * every
-        alive = {self.index[v] for v in self.st.alive}
-        with self._lock:
-            positions = {j: m.q for j, m in self.st.latest.items() if j in alive}
-        self._send_contacts(n, positions)
-
-    def _run_lockstep(self) -> None:
-        ls = self.lockstep
-        for j, vid in enumerate(self.ids):
-            ls.on_alive(j, vid in self.st.alive)
-        ls.start()
-        self._last_grant = 0.0
-        last_status = 0.0
-        mark = (time.monotonic(), self.next_tick)
-        while self.next_tick <= self.last_tick and not self.stop_requested:
-            self._act(ls.poll())
-            self._record_complete()
-            now = time.monotonic()
-            if now - mark[0] >= HORIZON_EVERY:
-                mark = self._widen_horizon(now, mark)
-            if self._supervise_outage(now):
-                break
-            if self._catching:
-                self._catch_up_again(now)
-            if now - self._last_grant > GRANT_RESEND and ls.granted >= 0:  # for anyone who missed it
-                self._last_grant = now
-                self.pub_ctl.put(encode_control("grant", until=ls.granted))
-            if self._fault_since is not None and ls._current is not None and ls._current.stage != "done":
-                limit = JOIN_TIMEOUT if ls._current.stage == "waiting_token" else FAULT_TIMEOUT
-                if now - self._fault_since > limit:
-                    ls.give_up(ls._current.vehicle)
-                    self._fault_since = None
-            if now - last_status > STATUS_PERIOD:
-                last_status = now
-                self._publish_status()
-            if self.next_tick <= self.last_tick:
-                self._drain(block=True)
-
-    def _catch_up_again(self, now: float) -> None:
-        """Lockstep: a process caught up (CatchUp) that has reported no tick since hears it all
-        again, in the first one's order (its roster, the commands and radio samples, the join tick
-        of a restart, the grant): each is told once to a process that had it (roster changes are
-        kept once, commands by their seq). After CATCHUP_RESEND s, then twice as long each time up
-        to 8 s, while its liveliness token is up, until it reports. Not while it is down: a
-        restart's fault_done can come before the old process's token goes, so the first catch-up
-        went to a process not yet started (seen in the suite: the new uav2 waited for its join for
-        ever); when the new one's token comes, it hears it."""
-        ls = self.lockstep
-        for j, c in list(self._catching.items()):
-            vid = self.ids[j]
-            if ls.acked.get(j, -1) > c.acked:
-                del self._catching[j]
-                continue
-            if now < c.at or vid not in self.st.alive:
-                continue
-            if not c.told:
-                c.told = True
-                self.log(f"{vid} has reported nothing since its catch-up: saying it again")
-            c.every = min(2 * c.every, CATCHUP_RESEND_MAX)
-            c.at = now + c.every
-            for ch in ls.changes:
-                self._send_roster(ch, j)
-            self._replay_commands(vid)
-            self._replay_geometry(vid)
-            if c.join is not None:  # last, as the first time: it starts stepping when it hears it
-                self._put(keys.ctl(self.fleet, [vid]), encode_control("join", tick=c.join))
-            self.pub_ctl.put(encode_control("grant", until=ls.granted))
-
-    def _widen_horizon(self, now: float, mark: tuple[float, int]) -> tuple[float, int]:
-        """Lockstep: size the grant window to the fleet's speed since ``mark`` (wall s, next tick
-        to record then); a grant moves by a quarter window at a time. Returns the new mark."""
-        ls = self.lockstep
-        ls.window = horizon_window((self.next_tick - mark[1]) / (now - mark[0]), HORIZON_S)
-        ls.grant_step = max(1, ls.window // 4)
-        return now, self.next_tick
-
-    def _supervise_outage(self, now: float) -> bool:
-        """Decide liveliness losses once those of the moment are in (DROP_WINDOW); wait for a fleet
-        that dropped all at once up to ``outage_grace``. True: the run cannot go on."""
-        ls = self.lockstep
-        if not ls.pending:
-            self._drops_since = None
-        elif self._drops_since is not None and now - self._drops_since > DROP_WINDOW:
-            self._drops_since = None
-            if ls.decide_drops() == "outage":
-                self._outage_since = now
-                self.log(f"every vehicle dropped at once: waiting up to {self.outage_grace:g} s for them")
-            self._act(ls.poll())
-        if not ls.outage:
-            self._outage_since = None
-        elif self._outage_since is not None and now - self._outage_since > self.outage_grace:
-            self.completion = "router_lost" if self._router_lost() else "vehicles_lost"
-            ls.end_outage()
-            self._act(ls.poll())
-            self.log(f"the fleet did not come back within {self.outage_grace:g} s: the run ends ({self.completion})")
-            return True
-        return False
-
     def _router_lost(self) -> bool:
         """Has this process (a client) lost its router? (A router of its own cannot be lost.)"""
         if self.session is None or self.transport.mode == "router":
@@ -1503,11 +1165,6 @@ class World:
             return not list(self.session.info.routers_zid())
         except (zenoh.ZError, AttributeError):
             return False
-
-    def _record_complete(self) -> None:
-        while self.next_tick <= self.last_tick and self.lockstep.recordable(self.next_tick):
-            if not self._record(self.next_tick):
-                return
 
     def _record(self, n: int) -> bool:
         """Record tick n: each vehicle's own row of tick n; one that did not step it (not live, or
@@ -1522,8 +1179,7 @@ class World:
                 latest, last = st.latest.get(j), self._recorded.get(j)
                 m = max((x for x in (latest, last) if x is not None and x.tick <= n), key=lambda x: x.tick,
                         default=last)
-            if m is None and (self.lockstep.state_at(j, n) != "live" if self.clock == "lockstep" else
-                              self.ids[j] in self._faulted or latest is not None):  # (its rows come in order)
+            if m is None and self.clock.starts_unseen(j, n, latest):
                 m = self._initial_row(j)  # paused or killed from tick 0: where it starts, as cdus sim has it
             if m is None:
                 return False  # a vehicle never reported: nothing to record yet
@@ -1531,7 +1187,7 @@ class World:
         st.rows.pop(n, None)
         for j, m in enumerate(states):
             self._recorded[j] = m
-        self.recorder.record(n * self.period, states, self._live_at(n), self._interventions)
+        self.recorder.record(n * self.period, states, self.clock.live_at(n), self._interventions)
         self.next_tick = n + 1
         for event in self._change_events.pop(n, ()):
             self._note(event)
@@ -1549,67 +1205,6 @@ class World:
                                         tel.path_error)
         return self._initial[j]
 
-    def _live_at(self, n: int) -> list[bool]:
-        """Which vehicles step tick n: the lockstep roster's word, or (realtime) whose liveliness
-        token is up (a frozen process's lapses with the lease)."""
-        if self.clock == "lockstep":
-            return [self.lockstep.state_at(j, n) == "live" for j in range(len(self.ids))]
-        return [vid in self.st.alive for vid in self.ids]
-
-    def _run_realtime(self) -> None:
-        st, T = self.st, self.period
-        self.t0 = time.time() + 0.5
-        self.pub_ctl.put(encode_control("start", t0=self.t0))
-        last_status = last_start = time.monotonic()
-        while self.next_tick <= self.last_tick and not self.stop_requested:
-            self._drain(block=True)
-            if self._rt_asked:
-                self._rt_faults_unconfirmed(time.monotonic())
-            self._sense_realtime()
-            self._radio_realtime()
-            now = time.monotonic()
-            if now - last_start > STATUS_PERIOD:  # again, for late joiners
-                last_start = now
-                self.pub_ctl.put(encode_control("start", t0=self.t0))
-            if now - last_status > STATUS_PERIOD:
-                last_status = now
-                self._publish_status()
-            if self.paused_at is not None:
-                continue
-            self._realtime_faults_due(self._tick_now() * T)
-            due = min(self._tick_now() - REALTIME_LAG, self.last_tick)
-            while self.next_tick <= due and self._record(self.next_tick):
-                pass
-            for old in [k for k in st.rows if k < self.next_tick]:
-                st.rows.pop(old)
-        if self.stop_requested and self._stop_tick is None:  # a signal: no tick was said
-            return
-        # a stop ends the run after the tick it said (the wall clock's, REALTIME_LAG ahead of the
-        # newest recorded: a stop said "t = 17.36 s" and the metrics ended at 17.2 s)
-        last = self.last_tick if self._stop_tick is None else min(self._stop_tick, self.last_tick)
-        # give the final tick's telemetry a moment, then record what is left with the newest states
-        end = time.monotonic() + 2.0
-        live = [self.index[v] for v in st.alive]
-        while (any(st.acked.get(j, -1) < last for j in live) and time.monotonic() < end
-               and (not self.stop_requested or self._stop_tick is not None)):
-            self._drain(block=True)
-        while self.next_tick <= last and self._record(self.next_tick):
-            pass
-
-    def _realtime_faults_due(self, now: float) -> None:
-        """Realtime: ask the launcher for the scheduled vehicle faults whose time has come (the
-        world does not wait for them; their liveliness news makes the roster changes)."""
-        while self._realtime_faults and self._realtime_faults[0].at <= now:
-            ev = self._realtime_faults.pop(0)
-            op = {"pause": "pause_vehicle", "resume": "resume_vehicle"}.get(ev.action, ev.action)
-            self.pub_launcher.put(encode_control(op, vehicle=ev.vehicle))
-            # its fault_done must not answer a ground station's fault asked after it
-            self._rt_asked.setdefault(ev.vehicle, deque()).append((None, ev.action,
-                                                                   time.monotonic() + RT_FAULT_CONFIRM))
-            self._expect_news(ev.vehicle, ev.action)
-            self._note(FleetEvent.of(now, "fault", f"scheduled {ev.action} of {ev.vehicle} (t = {ev.at:g} s)",
-                                     vehicle=ev.vehicle))
-
     def _publish_status(self, completion: str | None = None) -> None:
         """The fleet's status; ``completion`` once the run is over (its last status)."""
         n = len(self.recorder)
@@ -1619,9 +1214,9 @@ class World:
             worst_path, worst_coord = self.recorder.worst_errors(start=n - 1)
             path = None if math.isnan(worst_path[-1]) else float(worst_path[-1])
             coord = None if math.isnan(worst_coord[-1]) or not self.recorder.edges else float(worst_coord[-1])
-        paused = self.lockstep.paused if self.clock == "lockstep" else self.paused_at is not None
+        paused = self.clock.paused()
         extra = replace(self._status_extra(), completion=completion)
-        payload = encode_status(t, self.duration, self.clock, sorted(self.st.alive), self.ids, path, coord,
+        payload = encode_status(t, self.duration, self.clock.name, sorted(self.st.alive), self.ids, path, coord,
                                 newest_events(self.events), paused, roster=dict(zip(self.ids, extra.states)),
                                 extra=extra)
         self._status_payload = payload  # what a status query is answered (bytes: replaced whole, never changed)
@@ -1638,14 +1233,7 @@ class World:
         rec, n = self.recorder, len(self.recorder)
         kinds = [v.kind for v in self.scenario.vehicles]
         tick = max(0, self.next_tick - 1)
-        if self.clock == "lockstep":
-            states = [self.lockstep.state_at(j, tick) for j in range(len(self.ids))]
-            # a vehicle a fault paused is gone from the roster once its lease lapses: still paused to an operator
-            states = ["paused" if st == "gone" and self._faulted.get(vid) == "paused" else st
-                      for vid, st in zip(self.ids, states)]
-        else:
-            states = ["paused" if self._faulted.get(vid) == "paused" else "live" if vid in self.st.alive
-                      else "gone" for vid in self.ids]
+        states = self.clock.roster_states(tick)
         edges = closest = path_errors = None
         if n:
             omega, live, q = rec.omega[n - 1], rec.live[n - 1], rec.q[n - 1]
@@ -1722,7 +1310,7 @@ class World:
             return "not_started"
         if self.completion is not None:
             return self.completion
-        lost = self.lockstep.lost | self.lockstep.outage if self.clock == "lockstep" else self._rt_lost
+        lost = self.clock.lost()
         if self.next_tick > self.last_tick and not self.stop_requested:
             return "vehicles_lost" if lost else COMPLETED
         return "vehicles_lost" if lost else "interrupted"
@@ -1748,7 +1336,7 @@ class World:
                 self._drain(block=False)
                 time.sleep(0.02)
         wall = time.perf_counter() - self._t_start if self.started else 0.0
-        metrics = run_metrics(self.scenario, self.recorder, mode=self.clock, link=self.link_block(), wall_s=wall,
+        metrics = run_metrics(self.scenario, self.recorder, mode=self.clock.name, link=self.link_block(), wall_s=wall,
                               policy=self.policy, events=self.events,
                               interventions=sum(s.interventions for s in self._processes()),
                               completed=completion == COMPLETED, completion=completion,

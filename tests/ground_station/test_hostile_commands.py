@@ -30,7 +30,7 @@ def test_realtime_a_put_faults_word_from_the_launcher_does_not_answer_a_later_qu
     assert q.answer is None
     launcher_done(w, "usv2")  # the restart
     assert q.answer is not None and q.answer.applied and q.answer.op == "restart"
-    assert not any(w._rt_asked.values())
+    assert not any(w.clock.asked.values())
 
 
 import math  # noqa: E402
@@ -131,10 +131,10 @@ def test_realtime_a_change_past_the_last_tick_is_rejected():
     w = world(clock="realtime")
     for vid in w.ids:
         w._on_alive(vid, True)
-    w._tick_now = lambda: w.last_tick - 2  # the wall clock's tick, the run's last 0.04 s
+    w.clock.tick_now = lambda: w.last_tick - 2  # the wall clock's tick, the run's last 0.04 s
     for op, fields in [("formation", {"phases": {"usv2": 1.0}, "offsets": []}),
                        ("path", {"vehicle": "usv1", "path": {"family": "circle", "center": [0, 0], "radius": 5}}),
-                       ("link", {"link": {"loss": 0.1}, "at": -1.0})]:
+                       ("link", {"link": {"loss": 0.1}, "at": -1.0}),
+                       ("set_gains", {"gains": {"c": 2.0}, "vehicle": ""})]:  # one effect tick for all
         r = ask(w, op, **fields).answer
         assert r.status == "rejected" and "would never apply" in r.reason, (op, r)
-    assert ask(w, "set_gains", gains={"c": 2.0}, vehicle="").answer.applied  # its next tick is still in the run

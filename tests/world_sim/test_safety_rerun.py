@@ -101,7 +101,7 @@ def test_the_world_records_each_vehicles_interventions_as_its_processes_report_t
     def record(n):
         for j, vid in enumerate(w.ids):
             send_rows(w, vid, [row(j, n)])
-        w._record_complete()
+        w.clock.record_complete()
 
     record(0)
     send(AgentStats(id="usv2", tick=1, interventions=3))

@@ -26,7 +26,7 @@ def test_the_status_carries_kinds_states_edges_links_radius_and_the_closest_pair
     qs = [(0.0, 0.0), (30.0, 0.0), (0.0, 1.0), (0.0, 0.0, 20.0), (50.0, 0.0, 20.0), (0.0, 50.0, 20.0)]
     for j, vid in enumerate(w.ids):
         w._handle(Sample(keys.state(FLEET, vid), Payload(encode_states([at(j, 0, qs[j], 0.1 * j, 0.01 * (j + 1))]))))
-    w._record_complete()
+    w.clock.record_complete()
     s = AgentStats(id="usv1", tick=1, sent_to_me=20, dropped=3)
     w._handle(Sample(keys.stats(FLEET, "usv1"), Payload(encode_stats(s))))
     w._publish_status()
@@ -92,8 +92,8 @@ def test_realtime_a_vehicle_paused_by_a_ground_station_is_paused_until_resumed_e
     for vid in w.ids:
         w._on_alive(vid, True)
     w.started = True
-    w.t0 = 0.0
-    w.paused_at = 2.0
+    w.clock.t0 = 0.0
+    w.clock.paused_at = 2.0
 
     def states() -> list[str]:
         w._publish_status()

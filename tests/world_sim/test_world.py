@@ -15,6 +15,7 @@ from cdus.wire.messages import (
 from cdus.wire.schemas import AgentStats, FleetEvent, decode_event, encode_stats
 from cdus.wire.transport import Transport
 from tests.fakes import Payload, Sample
+from world_sim.clocks import RealtimeClock
 from world_sim.world import LINK_LEAD, World
 
 FLEET = "tfake"
@@ -74,7 +75,7 @@ def started(w: World) -> World:
         w._on_alive(vid, True)
     w.started = True
     w.lockstep.start()
-    w._act(w.lockstep.poll())
+    w.clock.act(w.lockstep.poll())
     return w
 
 
@@ -89,7 +90,7 @@ def test_telemetry_reports_ticks_and_a_complete_tick_is_recorded():
         if j < 5:
             assert not w.lockstep.recordable(0)
     assert w.lockstep.acked == {j: 1 for j in range(6)}
-    w._record_complete()
+    w.clock.record_complete()
     assert w.next_tick == 2 and len(w.recorder) == 2
 
 
@@ -203,13 +204,14 @@ def test_a_rejoining_process_is_sent_the_link_and_gains_commands_it_missed():
     cmd("set_gains", gains={"k": 2.0}, vehicle="")
     cmd("link", link={"delay": {"base": 0.1}}, at=-1.0)
     before = len(w.session.puts)
-    w._act([CatchUp(w.ids.index("usv2"))])
+    w.clock.act([CatchUp(w.ids.index("usv2"))])
     sent = w.session.puts[before:]
     assert {key for key, _ in sent} == {keys.ctl(FLEET, ["usv2"])}
     ops = [decode_control(p, CTL_OPS) for _, p in sent]
     assert [(c.op, c.fields.get("link") or c.fields.get("gains")) for c in ops] == [
         ("link", {"loss": 0.3}), ("gains", {"k": 2.0}), ("link", {"delay": {"base": 0.1}})]  # not uav1's gains
-    w.clock, w.started, w.t0, w.paused_at = "realtime", True, 0.0, 2.0
+    w.clock, w.started = RealtimeClock(w), True
+    w.clock.t0, w.clock.paused_at = 0.0, 2.0
     before = len(w.session.puts)
     w._on_alive("uav1", True)  # realtime: a (re)started process's token
     replayed = [decode_control(p, CTL_OPS) for key, p in w.session.puts[before:] if key == keys.ctl(FLEET, ["uav1"])]
@@ -251,7 +253,7 @@ def test_a_fleet_pause_in_lockstep_holds_the_grants():
 
 def test_lockstep_actions_go_out_on_their_keys():
     w = world()
-    w._act([Roster(RosterChange(5, 1, "gone")), Roster(RosterChange(5, 0, "live"), to=2), Grant(9), Join(3, 0)])
+    w.clock.act([Roster(RosterChange(5, 1, "gone")), Roster(RosterChange(5, 0, "live"), to=2), Grant(9), Join(3, 0)])
     (k1, p1), (k2, p2), (k3, p3) = w.session.puts
     assert k1 == keys.ctl(FLEET, w.ids) and decode_control(p1, CTL_OPS).fields == {
         "vehicle": "usv2", "tick": 5, "state": "gone", "fresh": False}
@@ -265,8 +267,8 @@ def test_realtime_liveliness_changes_become_roster_changes_and_events():
     for vid in w.ids:
         w._on_alive(vid, True)
     w.started = True
-    w.t0 = 0.0
-    w.paused_at = 2.0  # a fixed "now": tick 100
+    w.clock.t0 = 0.0
+    w.clock.paused_at = 2.0  # a fixed "now": tick 100
     w._on_alive("usv2", False)
     key, payload = w.session.puts[-1]
     assert decode_control(payload, CTL_OPS).fields == {"vehicle": "usv2", "tick": 100, "state": "gone",
@@ -282,7 +284,7 @@ def test_realtime_a_fault_we_asked_for_is_not_reported_again_as_a_lost_vehicle()
     w = world(clock="realtime")
     for vid in w.ids:
         w._on_alive(vid, True)
-    w.started, w.t0, w.paused_at = True, 0.0, 2.0
+    w.started, w.clock.t0, w.clock.paused_at = True, 0.0, 2.0
     w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("kill", vehicle="usv2"))))
     w._on_alive("usv2", False)
     w._on_alive("uav1", False)  # nobody asked for that one
@@ -292,12 +294,12 @@ def test_realtime_a_fault_we_asked_for_is_not_reported_again_as_a_lost_vehicle()
 
 def test_realtime_scheduled_faults_go_to_the_launcher_when_their_time_comes(tmp_path):
     w = world(tmp_path, clock="realtime", events=EVENTS)
-    w._realtime_faults_due(0.98)
+    w.clock.scheduled_faults(0.98)
     assert w.pub_launcher.puts == []
-    w._realtime_faults_due(1.0)
-    w._realtime_faults_due(1.5)
+    w.clock.scheduled_faults(1.0)
+    w.clock.scheduled_faults(1.5)
     assert [decode_control(p, LAUNCHER_OPS).op for p in w.pub_launcher.puts] == ["kill"]
-    w._realtime_faults_due(10.0)
+    w.clock.scheduled_faults(10.0)
     ops = [decode_control(p, LAUNCHER_OPS) for p in w.pub_launcher.puts]
     assert [(c.op, c.fields["vehicle"]) for c in ops] == [("kill", "usv2"), ("pause_vehicle", "uav1")]
     assert [(e.kind, e.vehicle) for e in w.events] == [("fault", "usv2"), ("fault", "uav1")]
@@ -318,12 +320,12 @@ def test_the_launchers_acknowledgement_reaches_the_lockstep_decisions():
     for j in range(6):
         w.lockstep.on_alive(j, True)
     w.lockstep.start()
-    w._act(w.lockstep.poll())  # joins and the first grant
+    w.clock.act(w.lockstep.poll())  # joins and the first grant
     w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("kill", vehicle="usv2"))))
     for j in range(6):
         for n in range(w.lockstep.granted + 1):
             w.lockstep.on_report(j, n)
-    w._act(w.lockstep.poll())
+    w.clock.act(w.lockstep.poll())
     c = decode_control(w.pub_launcher.puts[-1], LAUNCHER_OPS)
     assert (c.op, c.fields["vehicle"]) == ("kill", "usv2")
     assert w.lockstep._current.stage == "asked"
@@ -349,18 +351,18 @@ def test_telemetry_for_ticks_not_granted_is_rejected_and_never_recorded():
         forged = StateMsg(j, 6000, 120.0, (0.0, 0.0) if j < 3 else (0.0, 0.0, 20.0), 0.0, 1.0, 0.0, -1.0, 0.0)
         send_rows(w, vid, [forged])
     assert w.st.rejects == {"future": 6} and w.lockstep.acked == {} and w.st.latest == {}
-    w._record_complete()
+    w.clock.record_complete()
     assert len(w.recorder) == 0
     for j, vid in enumerate(w.ids):  # the genuine rows still count
         for first in range(0, granted + 1, 50):  # in batches (at most MAX_STATE_ROWS a message)
             send_rows(w, vid, [row(j, n) for n in range(first, min(first + 50, granted + 1))])
-    w._record_complete()
+    w.clock.record_complete()
     assert w.next_tick == granted + 1 and (w.recorder.view("path_error") == 0.5).all()
 
 
 def test_realtime_telemetry_beyond_the_clock_and_its_slack_is_rejected():
     w = world(clock="realtime")
-    w.t0 = 1e12  # not started: the clock's tick is 0
+    w.clock.t0 = 1e12  # not started: the clock's tick is 0
     send_rows(w, "usv1", [row(0, 0), row(0, 5)])
     send_rows(w, "usv2", [row(1, 10_000)])
     assert w.st.rejects == {"future": 1} and w.lockstep.acked == {0: 5}
@@ -453,13 +455,13 @@ def test_a_fleet_that_drops_all_at_once_is_waited_for_then_given_up(monkeypatch)
     w = started(world())
     for vid in w.ids:
         w._on_alive(vid, False)
-    t = w._drops_since
+    t = w.clock.drops_since
     assert w.lockstep.pending == set(range(6)) and t is not None
-    assert not w._supervise_outage(t + 0.1)  # the losses of the moment may still be coming in
-    assert not w._supervise_outage(t + 1.0) and w.lockstep.outage == set(range(6))
-    assert not w._supervise_outage(t + 1.0 + w.outage_grace / 2)  # waiting
+    assert not w.clock.supervise_outage(t + 0.1)  # the losses of the moment may still be coming in
+    assert not w.clock.supervise_outage(t + 1.0) and w.lockstep.outage == set(range(6))
+    assert not w.clock.supervise_outage(t + 1.0 + w.outage_grace / 2)  # waiting
     w._on_alive("usv1", True)
-    assert w._supervise_outage(t + 2.0 + w.outage_grace)
+    assert w.clock.supervise_outage(t + 2.0 + w.outage_grace)
     assert w.completion == "vehicles_lost" and w.lockstep.lost == set(range(1, 6))
 
 
@@ -468,10 +470,10 @@ def test_a_fleet_back_within_the_grace_goes_on_with_no_roster_change():
     sent = len(w.session.puts)
     for vid in w.ids:
         w._on_alive(vid, False)
-    w._supervise_outage(w._drops_since + 1.0)
+    w.clock.supervise_outage(w.clock.drops_since + 1.0)
     for vid in w.ids:
         w._on_alive(vid, True)
-    assert w._drops_since is None and not w._supervise_outage(1e12)
+    assert w.clock.drops_since is None and not w.clock.supervise_outage(1e12)
     assert w.lockstep.outage == set() and w.lockstep.lost == set() and w.lockstep.changes == []
     rosters = [k for k, _ in w.session.puts[sent:] if k.endswith("/ctl")]
     assert rosters == []  # nothing told the vehicles anyone was gone
@@ -507,7 +509,7 @@ def test_the_world_handles_any_key_and_payload_without_raising_and_counts_what_i
         assert w.st.rejects["internal"] == 0
         if not key.split("/")[-1] == "alive":
             assert w.st.rejected + len(w.lockstep.acked) + len(w.st.stats) + len(w.events) >= before
-    assert all(m.tick <= w._tick_limit() for m in w.st.latest.values())
+    assert all(m.tick <= w.clock.tick_limit() for m in w.st.latest.values())
     assert all(math.isfinite(e.t) for e in w.events)
 
 
@@ -552,8 +554,8 @@ def test_the_graph_event_of_a_scheduled_kill_carries_the_kills_tick_as_in_proces
     w = started(world(tmp_path, events=EVENTS))
     for j, vid in enumerate(w.ids):
         send_rows(w, vid, [row(j, n) for n in range(w.lockstep.granted + 1)])
-    w._record_complete()
-    w._act(w.lockstep.poll())
+    w.clock.record_complete()
+    w.clock.act(w.lockstep.poll())
     assert w.next_tick == 50 and w._sim_now() == 0.98
     w._handle(Sample(keys.world_cmd(FLEET, keys.LAUNCHER), Payload(encode_control("fault_done", vehicle="usv2"))))
     w._on_alive("usv2", False)
@@ -604,14 +606,14 @@ def test_a_caught_up_process_that_reports_nothing_hears_the_catch_up_again_until
     j = w.ids.index("uav1")
     w.lockstep.changes.append(RosterChange(50, j, "live"))
     w.lockstep.acked[j] = 49
-    w._act([CatchUp(j), Join(j, 50)])
+    w.clock.act([CatchUp(j), Join(j, 50)])
     to_uav1 = lambda: [decode_control(p, CTL_OPS) for k, p in w.session.puts  # noqa: E731
                        if k == keys.ctl(FLEET, ["uav1"])]
     first, grants = len(to_uav1()), len(w.pub_ctl.puts)
     now = time.monotonic()
-    w._catch_up_again(now)  # not due yet
+    w.clock.catch_up_again(now)  # not due yet
     assert len(to_uav1()) == first
-    w._catch_up_again(now + CATCHUP_RESEND + 0.1)
+    w.clock.catch_up_again(now + CATCHUP_RESEND + 0.1)
     again = to_uav1()[first:]
     assert [c.op for c in again].count("roster") == len(w.lockstep.changes) and again[-1].op == "join"
     assert again[-1].fields["tick"] == 50 and ctl_ops(w)[grants:][-1].op == "grant"
@@ -620,8 +622,8 @@ def test_a_caught_up_process_that_reports_nothing_hears_the_catch_up_again_until
     send_rows(w, "uav1", [row(j, 50)])  # it reports: caught up
     assert w.lockstep.acked[j] == 50
     n = len(w.session.puts)
-    w._catch_up_again(now + 10 * CATCHUP_RESEND)
-    assert len(w.session.puts) == n and not w._catching
+    w.clock.catch_up_again(now + 10 * CATCHUP_RESEND)
+    assert len(w.session.puts) == n and not w.clock.catching
 
 
 def test_a_catch_up_said_again_gives_the_join_tick_after_the_commands_as_the_first_one_does():
@@ -641,10 +643,10 @@ def test_a_catch_up_said_again_gives_the_join_tick_after_the_commands_as_the_fir
     ops = lambda: [decode_control(p, CTL_OPS).op for k, p in w.session.puts  # noqa: E731
                    if k == keys.ctl(FLEET, ["uav1"])]
     before = len(ops())  # its start's join
-    w._act([CatchUp(j), Join(j, 50)])
+    w.clock.act([CatchUp(j), Join(j, 50)])
     first = ops()[before:]
     assert first.index("gains") < first.index("join"), first
-    w._catch_up_again(time.monotonic() + CATCHUP_RESEND + 0.1)
+    w.clock.catch_up_again(time.monotonic() + CATCHUP_RESEND + 0.1)
     again = ops()[before + len(first):]
     assert again.index("gains") < again.index("join"), again
 
@@ -661,20 +663,20 @@ def test_a_catch_up_that_went_to_a_process_not_yet_up_is_said_when_its_token_com
     w = started(world())
     j = w.ids.index("uav2")
     w.lockstep.acked[j] = 49
-    w._act([CatchUp(j), Join(j, 50)])
+    w.clock.act([CatchUp(j), Join(j, 50)])
     joins = lambda: [c for k, p in w.session.puts if k == keys.ctl(FLEET, ["uav2"])  # noqa: E731
                      for c in [decode_control(p, CTL_OPS)] if c.op == "join"]
     first = len(joins())
     w._on_alive("uav2", False)  # the old process's token goes
     now = time.monotonic()
-    w._catch_up_again(now + 5 * CATCHUP_RESEND)
-    assert len(joins()) == first and w._catching  # nobody to tell: kept, not dropped
+    w.clock.catch_up_again(now + 5 * CATCHUP_RESEND)
+    assert len(joins()) == first and w.clock.catching  # nobody to tell: kept, not dropped
     w._on_alive("uav2", True)  # the new process's token
-    w._catch_up_again(now + 5 * CATCHUP_RESEND)
+    w.clock.catch_up_again(now + 5 * CATCHUP_RESEND)
     assert len(joins()) == first + 1 and joins()[-1].fields["tick"] == 50
-    w._catch_up_again(now + 5.5 * CATCHUP_RESEND)  # then less and less often: 1, 2, 4, 8 s apart
+    w.clock.catch_up_again(now + 5.5 * CATCHUP_RESEND)  # then less and less often: 1, 2, 4, 8 s apart
     assert len(joins()) == first + 1
-    w._catch_up_again(now + 7.1 * CATCHUP_RESEND)
+    w.clock.catch_up_again(now + 7.1 * CATCHUP_RESEND)
     assert len(joins()) == first + 2
 
 

@@ -129,7 +129,7 @@ def test_a_lockstep_vehicle_fault_is_answered_when_it_lands_on_its_tick():
     assert q.replies == [] and not q.dropped  # held: Lockstep decides it when the fleet reaches its tick
     assert ask(w, "kill", vehicle="nobody").answer.reason.startswith("no vehicle 'nobody' in this fleet")
     report_through(w, g)
-    w._act(w.lockstep.poll())
+    w.clock.act(w.lockstep.poll())
     r = q.answer
     assert (r.status, r.op, r.tick) == ("applied", "kill", g + 1)
     c = decode_control(w.pub_launcher.puts[-1], LAUNCHER_OPS)
@@ -141,7 +141,7 @@ def test_a_lockstep_vehicle_fault_with_nothing_to_do_is_answered_rejected():
     g = w.lockstep.granted
     q = ask(w, "resume_vehicle", vehicle="usv3")  # it is live
     report_through(w, g)
-    w._act(w.lockstep.poll())
+    w.clock.act(w.lockstep.poll())
     r = q.answer
     assert r.status == "rejected" and "usv3 is live" in r.reason and "nothing done" in r.reason
 
@@ -183,10 +183,10 @@ def test_realtime_a_fault_the_launcher_never_confirms_is_answered_not_carried_ou
     for vid in w.ids:
         w._on_alive(vid, True)
     q1, q2 = ask(w, "kill", vehicle="usv2"), ask(w, "restart", vehicle="uav3")
-    w._rt_faults_unconfirmed(time.monotonic())
+    w.clock.faults_unconfirmed(time.monotonic())
     assert q1.answer is None and q2.answer is None  # not yet
     launcher_done(w, "uav3")
-    w._rt_faults_unconfirmed(time.monotonic() + RT_FAULT_CONFIRM + 0.1)
+    w.clock.faults_unconfirmed(time.monotonic() + RT_FAULT_CONFIRM + 0.1)
     assert q2.answer.applied
     r = q1.answer
     assert r.status == "rejected" and "did not say it carried out the kill of usv2" in r.reason and "--remote" in r.reason
@@ -339,7 +339,7 @@ def test_lockstep_a_vehicle_paused_by_a_fault_stays_paused_in_the_status_after_i
     g = w.lockstep.granted
     q = ask(w, "pause_vehicle", vehicle="usv3")
     report_through(w, g)
-    w._act(w.lockstep.poll())
+    w.clock.act(w.lockstep.poll())
     assert q.answer.applied
     j = w.ids.index("usv3")
     from tests.fakes import Sample
@@ -349,7 +349,7 @@ def test_lockstep_a_vehicle_paused_by_a_fault_stays_paused_in_the_status_after_i
         for k, vid in enumerate(w.ids):
             if vid != "usv3":
                 send_rows(w, vid, [row(k, m) for m in range(max(0, n - 49), n + 1)])
-        w._act(w.lockstep.poll())
+        w.clock.act(w.lockstep.poll())
     later = w.lockstep.granted
     assert w.lockstep.state_at(j, later) == "gone", (later, g)
     w.next_tick = later + 1
@@ -422,7 +422,7 @@ def test_realtime_a_scheduled_faults_word_from_the_launcher_does_not_answer_a_gr
     w = world(tmp_path, clock="realtime", events=EVENTS)
     for vid in w.ids:
         w._on_alive(vid, True)
-    w._realtime_faults_due(1.0)  # the launcher is asked to kill usv2
+    w.clock.scheduled_faults(1.0)  # the launcher is asked to kill usv2
     q = ask(w, "restart", vehicle="usv2")
     assert [decode_control(p, LAUNCHER_OPS).op for p in w.pub_launcher.puts] == ["kill", "restart"]
     launcher_done(w, "usv2")  # the kill
@@ -433,11 +433,11 @@ def test_realtime_a_scheduled_faults_word_from_the_launcher_does_not_answer_a_gr
     import time  # noqa: PLC0415
 
     from world_sim.world import RT_FAULT_CONFIRM  # noqa: PLC0415
-    w._realtime_faults_due(10.0)  # uav1 paused at 2 s
+    w.clock.scheduled_faults(10.0)  # uav1 paused at 2 s
     q = ask(w, "kill", vehicle="uav1")
-    w._rt_faults_unconfirmed(time.monotonic() + RT_FAULT_CONFIRM + 0.1)
+    w.clock.faults_unconfirmed(time.monotonic() + RT_FAULT_CONFIRM + 0.1)
     assert q.answer.status == "rejected" and "kill of uav1" in q.answer.reason
-    assert [e.kind for e in w.events].count("fault_missed") == 1 and not any(w._rt_asked.values())
+    assert [e.kind for e in w.events].count("fault_missed") == 1 and not any(w.clock.asked.values())
 
 
 def test_the_settings_query_says_every_change_made_the_phases_and_the_link_table_in_force():

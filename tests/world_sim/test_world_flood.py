@@ -139,7 +139,7 @@ def test_a_restarted_vehicle_is_sent_the_gains_in_force_and_those_to_come_not_th
     j = w.index["usv2"]
     w.lockstep.acked[j] = w.lockstep.granted - 11  # its first step: granted - 10; 11 changes come after it
     before = len(w.session.puts)
-    w._act([CatchUp(j)])
+    w.clock.act([CatchUp(j)])
     sent = [decode_control(p, CTL_OPS) for key, p in w.session.puts[before:] if key == keys.ctl(FLEET, ["usv2"])]
     first = w.lockstep.granted - 10
     assert [c.fields["tick"] for c in sent if c.op == "gains"] == list(range(first, w.lockstep.granted + 2))
@@ -168,7 +168,7 @@ def test_a_joiner_sent_the_coalesced_list_ends_with_the_gains_of_the_whole_histo
     j = w.index["usv2"]
     w.lockstep.acked[j] = base + first_acked
     before = len(w.session.puts)
-    w._act([CatchUp(j)])
+    w.clock.act([CatchUp(j)])
     sent = [decode_control(p, CTL_OPS).fields for key, p in w.session.puts[before:] if key == keys.ctl(FLEET, ["usv2"])]
     got = [(f["tick"], f["gains"]["c"]) for f in sent]
 

@@ -72,7 +72,7 @@ def test_commands_reach_the_handlers_and_a_rejoiner_gets_them_again_in_order():
     cmd(w, "path", vehicle="usv3", path={"family": "circle", "center": [0.0, 0.0], "radius": 3.0})
     assert [e.kind for e in w.events] == ["formation_changed", "path_changed", "path_changed"]
     before = len(w.session.puts)
-    w._act([CatchUp(w.ids.index("uav1"))])
+    w.clock.act([CatchUp(w.ids.index("uav1"))])
     ops = [decode_control(p, CTL_OPS) for _, p in w.session.puts[before:]]
     assert [(c.op, c.fields.get("vehicle")) for c in ops] == [("formation", None), ("path", "uav1")]
 
