@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from hypothesis import given, settings, strategies as hs
 
+import world_sim.asking as asking
 import world_sim.world as ws
 from cdus.core.quota import Quota
 from cdus.sim.lockstep import CatchUp
@@ -101,8 +102,8 @@ def test_a_change_encodes_no_settings_reply_a_query_does_once():
     """The settings reply was encoded whole (up to 10,000 changes) at every change, on the main
     thread: a flood of commands was quadratic. Now a query makes it, once per change."""
     made = []
-    real = ws.encode_settings
-    ws.encode_settings = lambda *a, **k: made.append(1) or real(*a, **k)
+    real = asking.encode_settings
+    asking.encode_settings = lambda *a, **k: made.append(1) or real(*a, **k)
     try:
         w, _ = clocked(started(world()))
         unlimited(w)
@@ -123,7 +124,7 @@ def test_a_change_encodes_no_settings_reply_a_query_does_once():
         w._on_settings_query(q)
         assert len(made) == 2 and decode_settings(q.replies[0][1], w.ids)["link"] == {"loss": 0.1}
     finally:
-        ws.encode_settings = real
+        asking.encode_settings = real
 
 
 def test_a_restarted_vehicle_is_sent_the_gains_in_force_and_those_to_come_not_the_history():
