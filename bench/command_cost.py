@@ -75,7 +75,7 @@ def world(config: str) -> World:
     w.pub_ctl, w.pub_launcher, w.pub_status, w.pub_events = Sink(), Sink(), Sink(), Sink()
     w._wake = lambda payload=b"": None
     for vid in w.ids:
-        w._on_alive(vid, True)
+        w.alive(vid, True)
     w.started = True
     w.lockstep.start()
     w.clock.act(w.lockstep.poll())

@@ -24,6 +24,24 @@ from world_sim.limits import (
 class Intake:
     """The World's part that answers this module's question (a mixin of world_sim.world.World)."""
 
+    # ------------------------------------------------------------------ the public door
+    def feed(self, key: str, payload: bytes = b"") -> None:
+        """One message on a key addressed to the world, as its inbox hands it over (the door a
+        test or a mock fleet uses, as dora's testing node is fed): handled, or counted by reason
+        and dropped, never raising; then the command queries waiting are answered (at most
+        ANSWERS_PER_PASS). A wake (``keys.wake``) carries nothing: it only lets them be answered."""
+        self._take(key, payload, answer=True)
+
+    def alive(self, vehicle: str, up: bool) -> None:
+        """News that the process taken as ``vehicle``'s came up (``up``) or went: what the
+        liveliness watch says once it has decided whose token it is (:meth:`_on_token`)."""
+        self._on_alive(vehicle, up)
+
+    def drain(self) -> None:
+        """Handle everything waiting in the inbox without waiting, then answer the queries waiting."""
+        self._drain(block=False)
+
+    # ------------------------------------------------------------------ from Zenoh
     def _drain(self, block: bool) -> None:
         """Handle what is waiting (and, if ``block`` and no command waits, wait for at least one
         sample), then answer at most ANSWERS_PER_PASS of the command queries waiting: the rest
@@ -40,24 +58,28 @@ class Intake:
             self._on_token(key, up)
 
     def _handle(self, sample: Any, answer: bool = True) -> None:
-        """One sample of the inbox (anything anyone can put on a key addressed to the world):
-        handled, or counted by reason and dropped. Never raises. ``answer``: then answer command
-        queries waiting (at most ANSWERS_PER_PASS)."""
+        """One Zenoh sample of the inbox: :meth:`_take` of its key and payload."""
+        self._take(str(sample.key_expr), sample.payload, answer)
+
+    def _take(self, key: str, payload: Any, answer: bool) -> None:
+        """One message (anything anyone can put on a key addressed to the world): handled, or
+        counted by reason and dropped. Never raises. ``payload``: bytes, or Zenoh's (read only
+        if the key is one the world takes). ``answer``: then answer command queries waiting."""
         try:
-            self._dispatch(sample)
+            self._dispatch(key, payload)
         except Exception as e:  # a bug of ours, not the sender's: counted, logged once, the run goes on
             self._reject("?", "internal", f"{type(e).__name__}: {e}")
         self._handle_alive_news()
         if answer:
             self._answer_waiting()
 
-    def _dispatch(self, sample: Any) -> None:
-        key = str(sample.key_expr)
+    def _dispatch(self, key: str, payload: Any) -> None:
         parts = key.split("/")
         kind, src = keys.leaf(key)
         if kind == "wake":
             return  # the ticker, or liveliness news (queued by _on_alive_sample)
-        payload = sample.payload.to_bytes()
+        if not isinstance(payload, bytes):
+            payload = payload.to_bytes()
         if kind not in ("state", "stats", "cmd") or len(parts) != 6 or parts[1] != self.fleet:
             return self._reject("?", "key")
         if kind == "state":

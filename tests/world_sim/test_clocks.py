@@ -32,7 +32,7 @@ def test_the_clock_is_picked_by_name_once_and_an_unknown_one_is_refused():
 def test_lockstep_every_change_applies_from_the_first_tick_nobody_was_granted():
     w = world()
     for vid in w.ids:
-        w._on_alive(vid, True)
+        w.alive(vid, True)
     w.started = True
     w.lockstep.granted = 300
     ticks = {(op, str(f)): ask(w, op, **f).answer.tick for op, f in CHANGES}
@@ -45,7 +45,7 @@ def test_realtime_every_change_applies_from_one_tick_the_lead_ahead_of_the_wall_
     applied the gains later than the others. Now one rule: EFFECT_LEAD_S ahead, for all."""
     w = world(clock="realtime")
     for vid in w.ids:
-        w._on_alive(vid, True)
+        w.alive(vid, True)
     w.started = True
     w.clock.tick_now = lambda: 300
     lead = math.ceil(EFFECT_LEAD_S / w.period)
@@ -60,7 +60,7 @@ def test_realtime_every_change_applies_from_one_tick_the_lead_ahead_of_the_wall_
 def test_realtime_a_link_change_asked_for_later_keeps_its_time():
     w = world(clock="realtime")
     for vid in w.ids:
-        w._on_alive(vid, True)
+        w.alive(vid, True)
     w.started = True
     w.clock.tick_now = lambda: 300
     a = ask(w, "link", link={"loss": 0.1}, at=9.0).answer

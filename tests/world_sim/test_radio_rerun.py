@@ -7,6 +7,7 @@ import numpy as np
 
 from cdus.scenario.config import load_scenario
 from cdus.sim.fleet import InProcessFleet
+from cdus.wire import keys
 from world_sim import blueprint as bp
 from world_sim.rerun_sink import make_sink, probability_colour
 
@@ -196,7 +197,7 @@ def test_hostile_radio_commands_never_raise_and_are_refused_or_relayed():
     def check(table, at):
         w = started(_radio_world())
         before = len(w.radio_watch.channel.epochs)
-        w._handle(Sample(keys.world_cmd(FLEET, "gs"), Payload(encode_control("radio", radio=table, at=at))))
+        w.feed(keys.world_cmd(FLEET, "gs"), encode_control("radio", radio=table, at=at))
         relayed = [e for e in w.events if e.kind == "radio_changed"]
         refused = [e for e in w.events if e.kind == "rejected"]
         assert len(relayed) + len(refused) == 1
@@ -315,7 +316,7 @@ def test_any_radio_command_is_answered_and_a_relayed_one_is_what_every_vehicle_t
             started(w)
         q = Query(f"cdus/{FLEET}/world/cmd/gs", msgpack.packb({"v": 1, "op": "radio", "radio": change, "at": at}))
         w._on_command_query(q)
-        w._handle(_wake())
+        w.feed(keys.wake(FLEET, keys.WORLD))
         assert w.st.rejects.get("internal", 0) == 0
         r = q.answer
         relayed = [p for p in w.pub_ctl.puts if decode_control(p, CTL_OPS).op == "radio"]
@@ -344,7 +345,7 @@ def test_realtime_a_vehicle_paused_by_a_fault_holds_no_geometry_sample_back():
 
     w = _radio_world("realtime")
     for vid in w.ids:
-        w._on_alive(vid, True)
+        w.alive(vid, True)
     w.clock.t0 = time.time() - 1.0  # tick 50 or so
     j = w.ids.index("usv2")
     for k, vid in enumerate(w.ids):

@@ -60,7 +60,7 @@ class Query:
 def ask(w, op: str, sender: str = keys.GROUND, raw: bytes | None = None, **fields) -> Query:
     q = Query(keys.world_command(FLEET, sender), encode_control(op, **fields) if raw is None else raw)
     w._on_command_query(q)
-    w._handle(_wake())
+    w.feed(keys.wake(FLEET, keys.WORLD))
     return q
 
 
@@ -165,7 +165,7 @@ def test_realtime_vehicle_faults_are_answered_when_the_launcher_has_carried_them
     does not run (--remote) was said killed and never was."""
     w = world(clock="realtime")
     for vid in w.ids:
-        w._on_alive(vid, True)
+        w.alive(vid, True)
     q = ask(w, "pause_vehicle", vehicle="uav1")
     assert q.answer is None and decode_control(w.pub_launcher.puts[-1], LAUNCHER_OPS).op == "pause_vehicle"
     launcher_done(w, "usv1")  # another vehicle's: not this one's answer
@@ -181,7 +181,7 @@ def test_realtime_a_fault_the_launcher_never_confirms_is_answered_not_carried_ou
 
     w = world(clock="realtime")
     for vid in w.ids:
-        w._on_alive(vid, True)
+        w.alive(vid, True)
     q1, q2 = ask(w, "kill", vehicle="usv2"), ask(w, "restart", vehicle="uav3")
     w.clock.faults_unconfirmed(time.monotonic())
     assert q1.answer is None and q2.answer is None  # not yet
@@ -200,7 +200,7 @@ def test_realtime_a_fault_with_nothing_to_do_is_rejected_as_in_lockstep():
     second pause of a paused one, was answered "applied" and logged as a fault again."""
     w = world(clock="realtime")
     for vid in w.ids:
-        w._on_alive(vid, True)
+        w.alive(vid, True)
     asked = lambda: [(c.op, c.fields["vehicle"]) for c in (decode_control(p, LAUNCHER_OPS)
                                                            for p in w.pub_launcher.puts)]
     steps = [("kill", "usv2", True), ("kill", "usv2", False), ("pause_vehicle", "usv2", False),
@@ -210,7 +210,7 @@ def test_realtime_a_fault_with_nothing_to_do_is_rejected_as_in_lockstep():
              ("resume_vehicle", "uav1", True), ("resume_vehicle", "uav1", False)]
     for op, vid, applied in steps:
         if op == "restart" or op == "resume_vehicle" and applied:
-            w._on_alive(vid, True)
+            w.alive(vid, True)
         q = ask(w, op, vehicle=vid)
         if applied:
             launcher_done(w, vid)
@@ -219,12 +219,12 @@ def test_realtime_a_fault_with_nothing_to_do_is_rejected_as_in_lockstep():
         if not applied:
             assert r.reason.endswith("(nothing done)") and vid in r.reason, r
         if op in ("kill", "pause_vehicle") and applied:
-            w._on_alive(vid, False)  # the token lapses
+            w.alive(vid, False)  # the token lapses
     assert asked() == [(op, vid) for op, vid, applied in steps if applied]
     ask(w, "pause_vehicle", vehicle="usv3")
-    w._on_alive("usv3", False)  # its token lapses: the status says paused, not gone
+    w.alive("usv3", False)  # its token lapses: the status says paused, not gone
     ask(w, "kill", vehicle="usv1")
-    w._on_alive("usv1", False)
+    w.alive("usv1", False)
     states = dict(zip(w.ids, w._status_extra().states))
     assert states == {**{vid: "live" for vid in w.ids}, "usv3": "paused", "usv1": "gone"}
     q = ask(w, "kill", vehicle="usv2")
@@ -244,7 +244,7 @@ def test_only_the_launcher_reports_a_fault_done_and_unreadable_commands_are_answ
     assert r.reason == "the command could not be read: name"
     q = Query(keys.world_command(FLEET, keys.GROUND), None)  # a query with no payload
     w._on_command_query(q)
-    w._handle(_wake())
+    w.feed(keys.wake(FLEET, keys.WORLD))
     assert q.answer.status == "rejected"
     assert w.st.rejects["sender"] == 1 and w.st.rejects["malformed"] == 2 and w.st.rejects["name"] == 1
 
@@ -267,11 +267,11 @@ def test_a_flood_of_queries_is_answered_busy_past_what_waits_and_counted():
     for q in qs:
         w._on_command_query(q)  # Zenoh's thread: the main thread is busy elsewhere
     assert all(q.answer.reason.startswith("busy") for q in qs[MAX_QUEUED_QUERIES:])
-    w._handle(_wake())  # one pass answers ANSWERS_PER_PASS, the oldest first; the others wait their turn
+    w.feed(keys.wake(FLEET, keys.WORLD))  # one pass answers ANSWERS_PER_PASS, the oldest first; the others wait their turn
     assert [q.answer is not None for q in qs[:MAX_QUEUED_QUERIES]] == [True] * ANSWERS_PER_PASS + [False] * (
         MAX_QUEUED_QUERIES - ANSWERS_PER_PASS)
     while w._queries:
-        w._handle(_wake())
+        w.feed(keys.wake(FLEET, keys.WORLD))
     assert all(q.answer.applied for q in qs[:MAX_QUEUED_QUERIES])
     assert w.st.rejects["busy"] == 5
 
@@ -280,9 +280,9 @@ def test_the_put_path_still_carries_commands_out():
     """The launcher's commands and older clients put on to/+world+/cmd/<from>: no answer, same effect."""
     from tests.fakes import Sample
     w = started(world())
-    w._handle(Sample(keys.world_cmd(FLEET, keys.GROUND), Payload(encode_control("pause"))))
+    w.feed(keys.world_cmd(FLEET, keys.GROUND), encode_control("pause"))
     assert w.lockstep.paused
-    w._handle(Sample(keys.world_cmd(FLEET, keys.GROUND), Payload(encode_control("kill", vehicle="usv2"))))
+    w.feed(keys.world_cmd(FLEET, keys.GROUND), encode_control("kill", vehicle="usv2"))
     assert w.lockstep._queue[-1].vehicle == 1 and w.lockstep._queue[-1].ref is None
 
 
@@ -320,7 +320,7 @@ def test_every_query_is_answered_once_never_raises_and_counts_what_it_refuses(op
         before = w.st.rejected
         q = Query(f"cdus/{FLEET}/world/cmd/{sender}", payload)
         w._on_command_query(q)
-        w._handle(_wake())
+        w.feed(keys.wake(FLEET, keys.WORLD))
         if not q.replies:  # held: a lockstep vehicle fault, decided later
             assert q.key_expr in {qq.key_expr for qq, _, _ in w._waiting.values()}
             continue
@@ -343,8 +343,8 @@ def test_lockstep_a_vehicle_paused_by_a_fault_stays_paused_in_the_status_after_i
     assert q.answer.applied
     j = w.ids.index("usv3")
     from tests.fakes import Sample
-    w._handle(Sample(keys.world_cmd(FLEET, keys.LAUNCHER), Payload(encode_control("fault_done", vehicle="usv3"))))
-    w._on_alive("usv3", False)  # the token lapses
+    w.feed(keys.world_cmd(FLEET, keys.LAUNCHER), encode_control("fault_done", vehicle="usv3"))
+    w.alive("usv3", False)  # the token lapses
     for n in range(g + 50, g + 400, 50):  # the others step on: past the lease the roster makes it gone
         for k, vid in enumerate(w.ids):
             if vid != "usv3":
@@ -421,7 +421,7 @@ def test_realtime_a_scheduled_faults_word_from_the_launcher_does_not_answer_a_gr
 
     w = world(tmp_path, clock="realtime", events=EVENTS)
     for vid in w.ids:
-        w._on_alive(vid, True)
+        w.alive(vid, True)
     w.clock.scheduled_faults(1.0)  # the launcher is asked to kill usv2
     q = ask(w, "restart", vehicle="usv2")
     assert [decode_control(p, LAUNCHER_OPS).op for p in w.pub_launcher.puts] == ["kill", "restart"]

@@ -60,18 +60,18 @@ def test_commands_past_the_ground_credentials_rate_are_refused_busy_saying_so_an
     assert [a.applied for a in answers] == [True] * int(ws.COMMANDS_PER_S) + [False] * 5
     # the ground credentials' puts (older clients) share the rate: counted, nothing done
     before = len(w.pub_ctl.puts)
-    w._handle(Sample(keys.world_cmd(FLEET, keys.GROUND), Payload(encode_control("pause"))))
+    w.feed(keys.world_cmd(FLEET, keys.GROUND), encode_control("pause"))
     assert not w.lockstep.paused and len(w.pub_ctl.puts) == before and w.st.rejects["rate"] == 36
     # a query on another key (world/**, which the router may let a vehicle ask) does not spend it
     clock.now += 1.0
     for _ in range(ws.COMMANDS_BURST + 5):
         q = Query(keys.world_command(FLEET, "usv1"), encode_control("pause"))
         w._on_command_query(q)
-        w._handle(_wake())
+        w.feed(keys.wake(FLEET, keys.WORLD))
         assert "asked as 'gs'" in q.answer.reason
     assert gains(w).answer.applied
     # the launcher's own are not the ground station's: never limited
-    w._handle(Sample(keys.world_cmd(FLEET, keys.LAUNCHER), Payload(encode_control("stop"))))
+    w.feed(keys.world_cmd(FLEET, keys.LAUNCHER), encode_control("stop"))
     assert w.stop_requested
 
 
@@ -196,7 +196,7 @@ def test_queries_of_status_settings_and_every_vehicles_last_past_their_rate_are_
         assert all(not q.errors for q in qs[:ws.QUERIES_BURST]), name
         assert all(q.errors == [f"busy: at most {ws.QUERIES_PER_S:g} queries per second on {key} (a flood); "
                                 f"try again".encode()] and not q.replies for q in qs[ws.QUERIES_BURST:]), name
-    w._handle(_wake())
+    w.feed(keys.wake(FLEET, keys.WORLD))
     assert w.st.rejects["query_rate"] == 21
     # a restarting vehicle's own key is never refused (a flood there must not keep it from where it was)
     from tests.world_sim.test_world import row, send_rows  # noqa: PLC0415
@@ -239,7 +239,7 @@ def test_any_mix_of_queries_gets_one_answer_each_and_no_key_more_than_its_rate(a
         assert (len(q.replies) >= 1) != (len(q.errors) == 1), (kind, q.replies, q.errors)
         answered[kind] += bool(q.replies)
         refused += len(q.errors)
-    w._handle(_wake())
+    w.feed(keys.wake(FLEET, keys.WORLD))
     elapsed = clock.now - start
     for kind in ("status", "settings", "last"):
         assert answered[kind] <= ws.QUERIES_BURST + ws.QUERIES_PER_S * elapsed + 1e-6

@@ -30,7 +30,7 @@ vehicle = "usv2"
 
 def test_a_vehicle_paused_from_tick_0_is_recorded_where_it_starts(tmp_path):
     w = started(world(tmp_path, events=EVENTS))
-    w._handle(Sample(keys.world_cmd(FLEET, keys.LAUNCHER), Payload(encode_control("fault_done", vehicle="usv2"))))
+    w.feed(keys.world_cmd(FLEET, keys.LAUNCHER), encode_control("fault_done", vehicle="usv2"))
     w.clock.act(w.lockstep.poll())
     g = w.lockstep.granted
     assert g >= 10
