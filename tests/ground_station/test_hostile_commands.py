@@ -8,7 +8,7 @@ from cdus.wire import keys
 from cdus.wire.messages import LAUNCHER_OPS, decode_control, encode_control
 from tests.fakes import Payload, Sample
 from tests.world_sim.test_world import FLEET, world
-from tests.world_sim.test_world_commands import ask, launcher_done
+from tests.world_sim.test_commands import ask, launcher_done
 
 
 def _put(w, op: str, **fields) -> None:
@@ -39,7 +39,7 @@ import msgpack  # noqa: E402
 from hypothesis import given, settings, strategies as hs  # noqa: E402
 
 from tests.world_sim.test_world import started  # noqa: E402
-from tests.world_sim.test_world_commands import Query, _wake  # noqa: E402
+from tests.world_sim.test_commands import Query, _wake  # noqa: E402
 
 _atoms = (hs.none() | hs.booleans() | hs.integers(-2**63, 2**64 - 1) | hs.floats() | hs.text(max_size=12)
           | hs.sampled_from(["usv1", "usv2", "usv3", "uav1", "uav2", "uav3", "circle", "lissajous", "ellipse",

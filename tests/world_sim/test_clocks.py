@@ -7,10 +7,12 @@ import math
 
 import pytest
 
-from world_sim.clocks import EFFECT_LEAD_S, LockstepClock, RealtimeClock, pick_clock
+from cdus.sim.lockstep import GRANT_WINDOW, MAX_GRANT_WINDOW
 
-from .test_world import world
-from .test_world_commands import ask
+from world_sim.clocks import EFFECT_LEAD_S, HORIZON_S, LockstepClock, RealtimeClock, pick_clock
+
+from .test_commands import ask
+from .test_world import started, world
 
 CHANGES = [
     ("set_gains", {"gains": {"c": 2.0}, "vehicle": ""}),
@@ -65,3 +67,17 @@ def test_realtime_a_link_change_asked_for_later_keeps_its_time():
     w.clock.tick_now = lambda: 300
     a = ask(w, "link", link={"loss": 0.1}, at=9.0).answer
     assert a.applied and a.t == 9.0 and a.tick == 450
+
+
+def test_the_grant_window_is_about_horizon_s_of_the_fleets_speed():
+    w = started(world())
+    assert w.lockstep.window == GRANT_WINDOW
+    w.next_tick = 1000  # 1000 ticks recorded in the last 0.5 s: 2000 ticks/s
+    mark = w.clock.widen_horizon(10.5, (10.0, 0))
+    assert mark == (10.5, 1000)
+    assert w.lockstep.window == int(2000 * HORIZON_S) and w.lockstep.grant_step == w.lockstep.window // 4
+    w.clock.widen_horizon(11.0, mark)  # nothing recorded meanwhile (paused, a fault): back to the least
+    assert w.lockstep.window == GRANT_WINDOW
+    w.next_tick = 10**6
+    w.clock.widen_horizon(12.0, (11.0, 1000))
+    assert w.lockstep.window == MAX_GRANT_WINDOW

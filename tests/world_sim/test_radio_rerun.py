@@ -298,7 +298,7 @@ def test_any_radio_command_is_answered_and_a_relayed_one_is_what_every_vehicle_t
     from vehicle_agent.agent import Agent
 
     from .test_world import FLEET, started
-    from .test_world_commands import Query, _wake
+    from .test_commands import Query, _wake
 
     sc = load(ROOT / "configs/lake_radio.toml")
     num = hs.floats() | hs.integers(-2**63, 2**64 - 1) | hs.booleans() | hs.text(max_size=3) | hs.none()

@@ -18,7 +18,7 @@ from cdus.wire.schemas import decode_settings
 from tests.fakes import Payload, Sample
 
 from .test_world import FLEET, started, world
-from .test_world_commands import Query, _wake, ask
+from .test_commands import Query, _wake, ask
 
 
 class Clock:
