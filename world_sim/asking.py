@@ -23,7 +23,8 @@ from world_sim.verdict import LATER, Verdict
 
 
 class Asking:
-    """The World's part that answers this module's question (a mixin of world_sim.world.World)."""
+    """How the World is asked and answers: queries within their quotas, commands decided on the
+    main thread (a mixin of World)."""
 
     def _over_quota(self, quota: Quota, reason: str) -> bool:
         """Zenoh's thread: has the asker of a query gone past ``quota``? Counted as ``reason``."""

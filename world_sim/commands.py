@@ -36,7 +36,8 @@ class _Change(NamedTuple):
 
 
 class CommandHandlers:
-    """The World's part that answers this module's question (a mixin of world_sim.world.World)."""
+    """The World's command handlers, one per op, and the run-time changes they relayed (a mixin
+    of World)."""
 
     def handlers(self) -> dict[str, Callable[[dict, str], Any]]:
         """op -> handler(fields, by) -> Verdict | reason str | None | LATER (world_sim.verdict):

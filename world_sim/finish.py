@@ -27,7 +27,8 @@ from world_sim.status import _say
 
 
 class Finishing:
-    """The World's part that answers this module's question (a mixin of world_sim.world.World)."""
+    """The World's record of each tick and, at the end, its metrics and trace (a mixin of
+    World)."""
 
     def _record(self, n: int) -> bool:
         """Record tick n: each vehicle's own row of tick n; one that did not step it (not live, or

@@ -22,7 +22,8 @@ from world_sim.limits import (
 
 
 class Intake:
-    """The World's part that answers this module's question (a mixin of world_sim.world.World)."""
+    """The World's intake: its public door (feed, alive, drain), the inbox, and the checks of
+    telemetry and counters (a mixin of World)."""
 
     # ------------------------------------------------------------------ the public door
     def feed(self, key: str, payload: bytes = b"") -> None:

@@ -23,7 +23,8 @@ from world_sim.limits import SUSPECT_TOKEN_REASONS
 
 
 class Liveness:
-    """The World's part that answers this module's question (a mixin of world_sim.world.World)."""
+    """Whose liveliness token the World takes, and what a process coming or going does (a mixin
+    of World)."""
 
     def _on_alive_sample(self, sample: Any) -> None:
         """Liveliness news (Zenoh's thread): queued for the main thread (:meth:`_on_token`), which a

@@ -13,7 +13,8 @@ from cdus.wire.messages import decode_geometry, encode_contacts, encode_geometry
 
 
 class Samples:
-    """The World's part that answers this module's question (a mixin of world_sim.world.World)."""
+    """The proximity contacts and radio geometry the World sends the vehicles (a mixin of
+    World)."""
 
     def _send_contacts(self, tick: int, positions: dict[int, tuple]) -> None:
         """The proximity sensor at ``tick``: each sampled vehicle its contacts (cdus.sim.sensing);

@@ -46,7 +46,7 @@ def _status_key(text: str | None) -> bytes | None:
 
 
 class Reporting:
-    """The World's part that answers this module's question (a mixin of world_sim.world.World)."""
+    """What the World publishes about the fleet: its status and its events (a mixin of World)."""
 
     def _note(self, event: FleetEvent, by_command: bool = False) -> None:
         """An event the world built (from validated fields only), marked with its origin. A refused
