@@ -75,10 +75,10 @@ def world(config: str) -> World:
     w.pub_ctl, w.pub_launcher, w.pub_status, w.pub_events = Sink(), Sink(), Sink(), Sink()
     w._wake = lambda payload=b"": None
     for vid in w.ids:
-        w._on_alive(vid, True)
+        w.alive(vid, True)
     w.started = True
     w.lockstep.start()
-    w._act(w.lockstep.poll())
+    w.clock.act(w.lockstep.poll())
     if hasattr(w, "_command_quota"):
         from cdus.core.quota import Quota
         w._command_quota = Quota(1e12, 10**9)
@@ -117,7 +117,7 @@ def main() -> int:
         j = w.index["usv2"]
         w.lockstep.acked[j] = w.lockstep.granted - 10
         before = len(w.session.puts)
-        w._act([CatchUp(j)])
+        w.clock.act([CatchUp(j)])
         sent = [p for key, p in w.session.puts[before:] if key == keys.ctl(FLEET, ["usv2"])]
         node = build_node(w.scenario, "usv2", IdealLink())
         t0 = time.process_time()

@@ -204,7 +204,7 @@ class Control:
         done = a.node.set_gains(k, c, tick)
         if not done:
             return refused("bad_gains_command", f"gains command rejected: {done.reason}")
-        a.log(f"gains k = {tuple(k)}, c = {c} from tick {tick}")
+        a.log(f"gains k = {tuple(k)}, c = {c} from tick {tick}{self._too_late(tick)}")
         return APPLIED
 
     def _formation(self, f: dict) -> Outcome:
@@ -218,6 +218,12 @@ class Control:
             return refused("bad_formation_command", f"formation command rejected: {done.reason}")
         a.log(f"formation phases {printable(checked, 200)} from tick {tick}")
         return APPLIED
+
+    def _too_late(self, tick: int) -> str:
+        """What a change from ``tick`` heard after stepping it says in the log: the node applies
+        it from the next tick stepped (docs/ground_station.md, the effect tick)."""
+        done = self.agent.ticks_done
+        return "" if tick >= done else f" (heard too late: from tick {done})"
 
     def _path(self, f: dict) -> Outcome:
         """A new path for this vehicle from its tick (checked as the config's paths are)."""

@@ -49,7 +49,7 @@ def test_only_the_ground_role_may_command_the_world_by_query(tmp_path):
             assert waited < 18.0, (k, waited)  # the get ends well before its timeout: refused, not silence
         assert len(asked) == n  # none of those reached the world
         # (a ground station asking as another sender reaches the world, which answers only "gs":
-        # tests/world_sim/test_world_commands.py)
+        # tests/world_sim/test_commands.py)
     finally:
         for s in sessions:
             s.close()

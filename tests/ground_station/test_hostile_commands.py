@@ -8,12 +8,12 @@ from cdus.wire import keys
 from cdus.wire.messages import LAUNCHER_OPS, decode_control, encode_control
 from tests.fakes import Payload, Sample
 from tests.world_sim.test_world import FLEET, world
-from tests.world_sim.test_world_commands import ask, launcher_done
+from tests.world_sim.test_commands import ask, launcher_done
 
 
 def _put(w, op: str, **fields) -> None:
     """A command put on to/+world+/cmd/gs (the ground role may: older clients put without asking)."""
-    w._handle(Sample(keys.world_cmd(FLEET, keys.GROUND), Payload(encode_control(op, **fields))))
+    w.feed(keys.world_cmd(FLEET, keys.GROUND), encode_control(op, **fields))
 
 
 def test_realtime_a_put_faults_word_from_the_launcher_does_not_answer_a_later_query():
@@ -22,7 +22,7 @@ def test_realtime_a_put_faults_word_from_the_launcher_does_not_answer_a_later_qu
     had restarted anything (the put fault held no place in the per-vehicle queue)."""
     w = world(clock="realtime")
     for vid in w.ids:
-        w._on_alive(vid, True)
+        w.alive(vid, True)
     _put(w, "kill", vehicle="usv2")
     q = ask(w, "restart", vehicle="usv2")
     assert [decode_control(p, LAUNCHER_OPS).op for p in w.pub_launcher.puts] == ["kill", "restart"]
@@ -30,7 +30,7 @@ def test_realtime_a_put_faults_word_from_the_launcher_does_not_answer_a_later_qu
     assert q.answer is None
     launcher_done(w, "usv2")  # the restart
     assert q.answer is not None and q.answer.applied and q.answer.op == "restart"
-    assert not any(w._rt_asked.values())
+    assert not any(w.clock.asked.values())
 
 
 import math  # noqa: E402
@@ -39,7 +39,7 @@ import msgpack  # noqa: E402
 from hypothesis import given, settings, strategies as hs  # noqa: E402
 
 from tests.world_sim.test_world import started  # noqa: E402
-from tests.world_sim.test_world_commands import Query, _wake  # noqa: E402
+from tests.world_sim.test_commands import Query, _wake  # noqa: E402
 
 _atoms = (hs.none() | hs.booleans() | hs.integers(-2**63, 2**64 - 1) | hs.floats() | hs.text(max_size=12)
           | hs.sampled_from(["usv1", "usv2", "usv3", "uav1", "uav2", "uav3", "circle", "lissajous", "ellipse",
@@ -63,10 +63,10 @@ def test_fuzzed_changes_are_answered_once_and_never_an_internal_error(op, fields
         started(w)
     else:
         for vid in w.ids:
-            w._on_alive(vid, True)
+            w.alive(vid, True)
     q = Query(keys.world_command(FLEET, keys.GROUND), msgpack.packb({"v": 1, "op": op, **fields}))
     w._on_command_query(q)
-    w._handle(_wake())
+    w.feed(keys.wake(FLEET, keys.WORLD))
     r = q.answer
     assert r is not None
     assert w.st.rejects["internal"] == 0, r.reason
@@ -130,11 +130,11 @@ def test_a_change_asked_when_the_run_has_no_tick_left_for_it_is_rejected_not_app
 def test_realtime_a_change_past_the_last_tick_is_rejected():
     w = world(clock="realtime")
     for vid in w.ids:
-        w._on_alive(vid, True)
-    w._tick_now = lambda: w.last_tick - 2  # the wall clock's tick, the run's last 0.04 s
+        w.alive(vid, True)
+    w.clock.tick_now = lambda: w.last_tick - 2  # the wall clock's tick, the run's last 0.04 s
     for op, fields in [("formation", {"phases": {"usv2": 1.0}, "offsets": []}),
                        ("path", {"vehicle": "usv1", "path": {"family": "circle", "center": [0, 0], "radius": 5}}),
-                       ("link", {"link": {"loss": 0.1}, "at": -1.0})]:
+                       ("link", {"link": {"loss": 0.1}, "at": -1.0}),
+                       ("set_gains", {"gains": {"c": 2.0}, "vehicle": ""})]:  # one effect tick for all
         r = ask(w, op, **fields).answer
         assert r.status == "rejected" and "would never apply" in r.reason, (op, r)
-    assert ask(w, "set_gains", gains={"c": 2.0}, vehicle="").answer.applied  # its next tick is still in the run

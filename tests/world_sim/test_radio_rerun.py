@@ -7,6 +7,7 @@ import numpy as np
 
 from cdus.scenario.config import load_scenario
 from cdus.sim.fleet import InProcessFleet
+from cdus.wire import keys
 from world_sim import blueprint as bp
 from world_sim.rerun_sink import make_sink, probability_colour
 
@@ -89,10 +90,10 @@ def test_the_world_samples_the_geometry_once_a_tick_is_reported_and_grants_no_fu
     assert w.lockstep.granted == 0  # sample 0 is needed from tick 1
     for j, vid in enumerate(w.ids[:-1]):
         send_rows(w, vid, [row(j, 0)])
-    w._act(w.lockstep.poll())
+    w.clock.act(w.lockstep.poll())
     assert w.pub_radio.puts == [] and w.lockstep.granted == 0  # uav3 has not reported tick 0
     send_rows(w, w.ids[-1], [row(5, 0)])
-    w._act(w.lockstep.poll())
+    w.clock.act(w.lockstep.poll())
     (payload,) = w.pub_radio.puts
     msg = decode_geometry(payload, 6)
     assert msg.tick == 0 and msg.positions[0] == (0.0, 0.0) and msg.positions[5] == (0.0, 0.0, 20.0)
@@ -196,7 +197,7 @@ def test_hostile_radio_commands_never_raise_and_are_refused_or_relayed():
     def check(table, at):
         w = started(_radio_world())
         before = len(w.radio_watch.channel.epochs)
-        w._handle(Sample(keys.world_cmd(FLEET, "gs"), Payload(encode_control("radio", radio=table, at=at))))
+        w.feed(keys.world_cmd(FLEET, "gs"), encode_control("radio", radio=table, at=at))
         relayed = [e for e in w.events if e.kind == "radio_changed"]
         refused = [e for e in w.events if e.kind == "rejected"]
         assert len(relayed) + len(refused) == 1
@@ -264,22 +265,22 @@ def test_realtime_samples_once_every_live_vehicle_has_reported_and_never_past_th
 
     w = _radio_world("realtime")
     w.st.alive = set(w.ids)
-    w.t0 = time.time() - 1.01  # tick 50 at 50 Hz
-    w._radio_realtime()
+    w.clock.t0 = time.time() - 1.01  # tick 50 at 50 Hz
+    w.clock.radio()
     assert w.pub_radio.puts == []  # nobody heard from yet: all would look out of range
     for j in range(5):
         w.st.latest[j] = row(j, 49)
-    w._radio_realtime()
+    w.clock.radio()
     assert w.pub_radio.puts == []  # uav3 not yet
     w.st.latest[5] = row(5, 49)
-    w._radio_realtime()
+    w.clock.radio()
     (payload,) = w.pub_radio.puts
     msg = decode_geometry(payload, 6)
     assert msg.tick == 50 and all(q is not None for q in msg.positions)
-    w._radio_realtime()
+    w.clock.radio()
     assert len(w.pub_radio.puts) == 1  # the next one at tick 60
-    w.t0 = time.time() - (w.last_tick + 5) * w.period
-    w._radio_realtime()
+    w.clock.t0 = time.time() - (w.last_tick + 5) * w.period
+    w.clock.radio()
     assert len(w.pub_radio.puts) == 1  # past the run's end: the agents would refuse it (radio_range)
 
 
@@ -297,7 +298,7 @@ def test_any_radio_command_is_answered_and_a_relayed_one_is_what_every_vehicle_t
     from vehicle_agent.agent import Agent
 
     from .test_world import FLEET, started
-    from .test_world_commands import Query, _wake
+    from .test_commands import Query, _wake
 
     sc = load(ROOT / "configs/lake_radio.toml")
     num = hs.floats() | hs.integers(-2**63, 2**64 - 1) | hs.booleans() | hs.text(max_size=3) | hs.none()
@@ -315,7 +316,7 @@ def test_any_radio_command_is_answered_and_a_relayed_one_is_what_every_vehicle_t
             started(w)
         q = Query(f"cdus/{FLEET}/world/cmd/gs", msgpack.packb({"v": 1, "op": "radio", "radio": change, "at": at}))
         w._on_command_query(q)
-        w._handle(_wake())
+        w.feed(keys.wake(FLEET, keys.WORLD))
         assert w.st.rejects.get("internal", 0) == 0
         r = q.answer
         relayed = [p for p in w.pub_ctl.puts if decode_control(p, CTL_OPS).op == "radio"]
@@ -344,16 +345,16 @@ def test_realtime_a_vehicle_paused_by_a_fault_holds_no_geometry_sample_back():
 
     w = _radio_world("realtime")
     for vid in w.ids:
-        w._on_alive(vid, True)
-    w.t0 = time.time() - 1.0  # tick 50 or so
+        w.alive(vid, True)
+    w.clock.t0 = time.time() - 1.0  # tick 50 or so
     j = w.ids.index("usv2")
     for k, vid in enumerate(w.ids):
         if vid != "usv2":
             send_rows(w, vid, [row(k, n) for n in range(3)])
-    w._radio_realtime()
+    w.clock.radio()
     assert w.pub_radio.puts == []  # usv2, live, not heard from yet: waited for (the start)
     w._note_fault("usv2", "pause")
-    w._radio_realtime()
+    w.clock.radio()
     (payload,) = w.pub_radio.puts
     msg = decode_geometry(payload, len(w.ids))
     assert msg.positions[j] is None and all(q is not None for k, q in enumerate(msg.positions) if k != j)

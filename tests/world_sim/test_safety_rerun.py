@@ -96,17 +96,17 @@ def test_without_the_filter_no_dots_a_red_line_and_a_near_collision_event(unfilt
 
 def test_the_world_records_each_vehicles_interventions_as_its_processes_report_them():
     w = started(world())
-    send = lambda s: w._handle(Sample(keys.stats(FLEET, s.id), Payload(encode_stats(s))))  # noqa: E731
+    send = lambda s: w.feed(keys.stats(FLEET, s.id), encode_stats(s))  # noqa: E731
 
     def record(n):
         for j, vid in enumerate(w.ids):
             send_rows(w, vid, [row(j, n)])
-        w._record_complete()
+        w.clock.record_complete()
 
     record(0)
     send(AgentStats(id="usv2", tick=1, interventions=3))
     record(1)
-    w._on_alive("usv2", False)  # killed: its token goes
+    w.alive("usv2", False)  # killed: its token goes
     send(AgentStats(id="usv2", tick=2, interventions=1, incarnation=9))  # a restarted process counts anew
     send(AgentStats(id="uav1", tick=2, interventions=2))
     record(2)

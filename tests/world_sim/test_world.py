@@ -15,6 +15,7 @@ from cdus.wire.messages import (
 from cdus.wire.schemas import AgentStats, FleetEvent, decode_event, encode_stats
 from cdus.wire.transport import Transport
 from tests.fakes import Payload, Sample
+from world_sim.clocks import RealtimeClock
 from world_sim.world import LINK_LEAD, World
 
 FLEET = "tfake"
@@ -71,34 +72,34 @@ def row(j: int, n: int, T: float = 0.02) -> StateMsg:
 def started(w: World) -> World:
     """Every vehicle up, the lockstep run started and its first grant out."""
     for vid in w.ids:
-        w._on_alive(vid, True)
+        w.alive(vid, True)
     w.started = True
     w.lockstep.start()
-    w._act(w.lockstep.poll())
+    w.clock.act(w.lockstep.poll())
     return w
 
 
 def send_rows(w: World, vid: str, rows: list[StateMsg]) -> None:
-    w._handle(Sample(keys.state(FLEET, vid), Payload(encode_states(rows))))
+    w.feed(keys.state(FLEET, vid), encode_states(rows))
 
 
 def test_telemetry_reports_ticks_and_a_complete_tick_is_recorded():
     w = started(world())
     for j, vid in enumerate(w.ids):
-        w._handle(Sample(keys.state(FLEET, vid), Payload(encode_states([row(j, 0), row(j, 1)]))))
+        w.feed(keys.state(FLEET, vid), encode_states([row(j, 0), row(j, 1)]))
         if j < 5:
             assert not w.lockstep.recordable(0)
     assert w.lockstep.acked == {j: 1 for j in range(6)}
-    w._record_complete()
+    w.clock.record_complete()
     assert w.next_tick == 2 and len(w.recorder) == 2
 
 
 def test_telemetry_from_the_wrong_key_or_malformed_is_rejected():
     w = world()
-    w._handle(Sample(keys.state(FLEET, "usv2"), Payload(encode_states([row(0, 0)]))))  # usv1's rows on usv2's key
-    w._handle(Sample(keys.state(FLEET, "usv1"), Payload(b"\x00")))
-    w._handle(Sample(keys.stats(FLEET, "usv1"), Payload(encode_stats(AgentStats(id="usv3", tick=1)))))
-    w._handle(Sample(f"cdus/{FLEET}/to/+world+/telepathy/usv1", Payload(b"")))
+    w.feed(keys.state(FLEET, "usv2"), encode_states([row(0, 0)]))  # usv1's rows on usv2's key
+    w.feed(keys.state(FLEET, "usv1"), b"\x00")
+    w.feed(keys.stats(FLEET, "usv1"), encode_stats(AgentStats(id="usv3", tick=1)))
+    w.feed(f"cdus/{FLEET}/to/+world+/telepathy/usv1", b"")
     assert w.st.rejected == 4 and w.lockstep.acked == {}
     assert w.st.rejects == {"sender_mismatch": 2, "malformed": 1, "key": 1}
 
@@ -109,7 +110,7 @@ def test_stats_feed_the_link_block_and_bursts_become_events():
                           link="usv2->usv1").as_dict()
     s = AgentStats(id="usv1", tick=100, sent_to_me=200, delivered=190, dropped=10, rejected=2,
                    latencies_ms=(1.0, 3.0), missed_deadlines=1, bursts=(burst,))
-    w._handle(Sample(keys.stats(FLEET, "usv1"), Payload(encode_stats(s))))
+    w.feed(keys.stats(FLEET, "usv1"), encode_stats(s))
     block = w.link_block()
     assert (block["sent"], block["delivered"], block["dropped"], block["rejected"]) == (200, 190, 10, 2)
     assert block["missed_deadlines"] == 1 and block["latency_ms_p50"] == 2.0
@@ -121,11 +122,11 @@ def test_every_stats_messages_latencies_count_and_a_restarted_process_adds_to_th
     """Each stats message carries the latency samples since the previous one; a restart's new
     process starts its counters at zero: the run's totals are the sum over processes."""
     w = world()
-    send = lambda s: w._handle(Sample(keys.stats(FLEET, s.id), Payload(encode_stats(s))))  # noqa: E731
+    send = lambda s: w.feed(keys.stats(FLEET, s.id), encode_stats(s))  # noqa: E731
     send(AgentStats(id="usv1", tick=50, sent_to_me=100, delivered=100, latencies_ms=(1.0, 1.0), interventions=2))
     send(AgentStats(id="usv1", tick=100, sent_to_me=200, delivered=200, latencies_ms=(5.0, 5.0, 5.0),
                     interventions=3))
-    w._on_alive("usv1", False)  # the old process's token goes: the next incarnation is a restart
+    w.alive("usv1", False)  # the old process's token goes: the next incarnation is a restart
     send(AgentStats(id="usv1", tick=150, sent_to_me=20, delivered=20, joined_at=120, latencies_ms=(), interventions=1,
                     incarnation=7))
     block = w.link_block()
@@ -144,13 +145,13 @@ def test_stats_with_ever_new_incarnations_are_a_restart_only_after_the_token_wen
     and the retired list grew by one a message. A new process is believed only once the old
     one's liveliness token went (the world hears that from the router, nobody can forge it)."""
     w = world()
-    send = lambda s: w._handle(Sample(keys.stats(FLEET, s.id), Payload(encode_stats(s))))  # noqa: E731
+    send = lambda s: w.feed(keys.stats(FLEET, s.id), encode_stats(s))  # noqa: E731
     send(AgentStats(id="usv1", tick=50, sent_to_me=100, delivered=100, incarnation=1))
     for n in range(2, 200):  # forged: the genuine process never went away
         send(AgentStats(id="usv1", tick=50, sent_to_me=1000, delivered=1000, incarnation=n))
     assert w.link_block()["sent"] == 100 and w.st.retired == [] and w.st.rejects["incarnation"] == 198
     send(AgentStats(id="usv1", tick=60, sent_to_me=120, delivered=120, incarnation=1))  # the genuine one goes on
-    w._on_alive("usv1", False)  # killed; then restarted
+    w.alive("usv1", False)  # killed; then restarted
     send(AgentStats(id="usv1", tick=90, sent_to_me=30, delivered=30, incarnation=77))
     send(AgentStats(id="usv1", tick=90, sent_to_me=9999, delivered=9999, incarnation=78))  # one restart, one new process
     assert w.link_block()["sent"] == 150 and len(w.st.retired) == 1
@@ -158,10 +159,10 @@ def test_stats_with_ever_new_incarnations_are_a_restart_only_after_the_token_wen
 
 def test_a_ground_stations_kill_waits_for_its_tick_in_lockstep_and_goes_straight_to_the_launcher_in_realtime():
     w = world()
-    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("kill", vehicle="usv3"))))
+    w.feed(keys.world_cmd(FLEET, "gs1"), encode_control("kill", vehicle="usv3"))
     assert w.pub_launcher.puts == [] and w.lockstep._queue[0].vehicle == 2
     rt = world(clock="realtime")
-    rt._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("kill", vehicle="usv3"))))
+    rt.feed(keys.world_cmd(FLEET, "gs1"), encode_control("kill", vehicle="usv3"))
     c = decode_control(rt.pub_launcher.puts[0], LAUNCHER_OPS)
     assert (c.op, c.fields["vehicle"]) == ("kill", "usv3")
     assert [(e.kind, e.vehicle) for e in rt.events] == [("fault", "usv3")]
@@ -170,24 +171,24 @@ def test_a_ground_stations_kill_waits_for_its_tick_in_lockstep_and_goes_straight
 def test_commands_are_relayed_with_the_tick_or_time_they_apply_from():
     w = world()
     w.lockstep.granted = 40
-    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("set_gains", gains={"c": 3.0}, vehicle=""))))
+    w.feed(keys.world_cmd(FLEET, "gs1"), encode_control("set_gains", gains={"c": 3.0}, vehicle=""))
     key, payload = w.session.puts[-1]
     assert key == keys.ctl(FLEET, w.ids)
     c = decode_control(payload, CTL_OPS)
     assert c.op == "gains" and c.fields["tick"] == 41
     w.next_tick = 101
-    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("link", link={"loss": 0.1}, at=-1.0))))
+    w.feed(keys.world_cmd(FLEET, "gs1"), encode_control("link", link={"loss": 0.1}, at=-1.0))
     c = ctl_ops(w)[-1]
     assert c.op == "link" and c.fields["at"] == 100 * w.period + LINK_LEAD
     assert [e.kind for e in w.events] == ["gains_changed", "link_changed"]
     # a time in the past applies from the first tick nobody has been granted: every receiver alike
-    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("link", link={"loss": 0.2}, at=0.1))))
+    w.feed(keys.world_cmd(FLEET, "gs1"), encode_control("link", link={"loss": 0.2}, at=0.1))
     assert ctl_ops(w)[-1].fields["at"] == 41 * w.period
     assert "from t = 0.82 s by gs1" in w.events[-1].text
-    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("pause"))))
-    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("pause"))))  # already: not news
-    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("stop"))))
-    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("resume"))))  # after the stop: refused
+    w.feed(keys.world_cmd(FLEET, "gs1"), encode_control("pause"))
+    w.feed(keys.world_cmd(FLEET, "gs1"), encode_control("pause"))  # already: not news
+    w.feed(keys.world_cmd(FLEET, "gs1"), encode_control("stop"))
+    w.feed(keys.world_cmd(FLEET, "gs1"), encode_control("resume"))  # after the stop: refused
     assert [e.text for e in w.events[-2:]] == ["fleet paused by gs1", "fleet stopped by gs1"]
     assert w.lockstep.paused
 
@@ -197,21 +198,22 @@ def test_a_rejoining_process_is_sent_the_link_and_gains_commands_it_missed():
     while its session was closed. The world sends it every run-time command again, in order."""
     w = world()
     w.lockstep.granted = 40
-    cmd = lambda op, **f: w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control(op, **f))))  # noqa: E731
+    cmd = lambda op, **f: w.feed(keys.world_cmd(FLEET, "gs1"), encode_control(op, **f))  # noqa: E731
     cmd("link", link={"loss": 0.3}, at=-1.0)
     cmd("set_gains", gains={"c": 3.0}, vehicle="uav1")
     cmd("set_gains", gains={"k": 2.0}, vehicle="")
     cmd("link", link={"delay": {"base": 0.1}}, at=-1.0)
     before = len(w.session.puts)
-    w._act([CatchUp(w.ids.index("usv2"))])
+    w.clock.act([CatchUp(w.ids.index("usv2"))])
     sent = w.session.puts[before:]
     assert {key for key, _ in sent} == {keys.ctl(FLEET, ["usv2"])}
     ops = [decode_control(p, CTL_OPS) for _, p in sent]
     assert [(c.op, c.fields.get("link") or c.fields.get("gains")) for c in ops] == [
         ("link", {"loss": 0.3}), ("gains", {"k": 2.0}), ("link", {"delay": {"base": 0.1}})]  # not uav1's gains
-    w.clock, w.started, w.t0, w.paused_at = "realtime", True, 0.0, 2.0
+    w.clock, w.started = RealtimeClock(w), True
+    w.clock.t0, w.clock.paused_at = 0.0, 2.0
     before = len(w.session.puts)
-    w._on_alive("uav1", True)  # realtime: a (re)started process's token
+    w.alive("uav1", True)  # realtime: a (re)started process's token
     replayed = [decode_control(p, CTL_OPS) for key, p in w.session.puts[before:] if key == keys.ctl(FLEET, ["uav1"])]
     # both gains changes apply at tick 41, before the first uav1 can step: it applies them together,
     # the later last, so the later alone is sent (it would fill c from the scenario's either way)
@@ -223,13 +225,13 @@ def test_a_gains_command_that_does_not_fit_every_target_is_refused_whole():
     """k = [1, 2] fits the boats (2 axes), not the drones: no vehicle gets it."""
     w = world()
     before = len(w.session.puts)
-    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("set_gains", gains={"k": [1.0, 2.0]},
-                                                                           vehicle=""))))
+    w.feed(keys.world_cmd(FLEET, "gs1"), encode_control("set_gains", gains={"k": [1.0, 2.0]},
+                                                                           vehicle=""))
     assert len(w.session.puts) == before and w.st.rejected == 1
     assert [(e.kind, e.severity) for e in w.events] == [("rejected", "warn")]
     assert "k must be 3 numbers" in w.events[0].text
-    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("set_gains", gains={"k": [1.0, 2.0]},
-                                                                           vehicle="usv1"))))
+    w.feed(keys.world_cmd(FLEET, "gs1"), encode_control("set_gains", gains={"k": [1.0, 2.0]},
+                                                                           vehicle="usv1"))
     assert w.session.puts[-1][0] == keys.ctl(FLEET, ["usv1"]) and w.events[-1].kind == "gains_changed"
 
 
@@ -237,21 +239,21 @@ def test_bad_commands_are_counted_not_raised():
     w = world()
     for payload in (b"\xc1", encode_control("explode"), encode_control("kill", vehicle="nobody"),
                     encode_control("set_gains", gains={"c": 1.0}, vehicle="nobody")):
-        w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(payload)))
+        w.feed(keys.world_cmd(FLEET, "gs1"), payload)
     assert w.st.rejected == 4 and w.session.puts == [] and w.pub_launcher.puts == []
 
 
 def test_a_fleet_pause_in_lockstep_holds_the_grants():
     w = world()
-    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("pause"))))
+    w.feed(keys.world_cmd(FLEET, "gs1"), encode_control("pause"))
     assert w.lockstep.paused and w.events[-1].kind == "fleet"
-    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("resume"))))
+    w.feed(keys.world_cmd(FLEET, "gs1"), encode_control("resume"))
     assert not w.lockstep.paused
 
 
 def test_lockstep_actions_go_out_on_their_keys():
     w = world()
-    w._act([Roster(RosterChange(5, 1, "gone")), Roster(RosterChange(5, 0, "live"), to=2), Grant(9), Join(3, 0)])
+    w.clock.act([Roster(RosterChange(5, 1, "gone")), Roster(RosterChange(5, 0, "live"), to=2), Grant(9), Join(3, 0)])
     (k1, p1), (k2, p2), (k3, p3) = w.session.puts
     assert k1 == keys.ctl(FLEET, w.ids) and decode_control(p1, CTL_OPS).fields == {
         "vehicle": "usv2", "tick": 5, "state": "gone", "fresh": False}
@@ -263,17 +265,17 @@ def test_lockstep_actions_go_out_on_their_keys():
 def test_realtime_liveliness_changes_become_roster_changes_and_events():
     w = world(clock="realtime")
     for vid in w.ids:
-        w._on_alive(vid, True)
+        w.alive(vid, True)
     w.started = True
-    w.t0 = 0.0
-    w.paused_at = 2.0  # a fixed "now": tick 100
-    w._on_alive("usv2", False)
+    w.clock.t0 = 0.0
+    w.clock.paused_at = 2.0  # a fixed "now": tick 100
+    w.alive("usv2", False)
     key, payload = w.session.puts[-1]
     assert decode_control(payload, CTL_OPS).fields == {"vehicle": "usv2", "tick": 100, "state": "gone",
                                                        "fresh": False}
     assert [(e.kind, e.vehicle) for e in w.events][:1] == [("vehicle_lost", "usv2")]
     assert w.events[-1].kind == "graph"
-    w._on_alive("usv2", True)
+    w.alive("usv2", True)
     assert decode_control(w.session.puts[-1][1], CTL_OPS).fields["fresh"] is True
     assert ("vehicle_back", "usv2") in [(e.kind, e.vehicle) for e in w.events]
 
@@ -281,23 +283,23 @@ def test_realtime_liveliness_changes_become_roster_changes_and_events():
 def test_realtime_a_fault_we_asked_for_is_not_reported_again_as_a_lost_vehicle():
     w = world(clock="realtime")
     for vid in w.ids:
-        w._on_alive(vid, True)
-    w.started, w.t0, w.paused_at = True, 0.0, 2.0
-    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("kill", vehicle="usv2"))))
-    w._on_alive("usv2", False)
-    w._on_alive("uav1", False)  # nobody asked for that one
+        w.alive(vid, True)
+    w.started, w.clock.t0, w.clock.paused_at = True, 0.0, 2.0
+    w.feed(keys.world_cmd(FLEET, "gs1"), encode_control("kill", vehicle="usv2"))
+    w.alive("usv2", False)
+    w.alive("uav1", False)  # nobody asked for that one
     kinds = [(e.kind, e.vehicle) for e in w.events if e.kind != "graph"]
     assert kinds == [("fault", "usv2"), ("vehicle_lost", "uav1")]
 
 
 def test_realtime_scheduled_faults_go_to_the_launcher_when_their_time_comes(tmp_path):
     w = world(tmp_path, clock="realtime", events=EVENTS)
-    w._realtime_faults_due(0.98)
+    w.clock.scheduled_faults(0.98)
     assert w.pub_launcher.puts == []
-    w._realtime_faults_due(1.0)
-    w._realtime_faults_due(1.5)
+    w.clock.scheduled_faults(1.0)
+    w.clock.scheduled_faults(1.5)
     assert [decode_control(p, LAUNCHER_OPS).op for p in w.pub_launcher.puts] == ["kill"]
-    w._realtime_faults_due(10.0)
+    w.clock.scheduled_faults(10.0)
     ops = [decode_control(p, LAUNCHER_OPS) for p in w.pub_launcher.puts]
     assert [(c.op, c.fields["vehicle"]) for c in ops] == [("kill", "usv2"), ("pause_vehicle", "uav1")]
     assert [(e.kind, e.vehicle) for e in w.events] == [("fault", "usv2"), ("fault", "uav1")]
@@ -318,16 +320,16 @@ def test_the_launchers_acknowledgement_reaches_the_lockstep_decisions():
     for j in range(6):
         w.lockstep.on_alive(j, True)
     w.lockstep.start()
-    w._act(w.lockstep.poll())  # joins and the first grant
-    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("kill", vehicle="usv2"))))
+    w.clock.act(w.lockstep.poll())  # joins and the first grant
+    w.feed(keys.world_cmd(FLEET, "gs1"), encode_control("kill", vehicle="usv2"))
     for j in range(6):
         for n in range(w.lockstep.granted + 1):
             w.lockstep.on_report(j, n)
-    w._act(w.lockstep.poll())
+    w.clock.act(w.lockstep.poll())
     c = decode_control(w.pub_launcher.puts[-1], LAUNCHER_OPS)
     assert (c.op, c.fields["vehicle"]) == ("kill", "usv2")
     assert w.lockstep._current.stage == "asked"
-    w._handle(Sample(keys.world_cmd(FLEET, keys.LAUNCHER), Payload(encode_control("fault_done", vehicle="usv2"))))
+    w.feed(keys.world_cmd(FLEET, keys.LAUNCHER), encode_control("fault_done", vehicle="usv2"))
     assert w.lockstep._current.stage == "done"
 
 
@@ -349,18 +351,18 @@ def test_telemetry_for_ticks_not_granted_is_rejected_and_never_recorded():
         forged = StateMsg(j, 6000, 120.0, (0.0, 0.0) if j < 3 else (0.0, 0.0, 20.0), 0.0, 1.0, 0.0, -1.0, 0.0)
         send_rows(w, vid, [forged])
     assert w.st.rejects == {"future": 6} and w.lockstep.acked == {} and w.st.latest == {}
-    w._record_complete()
+    w.clock.record_complete()
     assert len(w.recorder) == 0
     for j, vid in enumerate(w.ids):  # the genuine rows still count
         for first in range(0, granted + 1, 50):  # in batches (at most MAX_STATE_ROWS a message)
             send_rows(w, vid, [row(j, n) for n in range(first, min(first + 50, granted + 1))])
-    w._record_complete()
+    w.clock.record_complete()
     assert w.next_tick == granted + 1 and (w.recorder.view("path_error") == 0.5).all()
 
 
 def test_realtime_telemetry_beyond_the_clock_and_its_slack_is_rejected():
     w = world(clock="realtime")
-    w.t0 = 1e12  # not started: the clock's tick is 0
+    w.clock.t0 = 1e12  # not started: the clock's tick is 0
     send_rows(w, "usv1", [row(0, 0), row(0, 5)])
     send_rows(w, "usv2", [row(1, 10_000)])
     assert w.st.rejects == {"future": 1} and w.lockstep.acked == {0: 5}
@@ -382,7 +384,7 @@ def test_malformed_nested_stats_are_counted_by_reason_not_raised():
     w = world()
     for bad, reason in [({"bursts": [{"t": "x"}]}, "bursts"), ({"faults": {"state_changes": 5}}, "faults"),
                         ({"id": "usv2"}, "sender_mismatch"), ({"latencies_ms": [-1.0]}, "latencies")]:
-        w._handle(Sample(keys.stats(FLEET, "usv1"), Payload(stats_payload(**bad))))
+        w.feed(keys.stats(FLEET, "usv1"), stats_payload(**bad))
         assert w.st.rejects[reason] == 1, reason
     assert w.st.stats == {} and w.events == []
 
@@ -390,22 +392,22 @@ def test_malformed_nested_stats_are_counted_by_reason_not_raised():
 def test_new_suspect_counts_in_a_vehicles_stats_make_one_event_per_vehicle_and_reason_for_a_while():
     w = world()
     for n, future in enumerate([0, 3, 5, 9]):
-        w._handle(Sample(keys.stats(FLEET, "usv2"), Payload(stats_payload(
-            id="usv2", tick=n, rejected_by_reason={"future": future, "stale": 7, "conflict": n // 3}))))
+        w.feed(keys.stats(FLEET, "usv2"), stats_payload(
+            id="usv2", tick=n, rejected_by_reason={"future": future, "stale": 7, "conflict": n // 3}))
     got = [(e.kind, e.vehicle, e.origin, e.severity) for e in w.events]
     assert got == [("suspect", "usv2", "usv2", "warn")] * 2
     assert "'future'" in w.events[0].text and "'conflict'" in w.events[1].text
     w._suspect_seen = {k: t - 10.0 for k, t in w._suspect_seen.items()}  # a while later
-    w._handle(Sample(keys.stats(FLEET, "usv2"), Payload(stats_payload(id="usv2", tick=9,
-                                                                       rejected_by_reason={"future": 12}))))
+    w.feed(keys.stats(FLEET, "usv2"), stats_payload(id="usv2", tick=9,
+                                                                       rejected_by_reason={"future": 12}))
     assert len(w.events) == 3
 
 
 def test_a_vehicle_counting_radio_geometry_that_is_not_the_worlds_makes_a_suspect_event():
     w = world()
     for n, conflicts in enumerate([0, 0, 4]):
-        w._handle(Sample(keys.stats(FLEET, "usv1"), Payload(stats_payload(
-            id="usv1", tick=n, rejected_by_reason={"radio_stale": 3 * n, "radio_conflict": conflicts}))))
+        w.feed(keys.stats(FLEET, "usv1"), stats_payload(
+            id="usv1", tick=n, rejected_by_reason={"radio_stale": 3 * n, "radio_conflict": conflicts}))
     got = [(e.kind, e.vehicle, e.severity) for e in w.events]
     assert got == [("suspect", "usv1", "warn")]
     assert "radio geometry" in w.events[0].text and "'radio_conflict'" in w.events[0].text
@@ -413,23 +415,22 @@ def test_a_vehicle_counting_radio_geometry_that_is_not_the_worlds_makes_a_suspec
 
 def test_the_worlds_events_are_marked_as_its_own_and_wire_text_is_escaped():
     w = world()
-    w._handle(Sample(keys.world_cmd(FLEET, "gs1"),
-                     Payload(encode_control("set_gains", gains={"k\x1b[31m": 1.0}, vehicle=""))))
+    w.feed(keys.world_cmd(FLEET, "gs1"), encode_control("set_gains", gains={"k\x1b[31m": 1.0}, vehicle=""))
     e = w.events[-1]
     assert e.origin == "world" and "\x1b" not in e.text and decode_event(w.pub_events.puts[-1]).origin == "world"
 
 
 def test_liveliness_cannot_be_faked_through_the_worlds_wake_key():
     w = started(world())
-    w._handle(Sample(f"cdus/{FLEET}/to/+world+/wake/alive", Payload(b"-usv1")))
+    w.feed(f"cdus/{FLEET}/to/+world+/wake/alive", b"-usv1")
     assert "usv1" in w.st.alive and w.lockstep.pending == set()
 
 
 def test_a_crash_not_back_by_the_end_means_the_run_did_not_complete(tmp_path):
     w = started(world(metrics_out=str(tmp_path / "m.json")))
     w.session = None
-    w._on_alive("usv2", False)
-    w._on_alive("uav3", False)
+    w.alive("usv2", False)
+    w.alive("uav3", False)
     assert w.lockstep.decide_drops() == "lost"
     w.next_tick = w.last_tick + 1  # as if the others stepped to the end
     m = w.finish()
@@ -444,7 +445,7 @@ def test_a_run_that_reached_its_end_with_the_live_fleet_completed_and_a_stop_did
     assert (m["completed"], m["completion"]) == (True, "completed")
     assert m["rejected_by_reason"] == {"world": {}, "vehicles": {}}
     w = started(world())
-    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("stop"))))
+    w.feed(keys.world_cmd(FLEET, "gs1"), encode_control("stop"))
     w.session = None
     assert (lambda m: (m["completed"], m["completion"]))(w.finish()) == (False, "stopped")
 
@@ -452,14 +453,14 @@ def test_a_run_that_reached_its_end_with_the_live_fleet_completed_and_a_stop_did
 def test_a_fleet_that_drops_all_at_once_is_waited_for_then_given_up(monkeypatch):
     w = started(world())
     for vid in w.ids:
-        w._on_alive(vid, False)
-    t = w._drops_since
+        w.alive(vid, False)
+    t = w.clock.drops_since
     assert w.lockstep.pending == set(range(6)) and t is not None
-    assert not w._supervise_outage(t + 0.1)  # the losses of the moment may still be coming in
-    assert not w._supervise_outage(t + 1.0) and w.lockstep.outage == set(range(6))
-    assert not w._supervise_outage(t + 1.0 + w.outage_grace / 2)  # waiting
-    w._on_alive("usv1", True)
-    assert w._supervise_outage(t + 2.0 + w.outage_grace)
+    assert not w.clock.supervise_outage(t + 0.1)  # the losses of the moment may still be coming in
+    assert not w.clock.supervise_outage(t + 1.0) and w.lockstep.outage == set(range(6))
+    assert not w.clock.supervise_outage(t + 1.0 + w.outage_grace / 2)  # waiting
+    w.alive("usv1", True)
+    assert w.clock.supervise_outage(t + 2.0 + w.outage_grace)
     assert w.completion == "vehicles_lost" and w.lockstep.lost == set(range(1, 6))
 
 
@@ -467,11 +468,11 @@ def test_a_fleet_back_within_the_grace_goes_on_with_no_roster_change():
     w = started(world())
     sent = len(w.session.puts)
     for vid in w.ids:
-        w._on_alive(vid, False)
-    w._supervise_outage(w._drops_since + 1.0)
+        w.alive(vid, False)
+    w.clock.supervise_outage(w.clock.drops_since + 1.0)
     for vid in w.ids:
-        w._on_alive(vid, True)
-    assert w._drops_since is None and not w._supervise_outage(1e12)
+        w.alive(vid, True)
+    assert w.clock.drops_since is None and not w.clock.supervise_outage(1e12)
     assert w.lockstep.outage == set() and w.lockstep.lost == set() and w.lockstep.changes == []
     rosters = [k for k, _ in w.session.puts[sent:] if k.endswith("/ctl")]
     assert rosters == []  # nothing told the vehicles anyone was gone
@@ -503,11 +504,11 @@ def test_the_world_handles_any_key_and_payload_without_raising_and_counts_what_i
         started(w)
     for key, payload in samples:
         before = w.st.rejected + len(w.lockstep.acked) + len(w.st.stats) + len(w.events)
-        w._handle(Sample(key, Payload(payload)))
+        w.feed(key, payload)
         assert w.st.rejects["internal"] == 0
         if not key.split("/")[-1] == "alive":
             assert w.st.rejected + len(w.lockstep.acked) + len(w.st.stats) + len(w.events) >= before
-    assert all(m.tick <= w._tick_limit() for m in w.st.latest.values())
+    assert all(m.tick <= w.clock.tick_limit() for m in w.st.latest.values())
     assert all(math.isfinite(e.t) for e in w.events)
 
 
@@ -516,20 +517,20 @@ def test_gains_past_what_the_controller_takes_at_its_rate_are_refused():
     w = world()
     for gains in ({"k": 1e300}, {"k": 2 * w.scenario.rates.control}, {"c": 1e6}):
         before = len(w.session.puts)
-        w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("set_gains", gains=gains, vehicle=""))))
+        w.feed(keys.world_cmd(FLEET, "gs1"), encode_control("set_gains", gains=gains, vehicle=""))
         assert len(w.session.puts) == before, gains
         assert w.events[-1].kind == "rejected" and "too large" in w.events[-1].text
-    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("set_gains", gains={"k": 3.0}, vehicle=""))))
+    w.feed(keys.world_cmd(FLEET, "gs1"), encode_control("set_gains", gains={"k": 3.0}, vehicle=""))
     assert w.events[-1].kind == "gains_changed"
 
 
 def test_a_stop_from_the_interrupted_launcher_is_an_interruption_and_an_operators_is_a_stop():
     w = world()
-    w._handle(Sample(keys.world_cmd(FLEET, keys.LAUNCHER), Payload(encode_control("stop"))))
+    w.feed(keys.world_cmd(FLEET, keys.LAUNCHER), encode_control("stop"))
     assert w.stop_requested and w.completion == "interrupted"
     assert w.events[-1].text == "fleet stopped: the launcher was interrupted"
     w = world()
-    w._handle(Sample(keys.world_cmd(FLEET, "gs"), Payload(encode_control("stop"))))
+    w.feed(keys.world_cmd(FLEET, "gs"), encode_control("stop"))
     assert w.completion == "stopped"
 
 
@@ -537,10 +538,10 @@ def test_a_link_command_the_agents_would_refuse_is_rejected_not_relayed_or_repor
     w = world()
     before = len(w.session.puts)
     for bad in ({"a": {"b": {"c": {"d": {}}}}}, {"loss": 2.0}):
-        w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("link", link=bad, at=-1.0))))
+        w.feed(keys.world_cmd(FLEET, "gs1"), encode_control("link", link=bad, at=-1.0))
         assert len(w.session.puts) == before and w.events[-1].kind == "rejected", w.events
     assert not [e for e in w.events if e.kind == "link_changed"]
-    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control("link", link={"loss": 0.2}, at=-1.0))))
+    w.feed(keys.world_cmd(FLEET, "gs1"), encode_control("link", link={"loss": 0.2}, at=-1.0))
     assert w.events[-1].kind == "link_changed"
 
 
@@ -552,11 +553,11 @@ def test_the_graph_event_of_a_scheduled_kill_carries_the_kills_tick_as_in_proces
     w = started(world(tmp_path, events=EVENTS))
     for j, vid in enumerate(w.ids):
         send_rows(w, vid, [row(j, n) for n in range(w.lockstep.granted + 1)])
-    w._record_complete()
-    w._act(w.lockstep.poll())
+    w.clock.record_complete()
+    w.clock.act(w.lockstep.poll())
     assert w.next_tick == 50 and w._sim_now() == 0.98
-    w._handle(Sample(keys.world_cmd(FLEET, keys.LAUNCHER), Payload(encode_control("fault_done", vehicle="usv2"))))
-    w._on_alive("usv2", False)
+    w.feed(keys.world_cmd(FLEET, keys.LAUNCHER), encode_control("fault_done", vehicle="usv2"))
+    w.alive("usv2", False)
     got = [(e.kind, e.t) for e in w.events if e.kind in ("fault", "graph")]
     assert got == [("fault", 1.0), ("graph", 1.0)]
     ref = InProcessFleet(load_scenario(tmp_path / "ev.toml", {"scenario.duration": 1.5})).run().metrics
@@ -568,8 +569,8 @@ def test_a_run_given_up_before_its_start_names_the_vehicles_that_never_came_up()
     the world to stop: not started (it said "interrupted"), and who never came up."""
     w = world()
     for vid in ("usv2", "usv3", "uav1", "uav3"):
-        w._on_alive(vid, True)
-    w._handle(Sample(keys.world_cmd(FLEET, keys.LAUNCHER), Payload(encode_control("stop"))))
+        w.alive(vid, True)
+    w.feed(keys.world_cmd(FLEET, keys.LAUNCHER), encode_control("stop"))
     w.session = None
     m = w.finish()
     assert m["completion"] == "not_started" and m["never_up"] == ["usv1", "uav2"]
@@ -584,8 +585,8 @@ def test_a_stop_that_overtakes_the_last_liveliness_tokens_is_an_interruption_not
     the run was interrupted (every vehicle was up), not "not_started" (seen in a loaded suite)."""
     w = world()
     for vid in w.ids[:-1]:
-        w._on_alive(vid, True)
-    w._handle(Sample(keys.world_cmd(FLEET, keys.LAUNCHER), Payload(encode_control("stop"))))
+        w.alive(vid, True)
+    w.feed(keys.world_cmd(FLEET, keys.LAUNCHER), encode_control("stop"))
     w._alive_news.append((keys.alive(w.fleet, w.ids[-1], "a3"), True))  # the last token, heard after the stop
     w.session = None
     m = w.run()
@@ -604,14 +605,14 @@ def test_a_caught_up_process_that_reports_nothing_hears_the_catch_up_again_until
     j = w.ids.index("uav1")
     w.lockstep.changes.append(RosterChange(50, j, "live"))
     w.lockstep.acked[j] = 49
-    w._act([CatchUp(j), Join(j, 50)])
+    w.clock.act([CatchUp(j), Join(j, 50)])
     to_uav1 = lambda: [decode_control(p, CTL_OPS) for k, p in w.session.puts  # noqa: E731
                        if k == keys.ctl(FLEET, ["uav1"])]
     first, grants = len(to_uav1()), len(w.pub_ctl.puts)
     now = time.monotonic()
-    w._catch_up_again(now)  # not due yet
+    w.clock.catch_up_again(now)  # not due yet
     assert len(to_uav1()) == first
-    w._catch_up_again(now + CATCHUP_RESEND + 0.1)
+    w.clock.catch_up_again(now + CATCHUP_RESEND + 0.1)
     again = to_uav1()[first:]
     assert [c.op for c in again].count("roster") == len(w.lockstep.changes) and again[-1].op == "join"
     assert again[-1].fields["tick"] == 50 and ctl_ops(w)[grants:][-1].op == "grant"
@@ -620,8 +621,8 @@ def test_a_caught_up_process_that_reports_nothing_hears_the_catch_up_again_until
     send_rows(w, "uav1", [row(j, 50)])  # it reports: caught up
     assert w.lockstep.acked[j] == 50
     n = len(w.session.puts)
-    w._catch_up_again(now + 10 * CATCHUP_RESEND)
-    assert len(w.session.puts) == n and not w._catching
+    w.clock.catch_up_again(now + 10 * CATCHUP_RESEND)
+    assert len(w.session.puts) == n and not w.clock.catching
 
 
 def test_a_catch_up_said_again_gives_the_join_tick_after_the_commands_as_the_first_one_does():
@@ -641,10 +642,10 @@ def test_a_catch_up_said_again_gives_the_join_tick_after_the_commands_as_the_fir
     ops = lambda: [decode_control(p, CTL_OPS).op for k, p in w.session.puts  # noqa: E731
                    if k == keys.ctl(FLEET, ["uav1"])]
     before = len(ops())  # its start's join
-    w._act([CatchUp(j), Join(j, 50)])
+    w.clock.act([CatchUp(j), Join(j, 50)])
     first = ops()[before:]
     assert first.index("gains") < first.index("join"), first
-    w._catch_up_again(time.monotonic() + CATCHUP_RESEND + 0.1)
+    w.clock.catch_up_again(time.monotonic() + CATCHUP_RESEND + 0.1)
     again = ops()[before + len(first):]
     assert again.index("gains") < again.index("join"), again
 
@@ -661,20 +662,20 @@ def test_a_catch_up_that_went_to_a_process_not_yet_up_is_said_when_its_token_com
     w = started(world())
     j = w.ids.index("uav2")
     w.lockstep.acked[j] = 49
-    w._act([CatchUp(j), Join(j, 50)])
+    w.clock.act([CatchUp(j), Join(j, 50)])
     joins = lambda: [c for k, p in w.session.puts if k == keys.ctl(FLEET, ["uav2"])  # noqa: E731
                      for c in [decode_control(p, CTL_OPS)] if c.op == "join"]
     first = len(joins())
-    w._on_alive("uav2", False)  # the old process's token goes
+    w.alive("uav2", False)  # the old process's token goes
     now = time.monotonic()
-    w._catch_up_again(now + 5 * CATCHUP_RESEND)
-    assert len(joins()) == first and w._catching  # nobody to tell: kept, not dropped
-    w._on_alive("uav2", True)  # the new process's token
-    w._catch_up_again(now + 5 * CATCHUP_RESEND)
+    w.clock.catch_up_again(now + 5 * CATCHUP_RESEND)
+    assert len(joins()) == first and w.clock.catching  # nobody to tell: kept, not dropped
+    w.alive("uav2", True)  # the new process's token
+    w.clock.catch_up_again(now + 5 * CATCHUP_RESEND)
     assert len(joins()) == first + 1 and joins()[-1].fields["tick"] == 50
-    w._catch_up_again(now + 5.5 * CATCHUP_RESEND)  # then less and less often: 1, 2, 4, 8 s apart
+    w.clock.catch_up_again(now + 5.5 * CATCHUP_RESEND)  # then less and less often: 1, 2, 4, 8 s apart
     assert len(joins()) == first + 1
-    w._catch_up_again(now + 7.1 * CATCHUP_RESEND)
+    w.clock.catch_up_again(now + 7.1 * CATCHUP_RESEND)
     assert len(joins()) == first + 2
 
 

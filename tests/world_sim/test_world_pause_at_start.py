@@ -30,14 +30,14 @@ vehicle = "usv2"
 
 def test_a_vehicle_paused_from_tick_0_is_recorded_where_it_starts(tmp_path):
     w = started(world(tmp_path, events=EVENTS))
-    w._handle(Sample(keys.world_cmd(FLEET, keys.LAUNCHER), Payload(encode_control("fault_done", vehicle="usv2"))))
-    w._act(w.lockstep.poll())
+    w.feed(keys.world_cmd(FLEET, keys.LAUNCHER), encode_control("fault_done", vehicle="usv2"))
+    w.clock.act(w.lockstep.poll())
     g = w.lockstep.granted
     assert g >= 10
     for j, vid in enumerate(w.ids):
         if vid != "usv2":
             send_rows(w, vid, [row(j, n) for n in range(g + 1)])
-    w._record_complete()
+    w.clock.record_complete()
     assert w.next_tick == g + 1
     ref = InProcessFleet(load_scenario(tmp_path / "ev.toml", {"scenario.duration": 3.0})).run()
     j = w.ids.index("usv2")

@@ -15,7 +15,7 @@ CIRCLE = {"family": "circle", "center": [0.0, 0.0, 30.0], "radius": 15.0}
 
 
 def cmd(w, op, **fields):
-    w._handle(Sample(keys.world_cmd(FLEET, "gs1"), Payload(encode_control(op, **fields))))
+    w.feed(keys.world_cmd(FLEET, "gs1"), encode_control(op, **fields))
 
 
 def test_a_phase_change_goes_to_every_vehicle_from_the_first_tick_not_granted_and_into_the_metrics():
@@ -72,7 +72,7 @@ def test_commands_reach_the_handlers_and_a_rejoiner_gets_them_again_in_order():
     cmd(w, "path", vehicle="usv3", path={"family": "circle", "center": [0.0, 0.0], "radius": 3.0})
     assert [e.kind for e in w.events] == ["formation_changed", "path_changed", "path_changed"]
     before = len(w.session.puts)
-    w._act([CatchUp(w.ids.index("uav1"))])
+    w.clock.act([CatchUp(w.ids.index("uav1"))])
     ops = [decode_control(p, CTL_OPS) for _, p in w.session.puts[before:]]
     assert [(c.op, c.fields.get("vehicle")) for c in ops] == [("formation", None), ("path", "uav1")]
 
@@ -118,7 +118,7 @@ def test_hostile_formation_and_path_commands_never_raise_and_are_applied_or_coun
             continue
         before, n_events = w.st.rejected, len(w.events)
         cmd_sender = data.draw(st.sampled_from(["gs1", "gs-2"]))
-        w._handle(Sample(keys.world_cmd(FLEET, cmd_sender), Payload(payload)))
+        w.feed(keys.world_cmd(FLEET, cmd_sender), payload)
         kinds = [e.kind for e in w.events[n_events:]]
         if w.st.rejected == before:
             assert kinds == [f"{op}_changed"], kinds

@@ -25,10 +25,10 @@ def test_the_status_carries_kinds_states_edges_links_radius_and_the_closest_pair
     # lake_circle: usv1..3 then uav1..3, a ring; usv1 and usv3 1 m apart, the drones far
     qs = [(0.0, 0.0), (30.0, 0.0), (0.0, 1.0), (0.0, 0.0, 20.0), (50.0, 0.0, 20.0), (0.0, 50.0, 20.0)]
     for j, vid in enumerate(w.ids):
-        w._handle(Sample(keys.state(FLEET, vid), Payload(encode_states([at(j, 0, qs[j], 0.1 * j, 0.01 * (j + 1))]))))
-    w._record_complete()
+        w.feed(keys.state(FLEET, vid), encode_states([at(j, 0, qs[j], 0.1 * j, 0.01 * (j + 1))]))
+    w.clock.record_complete()
     s = AgentStats(id="usv1", tick=1, sent_to_me=20, dropped=3)
-    w._handle(Sample(keys.stats(FLEET, "usv1"), Payload(encode_stats(s))))
+    w.feed(keys.stats(FLEET, "usv1"), encode_stats(s))
     w._publish_status()
     st = decode_status(w.pub_status.puts[-1])
     assert st["kinds"] == ["usv"] * 3 + ["uav"] * 3 and st["states"] == ["live"] * 6
@@ -90,25 +90,25 @@ def test_the_closest_live_pair_is_min_separation_over_the_live_vehicles(vehicles
 def test_realtime_a_vehicle_paused_by_a_ground_station_is_paused_until_resumed_even_once_its_token_lapses():
     w = world(clock="realtime")
     for vid in w.ids:
-        w._on_alive(vid, True)
+        w.alive(vid, True)
     w.started = True
-    w.t0 = 0.0
-    w.paused_at = 2.0
+    w.clock.t0 = 0.0
+    w.clock.paused_at = 2.0
 
     def states() -> list[str]:
         w._publish_status()
         return decode_status(w.pub_status.puts[-1])["states"]
 
     assert states() == ["live"] * 6
-    w._handle(Sample(keys.world_cmd(FLEET, "gs"), Payload(encode_control("pause_vehicle", vehicle="uav1"))))
+    w.feed(keys.world_cmd(FLEET, "gs"), encode_control("pause_vehicle", vehicle="uav1"))
     assert states()[3] == "paused"
-    w._on_alive("uav1", False)  # SIGSTOPped: its token lapses with the lease
+    w.alive("uav1", False)  # SIGSTOPped: its token lapses with the lease
     assert states()[3] == "paused"
-    w._handle(Sample(keys.world_cmd(FLEET, "gs"), Payload(encode_control("resume_vehicle", vehicle="uav1"))))
+    w.feed(keys.world_cmd(FLEET, "gs"), encode_control("resume_vehicle", vehicle="uav1"))
     assert states()[3] == "gone"  # resumed, its token not back yet
-    w._on_alive("uav1", True)
+    w.alive("uav1", True)
     assert states()[3] == "live"
-    w._on_alive("usv2", False)  # nobody asked: lost
+    w.alive("usv2", False)  # nobody asked: lost
     assert states()[1] == "gone"
 
 
@@ -175,7 +175,7 @@ def test_the_status_says_a_link_change_of_twelve_links_whole_not_the_newest_ten_
         listening[b].append(f"{a}->{b}")
     for vid in w.ids:
         s = AgentStats(id=vid, tick=520, faults=_lossy_from(10.02, listening[vid]))
-        w._handle(Sample(keys.stats(FLEET, vid), Payload(encode_stats(s))))
+        w.feed(keys.stats(FLEET, vid), encode_stats(s))
     w._note(FleetEvent.of(10.5, "fleet", "fleet paused by gs:alice"))
     w._note(FleetEvent.of(11.0, "fleet", "fleet resumed by gs:alice"))
     assert sum(e.kind == "link_state" for e in w.events) == 12
@@ -198,11 +198,11 @@ def test_a_restarted_vehicles_links_and_receipts_in_the_status_count_its_earlier
                   "state_changes": [{"t": 0.0, "link": "usv2->usv1", "state": state}]}
         s = AgentStats(id="usv1", tick=sent, sent_to_me=sent, delivered=sent - dropped, dropped=dropped,
                        faults=faults, incarnation=incarnation)
-        w._handle(Sample(keys.stats(FLEET, "usv1"), Payload(encode_stats(s))))
+        w.feed(keys.stats(FLEET, "usv1"), encode_stats(s))
 
     report(1, 100, 10, "lossy")
     report(1, 120, 12, "lossy")  # the same process, later: its counts replace its earlier ones
-    w._on_alive("usv1", False)  # killed: its token goes
+    w.alive("usv1", False)  # killed: its token goes
     report(2, 30, 3, "down")  # restarted: counting from zero
     w._publish_status()
     st = decode_status(w.pub_status.puts[-1])

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from hypothesis import given, settings, strategies as hs
 
+import world_sim.asking as asking
 import world_sim.world as ws
 from cdus.core.quota import Quota
 from cdus.sim.lockstep import CatchUp
@@ -17,7 +18,7 @@ from cdus.wire.schemas import decode_settings
 from tests.fakes import Payload, Sample
 
 from .test_world import FLEET, started, world
-from .test_world_commands import Query, _wake, ask
+from .test_commands import Query, _wake, ask
 
 
 class Clock:
@@ -59,18 +60,18 @@ def test_commands_past_the_ground_credentials_rate_are_refused_busy_saying_so_an
     assert [a.applied for a in answers] == [True] * int(ws.COMMANDS_PER_S) + [False] * 5
     # the ground credentials' puts (older clients) share the rate: counted, nothing done
     before = len(w.pub_ctl.puts)
-    w._handle(Sample(keys.world_cmd(FLEET, keys.GROUND), Payload(encode_control("pause"))))
+    w.feed(keys.world_cmd(FLEET, keys.GROUND), encode_control("pause"))
     assert not w.lockstep.paused and len(w.pub_ctl.puts) == before and w.st.rejects["rate"] == 36
     # a query on another key (world/**, which the router may let a vehicle ask) does not spend it
     clock.now += 1.0
     for _ in range(ws.COMMANDS_BURST + 5):
         q = Query(keys.world_command(FLEET, "usv1"), encode_control("pause"))
         w._on_command_query(q)
-        w._handle(_wake())
+        w.feed(keys.wake(FLEET, keys.WORLD))
         assert "asked as 'gs'" in q.answer.reason
     assert gains(w).answer.applied
     # the launcher's own are not the ground station's: never limited
-    w._handle(Sample(keys.world_cmd(FLEET, keys.LAUNCHER), Payload(encode_control("stop"))))
+    w.feed(keys.world_cmd(FLEET, keys.LAUNCHER), encode_control("stop"))
     assert w.stop_requested
 
 
@@ -101,8 +102,8 @@ def test_a_change_encodes_no_settings_reply_a_query_does_once():
     """The settings reply was encoded whole (up to 10,000 changes) at every change, on the main
     thread: a flood of commands was quadratic. Now a query makes it, once per change."""
     made = []
-    real = ws.encode_settings
-    ws.encode_settings = lambda *a, **k: made.append(1) or real(*a, **k)
+    real = asking.encode_settings
+    asking.encode_settings = lambda *a, **k: made.append(1) or real(*a, **k)
     try:
         w, _ = clocked(started(world()))
         unlimited(w)
@@ -123,7 +124,7 @@ def test_a_change_encodes_no_settings_reply_a_query_does_once():
         w._on_settings_query(q)
         assert len(made) == 2 and decode_settings(q.replies[0][1], w.ids)["link"] == {"loss": 0.1}
     finally:
-        ws.encode_settings = real
+        asking.encode_settings = real
 
 
 def test_a_restarted_vehicle_is_sent_the_gains_in_force_and_those_to_come_not_the_history():
@@ -139,7 +140,7 @@ def test_a_restarted_vehicle_is_sent_the_gains_in_force_and_those_to_come_not_th
     j = w.index["usv2"]
     w.lockstep.acked[j] = w.lockstep.granted - 11  # its first step: granted - 10; 11 changes come after it
     before = len(w.session.puts)
-    w._act([CatchUp(j)])
+    w.clock.act([CatchUp(j)])
     sent = [decode_control(p, CTL_OPS) for key, p in w.session.puts[before:] if key == keys.ctl(FLEET, ["usv2"])]
     first = w.lockstep.granted - 10
     assert [c.fields["tick"] for c in sent if c.op == "gains"] == list(range(first, w.lockstep.granted + 2))
@@ -168,7 +169,7 @@ def test_a_joiner_sent_the_coalesced_list_ends_with_the_gains_of_the_whole_histo
     j = w.index["usv2"]
     w.lockstep.acked[j] = base + first_acked
     before = len(w.session.puts)
-    w._act([CatchUp(j)])
+    w.clock.act([CatchUp(j)])
     sent = [decode_control(p, CTL_OPS).fields for key, p in w.session.puts[before:] if key == keys.ctl(FLEET, ["usv2"])]
     got = [(f["tick"], f["gains"]["c"]) for f in sent]
 
@@ -195,7 +196,7 @@ def test_queries_of_status_settings_and_every_vehicles_last_past_their_rate_are_
         assert all(not q.errors for q in qs[:ws.QUERIES_BURST]), name
         assert all(q.errors == [f"busy: at most {ws.QUERIES_PER_S:g} queries per second on {key} (a flood); "
                                 f"try again".encode()] and not q.replies for q in qs[ws.QUERIES_BURST:]), name
-    w._handle(_wake())
+    w.feed(keys.wake(FLEET, keys.WORLD))
     assert w.st.rejects["query_rate"] == 21
     # a restarting vehicle's own key is never refused (a flood there must not keep it from where it was)
     from tests.world_sim.test_world import row, send_rows  # noqa: PLC0415
@@ -238,7 +239,7 @@ def test_any_mix_of_queries_gets_one_answer_each_and_no_key_more_than_its_rate(a
         assert (len(q.replies) >= 1) != (len(q.errors) == 1), (kind, q.replies, q.errors)
         answered[kind] += bool(q.replies)
         refused += len(q.errors)
-    w._handle(_wake())
+    w.feed(keys.wake(FLEET, keys.WORLD))
     elapsed = clock.now - start
     for kind in ("status", "settings", "last"):
         assert answered[kind] <= ws.QUERIES_BURST + ws.QUERIES_PER_S * elapsed + 1e-6

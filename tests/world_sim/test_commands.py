@@ -60,7 +60,7 @@ class Query:
 def ask(w, op: str, sender: str = keys.GROUND, raw: bytes | None = None, **fields) -> Query:
     q = Query(keys.world_command(FLEET, sender), encode_control(op, **fields) if raw is None else raw)
     w._on_command_query(q)
-    w._handle(_wake())
+    w.feed(keys.wake(FLEET, keys.WORLD))
     return q
 
 
@@ -129,7 +129,7 @@ def test_a_lockstep_vehicle_fault_is_answered_when_it_lands_on_its_tick():
     assert q.replies == [] and not q.dropped  # held: Lockstep decides it when the fleet reaches its tick
     assert ask(w, "kill", vehicle="nobody").answer.reason.startswith("no vehicle 'nobody' in this fleet")
     report_through(w, g)
-    w._act(w.lockstep.poll())
+    w.clock.act(w.lockstep.poll())
     r = q.answer
     assert (r.status, r.op, r.tick) == ("applied", "kill", g + 1)
     c = decode_control(w.pub_launcher.puts[-1], LAUNCHER_OPS)
@@ -141,7 +141,7 @@ def test_a_lockstep_vehicle_fault_with_nothing_to_do_is_answered_rejected():
     g = w.lockstep.granted
     q = ask(w, "resume_vehicle", vehicle="usv3")  # it is live
     report_through(w, g)
-    w._act(w.lockstep.poll())
+    w.clock.act(w.lockstep.poll())
     r = q.answer
     assert r.status == "rejected" and "usv3 is live" in r.reason and "nothing done" in r.reason
 
@@ -165,7 +165,7 @@ def test_realtime_vehicle_faults_are_answered_when_the_launcher_has_carried_them
     does not run (--remote) was said killed and never was."""
     w = world(clock="realtime")
     for vid in w.ids:
-        w._on_alive(vid, True)
+        w.alive(vid, True)
     q = ask(w, "pause_vehicle", vehicle="uav1")
     assert q.answer is None and decode_control(w.pub_launcher.puts[-1], LAUNCHER_OPS).op == "pause_vehicle"
     launcher_done(w, "usv1")  # another vehicle's: not this one's answer
@@ -181,12 +181,12 @@ def test_realtime_a_fault_the_launcher_never_confirms_is_answered_not_carried_ou
 
     w = world(clock="realtime")
     for vid in w.ids:
-        w._on_alive(vid, True)
+        w.alive(vid, True)
     q1, q2 = ask(w, "kill", vehicle="usv2"), ask(w, "restart", vehicle="uav3")
-    w._rt_faults_unconfirmed(time.monotonic())
+    w.clock.faults_unconfirmed(time.monotonic())
     assert q1.answer is None and q2.answer is None  # not yet
     launcher_done(w, "uav3")
-    w._rt_faults_unconfirmed(time.monotonic() + RT_FAULT_CONFIRM + 0.1)
+    w.clock.faults_unconfirmed(time.monotonic() + RT_FAULT_CONFIRM + 0.1)
     assert q2.answer.applied
     r = q1.answer
     assert r.status == "rejected" and "did not say it carried out the kill of usv2" in r.reason and "--remote" in r.reason
@@ -200,7 +200,7 @@ def test_realtime_a_fault_with_nothing_to_do_is_rejected_as_in_lockstep():
     second pause of a paused one, was answered "applied" and logged as a fault again."""
     w = world(clock="realtime")
     for vid in w.ids:
-        w._on_alive(vid, True)
+        w.alive(vid, True)
     asked = lambda: [(c.op, c.fields["vehicle"]) for c in (decode_control(p, LAUNCHER_OPS)
                                                            for p in w.pub_launcher.puts)]
     steps = [("kill", "usv2", True), ("kill", "usv2", False), ("pause_vehicle", "usv2", False),
@@ -210,7 +210,7 @@ def test_realtime_a_fault_with_nothing_to_do_is_rejected_as_in_lockstep():
              ("resume_vehicle", "uav1", True), ("resume_vehicle", "uav1", False)]
     for op, vid, applied in steps:
         if op == "restart" or op == "resume_vehicle" and applied:
-            w._on_alive(vid, True)
+            w.alive(vid, True)
         q = ask(w, op, vehicle=vid)
         if applied:
             launcher_done(w, vid)
@@ -219,12 +219,12 @@ def test_realtime_a_fault_with_nothing_to_do_is_rejected_as_in_lockstep():
         if not applied:
             assert r.reason.endswith("(nothing done)") and vid in r.reason, r
         if op in ("kill", "pause_vehicle") and applied:
-            w._on_alive(vid, False)  # the token lapses
+            w.alive(vid, False)  # the token lapses
     assert asked() == [(op, vid) for op, vid, applied in steps if applied]
     ask(w, "pause_vehicle", vehicle="usv3")
-    w._on_alive("usv3", False)  # its token lapses: the status says paused, not gone
+    w.alive("usv3", False)  # its token lapses: the status says paused, not gone
     ask(w, "kill", vehicle="usv1")
-    w._on_alive("usv1", False)
+    w.alive("usv1", False)
     states = dict(zip(w.ids, w._status_extra().states))
     assert states == {**{vid: "live" for vid in w.ids}, "usv3": "paused", "usv1": "gone"}
     q = ask(w, "kill", vehicle="usv2")
@@ -244,7 +244,7 @@ def test_only_the_launcher_reports_a_fault_done_and_unreadable_commands_are_answ
     assert r.reason == "the command could not be read: name"
     q = Query(keys.world_command(FLEET, keys.GROUND), None)  # a query with no payload
     w._on_command_query(q)
-    w._handle(_wake())
+    w.feed(keys.wake(FLEET, keys.WORLD))
     assert q.answer.status == "rejected"
     assert w.st.rejects["sender"] == 1 and w.st.rejects["malformed"] == 2 and w.st.rejects["name"] == 1
 
@@ -267,11 +267,11 @@ def test_a_flood_of_queries_is_answered_busy_past_what_waits_and_counted():
     for q in qs:
         w._on_command_query(q)  # Zenoh's thread: the main thread is busy elsewhere
     assert all(q.answer.reason.startswith("busy") for q in qs[MAX_QUEUED_QUERIES:])
-    w._handle(_wake())  # one pass answers ANSWERS_PER_PASS, the oldest first; the others wait their turn
+    w.feed(keys.wake(FLEET, keys.WORLD))  # one pass answers ANSWERS_PER_PASS, the oldest first; the others wait their turn
     assert [q.answer is not None for q in qs[:MAX_QUEUED_QUERIES]] == [True] * ANSWERS_PER_PASS + [False] * (
         MAX_QUEUED_QUERIES - ANSWERS_PER_PASS)
     while w._queries:
-        w._handle(_wake())
+        w.feed(keys.wake(FLEET, keys.WORLD))
     assert all(q.answer.applied for q in qs[:MAX_QUEUED_QUERIES])
     assert w.st.rejects["busy"] == 5
 
@@ -280,9 +280,9 @@ def test_the_put_path_still_carries_commands_out():
     """The launcher's commands and older clients put on to/+world+/cmd/<from>: no answer, same effect."""
     from tests.fakes import Sample
     w = started(world())
-    w._handle(Sample(keys.world_cmd(FLEET, keys.GROUND), Payload(encode_control("pause"))))
+    w.feed(keys.world_cmd(FLEET, keys.GROUND), encode_control("pause"))
     assert w.lockstep.paused
-    w._handle(Sample(keys.world_cmd(FLEET, keys.GROUND), Payload(encode_control("kill", vehicle="usv2"))))
+    w.feed(keys.world_cmd(FLEET, keys.GROUND), encode_control("kill", vehicle="usv2"))
     assert w.lockstep._queue[-1].vehicle == 1 and w.lockstep._queue[-1].ref is None
 
 
@@ -320,7 +320,7 @@ def test_every_query_is_answered_once_never_raises_and_counts_what_it_refuses(op
         before = w.st.rejected
         q = Query(f"cdus/{FLEET}/world/cmd/{sender}", payload)
         w._on_command_query(q)
-        w._handle(_wake())
+        w.feed(keys.wake(FLEET, keys.WORLD))
         if not q.replies:  # held: a lockstep vehicle fault, decided later
             assert q.key_expr in {qq.key_expr for qq, _, _ in w._waiting.values()}
             continue
@@ -339,17 +339,17 @@ def test_lockstep_a_vehicle_paused_by_a_fault_stays_paused_in_the_status_after_i
     g = w.lockstep.granted
     q = ask(w, "pause_vehicle", vehicle="usv3")
     report_through(w, g)
-    w._act(w.lockstep.poll())
+    w.clock.act(w.lockstep.poll())
     assert q.answer.applied
     j = w.ids.index("usv3")
     from tests.fakes import Sample
-    w._handle(Sample(keys.world_cmd(FLEET, keys.LAUNCHER), Payload(encode_control("fault_done", vehicle="usv3"))))
-    w._on_alive("usv3", False)  # the token lapses
+    w.feed(keys.world_cmd(FLEET, keys.LAUNCHER), encode_control("fault_done", vehicle="usv3"))
+    w.alive("usv3", False)  # the token lapses
     for n in range(g + 50, g + 400, 50):  # the others step on: past the lease the roster makes it gone
         for k, vid in enumerate(w.ids):
             if vid != "usv3":
                 send_rows(w, vid, [row(k, m) for m in range(max(0, n - 49), n + 1)])
-        w._act(w.lockstep.poll())
+        w.clock.act(w.lockstep.poll())
     later = w.lockstep.granted
     assert w.lockstep.state_at(j, later) == "gone", (later, g)
     w.next_tick = later + 1
@@ -421,8 +421,8 @@ def test_realtime_a_scheduled_faults_word_from_the_launcher_does_not_answer_a_gr
 
     w = world(tmp_path, clock="realtime", events=EVENTS)
     for vid in w.ids:
-        w._on_alive(vid, True)
-    w._realtime_faults_due(1.0)  # the launcher is asked to kill usv2
+        w.alive(vid, True)
+    w.clock.scheduled_faults(1.0)  # the launcher is asked to kill usv2
     q = ask(w, "restart", vehicle="usv2")
     assert [decode_control(p, LAUNCHER_OPS).op for p in w.pub_launcher.puts] == ["kill", "restart"]
     launcher_done(w, "usv2")  # the kill
@@ -433,11 +433,11 @@ def test_realtime_a_scheduled_faults_word_from_the_launcher_does_not_answer_a_gr
     import time  # noqa: PLC0415
 
     from world_sim.world import RT_FAULT_CONFIRM  # noqa: PLC0415
-    w._realtime_faults_due(10.0)  # uav1 paused at 2 s
+    w.clock.scheduled_faults(10.0)  # uav1 paused at 2 s
     q = ask(w, "kill", vehicle="uav1")
-    w._rt_faults_unconfirmed(time.monotonic() + RT_FAULT_CONFIRM + 0.1)
+    w.clock.faults_unconfirmed(time.monotonic() + RT_FAULT_CONFIRM + 0.1)
     assert q.answer.status == "rejected" and "kill of uav1" in q.answer.reason
-    assert [e.kind for e in w.events].count("fault_missed") == 1 and not any(w._rt_asked.values())
+    assert [e.kind for e in w.events].count("fault_missed") == 1 and not any(w.clock.asked.values())
 
 
 def test_the_settings_query_says_every_change_made_the_phases_and_the_link_table_in_force():

@@ -1,0 +1,307 @@
+"""What does each run-time command do to the run?
+
+One handler per command op (:meth:`CommandHandlers.handlers`): each checks its fields as the
+agents would, computes the tick it applies from with the clock's one rule (``effect_tick``,
+docs/ground_station.md), relays it to the vehicles (numbered, kept for (re)joiners and
+world/settings) and returns its verdict (world_sim.verdict): Verdict, a reason string
+(rejected), or LATER (decided when its tick comes)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Callable, NamedTuple
+
+from cdus.core.node import gains_problem
+from cdus.scenario.config import ConfigError, nesting_problem
+from cdus.scenario.events import check_offsets, check_path, check_phases, offsets_to_phases
+from cdus.scenario.link import merge_link_tables, validate_link
+from cdus.sim.radio import apply_radio_change, radio_change_problem
+from cdus.sim.reports import formation_changed, path_changed
+from cdus.wire import keys
+from cdus.wire.messages import MAX_LINK_AT, encode_control
+from cdus.wire.schemas import FleetEvent, MAX_REASON
+from cdus.wire.text import printable
+from world_sim.clocks import LINK_LEAD
+from world_sim.verdict import Verdict
+
+
+class _Change(NamedTuple):
+    """A run-time change the world sent to the vehicles (its ctl payload, numbered), kept for
+    (re)joiners and world/settings."""
+
+    kept_for: str | None  # one vehicle; None: every vehicle
+    payload: bytes
+    op: str
+    tick: int | None  # a gains change's tick (None for the others, which are all replayed)
+
+
+class CommandHandlers:
+    """The World's command handlers, one per op, and the run-time changes they relayed (a mixin
+    of World)."""
+
+    def handlers(self) -> dict[str, Callable[[dict, str], Any]]:
+        """op -> handler(fields, by) -> Verdict | reason str | None | LATER (world_sim.verdict):
+        the one table the world dispatches commands by (other parts may add theirs)."""
+        return {
+            "stop": self._cmd_stop, "pause": self._cmd_pause, "resume": self._cmd_resume,
+            "set_gains": self._cmd_gains, "gains": self._cmd_gains, "link": self._cmd_link, "fault_done": self._cmd_fault_done,
+            "formation": self._relay_formation, "path": self._relay_path, "radio": self._cmd_radio,
+            "kill": self._cmd_vehicle_fault, "pause_vehicle": self._cmd_vehicle_fault,
+            "resume_vehicle": self._cmd_vehicle_fault, "restart": self._cmd_vehicle_fault,
+        }
+
+    def _effect_tick(self) -> int:
+        """The first tick a run-time change applies from, on every vehicle alike: the clock's one
+        rule (world_sim.clocks, ``effect_tick``), used by every handler."""
+        return self.clock.effect_tick()
+
+    def _effect_time(self, at: float) -> float:
+        """The simulated time a change asked for ``at`` (s; < 0: as soon as possible) applies from:
+        ``at``, never before the effect tick (a past ``at`` means "now")."""
+        earliest = self._effect_tick() * self.period
+        return max(at, earliest) if at >= 0 else max(self._sim_now() + LINK_LEAD, earliest)
+
+    def _cmd_stop(self, f: dict, by: str) -> Verdict | str:
+        if self.stop_requested:
+            return "the run is stopping"
+        # the launcher asks only when it was interrupted (Ctrl-C, SIGTERM); anyone else's stop is an operator's
+        interrupted = by == keys.LAUNCHER
+        self._note(FleetEvent.of(self._sim_now(), "fleet", "fleet stopped: the launcher was interrupted"
+                                 if interrupted else f"fleet stopped by {by}"))
+        self.completion = self.completion or ("interrupted" if interrupted else "stopped")
+        self.stop_requested = True
+        # the tick of the event (and of the run's last record): the answer said the next one, a tick later
+        tick = round(self._sim_now() / self.period)
+        self._stop_tick = tick
+        return Verdict(True, "the run ends after this tick: its metrics are written", tick)
+
+    def _cmd_fault_done(self, f: dict, by: str) -> Verdict | str:
+        if by != keys.LAUNCHER:
+            self._reject(by, "sender")
+            return "only the launcher reports a fault carried out"
+        if f["vehicle"] in self.index:
+            self.clock.fault_done(f["vehicle"])
+        return Verdict(True, "", max(0, self.lockstep.granted))
+
+    def _cmd_pause(self, f: dict, by: str) -> Verdict | str | None:
+        return self._fleet_pause(True, by)
+
+    def _cmd_resume(self, f: dict, by: str) -> Verdict | str | None:
+        return self._fleet_pause(False, by)
+
+    def _cmd_gains(self, f: dict, by: str) -> Verdict | str:
+        return self._relay_gains(f["gains"], f["vehicle"], by)
+
+    def _cmd_link(self, f: dict, by: str) -> Verdict | str:
+        if f["at"] >= self.duration:  # it would be answered "applied" and never apply
+            return self._refuse(by, "link", "link command",
+                                f"--at {f['at']:g} s is not before the end of the run ({self.duration:g} s): "
+                                "it would change nothing; give a time within the run")
+        merged = merge_link_tables(self._link_table, f["link"])
+        try:  # the agents' own checks, made before relaying: a change they would refuse is no change
+            if f["at"] > MAX_LINK_AT:
+                raise ValueError(f"link command: at = {f['at']:.6g} s is beyond the latest time a link change "
+                                 f"may name ({MAX_LINK_AT:g} s of simulated time)")
+            validate_link(merged, self.ids, "link command")
+        except (ConfigError, ValueError) as e:
+            self._reject(by, "link")
+            self._note(FleetEvent.of(self._sim_now(), "rejected",
+                                     f"link command from {printable(by, 64)}: {printable(str(e), 200)}"))
+            return printable(str(e), 280)
+        # Never before the effect tick (what a vehicle may already have sent), so every receiver
+        # applies it from the same message on; a past --at means "now".
+        at = self._effect_time(f["at"])
+        late = self._never_applies(max(0, math.ceil(at / self.period - 1e-9)))
+        if late:
+            return self._refuse(by, "link", "link command", late)
+        self._link_table = merged
+        self._send_command(None, None, "link", link=f["link"], at=float(at))
+        self.st.link_commanded = True
+        self._note(FleetEvent.of(self._sim_now(), "link_changed",
+                                 f"link faults changed from t = {at:.2f} s by {by}: {printable(f['link'], 200)}"),
+                   by_command=True)
+        late = (f"t = {f['at']:g} s asked had passed: from the first time every receiver can take it"
+                if 0 <= f["at"] < at else "")
+        return Verdict(True, late, max(0, math.ceil(at / self.period - 1e-9)), float(at))
+
+    def _cmd_vehicle_fault(self, f: dict, by: str) -> Verdict | str:
+        """kill | pause_vehicle | resume_vehicle | restart, by the op in the fields' command."""
+        vid = f["vehicle"]
+        if vid not in self.index:
+            self._reject(by, "unknown_vehicle")
+            return f"no vehicle {printable(vid, 64)!r} in this fleet (its vehicles: {', '.join(self.ids)})"
+        op = self._current_op
+        action = {"pause_vehicle": "pause", "resume_vehicle": "resume"}.get(op, op)
+        return self.clock.vehicle_fault(vid, action, op, by, self._command_ref)
+
+    def _relay_radio(self, fields: dict, sender: str) -> Verdict | str | None:
+        """A ground station's radio change ``{"radio": {tx_power, station}, "at": s}``: checked,
+        then relayed to every vehicle with the send time it applies from, never before what a
+        vehicle may already have sent (lockstep: past the grant; a past ``at`` means as soon as
+        possible), like a link command. The verdict (applied from that time), else why it was not."""
+        change = fields["radio"]
+        if self.radio is None:
+            return "this scenario has no [radio] table"
+        problem = radio_change_problem(change, self.radio_watch.channel.spec.topology)
+        if problem is not None:
+            return problem
+        at = self._effect_time(fields["at"])
+        end = self.last_tick * self.period
+        if at > end:  # it would never apply, and epochs go in time order: it would refuse every later change
+            return (f"--at {at:g} s is past the run's end (t = {end:g} s): it would never apply; give --at "
+                    f"from now to {end:g} s, or no --at (as soon as possible)")
+        later = self.radio_watch.channel.epochs[-1][0] if self.radio_watch is not None else -math.inf
+        if at < later:  # changes apply in time order (epochs): a scheduled or earlier command's comes later
+            return (f"a radio change from t = {later:g} s is already in force later (scheduled or commanded); "
+                    f"give --at {later:g} or later")
+        self._send_command(None, None, "radio", radio=change, at=float(at))
+        if self.radio_watch is not None:
+            apply_radio_change(self.radio_watch.channel, change, float(at))
+        self._note(FleetEvent.of(self._sim_now(), "radio_changed",
+                                 f"radio changed from t = {at:.2f} s by {printable(sender, 64)}: "
+                                 f"{printable(change, 200)}"), by_command=True)
+        late = (f"t = {fields['at']:g} s asked had passed: from the first time every vehicle can take it"
+                if 0 <= fields["at"] < at else "")
+        return Verdict(True, late, max(0, math.ceil(at / self.period - 1e-9)), float(at))
+
+    def _cmd_radio(self, f: dict, by: str) -> Verdict | str:
+        """The ``radio`` command: relayed (:meth:`_relay_radio`) or refused, counted and reported."""
+        out = self._relay_radio(f, by)
+        if isinstance(out, str):
+            self._reject(by, "radio")
+            self._note(FleetEvent.of(self._sim_now(), "rejected",
+                                     f"radio command from {printable(by, 64)}: {printable(out, 200)}"))
+        return out
+
+    def _relay_gains(self, gains: dict, vehicle: str, sender: str) -> Verdict | str:
+        targets = self.ids if vehicle == "" else [vehicle] if vehicle in self.index else []
+        problems = {gains_problem(gains, self.scenario.vehicle(v).dim, **self.scenario.gain_context(v))
+                    for v in targets} - {None}
+        if not targets or problems:  # all or nothing: no fleet with gains half changed
+            self._reject(sender, "gains")
+            why = f"no vehicle {printable(vehicle, 64)!r}" if not targets else printable("; ".join(sorted(problems)))
+            self._note(FleetEvent.of(self._sim_now(), "rejected",
+                                     f"gains {printable(gains, 120)} from {sender}: {why}"))
+            return why
+        tick = self._effect_tick()
+        late = self._never_applies(tick)
+        if late:
+            return self._refuse(sender, "gains", f"gains {printable(gains, 120)}", late)
+        self._send_command(targets, vehicle or None, "gains", gains=gains, tick=tick)
+        self._note(FleetEvent.of(tick * self.period, "gains_changed",
+                                 f"gains {gains} for {vehicle or 'every vehicle'} from tick {tick} by {sender}"),
+                   by_command=True)
+        return Verdict(True, "", tick)
+
+    def _never_applies(self, tick: int) -> str | None:
+        """Why a change from ``tick`` would never apply (past the run's last tick: near the end the
+        grant has reached it, or the wall clock nearly has), else None. It was answered "applied
+        from tick N+1" and `cdus gs` exited 0."""
+        if tick <= self.last_tick:
+            return None
+        return (f"the run's last tick is {self.last_tick} (t = {self.last_tick * self.period:.2f} s) and the first "
+                f"this change could apply from is {tick}: it would never apply (the run is ending)")
+
+    def _refuse(self, sender: str, reason: str, what: str, why: str) -> str:
+        """Count and report a refused command; returns the reason (for an acknowledgement)."""
+        self._reject(sender, reason)
+        self._note(FleetEvent.of(self._sim_now(), "rejected",
+                                 f"{what} from {printable(sender, 64)}: {printable(why, 200)}"))
+        return printable(why, MAX_REASON)  # the ground station's reply keeps all a reply may hold
+
+    def _relay_formation(self, fields: dict, sender: str) -> Verdict | str:
+        """A ground station's formation change: phases ``{id: θ}`` or offsets ``[{i, k, delta}]``
+        (exactly one), checked as the config's are (offsets with the Δs in force on the other
+        edges must close around every cycle) and turned into phases, relayed to every vehicle
+        with the tick they apply from (:meth:`_effect_tick`), and measured against from that
+        tick. Returns the verdict (applied from that tick), else the reason it was refused."""
+        phases, offsets = fields["phases"], fields["offsets"]
+        if bool(phases) == bool(offsets):
+            return self._refuse(sender, "formation", "formation", "give either phases or offsets (exactly one)")
+        tick = self._effect_tick()
+        late = self._never_applies(tick)
+        if late:
+            return self._refuse(sender, "formation", "formation", late)
+        sc = self.scenario
+        if phases:
+            checked = check_phases(phases, self.ids)
+            if isinstance(checked, tuple):
+                where = f"phases.{checked[0]}" if checked[0] else "phases"
+                return self._refuse(sender, "formation", "formation", f"{where}: {checked[1]}")
+        else:
+            given = check_offsets(offsets, self.ids, sc.edges, sc.directed)
+            if isinstance(given, tuple):
+                return self._refuse(sender, "formation", "formation", f"offsets{given[0]}: {given[1]}")
+            checked = offsets_to_phases(self.ids, self.recorder.formation.phases_at(tick), sc.edges, given,
+                                        sc.directed)
+            if isinstance(checked, str):
+                return self._refuse(sender, "formation", "formation", checked)
+        ordered = [(vid, checked[vid]) for vid in self.ids if vid in checked]
+        self.recorder.formation.add(tick, {self.index[vid]: theta for vid, theta in ordered})
+        for lo in range(0, len(ordered), 32):  # a control map holds at most 64 entries (decode_control)
+            self._send_command(None, None, "formation", phases=dict(ordered[lo:lo + 32]), tick=tick)
+        self._note(formation_changed(tick, self.period, ordered, sender), by_command=True)
+        return Verdict(True, "" if ordered else "no phase changed: the offsets given were in force", tick)
+
+    def _relay_path(self, fields: dict, sender: str) -> Verdict | str:
+        """A ground station's new path for one vehicle, checked as the config's paths are, relayed
+        to that vehicle with the tick it applies from. Returns the verdict, else the reason."""
+        vid, table = fields["vehicle"], fields["path"]
+        if vid not in self.index:
+            return self._refuse(sender, "unknown_vehicle", "path", f"no vehicle {printable(vid, 64)!r}")
+        path = "nested too deep" if nesting_problem(table, 2) else check_path(table, self.scenario.vehicle(vid).dim)
+        if isinstance(path, (tuple, str)):
+            why = path if isinstance(path, str) else f"path{'.' + path[0] if path[0] else ''}: {path[1]}"
+            return self._refuse(sender, "path", f"path of {vid}", why)
+        tick = self._effect_tick()
+        late = self._never_applies(tick)
+        if late:
+            return self._refuse(sender, "path", f"path of {vid}", late)
+        self._send_command([vid], vid, "path", vehicle=vid, path=table, tick=tick)
+        self._note(path_changed(tick, self.period, vid, sorted(table.items()), sender), by_command=True)
+        return Verdict(True, "", tick)
+
+    def _fleet_pause(self, pause: bool, by: str = "") -> Verdict | str:
+        if pause == self.clock.paused():
+            return "the fleet is already paused" if pause else "the fleet is not paused"  # not news
+        tick = self.clock.pause(pause)
+        self._note(FleetEvent.of(self._sim_now(), "fleet", ("fleet paused" if pause else "fleet resumed")
+                                 + (f" by {by}" if by else "")))
+        self._publish_status()  # at once: a ground station attaching is answered the newest status
+        return Verdict(True, "", tick)
+
+    def _send_command(self, to: list[str] | None, kept_for: str | None, op: str, **fields: Any) -> None:
+        """A run-time command to the vehicles ``to`` (None: the ctl publisher, every vehicle), kept
+        for (re)joiners (``kept_for`` one vehicle, None all) and numbered (``seq``: a process that
+        hears it again applies it once). A gains change for the same vehicles on the same tick as
+        the change kept last replaces it there (a vehicle applies both at that tick, the later
+        last: the earlier one never shows): a flood of them in one grant is one entry."""
+        seq = self._seq
+        self._seq += 1
+        payload = encode_control(op, **fields, seq=seq)
+        if to is None:
+            self.pub_ctl.put(payload)
+        else:
+            self._put(keys.ctl(self.fleet, to), payload)
+        change = _Change(kept_for, payload, op, fields["tick"] if op == "gains" else None)
+        last = self._commands[-1] if self._commands else None
+        if change.tick is not None and last is not None and (last.op, last.kept_for, last.tick) == (
+                op, kept_for, change.tick):
+            self._commands[-1] = change
+        else:
+            self._commands.append(change)
+        self._settings_changed(op)
+
+    def _replay_commands(self, vid: str) -> None:
+        """A (re)started or resumed process missed the ground stations' run-time commands (a new
+        one starts from the scenario file): send it each again, in order. Each applies from the
+        time or tick it did (link changes at once if that is past), so it ends where the rest of
+        the fleet is. Of the gains changes that apply before the first tick it can step, only the
+        last is sent (it applies them all at that tick, the last last): a restart after a flood
+        of gains changes is sent the one in force and those still to come, not the history."""
+        first = self.clock.first_step(vid)
+        mine = [c for c in self._commands if c.kept_for is None or c.kept_for == vid]
+        in_force = max((i for i, c in enumerate(mine) if c.tick is not None and c.tick <= first), default=None)
+        for i, c in enumerate(mine):
+            if c.tick is None or c.tick > first or i == in_force:
+                self._put(keys.ctl(self.fleet, [vid]), c.payload)
