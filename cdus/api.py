@@ -32,6 +32,7 @@ import numpy as np
 
 from cdus.app import sweep as app_sweep
 from cdus.app.report import Progress
+from cdus.app.sweep import RUNNERS  # how run() runs a scenario: `cdus sim`, `cdus launch --clock lockstep`
 from cdus.app.sweeptable import CellStats, SweepTable, cell_statistics
 from cdus.app.sweepstore import SweepRow
 from cdus.core.linkspec import POLICIES
@@ -48,13 +49,12 @@ from cdus.wire import keys
 from world_sim.recording import parse_spec
 
 __all__ = [  # the names of ``import cdus`` (cdus/__init__.py, docs/api.md; tests/api/test_public.py: one list)
-    "CLOCKS", "ClosestPair", "ConfigError", "DivergedError", "DroppedBy", "Event", "FaultCounters", "Integrity",
+    "RUNNERS", "ClosestPair", "ConfigError", "DivergedError", "DroppedBy", "Event", "FaultCounters", "Integrity",
     "LinkFaults", "LinkMetrics", "LinkStateChange", "Metrics", "RadioMetrics", "RejectedByReason", "Result",
     "RunError", "RunInterrupted", "SafetyInfo", "Scenario", "SweepRow", "SweepTable", "CellStats", "Trace",
     "cell_statistics", "load", "override", "run", "sweep",
 ]
 
-CLOCKS = ("inproc", "lockstep")  # how run() runs a scenario: `cdus sim`, `cdus launch --clock lockstep`
 
 
 # --------------------------------------------------------------------------- errors
@@ -748,8 +748,8 @@ def run(scenario: Scenario | str | os.PathLike, *, clock: str = "inproc", policy
     a lockstep fleet that did not come up raises :class:`RunError`."""
     where = "cdus.run"
     scenario = _check_scenario(scenario, where)
-    if clock not in CLOCKS:
-        raise _arg_error(where, "clock", f"{clock!r} is not one of {', '.join(CLOCKS)}")
+    if clock not in RUNNERS:
+        raise _arg_error(where, "clock", f"{clock!r} is not one of {', '.join(RUNNERS)}")
     if policy is not None and policy not in POLICIES:
         raise _arg_error(where, "policy", f"{policy!r} is not one of {', '.join(POLICIES)} (or None: the scenario's)")
     base = Path(run_dir) if run_dir is not None else None
@@ -924,8 +924,8 @@ def sweep(config: str | os.PathLike | Scenario, grid: Mapping[str, Sequence[Any]
     where = "cdus.sweep"
     if out is None or not isinstance(out, (str, os.PathLike)):
         raise _arg_error(where, "out", f"expected a directory path for the results, got {type(out).__name__}")
-    if clock not in CLOCKS:
-        raise _arg_error(where, "clock", f"{clock!r} is not one of {', '.join(CLOCKS)}")
+    if clock not in RUNNERS:
+        raise _arg_error(where, "clock", f"{clock!r} is not one of {', '.join(RUNNERS)}")
     if plot_format not in app_sweep.PLOT_FORMATS:
         raise _arg_error(where, "plot_format", f"{plot_format!r} is not one of {', '.join(app_sweep.PLOT_FORMATS)}")
     if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):

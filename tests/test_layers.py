@@ -22,6 +22,7 @@ LAYERS = {  # module prefix -> layer rank (longest prefix wins)
     "cdus.wire": 0, "cdus.files": 0,
     "cdus.extras": 0,  # the ImportError of a table helper without pandas or xarray
     "cdus.core": 1,
+    "cdus.core.vocabulary": 0,  # the fleet's words, importing nothing: the wire checks messages against them
     "cdus.scenario": 2,
     "cdus.sim": 3,
     "vehicle_agent": 4, "world_sim": 4, "ground_station": 4, "cdus.ros2": 4,

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from typing import Iterable, Protocol, Sequence
 
 from cdus.core.linkspec import LinkSpec
+from cdus.core.vocabulary import DROP_CAUSES, LINK_STATES
 from cdus.wire.schemas import FleetEvent
 
 
@@ -85,8 +86,6 @@ _TWO_PI = 2.0 * math.pi
 
 STREAMS = ("loss", "burst-step", "burst-loss", "duplicate", "delay0a", "delay0b", "delay1a", "delay1b")
 _LOSS, _STEP, _BLOSS, _DUP, _DELAY = 0, 1, 2, 3, 4  # _DELAY + 2 * copy, + 1 for the second draw
-DROP_CAUSES = ("loss", "burst", "down", "partition")
-LINK_STATES = ("up", "lossy", "down")
 _ARRIVE = (0.0,)
 _DROP: tuple[float, ...] = ()
 

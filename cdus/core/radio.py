@@ -29,6 +29,7 @@ from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING, Iterable, Sequence
 
 from cdus.core.link import stream_key, uniform
+from cdus.core.vocabulary import KINDS, RADIO_CAUSES
 from cdus.wire.messages import OmegaMsg, encode_omega
 
 if TYPE_CHECKING:  # numpy is imported where it is used: an agent without [radio] loads none
@@ -38,14 +39,12 @@ C_LIGHT = 299_792_458.0  # m/s
 EPSILON_0 = 8.8541878128e-12  # F/m
 THERMAL_DBM_HZ = -174.0  # kT at 290 K, dBm/Hz
 STATION = "station"  # the base station's name in the random streams and the counters
-CAUSES = ("range", "fading", "collision", "queue")
 PROPAGATIONS = ("log_distance", "two_ray")
 TOPOLOGIES = ("adhoc", "station")
 FADINGS = ("none", "rician", "nakagami")
 MODULATIONS = ("bpsk", "qpsk", "16qam", "64qam")
 POLARIZATIONS = ("vertical", "horizontal")
 ACCESSES = ("csma", "aloha")
-KINDS = ("usv", "uav")
 MIN_HEIGHT = 0.01  # m: an antenna at or below the water is taken 1 cm above it (two-ray needs h > 0)
 FEATURES = 64  # random Fourier features of the shadowing field
 DEFAULT_RATE = 50.0  # Hz: the default [rates] broadcast
@@ -450,14 +449,18 @@ class RadioDecision:
 
 @dataclass
 class RadioCounters:
-    """Decisions on one directed link (or all): sent, delivered, drops by cause."""
+    """Messages decided on the radio (one directed link, or all) and what became of them
+    (docs/metrics.md, ``radio``): drops by cause (RADIO_CAUSES; the channel alone never counts
+    ``fault``, the hand-set [link] fault that cdus.core.radiolink.RadioLink decides first)."""
 
     sent: int = 0
     delivered: int = 0
+    fault: int = 0
     range: int = 0
     fading: int = 0
     collision: int = 0
     queue: int = 0
+    no_geometry: int = 0  # decided without the sample in force (realtime only; passed through)
 
     def add(self, other: "RadioCounters") -> None:
         for f in fields(self):
@@ -465,8 +468,13 @@ class RadioCounters:
 
     def as_dict(self) -> dict:
         return {"sent": self.sent, "delivered": self.delivered,
-                "dropped": sum(getattr(self, c) for c in CAUSES),
-                "dropped_by": {c: getattr(self, c) for c in CAUSES}}
+                "dropped": sum(getattr(self, c) for c in RADIO_CAUSES),
+                "dropped_by": {c: getattr(self, c) for c in RADIO_CAUSES}, "no_geometry": self.no_geometry}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "RadioCounters":
+        return cls(sent=d["sent"], delivered=d["delivered"], no_geometry=d.get("no_geometry", 0),
+                   **{c: d["dropped_by"][c] for c in RADIO_CAUSES})
 
 
 @dataclass(frozen=True)
@@ -795,6 +803,6 @@ class RadioChannel:
 
     def counters_summary(self) -> dict:
         """``{"total": {...}, "links": {"usv1->usv2": {...}}}``, each ``{sent, delivered, dropped,
-        dropped_by: {range, fading, collision, queue}}``."""
+        dropped_by: {fault (always 0 here), range, fading, collision, queue}, no_geometry}``."""
         return {"total": self.counters.as_dict(),
                 "links": {f"{self.ids[s]}->{self.ids[d]}": c.as_dict() for (s, d), c in self.link_counters().items()}}

@@ -26,6 +26,7 @@ from typing import Any, Collection
 
 import msgpack
 
+from cdus.core.vocabulary import CLOCKS, DROP_CAUSES, FAULT_COUNTERS, KINDS, LINK_STATES, RADIO_CAUSES, ROSTER_STATES
 from cdus.wire.bounds import finite as _number
 from cdus.wire.messages import CTL_OPS, MAX_CONTROL_PAYLOAD, MSGPACK_ERRORS, SEQUENCED, decode_control
 from cdus.wire.text import printable
@@ -67,14 +68,6 @@ MAX_STATE_CHANGES = 64  # vehicle_agent sends its newest 50
 MAX_LINKS = 256 * 255
 MAX_STATUS_IDS = 4096
 MAX_STATUS_EVENTS = 64
-CLOCKS = ("lockstep", "realtime")
-#: the link emulator's counters_summary() (cdus.core.link, which this layer cannot import;
-#: tests/wire/test_schemas.py checks that they agree)
-FAULT_COUNTERS = ("sent", "dropped", "duplicated", "delayed")
-DROP_CAUSES = ("loss", "burst", "down", "partition")
-#: the radio path's drop causes (cdus.core.radiolink.RADIO_CAUSES; tests/wire/test_schemas.py checks them)
-RADIO_CAUSES = ("fault", "range", "fading", "collision", "queue")
-LINK_STATES = ("up", "lossy", "down")
 ORIGIN_WORLD = "world"
 ORIGINS = (ORIGIN_WORLD, "launcher")  # the processes that are not vehicles and report events
 
@@ -380,10 +373,6 @@ STATUS_KEYS = ("t", "duration", "clock", "alive", "ids", "path_error_max", "coor
 #:   tells the vehicles to stop, so their leaving is not read as vehicles lost
 STATUS_EXTRA = ("kinds", "states", "edges", "links", "rx", "safety_radius", "closest", "path_errors", "directed",
                 "completion")
-VEHICLE_KINDS = ("usv", "uav")
-#: a vehicle's state in the world's roster (status ``roster`` {id: state}, and ``states`` in ids
-#: order): stepping, paused (by a fault or a ground station), gone (killed, lost) at the world's tick
-ROSTER_STATES = ("live", "paused", "gone")  # cdus.core.events.STATES
 MAX_STATUS_EDGES = 512
 MAX_STATUS_LINKS = 512
 
@@ -518,7 +507,7 @@ def _status_extra(obj: dict, sids: list[str]) -> dict[str, Any] | str:
     n, known = len(sids), set(sids)
     for name in ("kinds", "states"):
         if name in obj:
-            x, allowed = obj[name], VEHICLE_KINDS if name == "kinds" else ROSTER_STATES
+            x, allowed = obj[name], KINDS if name == "kinds" else ROSTER_STATES
             if not _strings(x) or len(x) != n or not all(_in(s, allowed) for s in x):
                 return "extra"
             out[name] = [str(s) for s in x]

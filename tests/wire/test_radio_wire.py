@@ -6,7 +6,7 @@ from __future__ import annotations
 import msgpack
 import pytest
 
-from cdus.core.radiolink import RADIO_CAUSES, RadioCounters
+from cdus.core.radio import RadioCounters
 from cdus.wire import keys, schemas
 from cdus.wire.access import fleet_acl
 from cdus.wire.messages import COMMAND_OPS, CTL_OPS, decode_control, encode_control
@@ -19,10 +19,6 @@ def test_the_geometry_key_reaches_every_addressed_vehicle_and_the_world_may_put_
     acl = fleet_acl("f", {"usv1": ("uav1",), "uav1": ("usv1",)})
     world_put = next(r for r in acl["rules"] if r["id"] == "world-put")
     assert "cdus/f/to/*/radio" in world_put["key_exprs"]
-
-
-def test_the_radio_causes_on_the_wire_are_the_cores():
-    assert schemas.RADIO_CAUSES == RADIO_CAUSES
 
 
 def test_agent_stats_carry_the_radio_counters_checked():
