@@ -63,6 +63,7 @@ from cdus.core.schedule import CLOCKS, total_ticks
 from cdus.sim.lockstep import GRANT_WINDOW, MAX_GRANT_WINDOW
 from cdus.wire.text import printable
 from cdus.wire import keys
+from cdus.wire.rejected import Rejected
 from cdus.wire.messages import (
     CTL_OPS, MAX_LINK_AT, MAX_STATE_ROWS, StateMsg, decode_contacts, decode_control, decode_geometry, decode_omega,
     decode_states, encode_omega, encode_states,
@@ -388,8 +389,8 @@ class Agent:
         if self._over_rate(k):  # before decoding: a flood costs a lookup and a subtraction
             return self._reject(self.ids[k], "rate")
         msg = decode_omega(sample.payload.to_bytes(), expected_sender=k, n_vehicles=len(self.ids))
-        if isinstance(msg, str):
-            return self._reject(self.ids[k], msg)
+        if isinstance(msg, Rejected):
+            return self._reject(self.ids[k], msg.reason)
         self.node.horizon = self._horizon()
         reason = self.node.on_message(msg, now)
         if reason is not None:
@@ -491,8 +492,8 @@ class Agent:
         """The world's proximity sensor: this vehicle's contacts of a sample tick (counted and
         dropped if malformed)."""
         msg = decode_contacts(payload, len(self.ids), self.index, self.node.vehicle.dim)
-        if isinstance(msg, str):
-            return self._reject("world", f"contacts_{msg}")
+        if isinstance(msg, Rejected):
+            return self._reject("world", f"contacts_{msg.reason}")
         if msg.tick > self.last_tick:  # no sample is taken past the run's end: kept, it would never be freed
             return self._reject("world", "contacts_range")
         self.node.on_contacts(msg.tick, contacts_of(msg, self.ids))
@@ -505,8 +506,8 @@ class Agent:
         if radio is None:
             return self._reject("world", "radio_unexpected")
         msg = decode_geometry(payload, len(self.ids), self._dims)
-        if isinstance(msg, str):
-            return self._reject("world", f"radio_{msg}")
+        if isinstance(msg, Rejected):
+            return self._reject("world", f"radio_{msg.reason}")
         if msg.tick > self.last_tick:
             return self._reject("world", "radio_range")
         if msg.tick % radio.every:
@@ -767,7 +768,7 @@ class Agent:
                 if reply.ok is None:
                     continue
                 rows = decode_states(reply.ok.payload.to_bytes(), len(self.ids))
-                if not isinstance(rows, str) and rows[0].sender == j:
+                if not isinstance(rows, Rejected) and rows[0].sender == j:
                     last[j] = rows[-1]
         mine = last.pop(self.index, None)
         omegas = {k: m.omega for k, m in last.items()}

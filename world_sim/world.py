@@ -61,6 +61,7 @@ from cdus.sim.sensing import sense_tick
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
 from cdus.sim.summary import COMPLETED, link_block, run_metrics
 from cdus.wire import keys
+from cdus.wire.rejected import Rejected
 from cdus.wire.messages import (
     COMMAND_OPS, MAX_LINK_AT, StateMsg, decode_control, decode_geometry, decode_states, encode_contacts,
     encode_control, encode_geometry, encode_states,
@@ -596,8 +597,8 @@ class World:
         if vid not in self.index:
             return self._reject(vid, "unknown_sender")
         rows = decode_states(payload, len(self.ids))
-        if isinstance(rows, str):
-            return self._reject(vid, rows)
+        if isinstance(rows, Rejected):
+            return self._reject(vid, rows.reason)
         j = self.index[vid]
         if any(m.sender != j for m in rows):
             return self._reject(vid, "sender_mismatch")
@@ -633,8 +634,8 @@ class World:
         if vid not in self.index:
             return self._reject(vid, "unknown_sender")
         s = decode_stats(payload, self.index)
-        if isinstance(s, str):
-            return self._reject(vid, s)
+        if isinstance(s, Rejected):
+            return self._reject(vid, s.reason)
         if s.id != vid:
             return self._reject(vid, "sender_mismatch")
         old = self.st.stats.get(vid)

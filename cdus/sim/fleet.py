@@ -45,6 +45,7 @@ from cdus.sim.reports import (
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
 from cdus.sim.summary import link_block, run_metrics, sum_counters
 from cdus.sim.radio import RadioWatch, apply_radio_change, geometry_sample, radio_block, radio_change_problem
+from cdus.wire.rejected import Rejected
 from cdus.wire.messages import (
     decode_contacts, decode_geometry, decode_omega, encode_contacts, encode_geometry, encode_omega,
 )
@@ -239,7 +240,7 @@ class InProcessFleet:
         for dst in self.listeners[src]:
             if self.ids[dst] not in self._alive:
                 continue
-            if isinstance(wire, str):  # a diverged vehicle (non-finite ω): receivers reject it
+            if isinstance(wire, Rejected):  # a diverged vehicle (non-finite ω): receivers reject it
                 self.nodes[dst].counters.sent += 1
                 self.nodes[dst].counters.rejected += 1
             else:
@@ -251,7 +252,7 @@ class InProcessFleet:
         were last seen (cdus.sim.sensing)."""
         for j, msg in sense_tick(self.scenario, n, positions, gone).items():
             wire = decode_contacts(encode_contacts(msg), len(self.ids))
-            if not isinstance(wire, str):
+            if not isinstance(wire, Rejected):
                 self.nodes[j].on_contacts(n, contacts_of(wire, self.ids))
 
     def _radio_sample(self, n: int, positions: dict) -> None:
@@ -259,7 +260,7 @@ class InProcessFleet:
         format once, into the shared RadioLink (in force from n + lag), and watched (events)."""
         dims = [v.dim for v in self.scenario.vehicles]
         wire = decode_geometry(encode_geometry(geometry_sample(n, positions, len(self.ids), dims)), len(self.ids), dims)
-        if isinstance(wire, str):  # a diverged vehicle's position (non-finite): the step raises first
+        if isinstance(wire, Rejected):  # a diverged vehicle's position (non-finite): the step raises first
             return
         self.link.on_geometry(wire.tick, wire.positions)
         for ev in self.radio_watch.observe(wire):

@@ -11,7 +11,7 @@
 
 Every decoder validates every field, nested ones included, into typed records rebuilt
 from numbers and ids (no map from the wire is passed on as it came), and never raises:
-it returns the record or the reason it was rejected, so a receiver counts and drops.
+it returns the record or :class:`cdus.wire.rejected.Rejected` (the reason), so a receiver counts and drops.
 Texts from the wire come out escaped (:func:`cdus.wire.text.printable`), safe to print.
 """
 
@@ -29,6 +29,7 @@ import msgpack
 from cdus.core.vocabulary import CLOCKS, DROP_CAUSES, FAULT_COUNTERS, KINDS, LINK_STATES, RADIO_CAUSES, ROSTER_STATES
 from cdus.wire.bounds import finite as _number
 from cdus.wire.messages import CTL_OPS, MAX_CONTROL_PAYLOAD, MSGPACK_ERRORS, SEQUENCED, decode_control
+from cdus.wire.rejected import Rejected
 from cdus.wire.text import printable
 
 SCHEMA_VERSION = 1
@@ -96,26 +97,26 @@ class FleetEvent:
         return {k: v for k, v in asdict(self).items() if v is not None}
 
 
-def event_from_dict(d: Any, ids: Collection[str] | None = None) -> FleetEvent | str:
+def event_from_dict(d: Any, ids: Collection[str] | None = None) -> FleetEvent | Rejected:
     """A FleetEvent from a decoded map (every field checked; the text escaped), or the reason.
     ``ids``: the fleet's vehicle ids, when the receiver knows them."""
     if not isinstance(d, dict):
-        return "malformed"
+        return Rejected("malformed")
     if not set(d) <= {"v", "t", "kind", "text", "severity", "vehicle", "link", "origin"}:
-        return "unknown_field"
+        return Rejected("unknown_field")
     t, kind, text, sev = d.get("t"), d.get("kind"), d.get("text"), d.get("severity", "info")
     if not _number(t) or not isinstance(kind, str) or kind not in EVENT_KINDS or not isinstance(text, str) \
             or not isinstance(sev, str) or sev not in SEVERITIES:
-        return "type"
+        return Rejected("type")
     if not 0 <= t <= MAX_TIME:
-        return "range"
+        return Rejected("range")
     veh, link, origin = d.get("vehicle"), d.get("link"), d.get("origin")
     if veh is not None and not isinstance(veh, str) or link is not None and not isinstance(link, str) \
             or origin is not None and not isinstance(origin, str):
-        return "type"
+        return Rejected("type")
     if veh is not None and not _id(veh, ids) or link is not None and _link(link, ids) is None \
             or origin is not None and not (origin in ORIGINS or _id(origin, ids)):
-        return "unknown_sender"
+        return Rejected("unknown_sender")
     return FleetEvent(float(t), kind, printable(text, MAX_TEXT), sev, veh, link, origin)
 
 
@@ -123,12 +124,12 @@ def encode_event(e: FleetEvent) -> bytes:
     return msgpack.packb({"v": SCHEMA_VERSION, **e.as_dict()}, use_bin_type=True)
 
 
-def decode_event(payload: bytes, ids: Collection[str] | None = None) -> FleetEvent | str:
+def decode_event(payload: bytes, ids: Collection[str] | None = None) -> FleetEvent | Rejected:
     obj = _unpack(payload)
-    if isinstance(obj, str):
+    if isinstance(obj, Rejected):
         return obj
     if obj.get("v") != SCHEMA_VERSION:
-        return "version"
+        return Rejected("version")
     return event_from_dict(obj, ids)
 
 
@@ -221,56 +222,56 @@ def encode_stats(s: AgentStats) -> bytes:
     return msgpack.packb({"v": SCHEMA_VERSION, **s.as_dict()}, use_bin_type=True)
 
 
-def decode_stats(payload: bytes, ids: Collection[str] | None = None) -> AgentStats | str:
+def decode_stats(payload: bytes, ids: Collection[str] | None = None) -> AgentStats | Rejected:
     """An agent's stats, every field checked (``ids``: the fleet's vehicle ids, when known:
     the sender and every link must name them), or the reason: ``oversized``, ``malformed``,
     ``version``, ``unknown_field``, ``type``, ``range``, ``unknown_sender``, ``reasons``,
     ``latencies``, ``faults``, ``bursts``."""
     obj = _unpack(payload, limit=1 << 16)
-    if isinstance(obj, str):
+    if isinstance(obj, Rejected):
         return obj
     if obj.get("v") != SCHEMA_VERSION:
-        return "version"
+        return Rejected("version")
     if not set(obj) <= _STAT_FIELDS:
-        return "unknown_field"
+        return Rejected("unknown_field")
     vid = obj.get("id")
     if not isinstance(vid, str):
-        return "type"
+        return Rejected("type")
     if not _id(vid, ids):
-        return "unknown_sender"
+        return Rejected("unknown_sender")
     ints = {k: obj.get(k, 0) for k in _STAT_INTS}
     if not all(type(x) is int and x >= 0 for x in ints.values()):
-        return "type"
+        return Rejected("type")
     if not all(x < MAX_COUNT for x in ints.values()):
-        return "range"
+        return Rejected("range")
     by = obj.get("rejected_by_reason", {})
     lat = obj.get("latencies_ms", [])
     faults = obj.get("faults")
     bursts = obj.get("bursts", [])
     if not isinstance(by, dict) or not isinstance(lat, list) or faults is not None and not isinstance(faults, dict) \
             or not isinstance(bursts, list):
-        return "type"
+        return Rejected("type")
     if not all(isinstance(k, str) and type(x) is int for k, x in by.items()) or not all(_number(x) for x in lat):
-        return "type"
+        return Rejected("type")
     if len(by) > MAX_REASONS or not all(REASON_RE.match(k) and 0 <= x < MAX_COUNT for k, x in by.items()):
-        return "reasons"
+        return Rejected("reasons")
     if len(lat) > MAX_LATENCIES or not all(0 <= x <= 1e7 for x in lat):
-        return "latencies"
+        return Rejected("latencies")
     checked = None
     if faults is not None:
         checked = _faults(faults, ids)
         if checked is None:
-            return "faults"
+            return Rejected("faults")
     if len(bursts) > MAX_BURSTS:
-        return "bursts"
+        return Rejected("bursts")
     reports = tuple(_burst(b, ids) for b in bursts)
     if not all(reports):
-        return "bursts"
+        return Rejected("bursts")
     radio = obj.get("radio")
     if radio is not None:
         radio = _radio_counters(radio)
         if radio is None:
-            return "radio"
+            return Rejected("radio")
     return AgentStats(vid, rejected_by_reason={k: int(x) for k, x in by.items()},
                       latencies_ms=tuple(float(x) for x in lat), faults=checked, bursts=reports, radio=radio, **ints)
 
@@ -444,7 +445,7 @@ def encode_status(t: float, duration: float, clock: str, alive: list[str], ids: 
     return out
 
 
-def decode_status(payload: bytes, ids: Collection[str] | None = None) -> dict[str, Any] | str:
+def decode_status(payload: bytes, ids: Collection[str] | None = None) -> dict[str, Any] | Rejected:
     """The world's status as a dict (STATUS_KEYS, and those of STATUS_EXTRA it carries; events
     as FleetEvent; ``roster`` None when the world did not send it), or the reject reason. Every field is checked: times finite and plausible,
     the clock a known one, ``alive`` a subset of ``ids`` (and ``ids`` the receiver's, when it
@@ -452,31 +453,31 @@ def decode_status(payload: bytes, ids: Collection[str] | None = None) -> dict[st
     each a valid one (an invalid event is left out); the optional fields as STATUS_EXTRA says
     (``extra``: the reason when one is not)."""
     obj = _unpack(payload, limit=STATUS_LIMIT)
-    if isinstance(obj, str):
+    if isinstance(obj, Rejected):
         return obj
     if obj.get("v") != SCHEMA_VERSION:
-        return "version"
+        return Rejected("version")
     if not set(obj) <= {"v", *STATUS_KEYS, *STATUS_EXTRA}:
-        return "unknown_field"
+        return Rejected("unknown_field")
     t, duration, alive, sids, events = obj.get("t"), obj.get("duration"), obj.get("alive"), obj.get("ids"), \
         obj.get("events")
     errors = (obj.get("path_error_max"), obj.get("coord_error_max"))
     if (not _number(t) or not _number(duration) or not isinstance(obj.get("clock"), str)
             or not _strings(alive) or not _strings(sids) or not isinstance(events, list)
             or not all(x is None or _number(x) for x in errors) or type(obj.get("paused", False)) is not bool):
-        return "type"
+        return Rejected("type")
     if not -1.0 <= t <= MAX_TIME or not 0 <= duration <= MAX_TIME or obj["clock"] not in CLOCKS \
             or not all(x is None or x >= 0 for x in errors):
-        return "range"
+        return Rejected("range")
     if len(sids) > MAX_STATUS_IDS or len(events) > MAX_STATUS_EVENTS or not all(_id(v, ids) for v in sids) \
             or not set(alive) <= set(sids):
-        return "unknown_sender"
+        return Rejected("unknown_sender")
     roster = obj.get("roster")
     if roster is not None and (not isinstance(roster, dict)
                                or not all(isinstance(k, str) and isinstance(x, str) for k, x in roster.items())):
-        return "type"
+        return Rejected("type")
     if roster is not None and (not set(roster) <= set(sids) or not set(roster.values()) <= set(ROSTER_STATES)):
-        return "roster"
+        return Rejected("roster")
     known = sids if ids is None else ids
     out = {k: obj.get(k) for k in STATUS_KEYS}
     out["t"], out["duration"] = float(t), float(duration)
@@ -485,7 +486,7 @@ def decode_status(payload: bytes, ids: Collection[str] | None = None) -> dict[st
     out["paused"] = bool(obj.get("paused"))
     out["roster"] = None if roster is None else {k: str(x) for k, x in roster.items()}
     extra = _status_extra(obj, list(sids))
-    if isinstance(extra, str):
+    if isinstance(extra, Rejected):
         return extra
     out.update(extra)
     return out
@@ -500,7 +501,7 @@ def _count(x: Any) -> bool:
     return type(x) is int and 0 <= x < MAX_COUNT
 
 
-def _status_extra(obj: dict, sids: list[str]) -> dict[str, Any] | str:
+def _status_extra(obj: dict, sids: list[str]) -> dict[str, Any] | Rejected:
     """The optional status fields present in ``obj``, checked against the status's own ``ids``
     and rebuilt, or ``extra`` (one of them is not what STATUS_EXTRA says)."""
     out: dict[str, Any] = {}
@@ -509,28 +510,28 @@ def _status_extra(obj: dict, sids: list[str]) -> dict[str, Any] | str:
         if name in obj:
             x, allowed = obj[name], KINDS if name == "kinds" else ROSTER_STATES
             if not _strings(x) or len(x) != n or not all(_in(s, allowed) for s in x):
-                return "extra"
+                return Rejected("extra")
             out[name] = [str(s) for s in x]
     if "edges" in obj:
         x = obj["edges"]
         if not isinstance(x, list) or len(x) > MAX_STATUS_EDGES:
-            return "extra"
+            return Rejected("extra")
         edges = []
         for e in x:
             if not (isinstance(e, list) and len(e) == 3 and _in(e[0], known) and _in(e[1], known) and e[0] != e[1]
                     and (e[2] is None or _number(e[2]) and e[2] >= 0)):
-                return "extra"
+                return Rejected("extra")
             edges.append((str(e[0]), str(e[1]), None if e[2] is None else float(e[2])))
         out["edges"] = edges
     if "links" in obj:
         x = obj["links"]
         if not isinstance(x, list) or len(x) > MAX_STATUS_LINKS:
-            return "extra"
+            return Rejected("extra")
         links = []
         for e in x:
             if not (isinstance(e, list) and len(e) == 5 and _in(e[0], known) and _in(e[1], known) and e[0] != e[1]
                     and _count(e[2]) and _count(e[3]) and e[3] <= e[2] and (e[4] is None or _in(e[4], LINK_STATES))):
-                return "extra"
+                return Rejected("extra")
             links.append((str(e[0]), str(e[1]), int(e[2]), int(e[3]), None if e[4] is None else str(e[4])))
         out["links"] = links
     if "rx" in obj:
@@ -538,31 +539,31 @@ def _status_extra(obj: dict, sids: list[str]) -> dict[str, Any] | str:
         if not isinstance(x, list) or len(x) != n or not all(
                 r is None or isinstance(r, list) and len(r) == 2 and _count(r[0]) and _count(r[1]) and r[1] <= r[0]
                 for r in x):
-            return "extra"
+            return Rejected("extra")
         out["rx"] = [None if r is None else (int(r[0]), int(r[1])) for r in x]
     if "safety_radius" in obj:
         r = obj["safety_radius"]
         if not _number(r) or not 0 < r <= MAX_TIME:
-            return "extra"
+            return Rejected("extra")
         out["safety_radius"] = float(r)
     if "closest" in obj:
         c = obj["closest"]
         if not (isinstance(c, list) and len(c) == 3 and _in(c[0], known) and _in(c[1], known) and c[0] != c[1]
                 and _number(c[2]) and 0 <= c[2] <= MAX_TIME):
-            return "extra"
+            return Rejected("extra")
         out["closest"] = (str(c[0]), str(c[1]), float(c[2]))
     if "path_errors" in obj:
         x = obj["path_errors"]
         if not isinstance(x, list) or len(x) != n or not all(e is None or _number(e) and e >= 0 for e in x):
-            return "extra"
+            return Rejected("extra")
         out["path_errors"] = [None if e is None else float(e) for e in x]
     if "directed" in obj:
         if type(obj["directed"]) is not bool:
-            return "extra"
+            return Rejected("extra")
         out["directed"] = obj["directed"]
     if "completion" in obj:
         if not _in(obj["completion"], COMPLETIONS):
-            return "extra"
+            return Rejected("extra")
         out["completion"] = str(obj["completion"])
     return out
 
@@ -570,17 +571,17 @@ def _status_extra(obj: dict, sids: list[str]) -> dict[str, Any] | str:
 # --------------------------------------------------------------------------- helpers
 
 
-def _unpack(payload: bytes, limit: int = 4096) -> dict | str:
+def _unpack(payload: bytes, limit: int = 4096) -> dict | Rejected:
     if len(payload) > limit:
-        return "oversized"
+        return Rejected("oversized")
     try:
         obj = msgpack.unpackb(payload, raw=False, max_str_len=limit, max_array_len=4096, max_map_len=256,
                               max_bin_len=0, max_ext_len=0, strict_map_key=True)
     except MSGPACK_ERRORS:
-        return "malformed"
+        return Rejected("malformed")
     except RecursionError:  # nesting deeper than the interpreter's stack
-        return "malformed"
-    return obj if isinstance(obj, dict) else "malformed"
+        return Rejected("malformed")
+    return obj if isinstance(obj, dict) else Rejected("malformed")
 
 
 def _strings(x: Any) -> bool:
@@ -648,34 +649,34 @@ def encode_reply(r: CommandReply) -> bytes:
     return msgpack.packb(r.as_dict(), use_bin_type=True)
 
 
-def decode_reply(payload: bytes) -> CommandReply | str:
+def decode_reply(payload: bytes) -> CommandReply | Rejected:
     """A command reply, every field checked (the reason and sender escaped), or the reject reason:
     ``oversized``, ``malformed``, ``version``, ``unknown_field``, ``type``, ``status``, ``op``,
     ``range``, ``unknown_sender``; never raises."""
     obj = _unpack(payload, limit=2048)
-    if isinstance(obj, str):
+    if isinstance(obj, Rejected):
         return obj
     if obj.get("v") != REPLY_VERSION or type(obj.get("v")) is not int:
-        return "version"
+        return Rejected("version")
     if not set(obj) <= set(REPLY_KEYS):
-        return "unknown_field"
+        return Rejected("unknown_field")
     status, op, reason, tick, t, by = (obj.get(k) for k in ("status", "op", "reason", "tick", "t", "by"))
     reason = "" if reason is None else reason
     by = "" if by is None else by
     if not isinstance(status, str) or not isinstance(op, str) or not isinstance(reason, str) \
             or not isinstance(by, str) or tick is not None and type(tick) is not int \
             or t is not None and not _number(t):
-        return "type"
+        return Rejected("type")
     if status not in REPLY_STATUSES:
-        return "status"
+        return Rejected("status")
     if op != "?" and not OP_RE.match(op):
-        return "op"
+        return Rejected("op")
     if tick is not None and not 0 <= tick < MAX_COUNT or t is not None and not 0 <= t <= MAX_TIME:
-        return "range"
+        return Rejected("range")
     if status == "applied" and tick is None:  # an applied command always says when
-        return "range"
+        return Rejected("range")
     if by and not SENDER_RE.match(by):
-        return "unknown_sender"
+        return Rejected("unknown_sender")
     return CommandReply(status, op, printable(reason, MAX_REASON), tick, None if t is None else float(t), by)
 
 
@@ -726,26 +727,26 @@ def _plain(x: Any, depth: int = 0) -> Any:
     return None
 
 
-def decode_settings(payload: bytes, ids: Collection[str] | None = None) -> dict[str, Any] | str:
+def decode_settings(payload: bytes, ids: Collection[str] | None = None) -> dict[str, Any] | Rejected:
     """The settings as plain JSON-able values: ``changes`` [{seq, op, vehicle, fields}] (each
     command decoded by cdus.wire.messages.decode_control; one that does not decode is left out
     and counted in ``unreadable``), ``total``, ``phases`` {id: θ}, ``link``; or the reason."""
     if len(payload) > SETTINGS_LIMIT:
-        return "oversized"
+        return Rejected("oversized")
     try:
         obj = msgpack.unpackb(payload, raw=False, max_bin_len=MAX_CONTROL_PAYLOAD, max_ext_len=0,
                               max_array_len=max(MAX_SETTINGS_CHANGES, 4096), max_map_len=4096,
                               max_str_len=4096)
     except (*MSGPACK_ERRORS, RecursionError):
-        return "malformed"
+        return Rejected("malformed")
     if not isinstance(obj, dict):
-        return "malformed"
+        return Rejected("malformed")
     if obj.get("v") != SETTINGS_VERSION:
-        return "version"
+        return Rejected("version")
     changes, phases, link, total = obj.get("changes"), obj.get("phases"), obj.get("link"), obj.get("total")
     if not isinstance(changes, list) or not isinstance(phases, list) or not isinstance(link, dict) \
             or type(total) is not int or not len(changes) <= total < MAX_COUNT:
-        return "type"
+        return Rejected("type")
     out_changes, unreadable = [], 0
     for ch in changes:
         c = None
@@ -760,6 +761,6 @@ def decode_settings(payload: bytes, ids: Collection[str] | None = None) -> dict[
     theta = {}
     for p in phases:
         if not (isinstance(p, list) and len(p) == 2 and isinstance(p[0], str) and _id(p[0], ids) and _number(p[1])):
-            return "phases"
+            return Rejected("phases")
         theta[p[0]] = float(p[1])
     return {"changes": out_changes, "total": total, "unreadable": unreadable, "phases": theta, "link": _plain(link)}

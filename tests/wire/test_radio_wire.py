@@ -11,6 +11,7 @@ from cdus.wire import keys, schemas
 from cdus.wire.access import fleet_acl
 from cdus.wire.messages import COMMAND_OPS, CTL_OPS, decode_control, encode_control
 from cdus.wire.schemas import AgentStats, decode_stats, encode_stats
+from cdus.wire.rejected import Rejected
 
 
 def test_the_geometry_key_reaches_every_addressed_vehicle_and_the_world_may_put_it():
@@ -30,7 +31,7 @@ def test_agent_stats_carry_the_radio_counters_checked():
     d = {"v": 1, **AgentStats("usv1", 5).as_dict()}
     for bad in ({**c.as_dict(), "extra": 1}, {**c.as_dict(), "sent": -1}, {**c.as_dict(), "sent": 1.5},
                 {**c.as_dict(), "dropped_by": {"range": 1}}, [1, 2], "x", {**c.as_dict(), "no_geometry": 2**60}):
-        assert decode_stats(msgpack.packb({**d, "radio": bad}), ["usv1"]) == "radio", bad
+        assert decode_stats(msgpack.packb({**d, "radio": bad}), ["usv1"]) == Rejected("radio"), bad
 
 
 @pytest.mark.parametrize("ops", [CTL_OPS, COMMAND_OPS])
@@ -48,9 +49,9 @@ def test_a_geometry_sample_gives_each_vehicle_its_own_dimension_or_is_rejected()
     assert decode_geometry(encode_geometry(good), 3, dims) == good
     for bad in (((1.0, 2.0, 5.0), (3.0, 4.0, 30.0), None),  # a boat lifted 5 m off the water
                 ((1.0, 2.0), (3.0, 4.0), None)):  # a drone put on the water
-        assert decode_geometry(encode_geometry(GeometryMsg(4, bad)), 3, dims) == "dimension"
+        assert decode_geometry(encode_geometry(GeometryMsg(4, bad)), 3, dims) == Rejected("dimension")
         assert decode_geometry(encode_geometry(GeometryMsg(4, bad)), 3) == GeometryMsg(4, bad)  # not checked
-    assert decode_geometry(encode_geometry(good), None, [2, 3]) == "count"
+    assert decode_geometry(encode_geometry(good), None, [2, 3]) == Rejected("count")
 
 
 def test_the_largest_sample_a_fleet_can_send_decodes():
