@@ -77,7 +77,7 @@ def test_any_settings_payload_decodes_to_plain_values_or_a_reason_never_raises(o
 
 
 def test_plain_values_keep_their_kind_their_depth_and_their_size():
-    from cdus.wire.schemas import _PLAIN_DEPTH, _plain
+    from cdus.wire.replies import _PLAIN_DEPTH, _plain
     from cdus.wire.text import printable
 
     assert [_plain(x) for x in (True, False, None, 0, 2**63 - 1, -(2**63), 2**63, 1.5, math.nan, b"x")] == \
