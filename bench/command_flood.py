@@ -54,7 +54,7 @@ class WorldClock:
 
     def _on(self, sample) -> None:
         st = decode_status(sample.payload.to_bytes())
-        if isinstance(st, dict) and st.get("t") is not None:
+        if not isinstance(st, Rejected):
             self.t = float(st["t"])
 
 

@@ -32,7 +32,7 @@ from cdus.wire.stats import (MAX_BURSTS, MAX_LATENCIES, MAX_LINKS, MAX_REASONS, 
                              BurstReport, decode_stats, encode_stats)
 from cdus.wire.status import (COMPLETED, COMPLETIONS, MAX_STATUS_EDGES, MAX_STATUS_EVENTS, MAX_STATUS_IDS,
                               MAX_STATUS_LINKS, STATUS_EXTRA, STATUS_KEY_ENV, STATUS_KEYS, STATUS_LIMIT, StatusExtra,
-                              decode_status, encode_status, signed_by, status_signature)
+                              WorldStatus, decode_status, encode_status, signed_by, status_signature)
 
 __all__ = [
     "CLOCKS", "DROP_CAUSES", "FAULT_COUNTERS", "KINDS", "LINK_STATES", "RADIO_CAUSES", "ROSTER_STATES",
@@ -45,6 +45,7 @@ __all__ = [
     "MAX_BURSTS", "MAX_LATENCIES", "MAX_LINKS", "MAX_REASONS", "MAX_STATE_CHANGES", "AgentStats", "BurstReport",
     "decode_stats", "encode_stats",
     "COMPLETED", "COMPLETIONS", "MAX_STATUS_EDGES", "MAX_STATUS_EVENTS", "MAX_STATUS_IDS", "MAX_STATUS_LINKS",
-    "STATUS_EXTRA", "STATUS_KEY_ENV", "STATUS_KEYS", "STATUS_LIMIT", "StatusExtra", "decode_status", "encode_status",
+    "STATUS_EXTRA", "STATUS_KEY_ENV", "STATUS_KEYS", "STATUS_LIMIT", "StatusExtra", "WorldStatus", "decode_status",
+    "encode_status",
     "signed_by", "status_signature",
 ]

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import hashlib
 import hmac
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any, Collection
 
@@ -80,6 +81,57 @@ class StatusExtra:
         return {k: v for k, v in d.items() if v is not None}
 
 
+@dataclass(frozen=True)
+class WorldStatus(Mapping):
+    """The world's status as :func:`decode_status` checked it: a reader takes each field as it is.
+
+    ``t`` and ``duration`` finite (s; ``t`` from -1), ``clock`` one of CLOCKS, ``alive`` a subset
+    of ``ids`` (well-formed, or the receiver's own), the errors finite and >= 0 or None,
+    ``events`` valid FleetEvents, ``roster`` {id: one of ROSTER_STATES} or None. The optional
+    fields (STATUS_EXTRA) are None when the world did not send them; when present, ``kinds``,
+    ``states``, ``rx`` and ``path_errors`` have one entry per id, ``edges``, ``links`` and
+    ``closest`` name ids of the status, and each value is within its bounds.
+
+    It reads as a map too (``st["t"]``, ``st.get("kinds")``, its keys STATUS_KEYS and the extras
+    present), as the dict this decoder returned before did, for readers not moved to the fields.
+    """
+
+    t: float
+    duration: float
+    clock: str
+    alive: list[str]
+    ids: list[str]
+    path_error_max: float | None
+    coord_error_max: float | None
+    events: list[FleetEvent]
+    paused: bool
+    roster: dict[str, str] | None
+    kinds: list[str] | None = None
+    states: list[str] | None = None
+    edges: list[tuple[str, str, float | None]] | None = None
+    links: list[tuple[str, str, int, int, str | None]] | None = None
+    rx: list[tuple[int, int] | None] | None = None
+    safety_radius: float | None = None
+    closest: tuple[str, str, float] | None = None
+    path_errors: list[float | None] | None = None
+    directed: bool | None = None
+    completion: str | None = None
+
+    def _names(self) -> list[str]:
+        return [*STATUS_KEYS, *(k for k in STATUS_EXTRA if getattr(self, k) is not None)]
+
+    def __getitem__(self, name: str) -> Any:
+        if name in STATUS_KEYS or name in STATUS_EXTRA and getattr(self, name) is not None:
+            return getattr(self, name)
+        raise KeyError(name)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._names())
+
+    def __len__(self) -> int:
+        return len(self._names())
+
+
 STATUS_LIMIT = 1 << 16  # bytes: decode_status takes no bigger status
 
 #: The environment variable a launcher hands its world a per-run key in (hex): the world signs
@@ -120,9 +172,9 @@ def encode_status(t: float, duration: float, clock: str, alive: list[str], ids: 
     return out
 
 
-def decode_status(payload: bytes, ids: Collection[str] | None = None) -> dict[str, Any] | Rejected:
-    """The world's status as a dict (STATUS_KEYS, and those of STATUS_EXTRA it carries; events
-    as FleetEvent; ``roster`` None when the world did not send it), or the reject reason. Every field is checked: times finite and plausible,
+def decode_status(payload: bytes, ids: Collection[str] | None = None) -> WorldStatus | Rejected:
+    """The world's status as a :class:`WorldStatus` (events as FleetEvent; ``roster`` None when the
+    world did not send it; an optional field None when absent), or Rejected. Every field is checked: times finite and plausible,
     the clock a known one, ``alive`` a subset of ``ids`` (and ``ids`` the receiver's, when it
     knows them), errors finite or None, ``paused`` a bool, at most MAX_STATUS_EVENTS events,
     each a valid one (an invalid event is left out); the optional fields as STATUS_EXTRA says
@@ -154,17 +206,14 @@ def decode_status(payload: bytes, ids: Collection[str] | None = None) -> dict[st
     if roster is not None and (not set(roster) <= set(sids) or not set(roster.values()) <= set(ROSTER_STATES)):
         return Rejected("roster")
     known = sids if ids is None else ids
-    out = {k: obj.get(k) for k in STATUS_KEYS}
-    out["t"], out["duration"] = float(t), float(duration)
-    out["path_error_max"], out["coord_error_max"] = (None if x is None else float(x) for x in errors)
-    out["events"] = [e for e in (event_from_dict(d, known) for d in events) if isinstance(e, FleetEvent)]
-    out["paused"] = bool(obj.get("paused"))
-    out["roster"] = None if roster is None else {k: str(x) for k, x in roster.items()}
+    pe, ce = (None if x is None else float(x) for x in errors)
     extra = _status_extra(obj, list(sids))
     if isinstance(extra, Rejected):
         return extra
-    out.update(extra)
-    return out
+    return WorldStatus(float(t), float(duration), str(obj["clock"]), [str(v) for v in alive], [str(v) for v in sids],
+                       pe, ce, [e for e in (event_from_dict(d, known) for d in events) if isinstance(e, FleetEvent)],
+                       bool(obj.get("paused")), None if roster is None else {k: str(x) for k, x in roster.items()},
+                       **extra)
 
 
 def _status_extra(obj: dict, sids: list[str]) -> dict[str, Any] | Rejected:

@@ -18,6 +18,7 @@ from cdus.wire.schemas import (
     decode_status, encode_event, encode_stats, encode_status, event_from_dict,
 )
 from cdus.wire.rejected import Rejected
+from cdus.wire.status import WorldStatus
 
 
 def pack(d) -> bytes:
@@ -282,7 +283,7 @@ def test_decoders_never_raise_on_random_bytes():
         payload = bytes(base[: rng.randrange(len(base) + 1)])
         for decode in (decode_event, decode_stats, decode_status):
             out = decode(payload)
-            assert isinstance(out, (Rejected, FleetEvent, AgentStats, dict))
+            assert isinstance(out, (Rejected, FleetEvent, AgentStats, WorldStatus))
             if isinstance(out, FleetEvent):
                 assert math.isfinite(out.t) and out.kind in EVENT_KINDS
 
@@ -324,16 +325,19 @@ def test_no_decoder_raises_and_what_passes_is_typed_and_bounded(d, ids):
             assert out.faults is None or set(out.faults) == {"total", "links", "state_changes"}
             assert ids is None or out.id in ids
             assert all(type(x) is int and 0 <= x < 2**53 for x in out.rejected_by_reason.values())
-        else:
-            assert math.isfinite(out["t"]) and out["clock"] in ("lockstep", "realtime")
-            assert all(isinstance(e, FleetEvent) for e in out["events"])
+        else:  # a status whose every field is what WorldStatus says: a reader needs no check of its own
+            assert isinstance(out, WorldStatus)
+            assert math.isfinite(out.t) and -1 <= out.t <= 1e9 and out.clock in ("lockstep", "realtime")
+            assert set(out.alive) <= set(out.ids) and all(isinstance(e, FleetEvent) for e in out.events)
+            assert all(x is None or math.isfinite(x) and x >= 0 for x in (out.path_error_max, out.coord_error_max))
+            assert type(out.paused) is bool and (out.roster is None or set(out.roster) <= set(out.ids))
 
 
 @settings(max_examples=300, deadline=None)
 @given(hs.binary(max_size=300))
 def test_no_decoder_raises_on_arbitrary_bytes(payload):
     for decode in (decode_event, decode_stats, decode_status):
-        assert isinstance(decode(payload), (Rejected, FleetEvent, AgentStats, dict))
+        assert isinstance(decode(payload), (Rejected, FleetEvent, AgentStats, WorldStatus))
 
 
 def test_an_event_text_from_the_wire_comes_out_escaped():
