@@ -26,7 +26,7 @@ LAYERS = {  # module prefix -> layer rank (longest prefix wins)
     "cdus.scenario": 2,
     "cdus.sim": 3,
     "vehicle_agent": 4, "world_sim": 4, "ground_station": 4, "cdus.ros2": 4,
-    "cdus.app": 5, "cdus.__main__": 5, "cdus.api": 5,
+    "cdus.app": 5, "cdus.__main__": 5, "cdus.api": 5, "cdus.results": 5,
 }
 EXACT = {"cdus": 5}  # the package itself (cdus/__init__.py): the public API's names, from cdus.api
 PURE = ("cdus.core", "cdus.scenario", "cdus.sim")  # no Zenoh, no Rerun, no clocks or printing
