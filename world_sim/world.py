@@ -1357,7 +1357,7 @@ class World:
         self.pub_radio.put(payload)
         self._radio_sent.append((tick, payload))
         msg = decode_geometry(payload, len(self.ids))  # what the vehicles read: the same numbers
-        if isinstance(msg, str) or self.radio_watch is None:
+        if isinstance(msg, Rejected) or self.radio_watch is None:
             return
         for ev in self.radio_watch.observe(msg):
             self._note(ev)
