@@ -265,10 +265,8 @@ class _PrintingSink:
         self.inner.link_state(t, src, dst, state)
 
     def radio(self, t: float, watch: Any) -> None:
-        """[radio]: each geometry sample to ``inner`` if it draws them (the Rerun sink does)."""
-        view = getattr(self.inner, "radio", None)
-        if view is not None:
-            view(t, watch)
+        """[radio]: each geometry sample to ``inner`` (the Rerun sink draws them)."""
+        self.inner.radio(t, watch)
 
     def close(self) -> None:
         self._print(self.console.flush())  # the run is over: what is held, at once

@@ -253,8 +253,7 @@ class World:
         self.not_written: list[str] = []
         self.start_timeout = start_timeout
         self.sink = sink or NullSink()
-        if hasattr(self.sink, "on_stop"):  # a file recording that stops (a full disk) is said while the run goes on
-            self.sink.on_stop = self._recording_stopped
+        self.sink.on_stop = self._recording_stopped  # a file recording that stops (a full disk) is said as the run goes on
         self.policy = policy or scenario.link.policy
         self._link_table = scenario.link_table  # the [link] table as run-time commands have left it
         self.recorder = Recorder(self.ids, [v.dim for v in scenario.vehicles], metric_edges(scenario))
@@ -1361,9 +1360,7 @@ class World:
             return
         for ev in self.radio_watch.observe(msg):
             self._note(ev)
-        view = getattr(self.sink, "radio", None)
-        if view is not None:
-            view(tick * self.period, self.radio_watch)
+        self.sink.radio(tick * self.period, self.radio_watch)
 
     def _replay_geometry(self, vid: str) -> None:
         """A (re)joining process needs the radio samples in force from its join on: the newest ones."""

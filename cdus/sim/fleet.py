@@ -265,9 +265,7 @@ class InProcessFleet:
         self.link.on_geometry(wire.tick, wire.positions)
         for ev in self.radio_watch.observe(wire):
             self._note(ev)
-        radio_view = getattr(self.sink, "radio", None)
-        if radio_view is not None:
-            radio_view(n * self.period, self.radio_watch)
+        self.sink.radio(n * self.period, self.radio_watch)
 
     def set_radio(self, change: dict, at: float) -> None:
         """A run-time radio change (tx_power, station) for messages sent from ``at`` on, as a
