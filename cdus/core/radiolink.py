@@ -53,7 +53,7 @@ def sample_tick(m: int, every: int, lag: int) -> int:
     return max(0, (m - lag) // every * every) if m >= lag else 0
 
 
-class RadioLink:
+class RadioLink(LinkModel):
     """A :class:`LinkModel`: the hand-set link faults, then the radio channel (module docstring)."""
 
     def __init__(self, inner: LinkModel, channel: RadioChannel, *, period: float, every: int, lag: int):
@@ -71,7 +71,15 @@ class RadioLink:
     # ---- the link emulator's run-time interface, forwarded (set_link, metrics)
     @property
     def epochs(self):
-        return getattr(self.inner, "epochs", None)
+        return self.inner.epochs
+
+    @property
+    def faults(self):
+        return self.inner.faults
+
+    @property
+    def radio(self) -> RadioLink:
+        return self
 
     def update(self, spec, at: float) -> None:
         self.inner.update(spec, at)  # type: ignore[attr-defined]

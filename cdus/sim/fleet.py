@@ -69,7 +69,7 @@ class InProcessFleet:
         self.mode = mode
         self.sink = sink or NullSink()
         self.link = link_model_for(scenario) if link is None else (
-            link if hasattr(link, "on_geometry") else with_radio(scenario, link))  # a given model under [radio]
+            link if link.radio is not None else with_radio(scenario, link))  # a given model under [radio]
         spec = scenario.link
         self.policy = policy or spec.policy
         self.timeout = spec.timeout if timeout is None else timeout
@@ -286,7 +286,8 @@ class InProcessFleet:
         for node in self.nodes:
             for ev in burst_events(node.bursts, self.ids):
                 self._note(ev)
-        changes = getattr(link_faults_of(self.link), "state_changes", None)
+        emulator = self.link.faults
+        changes = emulator.state_changes if emulator is not None else None
         if not changes or len(changes) == self._changes_seen:
             return
         for t, s, d, state in changes[self._changes_seen:]:
