@@ -81,14 +81,14 @@ class StatusExtra:
         return {k: v for k, v in d.items() if v is not None}
 
 
-@dataclass(frozen=True)
-class WorldStatus(Mapping):
+@dataclass(frozen=True, kw_only=True)
+class WorldStatus(StatusExtra, Mapping):
     """The world's status as :func:`decode_status` checked it: a reader takes each field as it is.
 
     ``t`` and ``duration`` finite (s; ``t`` from -1), ``clock`` one of CLOCKS, ``alive`` a subset
     of ``ids`` (well-formed, or the receiver's own), the errors finite and >= 0 or None,
     ``events`` valid FleetEvents, ``roster`` {id: one of ROSTER_STATES} or None. The optional
-    fields (STATUS_EXTRA) are None when the world did not send them; when present, ``kinds``,
+    fields (STATUS_EXTRA, the :class:`StatusExtra` it extends) are None when the world did not send them; when present, ``kinds``,
     ``states``, ``rx`` and ``path_errors`` have one entry per id, ``edges``, ``links`` and
     ``closest`` name ids of the status, and each value is within its bounds.
 
@@ -106,16 +106,6 @@ class WorldStatus(Mapping):
     events: list[FleetEvent]
     paused: bool
     roster: dict[str, str] | None
-    kinds: list[str] | None = None
-    states: list[str] | None = None
-    edges: list[tuple[str, str, float | None]] | None = None
-    links: list[tuple[str, str, int, int, str | None]] | None = None
-    rx: list[tuple[int, int] | None] | None = None
-    safety_radius: float | None = None
-    closest: tuple[str, str, float] | None = None
-    path_errors: list[float | None] | None = None
-    directed: bool | None = None
-    completion: str | None = None
 
     def _names(self) -> list[str]:
         return [*STATUS_KEYS, *(k for k in STATUS_EXTRA if getattr(self, k) is not None)]
@@ -210,10 +200,11 @@ def decode_status(payload: bytes, ids: Collection[str] | None = None) -> WorldSt
     extra = _status_extra(obj, list(sids))
     if isinstance(extra, Rejected):
         return extra
-    return WorldStatus(float(t), float(duration), str(obj["clock"]), [str(v) for v in alive], [str(v) for v in sids],
-                       pe, ce, [e for e in (event_from_dict(d, known) for d in events) if isinstance(e, FleetEvent)],
-                       bool(obj.get("paused")), None if roster is None else {k: str(x) for k, x in roster.items()},
-                       **extra)
+    return WorldStatus(t=float(t), duration=float(duration), clock=str(obj["clock"]), alive=[str(v) for v in alive],
+                       ids=[str(v) for v in sids], path_error_max=pe, coord_error_max=ce,
+                       events=[e for e in (event_from_dict(d, known) for d in events) if isinstance(e, FleetEvent)],
+                       paused=bool(obj.get("paused")),
+                       roster=None if roster is None else {k: str(x) for k, x in roster.items()}, **extra)
 
 
 def _status_extra(obj: dict, sids: list[str]) -> dict[str, Any] | Rejected:
