@@ -65,3 +65,26 @@ def test_the_largest_sample_a_fleet_can_send_decodes():
     assert MAX_GEOMETRY_VEHICLES >= MAX_VEHICLES
     big = GeometryMsg(2**31 - 1, tuple((-MAX_COORDINATE, MAX_COORDINATE, -MAX_COORDINATE) for _ in range(MAX_VEHICLES)))
     assert decode_geometry(encode_geometry(big), MAX_VEHICLES, [3] * MAX_VEHICLES) == big
+
+
+def test_each_geometry_reject_has_its_exact_reason():
+    """Found by mutmut (cdus.wire.messages.decode_geometry): a reason could be any string, or
+    None, and the tests that only read the agent's ``radio_`` prefix passed."""
+    import math
+
+    from cdus.wire.messages import MAX_COORDINATE, MAX_GEOMETRY_VEHICLES, GeometryMsg, decode_geometry
+    cases = {
+        "type": [msgpack.packb([1, -1, []]), msgpack.packb([1, 1.0, []]), msgpack.packb([1, 4, {}]),
+                 msgpack.packb([1, 4, [[1.0]]]), msgpack.packb([1, 4, [[1, 2]]]), msgpack.packb([1, 4, [7]])],
+        "non_finite": [msgpack.packb([1, 4, [[1.0, math.nan]]])],
+        "range": [msgpack.packb([1, 4, [[2 * MAX_COORDINATE, 0.0]]])],
+        "count": [msgpack.packb([1, 4, [[1.0, 2.0]]])],
+        "version": [msgpack.packb([2, 4, []])],
+        "malformed": [b"\xc1", msgpack.packb([1, 4])],
+        "oversized": [b"\x00" * (30 * MAX_GEOMETRY_VEHICLES + 33)],
+    }
+    for reason, payloads in cases.items():
+        for p in payloads:
+            assert decode_geometry(p, 3 if reason == "count" else None) == Rejected(reason), (reason, p)
+    assert decode_geometry(msgpack.packb([1, 0, [[1.0, 2.0], None]])) == GeometryMsg(0, ((1.0, 2.0), None))
+    assert decode_geometry(msgpack.packb([1, 4, [[1.0, 2.0]]]), 1) == GeometryMsg(4, ((1.0, 2.0),))
