@@ -33,6 +33,7 @@ import zenoh
 
 from cdus.scenario.config import load_scenario
 from cdus.wire import keys
+from cdus.wire.rejected import Rejected
 from cdus.wire.messages import encode_control
 from cdus.wire.schemas import decode_reply, decode_status
 from cdus.wire.transport import Transport, free_tcp_port, open_session
@@ -53,7 +54,7 @@ class WorldClock:
 
     def _on(self, sample) -> None:
         st = decode_status(sample.payload.to_bytes())
-        if isinstance(st, dict) and st.get("t") is not None:
+        if not isinstance(st, Rejected):
             self.t = float(st["t"])
 
 
@@ -84,7 +85,7 @@ def flood(session, fleet: str, what: str, payload: bytes, seconds: float, inflig
             word = "error"
         elif what == "commands":
             rep = decode_reply(r.ok.payload.to_bytes())
-            word = "unreadable" if isinstance(rep, str) else rep.status if rep.status == "applied" else (
+            word = "unreadable" if isinstance(rep, Rejected) else rep.status if rep.status == "applied" else (
                 "refused: " + rep.reason.split(":")[0])
         else:
             word = "answered"

@@ -36,6 +36,7 @@ from cdus.wire import keys
 from cdus.wire.messages import OmegaMsg, encode_omega
 from cdus.wire.schemas import decode_stats
 from cdus.wire.transport import free_tcp_port
+from cdus.wire.rejected import Rejected
 
 
 def client(endpoint: str) -> zenoh.Config:
@@ -85,7 +86,7 @@ def main() -> None:
                 agents[r.split(":", 1)[1]] = p
 
         def missed() -> dict[str, int]:
-            return {v: getattr(s, "missed_deadlines", 0) for v, s in stats.items() if not isinstance(s, str)}
+            return {v: getattr(s, "missed_deadlines", 0) for v, s in stats.items() if not isinstance(s, Rejected)}
 
         launcher = psutil.Process(la.proc.pid)
 
@@ -171,7 +172,7 @@ def main() -> None:
         print(f"{name:<8} {tm:>17} {om:>16} {rr:>22} {cpu_t:>17} {cpu_r:>13}")
     for v in targets:
         s = stats.get(v)
-        if s is not None and not isinstance(s, str):
+        if s is not None and not isinstance(s, Rejected):
             print(f"{v}: rejected {s.rejected}, by reason {dict(sorted(s.rejected_by_reason.items()))}, "
                   f"ticks {s.tick}, missed {s.missed_deadlines}")
     metrics = la.lines

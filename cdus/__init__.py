@@ -17,7 +17,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 __all__ = [
-    "CLOCKS", "ClosestPair", "ConfigError", "DivergedError", "DroppedBy", "Event", "FaultCounters", "Integrity",
+    "RUNNERS", "ClosestPair", "ConfigError", "DivergedError", "DroppedBy", "Event", "FaultCounters", "Integrity",
     "LinkFaults", "LinkMetrics", "LinkStateChange", "Metrics", "RadioMetrics", "RejectedByReason", "Result",
     "RunError", "RunInterrupted", "SafetyInfo", "Scenario", "SweepRow", "SweepTable", "CellStats", "Trace",
     "cell_statistics", "load", "override", "run", "sweep",
@@ -25,7 +25,7 @@ __all__ = [
 
 if TYPE_CHECKING:  # for type checkers and editors; at run time __getattr__ loads them
     from cdus.api import (  # noqa: F401
-        CLOCKS, ClosestPair, ConfigError, DivergedError, DroppedBy, Event, FaultCounters, Integrity, LinkFaults,
+        RUNNERS, ClosestPair, ConfigError, DivergedError, DroppedBy, Event, FaultCounters, Integrity, LinkFaults,
         LinkMetrics, LinkStateChange, Metrics, RadioMetrics, RejectedByReason, Result, RunError, RunInterrupted,
         SafetyInfo, Scenario, SweepRow, SweepTable, CellStats, Trace, cell_statistics, load, override, run, sweep,
     )

@@ -1,5 +1,8 @@
 """The Python API: load a scenario, run it, read its metrics and trace, run a sweep.
 
+How does a user run a scenario from Python? This module: its checks of every argument and its
+runs; the typed results they return are in :mod:`cdus.results`.
+
     import cdus
     sc = cdus.load("configs/lake_circle.toml", {"scenario.duration": 60, "link.loss": 0.2})
     res = cdus.run(sc)                       # in process (`cdus sim`); clock="lockstep": `cdus launch`
@@ -18,13 +21,11 @@ Zenoh (lockstep runs) and Rerun (``rerun=`` other than ``off``) only when a run 
 
 from __future__ import annotations
 
-import json
 import os
 import tempfile
 import threading
 import time
 import warnings
-from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
@@ -32,14 +33,16 @@ import numpy as np
 
 from cdus.app import sweep as app_sweep
 from cdus.app.report import Progress
+from cdus.app.sweep import RUNNERS  # how run() runs a scenario: `cdus sim`, `cdus launch --clock lockstep`
 from cdus.app.sweeptable import CellStats, SweepTable, cell_statistics
 from cdus.app.sweepstore import SweepRow
 from cdus.core.linkspec import POLICIES
-from cdus.core.metrics import TRACE_ARRAYS, Recorder, read_trace, trace_shape_problem
+from cdus.core.metrics import TRACE_ARRAYS, Recorder  # noqa: F401  (TRACE_ARRAYS: a name users read from here)
 from cdus.core.vehicle import DivergedError
-from cdus.extras import needs
 from cdus.scenario.config import MAX_NESTING, ConfigError, load_scenario, nesting_problem, parse_scenario
 from cdus.scenario.model import Scenario
+from cdus.results import (ClosestPair, DroppedBy, Event, FaultCounters, Integrity, LinkFaults, LinkMetrics,
+                          LinkStateChange, Metrics, RadioMetrics, RejectedByReason, Result, SafetyInfo, Trace)
 from cdus.sim.fleet import InProcessFleet
 from cdus.sim.reports import ConsoleQuota
 from cdus.wire.bounds import finite
@@ -48,13 +51,12 @@ from cdus.wire import keys
 from world_sim.recording import parse_spec
 
 __all__ = [  # the names of ``import cdus`` (cdus/__init__.py, docs/api.md; tests/api/test_public.py: one list)
-    "CLOCKS", "ClosestPair", "ConfigError", "DivergedError", "DroppedBy", "Event", "FaultCounters", "Integrity",
+    "RUNNERS", "ClosestPair", "ConfigError", "DivergedError", "DroppedBy", "Event", "FaultCounters", "Integrity",
     "LinkFaults", "LinkMetrics", "LinkStateChange", "Metrics", "RadioMetrics", "RejectedByReason", "Result",
     "RunError", "RunInterrupted", "SafetyInfo", "Scenario", "SweepRow", "SweepTable", "CellStats", "Trace",
     "cell_statistics", "load", "override", "run", "sweep",
 ]
 
-CLOCKS = ("inproc", "lockstep")  # how run() runs a scenario: `cdus sim`, `cdus launch --clock lockstep`
 
 
 # --------------------------------------------------------------------------- errors
@@ -85,566 +87,6 @@ class RunInterrupted(KeyboardInterrupt):
 
     def __reduce__(self):
         return (type(self), (self.result,))
-
-
-# --------------------------------------------------------------------------- reading a metrics JSON
-
-
-def _bad(where: str, expected: str, value: Any) -> ValueError:
-    shown = repr(value)
-    return ValueError(f"metrics: {where}: expected {expected}, got {shown[:60] + ('...' if len(shown) > 60 else '')}")
-
-
-def _num(d: Mapping, key: str, where: str, null: bool = False) -> Any:
-    v = d[key] if key in d else _missing(where, key)
-    if v is None and null:
-        return None
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise _bad(f"{where}{key}", "a number" + (" or null" if null else ""), v)
-    return v
-
-
-def _int(d: Mapping, key: str, where: str) -> int:
-    v = d[key] if key in d else _missing(where, key)
-    if isinstance(v, bool) or not isinstance(v, int):
-        raise _bad(f"{where}{key}", "an integer", v)
-    return v
-
-
-def _str(d: Mapping, key: str, where: str, null: bool = False) -> Any:
-    v = d[key] if key in d else (None if null else _missing(where, key))
-    if v is None and null:
-        return None
-    if not isinstance(v, str):
-        raise _bad(f"{where}{key}", "a string", v)
-    return v
-
-
-def _bool(d: Mapping, key: str, where: str) -> bool:
-    v = d[key] if key in d else _missing(where, key)
-    if not isinstance(v, bool):
-        raise _bad(f"{where}{key}", "true or false", v)
-    return v
-
-
-def _table(v: Any, where: str) -> Mapping:
-    if not isinstance(v, dict):
-        raise _bad(where, "an object", v)
-    return v
-
-
-def _numbers_by_id(d: Mapping, key: str, where: str) -> dict[str, float | None]:
-    table = _table(d[key] if key in d else _missing(where, key), f"{where}{key}")
-    return {k: _num(table, k, f"{where}{key}.", null=True) for k in table}
-
-
-def _counts(v: Any, where: str) -> dict[str, int]:
-    table = _table(v, where)
-    return {k: _int(table, k, f"{where}.") for k in table}
-
-
-def _missing(where: str, key: str) -> Any:
-    raise ValueError(f"metrics: {where}{key}: missing (docs/metrics.md lists the fields)")
-
-
-def _opt(value: Any, out: dict, key: str) -> None:
-    if value is not None:
-        out[key] = value
-
-
-@dataclass(frozen=True)
-class DroppedBy:
-    """Drops by cause (``link.faults`` counters' ``dropped_by``)."""
-
-    loss: int
-    burst: int
-    down: int
-    partition: int
-
-    @classmethod
-    def from_dict(cls, d: Any, where: str = "dropped_by.") -> "DroppedBy":
-        d = _table(d, where.rstrip("."))
-        return cls(*(_int(d, f.name, where) for f in fields(cls)))
-
-    def to_dict(self) -> dict[str, int]:
-        return {f.name: getattr(self, f.name) for f in fields(self)}
-
-
-@dataclass(frozen=True)
-class FaultCounters:
-    """The fault emulator's counters on one directed link or in total (docs/metrics.md,
-    ``link.faults``): decisions, drops (and by cause), extra copies, copies given a delay."""
-
-    sent: int
-    dropped: int
-    dropped_by: DroppedBy
-    duplicated: int
-    delayed: int
-
-    @classmethod
-    def from_dict(cls, d: Any, where: str) -> "FaultCounters":
-        d = _table(d, where.rstrip("."))
-        return cls(_int(d, "sent", where), _int(d, "dropped", where),
-                   DroppedBy.from_dict(d.get("dropped_by"), f"{where}dropped_by."),
-                   _int(d, "duplicated", where), _int(d, "delayed", where))
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"sent": self.sent, "dropped": self.dropped, "dropped_by": self.dropped_by.to_dict(),
-                "duplicated": self.duplicated, "delayed": self.delayed}
-
-
-@dataclass(frozen=True)
-class LinkStateChange:
-    """A directed link's change of state at simulated time ``t``: ``up``, ``lossy`` or ``down``."""
-
-    t: float
-    link: str  # "src->dst"
-    state: str
-
-
-@dataclass(frozen=True)
-class LinkFaults:
-    """``link.faults``: present when the scenario has link faults (or a ground station set some)."""
-
-    total: FaultCounters
-    links: dict[str, FaultCounters]  # "src->dst" -> its counters
-    state_changes: tuple[LinkStateChange, ...]
-
-    @classmethod
-    def from_dict(cls, d: Any, where: str = "link.faults.") -> "LinkFaults":
-        d = _table(d, where.rstrip("."))
-        links = _table(d["links"] if "links" in d else _missing(where, "links"), f"{where}links")
-        changes = d["state_changes"] if "state_changes" in d else _missing(where, "state_changes")
-        if not isinstance(changes, list):
-            raise _bad(f"{where}state_changes", "a list", changes)
-        out = []
-        for n, ch in enumerate(changes):
-            w = f"{where}state_changes[{n}]."
-            ch = _table(ch, w.rstrip("."))
-            out.append(LinkStateChange(_num(ch, "t", w), _str(ch, "link", w), _str(ch, "state", w)))
-        return cls(FaultCounters.from_dict(d.get("total"), f"{where}total."),
-                   {k: FaultCounters.from_dict(v, f"{where}links.{k}.") for k, v in links.items()}, tuple(out))
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"total": self.total.to_dict(), "links": {k: v.to_dict() for k, v in self.links.items()},
-                "state_changes": [{"t": c.t, "link": c.link, "state": c.state} for c in self.state_changes]}
-
-
-LINK_COUNTS = ("sent", "delivered", "dropped", "duplicated", "rejected")
-
-
-@dataclass(frozen=True)
-class RadioMetrics:
-    """The metrics' ``radio`` block (with ``[radio]`` only; docs/metrics.md): messages decided on
-    the radio path, drops by cause (``fault``: the hand-set [link] fault, which decides first;
-    ``range``, ``fading``, ``collision``, ``queue``: the channel), the channel utilisation over
-    the geometry samples (``mean``, ``max``, ``samples``) and the communication-graph splits."""
-
-    sent: int
-    delivered: int
-    dropped: int
-    dropped_by: dict[str, int]
-    no_geometry: int
-    utilisation: dict[str, Any]
-    splits: int
-
-    @classmethod
-    def from_dict(cls, d: Any, where: str = "radio.") -> "RadioMetrics":
-        d = _table(d, where.rstrip("."))
-        u = _table(d["utilisation"] if "utilisation" in d else _missing(where, "utilisation"), f"{where}utilisation")
-        w = f"{where}utilisation."
-        return cls(_int(d, "sent", where), _int(d, "delivered", where), _int(d, "dropped", where),
-                   _counts(d.get("dropped_by"), f"{where}dropped_by"), _int(d, "no_geometry", where),
-                   {"mean": _num(u, "mean", w, null=True), "max": _num(u, "max", w, null=True),
-                    "samples": _int(u, "samples", w)}, _int(d, "splits", where))
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"sent": self.sent, "delivered": self.delivered, "dropped": self.dropped,
-                "dropped_by": dict(self.dropped_by), "no_geometry": self.no_geometry,
-                "utilisation": dict(self.utilisation), "splits": self.splits}
-
-
-@dataclass(frozen=True)
-class LinkMetrics:
-    """The metrics' ``link`` block: what the links did, counted at the receivers (docs/metrics.md)."""
-
-    sent: int
-    delivered: int
-    dropped: int
-    duplicated: int
-    rejected: int
-    latency_ms_p50: float | None
-    latency_ms_p99: float | None
-    missed_deadlines: int | None = None  # a fleet of processes only (0 in lockstep)
-    faults: LinkFaults | None = None  # only with link faults
-    extra: dict[str, Any] = field(default_factory=dict)  # any other key, kept as it came
-
-    @classmethod
-    def from_dict(cls, d: Any, where: str = "link.") -> "LinkMetrics":
-        d = _table(d, where.rstrip("."))
-        known = (*LINK_COUNTS, "latency_ms_p50", "latency_ms_p99", "missed_deadlines", "faults")
-        return cls(*(_int(d, k, where) for k in LINK_COUNTS), _num(d, "latency_ms_p50", where, null=True),
-                   _num(d, "latency_ms_p99", where, null=True),
-                   _int(d, "missed_deadlines", where) if "missed_deadlines" in d else None,
-                   LinkFaults.from_dict(d["faults"], f"{where}faults.") if "faults" in d else None,
-                   {k: v for k, v in d.items() if k not in known})
-
-    def to_dict(self) -> dict[str, Any]:
-        out: dict[str, Any] = {k: getattr(self, k) for k in (*LINK_COUNTS, "latency_ms_p50", "latency_ms_p99")}
-        _opt(self.missed_deadlines, out, "missed_deadlines")
-        out.update(self.extra)
-        if self.faults is not None:
-            out["faults"] = self.faults.to_dict()
-        return out
-
-
-@dataclass(frozen=True)
-class Event:
-    """A fleet event (``cdus.wire.schemas.FleetEvent``): programs act on ``kind`` and ``severity``."""
-
-    t: float
-    kind: str
-    text: str
-    severity: str
-    vehicle: str | None = None
-    link: str | None = None
-    origin: str | None = None
-
-    @classmethod
-    def from_dict(cls, d: Any, where: str) -> "Event":
-        d = _table(d, where.rstrip("."))
-        # vehicle, link, origin: absent when they do not apply (as FleetEvent.as_dict writes them), never null
-        return cls(_num(d, "t", where), _str(d, "kind", where), _str(d, "text", where), _str(d, "severity", where),
-                   *(_str(d, k, where) if k in d else None for k in ("vehicle", "link", "origin")))
-
-    def to_dict(self) -> dict[str, Any]:
-        return {f.name: getattr(self, f.name) for f in fields(self) if getattr(self, f.name) is not None}
-
-
-@dataclass(frozen=True)
-class SafetyInfo:
-    """The metrics' ``safety``: whether the safety filter was on, and its radius R (m)."""
-
-    enabled: bool
-    radius_m: float | None
-
-
-@dataclass(frozen=True)
-class ClosestPair:
-    """One entry of the metrics' ``closest_pairs`` (and ``closest_pair``): vehicles ``a`` and
-    ``b`` (scenario order) of ``domain`` (``usv``, ``uav`` or ``uav-usv``) came
-    ``distance_m`` apart at ``t_s`` simulated s; whether each was live (stepping) then."""
-
-    domain: str
-    a: str
-    b: str
-    distance_m: float
-    t_s: float
-    a_live: bool
-    b_live: bool
-    both_live: bool
-
-    @classmethod
-    def from_dict(cls, d: Any, where: str) -> "ClosestPair":
-        d = _table(d, where.rstrip("."))
-        return cls(_str(d, "domain", where), _str(d, "a", where), _str(d, "b", where), _num(d, "distance_m", where),
-                   _num(d, "t_s", where), _bool(d, "a_live", where), _bool(d, "b_live", where),
-                   _bool(d, "both_live", where))
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"domain": self.domain, "a": self.a, "b": self.b, "distance_m": self.distance_m, "t_s": self.t_s,
-                "a_live": self.a_live, "b_live": self.b_live, "both_live": self.both_live}
-
-
-@dataclass(frozen=True)
-class RejectedByReason:
-    """``rejected_by_reason`` (a fleet of processes): what the world and the vehicles dropped, by reason."""
-
-    world: dict[str, int]
-    vehicles: dict[str, int]
-
-
-@dataclass(frozen=True)
-class Integrity:
-    """``integrity``: whether something was seen that may have altered the run (a liveliness
-    token that is no process's, a second one of a process), the counts by reason and a
-    sentence for the first of each (docs/metrics.md, docs/security.md)."""
-
-    tampered: bool
-    reasons: dict[str, int]
-    notes: tuple[str, ...]
-
-    @classmethod
-    def from_dict(cls, d: Any) -> "Integrity":
-        t = _table(d, "integrity")
-        notes = t["notes"] if "notes" in t else _missing("integrity.", "notes")
-        if not isinstance(notes, list) or not all(isinstance(x, str) for x in notes):
-            raise _bad("integrity.notes", "a list of strings", notes)
-        return cls(_bool(t, "tampered", "integrity."), _counts(t.get("reasons"), "integrity.reasons"), tuple(notes))
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"tampered": self.tampered, "reasons": dict(self.reasons), "notes": list(self.notes)}
-
-
-@dataclass(frozen=True)
-class Metrics:
-    """One run's metrics JSON, typed: the fields and their meaning are docs/metrics.md's.
-
-    ``from_dict`` checks every field's type (ValueError naming it); ``to_dict()`` gives the
-    JSON back, equal to what was read, in the same key order. Keys the JSON may lack are None
-    here when absent (``rejected_by_reason``, ``interrupted``); keys this class does not know
-    are kept in ``extra``. ``link`` is None only in the metrics the launcher writes when the
-    world process died (its JSON ``link`` is ``{}``)."""
-
-    scenario: str
-    mode: str
-    seed: int
-    duration_s: float
-    path_tol: float
-    coord_tol: float
-    path_settle_s: float | None
-    coord_settle_s: float | None
-    final_path_error_max: float | None
-    final_coord_error_max: float | None
-    omega_rate_final: dict[str, float | None]
-    final_path_error: dict[str, float | None]
-    live_final: tuple[str, ...]
-    link: LinkMetrics | None
-    wall_s: float
-    realtime_factor: float | None
-    policy: str
-    events: tuple[Event, ...]
-    completed: bool
-    completion: str
-    min_separation_m: float | None
-    # None only in the metrics the launcher writes when the world process died
-    closest_pairs: dict[str, ClosestPair] | None
-    closest_pair: ClosestPair | None
-    near_collision: bool | None
-    interventions: int
-    safety: SafetyInfo
-    integrity: Integrity | None = None  # None only in metrics written before it was (and the launcher's world_lost)
-    rejected_by_reason: RejectedByReason | None = None
-    radio: RadioMetrics | None = None  # with [radio] only
-    interrupted: bool | None = None
-    never_up: tuple[str, ...] | None = None  # only in a run that never began (completion not_started)
-    extra: dict[str, Any] = field(default_factory=dict)
-
-    @classmethod
-    def from_dict(cls, d: Any) -> "Metrics":
-        """A metrics JSON (as ``json.load`` gives it); ValueError naming the first bad field."""
-        d = _table(d, "metrics")
-        w = ""
-        live = d["live_final"] if "live_final" in d else _missing(w, "live_final")
-        if not isinstance(live, list) or not all(isinstance(v, str) for v in live):
-            raise _bad("live_final", "a list of vehicle ids", live)
-        events = d["events"] if "events" in d else _missing(w, "events")
-        if not isinstance(events, list):
-            raise _bad("events", "a list", events)
-        link = _table(d["link"] if "link" in d else _missing(w, "link"), "link")
-        safety = _table(d["safety"] if "safety" in d else _missing(w, "safety"), "safety")
-        rej = None
-        if "rejected_by_reason" in d:
-            r = _table(d["rejected_by_reason"], "rejected_by_reason")
-            rej = RejectedByReason(_counts(r.get("world"), "rejected_by_reason.world"),
-                                   _counts(r.get("vehicles"), "rejected_by_reason.vehicles"))
-        pairs = None
-        trio = ("closest_pairs", "closest_pair", "near_collision")  # written together, or none (a dead world)
-        if any(k in d for k in trio):
-            for k in trio:
-                if k not in d:
-                    _missing(w, k)
-            pairs = {str(k): ClosestPair.from_dict(v, f"closest_pairs.{k}.")
-                     for k, v in _table(d["closest_pairs"], "closest_pairs").items()}
-        closest = d.get("closest_pair")
-        never_up = d.get("never_up")
-        if never_up is not None and (not isinstance(never_up, list) or not all(isinstance(v, str) for v in never_up)):
-            raise _bad("never_up", "a list of vehicle ids", never_up)
-        known = {f.name for f in fields(cls)} - {"extra"}
-        return cls(
-            scenario=_str(d, "scenario", w), mode=_str(d, "mode", w), seed=_int(d, "seed", w),
-            duration_s=_num(d, "duration_s", w), path_tol=_num(d, "path_tol", w), coord_tol=_num(d, "coord_tol", w),
-            path_settle_s=_num(d, "path_settle_s", w, null=True),
-            coord_settle_s=_num(d, "coord_settle_s", w, null=True),
-            final_path_error_max=_num(d, "final_path_error_max", w, null=True),
-            final_coord_error_max=_num(d, "final_coord_error_max", w, null=True),
-            omega_rate_final=_numbers_by_id(d, "omega_rate_final", w),
-            final_path_error=_numbers_by_id(d, "final_path_error", w), live_final=tuple(live),
-            link=LinkMetrics.from_dict(link) if link else None,
-            wall_s=_num(d, "wall_s", w), realtime_factor=_num(d, "realtime_factor", w, null=True),
-            policy=_str(d, "policy", w),
-            events=tuple(Event.from_dict(e, f"events[{n}].") for n, e in enumerate(events)),
-            completed=_bool(d, "completed", w), completion=_str(d, "completion", w),
-            min_separation_m=_num(d, "min_separation_m", w, null=True), closest_pairs=pairs,
-            closest_pair=None if closest is None else ClosestPair.from_dict(closest, "closest_pair."),
-            near_collision=_bool(d, "near_collision", w) if "near_collision" in d else None,
-            interventions=_int(d, "interventions", w),
-            safety=SafetyInfo(_bool(safety, "enabled", "safety."), _num(safety, "radius_m", "safety.", null=True)),
-            integrity=Integrity.from_dict(d["integrity"]) if "integrity" in d else None,
-            rejected_by_reason=rej,
-            radio=RadioMetrics.from_dict(d["radio"]) if "radio" in d else None,
-            interrupted=_bool(d, "interrupted", w) if "interrupted" in d else None,
-            never_up=None if never_up is None else tuple(never_up),
-            extra={k: v for k, v in d.items() if k not in known},
-        )
-
-    @classmethod
-    def from_json(cls, path: str | os.PathLike) -> "Metrics":
-        """Read a metrics JSON file (``metrics.json`` of a run, ``--metrics-out``)."""
-        with open(path, encoding="utf-8") as fh:
-            return cls.from_dict(json.load(fh))
-
-    def to_dict(self) -> dict[str, Any]:
-        """The metrics JSON: equal to the dict this was read from (and in its key order)."""
-        out: dict[str, Any] = {}
-        for f in fields(self):
-            v = getattr(self, f.name)
-            if f.name == "extra":
-                out.update(v)
-            elif f.name == "link":
-                out["link"] = {} if v is None else v.to_dict()
-            elif f.name == "live_final":
-                out[f.name] = list(v)
-            elif f.name in ("omega_rate_final", "final_path_error"):
-                out[f.name] = dict(v)
-            elif f.name == "events":
-                out[f.name] = [e.to_dict() for e in v]
-            elif f.name == "safety":
-                out[f.name] = {"enabled": v.enabled, "radius_m": v.radius_m}
-            elif f.name == "integrity":
-                if v is not None:
-                    out[f.name] = v.to_dict()
-            elif f.name == "rejected_by_reason":
-                if v is not None:
-                    out[f.name] = {"world": dict(v.world), "vehicles": dict(v.vehicles)}
-            elif f.name == "closest_pairs":
-                if v is not None:
-                    out[f.name] = {k: p.to_dict() for k, p in v.items()}
-            elif f.name == "closest_pair":
-                if "closest_pairs" in out:
-                    out[f.name] = None if v is None else v.to_dict()
-            elif f.name in ("interrupted", "near_collision"):
-                _opt(v, out, f.name)
-            elif f.name == "never_up":
-                if v is not None:
-                    out[f.name] = list(v)
-            elif f.name == "radio":
-                if v is not None:
-                    out[f.name] = v.to_dict()
-            else:
-                out[f.name] = v
-        return out
-
-
-# --------------------------------------------------------------------------- the trace
-
-
-
-
-@dataclass(frozen=True, eq=False)
-class Trace:
-    """A run's time series, one row per control tick (sampled after the controller's update;
-    docs/metrics.md), as numpy arrays: T ticks, N vehicles (``ids``), E metric edges
-    (``edge_names``, "<id_i>__<id_k>"). A vehicle not live at a tick (killed, paused) repeats
-    its last row there; ``live`` says who stepped."""
-
-    t: np.ndarray  # (T,) simulated s
-    ids: tuple[str, ...]  # (N,) in scenario order
-    q: np.ndarray  # (T, N, 3) position, m (a boat's z is 0)
-    heading: np.ndarray  # (T, N) rad
-    omega: np.ndarray  # (T, N) the path parameter ω, rad
-    omega_rate: np.ndarray  # (T, N) ω̇, rad/s
-    path_error: np.ndarray  # (T, N) |Φ_i|, m
-    edge_names: tuple[str, ...]  # (E,)
-    edge_error: np.ndarray  # (T, E) |ω_i - ω_k - Δ_ik|, rad
-    live: np.ndarray  # (T, N) bool: stepping at that tick
-    # (T, N) int: each vehicle's safety-filter interventions so far (None: a trace written before it was kept)
-    interventions: np.ndarray | None = None
-
-    def __post_init__(self) -> None:
-        why = trace_shape_problem({k: getattr(self, k) for k in (*TRACE_ARRAYS, "interventions")},
-                                  len(self.ids), len(self.edge_names))
-        if why is not None:
-            raise ValueError(f"trace: {why}")
-
-    def __len__(self) -> int:
-        return len(self.t)
-
-    @classmethod
-    def from_recorder(cls, rec: Recorder) -> "Trace":
-        """A copy of a Recorder's series (cdus.core.metrics)."""
-        return cls(t=rec.view("t").copy(), ids=tuple(rec.ids), q=rec.view("q").copy(),
-                   heading=rec.view("heading").copy(), omega=rec.view("omega").copy(),
-                   omega_rate=rec.view("omega_rate").copy(), path_error=rec.view("path_error").copy(),
-                   edge_names=tuple(e.name for e in rec.edges), edge_error=rec.edge_error(),
-                   live=rec.view("live").copy(), interventions=rec.view("interventions").copy())
-
-    @classmethod
-    def from_npz(cls, path: str | os.PathLike) -> "Trace":
-        """Read a ``--trace-out`` file (``.npz``)."""
-        arrays = read_trace(os.fspath(path))
-        return cls(**arrays)
-
-    def save(self, path: str | os.PathLike) -> None:
-        """Write as ``--trace-out`` does (a compressed ``.npz``; :meth:`from_npz` reads it)."""
-        np.savez_compressed(path, t=self.t, ids=np.array(self.ids), q=self.q, heading=self.heading,
-                            omega=self.omega, omega_rate=self.omega_rate, path_error=self.path_error,
-                            edge_error=self.edge_error, edge_names=np.array(self.edge_names), live=self.live,
-                            **({} if self.interventions is None else {"interventions": self.interventions}))
-
-    def to_dataframe(self):
-        """A pandas DataFrame, one row per (tick, vehicle): ``t, vehicle, x, y, z, heading,
-        omega, omega_rate, path_error, live`` and ``interventions`` when the trace has them
-        (needs pandas: the ``api`` extra)."""
-        pd = needs("pandas", "Trace.to_dataframe")
-        T, N = len(self.t), len(self.ids)
-        return pd.DataFrame({
-            "t": np.repeat(self.t, N), "vehicle": pd.Categorical(np.tile(np.array(self.ids, dtype=object), T),
-                                                                 categories=list(self.ids)),
-            "x": self.q[:, :, 0].ravel(), "y": self.q[:, :, 1].ravel(), "z": self.q[:, :, 2].ravel(),
-            "heading": self.heading.ravel(), "omega": self.omega.ravel(), "omega_rate": self.omega_rate.ravel(),
-            "path_error": self.path_error.ravel(), "live": self.live.ravel(),
-            **({} if self.interventions is None else {"interventions": self.interventions.ravel()}),
-        })
-
-    def edges_dataframe(self):
-        """A pandas DataFrame, one row per (tick, metric edge): ``t, edge, error`` (rad)."""
-        pd = needs("pandas", "Trace.edges_dataframe")
-        T, E = len(self.t), len(self.edge_names)
-        return pd.DataFrame({"t": np.repeat(self.t, E),
-                             "edge": pd.Categorical(np.tile(np.array(self.edge_names, dtype=object), T),
-                                                    categories=list(self.edge_names)),
-                             "error": self.edge_error.ravel()})
-
-    def to_xarray(self):
-        """An xarray Dataset over dims ``t``, ``vehicle``, ``axis`` (x, y, z) and ``edge``, with
-        units in each variable's attrs (needs xarray: the ``api`` extra)."""
-        xr = needs("xarray", "Trace.to_xarray")
-        tv = ("t", "vehicle")
-        data = {
-            "q": (("t", "vehicle", "axis"), self.q, {"units": "m", "long_name": "position"}),
-            "heading": (tv, self.heading, {"units": "rad"}),
-            "omega": (tv, self.omega, {"units": "rad", "long_name": "path parameter ω"}),
-            "omega_rate": (tv, self.omega_rate, {"units": "rad/s", "long_name": "ω̇"}),
-            "path_error": (tv, self.path_error, {"units": "m", "long_name": "|Φ_i|"}),
-            "live": (tv, self.live, {"long_name": "stepping at that tick"}),
-            "edge_error": (("t", "edge"), self.edge_error, {"units": "rad", "long_name": "|ω_i - ω_k - Δ_ik|"}),
-        }
-        if self.interventions is not None:
-            data["interventions"] = (tv, self.interventions, {"long_name": "safety-filter interventions so far"})
-        return xr.Dataset(data, coords={"t": ("t", self.t, {"units": "s"}), "vehicle": list(self.ids),
-                                        "axis": ["x", "y", "z"], "edge": list(self.edge_names)})
-
-
-@dataclass(frozen=True, eq=False)
-class Result:
-    """What :func:`run` returns: the scenario that ran, its metrics and its trace."""
-
-    scenario: Scenario
-    metrics: Metrics
-    trace: Trace | None  # None only when a lockstep fleet's world died before writing it
-    run_dir: Path | None = None  # a lockstep run's directory (logs, metrics.json, trace.npz) if one was given
-    log: tuple[str, ...] = ()  # a lockstep run's launcher lines
 
 
 # --------------------------------------------------------------------------- loading
@@ -748,8 +190,8 @@ def run(scenario: Scenario | str | os.PathLike, *, clock: str = "inproc", policy
     a lockstep fleet that did not come up raises :class:`RunError`."""
     where = "cdus.run"
     scenario = _check_scenario(scenario, where)
-    if clock not in CLOCKS:
-        raise _arg_error(where, "clock", f"{clock!r} is not one of {', '.join(CLOCKS)}")
+    if clock not in RUNNERS:
+        raise _arg_error(where, "clock", f"{clock!r} is not one of {', '.join(RUNNERS)}")
     if policy is not None and policy not in POLICIES:
         raise _arg_error(where, "policy", f"{policy!r} is not one of {', '.join(POLICIES)} (or None: the scenario's)")
     base = Path(run_dir) if run_dir is not None else None
@@ -823,10 +265,8 @@ class _PrintingSink:
         self.inner.link_state(t, src, dst, state)
 
     def radio(self, t: float, watch: Any) -> None:
-        """[radio]: each geometry sample to ``inner`` if it draws them (the Rerun sink does)."""
-        view = getattr(self.inner, "radio", None)
-        if view is not None:
-            view(t, watch)
+        """[radio]: each geometry sample to ``inner`` (the Rerun sink draws them)."""
+        self.inner.radio(t, watch)
 
     def close(self) -> None:
         self._print(self.console.flush())  # the run is over: what is held, at once
@@ -924,8 +364,8 @@ def sweep(config: str | os.PathLike | Scenario, grid: Mapping[str, Sequence[Any]
     where = "cdus.sweep"
     if out is None or not isinstance(out, (str, os.PathLike)):
         raise _arg_error(where, "out", f"expected a directory path for the results, got {type(out).__name__}")
-    if clock not in CLOCKS:
-        raise _arg_error(where, "clock", f"{clock!r} is not one of {', '.join(CLOCKS)}")
+    if clock not in RUNNERS:
+        raise _arg_error(where, "clock", f"{clock!r} is not one of {', '.join(RUNNERS)}")
     if plot_format not in app_sweep.PLOT_FORMATS:
         raise _arg_error(where, "plot_format", f"{plot_format!r} is not one of {', '.join(app_sweep.PLOT_FORMATS)}")
     if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):

@@ -1,6 +1,6 @@
 """The live console's alarms, from the world's status alone (pure: no I/O, no clock).
 
-:class:`Alarms` takes each decoded status (cdus.wire.schemas.decode_status) in turn and
+:class:`Alarms` takes each decoded status (a :class:`cdus.wire.status.WorldStatus`) in turn and
 says which alarms it raises and which it clears, each stamped with the status's simulated
 time. An alarm is raised once, stays active while its condition holds, and is cleared
 once when it ends:
@@ -24,10 +24,10 @@ last (the same status read again at a later time) change no growth; a time going
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Mapping
 
 from cdus.core import graph as graphs
-from cdus.wire.bounds import finite
+from cdus.wire.status import WorldStatus
 
 KINDS = ("vehicle_lost", "no_spanning_tree", "error_growing", "separation")
 GROW_S = 3.0  # s of simulated time an error must grow for
@@ -67,10 +67,6 @@ class _Growth:
     x: float
 
 
-def _num(x: Any) -> float | None:
-    return float(x) if finite(x) else None
-
-
 @dataclass
 class Alarms:
     grow_s: float = GROW_S
@@ -81,40 +77,37 @@ class Alarms:
     _growth: dict[str, _Growth] = field(default_factory=dict)
     _t: float | None = None
 
-    def update(self, status: dict[str, Any]) -> list[AlarmChange]:
+    def update(self, status: WorldStatus, last_heard: Mapping[str, float] | None = None) -> list[AlarmChange]:
         """The alarms this status raises and clears (cleared ones first), stamped with its time
         ``t``; a lost vehicle with the time it was last heard of, when ``last_heard`` (vehicle ->
-        the time of its newest telemetry) has an earlier one."""
-        t = _num(status.get("t"))
-        if t is None:
-            return []
-        ids = [v for v in status.get("ids") or [] if isinstance(v, str)]
-        states = status.get("states")
-        if isinstance(states, list) and len(states) == len(ids):
-            state = dict(zip(ids, states))
+        the time of its newest telemetry) has an earlier one. The status is decode_status's (every
+        field checked there: one state per id, edges and the closest pair between its ids)."""
+        t, ids = status.t, status.ids
+        if status.states is not None:
+            state = dict(zip(ids, status.states))
         else:
-            alive = set(status.get("alive") or [])
+            alive = set(status.alive)
             state = {v: "live" if v in alive else "gone" for v in ids}
-        live = [v for v in ids if state.get(v) == "live"]
+        live = [v for v in ids if state[v] == "live"]
         want: dict[tuple[str, str], str] = {}
         since: dict[tuple[str, str], float] = {}  # an alarm's time when known better than the status's
-        heard = status.get("last_heard") if isinstance(status.get("last_heard"), dict) else {}
+        heard = last_heard or {}
         for v in ids:
-            if state.get(v) == "gone":
+            if state[v] == "gone":
                 want[("vehicle_lost", v)] = f"vehicle {v} lost"
-                last = _num(heard.get(v))
+                last = heard.get(v)
                 if last is not None and last < t:  # its newest telemetry: when it was last heard of alive
                     since[("vehicle_lost", v)] = last
-        edges = [e for e in status.get("edges") or [] if isinstance(e, tuple) and len(e) == 3]
+        edges = status.edges or []
         if edges and live:
             pairs = [(a, b) for a, b, _ in edges]
-            if not status.get("directed", False):
+            if not status.directed:
                 pairs += [(b, a) for a, b in pairs]
             live_set = set(live)
             cut = graphs.unreachable(live, [(a, b) for a, b in pairs if a in live_set and b in live_set])
             if cut:
                 want[("no_spanning_tree", "")] = f"the live graph has no spanning tree: {', '.join(cut)} cut off"
-        series = self._series(ids, state, edges, status.get("path_errors"))
+        series = self._series(ids, state, edges, status.path_errors)
         for k in [k for k in self._growth if k not in series]:  # not measured now: its growth starts over
             del self._growth[k]
         for name, (x, unit) in series.items():
@@ -123,13 +116,11 @@ class Alarms:
                     and g.x - g.x0 >= self.grow_min:
                 want[("error_growing", name)] = (f"{name} growing for {g.t - g.t0:.0f} s: "
                                                  f"{g.x0:.3g} -> {g.x:.3g} {unit}")
-        radius = _num(status.get("safety_radius"))
+        radius = status.safety_radius
         self.notes = [] if radius is not None else [NO_RADIUS]
-        closest = status.get("closest")
-        if radius is not None and isinstance(closest, tuple) and len(closest) == 3:
-            a, b, d = closest
-            d = _num(d)
-            if d is not None and d < radius and state.get(a) == "live" and state.get(b) == "live":
+        if radius is not None and status.closest is not None:
+            a, b, d = status.closest
+            if d < radius and state[a] == "live" and state[b] == "live":
                 want[("separation", "")] = f"{a} and {b} {d:.2f} m apart, below the safety radius {radius:g} m"
         self._t = t
         changes = [AlarmChange(False, a, t) for k, a in self.active.items() if k not in want]
@@ -143,17 +134,14 @@ class Alarms:
         return changes
 
     @staticmethod
-    def _series(ids: list[str], state: dict[str, str], edges: list, path_errors: Any) -> dict:
+    def _series(ids: list[str], state: dict[str, str], edges: list, path_errors: list[float | None] | None) -> dict:
         """name -> (value, unit) of every error that is measured now (live ends only)."""
         out = {}
         for a, b, e in edges:
-            e = _num(e)
-            if e is not None and state.get(a) == "live" and state.get(b) == "live":
+            if e is not None and state[a] == "live" and state[b] == "live":
                 out[f"edge {a}-{b}"] = (e, "rad")
-        per = path_errors if isinstance(path_errors, list) and len(path_errors) == len(ids) else []
-        for v, x in zip(ids, per):
-            x = _num(x)
-            if x is not None and state.get(v) == "live":
+        for v, x in zip(ids, path_errors or []):
+            if x is not None and state[v] == "live":
                 out[f"|Φ| {v}"] = (x, "m")
         return out
 

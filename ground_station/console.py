@@ -26,6 +26,7 @@ from cdus.wire import keys
 from cdus.wire.access import GROUND_ROLE, ROS2_ROLE
 from cdus.wire.bounds import finite
 from cdus.wire.transport import Transport, endpoint_host, open_session
+from cdus.wire.rejected import Rejected
 from cdus.wire.messages import StateMsg, decode_states, encode_control
 from cdus.wire.schemas import CommandReply, FleetEvent, decode_event, decode_reply, decode_settings, decode_status
 from cdus.sim.reports import LINK_GROUP_S, group_link_states  # noqa: F401 (LINK_GROUP_S: the console's too)
@@ -304,7 +305,7 @@ class GroundStation:
         rows = decode_states(sample.payload.to_bytes())
         _, vid = keys.leaf(str(sample.key_expr))
         with self.view.lock:
-            if (isinstance(rows, str) or vid is None or not keys.FLEET_RE.match(vid)
+            if (isinstance(rows, Rejected) or vid is None or not keys.FLEET_RE.match(vid)
                     or vid not in self.view.states and len(self.view.states) >= MAX_NAMES):
                 self.view.rejected += 1
                 return
@@ -313,9 +314,9 @@ class GroundStation:
     def _on_status(self, sample: Any) -> None:
         st = decode_status(sample.payload.to_bytes())
         with self.view.lock:
-            if isinstance(st, str):
+            if isinstance(st, Rejected):
                 self.view.rejected += 1
-                self.view.rejected_by_reason[f"status_{st}"] += 1
+                self.view.rejected_by_reason[f"status_{st.reason}"] += 1
             else:
                 self.view.world = st
                 self.view.status_at = time.monotonic()
@@ -323,7 +324,7 @@ class GroundStation:
     def _on_event(self, sample: Any) -> None:
         e = decode_event(sample.payload.to_bytes())
         with self.view.lock:
-            if isinstance(e, str):
+            if isinstance(e, Rejected):
                 self.view.rejected += 1
             else:
                 self.view.events.append(e)
@@ -382,7 +383,7 @@ class GroundStation:
             rows = decode_states(sample.payload.to_bytes())
             vid = str(sample.key_expr).rsplit("/", 1)[-1]
             with self.view.lock:
-                if isinstance(rows, str) or not keys.FLEET_RE.match(vid) \
+                if isinstance(rows, Rejected) or not keys.FLEET_RE.match(vid) \
                         or vid not in self.view.states and len(self.view.states) >= MAX_NAMES:
                     self.view.rejected += 1
                     continue
@@ -412,7 +413,7 @@ class GroundStation:
                 return got
             with self.view.lock:
                 self.view.rejected += 1
-                self.view.rejected_by_reason[got] += 1
+                self.view.rejected_by_reason[got.reason] += 1
         return None
 
     def fleets_here(self, timeout: float = 1.0) -> list[str]:
@@ -479,11 +480,11 @@ class GroundStation:
                     problems.append("an error reply: " + printable(said, 200))
                 continue
             reply = decode_reply(r.ok.payload.to_bytes())
-            if isinstance(reply, str):
+            if isinstance(reply, Rejected):
                 with self.view.lock:
                     self.view.rejected += 1
-                    self.view.rejected_by_reason[f"reply_{reply}"] += 1
-                problems.append(f"an answer that could not be read ({reply})")
+                    self.view.rejected_by_reason[f"reply_{reply.reason}"] += 1
+                problems.append(f"an answer that could not be read ({reply.reason})")
                 continue
             if reply not in answers:
                 answers.append(reply)

@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 import time
 from collections import Counter
+from dataclasses import replace
 from typing import Any, Callable
 
 import zenoh
@@ -38,6 +39,7 @@ from cdus.commands.base import Rejected
 from cdus.commands.parse import parse_cli, parse_event
 from cdus.wire import keys
 from cdus.wire.schemas import FleetEvent
+from cdus.wire.status import WorldStatus
 from ground_station.alarms import Alarms
 from cdus.sim.reports import EventHold, group_link_states
 from ground_station.console import NOT_VEHICLES, _text, num, row_ids, vehicle_state
@@ -101,9 +103,9 @@ def snapshot(view: Any) -> dict[str, Any]:
         events = list(view.events[-200:])
         rejected = view.rejected
     ids = row_ids(w, states, alive)
-    kinds = dict(zip((w or {}).get("ids") or [], (w or {}).get("kinds") or []))
-    rx = dict(zip((w or {}).get("ids") or [], (w or {}).get("rx") or []))
-    edges = (w or {}).get("edges") or []
+    kinds = dict(zip(w.ids, w.kinds or [])) if w else {}
+    rx = dict(zip(w.ids, w.rx or [])) if w else {}
+    edges = (w.edges if w else None) or []
     worst_edge: dict[str, float] = {}
     for a, b, e in edges:
         if e is not None:
@@ -121,42 +123,36 @@ def snapshot(view: Any) -> dict[str, Any]:
                      num(worst_edge.get(vid), ".4f"), "-" if r is None else str(r[0]), "-" if r is None else str(r[1])))
     if w:
         n_alive = sum(1 for v in ids if vehicle_state(v, w, alive, tokens_in) not in ("lost", "ended"))
-        header = (f"t = {num(w.get('t'), '.1f')} / {num(w.get('duration'), '.0f')} s  ({_text(w.get('clock'), 16)})"
-                  f"   {n_alive}/{len(ids)} vehicles alive" + ("   FLEET PAUSED" if w.get("paused") else "")
-                  + (f"   RUN OVER: {_text(w['completion'], 24)}" if w.get("completion")
+        header = (f"t = {w.t:.1f} / {w.duration:.0f} s  ({w.clock})"
+                  f"   {n_alive}/{len(ids)} vehicles alive" + ("   FLEET PAUSED" if w.paused else "")
+                  + (f"   RUN OVER: {w.completion}" if w.completion
                      else "   RUN OVER (the world has left)" if over else "")
-                  + f"\nworst |Φ| {num(w.get('path_error_max'))} m   worst edge error "
-                  f"{num(w.get('coord_error_max'), '.4f')} rad"
-                  + ("   closest {} - {} {} m".format(*w["closest"][:2], num(w["closest"][2], ".2f"))
-                     if w.get("closest") else "")
-                  + (f" (safety radius {num(w['safety_radius'], 'g')} m)" if w.get("safety_radius") else ""))
+                  + f"\nworst |Φ| {num(w.path_error_max)} m   worst edge error "
+                  f"{num(w.coord_error_max, '.4f')} rad"
+                  + ("   closest {} - {} {} m".format(*w.closest[:2], num(w.closest[2], ".2f"))
+                     if w.closest else "")
+                  + (f" (safety radius {w.safety_radius:g} m)" if w.safety_radius else ""))
     else:
         header = "no status from the world yet"
     if rejected:
         header += f"   ({rejected} malformed messages ignored)"
     telemetry_t = {v: m.t for v, m in states.items() if v in ids and isinstance(m.t, float) and math.isfinite(m.t)}
     now = max(telemetry_t.values(), default=None)
-    return {"world": w, "header": header, "rows": rows, "edges": edges, "links": (w or {}).get("links") or [],
+    return {"world": w, "header": header, "rows": rows, "edges": edges, "links": (w.links if w else None) or [],
             "events": events, "alive": alive, "now": now, "heard": telemetry_t, "tokens_in": tokens_in, "over": over}
 
 
-def alarm_status(world: dict, alive: set[str], now: float | None = None,
-                 heard: dict[str, float] | None = None, tokens_in: bool = False) -> dict:
+def alarm_status(world: WorldStatus, alive: set[str], now: float | None = None, tokens_in: bool = False) -> WorldStatus:
     """The world's status as the alarms read it: each vehicle's roster state, but ``gone`` as
     soon as its liveliness token is (a killed process's token goes at once, the status comes
     once a second), as the vehicle table shows it; its time the newest the console knows
     (``now``: the newest telemetry's, ahead of the status's), so an alarm is not stamped
-    before what it reports); ``heard``: each vehicle's newest telemetry time, when a lost one
-    was last heard of; ``tokens_in``: as vehicle_state's."""
-    calm = {**world, "paused": False}  # the fleet's pause is not a vehicle's state
-    ids = [v for v in world.get("ids") or [] if isinstance(v, str)]
-    states = [vehicle_state(v, calm, alive, tokens_in) for v in ids]
-    t = world.get("t")
-    if now is not None and isinstance(t, float) and now > t:
-        t = now
+    before what it reports); ``tokens_in``: as vehicle_state's."""
+    calm = replace(world, paused=False)  # the fleet's pause is not a vehicle's state
+    states = [vehicle_state(v, calm, alive, tokens_in) for v in world.ids]
     # a vehicle that left with the run's end is not lost: as the roster had it
     states = ["gone" if x == "lost" else "live" if x == "ended" else x for x in states]
-    return {**world, "t": t, "states": states, "last_heard": heard or {}}
+    return replace(world, t=max(world.t, now) if now is not None else world.t, states=states)
 
 
 class ConfirmKill(ModalScreen[bool]):
@@ -278,17 +274,17 @@ class ConsoleApp(App):
               [(f"{a}-{b}", num(e, ".4f", none="end down")) for a, b, e in snap["edges"]])
         links = [(f"{s}->{d}", str(n), str(x), st or "-") for s, d, n, x, st in snap["links"]]
         if not links and w:  # no emulated link faults: what each vehicle received
-            links = [(f"-> {v}", str(r[0]), str(r[1]), "") for v, r in zip(w.get("ids") or [], w.get("rx") or [])
+            links = [(f"-> {v}", str(r[0]), str(r[1]), "") for v, r in zip(w.ids, w.rx or [])
                      if r is not None]
         _fill(self.query_one("#links", DataTable), links)
         if w is not None and self._status_seen is None:  # what happened before the console came: one line
-            line = before_line([e for e in w.get("events") or []
-                                if isinstance(e, FleetEvent) and e.kind != "link_burst"])
+            line = before_line([e for e in w.events if e.kind != "link_burst"])
             if line:
                 self.log_line(line)
         if w is not None:  # every refresh: a vehicle's token going is news before the next status
             self._status_seen = w
-            for ch in self.alarms.update(alarm_status(w, snap["alive"], snap["now"], snap["heard"], snap["tokens_in"])):
+            status = alarm_status(w, snap["alive"], snap["now"], snap["tokens_in"])
+            for ch in self.alarms.update(status, snap["heard"]):
                 self.log_line(ch.line())
         self._show_alarms()
         events = snap["events"]
@@ -300,7 +296,7 @@ class ConsoleApp(App):
         if events:
             self._last_event = events[-1]
         # as the launcher prints them: held a moment, in time order, a change of many links one line
-        ready = self._held.flush() if snap["over"] or (w or {}).get("completion") else self._held.due(now)
+        ready = self._held.flush() if snap["over"] or w is not None and w.completion else self._held.due(now)
         for e in group_link_states(ready):
             self.log_line(f"event {e.line()}" + (f"  [{e.severity.upper()}]" if e.severity != "info" else ""))
 

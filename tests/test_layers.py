@@ -22,11 +22,12 @@ LAYERS = {  # module prefix -> layer rank (longest prefix wins)
     "cdus.wire": 0, "cdus.files": 0,
     "cdus.extras": 0,  # the ImportError of a table helper without pandas or xarray
     "cdus.core": 1,
+    "cdus.core.vocabulary": 0,  # the fleet's words, importing nothing: the wire checks messages against them
     "cdus.scenario": 2,
     "cdus.commands": 2,  # the run-time commands: the scenario's checks, typed (the scenario imports its gains and faults)
     "cdus.sim": 3,
     "vehicle_agent": 4, "world_sim": 4, "ground_station": 4, "cdus.ros2": 4,
-    "cdus.app": 5, "cdus.__main__": 5, "cdus.api": 5,
+    "cdus.app": 5, "cdus.__main__": 5, "cdus.api": 5, "cdus.results": 5,
 }
 EXACT = {"cdus": 5}  # the package itself (cdus/__init__.py): the public API's names, from cdus.api
 PURE = ("cdus.core", "cdus.scenario", "cdus.commands", "cdus.sim")  # no Zenoh, no Rerun, no clocks or printing

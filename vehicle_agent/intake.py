@@ -18,6 +18,7 @@ from cdus.core.radiolink import as_point
 from cdus.sim.build import listeners_of
 from cdus.sim.sensing import contacts_of
 from cdus.wire import keys
+from cdus.wire.rejected import Rejected
 from cdus.wire.messages import decode_contacts, decode_geometry, decode_omega
 from cdus.wire.text import printable
 from vehicle_agent.control import Outcome
@@ -75,8 +76,8 @@ class Intake:
         if a.loop.over_rate(k):  # before decoding: a flood costs a lookup and a subtraction
             return self.reject(a.ids[k], "rate")
         msg = decode_omega(_bytes(payload), expected_sender=k, n_vehicles=len(a.ids))
-        if isinstance(msg, str):
-            return self.reject(a.ids[k], msg)
+        if isinstance(msg, Rejected):
+            return self.reject(a.ids[k], msg.reason)
         a.node.horizon = a.loop.horizon(a.clock, a.period, a.rejoin)
         reason = a.node.on_message(msg, now)
         if reason is not None:
@@ -100,8 +101,8 @@ class Intake:
         dropped if malformed)."""
         a = self.agent
         msg = decode_contacts(payload, len(a.ids), a.index, a.node.vehicle.dim)
-        if isinstance(msg, str):
-            return self.reject(keys.WORLD, f"contacts_{msg}")
+        if isinstance(msg, Rejected):
+            return self.reject(keys.WORLD, f"contacts_{msg.reason}")
         if msg.tick > a.last_tick:  # no sample is taken past the run's end: kept, it would never be freed
             return self.reject(keys.WORLD, "contacts_range")
         a.node.on_contacts(msg.tick, contacts_of(msg, a.ids))
@@ -115,8 +116,8 @@ class Intake:
         if radio is None:
             return self.reject(keys.WORLD, "radio_unexpected")
         msg = decode_geometry(payload, len(a.ids), self._dims)
-        if isinstance(msg, str):
-            return self.reject(keys.WORLD, f"radio_{msg}")
+        if isinstance(msg, Rejected):
+            return self.reject(keys.WORLD, f"radio_{msg.reason}")
         if msg.tick > a.last_tick:
             return self.reject(keys.WORLD, "radio_range")
         if msg.tick % radio.every:

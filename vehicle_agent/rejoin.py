@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 
 from cdus.wire import keys
 from cdus.wire.messages import StateMsg, decode_states
+from cdus.wire.rejected import Rejected
 
 if TYPE_CHECKING:
     from vehicle_agent.agent import Agent
@@ -24,7 +25,7 @@ def rejoin(agent: Agent, tick: int) -> None:
             if reply.ok is None:
                 continue
             rows = decode_states(reply.ok.payload.to_bytes(), len(a.ids))
-            if not isinstance(rows, str) and rows[0].sender == j:
+            if not isinstance(rows, Rejected) and rows[0].sender == j:
                 last[j] = rows[-1]
     mine = last.pop(a.index, None)
     omegas = {k: m.omega for k, m in last.items()}

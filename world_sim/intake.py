@@ -16,6 +16,7 @@ from cdus.wire import keys
 from cdus.wire.messages import decode_states
 from cdus.wire.schemas import AgentStats, FleetEvent, decode_stats
 from cdus.wire.text import printable
+from cdus.wire.rejected import Rejected
 from world_sim.limits import (
     MAX_LOGGED_REJECTS, SUSPECT_EVERY, SUSPECT_REASONS, SUSPECT_TOKEN_REASONS, SUSPECT_WORLD_REASONS,
 )
@@ -105,8 +106,8 @@ class Intake:
         if vid not in self.index:
             return self._reject(vid, "unknown_sender")
         rows = decode_states(payload, len(self.ids))
-        if isinstance(rows, str):
-            return self._reject(vid, rows)
+        if isinstance(rows, Rejected):
+            return self._reject(vid, rows.reason)
         j = self.index[vid]
         if any(m.sender != j for m in rows):
             return self._reject(vid, "sender_mismatch")
@@ -142,8 +143,8 @@ class Intake:
         if vid not in self.index:
             return self._reject(vid, "unknown_sender")
         s = decode_stats(payload, self.index)
-        if isinstance(s, str):
-            return self._reject(vid, s)
+        if isinstance(s, Rejected):
+            return self._reject(vid, s.reason)
         if s.id != vid:
             return self._reject(vid, "sender_mismatch")
         old = self.st.stats.get(vid)

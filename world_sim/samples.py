@@ -10,6 +10,7 @@ from cdus.sim.radio import geometry_sample
 from cdus.sim.sensing import sense_tick
 from cdus.wire import keys
 from cdus.wire.messages import decode_geometry, encode_contacts, encode_geometry
+from cdus.wire.rejected import Rejected
 
 
 class Samples:
@@ -35,13 +36,11 @@ class Samples:
         self.pub_radio.put(payload)
         self._radio_sent.append((tick, payload))
         msg = decode_geometry(payload, len(self.ids))  # what the vehicles read: the same numbers
-        if isinstance(msg, str) or self.radio_watch is None:
+        if isinstance(msg, Rejected) or self.radio_watch is None:
             return
         for ev in self.radio_watch.observe(msg):
             self._note(ev)
-        view = getattr(self.sink, "radio", None)
-        if view is not None:
-            view(tick * self.period, self.radio_watch)
+        self.sink.radio(tick * self.period, self.radio_watch)
 
     def _replay_geometry(self, vid: str) -> None:
         """A (re)joining process needs the radio samples in force from its join on: the newest ones."""

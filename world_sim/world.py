@@ -119,8 +119,7 @@ class World(Intake, Asking, CommandHandlers, Liveness, Reporting, Samples, Finis
         self.not_written: list[str] = []
         self.start_timeout = start_timeout
         self.sink = sink or NullSink()
-        if hasattr(self.sink, "on_stop"):  # a file recording that stops (a full disk) is said while the run goes on
-            self.sink.on_stop = self._recording_stopped
+        self.sink.on_stop = self._recording_stopped  # a file recording that stops (a full disk) is said as the run goes on
         self.policy = policy or scenario.link.policy
         self._link_table = scenario.link_table  # the [link] table as run-time commands have left it
         self.recorder = Recorder(self.ids, [v.dim for v in scenario.vehicles], metric_edges(scenario))

@@ -25,7 +25,7 @@ from cdus.app.launcher import (
     LINKS, LaunchOptions, ListenError, RunDirError, RunDirInUse, RunDirLock, check_listen, launch,
 )
 from cdus.app.executors import CONNECT_TIMEOUT_S, EXECUTORS
-from cdus.app.sweep import CLOCKS, PLOT_FORMATS, SweepInterrupted, check_grid, parse_grid, sweep
+from cdus.app.sweep import PLOT_FORMATS, RUNNERS, SweepInterrupted, check_grid, parse_grid, sweep
 from cdus.app.sweepstore import ROWS
 from cdus.core.vehicle import DivergedError
 from cdus.scenario.config import ConfigError, load_scenario, parse_overrides
@@ -139,7 +139,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--set", action="append", default=[], metavar="KEY=V1,V2,...",
                    help="a grid axis: a dotted config key and its values, e.g. --set link.loss=0,0.2,0.4")
     p.add_argument("--seeds", type=int, default=3, metavar="N", help="seeds per cell: the scenario's seed and the next N-1")
-    p.add_argument("--clock", choices=CLOCKS, default="inproc",
+    p.add_argument("--clock", choices=RUNNERS, default="inproc",
                    help="inproc: one process per run (fast, parallel); lockstep: a launched fleet per run")
     p.add_argument("--duration", type=float, metavar="S", help="simulated seconds per run")
     p.add_argument("--jobs", type=int, metavar="J",

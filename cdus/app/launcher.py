@@ -62,6 +62,7 @@ from cdus.wire import keys
 from cdus.wire.access import ROS2_ROLE
 from cdus.commands.vehicle import VehicleFault
 from cdus.wire.messages import CTL_OPS, decode_control, encode_control
+from cdus.wire.rejected import Rejected
 from cdus.wire.schemas import STATUS_KEY_ENV, FleetEvent, decode_event, decode_status, encode_event, signed_by
 from cdus.wire.text import printable
 from cdus.wire.transport import (
@@ -269,8 +270,8 @@ class Launcher(FaultDispatch, WorldLostMetrics):
             self._reject("status unsigned", "a world status not signed by the world started here (forged?)")
             return
         st = decode_status(payload)
-        if isinstance(st, str):
-            self._reject(f"status {st}", "a malformed world status")
+        if isinstance(st, Rejected):
+            self._reject(f"status {st.reason}", "a malformed world status")
             return
         t = st.get("t")
         limit = 2 * (self.opts.duration or self.scenario.duration) + 1.0
@@ -289,8 +290,8 @@ class Launcher(FaultDispatch, WorldLostMetrics):
 
     def _on_event(self, sample: Any) -> None:
         e = decode_event(sample.payload.to_bytes())
-        if isinstance(e, str):
-            self._reject(f"event {e}", "a malformed event")
+        if isinstance(e, Rejected):
+            self._reject(f"event {e.reason}", "a malformed event")
             return
         if not self.opts.quiet:  # printed by the watch loop, in time order (_print_events)
             with self.cond:  # the quota is shared with the main thread

@@ -60,9 +60,11 @@ from cdus.app.sweepplot import LABELS, axis_label, value_label  # noqa: F401
 from cdus.app.sweepstore import FIELDS  # noqa: F401
 
 __all__ = ["sweep", "SweepResult", "SweepInterrupted", "parse_grid", "check_grid", "plan", "Run", "FIELDS",
-           "CLOCKS", "PLOT_FORMATS", "cell_label"]
+           "RUNNERS", "PLOT_FORMATS", "cell_label"]
 
-CLOCKS = ("inproc", "lockstep")
+#: how a run is run: in this process (`cdus sim`) or as a launched fleet (`cdus launch --clock lockstep`);
+#: not a clock (cdus.core.vocabulary.CLOCKS: who drives time in a fleet of processes)
+RUNNERS = ("inproc", "lockstep")
 
 
 @dataclass
@@ -193,8 +195,8 @@ def sweep(scenario: str | os.PathLike | Scenario,
         raise RuntimeError("a sweep was started while a worker process of a sweep was importing the main script "
                            "(local workers are spawned: they import it): put the call under "
                            "`if __name__ == \"__main__\":` (docs/api.md)")
-    if clock not in CLOCKS:
-        raise ConfigError("command line", [("--clock", f"expected one of {', '.join(CLOCKS)}, got {clock!r}")])
+    if clock not in RUNNERS:
+        raise ConfigError("command line", [("--clock", f"expected one of {', '.join(RUNNERS)}, got {clock!r}")])
     if plot_format not in PLOT_FORMATS:
         raise ConfigError("command line", [("--plot-format", f"expected one of {', '.join(PLOT_FORMATS)}, got "
                                                              f"{printable(repr(plot_format), 40)}")])

@@ -22,8 +22,9 @@ import math
 from dataclasses import dataclass
 from typing import Iterable, Sequence
 
+from cdus.core.vocabulary import ROSTER_STATES
+
 ACTIONS = ("kill", "pause", "resume", "restart")
-STATES = ("live", "paused", "gone")
 LEASE_S = 1.0  # the liveliness lease the launcher sets: a frozen process is gone after this
 
 
@@ -88,5 +89,5 @@ def plan_roster(events: Iterable[Event], ids: Sequence[str], period: float,
             state[j] = "live"
     for j in list(paused_at):
         lapse(j, math.inf)
-    changes.sort(key=lambda c: (c.tick, c.vehicle, STATES.index(c.state) if c.state != "live" else 9))
+    changes.sort(key=lambda c: (c.tick, c.vehicle, ROSTER_STATES.index(c.state) if c.state != "live" else 9))
     return tuple(changes)

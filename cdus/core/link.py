@@ -16,15 +16,38 @@ from dataclasses import dataclass, field
 from typing import Iterable, Protocol, Sequence
 
 from cdus.core.linkspec import LinkSpec
+from cdus.core.vocabulary import DROP_CAUSES, LINK_STATES
 from cdus.wire.schemas import FleetEvent
 
 
 class LinkModel(Protocol):
+    """What a runner asks of a link model. ``decide`` is the model; the properties say what else
+    it holds, and default to "nothing" for a model that has nothing to say: a model subclasses
+    this class to take them, and its users ask them without duck typing."""
+
     def decide(self, src: int, dst: int, seq: int, t_send: float) -> tuple[float, ...]:
         ...
 
+    @property
+    def epochs(self) -> tuple[tuple[float, LinkSpec], ...] | None:
+        """The [link] specs and the send times they apply from, or None: run-time link changes
+        do not reach this model."""
+        return None
 
-class IdealLink:
+    @property
+    def faults(self) -> LinkEmulator | None:
+        """The emulator of the hand-set [link] faults in this model (its counters and link state
+        changes), or None."""
+        return None
+
+    @property
+    def radio(self) -> LinkModel | None:
+        """The radio path in this model (a cdus.core.radiolink.RadioLink: it takes geometry
+        samples), or None."""
+        return None
+
+
+class IdealLink(LinkModel):
     """Every message arrives, at once."""
 
     def decide(self, src: int, dst: int, seq: int, t_send: float) -> tuple[float, ...]:
@@ -85,8 +108,6 @@ _TWO_PI = 2.0 * math.pi
 
 STREAMS = ("loss", "burst-step", "burst-loss", "duplicate", "delay0a", "delay0b", "delay1a", "delay1b")
 _LOSS, _STEP, _BLOSS, _DUP, _DELAY = 0, 1, 2, 3, 4  # _DELAY + 2 * copy, + 1 for the second draw
-DROP_CAUSES = ("loss", "burst", "down", "partition")
-LINK_STATES = ("up", "lossy", "down")
 _ARRIVE = (0.0,)
 _DROP: tuple[float, ...] = ()
 
@@ -211,7 +232,7 @@ class _Link:
         self.fifo_recent: dict[int, tuple[float, ...]] = {}
 
 
-class LinkEmulator:
+class LinkEmulator(LinkModel):
     """The link fault emulator (docs/link.md): a :class:`LinkModel`.
 
     ``decide(src, dst, seq, t_send)`` depends on (seed, src, dst, seq, t_send) and the spec
@@ -240,6 +261,10 @@ class LinkEmulator:
     @property
     def epochs(self) -> tuple[tuple[float, LinkSpec], ...]:
         return tuple(zip(self._starts, self._specs))
+
+    @property
+    def faults(self) -> LinkEmulator:
+        return self
 
     def update(self, spec: LinkSpec, at: float) -> None:
         """From simulated time ``at`` on (t_send >= at) ``spec`` applies; earlier messages keep

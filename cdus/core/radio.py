@@ -38,6 +38,7 @@ from cdus.core.fading import ShadowField, _LOG10_GRID, fading_gain, fading_grid,
 from cdus.core.link import stream_key, uniform
 from cdus.core.propagation import C_LIGHT, free_space_db, path_loss_db, two_ray_loss_db, water_permittivity
 from cdus.core.reception import airtime, per_curve, per_from_snr
+from cdus.core.vocabulary import KINDS, RADIO_CAUSES
 from cdus.wire.messages import OmegaMsg, encode_omega
 
 # the names' old home: `from cdus.core.radio import ...` keeps working for what moved to a room of its own
@@ -47,14 +48,12 @@ from cdus.core.reception import ber, erfc_vec, q_function  # noqa: F401
 
 THERMAL_DBM_HZ = -174.0  # kT at 290 K, dBm/Hz
 STATION = "station"  # the base station's name in the random streams and the counters
-CAUSES = ("range", "fading", "collision", "queue")
 PROPAGATIONS = ("log_distance", "two_ray")
 TOPOLOGIES = ("adhoc", "station")
 FADINGS = ("none", "rician", "nakagami")
 MODULATIONS = ("bpsk", "qpsk", "16qam", "64qam")
 POLARIZATIONS = ("vertical", "horizontal")
 ACCESSES = ("csma", "aloha")
-KINDS = ("usv", "uav")
 DEFAULT_RATE = 50.0  # Hz: the default [rates] broadcast
 MAX_CACHED = 8192  # legs (link x epoch x geometry) kept before the cache is emptied
 
@@ -177,14 +176,18 @@ class RadioDecision:
 
 @dataclass
 class RadioCounters:
-    """Decisions on one directed link (or all): sent, delivered, drops by cause."""
+    """Messages decided on the radio (one directed link, or all) and what became of them
+    (docs/metrics.md, ``radio``): drops by cause (RADIO_CAUSES; the channel alone never counts
+    ``fault``, the hand-set [link] fault that cdus.core.radiolink.RadioLink decides first)."""
 
     sent: int = 0
     delivered: int = 0
+    fault: int = 0
     range: int = 0
     fading: int = 0
     collision: int = 0
     queue: int = 0
+    no_geometry: int = 0  # decided without the sample in force (realtime only; passed through)
 
     def add(self, other: "RadioCounters") -> None:
         for f in fields(self):
@@ -192,8 +195,13 @@ class RadioCounters:
 
     def as_dict(self) -> dict:
         return {"sent": self.sent, "delivered": self.delivered,
-                "dropped": sum(getattr(self, c) for c in CAUSES),
-                "dropped_by": {c: getattr(self, c) for c in CAUSES}}
+                "dropped": sum(getattr(self, c) for c in RADIO_CAUSES),
+                "dropped_by": {c: getattr(self, c) for c in RADIO_CAUSES}, "no_geometry": self.no_geometry}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "RadioCounters":
+        return cls(sent=d["sent"], delivered=d["delivered"], no_geometry=d.get("no_geometry", 0),
+                   **{c: d["dropped_by"][c] for c in RADIO_CAUSES})
 
 
 @dataclass(frozen=True)
@@ -522,6 +530,6 @@ class RadioChannel:
 
     def counters_summary(self) -> dict:
         """``{"total": {...}, "links": {"usv1->usv2": {...}}}``, each ``{sent, delivered, dropped,
-        dropped_by: {range, fading, collision, queue}}``."""
+        dropped_by: {fault (always 0 here), range, fading, collision, queue}, no_geometry}``."""
         return {"total": self.counters.as_dict(),
                 "links": {f"{self.ids[s]}->{self.ids[d]}": c.as_dict() for (s, d), c in self.link_counters().items()}}

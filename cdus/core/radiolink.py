@@ -21,43 +21,14 @@ radio spec in force at the send time and the geometry sample in force at the sen
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import Sequence
 
 from cdus.core.link import LinkModel
-from cdus.core.radio import Geometry, RadioChannel
+from cdus.core.radio import Geometry, RadioChannel, RadioCounters
+from cdus.core.vocabulary import RADIO_CAUSES
 
-#: why the radio path dropped a message: the hand-set [link] fault, then the channel's causes
-RADIO_CAUSES = ("fault", "range", "fading", "collision", "queue")
 KEEP_SAMPLES = 256  # geometry samples kept (a gap filled this late still finds its own)
-
-
-@dataclass
-class RadioCounters:
-    """Messages decided on the radio path and what became of them (docs/metrics.md, ``radio``)."""
-
-    sent: int = 0
-    delivered: int = 0
-    fault: int = 0
-    range: int = 0
-    fading: int = 0
-    collision: int = 0
-    queue: int = 0
-    no_geometry: int = 0  # decided without the sample in force (realtime only; passed through)
-
-    def add(self, other: "RadioCounters") -> None:
-        for f in fields(self):
-            setattr(self, f.name, getattr(self, f.name) + getattr(other, f.name))
-
-    def as_dict(self) -> dict:
-        return {"sent": self.sent, "delivered": self.delivered,
-                "dropped": sum(getattr(self, c) for c in RADIO_CAUSES),
-                "dropped_by": {c: getattr(self, c) for c in RADIO_CAUSES}, "no_geometry": self.no_geometry}
-
-    @classmethod
-    def from_dict(cls, d: dict) -> "RadioCounters":
-        return cls(sent=d["sent"], delivered=d["delivered"], no_geometry=d.get("no_geometry", 0),
-                   **{c: d["dropped_by"][c] for c in RADIO_CAUSES})
 
 
 @dataclass(frozen=True)
@@ -82,7 +53,7 @@ def sample_tick(m: int, every: int, lag: int) -> int:
     return max(0, (m - lag) // every * every) if m >= lag else 0
 
 
-class RadioLink:
+class RadioLink(LinkModel):
     """A :class:`LinkModel`: the hand-set link faults, then the radio channel (module docstring)."""
 
     def __init__(self, inner: LinkModel, channel: RadioChannel, *, period: float, every: int, lag: int):
@@ -100,7 +71,15 @@ class RadioLink:
     # ---- the link emulator's run-time interface, forwarded (set_link, metrics)
     @property
     def epochs(self):
-        return getattr(self.inner, "epochs", None)
+        return self.inner.epochs
+
+    @property
+    def faults(self):
+        return self.inner.faults
+
+    @property
+    def radio(self) -> RadioLink:
+        return self
 
     def update(self, spec, at: float) -> None:
         self.inner.update(spec, at)  # type: ignore[attr-defined]

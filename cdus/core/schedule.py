@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-CLOCKS = ("lockstep", "realtime")  # who drives time in a fleet of processes (docs/architecture.md)
+from cdus.core.vocabulary import CLOCKS  # noqa: F401  (the agents and the world take it from here)
 
 
 def broadcast_every(rates: Any) -> int:

@@ -35,6 +35,7 @@ from cdus.core.schedule import total_ticks
 from cdus.sim.polyline import path_polyline
 from cdus.wire import keys
 from cdus.wire.access import ROS2_ROLE
+from cdus.wire.rejected import Rejected
 from cdus.wire.messages import decode_states
 from cdus.wire.schemas import decode_event
 
@@ -114,8 +115,8 @@ class Republisher:
         """One sample from the fleet: telemetry rows or an event."""
         if key == keys.world_events(self.fleet):
             e = decode_event(payload, self.ids)
-            if isinstance(e, str):
-                self._reject(f"event {e}")
+            if isinstance(e, Rejected):
+                self._reject(f"event {e.reason}")
                 return
             self.publish((None, "events"), {"data": json.dumps(e.as_dict(), ensure_ascii=False)})
             return
@@ -124,8 +125,8 @@ class Republisher:
             self._reject("state unknown_sender")
             return
         rows = decode_states(payload, len(self.ids))
-        if isinstance(rows, str):
-            self._reject(f"state {rows}")
+        if isinstance(rows, Rejected):
+            self._reject(f"state {rows.reason}")
             return
         for row in rows:
             vid = self.ids[row.sender]

@@ -43,6 +43,7 @@ from cdus.core.paths import FAMILIES, Path, PathError, for_dimension, make_path,
 from cdus.scenario.checks import IdList, Problems, describe, is_number, quote, show
 from cdus.scenario.vehicles import not_finite_message, retrace_message
 from cdus.core.radiolink import RadioEvent
+from cdus.core.vocabulary import ROSTER_STATES
 from cdus.wire.bounds import BOUNDS
 
 EVENT_KEYS = ("at", "action", "vehicle", "duration", "phases", "offsets", "path")
@@ -75,7 +76,7 @@ def event_section(p: Problems, raw: Any, ids: Sequence[str] | None) -> tuple[Eve
 
 
 # what each action needs the vehicle to be, and what it leaves it
-_NEEDS = {"kill": ("live", "paused"), "pause": ("live",), "resume": ("paused",), "restart": ("live", "paused", "gone")}
+_NEEDS = {"kill": ("live", "paused"), "pause": ("live",), "resume": ("paused",), "restart": ROSTER_STATES}
 _LEAVES = {"kill": "gone", "pause": "paused", "resume": "live", "restart": "live"}
 _FIX = {"kill": "it is already gone (killed before): remove one of the kills",
         "pause": "it is {state} then: pause a live vehicle (a killed one needs a restart first)",

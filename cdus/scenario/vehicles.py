@@ -21,11 +21,11 @@ from cdus.core.limits import default_limits
 from cdus.core.models import DEFAULT_PRESET, PLANTS as MODELS
 from cdus.core.paths import FAMILIES, Path, PathError, for_dimension, make_path, not_finite_at, turning_point
 from cdus.core.plants import USV_PRESETS
+from cdus.core.vocabulary import DIMENSIONS, KINDS
 from cdus.scenario.checks import IdList, Problems, describe, is_number, quote, show
 from cdus.scenario.model import Edge, Rates, VehicleSpec
 from cdus.scenario.sections import DEFAULT_GAINS, gain_values
 
-KINDS: dict[str, int] = {"usv": 2, "uav": 3}  # kind -> dimension
 #: plant -> kinds it models (the vehicle models' one table: cdus.core.models.PLANTS)
 PLANTS: dict[str, tuple[str, ...]] = {name: m.kinds for name, m in MODELS.items()}
 #: usv_3dof parameter presets ε1..ε7 (a CyberShip II-like 3-DOF model).
@@ -197,7 +197,7 @@ def vehicle(p: Problems, raw: Mapping, index: int, vid: str | None, defaults: Ma
     p.unknown_keys(raw, VEHICLE_KEYS, label)
     t = _Merged(label, *merge(defaults, raw))
     kind, plant = _kind_plant(p, t)
-    dim = KINDS[kind] if kind is not None else None
+    dim = DIMENSIONS[kind] if kind is not None else None
     _skip_defaults(t, kind, plant)
     epsilon, preset = _epsilon(p, t, plant)
     regulator, regulator_gains = _regulator(p, t, plant)
@@ -363,8 +363,8 @@ def not_finite_message(w: float) -> str:
     return f"its values are not finite numbers at ω = {w:g}: a vehicle cannot follow it"
 
 
-#: a vehicle of each dimension in words (KINDS: usv 2-D, uav 3-D)
-VEHICLE_WORDS = {KINDS["usv"]: "a boat", KINDS["uav"]: "a drone"}
+#: a vehicle of each dimension in words (DIMENSIONS: usv 2-D, uav 3-D)
+VEHICLE_WORDS = {DIMENSIONS["usv"]: "a boat", DIMENSIONS["uav"]: "a drone"}
 
 
 def retrace_message(spec: dict, turn: float, dim: int | None) -> str:
@@ -373,7 +373,7 @@ def retrace_message(spec: dict, turn: float, dim: int | None) -> str:
     if all(a == 0 for a in (spec.get("amplitude") or ())[:dim or 3]) or \
             all(f == 0 for f in (spec.get("frequency") or ())[:dim or 3]):
         return f"{axes} does not move (every amplitude or frequency is 0): there is no path to follow"
-    who = VEHICLE_WORDS.get(dim, "a vehicle")  # the kind from the dimension (KINDS: one kind per dimension)
+    who = VEHICLE_WORDS.get(dim, "a vehicle")  # the kind from the dimension (DIMENSIONS: one kind per dimension)
     return (f"this Lissajous path runs back over itself: {axes} stops at ω = {turn:.4g} (no tangent: {who} "
             f"cannot follow it) and retraces its way (phase {list(spec.get('phase', [0] * len(spec.get('center') or ())))} "
             "turns every moving axis there at once; all phases 0 always do), so any two vehicles on it not at the "
@@ -409,7 +409,7 @@ def _start(p: Problems, t: _Merged, kind: str | None, seed: int,
         p.add(t.field("start"), "give either position or region_min/region_max, not both")
         return None, None
     if "position" in st:
-        dim = KINDS[kind]
+        dim = DIMENSIONS[kind]
         pos = p.vector(st["position"], t.field("start", "position"), dim,
                        f"a {kind} position {'[x, y]' if dim == 2 else '[x, y, z]'} in m", t.note("start", "position"),
                        "vehicle.start.position")
@@ -422,7 +422,7 @@ def _start(p: Problems, t: _Merged, kind: str | None, seed: int,
 def _region_start(p: Problems, t: _Merged, st: Mapping, kind: str, heading: float | None,
                   rng: random.Random) -> tuple[tuple[float, ...] | None, float | None]:
     """A uniform random start in the box, and for a usv a random heading unless given."""
-    dim = KINDS[kind]
+    dim = DIMENSIONS[kind]
     corners = []
     for key, other in (("region_min", "region_max"), ("region_max", "region_min")):
         if key not in st:
@@ -463,7 +463,7 @@ def _gains(p: Problems, t: _Merged, kind: str | None, fleet_gains: Mapping) -> t
     c = float(c_raw) if is_number(c_raw) else DEFAULT_GAINS["c"]
     if kind is None:
         return (), c
-    dim = KINDS[kind]
+    dim = DIMENSIONS[kind]
     if isinstance(k_raw, list) and len(k_raw) != dim:
         note = t.note("gains", "k") if "k" in vg else " (set in [gains])"
         p.add(t.field("gains", "k"), f"a list of per-axis gains needs {dim} values for a {kind} "
@@ -499,7 +499,7 @@ def _disturbance(p: Problems, t: _Merged, kind: str | None) -> tuple[tuple[str, 
     p.unknown_keys(dt, DISTURBANCE_KEYS, t.field("disturbance"))
     out: dict[str, Any] = {}
     if "constant" in dt and kind is not None:
-        out["constant"] = p.vector(dt["constant"], t.field("disturbance", "constant"), KINDS[kind],
+        out["constant"] = p.vector(dt["constant"], t.field("disturbance", "constant"), DIMENSIONS[kind],
                                    f"a {kind} current/wind in m/s, one per axis", t.note("disturbance", "constant"),
                                    "disturbance.constant")
     if "gust" in dt:

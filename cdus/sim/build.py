@@ -191,8 +191,7 @@ def radio_channel_for(scenario: Scenario) -> RadioChannel:
 
 def link_faults_of(link: LinkModel) -> LinkEmulator | None:
     """The link emulator inside ``link`` (under a radio channel or not), if any."""
-    inner = getattr(link, "inner", link)
-    return inner if isinstance(inner, LinkEmulator) else None
+    return link.faults
 
 
 def link_emulator_for(scenario: Scenario) -> LinkEmulator:

@@ -47,6 +47,7 @@ from cdus.sim.reports import (
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
 from cdus.sim.summary import link_block, run_metrics, sum_counters
 from cdus.sim.radio import RadioWatch, apply_radio_change, geometry_sample, radio_block, radio_change_problem
+from cdus.wire.rejected import Rejected
 from cdus.wire.messages import (
     decode_contacts, decode_geometry, decode_omega, encode_contacts, encode_geometry, encode_omega,
 )
@@ -70,7 +71,7 @@ class InProcessFleet:
         self.mode = mode
         self.sink = sink or NullSink()
         self.link = link_model_for(scenario) if link is None else (
-            link if hasattr(link, "on_geometry") else with_radio(scenario, link))  # a given model under [radio]
+            link if link.radio is not None else with_radio(scenario, link))  # a given model under [radio]
         spec = scenario.link
         self.policy = policy or spec.policy
         self.timeout = spec.timeout if timeout is None else timeout
@@ -245,7 +246,7 @@ class InProcessFleet:
         for dst in self.listeners[src]:
             if self.ids[dst] not in self._alive:
                 continue
-            if isinstance(wire, str):  # a diverged vehicle (non-finite ω): receivers reject it
+            if isinstance(wire, Rejected):  # a diverged vehicle (non-finite ω): receivers reject it
                 self.nodes[dst].counters.sent += 1
                 self.nodes[dst].counters.rejected += 1
             else:
@@ -257,7 +258,7 @@ class InProcessFleet:
         were last seen (cdus.sim.sensing)."""
         for j, msg in sense_tick(self.scenario, n, positions, gone).items():
             wire = decode_contacts(encode_contacts(msg), len(self.ids))
-            if not isinstance(wire, str):
+            if not isinstance(wire, Rejected):
                 self.nodes[j].on_contacts(n, contacts_of(wire, self.ids))
 
     def _radio_sample(self, n: int, positions: dict) -> None:
@@ -265,14 +266,12 @@ class InProcessFleet:
         format once, into the shared RadioLink (in force from n + lag), and watched (events)."""
         dims = [v.dim for v in self.scenario.vehicles]
         wire = decode_geometry(encode_geometry(geometry_sample(n, positions, len(self.ids), dims)), len(self.ids), dims)
-        if isinstance(wire, str):  # a diverged vehicle's position (non-finite): the step raises first
+        if isinstance(wire, Rejected):  # a diverged vehicle's position (non-finite): the step raises first
             return
         self.link.on_geometry(wire.tick, wire.positions)
         for ev in self.radio_watch.observe(wire):
             self._note(ev)
-        radio_view = getattr(self.sink, "radio", None)
-        if radio_view is not None:
-            radio_view(n * self.period, self.radio_watch)
+        self.sink.radio(n * self.period, self.radio_watch)
 
     def set_radio(self, change: dict, at: float) -> None:
         """A run-time radio change (tx_power, station) for messages sent from ``at`` on, as a
@@ -293,7 +292,8 @@ class InProcessFleet:
         for node in self.nodes:
             for ev in burst_events(node.bursts, self.ids):
                 self._note(ev)
-        changes = getattr(link_faults_of(self.link), "state_changes", None)
+        emulator = self.link.faults
+        changes = emulator.state_changes if emulator is not None else None
         if not changes or len(changes) == self._changes_seen:
             return
         for t, s, d, state in changes[self._changes_seen:]:

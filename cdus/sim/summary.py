@@ -17,6 +17,7 @@ from typing import Any, Iterable, Sequence
 
 from cdus.core.link import LinkCounters
 from cdus.core.metrics import CROSS_DOMAIN, Recorder, closest_pairs, min_separation, percentile_ms
+from cdus.core.vocabulary import KINDS
 from cdus.scenario.model import Scenario
 from cdus.wire.schemas import FleetEvent
 
@@ -79,7 +80,7 @@ def safety_figures(recorder: Recorder, kinds: Sequence[str], radius: float) -> d
     pairs = closest_pairs(recorder.view("t"), recorder.view("q"), recorder.view("live"), recorder.ids, kinds)
     closest = min(pairs.values(), key=lambda p: (p.distance, p.t), default=None)
     return {
-        "closest_pairs": {d: pairs[d].as_dict() for d in ("usv", "uav", CROSS_DOMAIN) if d in pairs},
+        "closest_pairs": {d: pairs[d].as_dict() for d in (*KINDS, CROSS_DOMAIN) if d in pairs},
         "closest_pair": None if closest is None else closest.as_dict(),
         "near_collision": any(p.distance < radius for p in pairs.values()),
     }

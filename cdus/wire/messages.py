@@ -12,8 +12,9 @@ msgpack spelling of the same array is read too, and checked alike. ω is float64
 wire and everywhere else: it is unbounded (it decreases at 1/s forever) and a narrow
 type would ruin it (docs/control.md). The sender's id travels in the key
 (``.../omega/<id>``); the index inside the payload must agree with it. Decoders never
-raise: they return a message or the reason for rejecting it, so a receiver can count
-and drop without a try/except in its loop.
+raise: they return a message or :class:`cdus.wire.rejected.Rejected` with the reason, so a
+receiver can count and drop without a try/except in its loop (``decode_control`` still
+returns the reason as a string).
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from typing import Any, Sequence
 import msgpack
 
 from cdus.wire.bounds import BOUNDS, finite
+from cdus.wire.rejected import Rejected
 
 OMEGA_VERSION = 1
 MAX_OMEGA_PAYLOAD = 33  # 32 up to 256 vehicles (uint8 sender), 33 beyond (uint16)
@@ -60,8 +62,8 @@ def encode_omega(m: OmegaMsg) -> bytes:
 
 
 def decode_omega(payload: bytes, expected_sender: int | None = None, n_vehicles: int | None = None
-                 ) -> OmegaMsg | str:
-    """A valid message, or a short reason string (``"malformed"``, ``"version"``, ...)."""
+                 ) -> OmegaMsg | Rejected:
+    """A valid message, or Rejected with a short reason (``malformed``, ``version``, ...)."""
     size = len(payload)
     if size == 32 and payload[2] == 0xcc and payload[4] == 0xce and payload[:2] == b"\x96\x01":
         _, _, _, sender, _, seq, m1, t, m2, w, m3, wd = _OMEGA8.unpack(payload)
@@ -74,35 +76,35 @@ def decode_omega(payload: bytes, expected_sender: int | None = None, n_vehicles:
     return _checked(sender, seq, t, w, wd, expected_sender, n_vehicles)
 
 
-def _decode_omega_any(payload: bytes, expected_sender: int | None, n_vehicles: int | None) -> OmegaMsg | str:
+def _decode_omega_any(payload: bytes, expected_sender: int | None, n_vehicles: int | None) -> OmegaMsg | Rejected:
     """Any msgpack spelling of the ω array (the slow path)."""
     if len(payload) > MAX_OMEGA_PAYLOAD:
-        return "oversized"
+        return Rejected("oversized")
     try:
         obj = msgpack.unpackb(payload, raw=True, strict_map_key=True, max_array_len=8,
                               max_map_len=0, max_str_len=0, max_bin_len=0, max_ext_len=0)
     except MSGPACK_ERRORS:
-        return "malformed"
+        return Rejected("malformed")
     if not isinstance(obj, list) or len(obj) != 6:
-        return "malformed"
+        return Rejected("malformed")
     v, sender, seq, t, w, wd = obj
     if type(v) is not int or v != OMEGA_VERSION:
-        return "version"
+        return Rejected("version")
     if type(sender) is not int or type(seq) is not int:
-        return "type"
+        return Rejected("type")
     if not all(type(x) is float for x in (t, w, wd)):
-        return "type"
+        return Rejected("type")
     return _checked(sender, seq, t, w, wd, expected_sender, n_vehicles)
 
 
 def _checked(sender: int, seq: int, t: float, w: float, wd: float, expected_sender: int | None,
-             n_vehicles: int | None) -> OmegaMsg | str:
+             n_vehicles: int | None) -> OmegaMsg | Rejected:
     if not (math.isfinite(t) and math.isfinite(w) and math.isfinite(wd)):
-        return "non_finite"
+        return Rejected("non_finite")
     if seq < 0 or sender < 0 or (n_vehicles is not None and sender >= n_vehicles):
-        return "unknown_sender"
+        return Rejected("unknown_sender")
     if expected_sender is not None and sender != expected_sender:
-        return "unknown_sender"
+        return Rejected("unknown_sender")
     return OmegaMsg(sender, seq, t, w, wd)
 
 
@@ -141,46 +143,46 @@ def encode_states(rows: list[StateMsg]) -> bytes:
                   [[m.tick, m.t, list(m.q), m.heading, m.speed, m.omega, m.omega_rate, m.path_error] for m in rows]])
 
 
-def _versioned_triple(payload: bytes, max_bytes: int, max_rows: int, version: int) -> tuple[Any, Any] | str:
+def _versioned_triple(payload: bytes, max_bytes: int, max_rows: int, version: int) -> tuple[Any, Any] | Rejected:
     """The (head, rows) of a ``[version, head, rows]`` msgpack array of numbers only, or the
     reason it is rejected (``oversized``, ``malformed``, ``version``); never raises."""
     if len(payload) > max_bytes:
-        return "oversized"
+        return Rejected("oversized")
     try:
         obj = msgpack.unpackb(payload, raw=True, max_array_len=max_rows, max_map_len=0, max_str_len=0,
                               max_bin_len=0, max_ext_len=0)
     except MSGPACK_ERRORS:
-        return "malformed"
+        return Rejected("malformed")
     if not isinstance(obj, list) or len(obj) != 3:
-        return "malformed"
+        return Rejected("malformed")
     v, head, rows = obj
     if type(v) is not int or v != version:
-        return "version"
+        return Rejected("version")
     return head, rows
 
 
-def decode_states(payload: bytes, n_vehicles: int | None = None) -> list[StateMsg] | str:
+def decode_states(payload: bytes, n_vehicles: int | None = None) -> list[StateMsg] | Rejected:
     """The rows of a telemetry batch, or the reason it was rejected (the whole batch is)."""
     obj = _versioned_triple(payload, 96 * MAX_STATE_ROWS, MAX_STATE_ROWS, STATE_VERSION)
-    if isinstance(obj, str):
+    if isinstance(obj, Rejected):
         return obj
     sender, rows = obj
     if type(sender) is not int or not isinstance(rows, list) or not rows:
-        return "type"
+        return Rejected("type")
     if sender < 0 or (n_vehicles is not None and sender >= n_vehicles):
-        return "unknown_sender"
+        return Rejected("unknown_sender")
     out = []
     for row in rows:
         if not isinstance(row, list) or len(row) != 8:
-            return "malformed"
+            return Rejected("malformed")
         tick, t, q, heading, speed, w, wd, pe = row
         if type(tick) is not int or tick < 0 or not isinstance(q, list) or len(q) not in (2, 3):
-            return "type"
+            return Rejected("type")
         floats = (t, heading, speed, w, wd, pe, *q)
         if not all(type(x) is float for x in floats):
-            return "type"
+            return Rejected("type")
         if not all(math.isfinite(x) for x in floats):
-            return "non_finite"
+            return Rejected("non_finite")
         out.append(StateMsg(sender, tick, t, tuple(q), heading, speed, w, wd, pe))
     return out
 
@@ -207,39 +209,39 @@ def encode_contacts(m: ContactsMsg) -> bytes:
 
 
 def decode_contacts(payload: bytes, n_vehicles: int | None = None, receiver: int | None = None,
-                    dim: int | None = None) -> ContactsMsg | str:
+                    dim: int | None = None) -> ContactsMsg | Rejected:
     """A valid contacts message, or the reason it is rejected (``malformed``, ``version``,
     ``type``, ``non_finite``, ``share``, ``unknown_sender``, ``oversized``, and given the
     receiving vehicle's index and dimension: ``self`` (a contact that is the receiver itself),
     ``duplicate`` (one vehicle listed twice), ``dimension`` (a position the receiver's filter
     cannot take: a USV is sent 2 coordinates, a UAV 3)); never raises."""
     obj = _versioned_triple(payload, 48 * MAX_CONTACTS + 16, MAX_CONTACTS, CONTACTS_VERSION)
-    if isinstance(obj, str):
+    if isinstance(obj, Rejected):
         return obj
     tick, rows = obj
     if type(tick) is not int or tick < 0 or not isinstance(rows, list):
-        return "type"
+        return Rejected("type")
     out = []
     for row in rows:
         if not isinstance(row, list) or len(row) != 3:
-            return "malformed"
+            return Rejected("malformed")
         k, w, q = row
         if type(k) is not int or type(w) is not float or not isinstance(q, list) or len(q) not in (2, 3) \
                 or not all(type(x) is float for x in q):
-            return "type"
+            return Rejected("type")
         if not (math.isfinite(w) and all(math.isfinite(x) for x in q)):
-            return "non_finite"
+            return Rejected("non_finite")
         if not 0.0 < w <= 1.0:
-            return "share"
+            return Rejected("share")
         if k < 0 or (n_vehicles is not None and k >= n_vehicles):
-            return "unknown_sender"
+            return Rejected("unknown_sender")
         if dim is not None and len(q) != dim:
-            return "dimension"
+            return Rejected("dimension")
         out.append((k, w, tuple(q)))
     if receiver is not None and any(k == receiver for k, _, _ in out):
-        return "self"
+        return Rejected("self")
     if len({k for k, _, _ in out}) != len(out):
-        return "duplicate"
+        return Rejected("duplicate")
     return ContactsMsg(tick, tuple(out))
 
 
@@ -266,34 +268,34 @@ def encode_geometry(m: GeometryMsg) -> bytes:
 
 
 def decode_geometry(payload: bytes, n_vehicles: int | None = None,
-                    dims: Sequence[int] | None = None) -> GeometryMsg | str:
+                    dims: Sequence[int] | None = None) -> GeometryMsg | Rejected:
     """A valid geometry sample, or the reason it is rejected (``oversized``, ``malformed``,
     ``version``, ``type``, ``non_finite``, ``range`` (a coordinate beyond
     :data:`MAX_COORDINATE`), ``count`` (not one entry per vehicle of the fleet), and given every
     vehicle's dimension: ``dimension`` (a boat not sent 2 coordinates, a drone not 3: the world
     sends each its own)); never raises."""
     obj = _versioned_triple(payload, 30 * MAX_GEOMETRY_VEHICLES + 32, MAX_GEOMETRY_VEHICLES, GEOMETRY_VERSION)
-    if isinstance(obj, str):
+    if isinstance(obj, Rejected):
         return obj
     tick, rows = obj
     if type(tick) is not int or tick < 0 or not isinstance(rows, list):
-        return "type"
+        return Rejected("type")
     out: list[tuple[float, ...] | None] = []
     for q in rows:
         if q is None:
             out.append(None)
             continue
         if not isinstance(q, list) or len(q) not in (2, 3) or not all(type(x) is float for x in q):
-            return "type"
+            return Rejected("type")
         if not all(math.isfinite(x) for x in q):
-            return "non_finite"
+            return Rejected("non_finite")
         if not all(abs(x) <= MAX_COORDINATE for x in q):
-            return "range"
+            return Rejected("range")
         out.append(tuple(q))
     if n_vehicles is not None and len(out) != n_vehicles:
-        return "count"
+        return Rejected("count")
     if dims is not None and (len(dims) != len(out) or any(q is not None and len(q) != d for q, d in zip(out, dims))):
-        return "dimension" if len(dims) == len(out) else "count"
+        return Rejected("dimension" if len(dims) == len(out) else "count")
     return GeometryMsg(tick, tuple(out))
 
 

@@ -1,9 +1,18 @@
-"""Why was an input refused? The one result a parse or a decoder returns instead of raising.
+"""Why was an input refused? The one result a decoder or a parse returns instead of raising.
 
-A decoder or a parse returns what it made, or a :class:`Rejected`: the reason in words (for a
-person, and short enough for a reply) and, where one field is at fault, that field's name as
-the user wrote it (``k``, ``phases.usv2``, ``vehicle``). It is the lowest layer's (cdus.wire)
-so that every decoder above can return it.
+Every decoder of :mod:`cdus.wire` returns the record it decoded or ``Rejected(reason)``, and
+never raises, so a receiver counts the reason and drops the message without a try/except:
+
+    msg = decode_omega(payload)
+    if isinstance(msg, Rejected):
+        counters[msg.reason] += 1
+
+A decoder's reason is a short lowercase word (``malformed``, ``version``, ``type``, ``range``,
+...) that its docstring lists; the receivers count them by name in their ``rejected_by_reason``.
+A parse of a run-time command (:mod:`cdus.commands`) gives the reason in words (for a person,
+short enough for a reply) and, where one field is at fault, that field's name as the user wrote
+it (``k``, ``phases.usv2``, ``vehicle``). It is the lowest layer's (cdus.wire) so that every
+decoder and parse above can return it.
 """
 
 from __future__ import annotations
@@ -11,10 +20,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Rejected:
-    """An input refused: ``reason`` (what is wrong and the fix) and the ``field`` at fault (None:
-    the input as a whole)."""
+    """An input refused: ``reason`` (what is wrong, and for a person the fix) and the ``field``
+    at fault (None: the input as a whole)."""
 
     reason: str
     field: str | None = None

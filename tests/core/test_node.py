@@ -518,6 +518,7 @@ def test_hostile_traffic_out_of_window_never_changes_a_genuine_run(data):
     from cdus.sim.fleet import InProcessFleet
     from cdus.scenario.config import parse_scenario
     from cdus.wire.messages import decode_omega, encode_omega
+    from cdus.wire.rejected import Rejected
 
     sc = parse_scenario({**RING, "scenario": {"name": "ring3", "duration": 1.0}})
     clean = InProcessFleet(sc)
@@ -531,7 +532,7 @@ def test_hostile_traffic_out_of_window_never_changes_a_genuine_run(data):
             h = _hostile(data, src, n, fleet.end_tick)
             wire = decode_omega(h if isinstance(h, bytes) else encode_omega(h), expected_sender=src, n_vehicles=3)
             for dst in fleet.listeners[src]:
-                if isinstance(wire, str):
+                if isinstance(wire, Rejected):
                     sent["hostile"] += 1
                     fleet.nodes[dst].rejected.setdefault(wire, 0)
                     fleet.nodes[dst].rejected[wire] += 1

@@ -22,6 +22,7 @@ import zenoh
 
 from cdus.wire import keys
 from cdus.wire.schemas import decode_status
+from cdus.wire.rejected import Rejected
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -138,7 +139,7 @@ class WorldTime:
 
     def _on(self, sample) -> None:
         st = decode_status(sample.payload.to_bytes())
-        if not isinstance(st, str):
+        if not isinstance(st, Rejected):
             with self.cond:
                 self.t = float(st["t"])
                 self.cond.notify_all()

@@ -30,6 +30,7 @@ from cdus.wire import keys
 from cdus.wire.messages import OmegaMsg, StateMsg, encode_control, encode_omega, encode_states
 from cdus.wire.schemas import AgentStats, FleetEvent, decode_event, encode_event, encode_stats, encode_status
 from cdus.wire.transport import free_tcp_port
+from cdus.wire.rejected import Rejected
 
 from tests.outsider import raw_client
 
@@ -51,7 +52,7 @@ class Events:
 
     def _on(self, sample) -> None:
         e = decode_event(sample.payload.to_bytes())
-        assert not isinstance(e, str), e
+        assert not isinstance(e, Rejected), e
         with self.cond:
             self.events.append(e)
             self.cond.notify_all()

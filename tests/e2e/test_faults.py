@@ -18,6 +18,7 @@ from cdus.sim.build import listeners_of
 from cdus.wire.messages import encode_control
 from cdus.wire.schemas import decode_event
 from cdus.sim.fleet import InProcessFleet
+from cdus.wire.rejected import Rejected
 
 from .conftest import fleet_processes, unique_fleet
 
@@ -260,7 +261,7 @@ def test_fuzzed_payloads_are_counted_and_never_reach_a_controller(tmp_path, laun
         session.put(keys.world_cmd(fleet, "test"), encode_control("pause"), congestion_control=block)
         while True:
             e = heard.get(timeout=60)
-            if not isinstance(e, str) and e.kind == "fleet" and "paused" in e.text:
+            if not isinstance(e, Rejected) and e.kind == "fleet" and "paused" in e.text:
                 break
         pubs = {vid: session.declare_publisher(keys.omega(fleet, vid, listeners_of(sc, vid)), congestion_control=block)
                 for vid in sc.ids}

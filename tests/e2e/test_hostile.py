@@ -30,6 +30,7 @@ from cdus.wire import keys
 from cdus.wire.messages import OmegaMsg, decode_omega, encode_control, encode_omega, encode_states, StateMsg
 from cdus.wire.schemas import FleetEvent, decode_event, decode_status, encode_event
 from cdus.wire.transport import Transport, free_tcp_port, open_session
+from cdus.wire.rejected import Rejected
 
 from .conftest import fleet_processes, unique_fleet
 
@@ -58,7 +59,7 @@ class Spoofer:
 
     def _on(self, sample) -> None:
         m = decode_omega(sample.payload.to_bytes())
-        if isinstance(m, str) or m.omega_rate == 12345.0:  # ours (marked), or not a message
+        if isinstance(m, Rejected) or m.omega_rate == 12345.0:  # ours (marked), or not a message
             return
         forged = OmegaMsg(m.sender, m.seq + 1, m.t_send + self.period, m.omega + 1.0, 12345.0)
         self.pub.put(encode_omega(forged))
@@ -79,13 +80,13 @@ def _attack(port: int, fleet: str, sc, *, hold: bool) -> dict:
         session.declare_subscriber(keys.world_status(fleet), lambda s: status.put(decode_status(s.payload.to_bytes())))
         while True:
             st = status.get(timeout=60)
-            if not isinstance(st, str) and st["t"] >= 1.0:
+            if not isinstance(st, Rejected) and st["t"] >= 1.0:
                 break
         if hold:  # hold the fleet so every piece is in before it steps on (a pause changes nothing in lockstep)
             session.put(keys.world_cmd(fleet, "test"), encode_control("pause"), congestion_control=BLOCK)
             while True:
                 e = heard.get(timeout=60)
-                if not isinstance(e, str) and e.kind == "fleet" and "paused" in e.text:
+                if not isinstance(e, Rejected) and e.kind == "fleet" and "paused" in e.text:
                     break
         period = 1.0 / sc.rates.control
         v0 = sc.ids[0]

@@ -15,6 +15,7 @@ from cdus.scenario.config import load_scenario
 from cdus.wire.transport import Transport, free_tcp_port, open_session
 from cdus.sim.fleet import InProcessFleet
 from cdus.core.metrics import METRICS_FIELDS
+from cdus.wire.rejected import Rejected
 
 from .conftest import assert_same_trace, fleet_processes, run_cli, unique_fleet
 
@@ -77,7 +78,7 @@ def test_a_killed_agent_is_reported_with_the_graph_it_leaves(tmp_path, launches)
                 time.sleep(0.005)
                 continue
             event = decode_event(sample.payload.to_bytes())
-            assert not isinstance(event, str), event
+            assert not isinstance(event, Rejected), event
             events.append((time.monotonic() - t_kill, event))
             if event.kind == "graph":
                 break

@@ -19,6 +19,7 @@ from cdus.wire import keys
 from cdus.wire.messages import encode_control
 from cdus.wire.schemas import decode_event
 from cdus.wire.transport import Transport, free_tcp_port, open_session
+from cdus.wire.rejected import Rejected
 
 from .conftest import fleet_processes, unique_fleet
 
@@ -79,7 +80,7 @@ def test_a_run_time_link_change_that_lowers_the_delay_reproduces_the_in_process_
                     congestion_control=zenoh.CongestionControl.BLOCK)
         while True:
             e = heard.get(timeout=120)
-            if not isinstance(e, str) and e.kind == "link_changed":
+            if not isinstance(e, Rejected) and e.kind == "link_changed":
                 break
     finally:
         session.close()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from hypothesis import given, settings, strategies as hs
 
+from cdus.wire.status import StatusExtra, WorldStatus, decode_status, encode_status
 from ground_station.alarms import NO_RADIUS, Alarms
 
 IDS = ["usv1", "usv2", "usv3"]
@@ -11,12 +12,17 @@ RING = [("usv1", "usv2", 0.01), ("usv2", "usv3", 0.01), ("usv1", "usv3", 0.01)]
 
 
 def status(t: float, states=("live",) * 3, edges=RING, path_errors=(0.01,) * 3, radius=2.0, closest=None,
-           **over) -> dict:
-    d = {"t": t, "ids": IDS, "alive": [v for v, s in zip(IDS, states) if s != "gone"], "states": list(states),
-         "edges": list(edges), "path_errors": list(path_errors) if isinstance(path_errors, tuple) else path_errors, "safety_radius": radius, "closest": closest,
-         "directed": False}
-    d.update(over)
-    return {k: v for k, v in d.items() if v is not None}
+           alive=None, directed=False) -> WorldStatus:
+    """A status as the console gets it: encoded by the world's encoder, decoded by decode_status
+    (``states`` None: a world whose status has no roster states)."""
+    extra = StatusExtra(states=None if states is None else list(states), edges=list(edges),
+                        path_errors=None if path_errors is None else list(path_errors), safety_radius=radius,
+                        closest=closest, directed=directed)
+    if alive is None:
+        alive = [v for v, s in zip(IDS, states) if s != "gone"]
+    st = decode_status(encode_status(t, 100.0, "lockstep", alive, IDS, None, None, [], False, extra=extra))
+    assert isinstance(st, WorldStatus), st
+    return st
 
 
 def kinds(changes) -> list[tuple[bool, str, str]]:
@@ -36,16 +42,16 @@ def test_a_lost_vehicle_is_raised_once_with_its_time_and_cleared_when_it_is_back
 
 def test_a_lost_vehicle_is_stamped_with_when_it_was_last_heard_of_when_that_is_known():
     a = Alarms()
-    ch = a.update(status(9.0, states=("live", "gone", "live"), last_heard={"usv2": 7.25, "usv1": 9.0}))
+    ch = a.update(status(9.0, states=("live", "gone", "live")), last_heard={"usv2": 7.25, "usv1": 9.0})
     assert kinds(ch) == [(True, "vehicle_lost", "usv2")] and ch[0].t == 7.25 and ch[0].alarm.t == 7.25
     assert ch[0].line().startswith("t = 7.25 s ALARM")
     b = Alarms()  # a time after the status's is not taken
-    assert b.update(status(9.0, states=("live", "gone", "live"), last_heard={"usv2": 12.0}))[0].t == 9.0
+    assert b.update(status(9.0, states=("live", "gone", "live")), last_heard={"usv2": 12.0})[0].t == 9.0
 
 
 def test_without_roster_states_a_vehicle_not_alive_is_lost():
     a = Alarms()
-    ch = a.update({"t": 1.0, "ids": IDS, "alive": ["usv1", "usv3"]})
+    ch = a.update(status(1.0, states=None, alive=["usv1", "usv3"]))
     assert kinds(ch) == [(True, "vehicle_lost", "usv2")]
 
 
@@ -122,15 +128,26 @@ def test_separation_below_the_safety_radius_and_a_status_that_cannot_say():
 _state = hs.sampled_from(["live", "paused", "gone"])
 _err = hs.one_of(hs.none(), hs.floats(min_value=0, max_value=1e9), hs.floats())
 _status = hs.fixed_dictionaries({
-    "t": hs.one_of(hs.floats(min_value=0, max_value=100), hs.none(), hs.text(max_size=3)),
+    "t": hs.floats(min_value=0, max_value=100),
     "states": hs.lists(_state, min_size=3, max_size=3),
     "edges": hs.lists(hs.tuples(hs.sampled_from(IDS), hs.sampled_from(IDS), _err), max_size=4),
-    "path_errors": hs.one_of(hs.lists(_err, min_size=3, max_size=3), hs.none(), hs.integers()),
+    "path_errors": hs.one_of(hs.lists(_err, min_size=3, max_size=3), hs.none()),
     "radius": hs.one_of(hs.none(), hs.floats(min_value=0.1, max_value=10)),
     "closest": hs.one_of(hs.none(), hs.tuples(hs.sampled_from(IDS), hs.sampled_from(IDS), _err)),
     "directed": hs.booleans(),
-    "last_heard": hs.dictionaries(hs.sampled_from(IDS), hs.one_of(hs.floats(), hs.none(), hs.text(max_size=2))),
+    # the console's newest telemetry times (finite floats: ground_station.tui.snapshot keeps no other)
+    "last_heard": hs.dictionaries(hs.sampled_from(IDS), hs.floats(min_value=0, max_value=200)),
 })
+
+
+def _decoded(s: dict) -> WorldStatus | None:
+    """The status the world would send with these values, as decode_status gives it to the
+    console, or None where the decoder refuses it (a bad value never reaches the alarms)."""
+    extra = StatusExtra(states=list(s["states"]), edges=list(s["edges"]), path_errors=s["path_errors"],
+                        safety_radius=s["radius"], closest=s["closest"], directed=s["directed"])
+    alive = [v for v, x in zip(IDS, s["states"]) if x != "gone"]
+    st = decode_status(encode_status(s["t"], 100.0, "lockstep", alive, IDS, None, None, [], False, extra=extra))
+    return st if isinstance(st, WorldStatus) else None
 
 
 @settings(max_examples=300, deadline=None)
@@ -139,9 +156,10 @@ def test_any_status_sequence_raises_and_clears_consistently(seq):
     a = Alarms(grow_s=2.0)
     active: set = set()
     for s in seq:
-        st = status(s["t"], states=s["states"], edges=s["edges"], path_errors=s["path_errors"], radius=s["radius"],
-                    closest=s["closest"], directed=s["directed"], last_heard=s["last_heard"])
-        for ch in a.update(st):
+        st = _decoded(s)
+        if st is None:
+            continue
+        for ch in a.update(st, s["last_heard"]):
             key = ch.alarm.key
             if ch.raised:
                 assert key not in active  # raised once

@@ -4,6 +4,7 @@ a query that comes back empty at once from a fleet whose world is up is a denial
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import threading
 import time
@@ -107,7 +108,7 @@ def test_a_paused_fleets_vehicles_come_from_the_worlds_last_telemetry_and_say_wh
     assert by["uav1"]["telemetry"] is None and by["uav1"]["reason"] == "no data yet" and by["uav1"]["state"] == "gone"
     table = status_table(gs.view)
     assert table.count("[paused (fleet)]") == 2 and "(gone)" in table
-    gs.view.world["paused"] = False
+    gs.view.world = dataclasses.replace(gs.view.world, paused=False)
     assert _not_live(gs.view, "usv1") is None and _not_live(gs.view, "uav1") == "gone"
 
 

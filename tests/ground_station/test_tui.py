@@ -9,7 +9,7 @@ import dataclasses
 from textual.widgets import DataTable, RichLog
 
 from cdus.wire.messages import StateMsg
-from cdus.wire.schemas import CommandReply, FleetEvent
+from cdus.wire.schemas import CommandReply, FleetEvent, StatusExtra, WorldStatus, decode_status, encode_status
 from ground_station.console import Answer
 from ground_station.console import FleetView
 from ground_station.tui import ConfirmKill, ConsoleApp, before_line, send_command, snapshot, vehicle_state
@@ -17,17 +17,20 @@ from ground_station.tui import ConfirmKill, ConsoleApp, before_line, send_comman
 IDS = ["usv1", "usv2", "uav1"]
 
 
-def world(t: float, states=("live", "live", "live"), paused=False, **over) -> dict:
-    d = {"t": t, "duration": 100.0, "clock": "lockstep", "ids": IDS,
-         "alive": [v for v, s in zip(IDS, states) if s != "gone"], "path_error_max": 0.2, "coord_error_max": 0.3,
-         "events": [FleetEvent.of(0.5, "fleet", "an event from before")], "paused": paused,
-         "kinds": ["usv", "usv", "uav"], "states": list(states),
-         "edges": [("usv1", "usv2", 0.3), ("usv2", "uav1", None if "gone" in states else 0.1),
-                   ("usv1", "uav1", 0.05)],
-         "links": [("usv1", "usv2", 120, 9, "lossy")], "rx": [(100, 1), (90, 2), None], "safety_radius": 2.0,
-         "closest": ("usv1", "usv2", 7.5), "path_errors": [0.2, 0.1, 0.05], "directed": False}
-    d.update(over)
-    return d
+def world(t: float, states=("live", "live", "live"), paused=False, **over) -> WorldStatus:
+    """A status as the console gets it: encoded by the world's encoder, decoded by decode_status."""
+    extra = {"kinds": ["usv", "usv", "uav"], "states": list(states),
+             "edges": [("usv1", "usv2", 0.3), ("usv2", "uav1", None if "gone" in states else 0.1),
+                       ("usv1", "uav1", 0.05)],
+             "links": [("usv1", "usv2", 120, 9, "lossy")], "rx": [(100, 1), (90, 2), None], "safety_radius": 2.0,
+             "closest": ("usv1", "usv2", 7.5), "path_errors": [0.2, 0.1, 0.05], "directed": False}
+    extra.update({k: v for k, v in over.items() if k in extra or k == "completion"})
+    st = decode_status(encode_status(t, over.get("duration", 100.0), "lockstep", [v for v, s in zip(IDS, states)
+                                                                                    if s != "gone"], IDS, 0.2, 0.3,
+                                     over.get("events", [FleetEvent.of(0.5, "fleet", "an event from before")]), paused,
+                                     extra=StatusExtra(**extra)))
+    assert isinstance(st, WorldStatus), st
+    return st
 
 
 class FakeGS:

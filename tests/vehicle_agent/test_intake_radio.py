@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 from cdus.scenario.config import load_scenario
 from cdus.wire.messages import GeometryMsg, decode_geometry, encode_control, encode_geometry
 from cdus.wire.transport import Transport
+from cdus.wire.rejected import Rejected
 from vehicle_agent.agent import Agent
 
 SC = load_scenario("configs/range_out.toml")
@@ -97,7 +98,7 @@ def test_hostile_geometry_never_raises_and_every_reject_is_counted(payload):
     a.feed(KEY, payload)
     msg = decode_geometry(payload, N, [v.dim for v in SC.vehicles])
     taken = a.node.radio.newest != before
-    if isinstance(msg, str):
+    if isinstance(msg, Rejected):
         assert not taken and sum(a.rejected.values()) == 1 and list(a.rejected)[0].startswith("radio_")
     else:
         assert taken == (msg.tick % a.node.radio.every == 0 and msg.tick <= a.last_tick)

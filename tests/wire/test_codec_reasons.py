@@ -13,6 +13,7 @@ import cdus.wire.messages as wm
 from cdus.wire.messages import (CTL_OPS, COMMAND_OPS, MAX_CONTACTS, MAX_CONTROL_PAYLOAD, MAX_STATE_ROWS, ContactsMsg,
                                 Control, OmegaMsg, StateMsg, decode_contacts, decode_control, decode_omega,
                                 decode_states, encode_contacts, encode_control, encode_omega, encode_states)
+from cdus.wire.rejected import Rejected
 
 GOOD = OmegaMsg(3, 7, 0.14, -2.5, -1.0)
 
@@ -49,11 +50,11 @@ def _corrupt(payload: bytes, at: int, value: int) -> bytes:
 def test_a_fixed_layout_with_a_wrong_marker_is_read_by_the_slow_path_and_rejected(at):
     p = encode_omega(GOOD)
     bad = _corrupt(p, at, 0xc1)  # never valid msgpack
-    assert decode_omega(bad) == "malformed"
+    assert decode_omega(bad) == Rejected("malformed")
 
 
 def test_a_wrong_version_in_the_fixed_layout_is_a_version_reject():
-    assert decode_omega(_corrupt(encode_omega(GOOD), 1, 2)) == "version"
+    assert decode_omega(_corrupt(encode_omega(GOOD), 1, 2)) == Rejected("version")
 
 
 @pytest.mark.parametrize("at", [9, 18])
@@ -61,7 +62,7 @@ def test_a_fixed_layout_whose_float_markers_spell_other_types_is_a_type_reject(a
     # 0xca (float32) where a float64 is expected: the slow path reads other widths
     b = bytearray(encode_omega(GOOD))
     b[at] = 0xcc  # a uint8 then 8 more bytes: no longer a 6-element array of that length
-    assert decode_omega(bytes(b)) in ("malformed", "type")
+    assert decode_omega(bytes(b)) in (Rejected("malformed"), Rejected("type"))
 
 
 def test_expected_sender_and_vehicle_count_reach_the_checks_on_both_paths():
@@ -69,8 +70,8 @@ def test_expected_sender_and_vehicle_count_reach_the_checks_on_both_paths():
     slow = msgpack.packb([1, 3, 7, 0.14, -2.5, -1.0])
     for p in (fast, slow):
         assert decode_omega(p, expected_sender=3, n_vehicles=4) == GOOD
-        assert decode_omega(p, expected_sender=2) == "unknown_sender"
-        assert decode_omega(p, n_vehicles=3) == "unknown_sender"
+        assert decode_omega(p, expected_sender=2) == Rejected("unknown_sender")
+        assert decode_omega(p, n_vehicles=3) == Rejected("unknown_sender")
 
 
 @pytest.mark.parametrize("payload, reason", [
@@ -92,12 +93,12 @@ def test_expected_sender_and_vehicle_count_reach_the_checks_on_both_paths():
     (b"\x96\x81\x01\x01\x01\x01\x01\x01\x01", "malformed"),  # a map
 ])
 def test_each_slow_path_reject_has_its_reason(payload, reason):
-    assert decode_omega(payload) == reason
+    assert decode_omega(payload) == Rejected(reason)
 
 
 def test_33_and_34_bytes_bound_the_slow_path():
-    assert decode_omega(b"\x01" * 34) == "oversized"
-    assert decode_omega(b"\xc1" * 33) == "malformed"
+    assert decode_omega(b"\x01" * 34) == Rejected("oversized")
+    assert decode_omega(b"\xc1" * 33) == Rejected("malformed")
 
 
 # --------------------------------------------------------------------------- telemetry
@@ -110,7 +111,7 @@ def _row(tick=5, q=(1.0, 2.0)):
 def test_states_round_trip_and_every_reject_reason():
     rows = [_row(5), _row(6, (1.0, 2.0, 3.0))]
     assert decode_states(encode_states(rows), n_vehicles=3) == rows
-    assert decode_states(encode_states(rows), n_vehicles=2) == "unknown_sender"
+    assert decode_states(encode_states(rows), n_vehicles=2) == Rejected("unknown_sender")
     ok_row = [5, 0.1, [1.0, 2.0], 0.5, 1.0, -3.0, -1.0, 0.1]
     cases = {
         "version": [2, 2, [ok_row]],
@@ -119,22 +120,22 @@ def test_states_round_trip_and_every_reject_reason():
         "non_finite": [1, 2, [[5, math.inf, [1.0, 2.0], 0.5, 1.0, -3.0, -1.0, 0.1]]],
     }
     for reason, obj in cases.items():
-        assert decode_states(msgpack.packb(obj)) == reason, reason
-    assert decode_states(msgpack.packb([1, 2, []])) == "type"  # no rows
-    assert decode_states(msgpack.packb([1, -1, [ok_row]])) == "unknown_sender"
-    assert decode_states(msgpack.packb([1, 2, [[-1, *ok_row[1:]]]])) == "type"
-    assert decode_states(msgpack.packb([1, 2, [[5, 0.1, [1.0], *ok_row[3:]]]])) == "type"
-    assert decode_states(msgpack.packb([1, 2, [[5, 0.1, [1.0, 2.0], 1, *ok_row[4:]]]])) == "type"
-    assert decode_states(msgpack.packb([1, 2, [ok_row], 0])) == "malformed"
-    assert decode_states(msgpack.packb({"v": 1})) == "malformed"
-    assert decode_states(b"\xc1") == "malformed"
+        assert decode_states(msgpack.packb(obj)) == Rejected(reason), reason
+    assert decode_states(msgpack.packb([1, 2, []])) == Rejected("type")  # no rows
+    assert decode_states(msgpack.packb([1, -1, [ok_row]])) == Rejected("unknown_sender")
+    assert decode_states(msgpack.packb([1, 2, [[-1, *ok_row[1:]]]])) == Rejected("type")
+    assert decode_states(msgpack.packb([1, 2, [[5, 0.1, [1.0], *ok_row[3:]]]])) == Rejected("type")
+    assert decode_states(msgpack.packb([1, 2, [[5, 0.1, [1.0, 2.0], 1, *ok_row[4:]]]])) == Rejected("type")
+    assert decode_states(msgpack.packb([1, 2, [ok_row], 0])) == Rejected("malformed")
+    assert decode_states(msgpack.packb({"v": 1})) == Rejected("malformed")
+    assert decode_states(b"\xc1") == Rejected("malformed")
 
 
 def test_states_bounds():
     full = [_row(j) for j in range(MAX_STATE_ROWS)]
     assert len(decode_states(encode_states(full))) == MAX_STATE_ROWS
-    assert decode_states(encode_states(full + [_row(99)])) in ("malformed", "oversized")
-    assert decode_states(b"\x00" * (96 * MAX_STATE_ROWS + 1)) == "oversized"
+    assert decode_states(encode_states(full + [_row(99)])) in (Rejected("malformed"), Rejected("oversized"))
+    assert decode_states(b"\x00" * (96 * MAX_STATE_ROWS + 1)) == Rejected("oversized")
 
 
 # --------------------------------------------------------------------------- contacts
@@ -144,15 +145,15 @@ def test_contacts_bounds_and_share():
     full = ContactsMsg(4, tuple((k, 0.5, (1.0, 2.0, 3.0)) for k in range(MAX_CONTACTS)))
     assert decode_contacts(encode_contacts(full)) == full
     assert len(encode_contacts(full)) <= 48 * MAX_CONTACTS + 16
-    assert decode_contacts(b"\x00" * (48 * MAX_CONTACTS + 17)) == "oversized"
+    assert decode_contacts(b"\x00" * (48 * MAX_CONTACTS + 17)) == Rejected("oversized")
     assert decode_contacts(encode_contacts(ContactsMsg(4, ((1, 1.0, (0.0, 0.0)),)))) is not None
-    assert decode_contacts(msgpack.packb([1, 4, [[1, 0.0, [0.0, 0.0]]]])) == "share"
-    assert decode_contacts(msgpack.packb([1, 4, [[1, 1.5, [0.0, 0.0]]]])) == "share"
+    assert decode_contacts(msgpack.packb([1, 4, [[1, 0.0, [0.0, 0.0]]]])) == Rejected("share")
+    assert decode_contacts(msgpack.packb([1, 4, [[1, 1.5, [0.0, 0.0]]]])) == Rejected("share")
     assert decode_contacts(msgpack.packb([1, 4, [[1, 1.0, [0.0, 0.0]]]])) == ContactsMsg(4, ((1, 1.0, (0.0, 0.0)),))
-    assert decode_contacts(msgpack.packb([1, 4, [[1, 1, [0.0, 0.0]]]])) == "type"
-    assert decode_contacts(msgpack.packb([1, 4, [[1, 0.5, 5]]])) == "type"
-    assert decode_contacts(msgpack.packb([1, 4, [[1.0, 0.5, [0.0, 0.0]]]])) == "type"
-    assert decode_contacts(msgpack.packb([2, 4, []])) == "version"
+    assert decode_contacts(msgpack.packb([1, 4, [[1, 1, [0.0, 0.0]]]])) == Rejected("type")
+    assert decode_contacts(msgpack.packb([1, 4, [[1, 0.5, 5]]])) == Rejected("type")
+    assert decode_contacts(msgpack.packb([1, 4, [[1.0, 0.5, [0.0, 0.0]]]])) == Rejected("type")
+    assert decode_contacts(msgpack.packb([2, 4, []])) == Rejected("version")
 
 
 # --------------------------------------------------------------------------- control maps
@@ -239,7 +240,7 @@ def test_contacts_checked_against_the_receiver():
     listed twice, or a position of the other domain's dimension is rejected, by reason."""
     two = ContactsMsg(4, ((1, 0.5, (0.0, 0.0)), (2, 1.0, (3.0, 1.0))))
     assert decode_contacts(encode_contacts(two), 5, receiver=0, dim=2) == two
-    assert decode_contacts(encode_contacts(two), 5, receiver=1, dim=2) == "self"
-    assert decode_contacts(encode_contacts(two), 5, receiver=0, dim=3) == "dimension"
+    assert decode_contacts(encode_contacts(two), 5, receiver=1, dim=2) == Rejected("self")
+    assert decode_contacts(encode_contacts(two), 5, receiver=0, dim=3) == Rejected("dimension")
     dup = ContactsMsg(4, ((1, 0.5, (0.0, 0.0)), (1, 0.5, (3.0, 1.0))))
-    assert decode_contacts(encode_contacts(dup), 5, receiver=0, dim=2) == "duplicate"
+    assert decode_contacts(encode_contacts(dup), 5, receiver=0, dim=2) == Rejected("duplicate")

@@ -10,6 +10,7 @@ import pytest
 from cdus.wire.messages import (
     MAX_OMEGA_PAYLOAD, OMEGA_VERSION, OmegaMsg, decode_omega, encode_omega,
 )
+from cdus.wire.rejected import Rejected
 
 
 def _f32(x):
@@ -73,15 +74,15 @@ def test_any_msgpack_spelling_of_the_array_is_read_and_checked_alike():
     m = OmegaMsg(3, 12, 0.5, -7.25, -1.0)
     minimal = msgpack.packb([1, 3, 12, 0.5, -7.25, -1.0])  # smallest ints, float64 rate
     assert len(minimal) < 32 and decode_omega(minimal) == m
-    assert decode_omega(msgpack.packb([1, 3, 12, 0.5, float("nan"), -1.0])) == "non_finite"
-    assert decode_omega(encode_omega(m), expected_sender=4) == "unknown_sender"
+    assert decode_omega(msgpack.packb([1, 3, 12, 0.5, float("nan"), -1.0])) == Rejected("non_finite")
+    assert decode_omega(encode_omega(m), expected_sender=4) == Rejected("unknown_sender")
 
 
 def test_oversized():
-    assert decode_omega(b"\x96" + b"\x00" * 40) == "oversized"
-    assert decode_omega(bytes(MAX_OMEGA_PAYLOAD + 1)) == "oversized"
+    assert decode_omega(b"\x96" + b"\x00" * 40) == Rejected("oversized")
+    assert decode_omega(bytes(MAX_OMEGA_PAYLOAD + 1)) == Rejected("oversized")
     # a sequence number past 2**32 no longer fits the bound
-    assert decode_omega(encode_omega(OmegaMsg(0, 2**32, 0.0, 0.0, 0.0))) == "oversized"
+    assert decode_omega(encode_omega(OmegaMsg(0, 2**32, 0.0, 0.0, 0.0))) == Rejected("oversized")
 
 
 @pytest.mark.parametrize("payload", [
@@ -101,12 +102,12 @@ def test_oversized():
     msgpack.packb([1, 2, 3, "str", 5.0, 6.0]),
 ])
 def test_malformed(payload):
-    assert decode_omega(payload) == "malformed"
+    assert decode_omega(payload) == Rejected("malformed")
 
 
 @pytest.mark.parametrize("version", [0, 2, 1.0, True, None])
 def test_version(version):
-    assert decode_omega(_raw(version, *GOOD[1:])) == "version"
+    assert decode_omega(_raw(version, *GOOD[1:])) == Rejected("version")
 
 
 @pytest.mark.parametrize("index, value", [
@@ -120,7 +121,7 @@ def test_version(version):
 def test_type(index, value):
     items = list(GOOD)
     items[index] = value
-    assert decode_omega(_raw(*items)) == "type"
+    assert decode_omega(_raw(*items)) == Rejected("type")
 
 
 @pytest.mark.parametrize("index, value", [(1, True), (2, False), (3, True), (4, False), (5, True)])
@@ -128,7 +129,7 @@ def test_bools_are_not_numbers(index, value):
     """msgpack decodes true/false as bool, a subclass of int; `type(x) is int` rejects it."""
     items = list(GOOD)
     items[index] = value
-    assert decode_omega(_raw(*items)) == "type"
+    assert decode_omega(_raw(*items)) == Rejected("type")
 
 
 @pytest.mark.parametrize("index", [3, 4, 5])
@@ -136,7 +137,7 @@ def test_bools_are_not_numbers(index, value):
 def test_non_finite(index, value):
     items = list(GOOD)
     items[index] = value
-    assert decode_omega(_raw(*items)) == "non_finite"
+    assert decode_omega(_raw(*items)) == Rejected("non_finite")
 
 
 @pytest.mark.parametrize("field", ["t_send", "omega", "omega_rate"])
@@ -146,7 +147,7 @@ def test_encoded_non_finite_is_rejected(field, value):
     must not turn a NaN or ±inf into a plausible-looking finite rate."""
     m = OmegaMsg(**{"sender": 0, "seq": 1, "t_send": 2.0, "omega": 3.0, "omega_rate": -1.0,
                     field: value})
-    assert decode_omega(encode_omega(m)) == "non_finite"
+    assert decode_omega(encode_omega(m)) == Rejected("non_finite")
 
 
 @pytest.mark.parametrize("kwargs, items", [
@@ -156,7 +157,7 @@ def test_encoded_non_finite_is_rejected(field, value):
     ({}, (1, 2, -5, 12.5, -3.25, -1.0)),             # negative seq
 ])
 def test_unknown_sender(kwargs, items):
-    assert decode_omega(_raw(*items), **kwargs) == "unknown_sender"
+    assert decode_omega(_raw(*items), **kwargs) == Rejected("unknown_sender")
 
 
 def test_expected_sender_and_range_accept_the_right_one():
@@ -180,8 +181,8 @@ def test_fuzz_random_bytes_never_raise():
         n = rng.randrange(0, 40)
         payload = bytes(rng.randrange(256) for _ in range(n))
         got = decode_omega(payload, expected_sender=rng.randrange(4), n_vehicles=4)
-        assert isinstance(got, OmegaMsg) or got in REASONS
-        key = "ok" if isinstance(got, OmegaMsg) else got
+        assert isinstance(got, OmegaMsg) or isinstance(got, Rejected) and got.reason in REASONS
+        key = "ok" if isinstance(got, OmegaMsg) else got.reason
         outcomes[key] = outcomes.get(key, 0) + 1
     assert outcomes["oversized"] > 0 and outcomes["malformed"] > 0
 
@@ -196,8 +197,8 @@ def test_fuzz_mutated_messages_never_raise():
         for _ in range(rng.randrange(1, 3)):
             b[rng.randrange(len(b))] = rng.randrange(256)
         got = decode_omega(bytes(b), n_vehicles=4)
-        assert isinstance(got, OmegaMsg) or got in REASONS
-        seen.add("ok" if isinstance(got, OmegaMsg) else got)
+        assert isinstance(got, OmegaMsg) or isinstance(got, Rejected) and got.reason in REASONS
+        seen.add("ok" if isinstance(got, OmegaMsg) else got.reason)
     assert {"ok", "malformed", "version", "type"} <= seen
 
 
@@ -218,8 +219,8 @@ def test_contacts_round_trip_is_exact():
 ])
 def test_bad_contacts_are_rejected_with_a_reason(obj, reason):
     from cdus.wire.messages import decode_contacts
-    assert decode_contacts(msgpack.packb(obj), 3) == reason
-    assert decode_contacts(b"\x00" * 20000) == "oversized"
+    assert decode_contacts(msgpack.packb(obj), 3) == Rejected(reason)
+    assert decode_contacts(b"\x00" * 20000) == Rejected("oversized")
 
 
 # ------------------------------------------------------------------ properties (issue 15)
@@ -266,7 +267,8 @@ def _decoders(p: bytes) -> list:
 
 
 def _message_or_reason(out) -> bool:
-    return isinstance(out, (str, OmegaMsg, ContactsMsg, Control))
+    """A message, or the reason: Rejected from the ω and contacts decoders, a string from decode_control."""
+    return isinstance(out, (Rejected, str, OmegaMsg, ContactsMsg, Control))
 
 
 @settings(max_examples=400, deadline=None)

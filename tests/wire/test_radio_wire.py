@@ -6,11 +6,12 @@ from __future__ import annotations
 import msgpack
 import pytest
 
-from cdus.core.radiolink import RADIO_CAUSES, RadioCounters
+from cdus.core.radio import RadioCounters
 from cdus.wire import keys, schemas
 from cdus.wire.access import fleet_acl
 from cdus.wire.messages import COMMAND_OPS, CTL_OPS, decode_control, encode_control
 from cdus.wire.schemas import AgentStats, decode_stats, encode_stats
+from cdus.wire.rejected import Rejected
 
 
 def test_the_geometry_key_reaches_every_addressed_vehicle_and_the_world_may_put_it():
@@ -19,10 +20,6 @@ def test_the_geometry_key_reaches_every_addressed_vehicle_and_the_world_may_put_
     acl = fleet_acl("f", {"usv1": ("uav1",), "uav1": ("usv1",)})
     world_put = next(r for r in acl["rules"] if r["id"] == "world-put")
     assert "cdus/f/to/*/radio" in world_put["key_exprs"]
-
-
-def test_the_radio_causes_on_the_wire_are_the_cores():
-    assert schemas.RADIO_CAUSES == RADIO_CAUSES
 
 
 def test_agent_stats_carry_the_radio_counters_checked():
@@ -34,7 +31,7 @@ def test_agent_stats_carry_the_radio_counters_checked():
     d = {"v": 1, **AgentStats("usv1", 5).as_dict()}
     for bad in ({**c.as_dict(), "extra": 1}, {**c.as_dict(), "sent": -1}, {**c.as_dict(), "sent": 1.5},
                 {**c.as_dict(), "dropped_by": {"range": 1}}, [1, 2], "x", {**c.as_dict(), "no_geometry": 2**60}):
-        assert decode_stats(msgpack.packb({**d, "radio": bad}), ["usv1"]) == "radio", bad
+        assert decode_stats(msgpack.packb({**d, "radio": bad}), ["usv1"]) == Rejected("radio"), bad
 
 
 @pytest.mark.parametrize("ops", [CTL_OPS, COMMAND_OPS])
@@ -52,9 +49,9 @@ def test_a_geometry_sample_gives_each_vehicle_its_own_dimension_or_is_rejected()
     assert decode_geometry(encode_geometry(good), 3, dims) == good
     for bad in (((1.0, 2.0, 5.0), (3.0, 4.0, 30.0), None),  # a boat lifted 5 m off the water
                 ((1.0, 2.0), (3.0, 4.0), None)):  # a drone put on the water
-        assert decode_geometry(encode_geometry(GeometryMsg(4, bad)), 3, dims) == "dimension"
+        assert decode_geometry(encode_geometry(GeometryMsg(4, bad)), 3, dims) == Rejected("dimension")
         assert decode_geometry(encode_geometry(GeometryMsg(4, bad)), 3) == GeometryMsg(4, bad)  # not checked
-    assert decode_geometry(encode_geometry(good), None, [2, 3]) == "count"
+    assert decode_geometry(encode_geometry(good), None, [2, 3]) == Rejected("count")
 
 
 def test_the_largest_sample_a_fleet_can_send_decodes():
@@ -68,3 +65,26 @@ def test_the_largest_sample_a_fleet_can_send_decodes():
     assert MAX_GEOMETRY_VEHICLES >= MAX_VEHICLES
     big = GeometryMsg(2**31 - 1, tuple((-MAX_COORDINATE, MAX_COORDINATE, -MAX_COORDINATE) for _ in range(MAX_VEHICLES)))
     assert decode_geometry(encode_geometry(big), MAX_VEHICLES, [3] * MAX_VEHICLES) == big
+
+
+def test_each_geometry_reject_has_its_exact_reason():
+    """Found by mutmut (cdus.wire.messages.decode_geometry): a reason could be any string, or
+    None, and the tests that only read the agent's ``radio_`` prefix passed."""
+    import math
+
+    from cdus.wire.messages import MAX_COORDINATE, MAX_GEOMETRY_VEHICLES, GeometryMsg, decode_geometry
+    cases = {
+        "type": [msgpack.packb([1, -1, []]), msgpack.packb([1, 1.0, []]), msgpack.packb([1, 4, {}]),
+                 msgpack.packb([1, 4, [[1.0]]]), msgpack.packb([1, 4, [[1, 2]]]), msgpack.packb([1, 4, [7]])],
+        "non_finite": [msgpack.packb([1, 4, [[1.0, math.nan]]])],
+        "range": [msgpack.packb([1, 4, [[2 * MAX_COORDINATE, 0.0]]])],
+        "count": [msgpack.packb([1, 4, [[1.0, 2.0]]])],
+        "version": [msgpack.packb([2, 4, []])],
+        "malformed": [b"\xc1", msgpack.packb([1, 4])],
+        "oversized": [b"\x00" * (30 * MAX_GEOMETRY_VEHICLES + 33)],
+    }
+    for reason, payloads in cases.items():
+        for p in payloads:
+            assert decode_geometry(p, 3 if reason == "count" else None) == Rejected(reason), (reason, p)
+    assert decode_geometry(msgpack.packb([1, 0, [[1.0, 2.0], None]])) == GeometryMsg(0, ((1.0, 2.0), None))
+    assert decode_geometry(msgpack.packb([1, 4, [[1.0, 2.0]]]), 1) == GeometryMsg(4, ((1.0, 2.0),))

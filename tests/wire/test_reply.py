@@ -7,6 +7,7 @@ import msgpack
 import pytest
 from hypothesis import given, settings, strategies as hs
 
+from cdus.wire.rejected import Rejected
 from cdus.wire.schemas import REPLY_VERSION, CommandReply, decode_reply, encode_reply
 
 
@@ -32,7 +33,7 @@ def pack(**d) -> bytes:
     (pack(by="a b"), "unknown_sender"), (pack(reason=3), "type"), (pack(status=None), "type"),
 ])
 def test_what_is_not_a_reply_is_rejected_by_reason(payload, reason):
-    assert decode_reply(payload) == reason
+    assert decode_reply(payload) == Rejected(reason)
 
 
 def test_a_reason_from_the_wire_comes_out_escaped():
@@ -51,7 +52,7 @@ values = hs.recursive(hs.none() | hs.booleans() | hs.integers(-2**63, 2**64 - 1)
 def test_no_payload_makes_the_decoder_raise(d, junk):
     for payload in (msgpack.packb(d), junk):
         r = decode_reply(payload)
-        assert isinstance(r, CommandReply) or isinstance(r, str) and r
+        assert isinstance(r, CommandReply) or isinstance(r, Rejected) and r.reason
         if isinstance(r, CommandReply):
             assert r.status in ("applied", "rejected") and (not r.applied or r.tick is not None)
             assert decode_reply(encode_reply(r)) == r

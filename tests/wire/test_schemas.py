@@ -17,6 +17,8 @@ from cdus.wire.schemas import (
     EVENT_KINDS, MAX_TEXT, SCHEMA_VERSION, STATUS_KEYS, AgentStats, FleetEvent, decode_event, decode_stats,
     decode_status, encode_event, encode_stats, encode_status, event_from_dict,
 )
+from cdus.wire.rejected import Rejected
+from cdus.wire.status import WorldStatus
 
 
 def pack(d) -> bytes:
@@ -74,20 +76,20 @@ GOOD_EVENT = {"v": SCHEMA_VERSION, "t": 2.0, "kind": "vehicle_lost", "text": "ve
 def test_a_malformed_event_field_is_rejected_with_its_reason(field, value, reason):
     assert isinstance(decode_event(pack(GOOD_EVENT)), FleetEvent)
     d = {**GOOD_EVENT, field: value}
-    assert decode_event(pack(d)) == reason
+    assert decode_event(pack(d)) == Rejected(reason)
 
 
 def test_a_missing_event_field_is_rejected():
     for field in ("v", "t", "kind", "text"):
         d = {k: x for k, x in GOOD_EVENT.items() if k != field}
-        assert decode_event(pack(d)) == ("version" if field == "v" else "type"), field
+        assert decode_event(pack(d)) == Rejected("version" if field == "v" else "type"), field
 
 
 def test_event_payloads_that_are_not_a_map_or_too_big_are_rejected():
-    assert decode_event(b"\xc1") == "malformed"
-    assert decode_event(pack([1, 2, 3])) == "malformed"
-    assert decode_event(pack({**GOOD_EVENT, "text": "z" * 5000})) == "oversized"
-    assert event_from_dict("not a dict") == "malformed"
+    assert decode_event(b"\xc1") == Rejected("malformed")
+    assert decode_event(pack([1, 2, 3])) == Rejected("malformed")
+    assert decode_event(pack({**GOOD_EVENT, "text": "z" * 5000})) == Rejected("oversized")
+    assert event_from_dict("not a dict") == Rejected("malformed")
 
 
 # ---------------------------------------------------------------------- agent stats
@@ -155,7 +157,7 @@ def test_a_malformed_stats_field_is_rejected_with_its_reason(field, value, reaso
     d = {"v": SCHEMA_VERSION, **stats().as_dict()}
     assert isinstance(decode_stats(pack(d)), AgentStats)
     d[field] = value
-    assert decode_stats(pack(d)) == reason
+    assert decode_stats(pack(d)) == Rejected(reason)
 
 
 @pytest.mark.parametrize("bursts", [
@@ -169,14 +171,14 @@ def test_a_malformed_stats_field_is_rejected_with_its_reason(field, value, reaso
 ])
 def test_a_stats_message_with_any_malformed_burst_is_rejected_whole(bursts):
     d = {"v": SCHEMA_VERSION, **stats().as_dict(), "bursts": bursts}
-    assert decode_stats(pack(d)) == "bursts"
+    assert decode_stats(pack(d)) == Rejected("bursts")
 
 
 def test_bursts_and_links_must_name_known_vehicles_when_the_receiver_knows_them():
     assert isinstance(decode_stats(encode_stats(stats())), AgentStats)
-    assert decode_stats(encode_stats(stats()), ("usv1", "uav1")) == "faults"  # usv2->uav1 in links
+    assert decode_stats(encode_stats(stats()), ("usv1", "uav1")) == Rejected("faults")  # usv2->uav1 in links
     assert decode_stats(encode_stats(replace(stats(), faults=None)), ("usv1", "uav1")).bursts
-    assert decode_stats(encode_stats(replace(stats(), id="ghost")), IDS) == "unknown_sender"
+    assert decode_stats(encode_stats(replace(stats(), id="ghost")), IDS) == Rejected("unknown_sender")
 
 
 @pytest.mark.parametrize("bad", [
@@ -197,23 +199,22 @@ def test_bursts_and_links_must_name_known_vehicles_when_the_receiver_knows_them(
 def test_faults_must_have_the_link_emulators_exact_shape(bad):
     d = {"v": SCHEMA_VERSION, **stats().as_dict()}
     d["faults"] = {**faults(), **bad}
-    assert decode_stats(pack(d)) == "faults"
+    assert decode_stats(pack(d)) == Rejected("faults")
     d["faults"] = {k: x for k, x in faults().items() if k != "links"}
-    assert decode_stats(pack(d)) == "faults"
+    assert decode_stats(pack(d)) == Rejected("faults")
 
 
 def test_the_fault_shape_is_the_link_emulators():
-    from cdus.core.link import DROP_CAUSES as CORE_CAUSES, LINK_STATES as CORE_STATES, LinkFaultCounters
-    assert schemas.DROP_CAUSES == CORE_CAUSES and schemas.LINK_STATES == CORE_STATES
+    from cdus.core.link import LinkFaultCounters
     assert set(LinkFaultCounters().as_dict()) == {*schemas.FAULT_COUNTERS, "dropped_by"}
 
 
 def test_stats_payloads_that_are_not_a_map_or_too_big_are_rejected():
-    assert decode_stats(b"") == "malformed"
-    assert decode_stats(pack("stats")) == "malformed"
+    assert decode_stats(b"") == Rejected("malformed")
+    assert decode_stats(pack("stats")) == Rejected("malformed")
     big = {"v": SCHEMA_VERSION, **stats().as_dict(), "latencies_ms": [1.0] * 4000}
     assert isinstance(decode_stats(pack(big)), AgentStats)  # 36 kB: within the limit
-    assert decode_stats(pack({**big, "latencies_ms": [1.0] * 8000})) == "oversized"
+    assert decode_stats(pack({**big, "latencies_ms": [1.0] * 8000})) == Rejected("oversized")
 
 
 # ---------------------------------------------------------------------- world status
@@ -264,12 +265,12 @@ def test_status_drops_malformed_events_but_keeps_the_rest():
 def test_a_malformed_status_field_is_rejected_with_its_reason(field, value, reason):
     d = msgpack.unpackb(status(), raw=False)
     d[field] = value
-    assert decode_status(pack(d)) == reason
+    assert decode_status(pack(d)) == Rejected(reason)
 
 
 def test_status_payloads_that_are_not_a_map_or_too_big_are_rejected():
-    assert decode_status(b"\x91") == "malformed"
-    assert decode_status(b"\x00" * ((1 << 16) + 1)) == "oversized"
+    assert decode_status(b"\x91") == Rejected("malformed")
+    assert decode_status(b"\x00" * ((1 << 16) + 1)) == Rejected("oversized")
 
 
 def test_decoders_never_raise_on_random_bytes():
@@ -282,7 +283,7 @@ def test_decoders_never_raise_on_random_bytes():
         payload = bytes(base[: rng.randrange(len(base) + 1)])
         for decode in (decode_event, decode_stats, decode_status):
             out = decode(payload)
-            assert isinstance(out, (str, FleetEvent, AgentStats, dict))
+            assert isinstance(out, (Rejected, FleetEvent, AgentStats, WorldStatus))
             if isinstance(out, FleetEvent):
                 assert math.isfinite(out.t) and out.kind in EVENT_KINDS
 
@@ -315,8 +316,8 @@ def test_no_decoder_raises_and_what_passes_is_typed_and_bounded(d, ids):
         return
     for decode in (decode_event, decode_stats, decode_status):
         out = decode(payload, ids)
-        if isinstance(out, str):
-            assert out.isidentifier()
+        if isinstance(out, Rejected):
+            assert out.reason.isidentifier()
         elif isinstance(out, FleetEvent):
             assert math.isfinite(out.t) and out.kind in EVENT_KINDS and "\x1b" not in out.text
         elif isinstance(out, AgentStats):
@@ -324,24 +325,27 @@ def test_no_decoder_raises_and_what_passes_is_typed_and_bounded(d, ids):
             assert out.faults is None or set(out.faults) == {"total", "links", "state_changes"}
             assert ids is None or out.id in ids
             assert all(type(x) is int and 0 <= x < 2**53 for x in out.rejected_by_reason.values())
-        else:
-            assert math.isfinite(out["t"]) and out["clock"] in ("lockstep", "realtime")
-            assert all(isinstance(e, FleetEvent) for e in out["events"])
+        else:  # a status whose every field is what WorldStatus says: a reader needs no check of its own
+            assert isinstance(out, WorldStatus)
+            assert math.isfinite(out.t) and -1 <= out.t <= 1e9 and out.clock in ("lockstep", "realtime")
+            assert set(out.alive) <= set(out.ids) and all(isinstance(e, FleetEvent) for e in out.events)
+            assert all(x is None or math.isfinite(x) and x >= 0 for x in (out.path_error_max, out.coord_error_max))
+            assert type(out.paused) is bool and (out.roster is None or set(out.roster) <= set(out.ids))
 
 
 @settings(max_examples=300, deadline=None)
 @given(hs.binary(max_size=300))
 def test_no_decoder_raises_on_arbitrary_bytes(payload):
     for decode in (decode_event, decode_stats, decode_status):
-        assert isinstance(decode(payload), (str, FleetEvent, AgentStats, dict))
+        assert isinstance(decode(payload), (Rejected, FleetEvent, AgentStats, WorldStatus))
 
 
 def test_an_event_text_from_the_wire_comes_out_escaped():
     e = decode_event(pack({**GOOD_EVENT, "text": "\x1b[2J\x1b[31mfake\nt = 1.00 s: forged"}))
     assert "\x1b" not in e.text and "\n" not in e.text and "\\x1b" in e.text
-    assert decode_event(pack({**GOOD_EVENT, "vehicle": "usv9"}), IDS) == "unknown_sender"
-    assert decode_event(pack({**GOOD_EVENT, "t": 1e308})) == "range"
-    assert decode_status(status(t=1e308)) == "range"
+    assert decode_event(pack({**GOOD_EVENT, "vehicle": "usv9"}), IDS) == Rejected("unknown_sender")
+    assert decode_event(pack({**GOOD_EVENT, "t": 1e308})) == Rejected("range")
+    assert decode_status(status(t=1e308)) == Rejected("range")
 
 
 def test_agent_stats_as_dict_is_asdict_with_its_containers_copied():

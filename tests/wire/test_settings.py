@@ -12,6 +12,7 @@ from hypothesis import given, settings, strategies as hs
 
 from cdus.wire.messages import encode_control
 from cdus.wire.schemas import MAX_SETTINGS_CHANGES, decode_settings, encode_settings
+from cdus.wire.rejected import Rejected
 
 IDS = ["usv1", "usv2", "uav1"]
 PHASES = [("usv1", 0.0), ("usv2", 3.14), ("uav1", 1.0)]
@@ -57,9 +58,9 @@ def test_values_json_cannot_hold_are_made_plain_and_bad_fields_refused():
     for field, value, reason in [("v", 2, "version"), ("phases", [["usv1", math.nan]], "phases"),
                                  ("phases", [["nobody", 1.0]], "phases"), ("phases", {"usv1": 1.0}, "type"),
                                  ("link", [], "type"), ("total", -1, "type"), ("changes", None, "type")]:
-        assert decode_settings(msgpack.packb({**base, field: value}, use_bin_type=True), IDS) == reason, field
-    assert decode_settings(b"\xc1") == "malformed" and decode_settings(msgpack.packb([1])) == "malformed"
-    assert decode_settings(b"\x00" * (1 << 22 + 1)) == "oversized"
+        assert decode_settings(msgpack.packb({**base, field: value}, use_bin_type=True), IDS) == Rejected(reason), field
+    assert decode_settings(b"\xc1") == Rejected("malformed") and decode_settings(msgpack.packb([1])) == Rejected("malformed")
+    assert decode_settings(b"\x00" * (1 << 22 + 1)) == Rejected("oversized")
 
 
 _leaf = hs.one_of(hs.none(), hs.booleans(), hs.integers(-2**63, 2**64 - 1), hs.floats(), hs.text(max_size=8),
@@ -72,11 +73,11 @@ _values = hs.recursive(_leaf, lambda inner: hs.lists(inner, max_size=4) | hs.dic
 @given(hs.dictionaries(hs.sampled_from(["v", "changes", "phases", "link", "total", "x"]), _values, max_size=6))
 def test_any_settings_payload_decodes_to_plain_values_or_a_reason_never_raises(obj):
     got = decode_settings(msgpack.packb(obj, use_bin_type=True), IDS)
-    assert isinstance(got, str) or json.dumps(got, allow_nan=False)
+    assert isinstance(got, Rejected) or json.dumps(got, allow_nan=False)
 
 
 def test_plain_values_keep_their_kind_their_depth_and_their_size():
-    from cdus.wire.schemas import _PLAIN_DEPTH, _plain
+    from cdus.wire.replies import _PLAIN_DEPTH, _plain
     from cdus.wire.text import printable
 
     assert [_plain(x) for x in (True, False, None, 0, 2**63 - 1, -(2**63), 2**63, 1.5, math.nan, b"x")] == \
@@ -104,13 +105,13 @@ def test_what_the_decoder_takes_at_most():
     assert encode_settings([], PHASES, {}, total=50) and \
         decode_settings(encode_settings([], PHASES, {}, total=50), IDS)["total"] == 50
     from cdus.wire.schemas import MAX_COUNT
-    assert decode_settings(packed(total=MAX_COUNT), IDS) == "type"
+    assert decode_settings(packed(total=MAX_COUNT), IDS) == Rejected("type")
     assert decode_settings(packed(total=MAX_COUNT - 1), IDS)["total"] == MAX_COUNT - 1
-    assert decode_settings(packed(changes=[[None, b"\x00" * 4097]]), IDS) == "malformed"  # a command is small
-    assert decode_settings(packed(link={"name": "x" * 4097}), IDS) == "malformed"
-    assert decode_settings(packed(link={str(j): j for j in range(4097)}), IDS) == "malformed"
-    assert decode_settings(packed(link={"x": msgpack.ExtType(1, b"a")}), IDS) == "malformed"
-    assert decode_settings(packed(changes=[None] * 10_001, total=10_001), IDS) == "malformed"
+    assert decode_settings(packed(changes=[[None, b"\x00" * 4097]]), IDS) == Rejected("malformed")  # a command is small
+    assert decode_settings(packed(link={"name": "x" * 4097}), IDS) == Rejected("malformed")
+    assert decode_settings(packed(link={str(j): j for j in range(4097)}), IDS) == Rejected("malformed")
+    assert decode_settings(packed(link={"x": msgpack.ExtType(1, b"a")}), IDS) == Rejected("malformed")
+    assert decode_settings(packed(changes=[None] * 10_001, total=10_001), IDS) == Rejected("malformed")
     assert decode_settings(packed(changes=[None] * 10_000, total=10_000), IDS)["unreadable"] == 10_000
     assert decode_settings(packed(link={"k": "x" * 4096}), IDS)["link"]["k"] == printable_256("x" * 4096)
 

@@ -10,6 +10,8 @@ import pytest
 from hypothesis import given, settings, strategies as hs
 
 from cdus.wire.schemas import STATUS_EXTRA, STATUS_KEYS, StatusExtra, decode_status, encode_status
+from cdus.wire.rejected import Rejected
+from cdus.wire.status import WorldStatus
 
 IDS = ["usv1", "usv2", "uav1"]
 
@@ -77,13 +79,13 @@ def test_a_status_without_them_is_still_valid_and_non_finite_values_are_left_out
 def test_a_malformed_console_field_is_rejected(field, value):
     d = msgpack.unpackb(status(extra()), raw=False)
     d[field] = value
-    assert decode_status(msgpack.packb(d)) == "extra"
+    assert decode_status(msgpack.packb(d)) == Rejected("extra")
 
 
 def test_too_many_edges_or_links_are_rejected():
     d = msgpack.unpackb(status(extra()), raw=False)
-    assert decode_status(msgpack.packb({**d, "edges": [["usv1", "usv2", 0.1]] * 513})) == "extra"
-    assert decode_status(msgpack.packb({**d, "links": [["usv1", "usv2", 1, 0, None]] * 513})) == "extra"
+    assert decode_status(msgpack.packb({**d, "edges": [["usv1", "usv2", 0.1]] * 513})) == Rejected("extra")
+    assert decode_status(msgpack.packb({**d, "links": [["usv1", "usv2", 1, 0, None]] * 513})) == Rejected("extra")
     # the world sends at most as many as the decoder takes
     many = extra(edges=[("usv1", "usv2", 0.1)] * 600, links=[("usv1", "usv2", 1, 0, None)] * 600)
     st = decode_status(status(many))
@@ -94,7 +96,7 @@ def test_a_status_too_big_for_the_console_fields_still_says_the_run_is_over():
     ids = [f"v{j}" for j in range(3000)]  # the summary alone fits, the console fields do not
     ex = StatusExtra(kinds=["usv"] * len(ids), path_errors=[0.1] * len(ids), completion="stopped")
     st = decode_status(encode_status(3.0, 100.0, "lockstep", ids, ids, 0.3, 0.25, [], False, extra=ex))
-    assert isinstance(st, dict) and st["completion"] == "stopped" and "kinds" not in st
+    assert isinstance(st, WorldStatus) and st["completion"] == "stopped" and "kinds" not in st
 
 
 _values = hs.recursive(hs.one_of(hs.none(), hs.booleans(), hs.integers(-2**63, 2**64 - 1), hs.floats(),
@@ -107,7 +109,14 @@ _values = hs.recursive(hs.one_of(hs.none(), hs.booleans(), hs.integers(-2**63, 2
 def test_any_console_fields_decode_or_are_rejected_never_raise(fields):
     d = msgpack.unpackb(status(None), raw=False)
     out = decode_status(msgpack.packb({**d, **fields}))
-    assert out == "extra" or isinstance(out, dict) and set(out) == set(STATUS_KEYS) | set(fields)
+    assert out == Rejected("extra") or isinstance(out, WorldStatus) and set(out) == set(STATUS_KEYS) | set(fields)
+    if isinstance(out, WorldStatus):  # what ground_station.alarms and tui take as it is, without a check
+        n, ids = len(out.ids), set(out.ids)
+        assert all(x is None or len(x) == n for x in (out.kinds, out.states, out.rx, out.path_errors))
+        assert all(a in ids and b in ids and (e is None or math.isfinite(e) and e >= 0) for a, b, e in out.edges or [])
+        assert out.closest is None or out.closest[0] in ids and out.closest[1] in ids and math.isfinite(out.closest[2])
+        assert out.safety_radius is None or math.isfinite(out.safety_radius) and out.safety_radius > 0
+        assert all(e is None or math.isfinite(e) for e in out.path_errors or [])
 
 
 def test_a_fleet_of_thousands_still_gets_its_status_with_what_fits():
@@ -121,7 +130,7 @@ def test_a_fleet_of_thousands_still_gets_its_status_with_what_fits():
         payload = encode_status(3.0, 100.0, "lockstep", ids, ids, 0.3, 0.25, [], False, extra=ex)
         assert len(payload) <= 1 << 16
         st = decode_status(payload)
-        assert isinstance(st, dict), st
+        assert isinstance(st, WorldStatus), st
         return st
 
     assert {"edges", "links", "kinds"} <= set(big(300))  # everything fits
@@ -143,7 +152,7 @@ def test_a_fleet_of_thousands_still_gets_its_status_with_what_fits():
 def test_each_end_of_an_edge_link_or_pair_is_checked(field, value):
     d = msgpack.unpackb(status(extra()), raw=False)
     d[field] = value
-    assert decode_status(msgpack.packb(d)) == "extra"
+    assert decode_status(msgpack.packb(d)) == Rejected("extra")
 
 
 def test_the_console_fields_at_their_bounds_are_kept():
