@@ -76,7 +76,10 @@ def test_lake_circle_with_vehicle_models_converges():
     (50.0, 0.08, 0.01),
 ])
 def test_stable_and_converged_at_every_control_rate(rate, max_path_error, max_rate_error):
-    sc, res = run("lake_circle", **{"rates.control": rate, "rates.broadcast": rate})
+    sc = load_scenario("configs/lake_circle.toml", {"rates.control": rate, "rates.broadcast": rate})
+    shipped, shipped_run = lake_circle()
+    # at 50 Hz this is the shipped lake_circle (equal but for the TOML text it keeps): its run, made once
+    res = shipped_run if dataclasses.replace(sc, raw=shipped.raw) == shipped else InProcessFleet(sc).run()
     m = res.metrics
     assert np.isfinite(res.recorder.view("omega")).all()
     assert m["final_path_error_max"] < max_path_error
