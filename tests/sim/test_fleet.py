@@ -76,7 +76,10 @@ def test_lake_circle_with_vehicle_models_converges():
     (50.0, 0.08, 0.01),
 ])
 def test_stable_and_converged_at_every_control_rate(rate, max_path_error, max_rate_error):
-    sc, res = run("lake_circle", **{"rates.control": rate, "rates.broadcast": rate})
+    sc = load_scenario("configs/lake_circle.toml", {"rates.control": rate, "rates.broadcast": rate})
+    shipped, shipped_run = lake_circle()
+    # at 50 Hz this is the shipped lake_circle (equal but for the TOML text it keeps): its run, made once
+    res = shipped_run if dataclasses.replace(sc, raw=shipped.raw) == shipped else InProcessFleet(sc).run()
     m = res.metrics
     assert np.isfinite(res.recorder.view("omega")).all()
     assert m["final_path_error_max"] < max_path_error
@@ -87,8 +90,9 @@ def test_stable_and_converged_at_every_control_rate(rate, max_path_error, max_ra
 
 def test_directed_chain_converges():
     """A directed spanning tree (Assumption 1), outside the Lyapunov proof: converges here,
-    more slowly than the ring (measured: coordination settles at ~363 s, seed 1)."""
-    sc, res = run("lake_circle", **{"graph.topology": "chain", "graph.directed": True, "scenario.duration": 500.0})
+    more slowly than the ring (measured: coordination settles at ~363 s, seed 1; 420 s shows
+    it, 500 s did too)."""
+    sc, res = run("lake_circle", **{"graph.topology": "chain", "graph.directed": True, "scenario.duration": 420.0})
     assert sc.directed and len(sc.edges) == len(sc.vehicles) - 1
     m = res.metrics
     assert m["coord_settle_s"] is not None
@@ -114,8 +118,9 @@ def test_in_process_runs_are_deterministic():
 
 
 def test_seed_changes_the_start_and_not_the_outcome():
-    _, a = run("lake_circle", **{"scenario.seed": 2})
-    _, b = run("lake_circle", **{"scenario.seed": 3})
+    # 150 s, not the shipped 250: seeds 2 and 3 settle at 86.28 s and 110.58 s
+    _, a = run("lake_circle", **{"scenario.seed": 2, "scenario.duration": 150.0})
+    _, b = run("lake_circle", **{"scenario.seed": 3, "scenario.duration": 150.0})
     assert not np.array_equal(a.recorder.view("q")[0], b.recorder.view("q")[0])
     assert a.metrics["coord_settle_s"] is not None and b.metrics["coord_settle_s"] is not None
 
