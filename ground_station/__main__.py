@@ -38,7 +38,8 @@ from dataclasses import replace
 
 import zenoh
 
-from cdus.core.paths import PathError, make_path
+from cdus.core.paths import PathError
+from cdus.scenario.paths import make_path
 from cdus.scenario.config import ConfigError, parse_value
 from cdus.scenario.link import validate_link
 from cdus.sim.radio import radio_change_problem
