@@ -70,6 +70,9 @@ FULL = {
                                                              "center": [0.0, 0.0, 15.0], "beta": 0.2}},
         {"id": "usv3", "kind": "usv", "phase": 5.0, "path": {"family": "line", "origin": [0.0, 0.0],
                                                              "heading": [1.0, 0.5], "speed": 1.0}},
+        {"id": "usv4", "kind": "usv", "phase": 6.0, "path": {"family": "spline", "closed": False,
+                                                             "waypoints": [[0.0, 0.0], [10.0, 0.0], [20.0, 5.0]],
+                                                             "speed": 1.0}},
     ],
     "event": [
         {"at": 0.3, "action": "pause", "vehicle": "usv3", "duration": 0.2},

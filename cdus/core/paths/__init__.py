@@ -1,7 +1,7 @@
 """What is a path? A parametric curve f(ω) with f', f'' in closed form.
 
 One small module per family (``circle``, ``ellipse``, ``lissajous``, ``self_intersecting``,
-``trefoil``, ``line``), each giving ``eval(ω) -> (f, f', f'')`` and nothing else, and
+``trefoil``, ``line``, ``spline``), each giving ``eval(ω) -> (f, f', f'')`` and nothing else, and
 declaring itself once in the registry (:mod:`cdus.core.paths.registry`: its name, parameters and
 constructor); the guidance never knows which path it follows (the Paparazzi ``gvf_parametric``
 separation). Vectors are plain tuples of floats: at 2-3 components, pure Python is several times
@@ -23,8 +23,9 @@ from cdus.core.paths.lissajous import RETRACE_TURNS, Lissajous, turning_point
 from cdus.core.paths.self_intersecting import self_intersecting
 from cdus.core.paths.trefoil import Trefoil
 from cdus.core.paths.line import Line
+from cdus.core.paths.spline import Spline, spline
 
 __all__ = ["FAMILIES", "REGISTRY", "TAU", "Family", "Param", "Path", "PathError", "Vec", "register",
            "PROBE_OMEGAS", "Planar", "for_dimension", "nearest_omega", "not_finite_at",
            "Circle", "Ellipse", "RETRACE_TURNS", "Lissajous", "turning_point", "self_intersecting", "Trefoil",
-           "Line"]
+           "Line", "Spline", "spline"]
