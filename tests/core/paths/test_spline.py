@@ -153,3 +153,16 @@ def test_a_refused_waypoint_list_names_the_waypoint_and_the_fix(spec, field, wor
     for w in words:
         assert w in e.value.message, (w, e.value.message)
 
+
+def test_the_lake_survey_lanes_keep_their_speed_and_straight_legs():
+    """configs/lake_survey.toml's lane: the speeds docs/config.md quotes, legs straight within 0.3 m."""
+    import tomllib
+    import pathlib
+
+    cfg = tomllib.loads((pathlib.Path(__file__).parents[3] / "configs" / "lake_survey.toml").read_text())
+    s = make_path(cfg["defaults"]["path"])
+    n = 4000
+    speeds = [_norm(s.eval(s.period * (i + 0.5) / n)[1]) / 1.5 for i in range(n)]
+    assert (f"{min(speeds):.2f}", f"{max(speeds):.2f}", f"{s.knots[-1]:.1f}") == ("0.96", "1.03", "332.7")
+    leg = [s.eval(s.period * i / n)[0] for i in range(n)]
+    assert max(abs(p[0]) for p in leg if 0 <= p[1] <= 60 and p[0] < 5) < 0.31
