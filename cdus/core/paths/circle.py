@@ -5,25 +5,17 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from cdus.core.paths.registry import TAU, Family, Param, Vec, register
+from cdus.core.paths.registry import Centred, Family, OneTurn, Param, Vec, register
 
 
 @dataclass(frozen=True)
-class Circle:
+class Circle(Centred, OneTurn):
     """f = c + r (cos βω, sin βω [, c_z])."""
 
     center: Vec
     radius: float
     beta: float = 1.0
     direction: float = -1.0
-
-    @property
-    def dim(self) -> int:
-        return len(self.center)
-
-    @property
-    def period(self) -> float:
-        return TAU / abs(self.beta)
 
     def eval(self, w: float) -> tuple[Vec, Vec, Vec]:
         b, r = self.beta, self.radius

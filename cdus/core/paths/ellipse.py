@@ -5,11 +5,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from cdus.core.paths.registry import TAU, Family, Param, Vec, register
+from cdus.core.paths.registry import Centred, Family, OneTurn, Param, Vec, register
 
 
 @dataclass(frozen=True)
-class Ellipse:
+class Ellipse(Centred, OneTurn):
     """f = c + R(ρ) (a cos βω, b sin βω) [, c_z], R(ρ) a rotation by ``rotation`` rad."""
 
     center: Vec
@@ -18,14 +18,6 @@ class Ellipse:
     rotation: float = 0.0
     beta: float = 1.0
     direction: float = -1.0
-
-    @property
-    def dim(self) -> int:
-        return len(self.center)
-
-    @property
-    def period(self) -> float:
-        return TAU / abs(self.beta)
 
     def eval(self, w: float) -> tuple[Vec, Vec, Vec]:
         k = self.beta

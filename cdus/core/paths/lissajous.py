@@ -8,12 +8,12 @@ from dataclasses import dataclass
 from fractions import Fraction
 
 from cdus.core.paths.geometry import Planar
-from cdus.core.paths.registry import TAU, Family, Param, Path, PathError, Vec, register
+from cdus.core.paths.registry import TAU, Centred, Family, Param, Path, PathError, Vec, register
 from cdus.wire.bounds import MIN_RATE
 
 
 @dataclass(frozen=True)
-class Lissajous:
+class Lissajous(Centred):
     """General Lissajous: f_k = c_k + A_k cos(a_k βω + δ_k), k over 2 or 3 axes."""
 
     center: Vec
@@ -22,10 +22,6 @@ class Lissajous:
     phase: Vec
     beta: float = 1.0
     direction: float = -1.0
-
-    @property
-    def dim(self) -> int:
-        return len(self.center)
 
     @property
     def period(self) -> float | None:

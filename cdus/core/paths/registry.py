@@ -38,6 +38,26 @@ class Path(Protocol):
         ...
 
 
+class Centred:
+    """A family whose ``center`` gives its dimension (2 or 3 numbers)."""
+
+    center: Vec
+
+    @property
+    def dim(self) -> int:
+        return len(self.center)
+
+
+class OneTurn:
+    """A closed family whose lap is one turn of βω: ω-period 2π/|β|."""
+
+    beta: float
+
+    @property
+    def period(self) -> float:
+        return TAU / abs(self.beta)
+
+
 #: the kinds of value a parameter takes (cdus.scenario.paths reads each)
 KINDS = ("vector", "number", "positive", "points", "flag")
 

@@ -5,11 +5,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from cdus.core.paths.registry import TAU, Family, Param, Vec, register
+from cdus.core.paths.registry import Family, OneTurn, Param, Vec, register
 
 
 @dataclass(frozen=True)
-class Trefoil:
+class Trefoil(OneTurn):
     """Trefoil knot: f = c + s (sin βω + 2 sin 2βω, cos βω - 2 cos 2βω, -h sin 3βω)."""
 
     center: Vec
@@ -19,10 +19,6 @@ class Trefoil:
     direction: float = -1.0
 
     dim = 3
-
-    @property
-    def period(self) -> float:
-        return TAU / abs(self.beta)
 
     def eval(self, w: float) -> tuple[Vec, Vec, Vec]:
         b, s, h = self.beta, self.scale, self.height
