@@ -34,3 +34,19 @@ def test_speed_sets_beta_for_the_families_that_declare_how(name):
 def test_speed_is_refused_where_a_family_declares_no_constant_speed():
     with pytest.raises(ValueError, match="only circle, line and spline have a constant on-path speed"):
         make_path({"family": "ellipse", "center": [0, 0], "a": 2, "b": 1, "speed": 1})
+
+
+#: a smallest valid table of each family
+TABLES = {"circle": {"center": [0, 0], "radius": 4}, "ellipse": {"center": [0, 0], "a": 2, "b": 1},
+          "lissajous": {"center": [0, 0], "amplitude": [2, 1], "frequency": [1, 2], "phase": [0, 1.5708]},
+          "self_intersecting": {}, "trefoil": {"center": [0, 0, 5]}, "line": {"origin": [0, 0], "heading": [1, 0]},
+          "spline": {"waypoints": [[0, 0], [10, 0], [10, 10]]}}
+
+
+@pytest.mark.parametrize("name", list(TABLES))
+def test_every_family_takes_beta_and_direction_from_its_table(name):
+    """(mutmut found the spline's builder could drop `direction` unseen)"""
+    assert set(TABLES) == set(REGISTRY)
+    path = make_path({"family": name, "beta": 0.5, "direction": 1, **TABLES[name]})
+    assert (path.beta, path.direction) == (0.5, 1.0)
+    assert make_path({"family": name, **TABLES[name]}).direction == -1.0
