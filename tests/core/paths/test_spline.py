@@ -166,3 +166,12 @@ def test_the_lake_survey_lanes_keep_their_speed_and_straight_legs():
     assert (f"{min(speeds):.2f}", f"{max(speeds):.2f}", f"{s.knots[-1]:.1f}") == ("0.96", "1.03", "332.7")
     leg = [s.eval(s.period * i / n)[0] for i in range(n)]
     assert max(abs(p[0]) for p in leg if 0 <= p[1] <= 60 and p[0] < 5) < 0.31
+
+
+def test_nearest_omega_on_an_open_spline_finds_the_nearest_leg_not_the_one_nearest_the_hint():
+    """Newton from the hint alone stops on the first leg's local minimum (9 m off); the body's
+    samples find the last leg (1.6 m off)."""
+    s = spline(((0.0, 0.0), (20.0, 0.0), (20.0, 10.0), (0.0, 10.0)), closed=False)
+    w = nearest_omega(s, (2.0, 9.0), hint=0.0)
+    assert _norm([a - b for a, b in zip(s.eval(w)[0], (2.0, 9.0))]) < 2.0
+    assert s.knots[2] < w < s.knots[3]
