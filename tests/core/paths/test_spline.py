@@ -175,3 +175,13 @@ def test_nearest_omega_on_an_open_spline_finds_the_nearest_leg_not_the_one_neare
     w = nearest_omega(s, (2.0, 9.0), hint=0.0)
     assert _norm([a - b for a, b in zip(s.eval(w)[0], (2.0, 9.0))]) < 2.0
     assert s.knots[2] < w < s.knots[3]
+
+
+def test_an_open_spline_bends_from_its_first_waypoint_on():
+    """(mutmut: running straight on up to t = 1 instead of t = 0 went unseen) the curve leaves
+    its start along the segment's polynomial: f'' grows from 0 (the natural end) at once."""
+    s = spline(((0.0, 0.0), (10.0, 0.0), (20.0, 10.0)), closed=False, beta=2.0)
+    _, _, f2 = s.eval(0.25)  # t = βω = 0.5, inside the first segment
+    a, b, c, d = s.segments[0]
+    assert f2 == tuple(4.0 * (2.0 * c_ + 6.0 * 0.5 * d_) for c_, d_ in zip(c, d))
+    assert _norm(f2) > 0.0
