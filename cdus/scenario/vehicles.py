@@ -19,11 +19,12 @@ from cdus.commands.gains import expand_k
 from cdus.core.gain_bounds import gains_problem_for_rate, regulator_gains_problem
 from cdus.core.limits import default_limits
 from cdus.core.models import DEFAULT_PRESET, PLANTS as MODELS
-from cdus.core.paths import FAMILIES, Path, PathError, for_dimension, make_path, not_finite_at, turning_point
+from cdus.core.paths import FAMILIES, Path
 from cdus.core.plants import USV_PRESETS
 from cdus.core.vocabulary import DIMENSIONS, KINDS
 from cdus.scenario.checks import IdList, Problems, describe, is_number, quote, show
 from cdus.scenario.model import Edge, Rates, VehicleSpec
+from cdus.scenario.paths import check_path
 from cdus.scenario.sections import DEFAULT_GAINS, gain_values
 
 #: plant -> kinds it models (the vehicle models' one table: cdus.core.models.PLANTS)
@@ -334,51 +335,17 @@ def _path(p: Problems, t: _Merged, dim: int | None) -> tuple[Path | None, tuple]
     spec = p.table(t.v["path"], t.field("path"), PATH_EXAMPLE, t.note("path"))
     if spec is None:
         return None, ()
-    try:
-        built = make_path(spec)
-        followed = for_dimension(built, dim) if dim is not None else None
-        w = not_finite_at(followed) if followed is not None else None
-        if w is not None:
-            p.add(t.field("path"), not_finite_message(w) + t.note("path"))
-            return None, ()
-        turn = turning_point(followed) if followed is not None else None
-        if turn is not None:
-            p.add(t.field("path", "phase"), retrace_message(spec, turn, dim) + t.note("path", "phase"))
-            return None, ()
-        return followed, _frozen(spec)
-    except PathError as e:
-        sub = () if e.field == "path" else (e.field,)
-        where, note = t.field("path", *sub), t.note("path", *sub)
-        if e.field == "family" and "family" in spec:
-            p.choice(spec["family"], where, FAMILIES, "path family", note=note)
-        else:
-            p.add(where, f"{e.message}{note}")
-    except (TypeError, ValueError) as e:  # a malformed value the path module did not anticipate
-        p.add(t.field("path"), f"invalid path: {e}{t.note('path')}")
+    checked = check_path(spec, dim)
+    if not isinstance(checked, tuple):
+        return checked, _frozen(spec)
+    key, message = checked
+    sub = (key,) if key else ()
+    where, note = t.field("path", *sub), t.note("path", *sub)
+    if key == "family" and "family" in spec:
+        p.choice(spec["family"], where, FAMILIES, "path family", note=note)
+    else:
+        p.add(where, f"{message}{note}")
     return None, ()
-
-
-def not_finite_message(w: float) -> str:
-    """Why a path whose values are not finite at ω = ``w`` is refused."""
-    return f"its values are not finite numbers at ω = {w:g}: a vehicle cannot follow it"
-
-
-#: a vehicle of each dimension in words (DIMENSIONS: usv 2-D, uav 3-D)
-VEHICLE_WORDS = {DIMENSIONS["usv"]: "a boat", DIMENSIONS["uav"]: "a drone"}
-
-
-def retrace_message(spec: dict, turn: float, dim: int | None) -> str:
-    """Why a Lissajous path that runs back over itself is refused, and how to fix it."""
-    axes = "its x, y (what a usv follows)" if dim == 2 and len(spec.get("center") or ()) == 3 else "the path"
-    if all(a == 0 for a in (spec.get("amplitude") or ())[:dim or 3]) or \
-            all(f == 0 for f in (spec.get("frequency") or ())[:dim or 3]):
-        return f"{axes} does not move (every amplitude or frequency is 0): there is no path to follow"
-    who = VEHICLE_WORDS.get(dim, "a vehicle")  # the kind from the dimension (DIMENSIONS: one kind per dimension)
-    return (f"this Lissajous path runs back over itself: {axes} stops at ω = {turn:.4g} (no tangent: {who} "
-            f"cannot follow it) and retraces its way (phase {list(spec.get('phase', [0] * len(spec.get('center') or ())))} "
-            "turns every moving axis there at once; all phases 0 always do), so any two vehicles on it not at the "
-            "same ω meet head-on twice a lap. Give phases that do not, e.g. phase = [0, 1.5708] for frequencies "
-            "[1, 2], a figure-eight (docs/config.md, \"Paths\")")
 
 
 def _frozen(v: Any) -> Any:

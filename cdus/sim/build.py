@@ -21,7 +21,8 @@ from cdus.core.radio import RadioChannel
 from cdus.core.radiolink import RadioLink
 from cdus.core.node import VehicleNode
 from cdus.core.schedule import broadcast_every, total_ticks
-from cdus.core.paths import for_dimension, make_path, nearest_omega
+from cdus.core.paths import for_dimension, nearest_omega
+from cdus.scenario.paths import make_path
 from cdus.core.safety import SafetyParams
 from cdus.core.vehicle import Vehicle
 from cdus.scenario.model import Rates, Safety, Scenario, VehicleSpec

@@ -10,7 +10,8 @@ from typing import Any
 
 import numpy as np
 
-from cdus.core.paths import for_dimension, make_path, nearest_omega
+from cdus.core.paths import for_dimension, nearest_omega
+from cdus.scenario.paths import make_path
 
 PATH_POINTS = 400  # samples of a closed path's period
 

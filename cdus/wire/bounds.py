@@ -140,6 +140,7 @@ BOUNDS: dict[str, Bound] = {
     # a path (a vehicle's, an [[event]]'s, a ground station's)
     "path.center": within(MAX_METRES),
     "path.origin": within(MAX_METRES),
+    "path.waypoints": within(MAX_METRES),
     "path.heading": within(MAX_METRES),
     "path.radius": positive(MAX_METRES),
     "path.a": positive(MAX_METRES),

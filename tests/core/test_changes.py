@@ -7,7 +7,7 @@ from hypothesis import given, settings, strategies as st
 
 from cdus.core.changes import Applied, Refused
 from cdus.core.link import IdealLink, LinkEmulator
-from cdus.core.paths import make_path
+from cdus.scenario.paths import make_path
 from cdus.scenario.config import parse_scenario
 from cdus.sim.build import build_node
 

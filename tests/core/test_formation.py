@@ -12,7 +12,7 @@ from cdus.core.link import IdealLink
 from cdus.core.metrics import MetricEdge, Recorder
 from cdus.core.neighbours import NeighbourLink
 from cdus.core.node import VehicleNode
-from cdus.core.paths import make_path
+from cdus.scenario.paths import make_path
 from cdus.scenario.config import parse_scenario
 from cdus.sim.build import build_node, formation_schedule
 

@@ -9,7 +9,8 @@ from cdus.core.guidance import (
     Consensus, desired_velocity, desired_velocity_rate, integrate_omega, omega_law, path_error,
     speed_scale,
 )
-from cdus.core.paths import make_path, nearest_omega
+from cdus.core.paths import nearest_omega
+from cdus.scenario.paths import make_path
 
 LAKE = {"family": "circle", "center": [-40, 50], "radius": 10}  # docs/control.md §7
 K_LAKE = (1.5, 1.5)

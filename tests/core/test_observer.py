@@ -11,7 +11,7 @@ from cdus.core.disturbance import Disturbance, DisturbanceSpec
 from cdus.core.guidance import Consensus, desired_velocity, integrate_omega
 from cdus.core.limits import default_limits
 from cdus.core.observer import ESO, compensate, known_velocity
-from cdus.core.paths import make_path
+from cdus.scenario.paths import make_path
 from cdus.core.plants import USV_PRESETS, PointState, UAVState, USVState, step_ideal, step_uav, step_usv
 
 EPS = USV_PRESETS["cybership2"]

@@ -4,7 +4,8 @@ import math
 
 import pytest
 
-from cdus.core.paths import PathError, for_dimension, make_path, nearest_omega, turning_point
+from cdus.core.paths import PathError, for_dimension, nearest_omega, turning_point
+from cdus.scenario.paths import make_path
 
 TAU = 2.0 * math.pi
 

@@ -7,7 +7,8 @@ import pytest
 
 from cdus.core import regulators as reg
 from cdus.core.guidance import Consensus, desired_velocity, integrate_omega
-from cdus.core.paths import make_path, nearest_omega
+from cdus.core.paths import nearest_omega
+from cdus.scenario.paths import make_path
 from cdus.core.plants import USV_PRESETS, UAVState, USVState, step_uav, step_usv
 
 EPS = USV_PRESETS["cybership2"]

@@ -14,10 +14,11 @@ import math
 
 import pytest
 
-from cdus.core.paths import _BUILDERS, _COMMON
+from cdus.core.paths import REGISTRY
 from cdus.scenario import events, graph, link, radio, safety, sections, vehicles
 from cdus.scenario.config import ConfigError, parse_scenario
 from cdus.scenario.model import DEFAULT_SAFETY
+from cdus.scenario.paths import COMMON
 from cdus.sim.fleet import InProcessFleet
 
 FULL = {
@@ -69,6 +70,9 @@ FULL = {
                                                              "center": [0.0, 0.0, 15.0], "beta": 0.2}},
         {"id": "usv3", "kind": "usv", "phase": 5.0, "path": {"family": "line", "origin": [0.0, 0.0],
                                                              "heading": [1.0, 0.5], "speed": 1.0}},
+        {"id": "usv4", "kind": "usv", "phase": 6.0, "path": {"family": "spline", "closed": False,
+                                                             "waypoints": [[0.0, 0.0], [10.0, 0.0], [20.0, 5.0]],
+                                                             "speed": 1.0}},
     ],
     "event": [
         {"at": 0.3, "action": "pause", "vehicle": "usv3", "duration": 0.2},
@@ -100,7 +104,7 @@ def schema_keys() -> set[str]:
     keys |= set(vehicles.VEHICLE_KEYS) - {"preset"} | set(vehicles.START_KEYS) | set(vehicles.LIMIT_KEYS) \
         | set(vehicles.DISTURBANCE_KEYS)
     keys |= {g for regs in vehicles.REGULATORS.values() for gains in regs.values() for g in gains}
-    keys |= {k for _, allowed, _ in _BUILDERS.values() for k in allowed} | set(_COMMON)
+    keys |= {k for family in REGISTRY.values() for k in family.keys} | set(COMMON)
     keys |= set(events.EVENT_KEYS) | set(events.OFFSET_KEYS) | set(events.RADIO_EVENT_KEYS)
     return keys
 

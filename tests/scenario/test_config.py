@@ -11,7 +11,7 @@ import pytest
 
 from cdus.core.events import Event
 from cdus.core.linkspec import Delay, LinkSpec
-from cdus.core.paths import make_path
+from cdus.scenario.paths import make_path
 from cdus.scenario.config import (
     ConfigError, Edge, Rates, Scenario, Supervision, VehicleSpec, apply_override, load_scenario, parse_scenario,
     parse_value,

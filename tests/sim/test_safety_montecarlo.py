@@ -8,7 +8,7 @@ import math
 import pytest
 
 from bench import safety_montecarlo as mc
-from cdus.core.paths import make_path
+from cdus.scenario.paths import make_path
 from cdus.scenario.config import parse_scenario
 from cdus.sim.fleet import InProcessFleet
 
