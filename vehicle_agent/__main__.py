@@ -46,7 +46,10 @@ def main(argv=None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     transport = with_default_endpoint(transport_from_args(args))
-    agent = Agent(scenario, args.id, args.fleet, transport, clock=args.clock, policy=args.policy,
+    make = Agent
+    if scenario.vehicle(args.id).robot is not None:  # plant = "ros2": a real robot (vehicle_agent.robot)
+        from vehicle_agent.robot import RobotAgent as make
+    agent = make(scenario, args.id, args.fleet, transport, clock=args.clock, policy=args.policy,
                   duration=args.duration, rejoin=args.rejoin)
     return run_agent(agent)
 
