@@ -28,7 +28,7 @@ import zenoh
 
 from cdus.core.robot import RobotState
 from cdus.ros2 import fleet as rf
-from cdus.ros2.bridge import Publisher
+from cdus.ros2.publisher import Publisher
 from cdus.ros2.rmw import Node, topic_key
 from cdus.ros2.robot import ODOM, TWIST, RobotPose, read_odometry, twist
 from cdus.scenario.robot import clock_problem
