@@ -170,3 +170,15 @@ def test_cdus_launch_refuses_a_robot_in_lockstep_or_on_a_secured_fleet_and_start
     assert "nothing was started" in lock.stderr + lock.stdout
     secured = run_cli(["launch", CONFIG, "--clock", "realtime", "--rerun", "off"])
     assert secured.returncode == 2 and "--insecure: a plant = \"ros2\" vehicle needs an open fleet" in secured.stderr
+
+
+def test_the_fleet_wide_disturbance_and_observer_pass_a_robot_by():
+    import copy
+
+    from cdus.scenario.config import parse_scenario
+    raw = copy.deepcopy(load_scenario(CONFIG).raw)
+    raw["observer"] = {"enabled": True, "bandwidth": 2.0}
+    raw["disturbance"] = {"current": {"constant": [0.1, 0.0]}}
+    sc = parse_scenario(raw)
+    assert sc.vehicle("usv1").observer is None and sc.vehicle("usv1").disturbance == ()
+    assert sc.vehicle("usv2").observer == 2.0 and sc.vehicle("usv2").disturbance != ()
