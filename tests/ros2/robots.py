@@ -8,6 +8,8 @@ import threading
 import time
 
 import numpy as np
+import zenoh
+import zenoh.ext as ze
 from rosbags.typesys import Stores, get_typestore
 
 STORE = get_typestore(Stores.ROS2_JAZZY)
@@ -51,6 +53,7 @@ class FakeRobot:
         self.q = list(start)
         self.v = (0.0, 0.0, 0.0)
         self.twists = 0
+        self.attachments: list[tuple[int, int, bytes]] = []  # (sequence, source time ns, GID) as Zenoh reads them
         self.silent = False
         self._stop = threading.Event()
         self.pub = session.declare_publisher(odom_key)
@@ -59,6 +62,9 @@ class FakeRobot:
 
     def _on_twist(self, sample) -> None:
         self.v = read_twist(sample.payload.to_bytes())
+        if sample.attachment is not None:
+            self.attachments.append(ze.z_deserialize(tuple[ze.Int64, ze.Int64, bytes],
+                                                     zenoh.ZBytes(sample.attachment.to_bytes())))
         self.twists += 1
 
     def _run(self) -> None:

@@ -10,11 +10,13 @@ import math
 import time
 
 import zenoh
+import zenoh_ros2_sdk as sdk
 
 from cdus.ros2.rmw import topic_key
 from cdus.wire.transport import Transport, free_tcp_port, zenoh_config
 from tests.e2e.conftest import launches, unique_fleet  # noqa: F401 (the fixture)
 from tests.ros2.robots import ODOM, TWIST, FakeRobot
+from tests.ros2.test_launch import ros2_client  # noqa: F401 (the fixture)
 
 RADIUS = 5.0  # configs/ros2_robot.toml: circles of radius 5 about the origin
 
@@ -30,7 +32,7 @@ def wait_until(cond, timeout: float, what: str) -> None:
         time.sleep(0.05)
 
 
-def test_a_robot_follows_its_path_in_a_realtime_fleet_and_its_silence_is_a_stale_hold(tmp_path, launches):
+def test_a_robot_follows_its_path_in_a_realtime_fleet_and_its_silence_is_a_stale_hold(tmp_path, launches, ros2_client):
     fleet, port, run = unique_fleet(), free_tcp_port(), tmp_path / "run"
     la = launches(["configs/ros2_robot.toml", "--clock", "realtime", "--insecure", "--duration", "14",
                    "--rerun", "off", "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run)], fleet)
@@ -47,6 +49,9 @@ def test_a_robot_follows_its_path_in_a_realtime_fleet_and_its_silence_is_a_stale
                       start=(8.0, 0.0)).start()
     try:
         wait_until(lambda: any(robot.v), 60, "no non-zero Twist came")
+        # the command's publisher is in the ROS graph, as zenoh-ros2-sdk discovers it from the tokens
+        topics = dict(sdk.get_topic_names_and_types(domain_id=0, router_port=port, timeout=2.0))
+        assert topics["/usv1/cmd_vel"] == ["geometry_msgs/msg/Twist"]
         e0 = error(robot.q)
         time.sleep(3.0)
         e1 = error(robot.q)
@@ -62,6 +67,9 @@ def test_a_robot_follows_its_path_in_a_realtime_fleet_and_its_silence_is_a_stale
     finally:
         robot.stop()
         session.close()
+    seqs = [a[0] for a in robot.attachments]
+    assert len(seqs) == robot.twists and seqs == sorted(set(seqs))  # rmw_zenoh's attachment: one GID, seq rising
+    assert len({a[2] for a in robot.attachments}) == 1 and all(a[1] > 0 for a in robot.attachments)
     log = (run / "logs" / "usv1.log").read_text()
     assert log.count("following at tick") == 2, log
     stale = [ln for ln in log.splitlines() if "odometry stale" in ln]
