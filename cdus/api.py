@@ -41,6 +41,7 @@ from cdus.core.metrics import TRACE_ARRAYS, Recorder  # noqa: F401  (TRACE_ARRAY
 from cdus.core.vehicle import DivergedError
 from cdus.scenario.config import MAX_NESTING, ConfigError, load_scenario, nesting_problem, parse_scenario
 from cdus.scenario.model import Scenario
+from cdus.scenario.robot import clock_problem
 from cdus.results import (ClosestPair, DroppedBy, Event, FaultCounters, Integrity, LinkFaults, LinkMetrics,
                           LinkStateChange, Metrics, RadioMetrics, RejectedByReason, Result, SafetyInfo, Trace)
 from cdus.sim.fleet import InProcessFleet
@@ -192,6 +193,8 @@ def run(scenario: Scenario | str | os.PathLike, *, clock: str = "inproc", policy
     scenario = _check_scenario(scenario, where)
     if clock not in RUNNERS:
         raise _arg_error(where, "clock", f"{clock!r} is not one of {', '.join(RUNNERS)}")
+    if (why := clock_problem(scenario, clock)) is not None:  # plant = "ros2": cdus launch --clock realtime only
+        raise _arg_error(where, "clock", why)
     if policy is not None and policy not in POLICIES:
         raise _arg_error(where, "policy", f"{policy!r} is not one of {', '.join(POLICIES)} (or None: the scenario's)")
     base = Path(run_dir) if run_dir is not None else None

@@ -16,6 +16,7 @@ from cdus.core.linkspec import POLICIES
 from cdus.core.schedule import CLOCKS
 from cdus.wire.transport import add_transport_args, transport_from_args, with_default_endpoint
 from vehicle_agent.agent import Agent, run_agent
+from vehicle_agent.robot import RobotAgent
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -46,7 +47,8 @@ def main(argv=None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     transport = with_default_endpoint(transport_from_args(args))
-    agent = Agent(scenario, args.id, args.fleet, transport, clock=args.clock, policy=args.policy,
+    make = RobotAgent if scenario.vehicle(args.id).robot is not None else Agent  # plant = "ros2": a real robot
+    agent = make(scenario, args.id, args.fleet, transport, clock=args.clock, policy=args.policy,
                   duration=args.duration, rejoin=args.rejoin)
     return run_agent(agent)
 

@@ -29,6 +29,7 @@ from cdus.app.sweep import PLOT_FORMATS, RUNNERS, SweepInterrupted, check_grid, 
 from cdus.app.sweepstore import ROWS
 from cdus.core.vehicle import DivergedError
 from cdus.scenario.config import ConfigError, load_scenario, parse_overrides
+from cdus.scenario.robot import clock_problem, robots
 from cdus.core.linkspec import POLICIES
 from cdus.scenario.model import RESTART_POLICIES, Scenario
 from cdus.wire import keys
@@ -276,6 +277,12 @@ def cmd_launch(args: argparse.Namespace) -> int:
     except ValueError as e:
         raise ConfigError("command line", [("--rerun", str(e))]) from None
     opts = launch_options(args, scenario)
+    if (why := clock_problem(scenario, args.clock)) is not None:  # plant = "ros2": realtime only
+        raise ConfigError("command line", [("--clock", why)])
+    if robots(scenario) and not args.insecure:  # the secured fleet's access control has no rule for a robot yet
+        raise ConfigError("command line", [("--insecure", "a plant = \"ros2\" vehicle needs an open fleet: the "
+                                                          "secured one grants no vehicle the robot's ROS 2 keys "
+                                                          "(docs/ros2.md); give --insecure")])
     try:
         keys.check_fleet(opts.fleet)
     except ValueError as e:

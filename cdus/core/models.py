@@ -17,6 +17,7 @@ from typing import Any, Callable, Mapping
 
 from cdus.core.plants import USV_PRESETS, DoubleIntegrator, IdealPlant, Plant, USV3DOF
 from cdus.core.regulators import PD, Heading, HeadingGains, Paper, PaperGains, Regulator, UAVGains
+from cdus.core.robot import RobotPlant
 
 DEFAULT_PRESET = "cybership2"
 
@@ -78,6 +79,7 @@ PLANTS: dict[str, PlantModel] = {
     "uav_double_integrator": PlantModel(("uav",), lambda params: DoubleIntegrator(), {
         "pd": RegulatorModel(UAVGains, lambda plant, g: PD(g)),
     }),
+    "ros2": PlantModel(("usv", "uav"), lambda params: RobotPlant()),  # a real robot (cdus.core.robot)
 }
 
 

@@ -25,11 +25,10 @@ import threading
 import time
 from typing import Any, Callable
 
-import zenoh
-import zenoh.ext
 
-from cdus.ros2 import cdr, fleet as rf
-from cdus.ros2.rmw import Node, attachment, gid
+from cdus.ros2 import fleet as rf
+from cdus.ros2.publisher import Publisher
+from cdus.ros2.rmw import Node
 from cdus.scenario.model import Scenario
 from cdus.core.schedule import total_ticks
 from cdus.sim.polyline import path_polyline
@@ -42,32 +41,6 @@ from cdus.wire.schemas import decode_event
 MAX_T = 2.0**31 - 1  # s: builtin_interfaces/Time's seconds are an int32
 GONE = object()  # in the queue: (GONE, name) when a liveliness token goes
 QUEUE = 4096  # samples waiting for the bridge's thread; past this the oldest are dropped (counted)
-
-
-class Publisher:
-    """One ROS 2 publisher: its Zenoh publisher, its graph token, its GID and sequence number."""
-
-    def __init__(self, session: Any, node: Node, entity_id: int, topic: rf.Topic, key: str, distro: str):
-        self.topic = topic
-        if topic.qos.transient_local:  # what rmw_zenoh does: an advanced publisher with a cache
-            self.pub = zenoh.ext.declare_advanced_publisher(
-                session, key, cache=zenoh.ext.CacheConfig(max_samples=topic.qos.depth), publisher_detection=True)
-        else:
-            self.pub = session.declare_publisher(key)
-        self.token = session.liveliness().declare_token(
-            node.publisher_token(entity_id, topic.name, topic.type_name, topic.qos, distro))
-        self.gid = gid(node.zid, entity_id)
-        self.seq = 0
-        self.sent = 0
-
-    def publish(self, value: dict) -> None:
-        self.seq += 1
-        self.pub.put(cdr.encode(self.topic.type_name, value), attachment=attachment(self.seq, time.time_ns(), self.gid))
-        self.sent += 1
-
-    def close(self) -> None:
-        self.token.undeclare()
-        self.pub.undeclare()
 
 
 class Republisher:

@@ -17,6 +17,7 @@ from cdus.core.linkspec import LinkSpec
 from cdus.core.proximity import sample_every
 from cdus.core.radio import RadioSpec
 from cdus.core.radiolink import RadioEvent
+from cdus.scenario.robot import RobotSpec
 from cdus.scenario.ros2 import Ros2Spec
 
 #: What the launcher does when a vehicle's process exits during the run (docs/config.md, [supervision]).
@@ -66,6 +67,7 @@ class VehicleSpec:
     disturbance: tuple[tuple[str, Any], ...]
     observer: float | None = None  # the disturbance observer's bandwidth (rad/s), None: no observer
     scale_omega: bool = False  # [guidance] scale_omega: σ also scales ω's path-following part
+    robot: RobotSpec | None = None  # plant = "ros2": its topics and timeout (cdus.scenario.robot)
 
 
 #: [safety] defaults (docs/config.md, docs/safety.md)

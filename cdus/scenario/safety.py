@@ -100,8 +100,8 @@ def apply_fleet(specs: Sequence[VehicleSpec | None], raw_vehicles: Any, defaults
         else []
     out = []
     for j, spec in enumerate(specs):
-        if spec is None:
-            out.append(None)
+        if spec is None or spec.plant == "ros2":  # a real robot: its disturbance is real, no model to observe
+            out.append(spec)
             continue
         changes: dict[str, Any] = {}
         has_own = (j < len(own) and own[j]) or "disturbance" in defaults

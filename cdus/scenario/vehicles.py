@@ -25,6 +25,7 @@ from cdus.core.vocabulary import DIMENSIONS, KINDS
 from cdus.scenario.checks import IdList, Problems, describe, is_number, quote, show
 from cdus.scenario.model import Edge, Rates, VehicleSpec
 from cdus.scenario.paths import check_path
+from cdus.scenario.robot import robot_table
 from cdus.scenario.sections import DEFAULT_GAINS, gain_values
 
 #: plant -> kinds it models (the vehicle models' one table: cdus.core.models.PLANTS)
@@ -36,7 +37,7 @@ REGULATORS: dict[str, dict[str, tuple[str, ...]]] = {
     name: {r: rm.gain_keys for r, rm in m.regulators.items()} for name, m in MODELS.items() if m.regulators}
 LIMIT_KEYS = ("speed", "accel", "tau_u", "tau_r", "yaw_rate")
 VEHICLE_KEYS = ("id", "kind", "plant", "preset", "epsilon", "regulator", "regulator_gains", "phase",
-                "path", "start", "omega0", "gains", "limits", "disturbance")
+                "path", "start", "omega0", "gains", "limits", "disturbance", "ros2")
 TABLE_KEYS = ("path", "start", "gains", "regulator_gains", "limits", "disturbance")
 START_KEYS = ("position", "heading", "region_min", "region_max")
 DISTURBANCE_KEYS = ("constant", "gust", "gust_tau")
@@ -209,13 +210,14 @@ def vehicle(p: Problems, raw: Mapping, index: int, vid: str | None, defaults: Ma
     k, c = _gains(p, t, kind, fleet_gains)
     limits = _limits(p, t, plant, preset)
     disturbance = _disturbance(p, t, kind)
+    robot = robot_table(p, t.v.get("ros2"), t.field("ros2"), plant, vid)
     if p.since(mark) or vid is None or kind is None or plant is None or dim is None:
         return None, path
     return VehicleSpec(
         id=vid, index=index, kind=kind, dim=dim, plant=plant, epsilon=epsilon, preset=preset,
         regulator=regulator, regulator_gains=regulator_gains, path=path_pairs, phase=phase,
         start_position=start_position, start_heading=start_heading, omega0=omega0, k=k, c=c,
-        limits=limits, disturbance=disturbance,
+        limits=limits, disturbance=disturbance, robot=robot,
     ), path
 
 
@@ -274,10 +276,10 @@ def _epsilon(p: Problems, t: _Merged, plant: str | None) -> tuple[tuple[float, .
 
 def _regulator(p: Problems, t: _Merged, plant: str | None) -> tuple[str | None, tuple[tuple[str, float], ...]]:
     """(regulator, regulator_gains) of a vehicle model; none for the ideal plant."""
-    if plant == "ideal":
+    if plant is not None and plant not in REGULATORS:
         for key in ("regulator", "regulator_gains"):
             if key in t.v:
-                p.add(t.field(key), 'the ideal plant has no regulator; remove it, or choose plant = '
+                p.add(t.field(key), f'the {plant} plant has no regulator; remove it, or choose plant = '
                                     '"usv_3dof" (usv) or "uav_double_integrator" (uav)')
         return None, ()
     if plant is None:

@@ -73,6 +73,8 @@ FULL = {
         {"id": "usv4", "kind": "usv", "phase": 6.0, "path": {"family": "spline", "closed": False,
                                                              "waypoints": [[0.0, 0.0], [10.0, 0.0], [20.0, 5.0]],
                                                              "speed": 1.0}},
+        {"id": "usv5", "kind": "usv", "plant": "ros2", "ros2": {"timeout": 0.5}, "phase": 7.0,
+         "path": {"family": "circle", "center": [0.0, 0.0], "radius": 10.0}},
     ],
     "event": [
         {"at": 0.3, "action": "pause", "vehicle": "usv3", "duration": 0.2},

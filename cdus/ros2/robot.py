@@ -1,0 +1,72 @@
+"""What does a ROS 2 robot say to its vehicle, and what is it told? Its odometry read into a pose,
+the guidance command written as a Twist (docs/ros2.md, "A ROS 2 robot as one of the vehicles").
+
+Pure: the agent of a ``plant = "ros2"`` vehicle (vehicle_agent.robot) carries the bytes.
+
+- In: ``nav_msgs/msg/Odometry``. Position from ``pose.pose.position`` (x, y; z too for a drone),
+  heading the yaw of ``pose.pose.orientation`` (about z, 0 along x, counter-clockwise), the
+  world-frame velocity ``twist.twist.linear`` (x, y) turned by that yaw (REP-105: the twist is
+  in the child, body, frame). The frame ids are not checked: the pose must be in the frame the
+  scenario's paths are in.
+- Out: ``geometry_msgs/msg/Twist`` whose ``linear`` is the guidance's velocity in the **world
+  frame** (x, y, and z for a drone), ``angular`` zero: the DGVF velocity of a holonomic vehicle;
+  a robot that takes body-frame commands turns it by its own heading (docs/ros2.md).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+from cdus.ros2 import cdr
+from cdus.wire.rejected import Rejected
+
+ODOM, TWIST = "nav_msgs/msg/Odometry", "geometry_msgs/msg/Twist"
+#: why an odometry payload is dropped: cdr.decode's reasons, a non-finite value, a zero quaternion
+ODOM_REASONS = (*cdr.DECODE_REASONS, "nonfinite", "orientation")
+
+
+@dataclass(frozen=True)
+class RobotPose:
+    """What a vehicle takes from one odometry message: position, world-frame velocity, heading."""
+
+    q: tuple[float, ...]
+    v: tuple[float, ...]
+    heading: float
+    stamp: float  # s, the message's header stamp
+
+
+def yaw_of(x: float, y: float, z: float, w: float) -> float:
+    """The rotation about z of the quaternion (x, y, z, w) (not necessarily normalised)."""
+    return math.atan2(2.0 * (w * z + x * y), w * w + x * x - y * y - z * z)
+
+
+def read_odometry(data: bytes, dim: int) -> RobotPose | Rejected:
+    """The pose in one Odometry payload (``dim`` 2 for a boat, 3 for a drone), or ``Rejected``
+    with one of :data:`ODOM_REASONS`. Never raises."""
+    m = cdr.decode(ODOM, data)
+    if isinstance(m, Rejected):
+        return m
+    p, o = m["pose"]["pose"]["position"], m["pose"]["pose"]["orientation"]
+    lin = m["twist"]["twist"]["linear"]
+    quat = (o["x"], o["y"], o["z"], o["w"])
+    values = (p["x"], p["y"], p["z"], lin["x"], lin["y"], lin["z"], *quat)
+    if not all(math.isfinite(x) for x in values):
+        return Rejected("nonfinite")
+    norm = sum(x * x for x in quat)
+    if not norm > 1e-12 or not math.isfinite(norm):
+        return Rejected("orientation")
+    psi = yaw_of(*quat)
+    c, s = math.cos(psi), math.sin(psi)
+    v = (lin["x"] * c - lin["y"] * s, lin["x"] * s + lin["y"] * c, lin["z"])
+    stamp = m["header"]["stamp"]
+    return RobotPose((p["x"], p["y"], p["z"])[:dim], v[:dim], psi, stamp["sec"] + stamp["nanosec"] * 1e-9)
+
+
+def twist(u: Sequence[float] | None) -> dict:
+    """The Twist of a world-frame velocity command ``u`` (None or empty: hold, all zero)."""
+    u = tuple(u or ())
+    lin = {"x": float(u[0]) if u else 0.0, "y": float(u[1]) if len(u) > 1 else 0.0,
+           "z": float(u[2]) if len(u) > 2 else 0.0}
+    return {"linear": lin, "angular": {"x": 0.0, "y": 0.0, "z": 0.0}}
