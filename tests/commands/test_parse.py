@@ -141,3 +141,13 @@ def test_the_cli_settings_and_the_entries_refusals():
     assert parse_wire(3, {}).field == "op"
     assert decode_command(b"\xc1") == Rejected("malformed")
     assert decode_command(encode_control("kill", vehicle=3)) == Rejected("type")
+
+
+def test_a_setting_without_its_value_is_refused_with_an_example_of_its_own_command():
+    # `cdus gs gains k 2` was answered "k: expected KEY=VALUE, e.g. loss=0.3", a link's example
+    assert parse_cli("gains", ["k", "2"]) == Rejected("expected KEY=VALUE: did you mean k=2?", "k")
+    assert parse_cli("gains", ["k"]) == Rejected("expected KEY=VALUE, e.g. k=2", "k")
+    assert parse_cli("radio", ["tx_power"]) == Rejected("expected KEY=VALUE, e.g. tx_power=20", "tx_power")
+    assert parse_cli("path", ["family", "radius=5"], vehicle="usv1") == \
+        Rejected("expected KEY=VALUE, e.g. family=circle", "family")
+    assert parse_cli("formation", ["phases.usv2"]).reason == "expected KEY=VALUE, e.g. phases.usv2=3.1416"
