@@ -134,7 +134,10 @@ def parse_cli(action: str, settings: Sequence[str] = (), *, vehicle: str | None 
         fields["vehicle"] = vehicle
     if "at" in cls.KEYS and at is not None:
         fields["at"] = at
-    return cls.parse(fields)
+    got = cls.parse(fields)
+    if cls is Path and isinstance(got, Rejected) and (got.field or "").startswith("path."):
+        return Rejected(got.reason, got.field[len("path."):])  # named as typed: waypoints, not path.waypoints
+    return got
 
 
 def parse_event(event: Mapping[str, Any]) -> Command | Rejected:

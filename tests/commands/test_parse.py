@@ -151,3 +151,12 @@ def test_a_setting_without_its_value_is_refused_with_an_example_of_its_own_comma
     assert parse_cli("path", ["family", "radius=5"], vehicle="usv1") == \
         Rejected("expected KEY=VALUE, e.g. family=circle", "family")
     assert parse_cli("formation", ["phases.usv2"]).reason == "expected KEY=VALUE, e.g. phases.usv2=3.1416"
+
+
+def test_a_path_argument_is_named_as_it_was_typed():
+    # `cdus gs path --vehicle usv1 waypoints=...` was refused as "path.waypoints: ...", where every
+    # other command names its argument as typed (loss, k, tx_power); the wire and events keep path.*
+    got = parse_cli("path", ["family=spline", "waypoints=[[0,0],[0,0],[1,1]]"], vehicle="usv1")
+    assert got.field == "waypoints" and got.reason.startswith("waypoint 1 [0, 0] repeats waypoint 0")
+    assert parse_cli("path", ["family=circx"], vehicle="usv1").field == "family"
+    assert parse_wire("path", {"vehicle": "usv1", "path": {"family": "circx"}}).field == "path.family"
