@@ -308,3 +308,13 @@ def test_a_bad_waypoint_from_the_defaults_says_where_it_was_set():
     own = base()  # a vehicle's own waypoint: no note
     own["vehicle"][0]["path"] = {"family": "spline", "waypoints": [[0, 0], [0, "a"], [1, 1]]}
     assert "path.waypoints[1]: must contain finite numbers, got [0, 'a']\n" in problems(own) + "\n"
+
+
+def test_a_path_coordinate_out_of_bounds_is_refused_in_its_own_unit():
+    """Every list of a path table was refused in "(m, or a rate)", a Lissajous phase (rad, within
+    ±1e9) too."""
+    data = base()
+    data["vehicle"][0]["path"] = {"family": "spline", "waypoints": [[0, 0], [1e9, 0], [2, 2]]}
+    assert "path.waypoints[1]: must contain numbers >= -1e+06 and <= 1e+06 m, got 1e+09" in problems(data)
+    data["vehicle"][0]["path"] = _liss(phase=[0, 2e9])
+    assert "path.phase: must contain numbers >= -1e+09 and <= 1e+09 rad, got 2e+09" in problems(data)
