@@ -92,7 +92,7 @@ def number_tests(tree: ast.AST) -> list[tuple[int, str, bool]]:
     return found
 
 
-QUESTION_WORDS = ("what", "which", "where", "when", "how", "who", "why", "is", "are", "does", "do", "can")
+QUESTION_WORDS = ("what", "which", "where", "when", "how", "who", "whose", "why", "is", "are", "does", "do", "can")
 
 
 def opens_with_a_question(tree: ast.Module) -> bool:

@@ -67,3 +67,10 @@ def test_the_report_runs_on_this_checkout_and_names_its_longest_file(capsys):
     assert out.split("\n\n")[0].splitlines()[1].split() == [str(len(longest.read_bytes().splitlines())),
                                                            longest.relative_to(root).as_posix()]
     assert "# The finite-number check" in out and "# Aims missed:" in out
+
+
+def test_a_docstring_that_asks_whose_opens_with_a_question():
+    import ast
+    # world_sim/clocks.py and world_sim/liveness.py open so; "whose" was missing from the words that ask
+    assert shape.opens_with_a_question(ast.parse('"""Whose clock does the world keep: the grants or the wall clock?"""'))
+    assert not shape.opens_with_a_question(ast.parse('"""The world process: what is it made of?"""'))

@@ -1,4 +1,4 @@
-"""Where the world's picture goes: ``--rerun`` targets and the sink they make.
+"""Where does the world's picture go? The ``--rerun`` targets and the sink they make.
 
 The sink interface the runners feed is :mod:`cdus.sim.sink`. A ``--rerun`` value is
 parsed here into targets, without importing Rerun (a bad value starts nothing);

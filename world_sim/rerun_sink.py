@@ -1,4 +1,4 @@
-"""The world in Rerun: a sink that streams a run to a viewer and/or an .rrd file.
+"""How does the world stream a run to Rerun? A sink for a viewer and/or an .rrd file.
 
 What goes where (docs/rerun.md; timeline ``sim_time``, a duration):
 

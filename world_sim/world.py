@@ -1,4 +1,4 @@
-"""The world process: what is it made of, and how does a run go from start to metrics?
+"""What is the world process made of, and how does a run go from start to metrics?
 
 The world sees every vehicle, owns the clock, computes the metrics. Everything addressed to
 it (telemetry, counters, commands, its own liveliness watch) arrives through one

@@ -1,4 +1,4 @@
-"""Run-time commands: one typed room for what an operator, a scenario or the wire asks a fleet.
+"""What may an operator, a scenario or the wire ask a running fleet? The run-time commands, one typed room.
 
 Each command (stop, pause, resume, gains, link, formation, path, radio; kill, pause, resume and
 restart of one vehicle) is one frozen type that holds, in one place:

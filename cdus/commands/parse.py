@@ -60,13 +60,23 @@ def decode_command(payload: bytes) -> Command | Rejected:
     return parse_wire(c.op, c.fields)
 
 
-def nested(settings: Sequence[str]) -> dict | Rejected:
-    """``["loss=0.3", "delay.base=0.1"]`` -> ``{"loss": 0.3, "delay": {"base": 0.1}}`` (values as TOML)."""
+#: a KEY=VALUE each command with settings takes, for a refusal's "e.g."
+EXAMPLE = {"gains": "k=2", "link": "loss=0.3", "radio": "tx_power=20", "formation": "phases.usv2=3.1416",
+           "path": "family=circle"}
+
+
+def nested(settings: Sequence[str], example: str = "loss=0.3") -> dict | Rejected:
+    """``["loss=0.3", "delay.base=0.1"]`` -> ``{"loss": 0.3, "delay": {"base": 0.1}}`` (values as TOML).
+    A setting without ``=`` is refused with ``example``, or with ``KEY=VALUE`` when it was
+    given as two words (``k 2``)."""
     out: dict = {}
-    for item in settings:
+    for n, item in enumerate(settings):
         key, sep, value = item.partition("=")
         if not sep or not key:
-            return Rejected("expected KEY=VALUE, e.g. loss=0.3", item)
+            after = settings[n + 1] if n + 1 < len(settings) else ""
+            if key and after and "=" not in after:
+                return Rejected(f"expected KEY=VALUE: did you mean {key}={after}?", item)
+            return Rejected(f"expected KEY=VALUE, e.g. {example}", item)
         node = out
         parts = key.split(".")
         for n, part in enumerate(parts[:-1]):
@@ -108,7 +118,7 @@ def parse_cli(action: str, settings: Sequence[str] = (), *, vehicle: str | None 
         return Rejected(f"no command {action!r}; commands are {', '.join(BY_CLI)}", "action")
     fields: dict[str, Any] = {}
     if cls in SETTINGS_FIELD or cls is Formation:
-        table = nested(settings)
+        table = nested(settings, EXAMPLE.get(action, "loss=0.3"))
         if isinstance(table, Rejected):
             return table
         if cls is Formation:
@@ -124,7 +134,10 @@ def parse_cli(action: str, settings: Sequence[str] = (), *, vehicle: str | None 
         fields["vehicle"] = vehicle
     if "at" in cls.KEYS and at is not None:
         fields["at"] = at
-    return cls.parse(fields)
+    got = cls.parse(fields)
+    if cls is Path and isinstance(got, Rejected) and (got.field or "").startswith("path."):
+        return Rejected(got.reason, got.field[len("path."):])  # named as typed: waypoints, not path.waypoints
+    return got
 
 
 def parse_event(event: Mapping[str, Any]) -> Command | Rejected:

@@ -21,7 +21,8 @@ COMMON = frozenset({"family", "beta", "direction", "speed"})
 
 #: what the numbers of a path are, in a refusal
 _UNITS = {"radius": " m", "a": " m", "b": " m", "scale": " m", "height": " m", "d": " m", "speed": " m/s",
-          "rotation": " rad", "beta": " (speed scaling f(βω))"}
+          "rotation": " rad", "beta": " (speed scaling f(βω))", "center": " m", "origin": " m", "waypoints": " m",
+          "heading": " (a direction)", "amplitude": " m", "frequency": " (times βω)", "phase": " rad"}
 
 
 def make_path(spec: Mapping[str, Any]) -> Path:
@@ -129,7 +130,7 @@ def _coordinates(v: Any, key: str, field: str, dims: tuple[int, ...]) -> Vec:
         if not finite(x):
             raise PathError(field, f"must contain finite numbers, got {v!r}")
         if not b.holds(x):
-            raise PathError(field, f"must contain numbers {b.text()} (m, or a rate), got {x:g}: a vehicle cannot "
+            raise PathError(field, f"must contain numbers {b.text()}{_UNITS.get(key, '')}, got {x:g}: a vehicle cannot "
                                    f"follow such a path (its numbers overflow)")
         out.append(float(x))
     return tuple(out)

@@ -342,7 +342,8 @@ def _path(p: Problems, t: _Merged, dim: int | None) -> tuple[Path | None, tuple]
         return checked, _frozen(spec)
     key, message = checked
     sub = (key,) if key else ()
-    where, note = t.field("path", *sub), t.note("path", *sub)
+    # waypoints[1] was set where its list was: the note of "waypoints"
+    where, note = t.field("path", *sub), t.note("path", *(k.split("[")[0] for k in sub))
     if key == "family" and "family" in spec:
         p.choice(spec["family"], where, FAMILIES, "path family", note=note)
     else:

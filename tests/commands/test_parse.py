@@ -141,3 +141,22 @@ def test_the_cli_settings_and_the_entries_refusals():
     assert parse_wire(3, {}).field == "op"
     assert decode_command(b"\xc1") == Rejected("malformed")
     assert decode_command(encode_control("kill", vehicle=3)) == Rejected("type")
+
+
+def test_a_setting_without_its_value_is_refused_with_an_example_of_its_own_command():
+    # `cdus gs gains k 2` was answered "k: expected KEY=VALUE, e.g. loss=0.3", a link's example
+    assert parse_cli("gains", ["k", "2"]) == Rejected("expected KEY=VALUE: did you mean k=2?", "k")
+    assert parse_cli("gains", ["k"]) == Rejected("expected KEY=VALUE, e.g. k=2", "k")
+    assert parse_cli("radio", ["tx_power"]) == Rejected("expected KEY=VALUE, e.g. tx_power=20", "tx_power")
+    assert parse_cli("path", ["family", "radius=5"], vehicle="usv1") == \
+        Rejected("expected KEY=VALUE, e.g. family=circle", "family")
+    assert parse_cli("formation", ["phases.usv2"]).reason == "expected KEY=VALUE, e.g. phases.usv2=3.1416"
+
+
+def test_a_path_argument_is_named_as_it_was_typed():
+    # `cdus gs path --vehicle usv1 waypoints=...` was refused as "path.waypoints: ...", where every
+    # other command names its argument as typed (loss, k, tx_power); the wire and events keep path.*
+    got = parse_cli("path", ["family=spline", "waypoints=[[0,0],[0,0],[1,1]]"], vehicle="usv1")
+    assert got.field == "waypoints" and got.reason.startswith("waypoint 1 [0, 0] repeats waypoint 0")
+    assert parse_cli("path", ["family=circx"], vehicle="usv1").field == "family"
+    assert parse_wire("path", {"vehicle": "usv1", "path": {"family": "circx"}}).field == "path.family"

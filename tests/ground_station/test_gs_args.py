@@ -22,6 +22,10 @@ _settings = hs.lists(hs.tuples(_keys, _values).map(lambda kv: "=".join(kv)) | hs
 def _parsed_or_rejected(action, settings_, vehicle=None):
     got = parse_cli(action, settings_, vehicle=vehicle)
     assert isinstance(got, (Rejected, BY_CLI[action])), got
+    if isinstance(got, Rejected) and got.field:  # named as typed: never path.waypoints, link.loss
+        assert not got.field.startswith(f"{action}."), got
+    if isinstance(got, Rejected) and got.reason.startswith("expected KEY=VALUE"):
+        assert "loss=0.3" not in got.reason or action == "link", got  # the example is the command's own
     if isinstance(got, Rejected):
         assert got.reason and (got.field is None or isinstance(got.field, str))
 

@@ -291,3 +291,30 @@ def edit_paths(path: dict) -> dict:
     for v in data["vehicle"]:
         v["path"] = path
     return data
+
+
+def test_a_bad_waypoint_from_the_defaults_says_where_it_was_set():
+    """The note followed a whole-list refusal (path.waypoints) but not one of a waypoint
+    (path.waypoints[1]), so a user hunting a bad [defaults] waypoint looked in [[vehicle]]."""
+    data = base()
+    data["defaults"] = {"path": {"family": "spline", "waypoints": [[0, 0], [0, "a"], [1, 1]]}}
+    for v in data["vehicle"]:
+        v["path"] = {"center": v["path"]["center"]}
+    text = problems(data)
+    assert "(id \"usv1\").path.waypoints[1]: must contain finite numbers, got [0, 'a'] (set in [defaults])" in text
+    data["defaults"]["path"]["waypoints"] = [[0, 0], [1, 1, 1], [2, 2]]
+    assert '(id "usv1").path.waypoints[1]: has 3 coordinates, waypoint 0 has 2' in problems(data)
+    assert problems(data).count("(set in [defaults])") == 3
+    own = base()  # a vehicle's own waypoint: no note
+    own["vehicle"][0]["path"] = {"family": "spline", "waypoints": [[0, 0], [0, "a"], [1, 1]]}
+    assert "path.waypoints[1]: must contain finite numbers, got [0, 'a']\n" in problems(own) + "\n"
+
+
+def test_a_path_coordinate_out_of_bounds_is_refused_in_its_own_unit():
+    """Every list of a path table was refused in "(m, or a rate)", a Lissajous phase (rad, within
+    ±1e9) too."""
+    data = base()
+    data["vehicle"][0]["path"] = {"family": "spline", "waypoints": [[0, 0], [1e9, 0], [2, 2]]}
+    assert "path.waypoints[1]: must contain numbers >= -1e+06 and <= 1e+06 m, got 1e+09" in problems(data)
+    data["vehicle"][0]["path"] = _liss(phase=[0, 2e9])
+    assert "path.phase: must contain numbers >= -1e+09 and <= 1e+09 rad, got 2e+09" in problems(data)
