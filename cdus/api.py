@@ -324,7 +324,7 @@ def _run_lockstep(scenario: Scenario, fleet: str, policy: str | None, rerun: str
             if status == 130:
                 raise RunInterrupted(None)
             raise RunError(f"the lockstep fleet of {scenario.name} wrote no metrics (exit status {status})", lines)
-        metrics = Metrics.from_json(metrics_path)
+        metrics = Metrics.read(metrics_path)
         if metrics.completion == "not_started":
             raise RunError(f"the lockstep fleet of {scenario.name} did not come up", lines)
         trace = Trace.from_npz(trace_path) if trace_path.exists() else None

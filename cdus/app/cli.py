@@ -41,6 +41,7 @@ from world_sim.recording import parse_spec, recording_line
 from cdus.app.report import Progress, run_dir, summary_table
 from cdus.ros2.export import ExportError, export_mcap
 from cdus.sim.reports import late_event_lines
+from cdus.sim.runmetrics import Metrics
 from cdus.files import keep_json, metrics_fallbacks
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -219,7 +220,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
             if Path(trace).is_file():
                 Path(trace).unlink(missing_ok=True)
             trace, status = None, status or EXIT_FAIL
-    print(summary_table(metrics, scenario.vehicles))
+    print(summary_table(result.metrics, scenario.vehicles))
     if kept is None:  # no file takes them: here they are
         print(f"  metrics (no file could take them):\n{json.dumps(metrics)}")
     else:
@@ -227,6 +228,14 @@ def cmd_sim(args: argparse.Namespace) -> int:
     if trace:
         print(f"  trace: {trace}")
     return status if kept == Path(metrics_out) else status or EXIT_FAIL
+
+
+def _read_metrics(path: Path) -> Metrics | str:
+    """The run's metrics file, typed (checked once, here); what is wrong with it, naming the file and the field."""
+    try:
+        return Metrics.read(path)
+    except (OSError, ValueError) as e:
+        return f"the run's metrics cannot be read: {e}"
 
 
 def launch_options(args: argparse.Namespace, scenario: Scenario) -> LaunchOptions:
@@ -350,15 +359,18 @@ def _launch_into(args: argparse.Namespace, scenario: Scenario, opts: LaunchOptio
         if made:  # only the directory this command made (credentials, an empty logs/), never the user's
             shutil.rmtree(run, ignore_errors=True)
         raise ConfigError("command line", [("--listen" if args.listen else "--zenoh-config", str(e))]) from None
-    if la.metrics_at is not None:
-        metrics = json.loads(la.metrics_at.read_text())
+    metrics = _read_metrics(la.metrics_at) if la.metrics_at is not None else None
+    if isinstance(metrics, Metrics):
         print(summary_table(metrics, scenario.vehicles))
         elsewhere = f" (not {la.metrics_out}: it could not be written)" if la.metrics_at != la.metrics_out else ""
         print(f"  metrics: {la.metrics_at}{elsewhere}\n  logs: {la.logs}")
-        if status == 0 and metrics.get("completion") in NOT_COMPLETED_FAILS:  # the run failed, honestly said
-            print(f"error: the run did not complete: {metrics['completion']} (the lines above say which vehicles "
+        if status == 0 and metrics.completion in NOT_COMPLETED_FAILS:  # the run failed, honestly said
+            print(f"error: the run did not complete: {metrics.completion} (the lines above say which vehicles "
                   f"were lost); exit 1", file=sys.stderr)
             status = EXIT_FAIL
+    elif metrics is not None:  # a metrics file that is not one (cut short, from another version)
+        print(f"error: {metrics}; logs: {la.logs}", file=sys.stderr)
+        status = status or EXIT_FAIL
     else:
         print(f"no metrics file was written (the lines above say why); logs: {la.logs}", file=sys.stderr)
         status = status or EXIT_FAIL

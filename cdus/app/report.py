@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any, Sequence, TextIO
 
 from cdus.scenario.model import VehicleSpec
+from cdus.sim.runmetrics import Event, Metrics
 from cdus.wire.bounds import finite
 from cdus.wire.text import printable
 
@@ -76,13 +77,13 @@ def _fmt(x: Any, spec: str = ".3f", none: str = "never") -> str:
     return format(x, spec)
 
 
-def _not_live(vid: str, m: dict, never_up: Sequence[str]) -> str:
+def _not_live(vid: str, m: Metrics, never_up: Sequence[str]) -> str:
     """Why a vehicle was not live at the end, as far as the metrics say."""
     if vid in never_up:
         return "  (never came up)"
-    if m.get("completion") == "not_started":
+    if m.completion == "not_started":
         return "  (up, waiting for the others: the run never started)"
-    if m.get("completion") == WORLD_LOST:  # live_final is the world's last status, or nothing
+    if m.completion == WORLD_LOST:  # live_final is the world's last status, or nothing
         t = _world_lost_t(m)
         return ("  (not known: the world was lost before its first status)" if t is None else
                 f"  (not live at the world's last status, t = {t:.1f} s)")
@@ -94,24 +95,26 @@ def _not_live(vid: str, m: dict, never_up: Sequence[str]) -> str:
 WORLD_LOST = "world_lost"
 
 
-def _world_lost_t(m: dict) -> float | None:
-    """The time of the world's last status in a world_lost record; None: it gave none."""
-    t = (m.get("world_lost") or {}).get("last_status_t") if isinstance(m.get("world_lost"), dict) else None
+def _world_lost_t(m: Metrics) -> float | None:
+    """The time of the world's last status in a world_lost record (the launcher's ``world_lost``,
+    a field Metrics keeps in ``extra`` as it came); None: it gave none."""
+    lost = m.extra.get("world_lost")
+    t = lost.get("last_status_t") if isinstance(lost, dict) else None
     return float(t) if finite(t) else None
 
 
-def _lost_words(m: dict) -> str:
+def _lost_words(m: Metrics) -> str:
     t = _world_lost_t(m)
     return "the world was lost before its first status" if t is None else f"the world was lost at t = {t:.1f} s"
 
 
-def boat_offset_note(m: dict, vehicles: Sequence[VehicleSpec]) -> list[str]:
+def boat_offset_note(m: Metrics, vehicles: Sequence[VehicleSpec]) -> list[str]:
     """A line when the path never settled because usv_3dof boats end above path_tol: they keep
     a steady offset from their path (their crab angle), which grows with speed and turn rate."""
-    pe, tol = m.get("final_path_error") or {}, m.get("path_tol")
-    if m.get("path_settle_s") is not None or m.get("completed") is False or not isinstance(tol, (int, float)):
+    pe, tol = m.final_path_error, m.path_tol
+    if m.path_settle_s is not None or not m.completed:
         return []
-    above = [(v.id, pe[v.id]) for v in vehicles if v.plant == "usv_3dof" and isinstance(pe.get(v.id), (int, float))
+    above = [(v.id, pe[v.id]) for v in vehicles if v.plant == "usv_3dof" and pe.get(v.id) is not None
              and pe[v.id] >= tol]
     if not above:
         return []
@@ -129,101 +132,98 @@ def _settle(x: float | None, unknown: str | None = None) -> str:
     return f"{x:.2f} s"
 
 
-def integrity_lines(m: dict) -> list[str]:
+def integrity_lines(m: Metrics) -> list[str]:
     """A line when something was seen that may have altered the run (metrics ``integrity``):
     ``completed`` says the run reached its end, not that nobody meddled with it."""
-    integrity = m.get("integrity")
-    if not isinstance(integrity, dict) or integrity.get("tampered") is not True:
+    integrity = m.integrity
+    if integrity is None or not integrity.tampered:
         return []
-    notes = [printable(x, 160) for x in integrity.get("notes") or () if isinstance(x, str)]
-    reasons = integrity.get("reasons") if isinstance(integrity.get("reasons"), dict) else {}
-    counts = ", ".join(f"{printable(k, 40)} {v}" for k, v in reasons.items())
+    notes = [printable(x, 160) for x in integrity.notes]
+    counts = ", ".join(f"{printable(k, 40)} {v}" for k, v in integrity.reasons.items())
     return [f"  TAMPERED: the result may have been altered ({counts}): " + "; ".join(notes[:3])
             + (f"; and {len(notes) - 3} more" if len(notes) > 3 else "") + " (metrics integrity, docs/security.md)"]
 
 
-def summary_table(metrics: dict, vehicles: Sequence[VehicleSpec]) -> str:
-    """The end-of-run table: per vehicle (the scenario's, in order), then per run."""
-    m = metrics
+def summary_table(m: Metrics, vehicles: Sequence[VehicleSpec]) -> str:
+    """The end-of-run table: per vehicle (the scenario's, in order), then per run. ``m`` is the
+    typed record (cdus.sim.runmetrics, checked once where it was read): no field is checked here."""
     lines = []
-    rf = m.get("realtime_factor")
+    rf = m.realtime_factor
     # the world died (the launcher wrote these metrics): the trace is lost with it, so the settle
     # times are not known, and the errors are those of the world's last status, if it gave one
-    lost = m.get("completion") == WORLD_LOST
+    lost = m.completion == WORLD_LOST
     t_lost = _world_lost_t(m) if lost else None
     if lost and t_lost is None:  # its duration_s (0) is not a time the run reached
-        lines.append(f"{m['scenario']} ({m['mode']}, seed {m['seed']}): {m['wall_s']:.1f} s wall; how far the "
+        lines.append(f"{m.scenario} ({m.mode}, seed {m.seed}): {m.wall_s:.1f} s wall; how far the "
                      f"run got is not known")
     else:
         lines.append(
-            f"{m['scenario']} ({m['mode']}, seed {m['seed']}): {m['duration_s']:.1f} s simulated in "
-            f"{m['wall_s']:.1f} s wall" + (f" ({rf:.0f}x real time)" if rf else ""))
-    never_up = [v for v in (m.get("never_up") or ()) if isinstance(v, str)]
-    if m.get("completion") == "not_started":
+            f"{m.scenario} ({m.mode}, seed {m.seed}): {m.duration_s:.1f} s simulated in "
+            f"{m.wall_s:.1f} s wall" + (f" ({rf:.0f}x real time)" if rf else ""))
+    never_up = list(m.never_up or ())
+    if m.completion == "not_started":
         lines.append("  NOT STARTED: " + (f"{', '.join(never_up)} never came up; " if never_up else "")
                      + "the run did not begin, nothing below was simulated")
     elif lost:
         lines.append(f"  NOT COMPLETED ({WORLD_LOST}): {_lost_words(m)} and the run's trace with it: the settle "
                      "times are not known" + ("" if t_lost is None else
                                               ", the errors below are those of the world's last status"))
-    elif m.get("completed") is False:
-        lines.append(f"  NOT COMPLETED ({m.get('completion', 'interrupted')}): the run ended at "
-                     f"{m['duration_s']:.1f} s; the settle times and errors below are of what ran")
+    elif not m.completed:
+        lines.append(f"  NOT COMPLETED ({m.completion}): the run ended at "
+                     f"{m.duration_s:.1f} s; the settle times and errors below are of what ran")
     lines += integrity_lines(m)
     head = f"  {'vehicle':<10} {'kind':<4} {'plant':<22} {'|Φ| final (m)':>14} {'ω̇ final':>10}"
     lines.append(head)
     lines.append("  " + "-" * (len(head) - 2))
-    pe = m.get("final_path_error", {})
-    live = m.get("live_final")
+    pe = m.final_path_error
     for v in vehicles:
-        gone = live is not None and v.id not in live
+        gone = v.id not in m.live_final
         lines.append(
             f"  {v.id:<10} {v.kind:<4} {v.plant:<22} {_fmt(pe.get(v.id), '.4f', 'n/a'):>14} "
-            f"{_fmt(m['omega_rate_final'].get(v.id), '.4f', 'n/a'):>10}"
+            f"{_fmt(m.omega_rate_final.get(v.id), '.4f', 'n/a'):>10}"
             + ("" if not gone else _not_live(v.id, m, never_up)))
     unknown = f"not known: {_lost_words(m)}" if lost else None
-    lines.append(f"  path settle (worst |Φ| < {m['path_tol']} m):             "
-                 f"{_settle(m['path_settle_s'], unknown)}")
+    lines.append(f"  path settle (worst |Φ| < {m.path_tol} m):             "
+                 f"{_settle(m.path_settle_s, unknown)}")
     lines += boat_offset_note(m, vehicles)
-    lines.append(f"  coordination settle (worst edge < {m['coord_tol']} rad): "
-                 f"{_settle(m['coord_settle_s'], unknown)}")
+    lines.append(f"  coordination settle (worst edge < {m.coord_tol} rad): "
+                 f"{_settle(m.coord_settle_s, unknown)}")
     if lost and t_lost is None:
         lines.append(f"  worst |Φ| and coordination error: not known ({_lost_words(m)})")
     else:
         final, when = ("", f" at the world's last status (t = {t_lost:.1f} s)") if lost else ("final ", "")
-        lines.append(f"  {final}worst |Φ| {_fmt(m['final_path_error_max'], '.4f', 'n/a')} m, "
-                     f"{final}worst coordination error {_fmt(m['final_coord_error_max'], '.4f', 'n/a')} rad{when}")
-    safety = m.get("safety") or {}
-    if safety.get("enabled") or m.get("min_separation_m") is not None:
-        sep = m.get("min_separation_m")
-        radius = safety.get("radius_m")
-        below = (sep is not None and radius is not None and safety.get("enabled") and sep < radius - 1e-6)
+        lines.append(f"  {final}worst |Φ| {_fmt(m.final_path_error_max, '.4f', 'n/a')} m, "
+                     f"{final}worst coordination error {_fmt(m.final_coord_error_max, '.4f', 'n/a')} rad{when}")
+    safety = m.safety
+    if safety.enabled or m.min_separation_m is not None:
+        sep = m.min_separation_m
+        radius = safety.radius_m
+        below = (sep is not None and radius is not None and safety.enabled and sep < radius - 1e-6)
         lines.append(f"  min separation (same domain) {_fmt(sep, '.3f', 'n/a')} m"
-                     + (f", safety radius {radius:g} m, {m.get('interventions', 0)} filter interventions"
-                        if safety.get("enabled") else "")
+                     + (f", safety radius {radius:g} m, {m.interventions} filter interventions"
+                        if safety.enabled else "")
                      + ("  [BELOW THE SAFETY RADIUS]" if below else ""))
     lines += closest_lines(m)
-    link = m.get("link") or {}
-    if link:
-        lines.append(f"  link: {link.get('sent', 0)} sent, {link.get('delivered', 0)} delivered, "
-                     f"{link.get('dropped', 0)} dropped, {link.get('rejected', 0)} rejected")
+    link = m.link
+    if link is not None:
+        lines.append(f"  link: {link.sent} sent, {link.delivered} delivered, "
+                     f"{link.dropped} dropped, {link.rejected} rejected")
     lines += radio_lines(m)
     return "\n".join(lines)
 
 
-def radio_lines(m: dict) -> list[str]:
+def radio_lines(m: Metrics) -> list[str]:
     """With [radio]: what the radio path did (drops by cause, the hand-set fault first), the
     channel utilisation (mean, max over the geometry samples) and the communication-graph splits."""
-    r = m.get("radio")
-    if not isinstance(r, dict):
+    r = m.radio
+    if r is None:
         return []
-    by = r.get("dropped_by") or {}
-    causes = ", ".join(f"{k} {v}" for k, v in by.items() if v) or "none"
-    u = r.get("utilisation") or {}
-    spans = split_spans(m.get("events") or [])
-    return [f"  radio: {r.get('sent', 0)} decided, {r.get('delivered', 0)} delivered, {r.get('dropped', 0)} dropped "
-            f"({causes}); channel utilisation mean {_fmt(u.get('mean'), '.3f', 'n/a')}, "
-            f"max {_fmt(u.get('max'), '.3f', 'n/a')}; {r.get('splits', 0)} graph split(s)"
+    causes = ", ".join(f"{k} {v}" for k, v in r.dropped_by.items() if v) or "none"
+    u = r.utilisation
+    spans = split_spans(m.events)
+    return [f"  radio: {r.sent} decided, {r.delivered} delivered, {r.dropped} dropped "
+            f"({causes}); channel utilisation mean {_fmt(u['mean'], '.3f', 'n/a')}, "
+            f"max {_fmt(u['max'], '.3f', 'n/a')}; {r.splits} graph split(s)"
             + (f": {spans}" if spans else "")]
 
 
@@ -231,19 +231,16 @@ def radio_lines(m: dict) -> list[str]:
 MAX_SPANS = 4
 
 
-def split_spans(events: Sequence[Any]) -> str:
+def split_spans(events: Sequence[Event]) -> str:
     """When the communication graph was split, from the ``radio_split`` / ``radio_joined``
     events: ``18.8-83.8 s``, ``from 16.2 s, still split at the end``, several comma-separated; "" without."""
     spans: list[str] = []
     start = None
     for e in events:
-        kind, t = (e.get("kind"), e.get("t")) if isinstance(e, dict) else (None, None)
-        if not isinstance(t, (int, float)) or isinstance(t, bool):
-            continue
-        if kind == "radio_split" and start is None:
-            start = t
-        elif kind == "radio_joined" and start is not None:
-            spans.append(f"{start:.1f}-{t:.1f} s")
+        if e.kind == "radio_split" and start is None:
+            start = e.t
+        elif e.kind == "radio_joined" and start is not None:
+            spans.append(f"{start:.1f}-{e.t:.1f} s")
             start = None
     if start is not None:
         spans.append(f"from {start:.1f} s, still split at the end")
@@ -255,23 +252,22 @@ def split_spans(events: Sequence[Any]) -> str:
 DOMAIN_WORDS = {"usv": "boats", "uav": "drones", "uav-usv": "drone to boat at the surface"}
 
 
-def closest_lines(m: dict) -> list[str]:
+def closest_lines(m: Metrics) -> list[str]:
     """One line per domain: the closest pair, its distance, when, who was not live, and a
     NEAR COLLISION flag below the safety radius (the [safety] table's, or its default when
     the scenario has none), whether the filter was on or off."""
-    safety = m.get("safety") or {}
-    radius = safety.get("radius_m")
+    radius, enabled = m.safety.radius_m, m.safety.enabled
     out = []
-    for domain, p in (m.get("closest_pairs") or {}).items():
-        gone = [v for v, live in ((p["a"], p["a_live"]), (p["b"], p["b_live"])) if not live]
+    for domain, p in (m.closest_pairs or {}).items():
+        gone = [v for v, live in ((p.a, p.a_live), (p.b, p.b_live)) if not live]
         who = ("both live" if not gone else
                f"{' and '.join(gone)} not live then (killed or paused: counted where it stopped)")
-        line = (f"  closest approach ({DOMAIN_WORDS.get(domain, domain)}): {p['a']} - {p['b']} "
-                f"{_fmt(p['distance_m'], '.3f')} m at t = {p['t_s']:.2f} s, {who}")
-        if radius is not None and p["distance_m"] is not None and p["distance_m"] < radius:
-            line += (f"  [NEAR COLLISION: below the safety radius {radius:g} m]" if safety.get("enabled") else
+        line = (f"  closest approach ({DOMAIN_WORDS.get(domain, domain)}): {p.a} - {p.b} "
+                f"{_fmt(p.distance_m, '.3f')} m at t = {p.t_s:.2f} s, {who}")
+        if radius is not None and p.distance_m < radius:
+            line += (f"  [NEAR COLLISION: below the safety radius {radius:g} m]" if enabled else
                      f"  [NEAR COLLISION: below the [safety] radius {radius:g} m; the filter is off]")
-        elif radius is not None and p["distance_m"] is not None and safety.get("enabled"):
+        elif radius is not None and enabled:
             line += f"  (the filter kept the {radius:g} m radius)"
         out.append(line)
     return out

@@ -15,6 +15,7 @@ import tempfile
 import time
 import traceback
 import uuid
+from dataclasses import fields
 from pathlib import Path
 
 from cdus.app.sweepstore import FIELDS
@@ -22,17 +23,22 @@ from cdus.files import write_json
 from cdus.scenario.config import ConfigError
 from cdus.scenario.model import Scenario
 from cdus.sim.fleet import InProcessFleet
+from cdus.sim.runmetrics import Metrics
 
 
-def _flatten(metrics: dict) -> dict:
-    link = metrics.get("link") or {}
-    rates = [v for v in (metrics.get("omega_rate_final") or {}).values() if v is not None]
-    row = {k: metrics.get(k) for k in FIELDS if k in metrics}
+#: the row's columns that are the metrics' own fields (the others are derived below)
+_METRIC_COLUMNS = tuple(k for k in FIELDS if k in {f.name for f in fields(Metrics)})
+
+
+def _flatten(metrics: Metrics) -> dict:
+    """The row's metric columns from the typed record (checked once where it was read)."""
+    rates = [v for v in metrics.omega_rate_final.values() if v is not None]
+    row = {k: getattr(metrics, k) for k in _METRIC_COLUMNS}
     row["omega_rate_mean"] = statistics.mean(rates) if rates else None
-    row["omega_rate_final"] = json.dumps(metrics.get("omega_rate_final") or {})
-    row["live_final"] = " ".join(metrics.get("live_final") or [])
+    row["omega_rate_final"] = json.dumps(metrics.omega_rate_final)
+    row["live_final"] = " ".join(metrics.live_final)
     for k in ("sent", "delivered", "dropped", "rejected", "latency_ms_p50", "latency_ms_p99"):
-        row[f"link_{k}"] = link.get(k)
+        row[f"link_{k}"] = None if metrics.link is None else getattr(metrics.link, k)
     return row
 
 
@@ -41,11 +47,11 @@ def run_task(scenario: Scenario, clock: str) -> dict:
     comes back as status "failed" with its reason."""
     try:
         if clock == "inproc":
-            metrics = InProcessFleet(scenario, clock=time.perf_counter).run().metrics
+            metrics = Metrics.from_dict(InProcessFleet(scenario, clock=time.perf_counter).run().metrics)
         else:
             metrics = _run_lockstep(scenario)
         status, reason = "ok", ""
-        if metrics.get("final_path_error_max") is None or not math.isfinite(metrics["final_path_error_max"]):
+        if metrics.final_path_error_max is None or not math.isfinite(metrics.final_path_error_max):
             status, reason = "failed", "the fleet diverged (non-finite path error)"
         return {"status": status, "reason": reason, **_flatten(metrics)}
     except ConfigError as e:
@@ -54,8 +60,9 @@ def run_task(scenario: Scenario, clock: str) -> dict:
         return {"status": "failed", "reason": traceback.format_exception_only(type(e), e)[-1].strip()}
 
 
-def _run_lockstep(scenario: Scenario) -> dict:
-    """A `cdus launch --clock lockstep` fleet of the resolved scenario (its data as JSON)."""
+def _run_lockstep(scenario: Scenario) -> Metrics:
+    """A `cdus launch --clock lockstep` fleet of the resolved scenario (its data as JSON); its
+    metrics file read once into the typed record (ValueError naming the file and the field)."""
     with tempfile.TemporaryDirectory(prefix="cdus-sweep-") as tmp:
         config = Path(tmp) / "scenario.json"
         write_json(config, scenario.raw, allow_inf=True)
@@ -73,7 +80,7 @@ def _run_lockstep(scenario: Scenario) -> dict:
         if proc.returncode != 0 or not path.exists():
             tail = (err or out).strip().splitlines()[-3:]
             raise RuntimeError(f"launch exited with {proc.returncode}: {' / '.join(tail)}")
-        return json.loads(path.read_text())
+        return Metrics.read(path)
 
 
 LAUNCHER_STOP_S = 20.0  # how long a stopping launcher may take to stop its fleet before it is killed

@@ -9,6 +9,10 @@ distance between two vehicles of the same domain), ``closest_pairs`` / ``closest
 (who came closest, when, and whether both were live), ``near_collision`` (a closest
 pair below the safety radius, also with the filter off) and ``interventions`` (control
 steps at which a safety filter changed a velocity reference, summed over the fleet).
+
+What it builds is the JSON, byte for byte what a run writes; its readers (``cdus.run``, the
+summary table, the sweep's rows) take it, or the file, into the typed record once:
+:meth:`cdus.sim.runmetrics.Metrics.from_json`.
 """
 
 from __future__ import annotations

@@ -19,6 +19,7 @@ import cdus
 from cdus.api import Metrics, Trace
 from cdus.core.metrics import min_separation, settle_time
 from cdus.sim.fleet import InProcessFleet
+from cdus.wire.rejected import Rejected
 
 ROOT = Path(__file__).resolve().parents[2]
 LAKE = str(ROOT / "configs/lake_circle.toml")
@@ -149,18 +150,47 @@ def test_a_damaged_metrics_json_is_refused_naming_the_field_or_kept_whole(path, 
         del node[path[-1]]
     else:
         node[path[-1]] = value
-    try:
-        m = Metrics.from_dict(d)
-    except ValueError as e:
-        assert str(e).startswith("metrics: ")
+    m = Metrics.from_json(d)
+    if isinstance(m, Rejected):  # refused naming the field (where it was damaged, or one inside it)
+        assert m.field and m.reason
+        with pytest.raises(ValueError, match=f"^metrics: {re.escape(str(m))}$"):
+            Metrics.from_dict(d)
     else:
         assert json.dumps(m.to_dict()) == json.dumps(d)  # accepted: nothing lost, nothing changed
+
+
+KNOWN = sorted(set(BASE) | {"rejected_by_reason", "radio", "interrupted", "never_up", "integrity"})
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.dictionaries(st.sampled_from(KNOWN) | st.text(max_size=4), JSON, max_size=6),
+       st.sets(st.sampled_from(KNOWN), max_size=3), JSON)
+def test_any_json_gives_metrics_or_a_rejected_naming_a_field_never_an_exception(changes, deleted, anything):
+    """Metrics.from_json on whatever a file holds (a run's metrics with fields changed to any
+    JSON value, added or deleted; or any JSON at all): the record, or a Rejected naming the
+    field; never an exception."""
+    d = {k: v for k, v in {**json.loads(json.dumps(BASE)), **changes}.items() if k not in deleted}
+    for value in (d, anything):
+        m = Metrics.from_json(value)
+        assert isinstance(m, Metrics) or (isinstance(m, Rejected) and m.field), m
+        if isinstance(m, Metrics):  # kept whole (the key order of any writer's is the test above's)
+            assert m.to_dict() == value
+    assert isinstance(m, Metrics) or (isinstance(m, Rejected) and m.field), m
 
 
 def test_a_metrics_file_reads_back(tmp_path):
     d = metric_dicts(tmp_path)["faults"]
     (tmp_path / "m.json").write_text(json.dumps(d))
-    assert Metrics.from_json(tmp_path / "m.json").to_dict() == d
+    assert Metrics.read(tmp_path / "m.json").to_dict() == d
+    assert Metrics.from_json(d).to_dict() == d
+    assert Metrics.from_json({**d, "seed": "1"}) == Rejected("expected an integer, got '1'", "seed")
+    assert Metrics.from_json(tmp_path / "m.json").field == "metrics"  # a path is not the JSON: read() reads it
+    (tmp_path / "cut.json").write_text(json.dumps(d)[:100])  # a file cut short (a full disk)
+    with pytest.raises(ValueError, match="cut.json: not a metrics JSON"):
+        Metrics.read(tmp_path / "cut.json")
+    (tmp_path / "old.json").write_text(json.dumps({k: v for k, v in d.items() if k != "completion"}))
+    with pytest.raises(ValueError, match="old.json: metrics: completion: missing"):
+        Metrics.read(tmp_path / "old.json")
     with pytest.raises(ValueError, match="metrics: seed: expected an integer"):
         Metrics.from_dict({**d, "seed": "1"})
     with pytest.raises(ValueError, match="metrics: link.faults.total.dropped_by.loss: missing"):

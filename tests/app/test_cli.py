@@ -433,3 +433,38 @@ def test_a_world_that_dies_while_the_fleet_comes_up_leaves_metrics_that_say_so(t
     assert (m["completed"], m["completion"], m["written_by"]) == (False, "world_lost", "launcher"), m
     assert m["world_lost"]["world_exit"] == -9 and m["world_lost"]["last_status_t"] is None
     assert "the fleet did not come up" in out + err and "Traceback" not in out + err
+
+
+class _Wrote(_NoRun):
+    """A launch that ended with its world's metrics file at ``at``."""
+
+    def __init__(self, run, at):
+        super().__init__(run)
+        self.metrics_out = self.metrics_at = at
+
+
+@pytest.mark.parametrize("damage, says", [
+    (lambda text: text, None),
+    (lambda text: text.replace('"seed": 1', '"seed": "1"'), "metrics: seed: expected an integer, got '1'"),
+    (lambda text: text[:200], "not a metrics JSON"),
+])
+def test_a_launch_reads_its_metrics_file_once_and_names_what_is_wrong_with_it(damage, says, tmp_path, capsys,
+                                                                              monkeypatch):
+    """`cdus launch` prints the summary of the world's metrics.json, read once into Metrics; a
+    file that is not one (cut short by a full disk, a field of another version) is an error
+    naming the file and the field, exit 1, never a traceback."""
+    import cdus.app.cli as cli
+    from cdus.sim.fleet import InProcessFleet
+
+    sc = load_scenario(CONFIG, {"scenario.duration": 0.2})
+    at = tmp_path / "metrics.json"
+    at.write_text(damage(json.dumps(InProcessFleet(sc).run().metrics)))
+    monkeypatch.setattr(cli, "check_listen", lambda eps: None)
+    monkeypatch.setattr(cli, "launch", lambda scenario, run, router, opts: (0, _Wrote(run, at)))
+    code = main(["launch", CONFIG, "--logs", str(tmp_path / "run"), "--rerun", "off", "--insecure"])
+    out, err = capsys.readouterr()
+    if says is None:
+        assert code == 0 and "lake_circle (inproc, seed 1)" in out and f"metrics: {at}" in out
+    else:
+        assert code == 1 and f"error: the run's metrics cannot be read: {at}: " in err and says in err
+        assert "Traceback" not in err and "seed 1)" not in out

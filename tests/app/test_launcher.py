@@ -304,8 +304,9 @@ def test_a_world_that_died_leaves_metrics_that_say_so(tmp_path):
     assert m["final_path_error_max"] == m["world_lost"]["last_status"]["path_error_max"]
     assert m["events"][-1]["text"].startswith("the world process was killed by signal 9")
     from cdus.app.report import summary_table
+    from cdus.results import Metrics
 
-    table = summary_table(m, la.scenario.vehicles)
+    table = summary_table(Metrics.from_dict(m), la.scenario.vehicles)
     assert "lake_circle (lockstep" in table  # the CLI prints it as any other
     assert "NOT COMPLETED (world_lost)" in table  # and says it is not a finished run
 
@@ -316,13 +317,14 @@ def test_the_summary_of_a_lost_world_says_what_is_not_known_not_never(tmp_path):
     errors are those of its last status. The metrics' fields keep their meaning (null settle
     times, completion "world_lost")."""
     from cdus.app.report import summary_table
+    from cdus.results import Metrics
 
     la, _ = quiet_launcher(tmp_path, duration=40.0)
     ids = list(la.scenario.ids)
     world_says(la, encode_status(12.5, 40.0, "lockstep", ids[:-1], ids, 0.0235, 0.0012, [], False))
     m = la.write_world_lost(-9, 3.0)
     assert (m["path_settle_s"], m["coord_settle_s"], m["final_path_error_max"]) == (None, None, 0.0235)
-    table = summary_table(m, la.scenario.vehicles)
+    table = summary_table(Metrics.from_dict(m), la.scenario.vehicles)
     assert "never" not in table, table
     assert "NOT COMPLETED (world_lost): the world was lost at t = 12.5 s and the run's trace with it: the settle " \
            "times are not known, the errors below are those of the world's last status" in table
@@ -334,7 +336,7 @@ def test_the_summary_of_a_lost_world_says_what_is_not_known_not_never(tmp_path):
     assert gone.endswith("(not live at the world's last status, t = 12.5 s)")
     # a world lost before its first status: nothing of the run is known
     la, _ = quiet_launcher(tmp_path / "early", duration=40.0)
-    table = summary_table(la.write_world_lost(1, 2.0), la.scenario.vehicles)
+    table = summary_table(Metrics.from_dict(la.write_world_lost(1, 2.0)), la.scenario.vehicles)
     assert "never" not in table and "0.0 s simulated" not in table and "killed or paused" not in table, table
     assert "2.0 s wall; how far the run got is not known" in table
     assert "path settle (worst |Φ| < 0.1 m):             not known: the world was lost before its first status" \

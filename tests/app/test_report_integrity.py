@@ -7,6 +7,7 @@ import zenoh
 
 from cdus.app.launcher import LaunchOptions, Launcher
 from cdus.app.report import summary_table
+from cdus.results import Metrics
 from cdus.scenario.config import load_scenario
 from cdus.sim.fleet import InProcessFleet
 from cdus.wire import keys
@@ -18,10 +19,10 @@ SC = load_scenario("configs/lake_circle.toml", {"scenario.duration": 0.2})
 def test_the_summary_says_tampered_with_the_reasons_and_escapes_what_came_from_the_wire():
     m = InProcessFleet(SC).run().metrics
     assert m["integrity"] == {"tampered": False, "reasons": {}, "notes": []}
-    assert "TAMPERED" not in summary_table(m, SC.vehicles)
+    assert "TAMPERED" not in summary_table(Metrics.from_dict(m), SC.vehicles)
     m["integrity"] = {"tampered": True, "reasons": {"token_key": 1, "vehicle_token_key": 6},
                       "notes": ["a liveliness token on cdus/f/alive/**, no process's key: ignored", "\x1b[2J"]}
-    line = next(ln for ln in summary_table(m, SC.vehicles).splitlines() if "TAMPERED" in ln)
+    line = next(ln for ln in summary_table(Metrics.from_dict(m), SC.vehicles).splitlines() if "TAMPERED" in ln)
     assert "token_key 1, vehicle_token_key 6" in line and "alive/**" in line and "\x1b" not in line
 
 

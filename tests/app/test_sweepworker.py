@@ -40,3 +40,39 @@ def test_a_failed_run_is_a_row_with_its_reason_never_an_exception(monkeypatch, e
     monkeypatch.setattr(worker, "InProcessFleet", Failing)
     s = load_scenario(CONFIG, {"scenario.duration": 1.0})
     assert worker.run_task(s, "inproc") == {"status": "failed", "reason": reason}
+
+
+def test_a_lockstep_runs_metrics_file_is_read_once_and_a_bad_one_is_a_failed_row_naming_the_field(monkeypatch):
+    """The worker reads the launched fleet's metrics.json into Metrics once (cdus.sim.runmetrics):
+    a valid one is its row; one with a bad field (a corrupt file, another version's) is a
+    failed row whose reason names the field, never an exception."""
+    s = load_scenario(CONFIG, {"scenario.duration": 1.0})
+    good = InProcessFleet(s).run().metrics
+    written = {}
+
+    class Launched:  # `cdus launch` as a process: writes the metrics file it was given, exits 0
+        returncode = 0
+
+        def __init__(self, args, **kw):
+            self.logs = args[args.index("--logs") + 1]
+
+        def __enter__(self):
+            import os
+            os.makedirs(self.logs, exist_ok=True)
+            with open(f"{self.logs}/metrics.json", "w") as fh:
+                fh.write(written["text"])
+            return self
+
+        def __exit__(self, *exc):
+            return False
+
+        def communicate(self):
+            return "", ""
+
+    monkeypatch.setattr(worker.subprocess, "Popen", Launched)
+    written["text"] = json.dumps(good)
+    row = worker.run_task(s, "lockstep")
+    assert (row["status"], row["reason"], row["link_sent"]) == ("ok", "", good["link"]["sent"])
+    written["text"] = json.dumps({**good, "link": {**good["link"], "sent": "many"}})
+    row = worker.run_task(s, "lockstep")
+    assert row["status"] == "failed" and "metrics: link.sent: expected an integer, got 'many'" in row["reason"]

@@ -94,23 +94,31 @@ def test_range_out_reports_the_split_and_re_converges_after_the_return():
     assert coord[t > t_back + 10.0].max() < 0.7 * tol  # and it holds, with a margin, to the end
     assert m["final_coord_error_max"] < 0.7 * tol
     from cdus.app.report import summary_table
+    from cdus.results import Metrics
 
     # the end-of-run summary says when it was split, not only how many times
-    assert f"1 graph split(s): {t_split:.1f}-{t_back:.1f} s" in summary_table(m, sc.vehicles)
+    assert f"1 graph split(s): {t_split:.1f}-{t_back:.1f} s" in summary_table(Metrics.from_dict(m), sc.vehicles)
 
 
 def test_the_summary_gives_each_split_interval_and_one_still_open_at_the_end():
     from cdus.app.report import MAX_SPANS, split_spans
+    from cdus.results import Event
 
     def ev(t, kind):
-        return {"t": t, "kind": kind, "text": "", "severity": "info"}
+        return Event(t, kind, "", "info")
 
     assert split_spans([]) == "" and split_spans([ev(3.0, "fleet")]) == ""
     assert split_spans([ev(1.0, "radio_split"), ev(2.5, "kill"), ev(4.04, "radio_joined"),
                         ev(9.0, "radio_split")]) == "1.0-4.0 s, from 9.0 s, still split at the end"
     many = [ev(t + dt, k) for t in range(0, 40, 2) for dt, k in ((0.0, "radio_split"), (1.0, "radio_joined"))]
     assert split_spans(many) == "0.0-1.0 s, 2.0-3.0 s, 4.0-5.0 s, 6.0-7.0 s, and 16 more" and MAX_SPANS == 4
-    assert split_spans([{"t": "x", "kind": "radio_split"}, 7, {"kind": "radio_joined"}]) == ""  # a damaged file
+    # a damaged file's events never reach it: the metrics are refused where they are read, naming the field
+    from cdus.results import Metrics
+    from cdus.wire.rejected import Rejected
+
+    m = InProcessFleet(load_scenario("configs/lake_circle.toml", {"scenario.duration": 0.2})).run().metrics
+    bad = Metrics.from_json({**m, "events": [{"t": "x", "kind": "radio_split", "text": "", "severity": "info"}]})
+    assert isinstance(bad, Rejected) and bad.field == "events[0].t"
 
 
 def test_a_radio_change_changes_delivery_from_its_time_on():
@@ -153,13 +161,13 @@ def test_the_metrics_radio_block_is_typed_in_the_api_and_printed():
     assert isinstance(typed.radio, RadioMetrics) and "radio" not in typed.extra
     assert typed.radio.utilisation["samples"] == 6 and typed.radio.dropped_by["collision"] >= 0
     assert typed.to_dict() == m and list(typed.to_dict()) == list(m)
-    table = summary_table(m, sc.vehicles)
+    table = summary_table(Metrics.from_dict(m), sc.vehicles)
     assert "radio:" in table and "channel utilisation mean 0.107" in table
     with pytest.raises(ValueError, match="radio.utilisation"):
         Metrics.from_dict({**m, "radio": {**m["radio"], "utilisation": 3}})
     plain = InProcessFleet(load_scenario("configs/lake_circle.toml", {"scenario.duration": 0.2})).run().metrics
     assert "radio" not in plain and Metrics.from_dict(plain).radio is None
-    assert "radio:" not in summary_table(plain, sc.vehicles)
+    assert "radio:" not in summary_table(Metrics.from_dict(plain), sc.vehicles)
 
 
 RADIO_EVENT = """
