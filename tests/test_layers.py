@@ -35,7 +35,8 @@ IMPURE_MODULES = {"zenoh", "rerun", "time", "threading", "subprocess", "socket",
 # The only project imports allowed inside a function: heavy optional dependencies, with why.
 # They still count for the cycle check.
 LAZY = {
-    ("cdus.api", "world_sim.rerun_sink"): "Rerun costs ~1 s and 55 MB to import; only a run with rerun= needs it",
+    ("world_sim.sinks", "world_sim.rerun_sink"): "Rerun and pandas cost ~0.8 s of CPU and 55 MB to import; only a "
+                                                 "recording needs them (tests/test_startup.py)",
     ("cdus.api", "cdus.app.fleet_run"): "Zenoh, the launcher and credentials: only a lockstep run needs them, so "
                                         "`import cdus` and in-process runs import no Zenoh",
     ("cdus", "cdus.api"): "`import cdus` is cheap (every process imports the package): the API loads on first use",
