@@ -39,6 +39,12 @@ LAZY = {
                                                  "recording needs them (tests/test_startup.py)",
     ("cdus.api", "cdus.app.fleet_run"): "Zenoh, the launcher and credentials: only a lockstep run needs them, so "
                                         "`import cdus` and in-process runs import no Zenoh",
+    ("cdus.app.cli", "cdus.api"): "each `cdus` subcommand imports its own machinery where it runs, so `cdus gs` and "
+                                  "`cdus launch` start without the rest (tests/test_startup.py)",
+    ("cdus.app.cli", "cdus.app.sweep"): "the sweep (tqdm, numpy, the plot): only `cdus sweep` (as above)",
+    ("cdus.app.cli", "cdus.app.launcher"): "the launcher: only `cdus launch` (as above)",
+    ("cdus.app.cli", "cdus.app.fleet_run"): "credentials and the router: only `cdus launch` (as above)",
+    ("cdus.app.cli", "cdus.ros2.export"): "numpy and the MCAP writer: only `cdus export` (as above)",
     ("cdus", "cdus.api"): "`import cdus` is cheap (every process imports the package): the API loads on first use",
     ("ground_station.__main__", "ground_station.tui"): "Textual costs ~0.4 s to import; only `cdus gs ... console` "
                                                        "needs it, not every `cdus` command",

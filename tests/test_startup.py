@@ -42,3 +42,13 @@ def test_a_world_with_a_recording_imports_rerun_where_it_makes_the_sink(tmp_path
         make_sink("save:{tmp_path / 'r.rrd'}").close()
     """)
     assert "rerun" in mods and "world_sim.rerun_sink" in mods
+
+
+def test_cdus_gs_and_cdus_launch_start_without_the_sweep_the_api_or_the_export():
+    mods = modules_after("""
+        from cdus.app.cli import build_parser, main
+        build_parser().parse_args(["launch", "configs/lake_circle.toml", "--rerun", "off"])
+    """)
+    assert "ground_station.__main__" in mods  # the probe did load the command: `cdus gs` goes through it
+    assert not {"cdus.api", "cdus.app.sweep", "cdus.app.launcher", "cdus.ros2.export", "tqdm"} & mods
+    assert not HEAVY & mods, sorted(HEAVY & mods)
