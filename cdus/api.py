@@ -50,6 +50,7 @@ from cdus.wire.bounds import finite
 from cdus.sim.sink import NullSink
 from cdus.wire import keys
 from world_sim.recording import parse_spec
+from world_sim.sinks import make_sink
 
 __all__ = [  # the names of ``import cdus`` (cdus/__init__.py, docs/api.md; tests/api/test_public.py: one list)
     "RUNNERS", "ClosestPair", "ConfigError", "DivergedError", "DroppedBy", "Event", "FaultCounters", "Integrity",
@@ -280,8 +281,6 @@ def _run_inproc(scenario: Scenario, policy: str | None, rerun: str, base: Path |
                 progress: bool | Callable[[float, float], None], events: bool = False) -> Result:
     sink = None
     if parse_spec(rerun, base):
-        from world_sim.rerun_sink import make_sink  # Rerun costs ~1 s and 55 MB to import: only when asked for
-
         sink = make_sink(rerun, base)
     if events:  # the fleet's events as they happen, in the launcher's words (cdus.sim.reports)
         sink = _PrintingSink(sink or NullSink(), ConsoleQuota(scenario=scenario))

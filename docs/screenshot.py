@@ -32,7 +32,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def record(path: Path, duration: float) -> None:
     from cdus.scenario.config import load_scenario
     from cdus.sim.fleet import InProcessFleet
-    from world_sim.rerun_sink import make_sink
+    from world_sim.sinks import make_sink
 
     sc = load_scenario(ROOT / "configs" / "lake_circle.toml", {"scenario.duration": duration})
     sink = make_sink(f"save:{path}")

@@ -35,9 +35,16 @@ IMPURE_MODULES = {"zenoh", "rerun", "time", "threading", "subprocess", "socket",
 # The only project imports allowed inside a function: heavy optional dependencies, with why.
 # They still count for the cycle check.
 LAZY = {
-    ("cdus.api", "world_sim.rerun_sink"): "Rerun costs ~1 s and 55 MB to import; only a run with rerun= needs it",
+    ("world_sim.sinks", "world_sim.rerun_sink"): "Rerun and pandas cost ~0.8 s of CPU and 55 MB to import; only a "
+                                                 "recording needs them (tests/test_startup.py)",
     ("cdus.api", "cdus.app.fleet_run"): "Zenoh, the launcher and credentials: only a lockstep run needs them, so "
                                         "`import cdus` and in-process runs import no Zenoh",
+    ("cdus.app.cli", "cdus.api"): "each `cdus` subcommand imports its own machinery where it runs, so `cdus gs` and "
+                                  "`cdus launch` start without the rest (tests/test_startup.py)",
+    ("cdus.app.cli", "cdus.app.sweep"): "the sweep (tqdm, numpy, the plot): only `cdus sweep` (as above)",
+    ("cdus.app.cli", "cdus.app.launcher"): "the launcher: only `cdus launch` (as above)",
+    ("cdus.app.cli", "cdus.app.fleet_run"): "credentials and the router: only `cdus launch` (as above)",
+    ("cdus.app.cli", "cdus.ros2.export"): "numpy and the MCAP writer: only `cdus export` (as above)",
     ("cdus", "cdus.api"): "`import cdus` is cheap (every process imports the package): the API loads on first use",
     ("ground_station.__main__", "ground_station.tui"): "Textual costs ~0.4 s to import; only `cdus gs ... console` "
                                                        "needs it, not every `cdus` command",

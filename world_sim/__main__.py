@@ -15,7 +15,7 @@ from cdus.scenario.config import ConfigError, load_scenario, parse_overrides
 from cdus.core.linkspec import POLICIES
 from cdus.core.schedule import CLOCKS
 from cdus.wire.transport import add_transport_args, transport_from_args, with_default_endpoint
-from world_sim.rerun_sink import make_sink
+from world_sim.sinks import make_sink  # imports Rerun only for a recording
 from world_sim.world import World, run_world
 
 

@@ -2,7 +2,7 @@
 
 The sink interface the runners feed is :mod:`cdus.sim.sink`. A ``--rerun`` value is
 parsed here into targets, without importing Rerun (a bad value starts nothing);
-:func:`world_sim.rerun_sink.make_sink` turns it into a sink.
+:func:`world_sim.sinks.make_sink` turns it into a sink.
 """
 
 from __future__ import annotations
@@ -102,3 +102,4 @@ def recording_line(path: Path) -> str:
         return (f"  recording: {path} was not written; what was recorded is in {len(segments)} segments (open them "
                 f"with: rerun {shlex.quote(str(parts))}/*.rrd; the world's log says why)")
     return f"  recording: none; {path} was not written (the world's log says why)"
+

@@ -80,9 +80,9 @@ from world_sim import blueprint as bp
 from cdus.core.metrics import closest_pairs
 from cdus.core.link import LINK_STATES
 from cdus.scenario.model import Scenario
-from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
+from cdus.sim.sink import UPDATE_EVERY
 from cdus.wire.schemas import FleetEvent
-from world_sim.recording import PARTS_SUFFIX, Target, parse_spec
+from world_sim.recording import PARTS_SUFFIX, Target
 from world_sim.rerun_draw import (  # noqa: F401 (CLOSEST, INTERVENTIONS, NEAR_COLOUR, intervened, probability_colour: as before)
     APP_ID, CLOSEST, CLOSEST_COLOUR, EDGE_COLOURS, INTERVENTION_COLOUR, INTERVENTIONS, LEVELS, NEAR_COLOUR,
     STATE_COLOURS, STATION_COLOUR, TRAIL_POINTS_EVERY, TRAIL_SECONDS, UTILISATION_COLOUR, _LABELS, _POSITIONS,
@@ -633,12 +633,3 @@ def _free_bytes(where: Path) -> int | None:
 def _warn(text: str) -> None:
     print(f"warning: {text}", file=sys.stderr)
 
-
-def make_sink(spec: str | None, run_dir: Path | None = None) -> Sink:
-    """A sink for ``--rerun SPEC``: ``off`` | ``auto`` | ``spawn`` | ``save:PATH`` | ``connect[:URL]``,
-    comma-separated to combine. ``off`` (or None) gives a :class:`NullSink`; anything else a
-    Rerun sink. A bad spec raises ValueError."""
-    targets = parse_spec(spec, run_dir)
-    if not targets:
-        return NullSink()
-    return RerunSink(targets)

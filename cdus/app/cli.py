@@ -15,18 +15,14 @@ import shutil
 import signal
 import sys
 from pathlib import Path
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 import zenoh
 
-from cdus import api
-from cdus.app.fleet_run import secure_router
-from cdus.app.launcher import (
-    LINKS, LaunchOptions, ListenError, RunDirError, RunDirInUse, RunDirLock, check_listen, launch,
-)
+from cdus.app.preflight import LINKS, ListenError, RunDirError, RunDirInUse, RunDirLock, check_listen
 from cdus.app.executors import CONNECT_TIMEOUT_S, EXECUTORS
-from cdus.app.sweep import PLOT_FORMATS, RUNNERS, SweepInterrupted, check_grid, parse_grid, sweep
-from cdus.app.sweepstore import ROWS
+from cdus.app.sweepplan import RUNNERS
+from cdus.app.sweepstore import PLOT_FORMATS, ROWS
 from cdus.core.vehicle import DivergedError
 from cdus.scenario.config import ConfigError, load_scenario, parse_overrides
 from cdus.scenario.robot import clock_problem, robots
@@ -39,10 +35,16 @@ from cdus.wire.transport import router as fleet_router
 from ground_station.__main__ import main as gs_main
 from world_sim.recording import parse_spec, recording_line
 from cdus.app.report import Progress, run_dir, summary_table
-from cdus.ros2.export import ExportError, export_mcap
 from cdus.sim.reports import late_event_lines
 from cdus.sim.runmetrics import Metrics
 from cdus.files import keep_json, metrics_fallbacks
+
+if TYPE_CHECKING:
+    from cdus.app.launcher import LaunchOptions
+
+# Each subcommand imports its own machinery where it runs (tests/test_layers.py, LAZY): `cdus gs`
+# starts without the in-process API, the sweep, the launcher or the MCAP export
+# (tests/test_startup.py).
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
@@ -188,6 +190,8 @@ def _note_late_events(scenario: Scenario) -> None:
 
 def cmd_sim(args: argparse.Namespace) -> int:
     """`cdus sim`: cdus.api.run in process, its metrics (and trace) written, a summary printed."""
+    from cdus import api
+
     scenario = api.load(args.config, _overrides(args))
     _note_late_events(scenario)
     out_dir = None
@@ -241,6 +245,8 @@ def _read_metrics(path: Path) -> Metrics | str:
 def launch_options(args: argparse.Namespace, scenario: Scenario) -> LaunchOptions:
     """The launcher's options: the flags, and where a flag is not given, the scenario's
     (``--restart`` over ``[supervision] restart``)."""
+    from cdus.app.launcher import LaunchOptions
+
     return LaunchOptions(
         fleet=args.fleet or scenario.name.replace(".", "_"), clock=args.clock, duration=args.duration,
         restart=args.restart or scenario.supervision.restart,
@@ -323,6 +329,9 @@ def cmd_launch(args: argparse.Namespace) -> int:
 def _launch_into(args: argparse.Namespace, scenario: Scenario, opts: LaunchOptions, router: Transport,
                  exposed: tuple[str, ...], run: Path, made: bool) -> int:
     """cmd_launch once the run directory is held: credentials, the fleet, the summary."""
+    from cdus.app.fleet_run import secure_router
+    from cdus.app.launcher import launch
+
     cred = None
     try:
         if not args.insecure:
@@ -401,6 +410,8 @@ def check_exposure(args: argparse.Namespace, router: Transport) -> tuple[str, ..
 
 def cmd_export(args: argparse.Namespace) -> int:
     """`cdus export RUN_DIR --mcap FILE`."""
+    from cdus.ros2.export import ExportError, export_mcap
+
     run = Path(args.run_dir)
     scenario = load_scenario(args.config) if args.config else None
     try:
@@ -414,6 +425,8 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
+    from cdus.app.sweep import SweepInterrupted, check_grid, parse_grid, sweep
+
     grid = parse_grid(args.set)
     over = {"scenario.duration": args.duration} if args.duration is not None else None
     check_grid(args.config, grid, over)

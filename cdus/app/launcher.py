@@ -49,7 +49,7 @@ import zenoh
 
 from cdus.app.children import LOG_TAIL, PR_SET_PDEATHSIG, Child, die_with_parent  # noqa: F401 (cdus.app.launcher's names)
 from cdus.app.preflight import (  # noqa: F401 (cdus.app.launcher's names)
-    COMMAND_HZ, LOCK_NAME, OMEGA_MARGIN, ListenError, RunDirError, RunDirInUse, RunDirLock, check_listen,
+    COMMAND_HZ, LINKS, LOCK_NAME, OMEGA_MARGIN, ListenError, RunDirError, RunDirInUse, RunDirLock, check_listen,
     listen_problem, rate_limits,
 )
 from cdus.app.faults import FaultDispatch
@@ -70,7 +70,6 @@ from cdus.wire.transport import (
     open_session, use_runtime,
 )
 
-LINKS = ("direct", "router")  # how ω travels between neighbours (docs/architecture.md)
 GRACE_S = 5.0
 # Fewer Zenoh runtime threads per child process (cdus.wire.transport.CHILD_RUNTIME; the router,
 # this process, keeps Zenoh's: ROUTER_RUNTIME): on a small machine running many processes the

@@ -28,6 +28,7 @@ from cdus.wire import keys
 # link by less than 1 / rate (no burst allowance), so a genuine ω is dropped only if it
 # arrives less than a quarter period after the one before.
 OMEGA_MARGIN = 4.0
+LINKS = ("direct", "router")  # how ω travels between neighbours (docs/architecture.md)
 COMMAND_HZ = 10.0  # the world's command inbox (ground stations): one command per `cdus gs` call
 
 

@@ -41,7 +41,7 @@ from tqdm import tqdm
 from cdus.app.executors import CONNECT_TIMEOUT_S, make_executor
 from cdus.app.stats import fmt_duration, fmt_number, fmt_seconds
 from cdus.app.sweepcells import CellSummary, _Tally, explain, summarize
-from cdus.app.sweepplan import MAX_RUNS, MAX_SEED, Grid, Run, _plain, _Plan, check_grid, normalize_grid
+from cdus.app.sweepplan import MAX_RUNS, MAX_SEED, RUNNERS, Grid, Run, _plain, _Plan, check_grid, normalize_grid
 from cdus.app.sweepplot import PLOT_FORMATS, plot
 from cdus.app.sweepstore import (
     CSV, PARQUET, ROWS, Manifest, RowLog, cell_label, check_out, grid_type, read_rows, scan_rows, write_manifest,
@@ -62,9 +62,6 @@ from cdus.app.sweepstore import FIELDS  # noqa: F401
 __all__ = ["sweep", "SweepResult", "SweepInterrupted", "parse_grid", "check_grid", "plan", "Run", "FIELDS",
            "RUNNERS", "PLOT_FORMATS", "cell_label"]
 
-#: how a run is run: in this process (`cdus sim`) or as a launched fleet (`cdus launch --clock lockstep`);
-#: not a clock (cdus.core.vocabulary.CLOCKS: who drives time in a fleet of processes)
-RUNNERS = ("inproc", "lockstep")
 
 
 @dataclass

@@ -13,6 +13,11 @@ from cdus.app.sweepstore import canonical
 from cdus.scenario.config import ConfigError, load_scenario, parse_scenario, parse_value
 from cdus.scenario.model import Scenario
 
+
+#: how a run is run: in this process (`cdus sim`) or as a launched fleet (`cdus launch --clock lockstep`);
+#: not a clock (cdus.core.vocabulary.CLOCKS: who drives time in a fleet of processes)
+RUNNERS = ("inproc", "lockstep")
+
 MAX_SEED = 2 ** 63  # a seed is an int64 column of the table
 MAX_RUNS = 10_000_000  # cells × seeds of one sweep (its plan is held as lists of cells and seeds)
 Grid = list[tuple[str, list[Any]]]

@@ -12,7 +12,7 @@ from typing import Any, Sequence
 
 from cdus.app.stats import CI_SHORT
 from cdus.app.sweepcells import CellSummary
-from cdus.app.sweepstore import canonical, cell_label
+from cdus.app.sweepstore import PLOT_FORMATS, canonical, cell_label
 from cdus.wire.bounds import finite
 
 #: how a grid key reads on an axis or in a legend: (words, unit or None); a key not here is
@@ -131,7 +131,6 @@ def plain_number(y: float) -> str:
     return f"$10^{{{k}}}$" if abs(mantissa - 1) < 1e-6 else f"${mantissa:.6g}\\times10^{{{k}}}$"
 
 
-PLOT_FORMATS = ("png", "pdf", "svg")  # --plot-format: sweep.png, or a vector file for a paper
 # no creation date in a vector file (and an SVG's ids from a fixed salt): the same rows give the same file
 _NO_DATE = {"pdf": {"CreationDate": None}, "svg": {"Date": None}}
 

@@ -26,6 +26,8 @@ from cdus.files import write_json
 from cdus.scenario.checks import is_number
 from cdus.scenario.config import ConfigError
 
+PLOT_FORMATS = ("png", "pdf", "svg")  # --plot-format: sweep.png, or a vector file for a paper (cdus.app.sweepplot)
+
 MANIFEST, ROWS, CSV, PARQUET = "manifest.json", "results.jsonl", "results.csv", "results.parquet"
 FORMAT = "cdus-sweep/1"
 STATUSES = ("ok", "failed")  # a row's status; a line with another is not a row

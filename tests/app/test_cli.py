@@ -157,11 +157,12 @@ def test_a_router_config_file_without_endpoints_listens_where_zenoh_does_by_defa
 def _started(monkeypatch):
     """Replace the fleet by a recorder of the routers it would have been started with."""
     import cdus.app.cli as cli
+    import cdus.app.launcher as launcher  # cmd_launch imports launch where it runs
 
     started = []
     monkeypatch.setattr(cli, "check_listen", lambda eps: None)  # 7447 may be busy here; no router is opened
-    monkeypatch.setattr(cli, "launch", lambda scenario, run, router, opts: (started.append((router, opts)),
-                                                                             (0, _NoRun(run)))[1])
+    monkeypatch.setattr(launcher, "launch", lambda scenario, run, router, opts: (started.append((router, opts)),
+                                                                                  (0, _NoRun(run)))[1])
     return started
 
 

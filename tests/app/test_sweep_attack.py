@@ -244,11 +244,12 @@ def test_tables_interrupted_while_written_leave_no_half_written_file(tmp_path):
 
 def test_a_second_ctrl_c_is_exit_130_saying_how_to_resume_not_a_traceback(tmp_path, monkeypatch, capsys):
     import cdus.app.cli as cli
+    import cdus.app.sweep as sweep_module
 
     def interrupted_twice(*args, **kwargs):
         raise KeyboardInterrupt  # not a SweepInterrupted: the second one came while the first was handled
 
-    monkeypatch.setattr(cli, "sweep", interrupted_twice)
+    monkeypatch.setattr(sweep_module, "sweep", interrupted_twice)  # cmd_sweep imports it where it runs
     code = cli.main(["sweep", CONFIG, "--set", "link.loss=0", "--seeds", "1", "--duration", "5", "-q", "--out",
                      str(tmp_path / "o")])
     assert code == 130

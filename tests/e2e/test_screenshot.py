@@ -24,7 +24,7 @@ import pytest
 from cdus.scenario.config import load_scenario
 from cdus.wire.transport import free_tcp_port
 from cdus.sim.fleet import InProcessFleet
-from world_sim.rerun_sink import make_sink
+from world_sim.sinks import make_sink
 
 from .conftest import ROOT, kill_group
 

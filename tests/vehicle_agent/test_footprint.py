@@ -3,20 +3,7 @@
 
 from __future__ import annotations
 
-import json
-import subprocess
-import sys
-import textwrap
-from pathlib import Path
-
-REPO = Path(__file__).resolve().parents[2]
-
-
-def _modules_after(code: str) -> set[str]:
-    probe = textwrap.dedent(code) + "\nimport json, sys\nprint(json.dumps(sorted(sys.modules)))\n"
-    out = subprocess.run([sys.executable, "-c", probe], cwd=REPO, capture_output=True, text=True, timeout=120,
-                         check=True, env={"PYTHONPATH": str(REPO), "PATH": "/usr/bin:/bin"})
-    return set(json.loads(out.stdout.strip().splitlines()[-1]))
+from tests.test_startup import modules_after as _modules_after
 
 
 def test_an_agent_without_a_safety_filter_loads_no_numpy():

@@ -9,7 +9,8 @@ from cdus.scenario.config import load_scenario
 from cdus.sim.fleet import InProcessFleet
 from cdus.wire import keys
 from world_sim import blueprint as bp
-from world_sim.rerun_sink import make_sink, probability_colour
+from world_sim.sinks import make_sink
+from world_sim.rerun_sink import probability_colour
 
 from .test_recording import ROOT, Recording
 

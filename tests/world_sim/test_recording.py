@@ -28,7 +28,7 @@ from cdus.wire.transport import free_tcp_port
 from cdus.sim.fleet import InProcessFleet
 from cdus.sim.sink import UPDATE_EVERY, NullSink
 from world_sim.recording import DEFAULT_URL, Target, parse_spec
-from world_sim.rerun_sink import make_sink
+from world_sim.sinks import make_sink
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIG = ROOT / "configs" / "lake_circle.toml"

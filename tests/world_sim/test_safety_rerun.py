@@ -12,7 +12,8 @@ from cdus.sim.fleet import InProcessFleet
 from cdus.wire import keys
 from cdus.wire.schemas import AgentStats, encode_stats
 from tests.fakes import Payload, Sample
-from world_sim.rerun_sink import CLOSEST, INTERVENTIONS, NEAR_COLOUR, intervened, make_sink
+from world_sim.sinks import make_sink
+from world_sim.rerun_sink import CLOSEST, INTERVENTIONS, NEAR_COLOUR, intervened
 
 from .test_recording import ROOT, Recording
 from .test_world import FLEET, row, send_rows, started, world
