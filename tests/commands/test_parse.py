@@ -141,3 +141,14 @@ def test_the_cli_settings_and_the_entries_refusals():
     assert parse_wire(3, {}).field == "op"
     assert decode_command(b"\xc1") == Rejected("malformed")
     assert decode_command(encode_control("kill", vehicle=3)) == Rejected("type")
+
+
+@pytest.mark.parametrize("action, setting, field", [
+    ("gains", "k", "k"), ("gains", "c", "c"), ("link", "loss", "loss"), ("link", "delay.base", "delay.base"),
+    ("radio", "tx_power", "tx_power"), ("formation", "phases.usv1", "phases.usv1")])
+def test_a_cli_integer_beyond_a_float_is_refused_naming_its_field(action, setting, field):
+    # TOML reads k=1 followed by 400 zeros as an int; math.isfinite raised OverflowError on it and
+    # `cdus gs ... gains k=1000...0` was a traceback instead of a refusal
+    got = parse_cli(action, [f"{setting}=1{'0' * 400}"], vehicle="usv1")
+    assert isinstance(got, Rejected) and got.field == field, got
+    assert len(got.reason) < 400, got.reason  # the number is not printed whole (401 digits)

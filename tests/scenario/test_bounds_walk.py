@@ -164,3 +164,24 @@ def test_every_number_at_its_extremes_is_refused_by_name_or_runs_to_the_end(path
             continue
         metrics = InProcessFleet(scenario).run().metrics  # no exception, no DivergedError
         assert metrics["completed"] and metrics["duration_s"] == pytest.approx(1.0, abs=0.06), (value, metrics)
+
+
+#: an integer beyond a float's range (TOML and a ground station's KEY=VALUE read 1 followed by
+#: 400 zeros as an int): math.isfinite raised OverflowError on it, a traceback from `cdus sim`
+HUGE_INT = 10**400
+
+
+@pytest.mark.parametrize("path", FIELDS, ids=[".".join(map(str, p)) for p in FIELDS])
+def test_every_number_as_an_integer_beyond_a_float_is_refused_by_name_or_runs_to_the_end(path):
+    data = copy.deepcopy(FULL)
+    node = data
+    for k in path[:-1]:
+        node = node[k]
+    node[path[-1]] = HUGE_INT
+    try:
+        scenario = parse_scenario(data, "walk.toml")
+    except ConfigError as e:
+        assert any(names(path, field, message) for field, message in e.problems), e.problems
+        return
+    metrics = InProcessFleet(scenario).run().metrics
+    assert metrics["completed"] and metrics["duration_s"] == pytest.approx(1.0, abs=0.06), metrics
