@@ -152,3 +152,27 @@ def test_a_cli_integer_beyond_a_float_is_refused_naming_its_field(action, settin
     got = parse_cli(action, [f"{setting}=1{'0' * 400}"], vehicle="usv1")
     assert isinstance(got, Rejected) and got.field == field, got
     assert len(got.reason) < 400, got.reason  # the number is not printed whole (401 digits)
+
+
+def _ring(n: int) -> str:
+    r = n / (2 * math.pi)  # waypoints about 1 m apart on a circle: a spline the checks take
+    return "[" + ",".join(f"[{r * math.cos(2 * math.pi * i / n):.3f},{r * math.sin(2 * math.pi * i / n):.3f}]"
+                          for i in range(n)) + "]"
+
+
+def test_a_cli_path_too_large_for_one_message_is_refused_here_naming_the_waypoints():
+    # a spline of 65 waypoints parsed, was sent, and the world answered "the command could not be
+    # read: malformed" (the control map holds 64 entries a list); 64 still go, with the longest --name
+    assert isinstance(parse_cli("path", ['family="spline"', f"waypoints={_ring(64)}"], vehicle="usv1"), Path)
+    for n in (65, 500):
+        got = parse_cli("path", ['family="spline"', f"waypoints={_ring(n)}"], vehicle="usv1")
+        assert isinstance(got, Rejected) and got.field == "path.waypoints", got
+        assert "too large for one command message" in got.reason and "scenario" in got.reason
+
+
+@settings(max_examples=60, deadline=None)
+@given(n=st.integers(1, 80))
+def test_what_the_cli_takes_the_world_can_read(n):
+    got = parse_cli("formation", [f"phases.v{i}=0.5" for i in range(n)])
+    if not isinstance(got, Rejected):
+        assert decode_command(encode_control(*wire_of(got)[:1], **wire_of(got)[1], name="n" * 64)) == got
