@@ -310,6 +310,16 @@ def test_a_world_that_died_leaves_metrics_that_say_so(tmp_path):
     assert "NOT COMPLETED (world_lost)" in table  # and says it is not a finished run
 
 
+def test_a_world_lost_before_its_first_tick_ran_no_simulated_time_not_a_negative_one(tmp_path):
+    # attack: SIGKILL of the world just after "fleet up" (lockstep, its status at t = -T before tick
+    # 0): metrics.json said duration_s -0.02 and the summary "-0.0 s simulated ... (-0x real time)"
+    la, _ = quiet_launcher(tmp_path, duration=40.0)
+    world_says(la, status(-0.02))
+    m = la.write_world_lost(-9, 5.8)
+    assert m["world_lost"]["last_status_t"] == -0.02  # what the world said, kept as it said it
+    assert m["duration_s"] == 0.0 and m["realtime_factor"] == 0.0, m
+
+
 def test_the_summary_of_a_lost_world_says_what_is_not_known_not_never(tmp_path):
     """Review of issue 18: after the world died the summary said settle "never" next to a final
     |Φ| of 0.0235 m. The trace is lost with the world: the settle times are not known, the
