@@ -149,16 +149,21 @@ def names(path: tuple, field: str, message: str) -> bool:
     return key in field or key in message or (table is not None and f".{table}." in field + ".")
 
 
+def with_value(path: tuple, value) -> dict:
+    """A copy of FULL with the number at ``path`` replaced by ``value``."""
+    data = copy.deepcopy(FULL)
+    node = data
+    for k in path[:-1]:
+        node = node[k]
+    node[path[-1]] = value
+    return data
+
+
 @pytest.mark.parametrize("path", FIELDS, ids=[".".join(map(str, p)) for p in FIELDS])
 def test_every_number_at_its_extremes_is_refused_by_name_or_runs_to_the_end(path):
     for value in EXTREMES:
-        data = copy.deepcopy(FULL)
-        node = data
-        for k in path[:-1]:
-            node = node[k]
-        node[path[-1]] = value
         try:
-            scenario = parse_scenario(data, "walk.toml")
+            scenario = parse_scenario(with_value(path, value), "walk.toml")
         except ConfigError as e:
             assert any(names(path, field, message) for field, message in e.problems), (value, e.problems)
             continue
@@ -173,13 +178,8 @@ HUGE_INT = 10**400
 
 @pytest.mark.parametrize("path", FIELDS, ids=[".".join(map(str, p)) for p in FIELDS])
 def test_every_number_as_an_integer_beyond_a_float_is_refused_by_name_or_runs_to_the_end(path):
-    data = copy.deepcopy(FULL)
-    node = data
-    for k in path[:-1]:
-        node = node[k]
-    node[path[-1]] = HUGE_INT
     try:
-        scenario = parse_scenario(data, "walk.toml")
+        scenario = parse_scenario(with_value(path, HUGE_INT), "walk.toml")
     except ConfigError as e:
         assert any(names(path, field, message) for field, message in e.problems), e.problems
         return
