@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from cdus.core.paths.registry import Path, PathError, Vec
+from cdus.core.paths.spline import Spline
 from cdus.wire.bounds import MAX_PHASE
 
 
@@ -46,8 +47,9 @@ def for_dimension(path: Path, dim: int) -> Path:
         return path
     if path.dim == 3 and dim == 2:
         return Planar(path)
-    raise PathError("path", f"a {dim}-D vehicle needs a {dim}-D path; this one is {path.dim}-D "
-                            f"(give the center/origin a z component)")
+    fix = ("give its waypoints a z component, or a center [x, y, z] to fly it at height z"
+           if isinstance(path, Spline) else "give the center/origin a z component")  # a spline has no origin
+    raise PathError("path", f"a {dim}-D vehicle needs a {dim}-D path; this one is {path.dim}-D ({fix})")
 
 
 #: the ω at which a path is evaluated before a vehicle takes it (:func:`not_finite_at`): its
