@@ -9,7 +9,6 @@ from dataclasses import dataclass
 from typing import Any
 
 from cdus.core.paths.registry import Path, PathError, Vec
-from cdus.core.paths.spline import Spline
 from cdus.wire.bounds import MAX_PHASE
 
 
@@ -47,8 +46,8 @@ def for_dimension(path: Path, dim: int) -> Path:
         return path
     if path.dim == 3 and dim == 2:
         return Planar(path)
-    fix = ("give its waypoints a z component, or a center [x, y, z] to fly it at height z"
-           if isinstance(path, Spline) else "give the center/origin a z component")  # a spline has no origin
+    fix = ("give the center/origin a z component; a spline: give its waypoints a z component, or a center "
+           "[x, y, z] to fly it at height z")
     raise PathError("path", f"a {dim}-D vehicle needs a {dim}-D path; this one is {path.dim}-D ({fix})")
 
 

@@ -189,8 +189,8 @@ def test_an_open_spline_bends_from_its_first_waypoint_on():
 
 def test_a_planar_spline_for_a_drone_is_refused_with_the_spline_s_fix():
     # a 2-D spline given to a drone (config or `cdus gs path`) said "give the center/origin a z
-    # component": a spline has no origin and need not have a center; its fix is its waypoints' z
+    # component" only: a spline has no origin and need not have a center; its fix is its waypoints' z
     flat = spline(((0.0, 0.0), (10.0, 0.0), (10.0, 10.0), (0.0, 10.0)))
     with pytest.raises(PathError) as info:
         for_dimension(flat, 3)
-    assert "waypoints a z component" in str(info.value) and "origin" not in str(info.value)
+    assert "a spline: give its waypoints a z component" in str(info.value)
