@@ -326,7 +326,9 @@ class Launcher(FaultDispatch, WorldLostMetrics):
             c = self.children[n]
             code = c.poll()
             why = (f"exited with status {code} during start-up" if code is not None
-                   else f"did not come up within {timeout:g} s")
+                   else f"did not come up within {timeout:g} s, still starting (a large scenario, e.g. splines of "
+                        f"thousands of waypoints, takes each process longer to check and build: give it more with "
+                        f"--ready-timeout S)")
             parts.append(f"{n} {why}; its log ({c.log_path}) ends with:\n{c.tail()}")
         return LaunchError("\n".join(parts))
 

@@ -75,8 +75,9 @@ class WorldLostMetrics:
         m["completion"] = WORLD_LOST
         m["written_by"] = "launcher"
         if st:  # what the world last said, in the fields a reader looks at first (the trace is lost)
-            m["duration_s"] = t_last
-            m["realtime_factor"] = t_last / wall_s if wall_s > 0 else None
+            ran = max(0.0, t_last)  # a status before tick 0 says t = -T: no simulated time has passed
+            m["duration_s"] = ran
+            m["realtime_factor"] = ran / wall_s if wall_s > 0 else None
             m["final_path_error_max"] = st.get("path_error_max")
             m["final_coord_error_max"] = st.get("coord_error_max")
             m["live_final"] = sorted(set(st.get("alive") or ()) & set(sc.ids))

@@ -28,7 +28,7 @@ from cdus.commands.link import Link
 from cdus.commands.radio import Radio
 from cdus.commands.vehicle import Kill, PauseVehicle, Restart, ResumeVehicle
 from cdus.scenario.config import parse_value
-from cdus.wire.messages import COMMAND_OPS, decode_control
+from cdus.wire.messages import COMMAND_OPS, MAX_CONTROL_PAYLOAD, decode_control, encode_control
 
 Command = Union[Stop, Pause, Resume, Gains, Link, Formation, Path, Radio, Kill, PauseVehicle, ResumeVehicle, Restart]
 COMMANDS: tuple[type, ...] = (Stop, Pause, Resume, Gains, Link, Formation, Path, Radio,
@@ -135,9 +135,31 @@ def parse_cli(action: str, settings: Sequence[str] = (), *, vehicle: str | None 
     if "at" in cls.KEYS and at is not None:
         fields["at"] = at
     got = cls.parse(fields)
+    if not isinstance(got, Rejected):
+        got = unsendable(got) or got
     if cls is Path and isinstance(got, Rejected) and (got.field or "").startswith("path."):
         return Rejected(got.reason, got.field[len("path."):])  # named as typed: waypoints, not path.waypoints
     return got
+
+
+#: the longest name a ground station adds to a command (``--name``, cdus.wire.messages._NAME_RE)
+LONGEST_NAME = "n" * 64
+
+
+def unsendable(command: Command) -> Rejected | None:
+    """Why a command would not reach the world whole (the wire's control map holds at most 64
+    entries in a list or a table, 256 characters in a text, MAX_CONTROL_PAYLOAD bytes in all: a
+    spline of 65 waypoints was answered "could not be read: malformed"), None if it would."""
+    op, fields = wire_of(command)
+    why = decode_control(encode_control(op, **fields, name=LONGEST_NAME), COMMAND_OPS)
+    if not isinstance(why, str):
+        return None
+    where = "path.waypoints" if isinstance(command, Path) and "waypoints" in command.path_table() else \
+        SETTINGS_FIELD.get(type(command), "phases" if isinstance(command, Formation) else None)
+    hint = (" a longer route goes in the scenario (a [[vehicle]]'s path or a path [[event]] take up to 10,000 "
+            "waypoints)" if where == "path.waypoints" else " split it into several commands")
+    return Rejected(f"too large for one command message ({why}: at most 64 entries in a list or a table, 256 "
+                    f"characters in a text, {MAX_CONTROL_PAYLOAD} bytes in all):{hint}", where)
 
 
 def parse_event(event: Mapping[str, Any]) -> Command | Rejected:

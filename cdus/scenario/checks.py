@@ -210,7 +210,7 @@ class Problems:
 
     def probability(self, v: Any, field: str, what: str, note: str = "") -> float | None:
         """A number in [0, 1]; ``what`` says what it is the probability of."""
-        if not is_number(v) or math.isnan(v) or not 0.0 <= v <= 1.0:
+        if not finite(v) or not 0.0 <= v <= 1.0:
             got = show(v) if is_number(v) else describe(v)
             self.add(field, f"must be a probability in [0, 1] ({what}), got {got}{note}")
             return None

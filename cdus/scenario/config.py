@@ -149,6 +149,9 @@ def parse_text(raw: bytes, source: str, json_format: bool = False) -> dict:
         where = f"line {m.group(1)}, column {m.group(2)}" if m else "TOML"
         message = text[:m.start()].strip() if m else text
         raise ConfigError(source, [(where, f"TOML syntax error: {message}")]) from None
+    except ValueError as e:  # an integer of more than 4,300 digits (Python's int-from-text limit)
+        raise ConfigError(source, [("file", f"holds a number cdus cannot read ({str(e)[:80]}): no "
+                                            f"scenario number needs more than a few digits")]) from None
     if not isinstance(data, dict):
         raise ConfigError(source, [("file", f"must hold a table of sections, got {describe(data)}")])
     return data
@@ -309,7 +312,7 @@ def parse_value(text: str) -> Any:
         return text  # kept as a string; never a RecursionError
     try:
         value = tomllib.loads(f"v = {stripped}")["v"]
-    except (tomllib.TOMLDecodeError, RecursionError):
+    except (ValueError, RecursionError):  # a TOML syntax error, or an int of over 4,300 digits
         return text
     if isinstance(value, (int, float, bool, str, list, dict)):
         return value

@@ -27,6 +27,7 @@ from cdus.scenario.model import Edge, Rates, VehicleSpec
 from cdus.scenario.paths import check_path
 from cdus.scenario.robot import robot_table
 from cdus.scenario.sections import DEFAULT_GAINS, gain_values
+from cdus.wire.bounds import finite
 
 #: plant -> kinds it models (the vehicle models' one table: cdus.core.models.PLANTS)
 PLANTS: dict[str, tuple[str, ...]] = {name: m.kinds for name, m in MODELS.items()}
@@ -430,7 +431,7 @@ def _gains(p: Problems, t: _Merged, kind: str | None, fleet_gains: Mapping) -> t
     gain_values(p, vg, t.field("gains"), t.note("gains"))
     k_raw = vg["k"] if "k" in vg else fleet_gains.get("k", DEFAULT_GAINS["k"])
     c_raw = vg.get("c", fleet_gains.get("c", DEFAULT_GAINS["c"]))
-    c = float(c_raw) if is_number(c_raw) else DEFAULT_GAINS["c"]
+    c = float(c_raw) if finite(c_raw) else DEFAULT_GAINS["c"]
     if kind is None:
         return (), c
     dim = DIMENSIONS[kind]
@@ -439,9 +440,9 @@ def _gains(p: Problems, t: _Merged, kind: str | None, fleet_gains: Mapping) -> t
         p.add(t.field("gains", "k"), f"a list of per-axis gains needs {dim} values for a {kind} "
                                      f"({'x, y' if dim == 2 else 'x, y, z'}), got {len(k_raw)}: {show(k_raw)}{note}")
         return (), c
-    if isinstance(k_raw, list) and all(is_number(x) and x > 0 for x in k_raw):
+    if isinstance(k_raw, list) and all(finite(x) and x > 0 for x in k_raw):
         return expand_k(tuple(k_raw), dim), c
-    if is_number(k_raw) and k_raw > 0:
+    if finite(k_raw) and k_raw > 0:
         return expand_k(k_raw, dim), c  # the one per-axis expansion (a run-time gains command's too)
     return (), c
 

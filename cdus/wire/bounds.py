@@ -17,13 +17,21 @@ lowest layer (cdus.wire, layer 0): cdus.core and cdus.scenario import it.
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass
 
 
 def finite(x: object) -> bool:
     """A finite real number: an int or a float, never a bool (True is an int to Python), never
-    nan or ±inf."""
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+    nan or ±inf, never an int beyond a float's range (10**400, from TOML or a ground station's
+    k=999...: math.isfinite raises OverflowError on it, and as a float it is inf)."""
+    if isinstance(x, float):
+        return math.isfinite(x)
+    return isinstance(x, int) and not isinstance(x, bool) and -MAX_FLOAT <= x <= MAX_FLOAT
+
+
+#: the largest finite float; an int beyond it is no finite number to cdus
+MAX_FLOAT = sys.float_info.max
 
 
 @dataclass(frozen=True)
@@ -59,8 +67,14 @@ class Bound:
         if self.holds(x):
             return None
         kind = "a finite number" if not self.inf_ok else "a number"
-        got = f"{x:g}" if isinstance(x, float) else repr(x)  # an int as written, a bool or a string as Python spells it
+        got = (f"{x:g}" if isinstance(x, float) else "an integer beyond a float's range"
+               if type(x) is int and not finite(x) else _cut(repr(x)))  # an int as written, a bool or a string as Python spells it
         return f"must be {kind} {self.text()}{what}, got {got}"
+
+
+def _cut(text: str, most: int = 60) -> str:
+    """A value's text in a refusal, cut at ``most`` characters."""
+    return text if len(text) <= most else text[:most - 3] + "..."
 
 
 def within(limit: float) -> Bound:

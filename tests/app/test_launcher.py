@@ -311,6 +311,30 @@ def test_a_world_that_died_leaves_metrics_that_say_so(tmp_path):
     assert "NOT COMPLETED (world_lost)" in table  # and says it is not a finished run
 
 
+def test_a_world_lost_before_its_first_tick_ran_no_simulated_time_not_a_negative_one(tmp_path):
+    # attack: SIGKILL of the world just after "fleet up" (lockstep, its status at t = -T before tick
+    # 0): metrics.json said duration_s -0.02 and the summary "-0.0 s simulated ... (-0x real time)"
+    la, _ = quiet_launcher(tmp_path, duration=40.0)
+    world_says(la, status(-0.02))
+    m = la.write_world_lost(-9, 5.8)
+    assert m["world_lost"]["last_status_t"] == -0.02  # what the world said, kept as it said it
+    assert m["duration_s"] == 0.0 and m["realtime_factor"] == 0.0, m
+
+
+def test_a_process_still_starting_at_the_ready_timeout_is_told_how_to_wait_longer(tmp_path):
+    # attack: six 10,000-waypoint splines (each process checks and builds them: 12 s of CPU at
+    # load 9) -> "uav3 did not come up within 30 s; its log ... (empty log)": nothing said the
+    # process was alive and only slow, nor that --ready-timeout gives it longer
+    from cdus.app.children import Child
+
+    la, _ = quiet_launcher(tmp_path)
+    log = tmp_path / "uav3.log"
+    log.write_text("")
+    la.children["uav3"] = Child("uav3", [], log)  # never started: poll() is None, as a process still running
+    text = str(la._fail_start(["uav3"], 30.0))
+    assert "did not come up within 30 s, still starting" in text and "--ready-timeout" in text, text
+
+
 def test_the_summary_of_a_lost_world_says_what_is_not_known_not_never(tmp_path):
     """Review of issue 18: after the world died the summary said settle "never" next to a final
     |Φ| of 0.0235 m. The trace is lost with the world: the settle times are not known, the

@@ -160,3 +160,38 @@ def test_a_path_argument_is_named_as_it_was_typed():
     assert got.field == "waypoints" and got.reason.startswith("waypoint 1 [0, 0] repeats waypoint 0")
     assert parse_cli("path", ["family=circx"], vehicle="usv1").field == "family"
     assert parse_wire("path", {"vehicle": "usv1", "path": {"family": "circx"}}).field == "path.family"
+
+
+@pytest.mark.parametrize("action, setting, field", [
+    ("gains", "k", "k"), ("gains", "c", "c"), ("link", "loss", "loss"), ("link", "delay.base", "delay.base"),
+    ("radio", "tx_power", "tx_power"), ("formation", "phases.usv1", "phases.usv1")])
+def test_a_cli_integer_beyond_a_float_is_refused_naming_its_field(action, setting, field):
+    # TOML reads k=1 followed by 400 zeros as an int; math.isfinite raised OverflowError on it and
+    # `cdus gs ... gains k=1000...0` was a traceback instead of a refusal
+    got = parse_cli(action, [f"{setting}=1{'0' * 400}"], vehicle="usv1")
+    assert isinstance(got, Rejected) and got.field == field, got
+    assert len(got.reason) < 400, got.reason  # the number is not printed whole (401 digits)
+
+
+def _ring(n: int) -> str:
+    r = n / (2 * math.pi)  # waypoints about 1 m apart on a circle: a spline the checks take
+    return "[" + ",".join(f"[{r * math.cos(2 * math.pi * i / n):.3f},{r * math.sin(2 * math.pi * i / n):.3f}]"
+                          for i in range(n)) + "]"
+
+
+def test_a_cli_path_too_large_for_one_message_is_refused_here_naming_the_waypoints():
+    # a spline of 65 waypoints parsed, was sent, and the world answered "the command could not be
+    # read: malformed" (the control map holds 64 entries a list); 64 still go, with the longest --name
+    assert isinstance(parse_cli("path", ['family="spline"', f"waypoints={_ring(64)}"], vehicle="usv1"), Path)
+    for n in (65, 500):
+        got = parse_cli("path", ['family="spline"', f"waypoints={_ring(n)}"], vehicle="usv1")
+        assert isinstance(got, Rejected) and got.field == "waypoints", got  # named as typed
+        assert "too large for one command message" in got.reason and "scenario" in got.reason
+
+
+@settings(max_examples=60, deadline=None)
+@given(n=st.integers(1, 80))
+def test_what_the_cli_takes_the_world_can_read(n):
+    got = parse_cli("formation", [f"phases.v{i}=0.5" for i in range(n)])
+    if not isinstance(got, Rejected):
+        assert decode_command(encode_control(*wire_of(got)[:1], **wire_of(got)[1], name="n" * 64)) == got

@@ -14,7 +14,7 @@ from cdus.core.linkspec import Delay, LinkSpec
 from cdus.scenario.paths import make_path
 from cdus.scenario.config import (
     ConfigError, Edge, Rates, Scenario, Supervision, VehicleSpec, apply_override, load_scenario, parse_scenario,
-    parse_value,
+    parse_value, parse_text,
 )
 from tests.scenario.common import MINIMAL, base, check_bad, problems
 
@@ -236,3 +236,13 @@ def test_the_path_table_of_the_user_reference_names_every_family_with_its_figure
     L, _, _ = _lap({"family": "ellipse", "center": [0, 0], "a": 2, "b": 1})
     assert f"{L:.2f}" == "9.69" and "9.69 m for a = 2, b = 1" in table
     assert "refused" in table and "All\nphases 0 always do this" in table
+
+
+def test_an_integer_of_more_digits_than_python_reads_is_a_config_error_not_a_traceback():
+    # tomllib raises ValueError (not a TOMLDecodeError) on an int of over 4,300 digits: a scenario
+    # file with `radius = 1000...0` and `--set gains.k=1000...0` were tracebacks
+    huge = "1" + "0" * 5000
+    with pytest.raises(ConfigError) as info:
+        parse_text(f"[gains]\nk = {huge}\n".encode(), "x.toml")
+    assert "file" in str(info.value) and "cannot read" in str(info.value)
+    assert parse_value(huge) == huge  # kept as text, then refused by the field as not a number

@@ -9,20 +9,20 @@ from pathlib import Path
 import pytest
 from hypothesis import given, strategies as st
 
-from cdus.wire.bounds import BOUNDS, Bound, finite, nonnegative, positive, within
+from cdus.wire.bounds import BOUNDS, MAX_FLOAT, Bound, finite, nonnegative, positive, within
 
 ROOT = Path(__file__).resolve().parents[2]
-ANY = st.one_of(st.none(), st.booleans(), st.integers(), st.floats(allow_nan=True, allow_infinity=True),
+ANY = st.one_of(st.none(), st.booleans(), st.integers(), st.integers(-10**400, 10**400), st.floats(allow_nan=True, allow_infinity=True),
                 st.text(max_size=3), st.lists(st.integers(), max_size=2))
 
 
 @given(ANY)
 def test_finite_is_a_real_number_that_is_not_a_bool_nan_or_inf(x):
-    expected = type(x) in (int, float) and x == x and x not in (math.inf, -math.inf)
+    expected = type(x) in (int, float) and x == x and x not in (math.inf, -math.inf) and abs(x) <= MAX_FLOAT
     assert finite(x) is expected
 
 
-@pytest.mark.parametrize("x, ok", [(0, True), (-0.0, True), (1e308, True), (5e-324, True), (2**80, True),
+@pytest.mark.parametrize("x, ok", [(0, True), (-0.0, True), (1e308, True), (5e-324, True), (2**80, True), (10**400, False), (-10**400, False), (int(MAX_FLOAT), True),
                                    (True, False), (False, False), (math.nan, False), (math.inf, False),
                                    (-math.inf, False), ("1", False), (None, False), ([1.0], False)])
 def test_finite_cases(x, ok):
@@ -93,3 +93,10 @@ def test_the_documented_table_is_the_table():
     for field, b in BOUNDS.items():
         text = b.text() or "any"
         assert rows[field].strip().startswith(text), (field, rows[field], text)
+
+
+def test_an_integer_beyond_a_float_is_refused_in_words_not_by_overflow():
+    # math.isfinite(10**400) raises OverflowError: `cdus sim --set gains.k=1000...0` and `cdus gs
+    # gains k=1000...0` were tracebacks
+    assert BOUNDS["gains.k"].problem(10**400) == "must be a finite number > 0, got an integer beyond a float's range"
+    assert positive(1.0).problem("x" * 100).endswith("...")

@@ -46,8 +46,9 @@ def for_dimension(path: Path, dim: int) -> Path:
         return path
     if path.dim == 3 and dim == 2:
         return Planar(path)
-    raise PathError("path", f"a {dim}-D vehicle needs a {dim}-D path; this one is {path.dim}-D "
-                            f"(give the center/origin a z component)")
+    fix = ("give the center/origin a z component; a spline: give its waypoints a z component, or a center "
+           "[x, y, z] to fly it at height z")
+    raise PathError("path", f"a {dim}-D vehicle needs a {dim}-D path; this one is {path.dim}-D ({fix})")
 
 
 #: the ω at which a path is evaluated before a vehicle takes it (:func:`not_finite_at`): its

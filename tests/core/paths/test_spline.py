@@ -185,3 +185,12 @@ def test_an_open_spline_bends_from_its_first_waypoint_on():
     a, b, c, d = s.segments[0]
     assert f2 == tuple(4.0 * (2.0 * c_ + 6.0 * 0.5 * d_) for c_, d_ in zip(c, d))
     assert _norm(f2) > 0.0
+
+
+def test_a_planar_spline_for_a_drone_is_refused_with_the_spline_s_fix():
+    # a 2-D spline given to a drone (config or `cdus gs path`) said "give the center/origin a z
+    # component" only: a spline has no origin and need not have a center; its fix is its waypoints' z
+    flat = spline(((0.0, 0.0), (10.0, 0.0), (10.0, 10.0), (0.0, 10.0)))
+    with pytest.raises(PathError) as info:
+        for_dimension(flat, 3)
+    assert "a spline: give its waypoints a z component" in str(info.value)
