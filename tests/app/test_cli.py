@@ -461,7 +461,8 @@ def test_a_launch_reads_its_metrics_file_once_and_names_what_is_wrong_with_it(da
     at = tmp_path / "metrics.json"
     at.write_text(damage(json.dumps(InProcessFleet(sc).run().metrics)))
     monkeypatch.setattr(cli, "check_listen", lambda eps: None)
-    monkeypatch.setattr(cli, "launch", lambda scenario, run, router, opts: (0, _Wrote(run, at)))
+    import cdus.app.launcher as launcher  # cli imports launch where it runs it (its start-up stays light)
+    monkeypatch.setattr(launcher, "launch", lambda scenario, run, router, opts: (0, _Wrote(run, at)))
     code = main(["launch", CONFIG, "--logs", str(tmp_path / "run"), "--rerun", "off", "--insecure"])
     out, err = capsys.readouterr()
     if says is None:
