@@ -41,6 +41,15 @@ class Applied:
 
 Outcome = Applied | Rejected
 
+
+def taken(done: Any) -> Applied | Rejected:
+    """A node's own outcome (cdus.core.changes: Applied(tick, at) or Refused(reason)) as a
+    command's: the tick (and time) the node took, which may be later than asked (the next tick
+    it steps), or its reason."""
+    if not done:
+        return Rejected(done.reason)
+    return Applied(done.tick, getattr(done, "at", None))
+
 #: a vehicle id as the fleet's keys spell it (cdus.wire.keys.FLEET_RE)
 ID_CHARS = frozenset("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-")
 MAX_ID = 64

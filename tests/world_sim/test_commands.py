@@ -11,7 +11,8 @@ import pytest
 from hypothesis import given, settings, strategies as hs
 
 from cdus.core.linkspec import Delay
-from cdus.core.node import gains_problem
+from cdus.commands.gains import Gains
+from cdus.wire.rejected import Rejected
 from cdus.core.schedule import delivery_tick
 from cdus.scenario.events import check_path
 from cdus.scenario.link import merge_link_tables, validate_link
@@ -559,7 +560,9 @@ def test_every_number_of_a_command_at_its_extremes_is_refused_by_name_or_applied
             for d in [spec.delay] + [Delay(**dict(o.delay)) for o in spec.overrides]:
                 assert isinstance(delivery_tick(0, d.base + d.jitter, w.period), int)
         elif op == "set_gains":
-            assert gains_problem(relayed.fields["gains"], 2, **w.scenario.gain_context("usv1")) is None
+            relayed_gains = Gains.parse({"gains": relayed.fields["gains"], "vehicle": "usv1"})  # as the agent parses it
+            assert not isinstance(relayed_gains.for_vehicle(2, (1.0, 1.0), 1.0, **w.scenario.gain_context("usv1")),
+                                  Rejected)
         elif op == "path":
             assert not isinstance(check_path(relayed.fields["path"], 3), tuple)
         else:
