@@ -23,6 +23,7 @@ import numpy as np
 from cdus.core.metrics import TRACE_ARRAYS, Recorder, read_trace, trace_shape_problem
 from cdus.extras import needs
 from cdus.scenario.model import Scenario
+from cdus.wire.bounds import is_number
 
 
 # --------------------------------------------------------------------------- reading a metrics JSON
@@ -37,7 +38,7 @@ def _num(d: Mapping, key: str, where: str, null: bool = False) -> Any:
     v = d[key] if key in d else _missing(where, key)
     if v is None and null:
         return None
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
+    if not is_number(v):
         raise _bad(f"{where}{key}", "a number" + (" or null" if null else ""), v)
     return v
 

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any, Sequence, TextIO
 
 from cdus.scenario.model import VehicleSpec
-from cdus.wire.bounds import finite
+from cdus.wire.bounds import finite, is_number
 from cdus.wire.text import printable
 
 
@@ -71,7 +71,7 @@ class Progress:
 def _fmt(x: Any, spec: str = ".3f", none: str = "never") -> str:
     if x is None:
         return none
-    if isinstance(x, float) and not math.isfinite(x):
+    if is_number(x) and not finite(x):
         return str(x)
     return format(x, spec)
 
@@ -238,7 +238,7 @@ def split_spans(events: Sequence[Any]) -> str:
     start = None
     for e in events:
         kind, t = (e.get("kind"), e.get("t")) if isinstance(e, dict) else (None, None)
-        if not isinstance(t, (int, float)) or isinstance(t, bool):
+        if not is_number(t):
             continue
         if kind == "radio_split" and start is None:
             start = t

@@ -9,12 +9,11 @@ a decoder still takes (``set_gains``). Applying a command gives an :class:`Appli
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any, Mapping
 
 from cdus.scenario.errors import ConfigError
-from cdus.wire.bounds import BOUNDS, finite
+from cdus.wire.bounds import BOUNDS, is_number
 from cdus.wire.rejected import Rejected
 
 
@@ -105,7 +104,7 @@ def unknown_keys(fields: Mapping[str, Any], allowed: tuple[str, ...]) -> Rejecte
 
 def _shown(v: Any) -> str:
     """A value in a refusal: numbers with :g, anything else by repr, cut at 60 characters."""
-    if finite(v) or isinstance(v, float) and not math.isfinite(v):
+    if is_number(v):
         return f"{v:g}"
     text = repr(v)
     return text if len(text) <= 60 else text[:57] + "..."

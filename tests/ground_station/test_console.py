@@ -355,3 +355,12 @@ def test_status_table_has_no_row_for_the_fleets_own_non_vehicle_tokens():
     view.world = None  # before the world's first status: whoever is heard, but no process of the fleet's own
     rows = [ln.split()[0] for ln in status_table(view).splitlines()[1:] if not ln.startswith("world:")]
     assert rows == ["forged", "usv1"]
+
+
+def test_json_num_takes_a_finite_number_and_never_a_bool():
+    """_json_num(True) gave 1.0 (True is an int to Python): a --json line said t = 1.0 for a
+    value that is no number; now it is null, as nan and inf are (cdus.wire.bounds.finite)."""
+    from ground_station.console import _json_num
+    assert _json_num(True) is None and _json_num(False) is None
+    assert _json_num(math.nan) is None and _json_num(math.inf) is None and _json_num("1") is None
+    assert _json_num(2) == 2.0 and isinstance(_json_num(2), float) and _json_num(-0.5) == -0.5
