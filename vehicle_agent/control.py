@@ -179,19 +179,24 @@ class Control:
         keeps ``delay.base``); it applies to messages sent from ``at`` on. A ``policy`` or
         ``timeout`` in it changes the stale-neighbour policy from the first tick at or after ``at``."""
         a = self.agent
-        cmd = Link.parse({"link": f["link"], "at": f["at"]})
-        done = cmd if isinstance(cmd, Rejected) else cmd.apply(a.node, f["at"], (self.link_table, a.ids))
+        cmd, done = self._carry_out(Link, {"link": f["link"], "at": f["at"]}, f["at"], (self.link_table, a.ids))
         if isinstance(done, Rejected):
             return refused("bad_link_command", f"link command rejected: {_why(done, 'link')}")
         self.link_table = cmd.merged(self.link_table, a.ids)
         a.log(f"link faults changed from t = {done.at:.2f} s: {f['link']}")
         return APPLIED
 
+    def _carry_out(self, cls: type, fields: dict, when: float, context: object = None) -> tuple:
+        """``fields`` parsed into the command ``cls`` and applied to the node from ``when`` (a
+        tick, or a time for link and radio): (the command, its Applied or Rejected)."""
+        cmd = cls.parse(fields)
+        return cmd, cmd if isinstance(cmd, Rejected) else cmd.apply(self.agent.node, when, context)
+
     def _gains(self, f: dict) -> Outcome:
         """New gains for this vehicle from their tick (the gains rule: cdus.commands.gains)."""
         a, tick = self.agent, f["tick"]
-        cmd = Gains.parse({"gains": f["gains"], "vehicle": a.id})
-        done = cmd if isinstance(cmd, Rejected) else cmd.apply(a.node, tick, a.scenario.gain_context(a.id))
+        context = a.scenario.gain_context(a.id)
+        cmd, done = self._carry_out(Gains, {"gains": f["gains"], "vehicle": a.id}, tick, context)
         if isinstance(done, Rejected):
             return refused("bad_gains_command", f"gains command rejected: {done}")
         v = a.node.vehicle
@@ -202,8 +207,7 @@ class Control:
     def _formation(self, f: dict) -> Outcome:
         """New phases from their tick (checked as the world and the config check them)."""
         a, tick = self.agent, f["tick"]
-        cmd = Formation.parse({"phases": f["phases"]})
-        done = cmd if isinstance(cmd, Rejected) else cmd.apply(a.node, tick, a.ids)
+        cmd, done = self._carry_out(Formation, {"phases": f["phases"]}, tick, a.ids)
         if isinstance(done, Rejected):
             return refused("bad_formation_command", f"formation command rejected: {done}")
         a.log(f"formation phases {printable(dict(cmd.phases), 200)} from tick {tick}")
@@ -218,8 +222,7 @@ class Control:
     def _path(self, f: dict) -> Outcome:
         """A new path for this vehicle from its tick (checked as the config's paths are)."""
         a, tick = self.agent, f["tick"]
-        cmd = Path.parse({"vehicle": f["vehicle"], "path": f["path"]})
-        done = cmd if isinstance(cmd, Rejected) else cmd.apply(a.node, tick, a.ids)
+        cmd, done = self._carry_out(Path, {"vehicle": f["vehicle"], "path": f["path"]}, tick, a.ids)
         if isinstance(done, Rejected):
             return refused("bad_path_command", f"path command rejected: {done}")
         a.log(f"path {printable(f['path'], 200)} from tick {tick}")
@@ -228,8 +231,7 @@ class Control:
     def _radio(self, f: dict) -> Outcome:
         """A run-time radio change (tx_power, station) for messages sent from ``at`` on."""
         a, at = self.agent, f["at"]
-        cmd = Radio.parse({"radio": f["radio"], "at": at})
-        done = cmd if isinstance(cmd, Rejected) else cmd.apply(a.node, at)
+        cmd, done = self._carry_out(Radio, {"radio": f["radio"], "at": at}, at)
         if isinstance(done, Rejected):
             return refused("bad_radio_command", f"radio command rejected: {done}")
         a.log(f"radio changed from t = {at:.2f} s: {printable(f['radio'], 200)}")

@@ -250,8 +250,8 @@ class CommandHandlers:
             return self._refuse(sender, "formation", "formation", late)
         sc = self.scenario
         resolved = c.resolve(self.ids, self.recorder.formation.phases_at(tick), sc.edges, sc.directed)
-        if isinstance(resolved, Rejected):  # an offsets cycle's reason names the fix: kept whole in a reply
-            why = str(resolved) if len(str(resolved)) <= MAX_REASON else resolved.reason
+        if isinstance(resolved, Rejected):  # offsets that do not close: the reason names the cycle and the fix
+            why = resolved.reason if resolved.field == "offsets" else str(resolved)
             return self._refuse(sender, "formation", "formation", why)
         ordered = list(resolved.phases)
         self.recorder.formation.add(tick, {self.index[vid]: theta for vid, theta in ordered})

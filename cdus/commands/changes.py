@@ -14,7 +14,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, ClassVar, Mapping, Sequence
 
-from cdus.commands.base import Applied, Names, Rejected, _shown, freeze, keyed_table, taken, thaw, unknown_keys, vehicle_id
+from cdus.commands.base import (Applied, Names, Rejected, _shown, freeze, keyed_table, taken, thaw, unknown_keys,
+                                vehicle_id)
 from cdus.scenario.config import nesting_problem
 from cdus.scenario.events import check_offsets, check_path, check_phases, offsets_to_phases
 from cdus.wire.bounds import BOUNDS

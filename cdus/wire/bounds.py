@@ -30,7 +30,8 @@ def finite(x: object) -> bool:
     (bench/shape.py finds any other)."""
     if not isinstance(x, (int, float)) or isinstance(x, bool):
         return False
-    return math.isfinite(x) if isinstance(x, float) else abs(x) <= _MAX_FLOAT  # 10**400: no float, no crash
+    # an int is finite unless too large for a float (10**400: math.isfinite would raise)
+    return math.isfinite(x) if isinstance(x, float) else abs(x) <= _MAX_FLOAT
 
 
 def is_number(x: object) -> bool:
