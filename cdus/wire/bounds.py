@@ -26,8 +26,8 @@ _MAX_FLOAT = sys.float_info.max
 
 def finite(x: object) -> bool:
     """A finite real number: an int or a float, never a bool (True is an int to Python), never
-    nan or ±inf, never an int too large for a float. With :func:`is_number`, the one place "a number, not a bool" is written
-    (bench/shape.py finds any other)."""
+    nan or ±inf, never an int too large for a float. With :func:`is_number`, the one place "a
+    number, not a bool" is written (bench/shape.py finds any other)."""
     if not isinstance(x, (int, float)) or isinstance(x, bool):
         return False
     # an int is finite unless too large for a float (10**400: math.isfinite would raise)
