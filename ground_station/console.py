@@ -10,7 +10,6 @@ time, kill, pause, resume or restart a vehicle (the launcher carries those out).
 from __future__ import annotations
 
 import json
-import math
 import os
 import re
 import socket
@@ -24,7 +23,7 @@ import zenoh
 
 from cdus.wire import keys
 from cdus.wire.access import GROUND_ROLE, ROS2_ROLE
-from cdus.wire.bounds import finite
+from cdus.wire.bounds import finite, is_number
 from cdus.wire.transport import Transport, endpoint_host, open_session
 from cdus.wire.rejected import Rejected
 from cdus.wire.messages import StateMsg, decode_states, encode_control
@@ -50,9 +49,9 @@ def num(x: Any, spec: str = ".3f", none: str = "-") -> str:
     huge), ``nan``/``inf`` as they are, anything else (a string, a list) escaped and marked ``?``."""
     if x is None:
         return none
-    if isinstance(x, bool) or not isinstance(x, (int, float)):
+    if not is_number(x):
         return "?" + printable(repr(x), 24)
-    if not math.isfinite(x):
+    if not finite(x):
         return str(float(x))
     return format(x, spec) if abs(x) < BIG else f"{x:.3g}"
 
@@ -581,4 +580,4 @@ class GroundStation:
 
 def _json_num(x: float) -> float | None:
     """A number for JSON: a finite float, else null (the decoders let only finite ones through)."""
-    return float(x) if isinstance(x, (int, float)) and math.isfinite(x) else None
+    return float(x) if finite(x) else None

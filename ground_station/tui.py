@@ -19,7 +19,6 @@ through :func:`send_command`, the one place the console sends (an acknowledged c
 
 from __future__ import annotations
 
-import math
 import time
 from collections import Counter
 from dataclasses import replace
@@ -38,6 +37,7 @@ from textual.widgets import DataTable, Footer, RichLog, Static
 from cdus.commands.base import Rejected
 from cdus.commands.parse import parse_cli, parse_event
 from cdus.wire import keys
+from cdus.wire.bounds import finite
 from cdus.wire.schemas import FleetEvent
 from cdus.wire.status import WorldStatus
 from ground_station.alarms import Alarms
@@ -136,7 +136,7 @@ def snapshot(view: Any) -> dict[str, Any]:
         header = "no status from the world yet"
     if rejected:
         header += f"   ({rejected} malformed messages ignored)"
-    telemetry_t = {v: m.t for v, m in states.items() if v in ids and isinstance(m.t, float) and math.isfinite(m.t)}
+    telemetry_t = {v: m.t for v, m in states.items() if v in ids and finite(m.t)}
     now = max(telemetry_t.values(), default=None)
     return {"world": w, "header": header, "rows": rows, "edges": edges, "links": (w.links if w else None) or [],
             "events": events, "alive": alive, "now": now, "heard": telemetry_t, "tokens_in": tokens_in, "over": over}

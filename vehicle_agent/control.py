@@ -7,8 +7,9 @@ decoded (cdus.wire.messages.decode_control), range-checked (:func:`ctl_problem`)
 intake counts a refusal from that value. A numbered command (``seq``) applies once however often
 it is heard, and only a command applied uses its number.
 
-This module is the agent's one door for control messages: wiring it to typed commands
-(cdus.commands) is a change here alone.
+This module is the agent's one door for control messages. A run-time command is parsed into its
+typed command and applied by it (cdus.commands: the gains rule, the path and phase checks, the
+link merge are the world's and a ground station's own); its outcome is returned, not counted.
 """
 
 from __future__ import annotations
@@ -17,13 +18,14 @@ import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Callable
 
-from cdus.core.events import RosterChange, event_tick
-from cdus.core.node import gains_problem
-from cdus.scenario.config import ConfigError, nesting_problem
-from cdus.scenario.events import check_path, check_phases
-from cdus.scenario.link import merge_link_tables, validate_link
-from cdus.sim.radio import apply_radio_change, radio_change_problem
+from cdus.commands.changes import Formation, Path
+from cdus.commands.gains import Gains
+from cdus.commands.link import Link
+from cdus.commands.radio import Radio
+from cdus.core.events import RosterChange
+from cdus.scenario.config import nesting_problem
 from cdus.wire.messages import CTL_OPS, MAX_LINK_AT, decode_control
+from cdus.wire.rejected import Rejected
 from cdus.wire.text import printable
 
 if TYPE_CHECKING:
@@ -170,53 +172,45 @@ class Control:
         return APPLIED
 
     # ------------------------------------------------------------------ run-time commands
+    # Each is parsed into its typed command (cdus.commands: the same parse and rules as the world's
+    # and a ground station's) and applied to the node by the command; its outcome is the value.
     def _link(self, f: dict) -> Outcome:
         """Merge the table over the current [link] table (sub-tables key by key: ``delay.jitter``
         keeps ``delay.base``); it applies to messages sent from ``at`` on. A ``policy`` or
         ``timeout`` in it changes the stale-neighbour policy from the first tick at or after ``at``."""
-        a, table = self.agent, f["link"]
-        merged = merge_link_tables(self.link_table, table)
-        try:
-            spec = validate_link(merged, a.ids, "link command")
-        except (ConfigError, ValueError) as e:
-            return refused("bad_link_command", f"link command rejected: {e}")
-        done = a.node.set_link(spec, f["at"])
-        if not done:
-            return refused("bad_link_command", f"link command rejected: {done.reason}")
-        at = done.at
-        if "policy" in table or "timeout" in table:
-            policy = a.node.set_policy(spec.policy, spec.timeout, event_tick(at, a.period))
-            if not policy:
-                return refused("bad_link_command", f"link command rejected: {policy.reason}")
-        self.link_table = merged
-        a.log(f"link faults changed from t = {at:.2f} s: {table}")
+        a = self.agent
+        cmd, done = self._carry_out(Link, {"link": f["link"], "at": f["at"]}, f["at"], (self.link_table, a.ids))
+        if isinstance(done, Rejected):
+            return refused("bad_link_command", f"link command rejected: {_why(done, 'link')}")
+        self.link_table = cmd.merged(self.link_table, a.ids)
+        a.log(f"link faults changed from t = {done.at:.2f} s: {f['link']}")
         return APPLIED
 
+    def _carry_out(self, cls: type, fields: dict, when: float, context: object = None) -> tuple:
+        """``fields`` parsed into the command ``cls`` and applied to the node from ``when`` (a
+        tick, or a time for link and radio): (the command, its Applied or Rejected)."""
+        cmd = cls.parse(fields)
+        return cmd, cmd if isinstance(cmd, Rejected) else cmd.apply(self.agent.node, when, context)
+
     def _gains(self, f: dict) -> Outcome:
-        a, gains, tick = self.agent, f["gains"], f["tick"]
+        """New gains for this vehicle from their tick (the gains rule: cdus.commands.gains)."""
+        a, tick = self.agent, f["tick"]
+        context = a.scenario.gain_context(a.id)
+        cmd, done = self._carry_out(Gains, {"gains": f["gains"], "vehicle": a.id}, tick, context)
+        if isinstance(done, Rejected):
+            return refused("bad_gains_command", f"gains command rejected: {done}")
         v = a.node.vehicle
-        problem = gains_problem(gains, v.dim, **a.scenario.gain_context(a.id))  # as the world checked
-        if problem is not None:
-            return refused("bad_gains_command", f"gains command rejected: {problem}")
-        k = gains.get("k", v.k)
-        k = tuple(float(x) for x in k) if isinstance(k, (list, tuple)) else (float(k),) * v.dim
-        c = float(gains.get("c", v.c))
-        done = a.node.set_gains(k, c, tick)
-        if not done:
-            return refused("bad_gains_command", f"gains command rejected: {done.reason}")
-        a.log(f"gains k = {tuple(k)}, c = {c} from tick {tick}{self._too_late(tick)}")
+        k, c = cmd.for_vehicle(v.dim, tuple(v.k), v.c)
+        a.log(f"gains k = {k}, c = {c} from tick {tick}{self._too_late(tick)}")
         return APPLIED
 
     def _formation(self, f: dict) -> Outcome:
         """New phases from their tick (checked as the world and the config check them)."""
         a, tick = self.agent, f["tick"]
-        checked = check_phases(f["phases"], a.ids)
-        if isinstance(checked, tuple):
-            return refused("bad_formation_command", f"formation command rejected: {' '.join(checked)}")
-        done = a.node.set_formation({a.ids.index(vid): theta for vid, theta in checked.items()}, tick)
-        if not done:
-            return refused("bad_formation_command", f"formation command rejected: {done.reason}")
-        a.log(f"formation phases {printable(checked, 200)} from tick {tick}")
+        cmd, done = self._carry_out(Formation, {"phases": f["phases"]}, tick, a.ids)
+        if isinstance(done, Rejected):
+            return refused("bad_formation_command", f"formation command rejected: {done}")
+        a.log(f"formation phases {printable(dict(cmd.phases), 200)} from tick {tick}")
         return APPLIED
 
     def _too_late(self, tick: int) -> str:
@@ -227,27 +221,23 @@ class Control:
 
     def _path(self, f: dict) -> Outcome:
         """A new path for this vehicle from its tick (checked as the config's paths are)."""
-        a, table, tick = self.agent, f["path"], f["tick"]
-        path = check_path(table, a.node.vehicle.dim)
-        if isinstance(path, tuple):
-            return refused("bad_path_command", f"path command rejected: {' '.join(path)}")
-        done = a.node.set_path(path, tick)
-        if not done:
-            return refused("bad_path_command", f"path command rejected: {done.reason}")
-        a.log(f"path {printable(table, 200)} from tick {tick}")
+        a, tick = self.agent, f["tick"]
+        cmd, done = self._carry_out(Path, {"vehicle": f["vehicle"], "path": f["path"]}, tick, a.ids)
+        if isinstance(done, Rejected):
+            return refused("bad_path_command", f"path command rejected: {done}")
+        a.log(f"path {printable(f['path'], 200)} from tick {tick}")
         return APPLIED
 
     def _radio(self, f: dict) -> Outcome:
         """A run-time radio change (tx_power, station) for messages sent from ``at`` on."""
-        a, change, at = self.agent, f["radio"], f["at"]
-        radio = a.node.radio
-        problem = "this scenario has no [radio] table" if radio is None else radio_change_problem(change)
-        if problem is None:
-            try:
-                apply_radio_change(radio.channel, change, at)
-            except ValueError as e:
-                problem = str(e)
-        if problem is not None:
-            return refused("bad_radio_command", f"radio command rejected: {problem}")
-        a.log(f"radio changed from t = {at:.2f} s: {printable(change, 200)}")
+        a, at = self.agent, f["at"]
+        cmd, done = self._carry_out(Radio, {"radio": f["radio"], "at": at}, at)
+        if isinstance(done, Rejected):
+            return refused("bad_radio_command", f"radio command rejected: {done}")
+        a.log(f"radio changed from t = {at:.2f} s: {printable(f['radio'], 200)}")
         return APPLIED
+
+
+def _why(r: Rejected, prefix: str) -> str:
+    """A refusal with its field named inside the command's table (``link.delay.base``)."""
+    return str(r.under(prefix)) if r.field and not r.field.startswith(prefix) else str(r)

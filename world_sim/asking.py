@@ -206,15 +206,7 @@ class Asking:
             pass  # the launcher's own, whatever the run's state
         elif self.stop_requested or self.finished:
             return c.op, by, Verdict.no("the run is over" if self.finished else "the run is stopping")
-        handler = self.command_handlers.get(c.op)
-        if handler is None:
-            self._reject(sender, "unknown_op")
-            return c.op, by, Verdict.no(f"this world does not carry out {c.op!r}")
-        self._command_ref, self._current_op = ref, c.op
-        try:
-            out = handler(c.fields, by)
-        finally:
-            self._command_ref, self._current_op = None, ""
+        out = self.carry_out(c.op, c.fields, by, ref)  # world_sim.commands: parsed, then its handler
         if out is LATER:  # decided later; with nobody waiting, said applied from the next tick
             return c.op, by, LATER if ref is not None else Verdict(True, out.reason, self._effect_tick())
         if out is None:

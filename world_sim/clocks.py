@@ -27,6 +27,8 @@ from collections import deque
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+from cdus.commands.effect import LEAD_S, effect_tick, lead_ticks
+from cdus.commands.vehicle import BY_EVENT as FAULT_BY_EVENT, BY_OP as FAULT_BY_OP
 from cdus.core.events import RosterChange
 from cdus.sim.lockstep import CatchUp, Decided, Fault, Grant, Join, RadioSample, Roster, Sense, horizon_window
 from cdus.sim.reports import vehicle_back, vehicle_lost
@@ -56,7 +58,7 @@ RT_FAULT_CONFIRM = 5.0
 #: applies from the tick this far (s) ahead of the wall clock's, so that every vehicle hears it
 #: before it steps that tick (the next tick was too soon: a vehicle that had stepped it applied
 #: the change a tick or more later than the others)
-EFFECT_LEAD_S = 0.5
+EFFECT_LEAD_S = LEAD_S  # s of simulated time a realtime change is sent ahead (cdus.commands.effect)
 LINK_LEAD = EFFECT_LEAD_S  # s of simulated time between a link command and when it applies, if not given
 #: realtime: telemetry may be this far (s) ahead of the world's own clock (clock skew between
 #: hosts, a batch sent at once); beyond it, a row is from a tick nobody can have stepped yet
@@ -121,7 +123,7 @@ class LockstepClock:
 
     def effect_tick(self) -> int:
         """The first tick a run-time change applies from on every vehicle: one nobody was granted."""
-        return self.ls.granted + 1
+        return effect_tick(self.ls.granted, 1)
 
     def sim_now(self) -> float:
         """The fleet's present in simulated seconds: the newest tick recorded."""
@@ -239,8 +241,7 @@ class LockstepClock:
                 w._send_geometry(a.tick, w._radio_rows.pop(a.tick, {}))
             elif isinstance(a, Fault):
                 self.fault_since = time.monotonic()
-                w._note_fault(w.ids[a.vehicle], {"pause_vehicle": "pause", "resume_vehicle": "resume"}.get(
-                    a.op, a.op))
+                w._note_fault(w.ids[a.vehicle], FAULT_BY_OP[a.op].NAMES.event)
                 w.pub_launcher.put(encode_control(a.op, vehicle=w.ids[a.vehicle]))
             elif isinstance(a, FleetEvent):
                 w._note(a)
@@ -356,7 +357,7 @@ class RealtimeClock:
     def effect_tick(self) -> int:
         """The first tick a run-time change applies from on every vehicle: EFFECT_LEAD_S ahead of
         the wall clock's (at least the next)."""
-        return self.tick_now() + max(1, math.ceil(EFFECT_LEAD_S / self.w.period))
+        return effect_tick(self.tick_now(), lead_ticks(self.w.period, EFFECT_LEAD_S))
 
     def sim_now(self) -> float:
         """The fleet's present in simulated seconds: the wall clock's tick."""
@@ -532,7 +533,7 @@ class RealtimeClock:
         w = self.w
         while self.faults_due and self.faults_due[0].at <= now:
             ev = self.faults_due.pop(0)
-            op = {"pause": "pause_vehicle", "resume": "resume_vehicle"}.get(ev.action, ev.action)
+            op = FAULT_BY_EVENT[ev.action].NAMES.op
             w.pub_launcher.put(encode_control(op, vehicle=ev.vehicle))
             # its fault_done must not answer a ground station's fault asked after it
             self.asked.setdefault(ev.vehicle, deque()).append((None, ev.action, time.monotonic() + RT_FAULT_CONFIRM))

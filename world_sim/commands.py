@@ -1,25 +1,32 @@
 """What does each run-time command do to the run?
 
-One handler per command op (:meth:`CommandHandlers.handlers`): each checks its fields as the
-agents would, computes the tick it applies from with the clock's one rule (``effect_tick``,
-docs/ground_station.md), relays it to the vehicles (numbered, kept for (re)joiners and
-world/settings) and returns its verdict (world_sim.verdict): Verdict, a reason string
-(rejected), or LATER (decided when its tick comes)."""
+A command's op and fields are parsed once into a typed command (cdus.commands.parse.parse_wire:
+the same parse as a ground station's and a scenario event's), a refusal counted and answered
+(:meth:`CommandHandlers.carry_out`); then one handler per command type
+(:meth:`CommandHandlers.handlers`) checks it against this fleet as the agents would, computes
+the tick it applies from with the clock's one rule (``effect_tick``, cdus.commands.effect),
+relays it to the vehicles (numbered, kept for (re)joiners and world/settings) and returns its
+verdict (world_sim.verdict): Verdict, a reason string (rejected), or LATER (decided when its
+tick comes)."""
 
 from __future__ import annotations
 
 import math
 from typing import Any, Callable, NamedTuple
 
-from cdus.core.node import gains_problem
-from cdus.scenario.config import ConfigError, nesting_problem
-from cdus.scenario.events import check_offsets, check_path, check_phases, offsets_to_phases
-from cdus.scenario.link import merge_link_tables, validate_link
-from cdus.sim.radio import apply_radio_change, radio_change_problem
+from cdus.commands.changes import Formation, Path
+from cdus.commands.fleet import Pause, Resume, Stop
+from cdus.commands.gains import Gains
+from cdus.commands.link import Link
+from cdus.commands.parse import BY_OP, parse_wire
+from cdus.commands.radio import Radio
+from cdus.commands.vehicle import VEHICLE_FAULTS, Kill, PauseVehicle, Restart, ResumeVehicle
+from cdus.sim.radio import apply_radio_change
 from cdus.sim.reports import formation_changed, path_changed
 from cdus.wire import keys
 from cdus.wire.messages import MAX_LINK_AT, encode_control
 from cdus.wire.schemas import FleetEvent, MAX_REASON
+from cdus.wire.rejected import Rejected
 from cdus.wire.text import printable
 from world_sim.clocks import LINK_LEAD
 from world_sim.verdict import Verdict
@@ -39,16 +46,32 @@ class CommandHandlers:
     """The World's command handlers, one per op, and the run-time changes they relayed (a mixin
     of World)."""
 
-    def handlers(self) -> dict[str, Callable[[dict, str], Any]]:
-        """op -> handler(fields, by) -> Verdict | reason str | None | LATER (world_sim.verdict):
-        the one table the world dispatches commands by (other parts may add theirs)."""
+    def handlers(self) -> dict[type, Callable[[Any, str, int | None], Any]]:
+        """command type -> handler(command, by, ref) -> Verdict | reason str | None | LATER
+        (world_sim.verdict; ``ref``: the asking query's, None if nobody waits): the one table
+        the world dispatches commands by (other parts may add theirs)."""
         return {
-            "stop": self._cmd_stop, "pause": self._cmd_pause, "resume": self._cmd_resume,
-            "set_gains": self._cmd_gains, "gains": self._cmd_gains, "link": self._cmd_link, "fault_done": self._cmd_fault_done,
-            "formation": self._relay_formation, "path": self._relay_path, "radio": self._cmd_radio,
-            "kill": self._cmd_vehicle_fault, "pause_vehicle": self._cmd_vehicle_fault,
-            "resume_vehicle": self._cmd_vehicle_fault, "restart": self._cmd_vehicle_fault,
+            Stop: self._cmd_stop, Pause: self._cmd_pause, Resume: self._cmd_resume, Gains: self._cmd_gains,
+            Link: self._cmd_link, Formation: self._relay_formation, Path: self._relay_path, Radio: self._cmd_radio,
+            **{fault: self._cmd_vehicle_fault for fault in VEHICLE_FAULTS},
         }
+
+    def carry_out(self, op: str, fields: dict, by: str, ref: int | None = None) -> Any:
+        """A decoded command map's ``op`` and ``fields`` from ``by``, carried out: parsed into its
+        type (a refusal counted under the command's op, or ``unknown_op``, and answered), then
+        handed to its handler. ``fault_done`` is the launcher's word, not a command."""
+        if op == "fault_done":
+            return self._cmd_fault_done(fields, by)
+        command = parse_wire(op, fields)
+        if isinstance(command, Rejected):
+            kind = BY_OP.get(op)
+            return self._refuse(by, kind.NAMES.op if kind is not None else "unknown_op", f"{op} command",
+                                str(command))
+        handler = self.command_handlers.get(type(command))
+        if handler is None:
+            self._reject(by, "unknown_op")
+            return f"this world does not carry out {op!r}"
+        return handler(command, by, ref)
 
     def _effect_tick(self) -> int:
         """The first tick a run-time change applies from, on every vehicle alike: the clock's one
@@ -61,7 +84,7 @@ class CommandHandlers:
         earliest = self._effect_tick() * self.period
         return max(at, earliest) if at >= 0 else max(self._sim_now() + LINK_LEAD, earliest)
 
-    def _cmd_stop(self, f: dict, by: str) -> Verdict | str:
+    def _cmd_stop(self, c: Stop, by: str, ref: int | None = None) -> Verdict | str:
         if self.stop_requested:
             return "the run is stopping"
         # the launcher asks only when it was interrupted (Ctrl-C, SIGTERM); anyone else's stop is an operator's
@@ -83,69 +106,68 @@ class CommandHandlers:
             self.clock.fault_done(f["vehicle"])
         return Verdict(True, "", max(0, self.lockstep.granted))
 
-    def _cmd_pause(self, f: dict, by: str) -> Verdict | str | None:
+    def _cmd_pause(self, c: Pause, by: str, ref: int | None = None) -> Verdict | str | None:
         return self._fleet_pause(True, by)
 
-    def _cmd_resume(self, f: dict, by: str) -> Verdict | str | None:
+    def _cmd_resume(self, c: Resume, by: str, ref: int | None = None) -> Verdict | str | None:
         return self._fleet_pause(False, by)
 
-    def _cmd_gains(self, f: dict, by: str) -> Verdict | str:
-        return self._relay_gains(f["gains"], f["vehicle"], by)
+    def _cmd_gains(self, c: Gains, by: str, ref: int | None = None) -> Verdict | str:
+        return self._relay_gains(c, by)
 
-    def _cmd_link(self, f: dict, by: str) -> Verdict | str:
-        if f["at"] >= self.duration:  # it would be answered "applied" and never apply
+    def _cmd_link(self, c: Link, by: str, ref: int | None = None) -> Verdict | str:
+        asked = -1.0 if c.at is None else c.at
+        if asked >= self.duration:  # it would be answered "applied" and never apply
             return self._refuse(by, "link", "link command",
-                                f"--at {f['at']:g} s is not before the end of the run ({self.duration:g} s): "
+                                f"--at {asked:g} s is not before the end of the run ({self.duration:g} s): "
                                 "it would change nothing; give a time within the run")
-        merged = merge_link_tables(self._link_table, f["link"])
-        try:  # the agents' own checks, made before relaying: a change they would refuse is no change
-            if f["at"] > MAX_LINK_AT:
-                raise ValueError(f"link command: at = {f['at']:.6g} s is beyond the latest time a link change "
-                                 f"may name ({MAX_LINK_AT:g} s of simulated time)")
-            validate_link(merged, self.ids, "link command")
-        except (ConfigError, ValueError) as e:
-            self._reject(by, "link")
-            self._note(FleetEvent.of(self._sim_now(), "rejected",
-                                     f"link command from {printable(by, 64)}: {printable(str(e), 200)}"))
-            return printable(str(e), 280)
+        if asked > MAX_LINK_AT:
+            return self._refuse(by, "link", "link command",
+                                f"link command: at = {asked:.6g} s is beyond the latest time a link change "
+                                f"may name ({MAX_LINK_AT:g} s of simulated time)")
+        # the agents' own check, made before relaying: a change they would refuse is no change
+        merged = c.merged(self._link_table, self.ids)
+        if isinstance(merged, Rejected):
+            return self._refuse(by, "link", "link command", str(merged))
         # Never before the effect tick (what a vehicle may already have sent), so every receiver
         # applies it from the same message on; a past --at means "now".
-        at = self._effect_time(f["at"])
+        at = self._effect_time(asked)
         late = self._never_applies(max(0, math.ceil(at / self.period - 1e-9)))
         if late:
             return self._refuse(by, "link", "link command", late)
         self._link_table = merged
-        self._send_command(None, None, "link", link=f["link"], at=float(at))
+        change = c.link_table()
+        self._send_command(None, None, c.NAMES.op, link=change, at=float(at))
         self.st.link_commanded = True
         self._note(FleetEvent.of(self._sim_now(), "link_changed",
-                                 f"link faults changed from t = {at:.2f} s by {by}: {printable(f['link'], 200)}"),
+                                 f"link faults changed from t = {at:.2f} s by {by}: {printable(change, 200)}"),
                    by_command=True)
-        late = (f"t = {f['at']:g} s asked had passed: from the first time every receiver can take it"
-                if 0 <= f["at"] < at else "")
+        late = (f"t = {asked:g} s asked had passed: from the first time every receiver can take it"
+                if 0 <= asked < at else "")
         return Verdict(True, late, max(0, math.ceil(at / self.period - 1e-9)), float(at))
 
-    def _cmd_vehicle_fault(self, f: dict, by: str) -> Verdict | str:
-        """kill | pause_vehicle | resume_vehicle | restart, by the op in the fields' command."""
-        vid = f["vehicle"]
+    def _cmd_vehicle_fault(self, c: Kill | PauseVehicle | ResumeVehicle | Restart, by: str,
+                           ref: int | None = None) -> Verdict | str:
+        """kill | pause_vehicle | resume_vehicle | restart: the clock's to carry out, under the
+        command's names (its wire op for the launcher, its event word for the roster and news)."""
+        vid = c.vehicle
         if vid not in self.index:
             self._reject(by, "unknown_vehicle")
             return f"no vehicle {printable(vid, 64)!r} in this fleet (its vehicles: {', '.join(self.ids)})"
-        op = self._current_op
-        action = {"pause_vehicle": "pause", "resume_vehicle": "resume"}.get(op, op)
-        return self.clock.vehicle_fault(vid, action, op, by, self._command_ref)
+        return self.clock.vehicle_fault(vid, c.NAMES.event, c.NAMES.op, by, ref)
 
-    def _relay_radio(self, fields: dict, sender: str) -> Verdict | str | None:
+    def _relay_radio(self, c: Radio, sender: str) -> Verdict | str | None:
         """A ground station's radio change ``{"radio": {tx_power, station}, "at": s}``: checked,
         then relayed to every vehicle with the send time it applies from, never before what a
         vehicle may already have sent (lockstep: past the grant; a past ``at`` means as soon as
         possible), like a link command. The verdict (applied from that time), else why it was not."""
-        change = fields["radio"]
+        change, asked = c.change(), -1.0 if c.at is None else c.at
         if self.radio is None:
             return "this scenario has no [radio] table"
-        problem = radio_change_problem(change, self.radio_watch.channel.spec.topology)
+        problem = c.topology_problem(self.radio_watch.channel.spec.topology)
         if problem is not None:
-            return problem
-        at = self._effect_time(fields["at"])
+            return str(problem)
+        at = self._effect_time(asked)
         end = self.last_tick * self.period
         if at > end:  # it would never apply, and epochs go in time order: it would refuse every later change
             return (f"--at {at:g} s is past the run's end (t = {end:g} s): it would never apply; give --at "
@@ -154,29 +176,36 @@ class CommandHandlers:
         if at < later:  # changes apply in time order (epochs): a scheduled or earlier command's comes later
             return (f"a radio change from t = {later:g} s is already in force later (scheduled or commanded); "
                     f"give --at {later:g} or later")
-        self._send_command(None, None, "radio", radio=change, at=float(at))
+        self._send_command(None, None, c.NAMES.op, radio=change, at=float(at))
         if self.radio_watch is not None:
             apply_radio_change(self.radio_watch.channel, change, float(at))
         self._note(FleetEvent.of(self._sim_now(), "radio_changed",
                                  f"radio changed from t = {at:.2f} s by {printable(sender, 64)}: "
                                  f"{printable(change, 200)}"), by_command=True)
-        late = (f"t = {fields['at']:g} s asked had passed: from the first time every vehicle can take it"
-                if 0 <= fields["at"] < at else "")
+        late = (f"t = {asked:g} s asked had passed: from the first time every vehicle can take it"
+                if 0 <= asked < at else "")
         return Verdict(True, late, max(0, math.ceil(at / self.period - 1e-9)), float(at))
 
-    def _cmd_radio(self, f: dict, by: str) -> Verdict | str:
+    def _cmd_radio(self, c: Radio, by: str, ref: int | None = None) -> Verdict | str:
         """The ``radio`` command: relayed (:meth:`_relay_radio`) or refused, counted and reported."""
-        out = self._relay_radio(f, by)
+        out = self._relay_radio(c, by)
         if isinstance(out, str):
             self._reject(by, "radio")
             self._note(FleetEvent.of(self._sim_now(), "rejected",
                                      f"radio command from {printable(by, 64)}: {printable(out, 200)}"))
         return out
 
-    def _relay_gains(self, gains: dict, vehicle: str, sender: str) -> Verdict | str:
+    def _relay_gains(self, c: Gains, sender: str) -> Verdict | str:
+        """A gains change for one vehicle or all, checked for each (the gains rule,
+        cdus.commands.gains.Gains.for_vehicle, as each agent checks it), relayed with its tick."""
+        vehicle, gains = c.vehicle or "", c.fields()["gains"]
         targets = self.ids if vehicle == "" else [vehicle] if vehicle in self.index else []
-        problems = {gains_problem(gains, self.scenario.vehicle(v).dim, **self.scenario.gain_context(v))
-                    for v in targets} - {None}
+        problems = set()
+        for v in targets:
+            spec = self.scenario.vehicle(v)
+            kc = c.for_vehicle(spec.dim, tuple(spec.k), spec.c, **self.scenario.gain_context(v))
+            if isinstance(kc, Rejected):
+                problems.add(str(kc))
         if not targets or problems:  # all or nothing: no fleet with gains half changed
             self._reject(sender, "gains")
             why = f"no vehicle {printable(vehicle, 64)!r}" if not targets else printable("; ".join(sorted(problems)))
@@ -187,7 +216,7 @@ class CommandHandlers:
         late = self._never_applies(tick)
         if late:
             return self._refuse(sender, "gains", f"gains {printable(gains, 120)}", late)
-        self._send_command(targets, vehicle or None, "gains", gains=gains, tick=tick)
+        self._send_command(targets, vehicle or None, c.NAMES.op, gains=gains, tick=tick)
         self._note(FleetEvent.of(tick * self.period, "gains_changed",
                                  f"gains {gains} for {vehicle or 'every vehicle'} from tick {tick} by {sender}"),
                    by_command=True)
@@ -209,55 +238,42 @@ class CommandHandlers:
                                  f"{what} from {printable(sender, 64)}: {printable(why, 200)}"))
         return printable(why, MAX_REASON)  # the ground station's reply keeps all a reply may hold
 
-    def _relay_formation(self, fields: dict, sender: str) -> Verdict | str:
+    def _relay_formation(self, c: Formation, sender: str, ref: int | None = None) -> Verdict | str:
         """A ground station's formation change: phases ``{id: θ}`` or offsets ``[{i, k, delta}]``
         (exactly one), checked as the config's are (offsets with the Δs in force on the other
         edges must close around every cycle) and turned into phases, relayed to every vehicle
         with the tick they apply from (:meth:`_effect_tick`), and measured against from that
         tick. Returns the verdict (applied from that tick), else the reason it was refused."""
-        phases, offsets = fields["phases"], fields["offsets"]
-        if bool(phases) == bool(offsets):
-            return self._refuse(sender, "formation", "formation", "give either phases or offsets (exactly one)")
         tick = self._effect_tick()
         late = self._never_applies(tick)
         if late:
             return self._refuse(sender, "formation", "formation", late)
         sc = self.scenario
-        if phases:
-            checked = check_phases(phases, self.ids)
-            if isinstance(checked, tuple):
-                where = f"phases.{checked[0]}" if checked[0] else "phases"
-                return self._refuse(sender, "formation", "formation", f"{where}: {checked[1]}")
-        else:
-            given = check_offsets(offsets, self.ids, sc.edges, sc.directed)
-            if isinstance(given, tuple):
-                return self._refuse(sender, "formation", "formation", f"offsets{given[0]}: {given[1]}")
-            checked = offsets_to_phases(self.ids, self.recorder.formation.phases_at(tick), sc.edges, given,
-                                        sc.directed)
-            if isinstance(checked, str):
-                return self._refuse(sender, "formation", "formation", checked)
-        ordered = [(vid, checked[vid]) for vid in self.ids if vid in checked]
+        resolved = c.resolve(self.ids, self.recorder.formation.phases_at(tick), sc.edges, sc.directed)
+        if isinstance(resolved, Rejected):  # offsets that do not close: the reason names the cycle and the fix
+            why = resolved.reason if resolved.field == "offsets" else str(resolved)
+            return self._refuse(sender, "formation", "formation", why)
+        ordered = list(resolved.phases)
         self.recorder.formation.add(tick, {self.index[vid]: theta for vid, theta in ordered})
         for lo in range(0, len(ordered), 32):  # a control map holds at most 64 entries (decode_control)
-            self._send_command(None, None, "formation", phases=dict(ordered[lo:lo + 32]), tick=tick)
+            self._send_command(None, None, c.NAMES.op, phases=dict(ordered[lo:lo + 32]), tick=tick)
         self._note(formation_changed(tick, self.period, ordered, sender), by_command=True)
         return Verdict(True, "" if ordered else "no phase changed: the offsets given were in force", tick)
 
-    def _relay_path(self, fields: dict, sender: str) -> Verdict | str:
+    def _relay_path(self, c: Path, sender: str, ref: int | None = None) -> Verdict | str:
         """A ground station's new path for one vehicle, checked as the config's paths are, relayed
         to that vehicle with the tick it applies from. Returns the verdict, else the reason."""
-        vid, table = fields["vehicle"], fields["path"]
+        vid, table = c.vehicle, c.path_table()
         if vid not in self.index:
             return self._refuse(sender, "unknown_vehicle", "path", f"no vehicle {printable(vid, 64)!r}")
-        path = "nested too deep" if nesting_problem(table, 2) else check_path(table, self.scenario.vehicle(vid).dim)
-        if isinstance(path, (tuple, str)):
-            why = path if isinstance(path, str) else f"path{'.' + path[0] if path[0] else ''}: {path[1]}"
-            return self._refuse(sender, "path", f"path of {vid}", why)
+        path = c.checked_for(self.scenario.vehicle(vid).dim)
+        if isinstance(path, Rejected):
+            return self._refuse(sender, "path", f"path of {vid}", str(path))
         tick = self._effect_tick()
         late = self._never_applies(tick)
         if late:
             return self._refuse(sender, "path", f"path of {vid}", late)
-        self._send_command([vid], vid, "path", vehicle=vid, path=table, tick=tick)
+        self._send_command([vid], vid, c.NAMES.op, vehicle=vid, path=table, tick=tick)
         self._note(path_changed(tick, self.period, vid, sorted(table.items()), sender), by_command=True)
         return Verdict(True, "", tick)
 

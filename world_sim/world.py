@@ -201,11 +201,9 @@ class World(Intake, Asking, CommandHandlers, Liveness, Reporting, Samples, Finis
         #: events a flood may not multiply (kind -> quota): refused commands, changes made by command
         self._event_quotas = {"rejected": Quota(REJECTED_EVENTS_PER_S, REJECTED_EVENTS_BURST, now),
                               "change": Quota(CHANGE_EVENTS_PER_S, CHANGE_EVENTS_BURST, now)}
-        self._command_ref: int | None = None  # the ref of the command being handled, if it asked
-        self._current_op = ""  # the op of the command being handled
         #: op -> handler(fields, by) -> Verdict | reason str | None | LATER (see Verdict); other
         #: parts add theirs here (formation, path, radio)
-        self.command_handlers: dict[str, Callable[[dict, str], Any]] = self.handlers()
+        self.command_handlers: dict[type, Callable[..., Any]] = self.handlers()
 
     # ------------------------------------------------------------------ wiring
     def open(self) -> None:

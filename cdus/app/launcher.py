@@ -29,7 +29,6 @@ for) and cdus.app.world_lost (the metrics of a lost world); their names import f
 from __future__ import annotations
 
 import json
-import math
 import os
 import secrets
 import shlex
@@ -61,6 +60,7 @@ from cdus.sim.reports import ConsoleQuota
 from cdus.wire import keys
 from cdus.wire.access import ROS2_ROLE
 from cdus.commands.vehicle import VehicleFault
+from cdus.wire.bounds import finite
 from cdus.wire.messages import CTL_OPS, decode_control, encode_control
 from cdus.wire.rejected import Rejected
 from cdus.wire.schemas import STATUS_KEY_ENV, FleetEvent, decode_event, decode_status, encode_event, signed_by
@@ -274,7 +274,7 @@ class Launcher(FaultDispatch, WorldLostMetrics):
             return
         t = st.get("t")
         limit = 2 * (self.opts.duration or self.scenario.duration) + 1.0
-        if not (isinstance(t, (int, float)) and math.isfinite(t) and -1.0 <= t <= limit):  # -T before tick 0
+        if not (finite(t) and -1.0 <= t <= limit):  # -T before tick 0 (True is no time)
             self._reject("status t", f"a world status with t = {printable(t, 40)} (not in [-1, {limit:g}] s)")
             return
         with self.cond:

@@ -11,7 +11,7 @@ from typing import Any, Sequence, TextIO
 
 from cdus.scenario.model import VehicleSpec
 from cdus.sim.runmetrics import Event, Metrics
-from cdus.wire.bounds import finite
+from cdus.wire.bounds import finite, is_number
 from cdus.wire.text import printable
 
 
@@ -72,7 +72,7 @@ class Progress:
 def _fmt(x: Any, spec: str = ".3f", none: str = "never") -> str:
     if x is None:
         return none
-    if isinstance(x, float) and not math.isfinite(x):
+    if is_number(x) and not finite(x):
         return str(x)
     return format(x, spec)
 

@@ -25,6 +25,7 @@ from typing import Any, Iterator, Sequence
 from cdus.files import write_json
 from cdus.scenario.checks import is_number
 from cdus.scenario.config import ConfigError
+from cdus.wire.bounds import finite, is_number
 
 PLOT_FORMATS = ("png", "pdf", "svg")  # --plot-format: sweep.png, or a vector file for a paper (cdus.app.sweepplot)
 
@@ -125,7 +126,7 @@ def cell_label(value: Any) -> Any:
 
 def clean(value: Any) -> Any:
     """A row value as JSON takes it: non-finite floats become None (the row's status says why)."""
-    if isinstance(value, float) and not math.isfinite(value):
+    if is_number(value) and not finite(value):
         return None
     if hasattr(value, "item") and not isinstance(value, (dict, list, str)):  # numpy scalars
         return clean(value.item())

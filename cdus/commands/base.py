@@ -9,12 +9,11 @@ a decoder still takes (``set_gains``). Applying a command gives an :class:`Appli
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any, Mapping
 
 from cdus.scenario.errors import ConfigError
-from cdus.wire.bounds import BOUNDS, finite
+from cdus.wire.bounds import BOUNDS, is_number
 from cdus.wire.rejected import Rejected
 
 
@@ -40,6 +39,15 @@ class Applied:
 
 
 Outcome = Applied | Rejected
+
+
+def taken(done: Any) -> Applied | Rejected:
+    """A node's own outcome (cdus.core.changes: Applied(tick, at) or Refused(reason)) as a
+    command's: the tick (and time) the node took, which may be later than asked (the next tick
+    it steps), or its reason."""
+    if not done:
+        return Rejected(done.reason)
+    return Applied(done.tick, getattr(done, "at", None))
 
 #: a vehicle id as the fleet's keys spell it (cdus.wire.keys.FLEET_RE)
 ID_CHARS = frozenset("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-")
@@ -96,7 +104,7 @@ def unknown_keys(fields: Mapping[str, Any], allowed: tuple[str, ...]) -> Rejecte
 
 def _shown(v: Any) -> str:
     """A value in a refusal: numbers with :g, anything else by repr, cut at 60 characters."""
-    if finite(v) or isinstance(v, float) and not math.isfinite(v):
+    if is_number(v):
         return f"{v:g}"
     text = repr(v)
     return text if len(text) <= 60 else text[:57] + "..."

@@ -14,7 +14,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, ClassVar, Mapping, Sequence
 
-from cdus.commands.base import Applied, Names, Rejected, _shown, freeze, keyed_table, thaw, unknown_keys, vehicle_id
+from cdus.commands.base import (Applied, Names, Rejected, _shown, freeze, keyed_table, taken, thaw, unknown_keys,
+                                vehicle_id)
 from cdus.scenario.config import nesting_problem
 from cdus.scenario.events import check_offsets, check_path, check_phases, offsets_to_phases
 from cdus.wire.bounds import BOUNDS
@@ -105,8 +106,7 @@ class Formation:
         checked = check_phases(dict(self.phases), ids)
         if isinstance(checked, tuple):
             return Rejected(checked[1], "phases" + (f".{checked[0]}" if checked[0] else ""))
-        node.set_formation({ids.index(vid): theta for vid, theta in checked.items()}, tick)
-        return Applied(tick)
+        return taken(node.set_formation({ids.index(vid): theta for vid, theta in checked.items()}, tick))
 
 
 @dataclass(frozen=True)
@@ -160,6 +160,5 @@ class Path:
         path = self.checked_for(node.vehicle.dim)
         if isinstance(path, Rejected):
             return path
-        node.set_path(path, tick)
-        return Applied(tick)
+        return taken(node.set_path(path, tick))
 

@@ -9,7 +9,7 @@ has stepped yet when the change reaches it. What a clock knows is one tick, ``kn
   tick it names, so it applies :data:`LEAD_S` (0.5 s) of simulated time ahead:
   ``lead = lead_ticks(period)`` (at least 1).
 
-The rule is then ``effect_tick(known, lead) = known + lead`` for every command that names a
+The rule is then ``effect_tick(known, lead) = max(0, known + lead)`` for every command that names a
 tick (gains, formation, path), and the first time a change named in simulated time (link,
 radio) can take is that tick's start, ``effect_time``: a time asked that has passed, or none
 asked, becomes it. A tick past the run's last is refused (:func:`never_applies`): it would be
@@ -35,8 +35,9 @@ def lead_ticks(period: float, lead_s: float = LEAD_S) -> int:
 
 def effect_tick(known: int, lead: int) -> int:
     """The first tick a command can change on every vehicle alike, given the tick the clock
-    knows (``known``: lockstep's granted, realtime's now) and its ``lead`` (>= 1)."""
-    return max(0, known) + max(1, lead)
+    knows (``known``: lockstep's granted, -1 before the first grant; realtime's now, negative
+    before the clock starts) and its ``lead`` (>= 1); never before tick 0."""
+    return max(0, known + max(1, lead))
 
 
 def tick_of(at: float, period: float) -> int:

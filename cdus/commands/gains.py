@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, ClassVar, Mapping
 
-from cdus.commands.base import Applied, Names, Rejected, _shown, keyed_table, unknown_keys, vehicle_id
+from cdus.commands.base import Applied, Names, Rejected, _shown, keyed_table, taken, unknown_keys, vehicle_id
 from cdus.core.gain_bounds import gains_problem_for_rate
 from cdus.wire.bounds import BOUNDS
 
@@ -115,5 +115,4 @@ class Gains:
         kc = self.for_vehicle(v.dim, tuple(v.k), v.c, **context)
         if isinstance(kc, Rejected):
             return kc
-        node.set_gains(kc[0], kc[1], tick)
-        return Applied(tick)
+        return taken(node.set_gains(kc[0], kc[1], tick))

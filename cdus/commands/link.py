@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, ClassVar, Mapping, Sequence
 
-from cdus.commands.base import Applied, Names, Rejected, config_rejected, freeze, keyed_table, thaw, when
+from cdus.commands.base import Applied, Names, Rejected, config_rejected, freeze, keyed_table, taken, thaw, when
 from cdus.commands.effect import tick_of
 from cdus.scenario.config import nesting_problem
 from cdus.scenario.errors import ConfigError
@@ -77,10 +77,9 @@ class Link:
         if isinstance(merged, Rejected):
             return merged
         spec = validate_link(merged, list(ids) or None, "link command")
-        try:
-            at = node.set_link(spec, at)
-            if any(k in self.link_table() for k in ("policy", "timeout")):
-                node.set_policy(spec.policy, spec.timeout, tick_of(at, node.period))
-        except ValueError as e:
-            return Rejected(str(e))
-        return Applied(tick_of(at, node.period), at)
+        done = node.set_link(spec, at)
+        if done and any(k in self.link_table() for k in ("policy", "timeout")):
+            policy = node.set_policy(spec.policy, spec.timeout, tick_of(done.at, node.period))
+            if not policy:
+                return taken(policy)
+        return taken(done)

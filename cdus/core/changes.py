@@ -6,7 +6,7 @@ path) at a simulated time, so every runner applies them on the same tick
 (cdus.core.formation). Each returns its outcome: :class:`Applied` (from which tick or time)
 or :class:`Refused` (the reason), never an exception, so the caller (the agent, the
 in-process fleet) reads the outcome of a command from the call, not off a counter.
-:func:`gains_problem` is the check of a gains command's values before they are typed.
+The gains rule a command is checked against before it reaches here is cdus.commands.gains.
 """
 
 from __future__ import annotations
@@ -16,13 +16,11 @@ from dataclasses import dataclass
 
 from cdus.core.events import event_tick
 from cdus.core.formation import FormationSchedule
-from cdus.core.gain_bounds import gains_problem_for_rate
 from cdus.core.linkspec import LinkSpec
 from cdus.core.models import UnknownName
 from cdus.core.neighbours import NeighbourLink
 from cdus.core.paths import Path
 from cdus.core.policies import make_policy
-from cdus.wire.bounds import BOUNDS
 
 
 @dataclass(frozen=True)
@@ -58,19 +56,6 @@ class Refused:
 Outcome = Applied | Refused
 
 
-def gains_problem(gains: dict, dim: int, *, control_hz: float | None = None, plant: str = "ideal",
-                  physics_hz: float | None = None, weight_sum: float = 0.0) -> str | None:
-    """What is wrong with a run-time gains command ``{"k": number | [per axis], "c": number}``
-    for a vehicle of ``dim`` axes (None: nothing). Numbers must be finite and > 0, and, given
-    the vehicle's rates, plant and edge-weight sum, within what the discrete controller takes
-    (cdus.core.gain_bounds: the same bound the scenario's validation applies)."""
-    problem = _gains_shape_problem(gains, dim)
-    if problem is None and control_hz is not None:
-        problem = gains_problem_for_rate(gains.get("k"), gains.get("c"), control_hz, plant=plant,
-                                         physics_hz=physics_hz, weight_sum=weight_sum)
-    return problem
-
-
 def _schedule(changes: list[tuple], change: tuple) -> None:
     """Put ``change`` (a tuple whose first item is the tick it applies from) into ``changes``, kept
     in tick order: appended when it is the latest, as the world's always are (O(1); a sort at each
@@ -95,24 +80,6 @@ def _due(changes: list[tuple], n: int) -> tuple | None:
     last = changes[i - 1]
     del changes[:i]
     return last
-
-
-def _gains_shape_problem(gains: dict, dim: int) -> str | None:
-    def ok(x) -> bool:
-        return BOUNDS["gains.k"].holds(x)
-
-    extra = sorted(set(gains) - {"k", "c"})
-    if extra or not gains:
-        return f"gains are k and c, got {sorted(gains)}"
-    k = gains.get("k", 1.0)
-    if isinstance(k, (list, tuple)):
-        if len(k) != dim or not all(ok(x) for x in k):
-            return f"k must be {dim} numbers > 0 for this vehicle, got {list(k)}"
-    elif not ok(k):
-        return f"k must be a number > 0, got {k!r}"
-    if "c" in gains and not BOUNDS["gains.c"].holds(gains["c"]):
-        return f"c must be a number > 0, got {gains['c']!r}"
-    return None
 
 
 class RunTimeChanges:

@@ -1,7 +1,7 @@
 """Which gains can the discrete controller take at its rate? Bounds on k, c and the regulator gains.
 
 Pure functions, no I/O: the scenario's validation ([gains], a vehicle's gains and
-regulator_gains) and the run-time gains command (cdus.core.node.gains_problem, the ground
+regulator_gains) and the run-time gains command (cdus.commands.gains.Gains.for_vehicle, the ground
 station) ask the same question. docs/config.md, "[gains]", states the bounds for users.
 
 **Path gain k, ideal plant.** The ideal plant holds the velocity reference

@@ -51,8 +51,8 @@ import math
 from collections import defaultdict
 from dataclasses import dataclass
 
-from cdus.core.changes import (  # noqa: F401 (gains_problem, Applied, Refused, Outcome: importable from here too)
-    Applied, Outcome, Refused, RunTimeChanges, _due, gains_problem,
+from cdus.core.changes import (  # noqa: F401 (Applied, Refused, Outcome: importable from here too)
+    Applied, Outcome, Refused, RunTimeChanges, _due,
 )
 from cdus.core.events import RosterChange
 from cdus.core.formation import FormationSchedule

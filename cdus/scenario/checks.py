@@ -25,7 +25,7 @@ import difflib
 import math
 from typing import Any, Iterable, Iterator, Mapping, Sequence
 
-from cdus.wire.bounds import BOUNDS, Bound, finite
+from cdus.wire.bounds import BOUNDS, Bound, finite, is_number  # noqa: F401 (is_number: importable from here too)
 from cdus.wire.text import is_printable, printable
 
 ANY_VEHICLE = "*"  # the wildcard of link.override/down src and dst
@@ -82,11 +82,6 @@ def did_you_mean(word: Any, options: Iterable[str]) -> str:
     """`` (did you mean "ring"?)`` when an option is close to ``word``, else ``""``."""
     close = difflib.get_close_matches(str(word), list(options), n=1, cutoff=0.6)
     return f" (did you mean {quote(close[0])}?)" if close else ""
-
-
-def is_number(v: Any) -> bool:
-    """An int or a float, never a boolean (finite or not: :func:`cdus.wire.bounds.finite` says that)."""
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
 def join(prefix: str, key: Any) -> str:

@@ -14,6 +14,7 @@ from cdus.core.events import event_tick
 from cdus.core.formation import FormationChange
 from cdus.core.linkspec import LinkFaults
 from cdus.scenario.model import Scenario
+from cdus.wire.bounds import is_number
 from cdus.wire.schemas import FleetEvent
 from cdus.wire.text import printable
 
@@ -188,7 +189,7 @@ def late_event_lines(scenario: Scenario, duration: float | None = None) -> list[
     lines = []
     for j, e in enumerate(raw):
         at = e.get("at") if isinstance(e, dict) else None
-        if not isinstance(at, (int, float)) or isinstance(at, bool):
+        if not is_number(at):
             continue
         words = printable(_event_words(e), 200)
         if at > end:

@@ -18,6 +18,7 @@ import os
 from dataclasses import dataclass, field, fields
 from typing import Any, Mapping
 
+from cdus.wire.bounds import is_number
 from cdus.wire.rejected import Rejected
 
 
@@ -41,7 +42,7 @@ def _num(d: Mapping, key: str, where: str, null: bool = False) -> Any:
     v = d[key] if key in d else _missing(where, key)
     if v is None and null:
         return None
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
+    if not is_number(v):
         raise _bad(f"{where}{key}", "a number" + (" or null" if null else ""), v)
     return v
 

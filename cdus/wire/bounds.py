@@ -21,17 +21,24 @@ import sys
 from dataclasses import dataclass
 
 
-def finite(x: object) -> bool:
-    """A finite real number: an int or a float, never a bool (True is an int to Python), never
-    nan or ±inf, never an int beyond a float's range (10**400, from TOML or a ground station's
-    k=999...: math.isfinite raises OverflowError on it, and as a float it is inf)."""
-    if isinstance(x, float):
-        return math.isfinite(x)
-    return isinstance(x, int) and not isinstance(x, bool) and -MAX_FLOAT <= x <= MAX_FLOAT
-
-
 #: the largest finite float; an int beyond it is no finite number to cdus
 MAX_FLOAT = sys.float_info.max
+
+
+def finite(x: object) -> bool:
+    """A finite real number: an int or a float, never a bool (True is an int to Python), never
+    nan or ±inf, never an int too large for a float. With :func:`is_number`, the one place "a
+    number, not a bool" is written (bench/shape.py finds any other)."""
+    if not isinstance(x, (int, float)) or isinstance(x, bool):
+        return False
+    # an int is finite unless too large for a float (10**400: math.isfinite would raise)
+    return math.isfinite(x) if isinstance(x, float) else abs(x) <= MAX_FLOAT
+
+
+def is_number(x: object) -> bool:
+    """A real number, finite or not: :func:`finite`, or a float (nan, ±inf; a bool is no number,
+    nor an int too large for a float)."""
+    return finite(x) or isinstance(x, float)
 
 
 @dataclass(frozen=True)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from cdus.core.changes import Applied as CoreApplied
+
 
 class RecordedNode:
     def __init__(self, index=0, dim=2, radio=None):
@@ -12,18 +14,24 @@ class RecordedNode:
     def on_roster(self, ch):
         self.calls.append(ch)
 
+    # each set_* answers as cdus.core.changes does: Applied(tick[, at]) or Refused(reason)
     def set_gains(self, k, c, tick):
         self.calls.append(("gains", k, c, tick))
+        return CoreApplied(tick)
 
     def set_formation(self, phases, tick):
         self.calls.append(("formation", phases, tick))
+        return CoreApplied(tick)
 
     def set_path(self, path, tick):
         self.calls.append(("path", path.dim, tick))
+        return CoreApplied(tick)
 
     def set_link(self, spec, at):
         self.calls.append(("link", spec.loss if hasattr(spec, "loss") else spec, at))
-        return max(at, 1.0)
+        at = max(at, 1.0)
+        return CoreApplied(round(at / self.period), at)
 
     def set_policy(self, policy, timeout, tick):
         self.calls.append(("policy", policy, timeout, tick))
+        return CoreApplied(tick)

@@ -13,7 +13,10 @@ def test_the_effect_tick_is_one_rule_for_both_clocks():
     assert lead_ticks(0.02) == 25 and lead_ticks(1.0) == 1 and lead_ticks(0.5) == 1 and lead_ticks(0.3) == 2
     assert lead_ticks(0.1, 0.05) == 1 and lead_ticks(0.1, 0.3) == 3
     assert effect_tick(100, lead_ticks(0.02)) == 125  # realtime: 0.5 s ahead of the wall clock's tick
-    assert effect_tick(-1, 0) == 1 and effect_tick(0, 3) == 3
+    assert effect_tick(0, 0) == 1 and effect_tick(0, 3) == 3
+    # nothing granted yet (lockstep's -1), a realtime clock not started (its tick negative): tick 0,
+    # as the world's clocks said before they called this rule
+    assert effect_tick(-1, 1) == 0 and effect_tick(-40, 25) == 0 and effect_tick(-10, 25) == 15
 
 
 def test_a_change_named_in_time_never_before_the_effect_tick():

@@ -6,6 +6,7 @@ import math
 
 from cdus.commands.base import Applied, Rejected
 from cdus.commands.link import LINK_DEPTH, Link
+from cdus.core.changes import Refused
 
 from .common import RecordedNode
 
@@ -51,5 +52,5 @@ def test_a_vehicle_the_fleet_lacks_is_refused_once_the_ids_are_known_and_the_pol
     assert Link.parse({"link": {"timeout": 3.0}}).apply(n, 2.0, ({"policy": "extrapolate"}, ["usv1"])) == Applied(20, 2.0)
     assert n.calls[1] == ("policy", "extrapolate", 3.0, 20)
     n = RecordedNode()
-    n.set_link = lambda spec, at: (_ for _ in ()).throw(ValueError("cannot change at run time"))
+    n.set_link = lambda spec, at: Refused("cannot change at run time")  # the node's own refusal, passed on
     assert Link.parse({"link": {"loss": 0.1}}).apply(n, 1.0) == Rejected("cannot change at run time")

@@ -98,7 +98,7 @@ def test_every_command_is_answered_and_the_ground_station_exits_by_the_answer(tm
 
     # gains: beyond what a vehicle takes is refused with the world's reason (it said "sent" before)
     res = gs("gains", "k=[1,2,3]", "--vehicle", "usv1")
-    assert res.returncode == 1 and "k must be 2 numbers > 0 for this vehicle" in res.stderr, res
+    assert res.returncode == 1 and "k: must be 2 numbers > 0 for this vehicle" in res.stderr, res
     res = gs("formation", "phases.usv9=1")  # an id the fleet lacks: a usage error, as for gains (was exit 1)
     assert res.returncode == 2 and "no vehicle 'usv9' in this fleet" in res.stderr, res
     res = gs("gains", "k=1.5", "c=2.0")  # the configured gains: a visible no-op

@@ -6,7 +6,6 @@ from cdus.wire.rejected import Rejected
 from ground_station.console import FleetView, status_table
 from cdus.wire.messages import StateMsg
 from cdus.wire.schemas import FleetEvent
-from cdus.core.node import gains_problem
 from ground_station.__main__ import main as gs_main
 
 
@@ -117,13 +116,6 @@ def test_a_number_that_is_not_one_gets_the_options_own_message(argv, says, capsy
     assert e.value.code == 2
     err = capsys.readouterr().err
     assert says in err and "_positive" not in err and "_sim_time" not in err
-
-
-def test_gains_problem_names_what_does_not_fit_a_vehicle():
-    assert gains_problem({"k": [1.0, 2.0]}, 3) == "k must be 3 numbers > 0 for this vehicle, got [1.0, 2.0]"
-    assert gains_problem({"k": 2.0, "c": 0}, 2) == "c must be a number > 0, got 0"
-    assert gains_problem({"k": True}, 2) is not None and gains_problem({}, 2) is not None
-    assert gains_problem({"k": [1.0, 2.0], "c": 3}, 2) is None
 
 
 def test_drop_bursts_do_not_push_the_other_events_out_of_the_status():
@@ -363,3 +355,12 @@ def test_status_table_has_no_row_for_the_fleets_own_non_vehicle_tokens():
     view.world = None  # before the world's first status: whoever is heard, but no process of the fleet's own
     rows = [ln.split()[0] for ln in status_table(view).splitlines()[1:] if not ln.startswith("world:")]
     assert rows == ["forged", "usv1"]
+
+
+def test_json_num_takes_a_finite_number_and_never_a_bool():
+    """_json_num(True) gave 1.0 (True is an int to Python): a --json line said t = 1.0 for a
+    value that is no number; now it is null, as nan and inf are (cdus.wire.bounds.finite)."""
+    from ground_station.console import _json_num
+    assert _json_num(True) is None and _json_num(False) is None
+    assert _json_num(math.nan) is None and _json_num(math.inf) is None and _json_num("1") is None
+    assert _json_num(2) == 2.0 and isinstance(_json_num(2), float) and _json_num(-0.5) == -0.5

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import math
 import re
+import sys
 from pathlib import Path
 
 import pytest
 from hypothesis import given, strategies as st
 
-from cdus.wire.bounds import BOUNDS, MAX_FLOAT, Bound, finite, nonnegative, positive, within
+from cdus.wire.bounds import BOUNDS, MAX_FLOAT, Bound, finite, is_number, nonnegative, positive, within
 
 ROOT = Path(__file__).resolve().parents[2]
 ANY = st.one_of(st.none(), st.booleans(), st.integers(), st.integers(-10**400, 10**400), st.floats(allow_nan=True, allow_infinity=True),
@@ -18,8 +19,18 @@ ANY = st.one_of(st.none(), st.booleans(), st.integers(), st.integers(-10**400, 1
 
 @given(ANY)
 def test_finite_is_a_real_number_that_is_not_a_bool_nan_or_inf(x):
-    expected = type(x) in (int, float) and x == x and x not in (math.inf, -math.inf) and abs(x) <= MAX_FLOAT
+    expected = (type(x) in (int, float) and x == x and x not in (math.inf, -math.inf)
+                and (type(x) is float or abs(x) <= sys.float_info.max))
     assert finite(x) is expected
+    assert is_number(x) is (expected or type(x) is float)
+
+
+def test_is_number_says_a_number_finite_or_not_and_an_int_too_large_for_a_float_is_neither():
+    """finite(10**400) raised OverflowError (math.isfinite converts it): a JSON scenario's huge
+    int crashed a check instead of being refused."""
+    assert is_number(math.nan) and is_number(-math.inf) and is_number(3) and not is_number(True)
+    assert not finite(10**400) and not is_number(-10**400) and finite(10**308)
+    assert not BOUNDS["gains.k"].holds(10**400)
 
 
 @pytest.mark.parametrize("x, ok", [(0, True), (-0.0, True), (1e308, True), (5e-324, True), (2**80, True), (10**400, False), (-10**400, False), (int(MAX_FLOAT), True),

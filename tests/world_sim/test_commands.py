@@ -11,7 +11,8 @@ import pytest
 from hypothesis import given, settings, strategies as hs
 
 from cdus.core.linkspec import Delay
-from cdus.core.node import gains_problem
+from cdus.commands.gains import Gains
+from cdus.wire.rejected import Rejected
 from cdus.core.schedule import delivery_tick
 from cdus.scenario.events import check_path
 from cdus.scenario.link import merge_link_tables, validate_link
@@ -98,7 +99,7 @@ def test_gains_and_link_are_answered_with_their_tick_or_why_they_were_refused():
     w = started(world())
     g = w.lockstep.granted
     r = ask(w, "set_gains", gains={"k": [1.0, 2.0, 3.0]}, vehicle="usv1").answer  # a boat has 2 axes
-    assert r.status == "rejected" and "k must be 2 numbers" in r.reason
+    assert r.status == "rejected" and "k: must be 2 numbers" in r.reason
     r = ask(w, "set_gains", gains={"k": 1e6}, vehicle="").answer  # beyond what the controller takes
     assert r.status == "rejected" and r.reason
     r = ask(w, "set_gains", gains={"c": 1.0}, vehicle="nobody").answer
@@ -287,16 +288,18 @@ def test_the_put_path_still_carries_commands_out():
 
 
 def test_new_ops_plug_into_the_handlers():
-    """Another part's op (formation, path, radio) answers with None (applied from the next tick),
-    a reason (rejected) or a Verdict."""
+    """A handler is found by the command's type (parsed once, cdus.commands.parse) and is given
+    the typed command, its sender and the asking query's ref; it answers with None (applied from
+    the next tick), a reason (rejected) or a Verdict."""
+    from cdus.commands.fleet import Pause
     from cdus.wire import messages
     w = started(world())
     seen = []
-    w.command_handlers["pause"] = lambda f, by: seen.append(by) or None
+    w.command_handlers[Pause] = lambda c, by, ref: seen.append((c, by, ref is not None)) or None
     assert ask(w, "pause").answer.tick == w.lockstep.granted + 1
-    w.command_handlers["pause"] = lambda f, by: "not today"
+    w.command_handlers[Pause] = lambda c, by, ref: "not today"
     assert ask(w, "pause").answer.reason == "not today"
-    assert seen == ["gs"] and "pause" in messages.COMMAND_OPS
+    assert seen == [(Pause(), "gs", True)] and "pause" in messages.COMMAND_OPS
 
 
 ops = hs.sampled_from(["pause", "resume", "stop", "set_gains", "link", "kill", "pause_vehicle", "resume_vehicle",
@@ -378,7 +381,7 @@ def test_a_link_change_at_any_time_is_relayed_as_the_agents_take_it_or_refused_w
         assert relayed and 0.0 <= relayed[-1].fields["at"] <= MAX_LINK_AT and r.t == relayed[-1].fields["at"]
         assert w.events[-1].kind == "link_changed"
     else:
-        assert (at > MAX_LINK_AT and "beyond the latest time" in r.reason
+        assert (at > MAX_LINK_AT and f"at: must be a finite number <= {MAX_LINK_AT:g}" in r.reason
                 or at >= w.duration and "not before the end of the run" in r.reason), r  # never applies
         assert w.st.rejects["link"] == 1
         assert not relayed and len(w.session.puts) + len(w.pub_ctl.puts) == puts and w._link_table == table
@@ -398,7 +401,7 @@ def test_a_flood_of_refused_commands_is_answered_and_counted_but_not_amplified_i
     w._command_quota = Quota(1e9, 10**6)  # past the ground credentials' rate: another test's
     for _ in range(500):
         r = ask(w, "set_gains", gains={"k": -1.0}, vehicle="").answer
-        assert r.status == "rejected" and "k must be" in r.reason
+        assert r.status == "rejected" and "k: must be" in r.reason
     assert w.st.rejects["gains"] == 500
     logged = [e for e in w.events if e.kind == "rejected"]
     assert ws.REJECTED_EVENTS_BURST <= len(logged) <= ws.REJECTED_EVENTS_BURST + 2
@@ -406,7 +409,7 @@ def test_a_flood_of_refused_commands_is_answered_and_counted_but_not_amplified_i
     # what was left out
     ask(w, "set_gains", gains={"k": -2.0}, vehicle="")
     last = w.events[-1]
-    assert last.kind == "rejected" and "-2.0" in last.text and "refused commands since the last one logged" in last.text
+    assert last.kind == "rejected" and "got -2 " in last.text and "refused commands since the last one logged" in last.text
     assert len(last.text) <= 300
     assert w.st.rejects["gains"] == 501
     # an applied command is an event as ever
@@ -506,7 +509,7 @@ def test_a_link_value_past_its_bound_is_refused_by_name_and_never_relayed():
                          ({"down": [{"from": 2e9, "to": 3e9}]}, "link.down[0].from")]:
         before = w.st.rejects["link"]
         q = ask(w, "link", link=table, at=-1.0)
-        assert q.answer.status == "rejected" and field in q.answer.reason, (table, q.answer)
+        assert q.answer.status == "rejected" and field.removeprefix("link.") in q.answer.reason, (table, q.answer)
         assert w.st.rejects["link"] == before + 1
     assert w._link_table == table0 and [c for c in ctl_ops(w) if c.op == "link"] == links0  # nothing relayed
     q = ask(w, "link", link={"delay": {"base": 3600.0}}, at=-1.0)  # the bound itself is a value
@@ -557,7 +560,9 @@ def test_every_number_of_a_command_at_its_extremes_is_refused_by_name_or_applied
             for d in [spec.delay] + [Delay(**dict(o.delay)) for o in spec.overrides]:
                 assert isinstance(delivery_tick(0, d.base + d.jitter, w.period), int)
         elif op == "set_gains":
-            assert gains_problem(relayed.fields["gains"], 2, **w.scenario.gain_context("usv1")) is None
+            relayed_gains = Gains.parse({"gains": relayed.fields["gains"], "vehicle": "usv1"})  # as the agent parses it
+            assert not isinstance(relayed_gains.for_vehicle(2, (1.0, 1.0), 1.0, **w.scenario.gain_context("usv1")),
+                                  Rejected)
         elif op == "path":
             assert not isinstance(check_path(relayed.fields["path"], 3), tuple)
         else:

@@ -21,7 +21,7 @@ def cmd(w, op, **fields):
 def test_a_phase_change_goes_to_every_vehicle_from_the_first_tick_not_granted_and_into_the_metrics():
     w = world()
     w.lockstep.granted = 40
-    v = w._relay_formation({"phases": {"usv2": 1.0, "uav1": 2.5}, "offsets": []}, "gs1")
+    v = w.carry_out("formation", {"phases": {"usv2": 1.0, "uav1": 2.5}, "offsets": []}, "gs1")
     assert v.applied and v.tick == 41
     c = ctl_ops(w)[-1]
     assert c.op == "formation" and c.fields == {"phases": {"usv2": 1.0, "uav1": 2.5}, "tick": 41, "seq": 0}
@@ -35,21 +35,21 @@ def test_offsets_are_turned_into_phases_or_refused_with_the_cycle():
     w = world()
     w.lockstep.granted = 9
     ring = w.scenario  # the lake ring: a single edge's offset cannot close the 6-cycle
-    why = w._relay_formation({"phases": {}, "offsets": [{"i": "usv2", "k": "usv1", "delta": 1.0}]}, "gs1")
+    why = w.carry_out("formation", {"phases": {}, "offsets": [{"i": "usv2", "k": "usv1", "delta": 1.0}]}, "gs1")
     assert why is not None and "inconsistent formation offsets: with those in force" in why and "the cycle: usv1 -> " in why
     assert w.st.rejects["formation"] == 1 and w.events[-1].kind == "rejected" and not ctl_ops(w)
     assert ring.directed is False
     for bad in ({"phases": {}, "offsets": []}, {"phases": {"usv1": 1.0}, "offsets": [{"i": "a"}]},
                 {"phases": {"nobody": 1.0}, "offsets": []}, {"phases": {"usv1": float("1e300")}, "offsets": []},
                 {"phases": {}, "offsets": [{"i": "usv1", "k": "uav1", "delta": 1.0}]}):
-        assert isinstance(w._relay_formation(bad, "gs1"), str), bad
+        assert isinstance(w.carry_out("formation", bad, "gs1"), str), bad
     assert w.st.rejects["formation"] == 6 and not ctl_ops(w)
 
 
 def test_a_path_goes_to_its_vehicle_only_and_a_bad_one_is_refused_with_the_field():
     w = world()
     w.lockstep.granted = 5
-    v = w._relay_path({"vehicle": "uav1", "path": CIRCLE}, "gs1")
+    v = w.carry_out("path", {"vehicle": "uav1", "path": CIRCLE}, "gs1")
     assert v.applied and v.tick == 6
     key, payload = w.session.puts[-1]
     c = decode_control(payload, CTL_OPS)
@@ -57,10 +57,10 @@ def test_a_path_goes_to_its_vehicle_only_and_a_bad_one_is_refused_with_the_field
                                                                                  "tick": 6, "seq": 0}
     assert w.events[-1].kind == "path_changed" and w.events[-1].vehicle == "uav1"
     n = len(w.session.puts)
-    assert "path.radius: must be > 0" in w._relay_path({"vehicle": "uav1", "path": {**CIRCLE, "radius": -1}}, "gs1")
-    assert "3-D path" in w._relay_path({"vehicle": "uav1", "path": {**CIRCLE, "center": [0, 0]}}, "gs1")
-    assert "no vehicle" in w._relay_path({"vehicle": "uav9", "path": CIRCLE}, "gs1")
-    assert w._relay_path({"vehicle": "uav1", "path": {"center": {"a": {"b": {"c": 1}}}}}, "gs1") == "nested too deep"
+    assert "path.radius: must be > 0" in w.carry_out("path", {"vehicle": "uav1", "path": {**CIRCLE, "radius": -1}}, "gs1")
+    assert "3-D path" in w.carry_out("path", {"vehicle": "uav1", "path": {**CIRCLE, "center": [0, 0]}}, "gs1")
+    assert "no vehicle" in w.carry_out("path", {"vehicle": "uav9", "path": CIRCLE}, "gs1")
+    assert w.carry_out("path", {"vehicle": "uav1", "path": {"center": {"a": {"b": {"c": 1}}}}}, "gs1") == "path: nested too deep"
     assert len(w.session.puts) == n and w.st.rejects["path"] == 3 and w.st.rejects["unknown_vehicle"] == 1
 
 
@@ -136,16 +136,16 @@ def test_a_refused_formation_is_answered_whole_with_the_fix_and_a_no_op_says_so(
     from cdus.wire.schemas import MAX_REASON
     w = world()
     w.lockstep.granted = 9
-    why = w._relay_formation({"phases": {}, "offsets": [{"i": "usv2", "k": "usv1", "delta": 3.0}]}, "gs1")
+    why = w.carry_out("formation", {"phases": {}, "offsets": [{"i": "usv2", "k": "usv1", "delta": 3.0}]}, "gs1")
     assert isinstance(why, str) and "…" not in why  # printable(why, MAX_REASON) kept it whole
     assert "or offsets on every edge of the cycle that sum to 0" in why and "give per-vehicle phases instead" in why
     assert why.endswith("usv3 -> uav1 -> uav2 -> uav3 -> usv1")
-    why = w._relay_formation({"phases": {"usv9": 1.0}, "offsets": []}, "gs1")
+    why = w.carry_out("formation", {"phases": {"usv9": 1.0}, "offsets": []}, "gs1")
     assert why.startswith('phases: "usv9" is not a vehicle'), why
-    assert w._relay_formation({"phases": {"usv2": 1e300}, "offsets": []}, "gs1").startswith("phases.usv2: ")
+    assert w.carry_out("formation", {"phases": {"usv2": 1e300}, "offsets": []}, "gs1").startswith("phases.usv2: ")
     in_force = w.recorder.formation.phases_at(10)
     delta = in_force[w.ids.index("usv2")] - in_force[w.ids.index("usv1")]
-    v = w._relay_formation({"phases": {}, "offsets": [{"i": "usv2", "k": "usv1", "delta": delta}]}, "gs1")
+    v = w.carry_out("formation", {"phases": {}, "offsets": [{"i": "usv2", "k": "usv1", "delta": delta}]}, "gs1")
     assert v.applied and v.tick == 10 and "no phase changed" in v.reason
     assert w.events[-1].kind == "formation_changed" and "formation unchanged" in w.events[-1].text
     assert "phases  from" not in w.events[-1].text
@@ -169,13 +169,13 @@ def test_offsets_off_by_a_rounding_say_so():
     sum to -9.8e-06 around the ring: refused, and the answer says to give full digits."""
     w = world()
     w.lockstep.granted = 9
-    why = w._relay_formation({"phases": {}, "offsets": [{"i": "usv2", "k": "usv1", "delta": 3.1416},
+    why = w.carry_out("formation", {"phases": {}, "offsets": [{"i": "usv2", "k": "usv1", "delta": 3.1416},
                                                         {"i": "usv3", "k": "usv2", "delta": 1.0472}]}, "gs1")
     assert isinstance(why, str) and "not 0 (rounded numbers? give them to full precision)" in why, why
-    v = w._relay_formation({"phases": {}, "offsets": [{"i": "usv2", "k": "usv1", "delta": math.pi},
+    v = w.carry_out("formation", {"phases": {}, "offsets": [{"i": "usv2", "k": "usv1", "delta": math.pi},
                                                       {"i": "usv3", "k": "usv2", "delta": math.pi / 3}]}, "gs1")
     assert v.applied, v
-    why = w._relay_formation({"phases": {}, "offsets": [{"i": "usv2", "k": "usv1", "delta": 3.0}]}, "gs1")
+    why = w.carry_out("formation", {"phases": {}, "offsets": [{"i": "usv2", "k": "usv1", "delta": 3.0}]}, "gs1")
     assert "rounded" not in why
 
 
@@ -195,7 +195,7 @@ def test_offsets_that_almost_close_a_cycle_are_refused_not_applied_with_another_
     theta = {"usv1": 0.0, "usv2": -1e8, "usv3": -2e8, "uav1": -3e8, "uav2": -4e8, "uav3": -5e8}
     offs = _ring_offsets(theta)
     offs[-1]["delta"] += 0.4
-    why = w._relay_formation({"phases": {}, "offsets": offs}, "gs1")
+    why = w.carry_out("formation", {"phases": {}, "offsets": offs}, "gs1")
     assert isinstance(why, str) and "miss closing around a cycle" in why and not ctl_ops(w), why
     assert w.st.rejects["formation"] == 1
 
@@ -208,9 +208,9 @@ def test_offsets_from_phases_are_always_taken_and_come_out_as_asked(theta):
     w.lockstep.granted = 10
     th = dict(zip(["usv1", "usv2", "usv3", "uav1", "uav2", "uav3"], theta))
     offs = _ring_offsets(th)
-    v = w._relay_formation({"phases": {}, "offsets": offs}, "gs1")
+    v = w.carry_out("formation", {"phases": {}, "offsets": offs}, "gs1")
     if isinstance(v, str):  # a Δ beyond ±1e9, or phases solved beyond it: never "does not close"
-        assert "beyond" in v or "within ±1e+09" in v, v
+        assert "beyond" in v or "within ±1e+09" in v or "<= 1e+09" in v, v
         return
     ph = dict(zip(w.ids, w.recorder.formation.phases_at(v.tick)))
     for o in offs:

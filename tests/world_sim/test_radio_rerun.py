@@ -108,16 +108,16 @@ def test_the_world_relays_a_radio_change_or_says_why_not():
     from .test_world import started, world
 
     w = started(_radio_world())
-    assert "tx_power" in w._relay_radio({"radio": {"tx_power": "loud"}, "at": -1.0}, "gs")
-    assert "power" in w._relay_radio({"radio": {"power": 3}, "at": -1.0}, "gs")
-    v = w._relay_radio({"radio": {"tx_power": 3.0, "station": [1.0, 2.0]}, "at": -1.0}, "gs")
+    assert "tx_power" in w.carry_out("radio", {"radio": {"tx_power": "loud"}, "at": -1.0}, "gs")
+    assert "power" in w.carry_out("radio", {"radio": {"power": 3}, "at": -1.0}, "gs")
+    v = w.carry_out("radio", {"radio": {"tx_power": 3.0, "station": [1.0, 2.0]}, "at": -1.0}, "gs")
     assert v.applied and v.t == 0.5 and v.tick == 25  # the answer says when it applies
     (c,) = [decode_control(p, CTL_OPS) for p in w.pub_ctl.puts if decode_control(p, CTL_OPS).op == "radio"]
-    assert c.fields["radio"] == {"tx_power": 3.0, "station": [1.0, 2.0]} and c.fields["at"] >= 0.02
+    assert c.fields["radio"] == {"tx_power": 3.0, "station": [1.0, 2.0, 0.0]} and c.fields["at"] >= 0.02
     assert w.radio_watch.channel.epochs[-1][1:] == (3.0, (1.0, 2.0, 0.0))
     assert [e.kind for e in w.events][-1] == "radio_changed"
     plain = started(world())
-    assert "no [radio]" in plain._relay_radio({"radio": {"tx_power": 3.0}, "at": -1.0}, "gs")
+    assert "no [radio]" in plain.carry_out("radio", {"radio": {"tx_power": 3.0}, "at": -1.0}, "gs")
 
 
 def test_a_radio_change_asked_for_a_time_already_past_says_it_was_moved_as_a_link_change_does():
@@ -127,10 +127,10 @@ def test_a_radio_change_asked_for_a_time_already_past_says_it_was_moved_as_a_lin
 
     w = started(_radio_world())
     w.lockstep.granted = 100
-    v = w._relay_radio({"radio": {"tx_power": 3.0}, "at": 0.5}, "gs")
+    v = w.carry_out("radio", {"radio": {"tx_power": 3.0}, "at": 0.5}, "gs")
     assert v.applied and v.t > 0.5 and v.reason.startswith("t = 0.5 s asked had passed"), v
-    assert w._relay_radio({"radio": {"tx_power": 4.0}, "at": -1.0}, "gs").reason == ""  # no --at: nothing moved
-    assert w._relay_radio({"radio": {"tx_power": 5.0}, "at": 10.0}, "gs").reason == ""  # in the future: as asked
+    assert w.carry_out("radio", {"radio": {"tx_power": 4.0}, "at": -1.0}, "gs").reason == ""  # no --at: nothing moved
+    assert w.carry_out("radio", {"radio": {"tx_power": 5.0}, "at": 10.0}, "gs").reason == ""  # in the future: as asked
 
 
 def test_a_radio_change_past_the_runs_end_is_refused_and_locks_nobody_out():
@@ -142,13 +142,14 @@ def test_a_radio_change_past_the_runs_end_is_refused_and_locks_nobody_out():
     w = started(_radio_world())
     end = w.last_tick * w.period
     for at in (2e9, end + 1.0):
-        out = w._relay_radio({"radio": {"tx_power": 3.0}, "at": at}, "gs")
-        assert isinstance(out, str) and "past the run's end" in out and "--at" in out, out
+        out = w.carry_out("radio", {"radio": {"tx_power": 3.0}, "at": at}, "gs")
+        assert isinstance(out, str) and ("past the run's end" in out and "--at" in out
+                                         or "at: must be a finite number <= 1e+09" in out), out
     assert len(w.radio_watch.channel.epochs) == 1
-    assert w._relay_radio({"radio": {"tx_power": 10.0}, "at": end}, "gs").applied  # the last moment is fine
+    assert w.carry_out("radio", {"radio": {"tx_power": 10.0}, "at": end}, "gs").applied  # the last moment is fine
     w = started(_radio_world())
-    w._relay_radio({"radio": {"tx_power": 3.0}, "at": 2e9}, "gs")
-    v = w._relay_radio({"radio": {"tx_power": 10.0}, "at": -1.0}, "gs")
+    w.carry_out("radio", {"radio": {"tx_power": 3.0}, "at": 2e9}, "gs")
+    v = w.carry_out("radio", {"radio": {"tx_power": 10.0}, "at": -1.0}, "gs")
     assert not isinstance(v, str) and v.applied, v
 
 
@@ -169,10 +170,10 @@ def test_moving_the_station_of_an_adhoc_fleet_is_refused_naming_why(tmp_path):
     w._wake = lambda payload=b"": None
     started(w)
     epochs, ctl = tuple(w.radio_watch.channel.epochs), len(w.pub_ctl.puts)
-    why = w._relay_radio({"radio": {"tx_power": 3.0, "station": [0.0, -500.0]}, "at": -1.0}, "gs")
+    why = w.carry_out("radio", {"radio": {"tx_power": 3.0, "station": [0.0, -500.0]}, "at": -1.0}, "gs")
     assert isinstance(why, str) and "ad hoc" in why and "tx_power only" in why
     assert tuple(w.radio_watch.channel.epochs) == epochs and len(w.pub_ctl.puts) == ctl  # nothing relayed
-    assert w._relay_radio({"radio": {"tx_power": 3.0}, "at": -1.0}, "gs").applied
+    assert w.carry_out("radio", {"radio": {"tx_power": 3.0}, "at": -1.0}, "gs").applied
 
 
 def test_hostile_radio_commands_never_raise_and_are_refused_or_relayed():
@@ -225,10 +226,10 @@ def test_a_command_before_a_scheduled_radio_change_is_refused(tmp_path):
     w._wake = lambda payload=b"": None
     started(w)
     assert w.radio_watch.channel.epochs[-1][:2] == (100.0, 5.0)  # the world's channel knows it up front
-    assert "--at 100 or later" in w._relay_radio({"radio": {"tx_power": 3.0}, "at": -1.0}, "gs")
-    v = w._relay_radio({"radio": {"tx_power": 3.0}, "at": 150.0}, "gs")
+    assert "--at 100 or later" in w.carry_out("radio", {"radio": {"tx_power": 3.0}, "at": -1.0}, "gs")
+    v = w.carry_out("radio", {"radio": {"tx_power": 3.0}, "at": 150.0}, "gs")
     assert v.applied and v.t == 150.0
-    assert "--at 150 or later" in w._relay_radio({"radio": {"tx_power": 9.0}, "at": 120.0}, "gs")
+    assert "--at 150 or later" in w.carry_out("radio", {"radio": {"tx_power": 9.0}, "at": 120.0}, "gs")
 
 
 def test_a_scheduled_radio_change_past_the_runs_end_does_not_lock_the_ground_station_out(tmp_path):
@@ -253,7 +254,7 @@ def test_a_scheduled_radio_change_past_the_runs_end_does_not_lock_the_ground_sta
     w.pub_ctl, w.pub_launcher, w.pub_status, w.pub_events, w.pub_radio = Pub(), Pub(), Pub(), Pub(), Pub()
     w._wake = lambda payload=b"": None
     started(w)
-    v = w._relay_radio({"radio": {"tx_power": 3.0}, "at": 20.0}, "gs")
+    v = w.carry_out("radio", {"radio": {"tx_power": 3.0}, "at": 20.0}, "gs")
     assert not isinstance(v, str) and v.applied and v.t == 20.0, v
 
 

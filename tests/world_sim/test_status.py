@@ -135,7 +135,7 @@ def test_after_a_formation_change_the_status_edges_are_measured_against_the_new_
     # raised `edge usv2-usv3 growing` for an edge that was converging to its new offset.
     w = started(world())
     w.lockstep.granted = 40
-    assert w._relay_formation({"phases": {"usv2": 15.7}, "offsets": []}, "gs1").applied  # from tick 41
+    assert w.carry_out("formation", {"phases": {"usv2": 15.7}, "offsets": []}, "gs1").applied  # from tick 41
     theta = dict(zip(w.ids, w.recorder.formation.phases_at(41)))
     qs = [(0.0, 0.0)] * 3 + [(0.0, 0.0, 20.0)] * 3
     for n in (40, 41):

@@ -222,14 +222,15 @@ def test_a_rejoining_process_is_sent_the_link_and_gains_commands_it_missed():
 
 
 def test_a_gains_command_that_does_not_fit_every_target_is_refused_whole():
-    """k = [1, 2] fits the boats (2 axes), not the drones: no vehicle gets it."""
+    """k = [1, 2] for every vehicle is refused whole (the gains rule, cdus.commands.gains: one
+    value per axis needs one vehicle named); for a boat it is taken."""
     w = world()
     before = len(w.session.puts)
     w.feed(keys.world_cmd(FLEET, "gs1"), encode_control("set_gains", gains={"k": [1.0, 2.0]},
                                                                            vehicle=""))
     assert len(w.session.puts) == before and w.st.rejected == 1
     assert [(e.kind, e.severity) for e in w.events] == [("rejected", "warn")]
-    assert "k must be 3 numbers" in w.events[0].text
+    assert "k: one value per axis needs one vehicle named" in w.events[0].text
     w.feed(keys.world_cmd(FLEET, "gs1"), encode_control("set_gains", gains={"k": [1.0, 2.0]},
                                                                            vehicle="usv1"))
     assert w.session.puts[-1][0] == keys.ctl(FLEET, ["usv1"]) and w.events[-1].kind == "gains_changed"
@@ -635,7 +636,7 @@ def test_a_catch_up_said_again_gives_the_join_tick_after_the_commands_as_the_fir
     from world_sim.world import CATCHUP_RESEND  # noqa: PLC0415
 
     w = started(world())
-    w._relay_gains({"c": 2.0}, "", "gs1")
+    w.carry_out("gains", {"gains": {"c": 2.0}, "vehicle": ""}, "gs1")
     j = w.ids.index("uav1")
     w.lockstep.changes.append(RosterChange(50, j, "live"))
     w.lockstep.acked[j] = 49
