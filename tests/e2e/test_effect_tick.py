@@ -8,7 +8,9 @@ others. The world now gives every change one effect tick, 0.5 s ahead of its clo
 
 from __future__ import annotations
 
+import json
 import re
+import time
 
 from cdus.wire.transport import free_tcp_port
 
@@ -34,6 +36,14 @@ def test_realtime_gains_and_formation_apply_on_one_tick_at_every_vehicle(tmp_pat
 
     gains_tick = gs("gains", "c=2.5")
     formation_tick = gs("formation", "phases.usv2=1.0")
+    # a stop applies at the present tick, the formation 0.5 s ahead: stop once the fleet is past it
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        res = run_cli(["gs", "--fleet", fleet, "-e", f"tcp/127.0.0.1:{port}", "--zenoh-config",
+                       str(run / "secure" / "ground.json5"), "status", "--json"], timeout=60)
+        if res.returncode == 0 and json.loads(res.stdout)["t"] * RATE > formation_tick + 1:
+            break
+        time.sleep(0.1)
     assert gs("stop") > formation_tick
     assert la.wait(timeout=60) == 0, la.output()
 
