@@ -119,8 +119,8 @@ class Control:
         """Decode, check and apply one control message; its outcome."""
         a = self.agent
         c = decode_control(payload, CTL_OPS)
-        if isinstance(c, str):
-            return refused(c)
+        if isinstance(c, Rejected):
+            return refused(c.reason)
         op, f = c.op, c.fields
         problem = ctl_problem(op, f, last_tick=a.last_tick, period=a.period, ids=a.ids, me=a.id)
         if problem is not None:

@@ -18,6 +18,7 @@ from cdus.wire import keys
 from cdus.wire.messages import COMMAND_OPS, decode_control, encode_states
 from cdus.wire.schemas import CommandReply, ID_RE, MAX_REASON, MAX_SETTINGS_CHANGES, encode_reply, encode_settings
 from cdus.wire.text import printable
+from cdus.wire.rejected import Rejected
 from world_sim.limits import ANSWERS_PER_PASS, MAX_QUEUED_QUERIES, MAX_WAITING, QUERIES_PER_S, RATE_REFUSAL
 from world_sim.verdict import LATER, Verdict
 
@@ -198,9 +199,9 @@ class Asking:
             self._reject(sender, "key")
             return "?", "", Verdict.no("the command's key names no sender")
         c = decode_control(payload, COMMAND_OPS)
-        if isinstance(c, str):
-            self._reject(sender, c)
-            return "?", sender, Verdict.no(f"the command could not be read: {c}")
+        if isinstance(c, Rejected):
+            self._reject(sender, c.reason)
+            return "?", sender, Verdict.no(f"the command could not be read: {c.reason}")
         by = sender if c.name is None else f"{sender}:{c.name}"
         if c.op == "fault_done" or c.op == "stop" and sender == keys.LAUNCHER:
             pass  # the launcher's own, whatever the run's state

@@ -32,12 +32,12 @@ class FaultDispatch:
         """The world asks for a vehicle fault; the supervise loop carries it out. Only faults on
         the scenario's vehicles started here: never the world, an unknown or a remote id."""
         c = decode_control(sample.payload.to_bytes(), LAUNCHER_OPS)
-        fault = c if isinstance(c, str) else parse_wire(c.op, c.fields)
+        fault = c if isinstance(c, Rejected) else parse_wire(c.op, c.fields)
         if isinstance(fault, Rejected) and fault.field == "vehicle":
             self._reject("command not_a_vehicle", f"{c.op} {printable(c.fields['vehicle'], 64)}: not a vehicle id")
             return
-        if isinstance(fault, (str, Rejected)):
-            self._reject(f"command {fault if isinstance(fault, str) else 'type'}",
+        if isinstance(fault, Rejected):  # the decoder's reason, or a command that is not one ('type')
+            self._reject(f"command {fault.reason if fault is c else 'type'}",
                          f"a malformed command on {printable(str(sample.key_expr))}")
             return
         vid, op = fault.vehicle, fault.NAMES.op

@@ -243,7 +243,7 @@ class Launcher(FaultDispatch, WorldLostMetrics):
 
     def _on_ctl(self, sample: Any) -> None:
         c = decode_control(sample.payload.to_bytes(), CTL_OPS)
-        if not isinstance(c, str) and c.op == "stop":
+        if not isinstance(c, Rejected) and c.op == "stop":
             with self.cond:
                 self.finished = True  # the world ended the run: agents exiting now is expected
                 self.cond.notify_all()

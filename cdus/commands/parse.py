@@ -29,6 +29,7 @@ from cdus.commands.radio import Radio
 from cdus.commands.vehicle import Kill, PauseVehicle, Restart, ResumeVehicle
 from cdus.scenario.config import parse_value
 from cdus.wire.messages import COMMAND_OPS, MAX_CONTROL_PAYLOAD, decode_control, encode_control
+from cdus.wire.rejected import Rejected
 
 Command = Union[Stop, Pause, Resume, Gains, Link, Formation, Path, Radio, Kill, PauseVehicle, ResumeVehicle, Restart]
 COMMANDS: tuple[type, ...] = (Stop, Pause, Resume, Gains, Link, Formation, Path, Radio,
@@ -55,8 +56,8 @@ def decode_command(payload: bytes) -> Command | Rejected:
     """A command map from the wire (``to/+world+/cmd/<from>``) as a typed command, or why not (the
     decoder's reasons: ``malformed``, ``version``, ``unknown_op``, ``type``, ...)."""
     c = decode_control(payload, COMMAND_OPS)
-    if isinstance(c, str):
-        return Rejected(c)
+    if isinstance(c, Rejected):
+        return c
     return parse_wire(c.op, c.fields)
 
 
@@ -152,7 +153,7 @@ def unsendable(command: Command) -> Rejected | None:
     spline of 65 waypoints was answered "could not be read: malformed"), None if it would."""
     op, fields = wire_of(command)
     why = decode_control(encode_control(op, **fields, name=LONGEST_NAME), COMMAND_OPS)
-    if not isinstance(why, str):
+    if not isinstance(why, Rejected):
         return None
     where = "path.waypoints" if isinstance(command, Path) and "waypoints" in command.path_table() else \
         SETTINGS_FIELD.get(type(command), "phases" if isinstance(command, Formation) else None)

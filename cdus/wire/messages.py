@@ -375,36 +375,37 @@ def encode_control(op: str, **fields) -> bytes:
     return msgpack.packb({"v": CONTROL_VERSION, "op": op, **fields}, use_bin_type=True)
 
 
-def decode_control(payload: bytes, ops: dict[str, dict[str, type]]) -> Control | str:
-    """Decode a control map against ``ops`` (CTL_OPS, COMMAND_OPS or LAUNCHER_OPS)."""
+def decode_control(payload: bytes, ops: dict[str, dict[str, type]]) -> Control | Rejected:
+    """Decode a control map against ``ops`` (CTL_OPS, COMMAND_OPS or LAUNCHER_OPS): the Control,
+    or Rejected(reason): oversized, malformed, version, unknown_op, type, non_finite, seq, name."""
     if len(payload) > MAX_CONTROL_PAYLOAD:
-        return "oversized"
+        return Rejected("oversized")
     try:
         obj = msgpack.unpackb(payload, raw=False, max_array_len=64, max_map_len=64, max_str_len=256,
                               max_bin_len=0, max_ext_len=0)
     except MSGPACK_ERRORS:
-        return "malformed"
+        return Rejected("malformed")
     if not isinstance(obj, dict) or obj.get("v") != CONTROL_VERSION or type(obj.get("v")) is not int:
-        return "version" if isinstance(obj, dict) else "malformed"
+        return Rejected("version" if isinstance(obj, dict) else "malformed")
     op = obj.get("op")
     if not isinstance(op, str) or op not in ops:
-        return "unknown_op"
+        return Rejected("unknown_op")
     out = {}
     for name, typ in ops[op].items():
         val = obj.get(name)
         if typ is float and type(val) is int:
             val = float(val)
         if type(val) is not typ:
-            return "type"
+            return Rejected("type")
         if typ is float and not finite(val):
-            return "non_finite"
+            return Rejected("non_finite")
         out[name] = val
     if ops is CTL_OPS and op in SEQUENCED and "seq" in obj:
         seq = obj["seq"]
         if type(seq) is not int or not 0 <= seq < MAX_SEQ:
-            return "seq"
+            return Rejected("seq")
         out["seq"] = seq
     who = obj.get("name")
     if who is not None and (not isinstance(who, str) or not _NAME_RE.match(who)):
-        return "name"
+        return Rejected("name")
     return Control(op, out, who)

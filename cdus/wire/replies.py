@@ -166,7 +166,7 @@ def decode_settings(payload: bytes, ids: Collection[str] | None = None) -> dict[
         if isinstance(ch, list) and len(ch) == 2 and (ch[0] is None or isinstance(ch[0], str) and _id(ch[0], ids)) \
                 and isinstance(ch[1], bytes):
             c = decode_control(ch[1], CTL_OPS)
-        if c is None or isinstance(c, str) or c.op not in SEQUENCED:
+        if c is None or isinstance(c, Rejected) or c.op not in SEQUENCED:
             unreadable += 1
             continue
         fields = {k: _plain(v) for k, v in c.fields.items() if k != "seq"}

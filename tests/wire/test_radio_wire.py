@@ -38,8 +38,8 @@ def test_agent_stats_carry_the_radio_counters_checked():
 def test_the_radio_op_decodes_with_its_table_and_time(ops):
     c = decode_control(encode_control("radio", radio={"tx_power": 3}, at=2), ops)
     assert c.op == "radio" and c.fields == {"radio": {"tx_power": 3}, "at": 2.0}
-    assert decode_control(encode_control("radio", radio=[1], at=2.0), ops) == "type"
-    assert decode_control(encode_control("radio", radio={}, at=float("inf")), ops) == "non_finite"
+    assert decode_control(encode_control("radio", radio=[1], at=2.0), ops) == Rejected("type")
+    assert decode_control(encode_control("radio", radio={}, at=float("inf")), ops) == Rejected("non_finite")
 
 
 def test_a_geometry_sample_gives_each_vehicle_its_own_dimension_or_is_rejected():
