@@ -1,5 +1,5 @@
-"""cdus: an emulator of cross-domain unmanned fleets under the distributed guiding-vector-field
-controller. The Python API (docs/api.md):
+"""What is cdus, and what does ``import cdus`` give? An emulator of cross-domain unmanned fleets
+under the distributed guiding-vector-field controller, and its Python API (docs/api.md):
 
     import cdus
     sc = cdus.load("configs/lake_circle.toml", {"scenario.duration": 60})

@@ -1,4 +1,4 @@
-"""python -m cdus: the ``cdus`` command (cdus.app.cli)."""
+"""What does ``python -m cdus`` run? The ``cdus`` command (cdus.app.cli)."""
 
 import sys
 

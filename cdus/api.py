@@ -1,6 +1,7 @@
-"""The Python API: load a scenario, run it, read its metrics and trace, run a sweep.
+"""How does a user run a scenario from Python? The Python API: load a scenario, run it, read its
+metrics and trace, run a sweep.
 
-How does a user run a scenario from Python? This module: its checks of every argument and its
+This module: its checks of every argument and its
 runs; the typed results they return are in :mod:`cdus.results`.
 
     import cdus

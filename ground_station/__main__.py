@@ -1,4 +1,4 @@
-"""python -m ground_station (or `cdus gs`): watch and command a running fleet.
+"""How does an operator watch and command a running fleet? ``python -m ground_station`` (or `cdus gs`).
 
     cdus gs --fleet lake_circle -e tcp/127.0.0.1:7447 --zenoh-config RUN/secure/ground.json5 status
                                                                        # live table (Ctrl-C; ends with the run)

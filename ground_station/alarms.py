@@ -1,4 +1,5 @@
-"""The live console's alarms, from the world's status alone (pure: no I/O, no clock).
+"""Which alarms does the live console raise and clear? From the world's status alone (pure: no I/O,
+no clock).
 
 :class:`Alarms` takes each decoded status (a :class:`cdus.wire.status.WorldStatus`) in turn and
 says which alarms it raises and which it clears, each stamped with the status's simulated

@@ -1,4 +1,5 @@
-"""The ground station: the operator's console, as the paper's base station.
+"""What does the ground station hear from a fleet, and what can it tell it? The operator's console,
+as the paper's base station.
 
 It attaches to a running fleet at any time (a Zenoh client of the fleet's router),
 watches it (vehicle telemetry, liveliness, the world's status and events) and sends

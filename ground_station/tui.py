@@ -1,4 +1,4 @@
-"""`cdus gs ... console`: the live console, a terminal UI (Textual) on a GroundStation.
+"""What does `cdus gs ... console` show? The live console, a terminal UI (Textual) on a GroundStation.
 
 It shows, refreshed twice a second from what the ground station hears (the world's status,
 each vehicle's telemetry and liveliness, the fleet's events):

@@ -1,4 +1,4 @@
-"""python -m vehicle_agent --config FILE --id ID [...]: one vehicle as its own process.
+"""How is one vehicle started as its own process? ``python -m vehicle_agent --config FILE --id ID [...]``.
 
 Usually started by `cdus launch`; start it by hand to put a vehicle on another host:
 

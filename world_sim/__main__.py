@@ -1,4 +1,4 @@
-"""python -m world_sim --config FILE [...]: the world process.
+"""How is the world process started? ``python -m world_sim --config FILE [...]``.
 
 Usually started by `cdus launch`. By hand, e.g. as the router of a multi-host fleet:
 

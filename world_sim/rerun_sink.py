@@ -60,7 +60,6 @@ from __future__ import annotations
 import math
 import os
 import shlex
-import shutil
 import socket
 import sys
 import threading
@@ -68,8 +67,6 @@ import uuid
 from pathlib import Path
 from typing import Any, Sequence
 from urllib.parse import urlparse
-
-from rerun.chunk import RrdReader
 
 import numpy as np
 import pyarrow as pa
@@ -82,20 +79,19 @@ from cdus.core.link import LINK_STATES
 from cdus.scenario.model import Scenario
 from cdus.sim.sink import UPDATE_EVERY
 from cdus.wire.schemas import FleetEvent
-from world_sim.recording import PARTS_SUFFIX, Target
+from world_sim.recording import Target
 from world_sim.rerun_draw import (  # noqa: F401 (CLOSEST, INTERVENTIONS, NEAR_COLOUR, intervened, probability_colour: as before)
     APP_ID, CLOSEST, CLOSEST_COLOUR, EDGE_COLOURS, INTERVENTION_COLOUR, INTERVENTIONS, LEVELS, NEAR_COLOUR,
     STATE_COLOURS, STATION_COLOUR, TRAIL_POINTS_EVERY, TRAIL_SECONDS, UTILISATION_COLOUR, _LABELS, _POSITIONS,
     _QUATERNION, _SCALAR, _TRANSLATION, _Layout, _fade, _lists, _strip_lists, _time, _vec_lists, colour,
     intervened, marker_size, probability_colour, trail_indices, yaw_quaternions,
 )
+from world_sim.rerun_files import (  # noqa: F401 (BYTES_PER_VEHICLE_SECOND: as before)
+    BYTES_PER_VEHICLE_SECOND, _free_bytes, _parts, _write_whole, expected_bytes, merge_segments,
+)
 
 FLUSH_EVERY = 5.0  # simulated seconds between batches sent to Rerun (bench/rerun_cost.py)
 SEGMENT_EVERY = 10.0  # simulated seconds per file segment: what a crash can lose at most
-#: Measured .rrd size per vehicle and simulated second at 50 Hz: 7.6 kB (lake_circle, 60 s),
-#: 7.7 kB (lissajous_5x5); rounded up. A clean close needs twice the recording (the segments
-#: and the merged file) for a moment.
-BYTES_PER_VEHICLE_SECOND = 8_000
 
 EPISODE_GAP = 1.0  # s without an intervention after which a vehicle's next one is news in the event log
 
@@ -325,41 +321,12 @@ class RerunSink:
         for path in self.files:
             parts = _parts(path)
             try:
-                self._merge(path, parts)
+                merge_segments(path, parts, self.recording_id, self._blueprint)
             except (OSError, RuntimeError) as e:
                 _warn(f"could not merge the recording into {path} ({getattr(e, 'strerror', None) or e}); its "
                       f"segments are kept: open them with: rerun {shlex.quote(str(parts))}/*.rrd")
                 continue
             print(f"  recording: {path}  (open it with: rerun {shlex.quote(str(path))})", file=self.out)
-
-    def _merge(self, path: Path, parts: Path) -> None:
-        """The segments of ``parts`` as one .rrd at ``path``; ``parts`` removed after."""
-        segments = sorted(parts.glob("*.rrd"))
-        regular = not path.exists() or path.is_file()
-        if len(segments) == 1 and regular:
-            os.replace(segments[0], path)
-        else:
-            size = sum(f.stat().st_size for f in segments)
-            free = _free_bytes(path.parent)
-            if free is not None and free < size:
-                raise OSError(28, f"{free / 1e6:.1f} MB free, {size / 1e6:.1f} MB needed to merge")
-            final = rr.RecordingStream(APP_ID, recording_id=self.recording_id)
-            out = final.binary_stream()
-            for seg in segments:
-                reader = RrdReader(str(seg))
-                for store in reader.recordings():
-                    rr.send_chunks(reader.stream(store=store), recording=final)
-            if self._blueprint is not None:
-                final.send_blueprint(self._blueprint)
-            data = out.read(flush=True, flush_timeout_sec=60.0) or b""
-            final.disconnect()
-            _write_whole(path, data)
-        for seg in segments:
-            seg.unlink(missing_ok=True)
-        try:
-            parts.rmdir()
-        except OSError:
-            pass  # something else was put there: leave it
 
     # ------------------------------------------------------------------ internals
     def _write_segment(self) -> None:
@@ -580,29 +547,6 @@ def _reachable(url: str, timeout: float = 0.5) -> bool:
         return False
 
 
-def expected_bytes(vehicles: int, seconds: float) -> int:
-    """About how large a recording of ``vehicles`` over ``seconds`` simulated seconds gets."""
-    return int(BYTES_PER_VEHICLE_SECOND * max(1, vehicles) * max(0.0, seconds))
-
-
-def _parts(path: Path) -> Path:
-    """The directory of the segments of ``save:path``: ``path.parts``."""
-    return path.with_name(path.name + PARTS_SUFFIX)
-
-
-def _segment(parts: Path, n: int) -> Path:
-    return parts / f"{n:03d}.rrd"
-
-
-def _write_whole(path: Path, data: bytes) -> None:
-    """``data`` into ``path``, flushed to the disk, or OSError (ENOSPC, EFBIG...)."""
-    with open(path, "wb") as fh:
-        fh.write(data)
-        fh.flush()
-        if os.path.isfile(path):  # not a pipe or a terminal
-            os.fsync(fh.fileno())
-
-
 class _Tee:
     """The file stream and the live stream as one: each call goes to every stream."""
 
@@ -618,16 +562,6 @@ class _Tee:
             for stream in self.streams:
                 getattr(stream, name)(*args, **kwargs)
         return call
-
-
-def _free_bytes(where: Path) -> int | None:
-    """Free bytes on the file system of ``where`` (or of its nearest existing parent); None if unknown."""
-    for p in (where, *where.parents):
-        try:
-            return shutil.disk_usage(p).free
-        except OSError:
-            continue
-    return None
 
 
 def _warn(text: str) -> None:

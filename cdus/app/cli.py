@@ -1,4 +1,4 @@
-"""The ``cdus`` command: one entry point, a subcommand per job.
+"""What does the ``cdus`` command do with its command line? One entry point, a subcommand per job.
 
     cdus sim CONFIG      the whole fleet in one process (fast, deterministic)
 

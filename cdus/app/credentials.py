@@ -1,4 +1,4 @@
-"""Credentials for one secured run: a password per role, and with TLS a private CA and a
+"""What credentials does one secured run have? A password per role, and with TLS a private CA and a
 certificate per role, written to the run directory for the router and every process.
 
 ``cdus launch --secure`` (user/password) or ``--tls`` (TLS with client

@@ -1,5 +1,5 @@
-"""A lockstep fleet of processes for the Python API (cdus.api.run(clock="lockstep")), and the
-credentials step `cdus launch` shares with it.
+"""How does the Python API run a lockstep fleet of processes (cdus.api.run(clock="lockstep"))?
+With the launcher, and the credentials step `cdus launch` shares with it.
 
 Kept apart from cdus.api because it brings in Zenoh (the router, the credentials): the API
 imports this module only when a lockstep run is asked for, so ``import cdus`` stays light.

@@ -1,5 +1,5 @@
-"""The statistics of a sweep's cells: mean, standard deviation and a bootstrap confidence
-interval of the mean, and how numbers are worded for a person.
+"""What are the statistics of a sweep's cells, and how are numbers worded for a person? The mean,
+standard deviation and a bootstrap confidence interval of the mean, and the wording.
 
 The interval is the percentile bootstrap: resample the cell's values with replacement
 (``RESAMPLES`` times, numpy's generator seeded with ``SEED``), take each resample's mean,

@@ -1,4 +1,4 @@
-"""Scheduled vehicle faults and who is live when: the roster a fleet's runners agree on.
+"""Who is live when, given the scheduled vehicle faults? The roster a fleet's runners agree on.
 
 A scenario's ``[[event]]`` tables (validated in :mod:`cdus.scenario.events`) are
 :class:`Event`\\ s. Their effect on the fleet is a *roster*: for each vehicle, the ticks

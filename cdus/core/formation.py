@@ -1,4 +1,4 @@
-"""Formation and path changes at run time: what every runner applies alike, from a tick.
+"""Which formation and path are in force at a tick? The run-time changes every runner applies alike.
 
 A fleet's formation is its offsets Δ_ik, the targets of ω_i - ω_k (docs/control.md §2).
 They are reachable only when they come from per-vehicle phases, Δ_ik = θ_i - θ_k, so a

@@ -1,4 +1,5 @@
-"""The upper level: DGVF guidance (`control_law_USV`, `control_law_UAV`, docs/control.md §2).
+"""Where should a vehicle go, and how fast should its ω run? The upper level: DGVF guidance
+(`control_law_USV`, `control_law_UAV`, docs/control.md §2).
 
     a_i   = s f_i'(ω_i) - K_i Φ_i                       desired world-frame velocity
     u_i^ω = s + Φ_iᵀ K_i f_i'(ω_i) - c_i Σ_k a_ik (ω_i - ω_k - Δ_ik)

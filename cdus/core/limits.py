@@ -1,4 +1,4 @@
-"""Actuator and speed limits a plant preset has by default (docs/safety.md).
+"""What actuator and speed limits does a plant preset have by default? (docs/safety.md)
 
 The numbers are derived from the models themselves (cdus.core.plants), not from a data
 sheet: the presets are generic models, so their limits say what such a vehicle could do,

@@ -1,4 +1,4 @@
-"""One vehicle's tick protocol: what it does with what it hears, and what one tick does.
+"""What does one vehicle do with what it hears, and what does one tick do? Its tick protocol.
 
 A :class:`VehicleNode` is everything a vehicle process decides, without the process: the
 in-process fleet drives one per vehicle in memory, the vehicle agent drives one from

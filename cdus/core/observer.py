@@ -1,4 +1,5 @@
-"""An extended-state observer (ESO) of the velocity disturbance (docs/safety.md).
+"""What is the velocity disturbance pushing a vehicle? An extended-state observer (ESO) estimates
+it (docs/safety.md).
 
 Every plant here moves its position as q̇ = v + d, where v is what the model knows (the
 ideal plant's command a, the UAV's velocity state p, the USV's hull velocity turned to

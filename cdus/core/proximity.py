@@ -1,4 +1,4 @@
-"""The proximity sensor: which vehicles each vehicle sees, and when (docs/safety.md).
+"""Which vehicles does each vehicle see, and when? The proximity sensor (docs/safety.md).
 
 The world runs it (it alone knows every position); a vehicle receives the positions of
 the vehicles its sensor would see, never through the ω link, which carries ω only.

@@ -1,4 +1,5 @@
-"""The radio channel on top of the hand-set link faults: one link model for a node.
+"""What do the hand-set link faults and the radio channel together do to a message? One link
+model for a node.
 
 :class:`RadioLink` composes the ``[link]`` model (:class:`cdus.core.link.LinkEmulator` or
 the ideal link) with the ``[radio]`` channel (:class:`cdus.core.radio.RadioChannel`): a

@@ -1,4 +1,4 @@
-"""The lower level: regulators that make a plant track the guidance (Problem 1, docs/control.md §3).
+"""How does a plant track the guidance? The lower level: its regulators (Problem 1, docs/control.md §3).
 
 Each regulator is a pure function of the plant state and the guidance reference: the
 path, the vehicle's ω and ω̇ (held from the last control instant and extrapolated

@@ -1,4 +1,5 @@
-"""Collision avoidance: a minimally invasive control-barrier-function filter (docs/safety.md).
+"""What velocity keeps a vehicle clear of the others it senses? Collision avoidance: a minimally
+invasive control-barrier-function filter (docs/safety.md).
 
 For vehicle i with velocity reference u_ref and every sensed vehicle k, with
 h_ik = |q_i - q_k|² - R² (h ≥ 0: at least R apart), the safe set is kept invariant by

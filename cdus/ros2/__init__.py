@@ -1,4 +1,4 @@
-"""The fleet's ROS 2 face (docs/ros2.md): rmw_zenoh's wire format written here, no ROS 2 installed.
+"""How does the fleet look to ROS 2? rmw_zenoh's wire format written here, no ROS 2 installed (docs/ros2.md).
 
 ``types`` (the message types, their RIHS01 hashes and definitions), ``cdr`` (their bytes),
 ``rmw`` (rmw_zenoh's keys, liveliness tokens, QoS and attachments), ``fleet`` (the fleet's

@@ -1,4 +1,4 @@
-"""python -m cdus.ros2 --config FILE --fleet NAME [transport flags]: the ROS 2 bridge.
+"""What does ``python -m cdus.ros2 --config FILE --fleet NAME [transport flags]`` run? The ROS 2 bridge.
 
 Started by `cdus launch --ros2` (docs/ros2.md); it publishes the fleet named --fleet, on the
 Zenoh it connects to, as ROS 2 topics in rmw_zenoh's format, as the scenario's [ros2] says.

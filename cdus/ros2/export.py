@@ -1,4 +1,4 @@
-"""A run as ROS 2 messages in an MCAP file: ``cdus export RUN_DIR --mcap FILE`` (docs/ros2.md).
+"""How is a run written as ROS 2 messages in an MCAP file? ``cdus export RUN_DIR --mcap FILE`` (docs/ros2.md).
 
 The same topics and messages the bridge publishes live (:mod:`cdus.ros2.fleet`), from the
 run's trace (``--trace-out``, default ``RUN_DIR/trace.npz``) and its resolved scenario

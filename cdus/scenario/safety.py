@@ -1,4 +1,4 @@
-"""The realism sections of a scenario file: [safety], [disturbance], [observer].
+"""What do the realism sections of a scenario file ([safety], [disturbance], [observer]) hold? Checked values.
 
 Each validator takes the collected :class:`Problems` and its table and returns the
 section's values with the defaults filled in (docs/config.md lists them; docs/safety.md

@@ -1,4 +1,4 @@
-"""The small sections of a scenario file: [scenario], [rates], [metrics], [gains], [supervision].
+"""What do the small sections of a scenario file hold? [scenario], [rates], [metrics], [gains], [supervision].
 
 Each validator takes the collected :class:`Problems` and the section's table and returns
 the section's values, with defaults filled in (docs/config.md lists them). A bad value is

@@ -1,4 +1,4 @@
-"""Building a scenario's pieces: its vehicles, neighbour terms, metric edges and link model.
+"""How are a scenario's pieces built? Its vehicles, neighbour terms, metric edges and link model.
 
 The one place where the validated :class:`cdus.scenario.model.Scenario` is turned into
 the pure core's objects, used alike by the in-process fleet and the process shells. The

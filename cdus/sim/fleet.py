@@ -1,4 +1,5 @@
-"""The in-process fleet: every vehicle's tick protocol, stepped together, over an in-memory link.
+"""How does `cdus sim` run a fleet in one process? Every vehicle's tick protocol, stepped together,
+over an in-memory link.
 
 It is the fast path for tests and sweeps and the reference the multi-process lockstep
 mode reproduces. Each vehicle is a :class:`cdus.core.node.VehicleNode`, the same object a

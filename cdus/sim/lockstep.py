@@ -1,4 +1,4 @@
-"""The world's lockstep decisions: who may step which tick, who is live, when a tick is complete.
+"""Who may step which tick, who is live, and when is a tick complete? The world's lockstep decisions.
 
 Pure bookkeeping, driven by the world process (world_sim.world) and tested without one.
 Inputs: telemetry reports (``on_report``), liveliness (``on_alive``), the launcher's

@@ -1,4 +1,5 @@
-"""The radio geometry in both runners: samples, the communication graph, utilisation, run-time changes.
+"""What do both runners do with the radio geometry? Samples, the communication graph, utilisation,
+run-time changes.
 
 The world process and the in-process fleet do the same with each radio geometry sample
 (docs/radio.md, "Integration"): build it from the positions of the vehicles that stepped the

@@ -1,4 +1,5 @@
-"""The fleet events every runner reports alike (docs/faults.md, "What gets reported").
+"""Which fleet events does every runner report, and how are they worded? Alike in every runner
+(docs/faults.md, "What gets reported").
 
 `cdus sim`'s in-process fleet, the lockstep decisions and the world build their events
 here, so one scenario gives the same kinds and texts whichever runs it.

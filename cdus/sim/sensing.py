@@ -1,4 +1,5 @@
-"""The proximity sensor's schedule, in one place for both runners (docs/safety.md).
+"""When does the proximity sensor sample, and when does a vehicle use it? One schedule for both
+runners (docs/safety.md).
 
 The world (or the in-process fleet) samples every vehicle's position at the sensor ticks
 s (s % every == 0; cdus.sim.build.sensor_schedule), once every vehicle live at s has

@@ -1,4 +1,4 @@
-"""The metrics JSON of a run: one builder for the in-process fleet, the world, sweep and report.
+"""What is in a run's metrics JSON? One builder for the in-process fleet, the world, sweep and report.
 
 Field names and definitions are docs/metrics.md's: the Recorder's summary (path and
 coordination settle times, final errors, ω̇, wall time), the link block (messages sent

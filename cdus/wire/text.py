@@ -1,4 +1,4 @@
-"""Text that came over the wire, made safe to print, log or store.
+"""How is text that came over the wire made safe to print, log or store?
 
 Anything a process prints that another process (or an outsider on an open fleet) wrote
 goes through :func:`printable` first: control characters (ANSI escapes, carriage returns,
