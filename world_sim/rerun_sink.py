@@ -87,7 +87,7 @@ from world_sim.rerun_draw import (  # noqa: F401 (CLOSEST, INTERVENTIONS, NEAR_C
     intervened, marker_size, probability_colour, trail_indices, yaw_quaternions,
 )
 from world_sim.rerun_files import (  # noqa: F401 (BYTES_PER_VEHICLE_SECOND: as before)
-    BYTES_PER_VEHICLE_SECOND, _free_bytes, _parts, _write_whole, expected_bytes, merge_segments,
+    BYTES_PER_VEHICLE_SECOND, _free_bytes, _parts, _segment, _write_whole, expected_bytes, merge_segments,
 )
 
 FLUSH_EVERY = 5.0  # simulated seconds between batches sent to Rerun (bench/rerun_cost.py)
@@ -338,9 +338,10 @@ class RerunSink:
             return
         for f in self.files:
             parts = _parts(f)
-            partial = parts / f"{self._segment:03d}.rrd.partial"
+            whole = _segment(parts, self._segment)
+            partial = whole.with_name(whole.name + ".partial")
             _write_whole(partial, data)
-            os.replace(partial, parts / f"{self._segment:03d}.rrd")
+            os.replace(partial, whole)
         self._segment += 1
 
     def _stop_files(self, error: BaseException) -> None:
