@@ -31,7 +31,9 @@ if TYPE_CHECKING:
 #: neighbours' subscriptions again, and what is said before that is lost too (the fleet then waits)
 RESEND_EVERY = 1.0
 RESEND_FOR = 10.0
-WORLD_BACK = "the world's token is back after every world token went (an outage)"  # logged when taken
+#: logged when taken: the session was cut off by the network or the router, or by this process's own
+#: freeze past its lease (a pause fault), which the session cannot tell apart
+WORLD_BACK = "the world's token is back after every world token went (an outage, or this process was frozen)"
 
 
 class Outage:
