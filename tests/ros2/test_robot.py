@@ -109,11 +109,11 @@ def test_the_agent_holds_without_odometry_follows_with_it_and_holds_again_when_i
     node = a.node
     a.step(0)  # no odometry yet: held, not stepped (no ω broadcast)
     assert a.holding and node.tick == 0 and a.ticks_done == 0
-    a.feed_odometry(odometry_bytes((5.0, 0.0), math.pi / 2))
+    a.feed_odometry(odometry_bytes((20.0, 0.0), math.pi / 2))
     a.step(1)
-    assert not a.holding and a.ticks_done == 2 and node.vehicle.q == (5.0, 0.0)
+    assert not a.holding and a.ticks_done == 2 and node.vehicle.q == (20.0, 0.0)
     u = node.vehicle.plant.command
-    assert u is not None and math.hypot(*u) == pytest.approx(1.0)  # the speed limit of the config
+    assert u is not None and math.hypot(*u) == pytest.approx(4.0)  # far from its circle: the speed limit of the config
     assert any("following at tick 1" in ln for ln in lines)
     a.heard -= 10.0  # its odometry is now 10 s old
     a.step(2)
