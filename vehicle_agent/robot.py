@@ -34,17 +34,15 @@ import zenoh
 from cdus.core.robot import RobotState
 from cdus.ros2 import fleet as rf
 from cdus.ros2.publisher import Publisher
-from cdus.ros2.rmw import Node, topic_key
+from cdus.ros2.rmw import topic_key
 from cdus.ros2.robot import ODOM, TWIST, RobotPose, read_odometry, twist
 from cdus.scenario.robot import clock_problem
-from cdus.scenario.ros2 import ros_name
 from cdus.wire.rejected import Rejected
 from cdus.wire.stats import AgentStats, OdometryGap
 from vehicle_agent.agent import Agent
 from vehicle_agent.report import Report
 
 ODOM_RING = 8  # odometry samples kept between two ticks (the newest valid one is taken)
-CMD_ENTITY = 1  # the Twist publisher's entity id in the robot node
 ODOM_GAPS = 8  # the newest spells without odometry each report carries (cdus.wire.stats.MAX_ODOMETRY_GAPS)
 
 
@@ -83,10 +81,10 @@ class RobotAgent(Agent):
         s, r, ros = self.session, self.robot, self.ros
         key = topic_key(ros.domain_id, r.odom, ODOM, ros.distro)
         self.odom_sub = s.declare_subscriber(key, zenoh.handlers.RingChannel(ODOM_RING))
-        node = Node(ros.domain_id, str(s.info.zid()), "cdus_" + ros_name(self.id), "/")
+        node = rf.robot_node(ros.domain_id, str(s.info.zid()), self.id)
         self.node_token = s.liveliness().declare_token(node.token())
         topic = rf.Topic(r.cmd_vel, TWIST, rf.DATA_QOS, self.id, "cmd_vel")
-        self.cmd = Publisher(s, node, CMD_ENTITY, topic, topic_key(ros.domain_id, r.cmd_vel, TWIST, ros.distro),
+        self.cmd = Publisher(s, node, rf.ROBOT_CMD_ENTITY, topic, topic_key(ros.domain_id, r.cmd_vel, TWIST, ros.distro),
                              ros.distro)
         self.log(f"robot: odometry from {r.odom}, commands (world-frame Twist) to {r.cmd_vel}, domain "
                  f"{ros.domain_id}; holding until its odometry comes (timeout {r.timeout:g} s)")

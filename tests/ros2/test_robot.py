@@ -263,13 +263,11 @@ def test_the_robot_table_is_checked():
     assert parse_scenario(default).vehicle("usv1").robot.cmd_vel == "/usv1/cmd_vel"
 
 
-def test_cdus_launch_refuses_a_robot_in_lockstep_or_on_a_secured_fleet_and_starts_nothing():
+def test_cdus_launch_refuses_a_robot_in_lockstep_and_starts_nothing():
     from tests.e2e.conftest import run_cli
     lock = run_cli(["launch", CONFIG, "--rerun", "off"])  # lockstep is launch's default clock
     assert lock.returncode == 2 and "--clock: vehicle 'usv1' has plant = \"ros2\"" in lock.stderr
     assert "nothing was started" in lock.stderr + lock.stdout
-    secured = run_cli(["launch", CONFIG, "--clock", "realtime", "--rerun", "off"])
-    assert secured.returncode == 2 and "--insecure: a plant = \"ros2\" vehicle needs an open fleet" in secured.stderr
 
 
 def test_the_fleet_wide_disturbance_and_observer_pass_a_robot_by():

@@ -1,7 +1,8 @@
-"""A ``plant = "ros2"`` vehicle in a realtime fleet of six launched by `cdus launch`
+"""A ``plant = "ros2"`` vehicle in a secured realtime fleet of six launched by `cdus launch`
 (configs/ros2_robot.toml: the robot usv1, two emulated boats, three drones), driven by a stand-in
 robot written with zenoh-ros2-sdk (tests/ros2/robots.py: code nobody here wrote subscribes the
-Twist, integrates it and publishes the Odometry). The loop closes (the robot nears its circle),
+Twist, integrates it and publishes the Odometry), holding the run's robot-usv1 credentials (the
+router's access control lets it and usv1 exchange exactly the odometry and the commands). The loop closes (the robot nears its circle),
 its odometry stopped for 3 s is a held vehicle (zero velocity) and a pair of fleet events in the
 run's metrics, then it follows again; the run completes with the robot on its path and in
 formation with the other five."""
@@ -20,8 +21,6 @@ from tests.ros2.robots import SdkRobot
 from tests.ros2.test_launch import ros2_client  # noqa: F401 (the fixture)
 
 RADIUS = 2.0  # configs/ros2_robot.toml: circles of radius 2 about the origin
-#: the robot's own Zenoh session (the SDK sets the router's endpoint): a client, no scouting
-CLIENT = '{mode: "client", scouting: {multicast: {enabled: false}, gossip: {enabled: false}}}'
 
 
 def error(q) -> float:
@@ -38,11 +37,12 @@ def wait_until(cond, timeout: float, what: str) -> None:
 def test_a_robot_in_a_realtime_fleet_of_six_follows_holds_on_silence_as_an_event_and_keeps_formation(
         tmp_path, launches, ros2_client):
     fleet, port, run = unique_fleet(), free_tcp_port(), tmp_path / "run"
-    (tmp_path / "robot.json5").write_text(CLIENT)
-    ros2_client.setenv("ZENOH_SESSION_CONFIG_URI", str(tmp_path / "robot.json5"))
-    la = launches(["configs/ros2_robot.toml", "--clock", "realtime", "--insecure", "--duration", "14",
+    la = launches(["configs/ros2_robot.toml", "--clock", "realtime", "--duration", "14",
                    "--rerun", "off", "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run)], fleet)
-    la.wait_for("ros2_robot", timeout=60)  # the launcher is up, its router listening
+    hint = la.wait_for("robot usv1:", timeout=60)  # the launcher is up, its router listening: where the robot goes
+    creds = run / "secure" / "robot-usv1.json5"  # a secured fleet (the default): the robot's own role
+    assert f"ZENOH_SESSION_CONFIG_URI={creds} " in hint and "/usv1/odom" in hint and "ROS_DOMAIN_ID=0" in hint
+    ros2_client.setenv("ZENOH_SESSION_CONFIG_URI", str(creds))
     robot = None
     for _ in range(100):
         try:
