@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -39,6 +38,7 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=20.0, help="simulated seconds of each run")
     ap.add_argument("--repeat", type=int, default=3, help="rounds (as is, --ros2)")
     args = ap.parse_args()
+    t0 = time.perf_counter()
     config = str((REPO / args.config).resolve()) if not os.path.isabs(args.config) else args.config
     sc = load_scenario(config)
     ticks = round(args.duration * sc.rates.control) + 1
@@ -66,11 +66,8 @@ def main() -> None:
     print("with --ros2 / without, per round:")
     print(f"  speed         {', '.join(f'{x:.2f}' for x in s)} (median {np.median(s):.2f})")
     print(f"  agents' CPU   {', '.join(f'{x:.2f}' for x in c)} (median {np.median(c):.2f}) per tick")
-    print(load_line())
+    print(f"{load_line()}\n(bench took {time.perf_counter() - t0:.0f} s)")
 
 
 if __name__ == "__main__":
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
-    t0 = time.perf_counter()
     main()
-    print(f"(bench took {time.perf_counter() - t0:.0f} s)")
