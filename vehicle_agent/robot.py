@@ -84,8 +84,8 @@ class RobotAgent(Agent):
         node = rf.robot_node(ros.domain_id, str(s.info.zid()), self.id)
         self.node_token = s.liveliness().declare_token(node.token())
         topic = rf.Topic(r.cmd_vel, TWIST, rf.DATA_QOS, self.id, "cmd_vel")
-        self.cmd = Publisher(s, node, rf.ROBOT_CMD_ENTITY, topic, topic_key(ros.domain_id, r.cmd_vel, TWIST, ros.distro),
-                             ros.distro)
+        self.cmd = Publisher(s, node, rf.ROBOT_CMD_ENTITY, topic,
+                             topic_key(ros.domain_id, r.cmd_vel, TWIST, ros.distro), ros.distro)
         self.log(f"robot: odometry from {r.odom}, commands (world-frame Twist) to {r.cmd_vel}, domain "
                  f"{ros.domain_id}; holding until its odometry comes (timeout {r.timeout:g} s)")
 

@@ -19,7 +19,8 @@ from cdus.wire.schemas import AgentStats, FleetEvent, OdometryGap, decode_stats
 from cdus.wire.text import printable
 from cdus.wire.rejected import Rejected
 from world_sim.limits import (
-    MAX_LOGGED_REJECTS, MAX_ODOMETRY_EVENTS, SUSPECT_EVERY, SUSPECT_REASONS, SUSPECT_TOKEN_REASONS, SUSPECT_WORLD_REASONS,
+    MAX_LOGGED_REJECTS, MAX_ODOMETRY_EVENTS, SUSPECT_EVERY, SUSPECT_REASONS, SUSPECT_TOKEN_REASONS,
+    SUSPECT_WORLD_REASONS,
 )
 
 

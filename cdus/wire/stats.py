@@ -203,7 +203,9 @@ def _odometry_gaps(x: Any) -> tuple[OdometryGap, ...] | None:
         if not isinstance(d, dict) or "t" not in d or not set(d) <= {"t", "back"}:
             return None
         t, back = d["t"], d.get("back")
-        if not _number(t) or not 0 <= t <= MAX_TIME or back is not None and not (_number(back) and t <= back <= MAX_TIME):
+        if not _number(t) or not 0 <= t <= MAX_TIME:
+            return None
+        if back is not None and not (_number(back) and t <= back <= MAX_TIME):
             return None
         if out and (out[-1].back is None or t < out[-1].back):
             return None

@@ -79,8 +79,8 @@ class SdkRobot:
         x, y, z = (*self.q, 0.0)[:3]
         vec = T["geometry_msgs/msg/Vector3"]
         return dict(
-            header=T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=int(t), nanosec=int((t % 1) * 1e9)),
-                                            frame_id="map"),
+            header=T["std_msgs/msg/Header"](
+                stamp=T["builtin_interfaces/msg/Time"](sec=int(t), nanosec=int((t % 1) * 1e9)), frame_id="map"),
             child_frame_id="base_link",
             pose=T["geometry_msgs/msg/PoseWithCovariance"](
                 pose=T["geometry_msgs/msg/Pose"](

@@ -207,7 +207,8 @@ _gap = st.fixed_dictionaries({"t": st.floats(-1.0, 2e9) | st.integers(-5, 5) | s
 
 
 @settings(max_examples=300, deadline=None)
-@given(gaps=st.lists(_gap | st.integers(-2**63, 2**63) | st.none(), max_size=MAX_ODOMETRY_GAPS + 2) | st.text(max_size=3)
+@given(gaps=st.lists(_gap | st.integers(-2**63, 2**63) | st.none(), max_size=MAX_ODOMETRY_GAPS + 2)
+       | st.text(max_size=3)
        | st.dictionaries(st.text(max_size=2), st.integers(-9, 9), max_size=2))
 def test_any_odometry_gaps_field_decodes_to_ordered_bounded_spells_or_rejects_the_report(gaps):
     s = decode_stats(msgpack.packb({"v": SCHEMA_VERSION, "id": "usv1", "tick": 1, "odometry_gaps": gaps}))

@@ -2,10 +2,10 @@
 (configs/ros2_robot.toml: the robot usv1, two emulated boats, three drones), driven by a stand-in
 robot written with zenoh-ros2-sdk (tests/ros2/robots.py: code nobody here wrote subscribes the
 Twist, integrates it and publishes the Odometry), holding the run's robot-usv1 credentials (the
-router's access control lets it and usv1 exchange exactly the odometry and the commands). The loop closes (the robot nears its circle),
-its odometry stopped for 3 s is a held vehicle (zero velocity) and a pair of fleet events in the
-run's metrics, then it follows again; the run completes with the robot on its path and in
-formation with the other five."""
+router's access control lets it and usv1 exchange exactly the odometry and the commands). The
+loop closes (the robot nears its circle), its odometry stopped for 3 s is a held vehicle (zero
+velocity) and a pair of fleet events in the run's metrics, then it follows again; the run
+completes with the robot on its path and in formation with the other five."""
 
 from __future__ import annotations
 
