@@ -91,7 +91,7 @@ def entry_points() -> tuple[tuple[str, str, str, str], ...]:
 def plugins_section(p: Problems, table: Any) -> None:
     """Load the installed plug-ins and those the scenario's ``[plugins]`` table names; each
     problem names the plug-in, where it came from and the fix."""
-    wanted = [(f'entry point {GROUPS[kind]} "{name}"', kind, name, ref, door)
+    wanted = [("plugins (installed)", kind, name, ref, door)
               for kind, name, ref, door in entry_points()]
     if table is not None:
         t = p.table(table, "plugins", EXAMPLE)
