@@ -38,6 +38,7 @@ from cdus.core.paths import REGISTRY, Family, Path, PathError, Vec, register
 from cdus.core.regulators import Limits
 from cdus.core.vocabulary import KINDS
 from cdus.scenario.checks import Problems, describe, quote
+from cdus.wire.bounds import finite
 
 #: the [plugins] table's keys and the entry-point group of each
 GROUPS = {"paths": "cdus.paths", "plants": "cdus.plants"}
@@ -150,7 +151,7 @@ def load(origin: Origin) -> str | None:
 def family_problem(name: str, obj: Any) -> str | None:
     """What keeps ``obj`` from being the path family ``name``, or None."""
     if not isinstance(obj, Family):
-        return f"is {describe(obj)} ({type(obj).__name__}), not a cdus.core.paths.Family; point it at a Family"
+        return f"is a {type(obj).__name__}, not a cdus.core.paths.Family; point it at a Family"
     if obj.name != name:
         return f"its Family is named {quote(obj.name)}, not {quote(name)}; give both one name"
     if not callable(obj.build):
@@ -168,7 +169,7 @@ def family_problem(name: str, obj: Any) -> str | None:
 def plant_problem(obj: Any) -> str | None:
     """What keeps ``obj`` from being a plant model, or None."""
     if not isinstance(obj, PlantModel):
-        return f"is {describe(obj)} ({type(obj).__name__}), not a cdus.core.models.PlantModel; point it at one"
+        return f"is a {type(obj).__name__}, not a cdus.core.models.PlantModel; point it at one"
     if not isinstance(obj.kinds, tuple) or not obj.kinds or not set(obj.kinds) <= set(KINDS):
         return f"its kinds {obj.kinds!r} must be a tuple of {' and/or '.join(map(quote, KINDS))}"
     if not callable(obj.build):
@@ -184,14 +185,10 @@ def plant_problem(obj: Any) -> str | None:
             defaults = rm.gains()
         except Exception as e:  # noqa: BLE001
             return f"the gains of its regulator {quote(rname)} need a default for every field ({e})"
-        bad = [f.name for f in dataclasses.fields(defaults) if not _finite_number(getattr(defaults, f.name))]
+        bad = [f.name for f in dataclasses.fields(defaults) if not finite(getattr(defaults, f.name))]
         if bad:
             return f"the default of gain {quote(bad[0])} of its regulator {quote(rname)} is not a finite number"
     return None
-
-
-def _finite_number(x: Any) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
 
 # --------------------------------------------------------------------------- what runs
@@ -229,7 +226,7 @@ class PluginPath:
                                     f"give the attributes of cdus.core.paths.Path") from e
         if dim not in (2, 3) or isinstance(dim, bool):
             raise PathError("path", f"{self.origin}: its curve's dim is {dim!r}, not 2 or 3")
-        if period is not None and not (_finite_number(period) and period > 0):
+        if period is not None and not (finite(period) and period > 0):
             raise PathError("path", f"{self.origin}: its curve's period is {period!r}, not None (open) or a "
                                     f"finite number > 0")
         if direction not in (-1.0, 1.0) or isinstance(direction, bool):
@@ -277,7 +274,7 @@ def path_problem(path: Path, dim: int) -> str | None:
                     all(isinstance(v, tuple) and len(v) == dim for v in values)):
                 return (f"{origin}: its eval(ω) must return (f, f', f''), three tuples of {dim} numbers; at "
                         f"ω = {w:g} it returned {describe(values)} {str(values)[:80]}")
-            if not all(_finite_number(x) for v in values for x in v):
+            if not all(finite(x) for v in values for x in v):
                 return f"{origin}: its values are not finite numbers at ω = {w:g}: a vehicle cannot follow it"
             f, f1, f2 = values
             scale = max(1.0, *map(abs, f1), *map(abs, f2))
@@ -453,7 +450,7 @@ def _plant_run_problem(spec: Any, path: Path, physics_hz: float, control_hz: flo
                 regulator.command(state, path, w, 0.0, spec.k, limits, None, None, h)
             state = plant.step(state, tuple(u), zero, h)
         v, psi = plant.velocity(state), plant.heading(state)
-        if not (isinstance(v, tuple) and len(v) == spec.dim and all(map(_finite_number, v)) and _finite_number(psi)):
+        if not (isinstance(v, tuple) and len(v) == spec.dim and all(map(finite, v)) and finite(psi)):
             return f"{origin}: its velocity must be {spec.dim} finite numbers and its heading one, got {v!r}, {psi!r}"
         if safety_on and not plant.velocity_level:
             plant.point(state, zero, limits)
