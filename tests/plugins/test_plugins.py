@@ -298,3 +298,16 @@ def test_any_plugins_table_is_refused_by_name_never_raises(fresh, table):
     assert all(field.startswith("plugins") for field, _ in p.items)
     if isinstance(table, dict) and any(isinstance(v, dict) and v for k, v in table.items() if k != "other"):
         assert p, table
+
+
+def test_a_plugin_family_that_raises_in_the_run_is_a_diverged_vehicle_naming_it(fresh):
+    """Its curve raises for ω in (-50, -2), which the probe's ω miss: the boat reaches ω = -2
+    after about 2 s and the run stops there, naming the vehicle, the plug-in and the ω."""
+    name = module(fresh, FAMILY, name="edge", change="if -50 < w < -2.0: raise ZeroDivisionError('the curve ends')")
+    sc = parse_scenario(scenario("edge", table={"paths": {"edge": f"{name}:FAMILY"}}))
+    with pytest.raises(DivergedError) as info:
+        InProcessFleet(sc).run()
+    text = str(info.value)
+    assert text.startswith("vehicle b1: its numbers overflowed at t = ")
+    assert f'plug-in path family "edge" ([plugins.paths] of the scenario: {name}:FAMILY): f(ω) at ω = -2.0' in text
+    assert "raised ZeroDivisionError: the curve ends" in text
