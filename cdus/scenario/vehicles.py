@@ -475,7 +475,12 @@ def _limits(p: Problems, t: _Merged, plant: str | None, preset: str | None) -> t
                     false=" (only the limits given)", note=t.note("limits", "preset"))
     if not use or plant is None:
         return given
-    base = default_limits(plant, preset)
+    try:
+        base = default_limits(plant, preset)
+    except ValueError:  # a plug-in's plant (docs/plugins.md) has no preset
+        p.add(t.field("limits", "preset"), f"plant {quote(plant)} has no preset limits; give the limits themselves, "
+                                           f"e.g. limits = {{ speed = 2.0 }}{t.note('limits', 'preset')}")
+        return given
     pairs = {key: getattr(base, key) for key in LIMIT_KEYS if math.isfinite(getattr(base, key))}
     pairs.update(dict(given))
     return tuple(sorted(pairs.items()))

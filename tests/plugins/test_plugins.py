@@ -311,3 +311,13 @@ def test_a_plugin_family_that_raises_in_the_run_is_a_diverged_vehicle_naming_it(
     assert text.startswith("vehicle b1: its numbers overflowed at t = ")
     assert f'plug-in path family "edge" ([plugins.paths] of the scenario: {name}:FAMILY): f(ω) at ω = -2.0' in text
     assert "raised ZeroDivisionError: the curve ends" in text
+
+
+def test_a_plugin_plant_asked_for_its_preset_limits_is_refused_by_name(fresh, monkeypatch):
+    """A plug-in plant has no preset: `limits = { preset = true }` is a problem of the config
+    (it was a ValueError traceback from cdus.core.limits)."""
+    monkeypatch.syspath_prepend(str(EXAMPLE))
+    data = scenario(plant="unicycle", table={"plants": {"unicycle": "cdus_plugin_example.unicycle:UNICYCLE"}})
+    data["vehicle"][0]["limits"] = {"preset": True}
+    assert refusal(data) == ('x.toml: vehicle[0] (id "b1").limits.preset: plant "unicycle" has no preset limits; '
+                             'give the limits themselves, e.g. limits = { speed = 2.0 }')
