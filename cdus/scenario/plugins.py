@@ -211,43 +211,29 @@ class _Build:
             raise PathError("path", f"{self.origin}: building its curve raised {type(e).__name__}: {e}") from e
 
 
-@dataclass(frozen=True)
 class PluginPath:
-    """A plug-in family's curve: its ``eval`` raising becomes :class:`PluginFault` naming it."""
+    """A plug-in family's curve: its ``dim``, ``period``, ``direction`` (and an open curve's
+    ``span``) read and checked once; its ``eval`` raising becomes :class:`PluginFault` naming it."""
 
-    inner: Any
-    origin: Origin
+    __slots__ = ("inner", "origin", "dim", "period", "direction", "span")
 
-    def __post_init__(self) -> None:
+    def __init__(self, inner: Any, origin: Origin):
+        self.inner, self.origin = inner, origin
         try:
-            dim, period, direction = self.inner.dim, self.inner.period, self.inner.direction
+            dim, period, direction = inner.dim, inner.period, inner.direction
+            self.span = getattr(inner, "span", None)
         except Exception as e:  # noqa: BLE001
-            raise PathError("path", f"{self.origin}: its curve lacks dim, period or direction ({e}); "
+            raise PathError("path", f"{origin}: its curve lacks dim, period or direction ({e}); "
                                     f"give the attributes of cdus.core.paths.Path") from e
         if dim not in (2, 3) or isinstance(dim, bool):
-            raise PathError("path", f"{self.origin}: its curve's dim is {dim!r}, not 2 or 3")
+            raise PathError("path", f"{origin}: its curve's dim is {dim!r}, not 2 or 3")
         if period is not None and not (finite(period) and period > 0):
-            raise PathError("path", f"{self.origin}: its curve's period is {period!r}, not None (open) or a "
+            raise PathError("path", f"{origin}: its curve's period is {period!r}, not None (open) or a "
                                     f"finite number > 0")
         if direction not in (-1.0, 1.0) or isinstance(direction, bool):
-            raise PathError("path", f"{self.origin}: its curve's direction is {direction!r}, not the -1 or +1 "
+            raise PathError("path", f"{origin}: its curve's direction is {direction!r}, not the -1 or +1 "
                                     f"its build was given")
-
-    @property
-    def dim(self) -> int:
-        return self.inner.dim
-
-    @property
-    def period(self) -> float | None:
-        return self.inner.period
-
-    @property
-    def direction(self) -> float:
-        return self.inner.direction
-
-    @property
-    def span(self) -> tuple[float, float] | None:
-        return getattr(self.inner, "span", None)
+        self.dim, self.period, self.direction = dim, period, direction
 
     def eval(self, w: float) -> tuple[Vec, Vec, Vec]:
         try:

@@ -321,3 +321,10 @@ def test_a_plugin_plant_asked_for_its_preset_limits_is_refused_by_name(fresh, mo
     data["vehicle"][0]["limits"] = {"preset": True}
     assert refusal(data) == ('x.toml: vehicle[0] (id "b1").limits.preset: plant "unicycle" has no preset limits; '
                              'give the limits themselves, e.g. limits = { speed = 2.0 }')
+
+
+def test_a_plugin_curve_of_four_dimensions_is_refused_naming_it(fresh):
+    name = module(fresh, FAMILY.replace("    dim = 2\n", "    dim = 4\n"), name="hyper", change="pass")
+    text = refusal(scenario("hyper", table={"paths": {"hyper": f"{name}:FAMILY"}}))
+    assert text == (f'x.toml: vehicle[0] (id "b1").path: plug-in path family "hyper" ([plugins.paths] of the '
+                    f"scenario: {name}:FAMILY): its curve's dim is 4, not 2 or 3")
