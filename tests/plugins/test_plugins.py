@@ -328,3 +328,32 @@ def test_a_plugin_curve_of_four_dimensions_is_refused_naming_it(fresh):
     text = refusal(scenario("hyper", table={"paths": {"hyper": f"{name}:FAMILY"}}))
     assert text == (f'x.toml: vehicle[0] (id "b1").path: plug-in path family "hyper" ([plugins.paths] of the '
                     f"scenario: {name}:FAMILY): its curve's dim is 4, not 2 or 3")
+
+
+class _Returns:
+    """A plug-in curve whose eval returns whatever it is given (or raises it)."""
+
+    dim, period, direction = 2, None, -1.0
+
+    def __init__(self, value):
+        self.value = value
+
+    def eval(self, w):
+        if isinstance(self.value, BaseException):
+            raise self.value
+        return self.value
+
+
+NUMBER = st.floats(allow_nan=True, allow_infinity=True) | st.integers() | st.booleans() | st.none() | st.text(max_size=2)
+VECTOR = st.tuples(NUMBER, NUMBER) | st.lists(NUMBER, max_size=3) | st.tuples(NUMBER, NUMBER, NUMBER) | NUMBER
+
+
+@settings(max_examples=200, deadline=None)
+@given(value=st.tuples(VECTOR, VECTOR, VECTOR) | st.lists(VECTOR, max_size=4) | VECTOR |
+       st.sampled_from([ValueError("x"), RuntimeError("y"), ZeroDivisionError("z"), KeyError("k")]))
+def test_any_value_a_plugin_curve_returns_is_a_problem_naming_it_never_an_exception(value):
+    """What a plug-in's eval gives (any shape, NaN, a bool, text) or raises: the probe says what
+    is wrong, naming the plug-in, and raises nothing."""
+    origin = plugins.Origin("paths", "odd", "odd:FAMILY", "[plugins.paths] of the scenario")
+    problem = plugins.path_problem(plugins.PluginPath(_Returns(value), origin), 2)
+    assert problem is not None and problem.startswith(f"{origin}: "), problem
