@@ -1,7 +1,8 @@
 """End to end: the example plug-in package (examples/cdus_plugin_example), installed in a
 directory of its own, found through its entry points by `cdus sim` and by every process of
 `cdus launch --clock lockstep` (the world and each agent read the scenario), equal to the bit;
-a broken plug-in refused by `cdus launch` before anything starts."""
+a broken plug-in refused by `cdus launch` before anything starts; one that fails in the run
+a lost vehicle whose log names it, never a hang."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ import pytest
 
 from tests.e2e.conftest import ROOT, TRACE_FIELDS, fleet_processes, launches, run_cli, unique_fleet  # noqa: F401 (a fixture)
 from tests.plugins.install import EXAMPLE, install_example
+from tests.plugins.test_plugins import PLANT
 
 CONFIG = EXAMPLE / "fleet.toml"
 
@@ -63,3 +65,48 @@ def test_launch_refuses_a_plugin_that_fails_to_import_before_starting_anything(t
     assert "nothing was started" in out.stderr
     assert "unknown" not in out.stderr  # not also every vehicle's family and plant
     assert not fleet_processes(fleet) and not (tmp_path / "run" / "metrics.json").exists()
+
+
+LATE = """
+[plugins.plants]
+late = "late_plant:MODEL"
+
+[scenario]
+name = "late"
+duration = 3.0
+
+[rates]
+control = 10.0
+
+[[vehicle]]
+id = "b1"
+kind = "usv"
+plant = "late"
+path = { family = "circle", center = [0, 0], radius = 5 }
+
+[[vehicle]]
+id = "b2"
+kind = "usv"
+phase = 1.0
+path = { family = "circle", center = [0, 0], radius = 5 }
+"""
+
+
+def test_a_plugin_plant_failing_in_a_lockstep_run_is_a_lost_vehicle_naming_it(tmp_path, monkeypatch, launches):
+    """b1's plant (the scenario's [plugins] table, a module on PYTHONPATH) raises at t = 1 s: its
+    process says why, naming the plug-in, and exits; the world ends the run (vehicles_lost, exit
+    1) instead of waiting for it; nothing is left running."""
+    (tmp_path / "late_plant.py").write_text(
+        PLANT.replace("{change}", "if t > 1.0: raise RuntimeError('motor controller lost')"))
+    (tmp_path / "late.toml").write_text(LATE)
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(tmp_path), str(ROOT)]))
+    fleet = unique_fleet()
+    la = launches([str(tmp_path / "late.toml"), "--clock", "lockstep", "--rerun", "off", "-q",
+                   "--logs", str(tmp_path / "run")], fleet)
+    assert la.wait() == 1, la.output()
+    assert "vehicles_lost" in la.output()
+    log = (tmp_path / "run" / "logs" / "b1.log").read_text()
+    assert ('[b1] error: vehicle b1: its numbers overflowed at t = 0.90 s (the vehicle diverged; gains k = (1.5, 1.5), '
+            'c = 2.0): plug-in plant "late" ([plugins.plants] of the scenario: late_plant:MODEL): step raised '
+            'RuntimeError: motor controller lost') in log
+    assert not fleet_processes(fleet)
