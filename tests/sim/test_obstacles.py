@@ -55,3 +55,48 @@ def test_without_the_filter_every_vehicle_goes_through_its_obstacle(overrides):
     assert sorted(ob["below_margin"]) == sorted(BOATS + DRONES)
     assert ob["min_clearance_m"] < 0.0  # inside an obstacle
     assert all(row["deflected_s"] == 0.0 for row in ob["vehicles"].values())
+
+
+def test_the_obstacles_block_is_typed_and_round_trips():
+    from cdus.sim.runmetrics import Metrics
+
+    m = run({"scenario.duration": 2.0})
+    typed = Metrics.from_dict(m)
+    assert typed.obstacles.count == 4 and typed.to_dict() == m and list(typed.to_dict()) == list(m)
+    m["obstacles"]["vehicles"]["usv_a"]["deflected_s"] = "long"
+    assert str(Metrics.from_json(m)).startswith("obstacles.vehicles.usv_a.deflected_s: expected a number")
+
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+_junk = st.recursive(st.none() | st.booleans() | st.floats() | st.integers() | st.text(max_size=5),
+                     lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=5), inner, max_size=3),
+                     max_leaves=8)
+_BASE = {}
+
+
+@settings(max_examples=200, deadline=None)
+@given(key=st.sampled_from(["count", "min_clearance_m", "below_margin", "vehicles", "usv_a", "t", "obstacle"]),
+       value=_junk)
+def test_a_hostile_obstacles_block_is_rejected_by_name_never_raised(key, value):
+    import copy
+
+    from cdus.sim.runmetrics import Metrics
+    from cdus.wire.rejected import Rejected
+
+    if not _BASE:
+        _BASE.update(run({"scenario.duration": 0.5}))
+    m = copy.deepcopy(_BASE)
+    block = m["obstacles"]
+    if key in ("usv_a",):
+        block["vehicles"]["usv_a"] = value
+    elif key in ("t", "obstacle"):
+        block["vehicles"]["usv_a"][key] = value
+    else:
+        block[key] = value
+    got = Metrics.from_json(m)
+    assert isinstance(got, (Metrics, Rejected))
+    if isinstance(got, Rejected):
+        assert "obstacles" in str(got)
+    else:
+        assert got.to_dict() == m
