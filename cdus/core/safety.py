@@ -136,6 +136,7 @@ class FilterInfo:
     sidestep: float = 0.0
     min_h: float = math.inf
     by_obstacle: bool = False
+    way: int = 0  # round a blocking obstacle: +1 anticlockwise, -1 clockwise (seen from above), 0 not
 
 
 PASS = FilterInfo(False, (), True, "pass")
@@ -254,6 +255,21 @@ def _solve(u_ref: Vec, normals: list[Vec], betas: list[float], tol: float) -> tu
         return u, "relaxed", max(0.0, max(b - _dot(nk, u) for nk, b in zip(normals, betas)))
 
 
+def _blocking(u_ref: Vec, u: Vec, normals: list[Vec], betas: list[float], n_obstacles: int, tol: float
+              ) -> tuple[float, float] | None:
+    """The horizontal unit normal of the obstacle the vehicle pushes into (its row binds at ``u``
+    and u_ref points into it; the most squarely of such), or None (also when it blocks from
+    straight above or below: no way round about the vertical)."""
+    first = len(normals) - n_obstacles
+    rows = [(_dot(n, u_ref), n) for n, b in zip(normals[first:], betas[first:]) if _dot(n, u) - b <= tol]
+    into = min(rows, default=None, key=lambda r: r[0])
+    if into is None or into[0] >= 0.0:
+        return None
+    n = into[1]
+    h = math.hypot(n[0], n[1])
+    return None if h < 1e-6 else (n[0] / h, n[1] / h)
+
+
 def _turn_starboard(u: Vec, angle: float) -> Vec:
     """u turned clockwise (seen from above) by ``angle`` rad about the vertical."""
     c, s = math.cos(angle), math.sin(angle)
@@ -261,12 +277,14 @@ def _turn_starboard(u: Vec, angle: float) -> Vec:
 
 
 def safety_filter(u_ref: Vec, q: Vec, contacts: Sequence[Contact | Vec], params: SafetyParams,
-                  me: str | None = None) -> tuple[Vec, FilterInfo]:
+                  me: str | None = None, way: int = 0) -> tuple[Vec, FilterInfo]:
     """The safe velocity nearest ``u_ref`` for a vehicle at ``q`` among ``contacts``.
 
     ``contacts``: :class:`Contact`s (or bare positions, taken with share 1/2), in the
     vehicle's dimension (2 for a USV, 3 for a UAV); ``me``: this vehicle's id, used only
-    to separate from a contact at exactly the same position. Returns (u, info).
+    to separate from a contact at exactly the same position; ``way``: the way round an obstacle
+    this vehicle took at its last call (``info.way``: +1 anticlockwise, -1 clockwise, 0 none).
+    Returns (u, info).
     """
     u_ref = tuple(float(x) for x in u_ref)
     if len(u_ref) != len(q):
@@ -284,8 +302,17 @@ def safety_filter(u_ref: Vec, q: Vec, contacts: Sequence[Contact | Vec], params:
         nu = math.sqrt(_dot(u, u))
         if nu < params.sidestep * nref:
             weight = 1.0 - nu / (params.sidestep * nref)
-            u, method, slack = _solve(_turn_starboard(u_ref, weight * SIDESTEP_ANGLE), normals, betas, tol)
-    info = FilterInfo(False, (), True, method, slack, weight, min_h)
+    n = _blocking(u_ref, u, normals, betas, len(params.obstacles), tol) if params.obstacles and nref > tol else None
+    if n is None:
+        way = 0
+    elif way == 0 and weight > 0.0:  # stalled against it: commit to the way the filter slides it
+        way = -1 if n[0] * u[1] - n[1] * u[0] < -tol else 1  # none: anticlockwise, a turn to starboard
+    if way and n is not None:  # round the obstacle that way at u_ref's horizontal speed (docs/safety.md)
+        speed = math.hypot(u_ref[0], u_ref[1])
+        u, method, slack = _solve((-way * n[1] * speed, way * n[0] * speed) + tuple(u_ref[2:]), normals, betas, tol)
+    elif weight > 0.0:
+        u, method, slack = _solve(_turn_starboard(u_ref, weight * SIDESTEP_ANGLE), normals, betas, tol)
+    info = FilterInfo(False, (), True, method, slack, weight, min_h, way=way)
     return _bound(u_ref, u, params, info, normals, betas, len(params.obstacles))
 
 
@@ -302,7 +329,8 @@ def _bound(u_ref: Vec, u: Vec, params: SafetyParams, info: FilterInfo, normals: 
     satisfied = all(m >= -tol for m in margins)
     intervened = math.dist(u, u_ref) > tol  # (a - b) ** 2 raised OverflowError on a huge u
     obstacle = intervened and any(k >= len(normals) - n_obstacles for k in active)
-    return u, FilterInfo(intervened, active, satisfied, info.method, info.slack, info.sidestep, info.min_h, obstacle)
+    return u, FilterInfo(intervened, active, satisfied, info.method, info.slack, info.sidestep, info.min_h, obstacle,
+                         info.way)
 
 
 # =========================================================================== on the dynamics

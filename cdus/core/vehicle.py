@@ -104,6 +104,7 @@ class Vehicle:
     _guarded: bool = field(default=False, repr=False)  # the velocity layer intervened this period
     _dyn_intervened: bool = field(default=False, repr=False)  # the dynamic layer did
     _by_obstacle: bool = field(default=False, repr=False)  # an obstacle's row bound in either layer this period
+    _way: int = field(default=0, repr=False)  # the way round a blocking obstacle (cdus.core.safety.safety_filter)
     _eso: ESO | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
@@ -213,7 +214,8 @@ class Vehicle:
                          Contact(tuple(x + y * age for x, y in zip(c.q, v)), c.id, c.share)
                          for c, v, _ in tracks)
             self._tracks = None
-        u, info = safety_filter(a, self.q, seen, params, self.id)
+        u, info = safety_filter(a, self.q, seen, params, self.id, self._way)
+        self._way = info.way
         self.last_filter = info
         self._guarded = info.intervened
         self._by_obstacle = info.by_obstacle

@@ -146,3 +146,25 @@ def test_obstacle_rows_report_by_obstacle_only_when_one_binds():
     _, far = safety_filter((1.0, 0.0), (0.0, 0.0), (), params)
     _, near = safety_filter((1.0, 0.0), (6.5, 0.0), (), params)
     assert not far.by_obstacle and near.by_obstacle and near.intervened
+
+
+def _slide(track_way: bool, y0: float) -> tuple[float, float]:
+    """A boat following the line y = 0 eastwards (u_ref = (1, -2 y): the guidance pulls it back onto
+    its line) into a square pier across it, 40 s at 100 Hz; where it ends."""
+    pier = Polygon(((10.0, -3.0), (14.0, -3.0), (14.0, 3.0), (10.0, 3.0)), 1.0)
+    params = SafetyParams(radius=2.0, obstacles=(pier,))
+    q, way = (0.0, y0), 0
+    for _ in range(4000):
+        u, info = safety_filter((1.0, -2.0 * q[1]), q, (), params, None, way if track_way else 0)
+        way = info.way
+        q = (q[0] + 0.01 * u[0], q[1] + 0.01 * u[1])
+        assert barrier(pier, q) > -1e-9
+    return q
+
+
+@pytest.mark.parametrize("y0", [0.0, 0.3, -0.3])
+def test_a_blocked_vehicle_commits_to_a_way_round_and_rejoins_its_line(y0):
+    x, y = _slide(True, y0)
+    assert x > 20.0 and abs(y) < 0.1  # round the pier and back on its line
+    # without the commitment it stalls at the pier's face, where the starboard turn and the pull balance
+    assert _slide(False, y0)[0] < 10.0

@@ -12,7 +12,8 @@ BOATS, DRONES = ("usv_a", "usv_b"), ("uav_a", "uav_b")
 DYNAMIC = {**{f"vehicle.{v}.plant": "usv_3dof" for v in BOATS}, **{f"vehicle.{v}.plant": "uav_double_integrator"
                                                                  for v in DRONES},
            **{f"vehicle.{v}.limits": {"preset": True} for v in BOATS + DRONES},
-           "rates.physics": 100.0}  # half the config's rate: the test's cost (the margin held at 200 Hz too)
+           "rates.physics": 100.0,  # half the config's rate: the test's cost (the margin held at 200 Hz too)
+           "scenario.duration": 100.0}  # their detours take longer: settled at about 90 s, next lap's at 105 s
 
 
 def run(overrides, result=False):
@@ -36,7 +37,7 @@ def test_ideal_plant_keeps_the_margin_goes_round_and_the_formation_settles():
     assert ob["count"] == 4 and ob["below_margin"] == []
     for vid, row in ob["vehicles"].items():
         assert row["min_clearance_m"] >= row["margin_m"] - 1e-6, vid
-        assert row["deflected_s"] > 1.0, vid  # every path crosses an obstacle: each was deflected
+        assert row["deflected_s"] > 0.5, vid  # every path crosses an obstacle: each was deflected
     assert m["path_settle_s"] is not None and m["coord_settle_s"] is not None  # after the detour
 
 
@@ -44,9 +45,10 @@ def test_usv_3dof_and_double_integrator_keep_the_margin_and_rejoin():
     res = run(DYNAMIC, result=True)
     ob = res.metrics["obstacles"]
     assert ob["below_margin"] == []
-    assert all(row["min_clearance_m"] >= row["margin_m"] and row["deflected_s"] > 1.0
+    assert all(row["min_clearance_m"] >= row["margin_m"] and row["deflected_s"] > 0.5
                for row in ob["vehicles"].values())
-    assert all(rejoined(res.recorder, 0.2).values())  # back on the path (a usv_3dof boat sails ~0.15 m off it)
+    assert all(rejoined(res.recorder, 0.2).values())  # back on the path (a usv_3dof boat sails ~0.1 m off it)
+    assert res.metrics["coord_settle_s"] is not None  # the formation settles after the detour
 
 
 @pytest.mark.parametrize("overrides", [{}, DYNAMIC], ids=["ideal", "dynamic"])
