@@ -54,3 +54,47 @@ def test_obstacle_must_be_an_array_of_tables():
     data = base()
     data["obstacle"] = {"shape": "circle"}
     assert "obstacle: must be an array of tables ([[obstacle]] sections" in problems(data)
+
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+from cdus.scenario.config import ConfigError  # noqa: E402
+
+_value = st.one_of(st.none(), st.booleans(), st.integers(-10, 10), st.floats(allow_nan=True),
+                   st.text(max_size=4), st.lists(st.floats(-1e7, 1e7), max_size=4),
+                   st.lists(st.lists(st.floats(-10, 10), min_size=2, max_size=3), max_size=5))
+
+
+@settings(max_examples=300, deadline=None)
+@given(shape=st.sampled_from(["circle", "polygon", "cylinder", "box", "cone", 3]),
+       table=st.dictionaries(st.sampled_from(["center", "radius", "vertices", "z", "min", "max", "margin", "name",
+                                              "colour"]), _value, max_size=5))
+def test_any_obstacle_table_is_taken_or_refused_naming_an_obstacle_field(shape, table):
+    data = base()
+    data["obstacle"] = [{"shape": shape, **table}]
+    try:
+        got = parse_scenario(data).obstacles
+    except ConfigError as e:
+        assert e.problems and all(field.startswith("obstacle[0]") for field, _ in e.problems), e.problems
+    else:
+        assert len(got) == 1 and got[0].shape == shape
+
+
+@pytest.mark.parametrize("obstacle", [
+    {"shape": "circle", "center": [1e6, -1e6], "radius": 1e6, "margin": 1e6},
+    {"shape": "circle", "center": [0, 0], "radius": 1e-300, "margin": 0},
+    {"shape": "box", "min": [-1e6, -1e6, -1e6], "max": [1e6, 1e6, 1e6]},
+    {"shape": "cylinder", "center": [0, 0], "radius": 1e6, "z": [-1e6, 1e6], "margin": 1e6},
+])
+def test_obstacles_at_their_bounds_run_to_the_end(obstacle):
+    """Every vehicle starts inside these: the filter pushes out within its speed bound, never a crash."""
+    from cdus.sim.fleet import InProcessFleet
+
+    data = base()
+    data["scenario"]["duration"] = 1.0
+    data["rates"] = {"physics": 20.0, "control": 10.0}
+    data["safety"] = {"enabled": True}
+    data["defaults"] = {"limits": {"speed": 5.0}}
+    data["obstacle"] = [obstacle]
+    m = InProcessFleet(parse_scenario(data)).run().metrics
+    assert m["completed"] and m["obstacles"]["count"] == 1
