@@ -38,6 +38,10 @@ What never raises and never freezes:
   in proportion to how far |u| fell, and the QP solved again: everyone turns right, as
   boats do head-on, and a blocked crossing turns into a roundabout. The constraints
   still hold; only the reference changed.
+- *Obstacles* (``params.obstacles``, cdus.core.obstacles): one row each, n̂ᵀu ≥ -γ (d - margin),
+  taken whole. A vehicle an obstacle blocks (its row binds, u_ref points into it, |u| fell below
+  ``sidestep`` |u_ref|) commits to a way round it along its surface (``FilterInfo.way``, passed
+  back in by the caller) until it no longer blocks: a starboard turn stalled there.
 - *Speed bound* (optional): u is scaled radially to |u| ≤ ``speed``. Scaling towards 0
   keeps every constraint with β ≤ 0 (all contacts outside R), since u = 0 satisfies them.
 """
