@@ -121,7 +121,7 @@ class Report:
             rejected_by_reason=by_reason, missed_deadlines=a.missed_deadlines, joined_at=node.joined_at,
             latencies_ms=tuple(x * 1000.0 for x in new[::step][:100]), faults=faults,
             bursts=tuple(e.as_dict() for e in burst_events(node.bursts, a.ids)[-BURSTS_PER_STATS:]),
-            interventions=node.vehicle.interventions, incarnation=a.incarnation,
+            interventions=node.vehicle.interventions, incarnation=a.incarnation, deflected=node.vehicle.deflected,
             radio=None if node.radio is None else node.radio.counters.as_dict())
 
     def publish_stats(self) -> None:

@@ -145,6 +145,7 @@ class Finishing:
         metrics = run_metrics(self.scenario, self.recorder, mode=self.clock.name, link=self.link_block(), wall_s=wall,
                               policy=self.policy, events=self.events,
                               interventions=sum(s.interventions for s in self._processes()),
+                              deflected=[sum(s.deflected for s in self._processes() if s.id == v) for v in self.ids],
                               completed=completion == COMPLETED, completion=completion,
                               rejected_by_reason=self.rejects_by_reason(), integrity=self.integrity_block(),
                               **never_up, **self._radio_metrics())

@@ -2,8 +2,8 @@
 
 The pure drawing of world_sim.rerun_sink (which streams and files what is drawn here): a
 vehicle's colour by kind and rank, the size of its marker, its yaw, the trail's rows, the
-safety and radio colours, and the columnar batches (one Arrow column per entity) that make a
-run's many rows one send."""
+safety and radio colours, the obstacles' outlines, and the columnar batches (one Arrow column per
+entity) that make a run's many rows one send."""
 
 from __future__ import annotations
 
@@ -167,3 +167,29 @@ def probability_colour(p: float) -> tuple[int, int, int]:
 def _fade(rgb: tuple[int, int, int], amount: float = 0.45) -> tuple[int, int, int]:
     """``rgb`` mixed towards white (path lines and rotors, lighter than the vehicle)."""
     return tuple(int(round(c + (255 - c) * amount)) for c in rgb)  # type: ignore[return-value]
+
+
+OBSTACLES = f"{bp.WORLD}/obstacles"  # + /<j>: the j-th [[obstacle]], static line strips
+OBSTACLE_COLOUR = (120, 90, 60)  # earth brown: islands, piers, masts and no-fly zones alike
+CIRCLE_SEGMENTS = 64
+
+
+def obstacle_strips(o: Any) -> list[np.ndarray]:
+    """An [[obstacle]]'s outline as line strips in 3-D (cdus.core.obstacles shapes): a circle or a
+    polygon a closed loop on the water (z = 0); a cylinder its floor and ceiling rings and four
+    vertical lines; a box its bottom and top rectangles and four vertical edges."""
+    if o.shape in ("circle", "cylinder"):
+        a = np.linspace(0.0, 2.0 * np.pi, CIRCLE_SEGMENTS + 1)
+        ring = np.stack([o.center[0] + o.radius * np.cos(a), o.center[1] + o.radius * np.sin(a)], axis=1)
+    elif o.shape == "polygon":
+        ring = np.array(o.vertices + o.vertices[:1], dtype=float)
+    else:
+        (x0, y0, _), (x1, y1, _) = o.lo, o.hi
+        ring = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1], [x0, y0]], dtype=float)
+    if o.shape in ("circle", "polygon"):
+        return [np.column_stack([ring, np.zeros(len(ring))])]
+    lo, hi = o.z if o.shape == "cylinder" else (o.lo[2], o.hi[2])
+    loops = [np.column_stack([ring, np.full(len(ring), z)]) for z in (lo, hi)]
+    step = max(1, (len(ring) - 1) // 4)
+    posts = [np.array([[*ring[k], lo], [*ring[k], hi]]) for k in range(0, len(ring) - 1, step)][:4]
+    return loops + posts

@@ -84,7 +84,8 @@ from world_sim.rerun_draw import (  # noqa: F401 (CLOSEST, INTERVENTIONS, NEAR_C
     APP_ID, CLOSEST, CLOSEST_COLOUR, EDGE_COLOURS, INTERVENTION_COLOUR, INTERVENTIONS, LEVELS, NEAR_COLOUR,
     STATE_COLOURS, STATION_COLOUR, TRAIL_POINTS_EVERY, TRAIL_SECONDS, UTILISATION_COLOUR, _LABELS, _POSITIONS,
     _QUATERNION, _SCALAR, _TRANSLATION, _Layout, _fade, _lists, _strip_lists, _time, _vec_lists, colour,
-    intervened, marker_size, probability_colour, trail_indices, yaw_quaternions,
+    intervened, marker_size, probability_colour, trail_indices, yaw_quaternions, OBSTACLE_COLOUR, OBSTACLES,
+    obstacle_strips,
 )
 from world_sim.rerun_files import (  # noqa: F401 (BYTES_PER_VEHICLE_SECOND: as before)
     BYTES_PER_VEHICLE_SECOND, _free_bytes, _parts, _segment, _write_whole, expected_bytes, merge_segments,
@@ -194,6 +195,12 @@ class RerunSink:
                 self.rec.log(INTERVENTIONS, rr.Points3D.from_fields(colors=[INTERVENTION_COLOUR], radii=[0.45 * size],
                                                                   show_labels=False), static=True)
             scene = list(lines)
+            for j, o in enumerate(getattr(scenario, "obstacles", ())):  # [[obstacle]]: static outlines
+                strips = obstacle_strips(o)
+                scene += strips
+                self.rec.log(f"{OBSTACLES}/{j}", rr.LineStrips3D(strips, colors=[OBSTACLE_COLOUR], labels=[o.name],
+                                                                  radii=rr.components.Radius.ui_points(2.0)),
+                             static=True)
             for v, line in zip(scenario.vehicles, lines):
                 rgb = colour(v.kind, rank[v.kind])
                 rank[v.kind] += 1

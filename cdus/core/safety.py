@@ -38,6 +38,10 @@ What never raises and never freezes:
   in proportion to how far |u| fell, and the QP solved again: everyone turns right, as
   boats do head-on, and a blocked crossing turns into a roundabout. The constraints
   still hold; only the reference changed.
+- *Obstacles* (``params.obstacles``, cdus.core.obstacles): one row each, n̂ᵀu ≥ -γ (d - margin),
+  taken whole. A vehicle an obstacle blocks (its row binds, u_ref points into it, |u| fell below
+  ``sidestep`` |u_ref|) commits to a way round it along its surface (``FilterInfo.way``, passed
+  back in by the caller) until it no longer blocks: a starboard turn stalled there.
 - *Speed bound* (optional): u is scaled radially to |u| ≤ ``speed``. Scaling towards 0
   keeps every constraint with β ≤ 0 (all contacts outside R), since u = 0 satisfies them.
 """
@@ -51,7 +55,11 @@ from typing import TYPE_CHECKING, Sequence
 
 # numpy and quadprog are imported where a QP is solved, not here: a vehicle process whose filter
 # never needs one (or that has none) does not load them (numpy is ~14 MB of RSS per process)
+from cdus.core.obstacles import Obstacle, clearance
 from cdus.core.paths import Vec
+from cdus.core.points import (  # noqa: F401  (what the dynamic filter sees of a vehicle: importable from here too)
+    UAV_BRAKING_SHARE, UAV_NOMINAL_ACCEL, USV_BRAKING, USV_MARGIN, USV_NOMINAL_ACCEL, Point, uav_point, usv_point,
+)
 
 if TYPE_CHECKING:
     import numpy as np
@@ -77,6 +85,8 @@ class SafetyParams:
     speed: optional bound on |u| (m/s), applied last.
     sidestep: κ in [0, 1): below |u| < κ |u_ref| the reference is turned to starboard; 0 disables.
     tolerance: |u - u_ref| above this (m/s) counts as an intervention.
+    obstacles: the [[obstacle]]s this vehicle avoids (cdus.core.obstacles), each a row
+        n̂ᵀu ≥ -γ (d - margin - obstacle_pad) (d: signed distance, n̂: outward normal).
     """
 
     radius: float
@@ -84,6 +94,8 @@ class SafetyParams:
     speed: float = math.inf
     sidestep: float = 0.3
     tolerance: float = 1e-6
+    obstacles: tuple[Obstacle, ...] = ()
+    obstacle_pad: float = 0.0  # m added to every obstacle's margin (the reference shaper's, cdus.core.vehicle)
 
     def __post_init__(self) -> None:
         for name in ("radius", "gamma", "speed", "tolerance"):
@@ -117,6 +129,7 @@ class FilterInfo:
     slack: δ of the relaxed problem (m/s along the normal), 0 otherwise.
     sidestep: weight in [0, 1] of the starboard turn against a deadlock.
     min_h: the smallest h_ik = |q_i - q_k|² - R² (m²; negative: inside R); inf without contacts.
+    by_obstacle: an obstacle's row binds (or is violated) at u and the filter changed the reference.
     """
 
     intervened: bool
@@ -126,6 +139,8 @@ class FilterInfo:
     slack: float = 0.0
     sidestep: float = 0.0
     min_h: float = math.inf
+    by_obstacle: bool = False
+    way: int = 0  # round a blocking obstacle: +1 anticlockwise, -1 clockwise (seen from above), 0 not
 
 
 PASS = FilterInfo(False, (), True, "pass")
@@ -181,6 +196,10 @@ def _rows(u_ref: Vec, q: Vec, contacts: Sequence[Contact | Vec], params: SafetyP
         eff = eff if eff > 0.0 else COINCIDENT  # R² underflowed (R < 1e-154 m): h = 0 at |d| = 0
         normals.append(n)
         betas.append(-share * params.gamma * h / (2.0 * eff))
+    for o in params.obstacles:  # last: rows past the contacts' are the obstacles' (FilterInfo.by_obstacle)
+        cl = clearance(o, q)
+        normals.append(cl.normal)
+        betas.append(-params.gamma * (cl.distance - o.margin - params.obstacle_pad))
     return normals, betas, min_h
 
 
@@ -240,6 +259,21 @@ def _solve(u_ref: Vec, normals: list[Vec], betas: list[float], tol: float) -> tu
         return u, "relaxed", max(0.0, max(b - _dot(nk, u) for nk, b in zip(normals, betas)))
 
 
+def _blocking(u_ref: Vec, u: Vec, normals: list[Vec], betas: list[float], n_obstacles: int, tol: float
+              ) -> tuple[float, float] | None:
+    """The horizontal unit normal of the obstacle the vehicle pushes into (its row binds at ``u``
+    and u_ref points into it; the most squarely of such), or None (also when it blocks from
+    straight above or below: no way round about the vertical)."""
+    first = len(normals) - n_obstacles
+    rows = [(_dot(n, u_ref), n) for n, b in zip(normals[first:], betas[first:]) if _dot(n, u) - b <= tol]
+    into = min(rows, default=None, key=lambda r: r[0])
+    if into is None or into[0] >= 0.0:
+        return None
+    n = into[1]
+    h = math.hypot(n[0], n[1])
+    return None if h < 1e-6 else (n[0] / h, n[1] / h)
+
+
 def _turn_starboard(u: Vec, angle: float) -> Vec:
     """u turned clockwise (seen from above) by ``angle`` rad about the vertical."""
     c, s = math.cos(angle), math.sin(angle)
@@ -247,19 +281,21 @@ def _turn_starboard(u: Vec, angle: float) -> Vec:
 
 
 def safety_filter(u_ref: Vec, q: Vec, contacts: Sequence[Contact | Vec], params: SafetyParams,
-                  me: str | None = None) -> tuple[Vec, FilterInfo]:
+                  me: str | None = None, way: int = 0) -> tuple[Vec, FilterInfo]:
     """The safe velocity nearest ``u_ref`` for a vehicle at ``q`` among ``contacts``.
 
     ``contacts``: :class:`Contact`s (or bare positions, taken with share 1/2), in the
     vehicle's dimension (2 for a USV, 3 for a UAV); ``me``: this vehicle's id, used only
-    to separate from a contact at exactly the same position. Returns (u, info).
+    to separate from a contact at exactly the same position; ``way``: the way round an obstacle
+    this vehicle took at its last call (``info.way``: +1 anticlockwise, -1 clockwise, 0 none).
+    Returns (u, info).
     """
     u_ref = tuple(float(x) for x in u_ref)
     if len(u_ref) != len(q):
         raise ValueError(f"safety: u_ref has {len(u_ref)} components, q has {len(q)}")
     if not all(math.isfinite(x) for x in u_ref + tuple(q)):
         raise ValueError(f"safety: u_ref and q must be finite, got u_ref={u_ref}, q={tuple(q)}")
-    if not contacts:
+    if not contacts and not params.obstacles:
         return _bound(u_ref, u_ref, params, PASS, [], [])
     normals, betas, min_h = _rows(u_ref, q, contacts, params, me)
     tol = params.tolerance
@@ -270,13 +306,22 @@ def safety_filter(u_ref: Vec, q: Vec, contacts: Sequence[Contact | Vec], params:
         nu = math.sqrt(_dot(u, u))
         if nu < params.sidestep * nref:
             weight = 1.0 - nu / (params.sidestep * nref)
-            u, method, slack = _solve(_turn_starboard(u_ref, weight * SIDESTEP_ANGLE), normals, betas, tol)
-    info = FilterInfo(False, (), True, method, slack, weight, min_h)
-    return _bound(u_ref, u, params, info, normals, betas)
+    n = _blocking(u_ref, u, normals, betas, len(params.obstacles), tol) if params.obstacles and nref > tol else None
+    if n is None:
+        way = 0
+    elif way == 0 and weight > 0.0:  # stalled against it: commit to the way the filter slides it
+        way = -1 if n[0] * u[1] - n[1] * u[0] < -tol else 1  # none: anticlockwise, a turn to starboard
+    if way and n is not None:  # round the obstacle that way at u_ref's horizontal speed (docs/safety.md)
+        speed = math.hypot(u_ref[0], u_ref[1])
+        u, method, slack = _solve((-way * n[1] * speed, way * n[0] * speed) + tuple(u_ref[2:]), normals, betas, tol)
+    elif weight > 0.0:
+        u, method, slack = _solve(_turn_starboard(u_ref, weight * SIDESTEP_ANGLE), normals, betas, tol)
+    info = FilterInfo(False, (), True, method, slack, weight, min_h, way=way)
+    return _bound(u_ref, u, params, info, normals, betas, len(params.obstacles))
 
 
 def _bound(u_ref: Vec, u: Vec, params: SafetyParams, info: FilterInfo, normals: list[Vec],
-           betas: list[float]) -> tuple[Vec, FilterInfo]:
+           betas: list[float], n_obstacles: int = 0) -> tuple[Vec, FilterInfo]:
     """Apply the speed bound, then fill in intervened / active / satisfied."""
     if params.speed != math.inf:
         n = math.sqrt(_dot(u, u))
@@ -287,7 +332,9 @@ def _bound(u_ref: Vec, u: Vec, params: SafetyParams, info: FilterInfo, normals: 
     active = tuple(k for k, m in enumerate(margins) if m <= tol)
     satisfied = all(m >= -tol for m in margins)
     intervened = math.dist(u, u_ref) > tol  # (a - b) ** 2 raised OverflowError on a huge u
-    return u, FilterInfo(intervened, active, satisfied, info.method, info.slack, info.sidestep, info.min_h)
+    obstacle = intervened and any(k >= len(normals) - n_obstacles for k in active)
+    return u, FilterInfo(intervened, active, satisfied, info.method, info.slack, info.sidestep, info.min_h, obstacle,
+                         info.way)
 
 
 # =========================================================================== on the dynamics
@@ -313,47 +360,8 @@ DYN_SLACK_WEIGHT = 1.0e4
 # ||Δp| - D| is floored at this (m), so the requirement stays finite at D (where it cannot
 # be met the QP takes the least worst violation: the strongest push the inputs allow).
 DYN_GAP_FLOOR = 0.01
-# A USV keeps this much (m) beyond R: its sway and yaw, which τ_u does not act on, move the
-# hull by up to a few cm while it brakes side-on (tests/core/test_safety_dynamic.py).
-USV_MARGIN = 0.1
-# The braking (m/s²) a vehicle counts on along the line of sight, by plant: a share of a
-# UAV's acceleration bound; for a USV what its surge thrust leaves at full speed
-# (docs/safety.md, "The numbers").
-UAV_BRAKING_SHARE = 0.6
-UAV_NOMINAL_ACCEL = 6.0  # m/s²: a UAV without an acceleration limit is taken as the preset's
-USV_BRAKING = 0.3
-USV_NOMINAL_ACCEL = 1.5  # m/s²: bound on a boat's acceleration (|ε3| τ_u of the preset)
-# Rate (1/s) at which the USV filter lets the surge speed approach ±its limit.
-USV_SPEED_RATE = 1.0
-# While the filter acts on a boat, its yaw rate is held within ±this (rad/s), approached at
-# USV_YAW_RATE_RATE (1/s): turning at speed makes sway (v̇ = ε6 v + ε7 u r), which the
-# surge cannot stop, and in a crowd that sway pushed boats into each other.
-USV_JAM_YAW_RATE = 0.1
-USV_YAW_RATE_RATE = 5.0
 # A UAV's |τ| ≤ accel is a ball; the QP meets it by cutting planes, at most this many.
 BALL_CUTS = 6
-
-
-@dataclass(frozen=True, slots=True)
-class Point:
-    """A vehicle as the dynamic filter sees itself: its position p, velocity v over ground,
-    p̈ = f + G τ (``G`` by rows: p̈_j = f_j + Σ_m G[j][m] τ_m), the inputs' box
-    lo ≤ τ ≤ hi and ball |τ| ≤ ``ball``, the braking ``alpha`` it counts on, ``accel`` a
-    bound on |p̈| of such a vehicle (the margin its neighbours give its motion over a
-    sample's age) and ``scale``, each input's full-scale value (the QP weighs (τ_m/scale_m)²)."""
-
-    p: Vec
-    v: Vec
-    f: Vec
-    G: tuple[Vec, ...]
-    lo: Vec
-    hi: Vec
-    ball: float
-    alpha: float
-    accel: float
-    scale: Vec
-    margin: float = 0.0  # kept beyond R (m)
-    yaw: tuple[float, float] | None = None  # a USV's τ_r interval while the filter acts (see usv_point)
 
 
 @dataclass(frozen=True, slots=True)
@@ -370,53 +378,6 @@ class Track:
     id: str | None = None
 
 
-def uav_point(q: Vec, p: Vec, d: Vec, accel: float) -> Point:
-    """A UAV (q̇ = p + d, ṗ = τ, |τ| ≤ accel): p̈ = τ (d held constant)."""
-    dim = len(q)
-    a = accel if math.isfinite(accel) else UAV_NOMINAL_ACCEL
-    eye = tuple(tuple(1.0 if i == j else 0.0 for j in range(dim)) for i in range(dim))
-    inf = (math.inf,) * dim
-    return Point(tuple(q), tuple(x + y for x, y in zip(p, d)), (0.0,) * dim, eye,
-                 tuple(-x for x in inf), inf, accel, UAV_BRAKING_SHARE * a, a, (a,) * dim)
-
-
-def usv_point(x: float, y: float, psi: float, u: float, v: float, r: float, eps: tuple[float, ...],
-              d: Vec, tau_u: float, tau_r: float, speed: float) -> Point:
-    """A 3-DOF boat's position: with ṗ = R(ψ)(u, v) + d (d held constant),
-
-        p̈ = R(ψ) (ε1 u + ε2 v r - r v + ε3 τ_u,  ε6 v + ε7 u r + r u)
-
-    Only τ_u acts at this order (along the heading); τ_r acts a derivative later, through r.
-    The box is |τ_u| ≤ tau_u, narrowed so that the surge speed approaches ±``speed`` no faster
-    than exponentially (u̇ ≤ USV_SPEED_RATE (speed - u)), and |τ_r| ≤ tau_r (untouched)."""
-    e1, e2, e3, e4, e5, e6, e7 = eps
-    c, s = math.cos(psi), math.sin(psi)
-    vel = (c * u - s * v + d[0], s * u + c * v + d[1])
-    fu, fv = e1 * u + e2 * v * r - r * v, e6 * v + e7 * u * r + r * u
-    f = (c * fu - s * fv, s * fu + c * fv)
-    G = ((c * e3, 0.0), (s * e3, 0.0))
-    lo_u, hi_u = -tau_u, tau_u
-    if math.isfinite(speed):
-        drift = e1 * u + e2 * v * r
-        lo_u, hi_u = _narrow(lo_u, hi_u, (-USV_SPEED_RATE * (speed + u) - drift) / e3,
-                             (USV_SPEED_RATE * (speed - u) - drift) / e3)
-    accel = min(USV_NOMINAL_ACCEL, e3 * tau_u) if math.isfinite(tau_u) else USV_NOMINAL_ACCEL
-    scale = (tau_u if math.isfinite(tau_u) else 1.0 / e3, tau_r if math.isfinite(tau_r) else 1.0 / e5)
-    yaw = _narrow(-tau_r, tau_r, (-USV_YAW_RATE_RATE * (USV_JAM_YAW_RATE + r) - e4 * r) / e5,
-                  (USV_YAW_RATE_RATE * (USV_JAM_YAW_RATE - r) - e4 * r) / e5)
-    return Point((x, y), vel, f, G, (lo_u, -tau_r), (hi_u, tau_r), math.inf, USV_BRAKING, accel, scale, USV_MARGIN,
-                 yaw)
-
-
-def _narrow(lo: float, hi: float, a: float, b: float) -> tuple[float, float]:
-    """[lo, hi] ∩ [a, b]; if they do not meet, the end of [lo, hi] nearest [a, b]."""
-    nlo, nhi = max(lo, a), min(hi, b)
-    if nlo <= nhi:
-        return nlo, nhi
-    edge = hi if a > hi else lo
-    return edge, edge
-
-
 def pair_demand(dp: Vec, dv: Vec, radius: float, alpha: float, gamma: float, share: float,
                 margin_p: float = 0.0, margin_v: float = 0.0) -> tuple[Vec, float, float]:
     """(n̂, b, h): vehicle i must keep n̂ᵀ a_i ≥ b for the pair with relative position
@@ -427,24 +388,28 @@ def pair_demand(dp: Vec, dv: Vec, radius: float, alpha: float, gamma: float, sha
     n = tuple(x / dist for x in dp) if dist > COINCIDENT else (1.0,) + (0.0,) * (dim - 1)
     ddot = _dot(n, dv)
     vt2 = max(0.0, _dot(dv, dv) - ddot * ddot)
-    D = radius + margin_p
-    # Inside D the same barrier with -sqrt(2 A (D - |Δp|)): h < 0, and ḣ ≥ -γ h drives the
-    # pair out, separating at up to sqrt(2 A (D - |Δp|)) (its derivative has the same form).
-    root = math.sqrt(2.0 * alpha * max(abs(dist - D), DYN_GAP_FLOOR))
-    h = (root if dist > D else -root) + ddot - margin_v
-    rhs = -gamma * h - alpha * ddot / root - vt2 / max(dist, ESCAPE_FLOOR * radius)
+    rhs, h = braking(dist - (radius + margin_p), ddot, vt2 / max(dist, ESCAPE_FLOOR * radius), alpha, gamma, margin_v)
     return n, max(rhs, share * rhs), h
 
 
+def braking(gap: float, ddot: float, bend: float, alpha: float, gamma: float, margin_v: float = 0.0
+            ) -> tuple[float, float]:
+    """(rhs, h) of the braking barrier at distance ``gap`` past D closing at -``ddot``: n̂ᵀa ≥ rhs
+    (``bend``: |v_t|²/ρ, what moving across n̂ adds to ḋ's derivative, ρ the radius n̂ turns about).
+    Inside D the same barrier with -sqrt(2 A (D - |Δp|)): h < 0, and ḣ ≥ -γ h drives the pair out,
+    separating at up to sqrt(2 A (D - |Δp|)) (its derivative has the same form)."""
+    root = math.sqrt(2.0 * alpha * max(abs(gap), DYN_GAP_FLOOR))
+    h = (root if gap > 0.0 else -root) + ddot - margin_v
+    return -gamma * h - alpha * ddot / root - bend, h
+
+
 def _dyn_rows(me: Point, tracks: Sequence[Track], params: SafetyParams, mid: str | None
-              ) -> tuple[list[Vec], list[float], float]:
-    """Per track a row c and bound b (m/s²) of c·z ≥ b (z = τ / scale), and the smallest
-    |Δp|² - D² (m²; negative: inside D)."""
+              ) -> tuple[list[Vec], list[float], float, int]:
+    """Per track, then per obstacle, a row c and bound b (m/s²) of c·z ≥ b (z = τ / scale), the
+    smallest |Δp|² - D² (m²; negative: inside D) and how many rows are the tracks'."""
     dim = len(me.p)
-    rows: list[Vec] = []
-    bounds: list[float] = []
+    demands: list[tuple[Vec, float]] = []
     min_h = math.inf
-    scale = me.scale
     for t in tracks:
         if len(t.p) != dim or len(t.v) != dim:
             raise ValueError(f"safety: a track has {len(t.p)} coordinates, the vehicle {dim}")
@@ -462,10 +427,29 @@ def _dyn_rows(me: Point, tracks: Sequence[Track], params: SafetyParams, mid: str
             dp = tuple(COINCIDENT * x for x in dp)
         n, b, _ = pair_demand(dp, dv, params.radius + me.margin, me.alpha / t.share, params.gamma, t.share, t.dp,
                               t.dv)
-        # n̂ᵀ(f + G τ) ≥ b, in z: Σ_m (n̂ᵀG)_m scale_m z_m ≥ b - n̂ᵀf
-        # Rows stay in m/s² (not normalised): the slack of a row then measures the missing
-        # acceleration, and a row the inputs can hardly act on (a boat side-on) cannot buy
-        # its slack down by giving up the rows they can act on.
+        demands.append((n, b))
+    rows, bounds = _dyn_constraints(me, demands)
+    n_tracks = len(rows)
+    for o in params.obstacles:  # a static track that does not react (share 1); ρ: the surface's bend
+        cl = clearance(o, me.p)
+        ddot = _dot(cl.normal, me.v)
+        bend = max(0.0, _dot(me.v, me.v) - ddot * ddot) / max(cl.distance + cl.bend, ESCAPE_FLOOR * params.radius)
+        demands = [(cl.normal, braking(cl.distance - (o.margin + me.margin), ddot, bend, me.alpha, params.gamma)[0])]
+        more = _dyn_constraints(me, demands)
+        rows += more[0]
+        bounds += more[1]
+    return rows, bounds, min_h, n_tracks
+
+
+def _dyn_constraints(me: Point, demands: list[tuple[Vec, float]]) -> tuple[list[Vec], list[float]]:
+    """n̂ᵀ(f + G τ) ≥ b, in z: Σ_m (n̂ᵀG)_m scale_m z_m ≥ b - n̂ᵀf, per demand (n̂, b).
+    Rows stay in m/s² (not normalised): the slack of a row then measures the missing
+    acceleration, and a row the inputs can hardly act on (a boat side-on) cannot buy
+    its slack down by giving up the rows they can act on."""
+    dim, scale = len(me.p), me.scale
+    rows: list[Vec] = []
+    bounds: list[float] = []
+    for n, b in demands:
         c = tuple(sum(n[j] * me.G[j][m] for j in range(dim)) * scale[m] for m in range(len(scale)))
         if math.sqrt(_dot(c, c)) < 1e-9:
             continue  # no authority along n̂ at all: the neighbour takes the demand
@@ -474,7 +458,7 @@ def _dyn_rows(me: Point, tracks: Sequence[Track], params: SafetyParams, mid: str
             continue  # huge margins (inf - inf): as a glitch
         rows.append(c)
         bounds.append(b)
-    return rows, bounds, min_h
+    return rows, bounds
 
 
 def dynamic_filter(tau_ref: Vec, me: Point, tracks: Sequence[Track], params: SafetyParams,
@@ -491,10 +475,10 @@ def dynamic_filter(tau_ref: Vec, me: Point, tracks: Sequence[Track], params: Saf
         raise ValueError(f"safety: tau_ref has {m} inputs, the vehicle {len(me.lo)}")
     if not all(math.isfinite(x) for x in tau_ref + tuple(me.p) + tuple(me.v) + tuple(me.f)):
         raise ValueError(f"safety: tau_ref and the vehicle's state must be finite, got {tau_ref}, {me}")
-    if not tracks:
+    if not tracks and not params.obstacles:
         return tau_ref, PASS
     scale = me.scale
-    rows, bounds, min_h = _dyn_rows(me, tracks, params, mid)
+    rows, bounds, min_h, n_tracks = _dyn_rows(me, tracks, params, mid)
     z_ref = tuple(x / s for x, s in zip(tau_ref, scale))
     if all(_dot(c, z_ref) >= b - 1e-12 for c, b in zip(rows, bounds)):
         return tau_ref, FilterInfo(False, (), True, "pass", min_h=min_h)
@@ -569,7 +553,8 @@ def dynamic_filter(tau_ref: Vec, me: Point, tracks: Sequence[Track], params: Saf
     active = tuple(i for i, mg in enumerate(margins) if mg <= 1e-7)
     satisfied = all(mg >= -1e-7 for mg in margins)
     intervened = tau != tau_ref
-    return tau, FilterInfo(intervened, active, satisfied, method, slack if math.isfinite(slack) else 0.0, 0.0, min_h)
+    return tau, FilterInfo(intervened, active, satisfied, method, slack if math.isfinite(slack) else 0.0, 0.0, min_h,
+                           intervened and any(i >= n_tracks for i in active))
 
 
 def _clip_ball(v: Vec, bound: float) -> Vec:

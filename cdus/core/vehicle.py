@@ -93,6 +93,7 @@ class Vehicle:
     omega_rate: float = 0.0
     started: bool = False
     interventions: int = 0  # control steps at which the safety filter changed the reference
+    deflected: int = 0  # of those, the steps at which an obstacle's row bound ([[obstacle]], docs/safety.md)
     last_filter: FilterInfo | None = field(default=None, repr=False)
     _shift: Vec | None = field(default=None, repr=False)  # the filter's u - u_ref, held over the period
     # The dynamic filter's view of the neighbours (docs/safety.md): the sample in use and the
@@ -102,6 +103,8 @@ class Vehicle:
     _tracks: tuple | None = field(default=None, repr=False)
     _guarded: bool = field(default=False, repr=False)  # the velocity layer intervened this period
     _dyn_intervened: bool = field(default=False, repr=False)  # the dynamic layer did
+    _by_obstacle: bool = field(default=False, repr=False)  # an obstacle's row bound in either layer this period
+    _way: int = field(default=0, repr=False)  # the way round a blocking obstacle (cdus.core.safety.safety_filter)
     _eso: ESO | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
@@ -190,7 +193,7 @@ class Vehicle:
         self._tracks = None
         if self.safety is None:
             return None
-        if not contacts:
+        if not contacts and not self.safety.obstacles:
             self.last_filter = None
             self._track(contacts, self.tick if sample_tick is None else sample_tick)
             self._tracks = None
@@ -201,7 +204,8 @@ class Vehicle:
         params = self.safety
         velocity_level = self.plant.velocity_level
         if not velocity_level:  # the reference keeps clear of R, the dynamic filter holds R
-            params = replace(params, radius=params.radius * (1.0 + SHAPER_MARGIN))
+            params = replace(params, radius=params.radius * (1.0 + SHAPER_MARGIN),
+                             obstacle_pad=params.radius * SHAPER_MARGIN)
             seen = contacts
         else:  # where the contacts are now, at their estimated velocities (docs/safety.md)
             ts, tracks = self._tracks
@@ -210,9 +214,11 @@ class Vehicle:
                          Contact(tuple(x + y * age for x, y in zip(c.q, v)), c.id, c.share)
                          for c, v, _ in tracks)
             self._tracks = None
-        u, info = safety_filter(a, self.q, seen, params, self.id)
+        u, info = safety_filter(a, self.q, seen, params, self.id, self._way)
+        self._way = info.way
         self.last_filter = info
         self._guarded = info.intervened
+        self._by_obstacle = info.by_obstacle
         if info.intervened:
             # The ideal plant flies clip(a) + shift; the regulators add the shift to the
             # unclipped reference and clip after (a - d̂ + shift), so for them it is taken from
@@ -261,6 +267,7 @@ class Vehicle:
         out, info = dynamic_filter(tau, me, tr, self.safety, self.id)
         if info.intervened:
             self._dyn_intervened = True
+            self._by_obstacle = self._by_obstacle or info.by_obstacle
             self.last_filter = info
         return out
 
@@ -311,6 +318,9 @@ class Vehicle:
                     eso = eso.update(self.state.q, known_velocity(st, self.state), h)
             if self._dyn_intervened and not self._guarded:
                 self.interventions += 1  # counted once per control step, whichever layer acted
+        if self._by_obstacle:
+            self.deflected += 1
+        self._by_obstacle = False
         self._eso = eso
         self._shift = None
         self._tracks = None

@@ -35,6 +35,7 @@ from cdus.scenario.graph import graph_section
 from cdus.scenario.link import link_section
 from cdus.scenario.model import Edge, Rates, Safety, Scenario, Supervision, VehicleSpec
 from cdus.scenario.plugins import plugins_section, probe_plants
+from cdus.scenario.obstacles import obstacle_section
 from cdus.scenario.radio import radio_section
 from cdus.scenario.safety import apply_fleet, disturbance_section, observer_section, safety_section
 from cdus.scenario.sections import (
@@ -50,8 +51,8 @@ __all__ = [
     "parse_overrides", "parse_scenario", "parse_text", "parse_value",
 ]
 
-SECTIONS = ("plugins", "scenario", "rates", "metrics", "gains", "guidance", "defaults", "supervision", "safety", "disturbance",
-            "observer", "graph", "link", "radio", "ros2", "event", "vehicle")
+SECTIONS = ("plugins", "scenario", "rates", "metrics", "gains", "guidance", "defaults", "supervision", "safety",
+            "disturbance", "observer", "graph", "link", "radio", "ros2", "event", "vehicle", "obstacle")
 
 
 # --------------------------------------------------------------------------- entry points
@@ -355,6 +356,7 @@ def _resolve(p: Problems, data: Mapping[str, Any], source: str) -> Scenario | No
     supervision = supervision_section(p, section(p, data, "supervision"))
     safety = safety_section(p, section(p, data, "safety"))
     sensor_timing(p, safety, header.duration)
+    obstacles = obstacle_section(p, data.get("obstacle"), safety.radius)
     disturbance = disturbance_section(p, section(p, data, "disturbance"))
     observer = observer_section(p, section(p, data, "observer"))
     fleet = vehicles_section(p, data.get("vehicle"), defaults, fleet_gains, header.seed)
@@ -383,5 +385,5 @@ def _resolve(p: Problems, data: Mapping[str, Any], source: str) -> Scenario | No
         seed=header.seed, rates=rates, path_tol=path_tol, coord_tol=coord_tol, topology=topology,
         directed=directed, vehicles=tuple(v for v in fleet.specs if v is not None), edges=edges, link=link,
         events=events, supervision=supervision, raw=dict(data), safety=safety, radio=radio,
-        changes=changes, radio_events=radio_events, ros2=ros2,
+        changes=changes, radio_events=radio_events, ros2=ros2, obstacles=obstacles,
     )

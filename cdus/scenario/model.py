@@ -152,6 +152,7 @@ class Scenario:
         return base_phases(self.ids, {v.id: v.phase for v in self.vehicles}, self.edges)
     radio_events: tuple[RadioEvent, ...] = ()  # [[event]] action = "radio": scheduled changes, by time
     ros2: Ros2Spec = Ros2Spec()  # the [ros2] table: the fleet as ROS 2 topics (docs/ros2.md), off by default
+    obstacles: tuple = ()  # the [[obstacle]]s (cdus.core.obstacles shapes, cdus.scenario.obstacles)
 
     def vehicle(self, vid: str) -> VehicleSpec:
         for v in self.vehicles:

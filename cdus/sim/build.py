@@ -23,21 +23,25 @@ from cdus.core.node import VehicleNode
 from cdus.core.schedule import broadcast_every, total_ticks
 from cdus.core.paths import for_dimension, nearest_omega
 from cdus.scenario.paths import make_path
+from cdus.core.obstacles import seen_by
 from cdus.core.safety import SafetyParams
 from cdus.core.vehicle import Vehicle
 from cdus.scenario.model import Rates, Safety, Scenario, VehicleSpec
 
 
-def safety_params(safety: Safety, limits: reg.Limits) -> SafetyParams | None:
+def safety_params(safety: Safety, limits: reg.Limits, obstacles: tuple = ()) -> SafetyParams | None:
     """The filter's parameters from the [safety] table (None when it is off); the vehicle's
-    speed limit bounds the filtered velocity too."""
+    speed limit bounds the filtered velocity too; ``obstacles``: the [[obstacle]]s it avoids."""
     if not safety.enabled:
         return None
-    return SafetyParams(radius=safety.radius, gamma=safety.gamma, speed=limits.speed, sidestep=safety.sidestep)
+    return SafetyParams(radius=safety.radius, gamma=safety.gamma, speed=limits.speed, sidestep=safety.sidestep,
+                        obstacles=obstacles)
 
 
-def build_vehicle(spec: VehicleSpec, rates: Rates, seed: int, safety: Safety | None = None) -> Vehicle:
-    """A vehicle's core object from its validated spec, the scenario's rates and [safety]."""
+def build_vehicle(spec: VehicleSpec, rates: Rates, seed: int, safety: Safety | None = None,
+                  obstacles: tuple = ()) -> Vehicle:
+    """A vehicle's core object from its validated spec, the scenario's rates, [safety] and the
+    [[obstacle]]s (those of its medium: cdus.core.obstacles.seen_by)."""
     path = for_dimension(make_path(dict(spec.path)), spec.dim)
     dim = spec.dim
     period = 1.0 / rates.control
@@ -71,7 +75,7 @@ def build_vehicle(spec: VehicleSpec, rates: Rates, seed: int, safety: Safety | N
     return Vehicle(id=spec.id, kind=spec.kind, dim=dim, path=path, k=tuple(spec.k), c=spec.c,
                    plant=plant, regulator=regulator, control_period=period,
                    physics_steps=steps, state=state, omega=float(w0),
-                   limits=limits, disturbance=dist, safety=safety_params(safety or Safety(), limits),
+                   limits=limits, disturbance=dist, safety=safety_params(safety or Safety(), limits, seen_by(spec.kind, obstacles)),
                    observer=spec.observer, scale_omega=spec.scale_omega)
 
 
@@ -102,7 +106,7 @@ def build_node(scenario: Scenario, vid: str, link: LinkModel, *, policy: str | N
     period = 1.0 / scenario.rates.control
     link_spec = scenario.link
     sensing = sensor_schedule(scenario)
-    node = VehicleNode(spec.index, build_vehicle(spec, scenario.rates, scenario.seed, scenario.safety),
+    node = VehicleNode(spec.index, build_vehicle(spec, scenario.rates, scenario.seed, scenario.safety, scenario.obstacles),
                        links_of(scenario, vid), link,
                        period=period, every=broadcast_every(scenario.rates),
                        last_tick=total_ticks(scenario.duration, period) if last_tick is None else last_tick,

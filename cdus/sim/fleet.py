@@ -331,4 +331,6 @@ class InProcessFleet:
             extra["radio"] = radio_block(self.link.counters, self.radio_watch)
         return run_metrics(self.scenario, self.recorder, mode=self.mode, link=link_block(counters, faults),
                            wall_s=self.clock() - self._t0, policy=self.policy, events=self.events,
-                           completed=self.tick > self.end_tick, interventions=self.interventions, **extra)
+                           completed=self.tick > self.end_tick, interventions=self.interventions,
+                           deflected=[sum(x.vehicle.deflected for x in [*self._retired, *self.nodes] if x.index == j)
+                                      for j in range(len(self.nodes))], **extra)

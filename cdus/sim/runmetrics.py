@@ -300,6 +300,38 @@ class ClosestPair:
 
 
 @dataclass(frozen=True)
+class ObstacleMetrics:
+    """The metrics' ``obstacles`` block (with [[obstacle]] only; docs/metrics.md): ``count``, the
+    fleet's smallest clearance, the vehicles ``below_margin`` and per vehicle its
+    ``min_clearance_m``, ``obstacle``, ``t``, ``margin_m``, ``deflected_s`` (cdus.core.obstacle_metrics)."""
+
+    count: int
+    min_clearance_m: float | None
+    below_margin: tuple[str, ...]
+    vehicles: dict[str, dict[str, Any]]
+
+    @classmethod
+    def from_dict(cls, d: Any, where: str = "obstacles.") -> "ObstacleMetrics":
+        d = _table(d, where.rstrip("."))
+        below = d.get("below_margin")
+        if not isinstance(below, list) or not all(isinstance(v, str) for v in below):
+            raise _bad(f"{where}below_margin", "a list of vehicle ids", below)
+        rows = {}
+        for vid, r in _table(d.get("vehicles"), f"{where}vehicles").items():
+            w = f"{where}vehicles.{vid}."
+            r = _table(r, w.rstrip("."))
+            rows[str(vid)] = {"min_clearance_m": _num(r, "min_clearance_m", w, null=True),
+                              "obstacle": _str(r, "obstacle", w, null=True), "t": _num(r, "t", w, null=True),
+                              "margin_m": _num(r, "margin_m", w, null=True),
+                              "deflected_s": _num(r, "deflected_s", w, null=True)}
+        return cls(_int(d, "count", where), _num(d, "min_clearance_m", where, null=True), tuple(below), rows)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"count": self.count, "min_clearance_m": self.min_clearance_m, "below_margin": list(self.below_margin),
+                "vehicles": {k: dict(v) for k, v in self.vehicles.items()}}
+
+
+@dataclass(frozen=True)
 class RejectedByReason:
     """``rejected_by_reason`` (a fleet of processes): what the world and the vehicles dropped, by reason."""
 
@@ -366,6 +398,7 @@ class Metrics:
     near_collision: bool | None
     interventions: int
     safety: SafetyInfo
+    obstacles: ObstacleMetrics | None = None  # with [[obstacle]] only
     integrity: Integrity | None = None  # None only in metrics written before it was (and the launcher's world_lost)
     rejected_by_reason: RejectedByReason | None = None
     radio: RadioMetrics | None = None  # with [radio] only
@@ -457,6 +490,7 @@ class Metrics:
             near_collision=_bool(d, "near_collision", w) if "near_collision" in d else None,
             interventions=_int(d, "interventions", w),
             safety=SafetyInfo(_bool(safety, "enabled", "safety."), _num(safety, "radius_m", "safety.", null=True)),
+            obstacles=ObstacleMetrics.from_dict(d["obstacles"]) if "obstacles" in d else None,
             integrity=Integrity.from_dict(d["integrity"]) if "integrity" in d else None,
             rejected_by_reason=rej,
             radio=RadioMetrics.from_dict(d["radio"]) if "radio" in d else None,
@@ -499,7 +533,7 @@ class Metrics:
             elif f.name == "never_up":
                 if v is not None:
                     out[f.name] = list(v)
-            elif f.name == "radio":
+            elif f.name in ("radio", "obstacles"):
                 if v is not None:
                     out[f.name] = v.to_dict()
             else:

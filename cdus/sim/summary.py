@@ -20,6 +20,7 @@ from __future__ import annotations
 from typing import Any, Iterable, Sequence
 
 from cdus.core.link import LinkCounters
+from cdus.core.obstacle_metrics import obstacle_block
 from cdus.core.metrics import CROSS_DOMAIN, Recorder, closest_pairs, min_separation, percentile_ms
 from cdus.core.vocabulary import KINDS
 from cdus.scenario.model import Scenario
@@ -53,7 +54,7 @@ def sum_counters(counters: Iterable[LinkCounters]) -> LinkCounters:
 def run_metrics(scenario: Scenario, recorder: Recorder, *, mode: str, link: dict[str, Any], wall_s: float,
                 policy: str, events: Sequence[FleetEvent] = (), completed: bool = True,
                 interventions: int = 0, completion: str | None = None, integrity: dict[str, Any] | None = None,
-                **extra: Any) -> dict[str, Any]:
+                deflected: Sequence[int] | None = None, **extra: Any) -> dict[str, Any]:
     """The metrics JSON (also of an empty or interrupted run). ``completion``: COMPLETED or why
     not (COMPLETIONS); by default COMPLETED or "interrupted" after ``completed``. ``integrity``:
     what may have altered the run (a launched fleet's world finds it; in process, nothing can)."""
@@ -72,6 +73,9 @@ def run_metrics(scenario: Scenario, recorder: Recorder, *, mode: str, link: dict
     m.update(safety_figures(recorder, kinds, scenario.safety.radius))
     m["interventions"] = interventions
     m["safety"] = {"enabled": scenario.safety.enabled, "radius_m": scenario.safety.radius}
+    if scenario.obstacles:  # [[obstacle]]: clearances and deflected time (cdus.core.obstacle_metrics)
+        m["obstacles"] = obstacle_block(recorder.view("t"), recorder.view("q"), recorder.ids, kinds, scenario.obstacles,
+                                        deflected, 1.0 / scenario.rates.control)
     m["integrity"] = integrity or {"tampered": False, "reasons": {}, "notes": []}  # nothing seen to alter it
     m.update(extra)
     return m

@@ -92,6 +92,7 @@ class AgentStats:
     #: new link_burst events: FleetEvent.as_dict() as an agent sends them; decoded: BurstReport
     bursts: tuple[Any, ...] = ()
     interventions: int = 0  # control steps at which the safety filter changed the velocity reference
+    deflected: int = 0  # of those, the steps at which an [[obstacle]]'s row bound (cdus.core.vehicle)
     incarnation: int = 0  # drawn at random when the process starts: a new value is a new process (a restart)
     #: with [radio]: its RadioLink's counters ({sent, delivered, dropped, dropped_by: {fault, range,
     #: fading, collision, queue}, no_geometry}; cdus.core.radiolink.RadioCounters.as_dict); None without
@@ -125,7 +126,7 @@ _STAT_NAMES = tuple(f.name for f in fields(AgentStats))
 
 
 _STAT_INTS = ("tick", "sent_to_me", "delivered", "dropped", "duplicated", "rejected", "missed_deadlines", "joined_at",
-              "interventions", "incarnation")
+              "interventions", "incarnation", "deflected")
 _STAT_FIELDS = {"v", "id", "rejected_by_reason", "latencies_ms", "faults", "bursts", "radio", "odometry_gaps",
                 *_STAT_INTS}
 

@@ -1,0 +1,100 @@
+"""[[obstacle]]: the four shapes, the margin's default, and each bad table naming the field and the fix."""
+
+import pytest
+
+from cdus.core.obstacles import Box, Circle, Cylinder, Polygon
+from cdus.scenario.config import parse_scenario
+
+from .common import base, problems
+
+
+def test_the_four_shapes_and_the_margin_default():
+    data = base()
+    data["safety"] = {"radius": 3.0}
+    data["obstacle"] = [
+        {"shape": "circle", "center": [1, 2], "radius": 3, "name": "island"},
+        {"shape": "polygon", "vertices": [[0, 0], [0, 1], [1, 1], [1, 0]], "margin": 0.5},
+        {"shape": "cylinder", "center": [5, 5], "radius": 1, "z": [0, 30]},
+        {"shape": "box", "min": [0, 0, 0], "max": [1, 2, 3], "margin": 0},
+    ]
+    got = parse_scenario(data).obstacles
+    assert got == (Circle((1.0, 2.0), 3.0, 3.0, "island"),
+                   Polygon(((1.0, 0.0), (1.0, 1.0), (0.0, 1.0), (0.0, 0.0)), 0.5, "obstacle[1]"),
+                   Cylinder((5.0, 5.0), 1.0, (0.0, 30.0), 3.0, "obstacle[2]"),
+                   Box((0.0, 0.0, 0.0), (1.0, 2.0, 3.0), 0.0, "obstacle[3]"))
+    assert parse_scenario(base()).obstacles == ()
+
+
+@pytest.mark.parametrize("table, text", [
+    ({"center": [0, 0], "radius": 1}, "obstacle[0].shape: missing; give the shape, one of circle, polygon"),
+    ({"shape": "sphere"}, 'obstacle[0].shape: unknown shape "sphere"'),
+    ({"shape": "circle", "center": [0, 0]}, "obstacle[0].radius: missing; a circle needs center, radius"),
+    ({"shape": "circle", "center": [0, 0], "radius": -1}, "obstacle[0].radius: must be a number > 0"),
+    ({"shape": "circle", "center": [0, 0, 1], "radius": 1}, "obstacle[0].center: must be a list of 2 numbers"),
+    ({"shape": "circle", "center": [0, 0], "radius": 1, "margin": -1}, "obstacle[0].margin: must be a number >= 0"),
+    ({"shape": "circle", "center": [0, 0], "radius": 1, "z": [0, 1]}, "obstacle[0].z: unknown key"),
+    ({"shape": "cylinder", "center": [0, 0], "radius": 1, "z": [5, 1]},
+     "obstacle[0].z: the floor must be below the ceiling, got [5, 1]"),
+    ({"shape": "box", "min": [0, 0, 0], "max": [1, 0, 1]}, "obstacle[0].max: must be above obstacle[0].min on every "
+                                                            "axis: y max 0 is not above min 0"),
+    ({"shape": "polygon", "vertices": [[0, 0], [4, 0], [1, 1], [0, 4]]},
+     "obstacle[0].vertices[2]: turns the other way from the rest: the polygon is not convex"),
+    ({"shape": "polygon", "vertices": [[0, 0], [1, 0], [2, 0], [1, 1]]},
+     "obstacle[0].vertices[1]: lies on the line through its neighbours"),
+    ({"shape": "polygon", "vertices": [[0, 0], [1, "a"], [1, 1]]}, "obstacle[0].vertices[1]: must be a list of 2"),
+    ({"shape": "polygon", "vertices": [[0, 0], [1, 0]]}, "obstacle[0].vertices: a polygon needs at least 3 vertices"),
+])
+def test_a_bad_obstacle_names_the_field_and_the_fix(table, text):
+    data = base()
+    data["obstacle"] = [table]
+    assert text in problems(data)
+
+
+def test_obstacle_must_be_an_array_of_tables():
+    data = base()
+    data["obstacle"] = {"shape": "circle"}
+    assert "obstacle: must be an array of tables ([[obstacle]] sections" in problems(data)
+
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+from cdus.scenario.config import ConfigError  # noqa: E402
+
+_value = st.one_of(st.none(), st.booleans(), st.integers(-10, 10), st.floats(allow_nan=True),
+                   st.text(max_size=4), st.lists(st.floats(-1e7, 1e7), max_size=4),
+                   st.lists(st.lists(st.floats(-10, 10), min_size=2, max_size=3), max_size=5))
+
+
+@settings(max_examples=300, deadline=None)
+@given(shape=st.sampled_from(["circle", "polygon", "cylinder", "box", "cone", 3]),
+       table=st.dictionaries(st.sampled_from(["center", "radius", "vertices", "z", "min", "max", "margin", "name",
+                                              "colour"]), _value, max_size=5))
+def test_any_obstacle_table_is_taken_or_refused_naming_an_obstacle_field(shape, table):
+    data = base()
+    data["obstacle"] = [{"shape": shape, **table}]
+    try:
+        got = parse_scenario(data).obstacles
+    except ConfigError as e:
+        assert e.problems and all(field.startswith("obstacle[0]") for field, _ in e.problems), e.problems
+    else:
+        assert len(got) == 1 and got[0].shape == shape
+
+
+@pytest.mark.parametrize("obstacle", [
+    {"shape": "circle", "center": [1e6, -1e6], "radius": 1e6, "margin": 1e6},
+    {"shape": "circle", "center": [0, 0], "radius": 1e-300, "margin": 0},
+    {"shape": "box", "min": [-1e6, -1e6, -1e6], "max": [1e6, 1e6, 1e6]},
+    {"shape": "cylinder", "center": [0, 0], "radius": 1e6, "z": [-1e6, 1e6], "margin": 1e6},
+])
+def test_obstacles_at_their_bounds_run_to_the_end(obstacle):
+    """Every vehicle starts inside these: the filter pushes out within its speed bound, never a crash."""
+    from cdus.sim.fleet import InProcessFleet
+
+    data = base()
+    data["scenario"]["duration"] = 1.0
+    data["rates"] = {"physics": 20.0, "control": 10.0}
+    data["safety"] = {"enabled": True}
+    data["defaults"] = {"limits": {"speed": 5.0}}
+    data["obstacle"] = [obstacle]
+    m = InProcessFleet(parse_scenario(data)).run().metrics
+    assert m["completed"] and m["obstacles"]["count"] == 1
