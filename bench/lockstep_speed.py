@@ -70,8 +70,8 @@ def reference(config: str, duration: float, extra: list[str], out: Path) -> tupl
     return trace, json.loads(metrics.read_text())
 
 
-def cpu_line(out: Path) -> str:
-    """The agents' median CPU per tick and the ROS 2 bridge's CPU, from the run's logs."""
+def cpu_figures(out: Path) -> tuple[list[int], float | None]:
+    """Each agent's CPU per tick (µs) and the ROS 2 bridge's CPU (s, None without one), from the run's logs."""
     per_tick = []
     for log in (out / "logs").glob("*.log"):
         text = log.read_text(errors="replace")
@@ -80,8 +80,14 @@ def cpu_line(out: Path) -> str:
             per_tick.append(int(m.group(1)))
     bridge = re.search(r"ros2 bridge: .*CPU ([0-9.]+) s", (out / "logs" / "ros2.log").read_text()) \
         if (out / "logs" / "ros2.log").exists() else None
+    return per_tick, float(bridge.group(1)) if bridge else None
+
+
+def cpu_line(out: Path) -> str:
+    """The agents' median CPU per tick and the ROS 2 bridge's CPU, from the run's logs."""
+    per_tick, bridge = cpu_figures(out)
     return (f"agents {np.median(per_tick):.0f} µs CPU/tick" if per_tick else "agents' CPU not logged") + \
-        (f", bridge {float(bridge.group(1)):.2f} s CPU" if bridge else "")
+        (f", bridge {bridge:.2f} s CPU" if bridge is not None else "")
 
 
 def lockstep(config: str, duration: float, extra: list[str], out: Path, links: str, rerun: str

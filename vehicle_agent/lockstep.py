@@ -121,7 +121,7 @@ class Lockstep:
                 # ω after STUCK_RESEND s (an outage this session did not see as one: a frozen router
                 # that kept the leases): what was in flight may be lost, say it again
                 stuck = clock.granted >= n and now_m - stuck_since > STUCK_RESEND
-                if agent.outage.resend_due(now_m, stuck):
+                if agent.outage.resend_due(now_m, stuck_since, stuck):
                     agent.report.resend()
                 if now_m - stuck_since > 0.5 and agent.waker is not None and agent.waker.alarm is None:
                     # a long wait (rare): make sure the loop wakes to resend even if nothing arrives

@@ -15,13 +15,18 @@ Without odometry for longer than ``ros2.timeout`` s (wall clock; none yet counts
 vehicle holds: it logs one line, sends zero velocity every tick and does not step, so it
 broadcasts no ω and its neighbours' stale-neighbour machinery handles it as a silent vehicle.
 When odometry comes back it logs one line and rejoins the run at the current tick from the
-measured pose (cdus.core.node.VehicleNode.rejoin), ω near where it was. The realtime clock only
+measured pose (cdus.core.node.VehicleNode.rejoin), ω near where it was. Each spell (the wait for
+the first odometry included) goes to the world in the agent's counters as an
+:class:`cdus.wire.stats.OdometryGap` (the newest ODOM_GAPS, sent at once when one begins or
+ends), which the world shows as the events ``odometry_stale`` and ``odometry_back``. The realtime clock only
 (cdus.scenario.robot.clock_problem refuses a lockstep one).
 """
 
 from __future__ import annotations
 
 import time
+from collections import deque
+from dataclasses import replace
 from typing import Any
 
 import zenoh
@@ -29,15 +34,23 @@ import zenoh
 from cdus.core.robot import RobotState
 from cdus.ros2 import fleet as rf
 from cdus.ros2.publisher import Publisher
-from cdus.ros2.rmw import Node, topic_key
+from cdus.ros2.rmw import topic_key
 from cdus.ros2.robot import ODOM, TWIST, RobotPose, read_odometry, twist
 from cdus.scenario.robot import clock_problem
-from cdus.scenario.ros2 import ros_name
 from cdus.wire.rejected import Rejected
+from cdus.wire.stats import AgentStats, OdometryGap
 from vehicle_agent.agent import Agent
+from vehicle_agent.report import Report
 
 ODOM_RING = 8  # odometry samples kept between two ticks (the newest valid one is taken)
-CMD_ENTITY = 1  # the Twist publisher's entity id in the robot node
+ODOM_GAPS = 8  # the newest spells without odometry each report carries (cdus.wire.stats.MAX_ODOMETRY_GAPS)
+
+
+class RobotReport(Report):
+    """A robot's reports: every vehicle's, and its newest spells without odometry in its counters."""
+
+    def stats(self) -> AgentStats:
+        return replace(super().stats(), odometry_gaps=tuple(self.agent.gaps))
 
 
 class RobotAgent(Agent):
@@ -59,6 +72,8 @@ class RobotAgent(Agent):
         self.holding = True  # until the first odometry
         self.holds = 0  # times the vehicle began to hold (the first wait included)
         self.odom_taken = 0
+        self.gaps: deque[OdometryGap] = deque(maxlen=ODOM_GAPS)  # newest last; the last open while holding
+        self.report = RobotReport(self)
 
     # ------------------------------------------------------------------ zenoh wiring
     def open(self) -> None:
@@ -66,11 +81,11 @@ class RobotAgent(Agent):
         s, r, ros = self.session, self.robot, self.ros
         key = topic_key(ros.domain_id, r.odom, ODOM, ros.distro)
         self.odom_sub = s.declare_subscriber(key, zenoh.handlers.RingChannel(ODOM_RING))
-        node = Node(ros.domain_id, str(s.info.zid()), "cdus_" + ros_name(self.id), "/")
+        node = rf.robot_node(ros.domain_id, str(s.info.zid()), self.id)
         self.node_token = s.liveliness().declare_token(node.token())
         topic = rf.Topic(r.cmd_vel, TWIST, rf.DATA_QOS, self.id, "cmd_vel")
-        self.cmd = Publisher(s, node, CMD_ENTITY, topic, topic_key(ros.domain_id, r.cmd_vel, TWIST, ros.distro),
-                             ros.distro)
+        self.cmd = Publisher(s, node, rf.ROBOT_CMD_ENTITY, topic,
+                             topic_key(ros.domain_id, r.cmd_vel, TWIST, ros.distro), ros.distro)
         self.log(f"robot: odometry from {r.odom}, commands (world-frame Twist) to {r.cmd_vel}, domain "
                  f"{ros.domain_id}; holding until its odometry comes (timeout {r.timeout:g} s)")
 
@@ -117,8 +132,10 @@ class RobotAgent(Agent):
                 self.holds += 1
                 self.log(f"odometry stale: none from {self.robot.odom} for {age:.2f} s (timeout "
                          f"{self.robot.timeout:g} s): holding at tick {n}, zero velocity sent, no ω broadcast")
+                self._gap(OdometryGap(n * self.period))
             elif self.holds == 0:
                 self.holds = 1
+                self._gap(OdometryGap(n * self.period))
             self._send(None)
             return
         p, node = self.pose, self.node
@@ -127,10 +144,18 @@ class RobotAgent(Agent):
             self.holding = False
             node.rejoin(n, p.q, p.heading, v.omega)
             self.log(f"odometry from {self.robot.odom}: following at tick {n} from {tuple(round(x, 2) for x in p.q)}")
+            if self.gaps and self.gaps[-1].back is None:
+                self._gap(replace(self.gaps.pop(), back=n * self.period))
         v.state = RobotState(p.q, p.v, p.heading)
         v.plant.command = None
         super().step(n)
         self._send(v.plant.command)
+
+    def _gap(self, gap: OdometryGap) -> None:
+        """A spell without odometry began or ended: to the world at once (the counters of a
+        holding vehicle go nowhere else: it does not step)."""
+        self.gaps.append(gap)
+        self.report.publish_stats()
 
     def _send(self, u: Any) -> None:
         if self.cmd is not None:

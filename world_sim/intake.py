@@ -11,14 +11,16 @@ from __future__ import annotations
 import time
 from typing import Any
 
+from cdus.ros2.robot import gap_events
 from cdus.sim.reports import link_state_event
 from cdus.wire import keys
 from cdus.wire.messages import decode_states
-from cdus.wire.schemas import AgentStats, FleetEvent, decode_stats
+from cdus.wire.schemas import AgentStats, FleetEvent, OdometryGap, decode_stats
 from cdus.wire.text import printable
 from cdus.wire.rejected import Rejected
 from world_sim.limits import (
-    MAX_LOGGED_REJECTS, SUSPECT_EVERY, SUSPECT_REASONS, SUSPECT_TOKEN_REASONS, SUSPECT_WORLD_REASONS,
+    MAX_LOGGED_REJECTS, MAX_ODOMETRY_EVENTS, SUSPECT_EVERY, SUSPECT_REASONS, SUSPECT_TOKEN_REASONS,
+    SUSPECT_WORLD_REASONS,
 )
 
 
@@ -164,7 +166,28 @@ class Intake:
             self._forward_link_changes(s.faults)
         for b in s.bursts:  # rebuilt by the decoder from its numbers and ids
             self._note(b.event(origin=vid))
+        if s.odometry_gaps:
+            self._odometry_gaps(vid, s.odometry_gaps)
         self._suspects(vid, s, old)
+
+    def _odometry_gaps(self, vid: str, gaps: tuple[OdometryGap, ...]) -> None:
+        """A robot's spells without odometry: each ``odometry_stale`` / ``odometry_back`` event
+        noted once (an agent repeats its newest spells). From a vehicle that is no robot, or past
+        the newest tick a vehicle can have stepped: counted and dropped."""
+        robot = self.scenario.vehicle(vid).robot
+        if robot is None:
+            return self._reject(vid, "odometry_not_robot")
+        if any(max(g.t, g.back or 0.0) > (self.clock.tick_limit() + 1) * self.period for g in gaps):
+            return self._reject(vid, "odometry_future")
+        noted = self._odometry_noted.setdefault(vid, set())
+        for g in gaps:
+            for e in gap_events(vid, robot.odom, robot.timeout, g):
+                if (e.kind, e.t) in noted:
+                    continue
+                if len(noted) >= MAX_ODOMETRY_EVENTS:
+                    return self._reject(vid, "odometry_flood")
+                noted.add((e.kind, e.t))
+                self._note(e)
 
     def _suspects(self, vid: str, s: AgentStats, old: AgentStats | None) -> None:
         """A vehicle that counts new ω it cannot trust (from beyond its sender's possible seq, a

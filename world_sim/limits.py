@@ -17,6 +17,7 @@ SUSPECT_WORLD_REASONS = ("radio_conflict",)
 #: declares (a wildcard, ``alive/**``), a second world token while the world's is up (docs/security.md)
 SUSPECT_TOKEN_REASONS = ("token_key", "token_extra")
 SUSPECT_EVERY = 5.0  # s: at most one suspect event per (vehicle, reason) in this time
+MAX_ODOMETRY_EVENTS = 1000  # a robot's odometry_stale / odometry_back events kept; beyond, counted and dropped
 MAX_LOGGED_REJECTS = 200  # (sender, reason) pairs logged; beyond, counted only
 MAX_WAITING = 1024  # queries held for a lockstep fault's decision; beyond, answered at once
 MAX_QUEUED_QUERIES = 256  # command queries waiting for the main thread; beyond, answered busy at once

@@ -184,6 +184,7 @@ class World(Intake, Asking, CommandHandlers, Liveness, Reporting, Samples, Finis
         #: wall time): what the recorder's rows carry, so the marks in Rerun lag the counts by that much
         self._interventions = [0] * len(self.ids)
         self._suspect_seen: dict[tuple[str, str], float] = {}  # (vehicle, reason) -> last suspect event
+        self._odometry_noted: dict[str, set[tuple[str, float]]] = {}  # robot -> its odometry events noted (kind, t)
         self.completion: str | None = None  # why the run ended early (docs/metrics.md, completion)
         self.outage_grace = OUTAGE_GRACE
         self._queries: deque[Any] = deque()  # command queries -> main thread

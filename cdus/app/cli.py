@@ -29,7 +29,7 @@ from cdus.scenario.robot import clock_problem, robots
 from cdus.core.linkspec import POLICIES
 from cdus.scenario.model import RESTART_POLICIES, Scenario
 from cdus.wire import keys
-from cdus.wire.access import GROUND_ROLE, ROS2_CLIENT_ROLE
+from cdus.wire.access import GROUND_ROLE, ROS2_CLIENT_ROLE, robot_role
 from cdus.wire.transport import Transport, client_of, endpoint, exposed_endpoints, router_listen
 from cdus.wire.transport import router as fleet_router
 from ground_station.__main__ import main as gs_main
@@ -294,10 +294,6 @@ def cmd_launch(args: argparse.Namespace) -> int:
     opts = launch_options(args, scenario)
     if (why := clock_problem(scenario, args.clock)) is not None:  # plant = "ros2": realtime only
         raise ConfigError("command line", [("--clock", why)])
-    if robots(scenario) and not args.insecure:  # the secured fleet's access control has no rule for a robot yet
-        raise ConfigError("command line", [("--insecure", "a plant = \"ros2\" vehicle needs an open fleet: the "
-                                                          "secured one grants no vehicle the robot's ROS 2 keys "
-                                                          "(docs/ros2.md); give --insecure")])
     try:
         keys.check_fleet(opts.fleet)
     except ValueError as e:
@@ -359,6 +355,11 @@ def _launch_into(args: argparse.Namespace, scenario: Scenario, opts: LaunchOptio
         print(f"  ROS 2 ({r2.distro}): /clock, /tf and {r2.namespace}/<vehicle>/... in domain {r2.domain_id}; from a ROS "
               f"2 machine: {r2_config}RMW_IMPLEMENTATION=rmw_zenoh_cpp ROS_DOMAIN_ID={r2.domain_id} ros2 topic list, "
               f"its Zenoh connected to {(client_of(router).connect or ('ENDPOINT',))[0]} (docs/ros2.md)")
+    for vid, r in robots(scenario).items():  # where each robot connects, and as whom (docs/ros2.md)
+        r_config = f"ZENOH_SESSION_CONFIG_URI={cred.file(robot_role(vid))} " if cred is not None else ""
+        print(f"  robot {vid}: odometry on {r.odom}, commands on {r.cmd_vel}; on the robot: {r_config}"
+              f"RMW_IMPLEMENTATION=rmw_zenoh_cpp ROS_DOMAIN_ID={scenario.ros2.domain_id}, its Zenoh connected to "
+              f"{(client_of(router).connect or ('ENDPOINT',))[0]}")
     try:
         status, la = launch(scenario, run, router, opts)
     except RunDirError as e:

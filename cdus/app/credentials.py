@@ -10,7 +10,8 @@ certificates, plus the passwords) calls ``make_credentials``: it writes, in
                         of cdus.wire.access); the launcher applies the same settings to its
                         own router, and a world started by hand as the router reads this file
     <role>.json5        a client config per role (world, ground, vehicle-<id>; ros2 and
-                        ros2-client with [ros2] enabled, docs/ros2.md): user,
+                        ros2-client with [ros2] enabled, robot-<id> per plant = "ros2"
+                        vehicle, docs/ros2.md): user,
                         password, certificate, the router's endpoints, multicast off
     ca.pem, <role>.pem/.key, router.pem/.key    with TLS
 
@@ -96,20 +97,23 @@ def nest(settings: dict[str, Any]) -> dict:
 
 
 def make_credentials(directory: str | os.PathLike, fleet: str, listeners: Mapping[str, Sequence[str]],
-                     listen: tuple[str, ...], mode: str = "password", ros2: access.Ros2Grant | None = None) -> Credentials:
+                     listen: tuple[str, ...], mode: str = "password", ros2: access.Ros2Grant | None = None,
+                     robots: Sequence[access.RobotGrant] = ()) -> Credentials:
     """Generate the run's credentials in ``directory`` (see the module's docstring) for the
-    vehicles of ``listeners`` (vehicle id -> the ids its ω goes to, ``listeners_of``), and with
-    ``ros2`` for the ROS 2 bridge and ROS 2 machines (docs/ros2.md)."""
+    vehicles of ``listeners`` (vehicle id -> the ids its ω goes to, ``listeners_of``), with
+    ``ros2`` for the ROS 2 bridge and ROS 2 machines, and with ``robots`` for each robot
+    (docs/ros2.md)."""
     listen = secure_endpoints(tuple(listen), mode)
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
     os.chmod(d, 0o700)
-    roles = access.roles(list(listeners), ros2=ros2 is not None)
+    roles = access.roles(list(listeners), ros2=ros2 is not None, robots=[r.vehicle for r in robots])
     passwords = {r: secrets.token_urlsafe(24) for r in roles}
     _write_private(d / "passwords", "".join(f"{r}:{pw}\n" for r, pw in passwords.items()))
     router = {
         "transport/auth/usrpwd/dictionary_file": str((d / "passwords").resolve()),
-        "access_control": access.fleet_acl(fleet, listeners, match_certificates=mode == "tls", ros2=ros2),
+        "access_control": access.fleet_acl(fleet, listeners, match_certificates=mode == "tls", ros2=ros2,
+                                           robots=robots),
     }
     client_tls: dict[str, Any] = {}
     if mode == "tls":

@@ -19,7 +19,7 @@ from cdus.app.launcher import LaunchOptions, RunDirError, RunDirInUse, RunDirLoc
 from cdus.scenario.config import ConfigError
 from cdus.scenario.model import Scenario
 from cdus.sim.build import listeners_of
-from cdus.ros2.fleet import grant
+from cdus.ros2.fleet import grant, robot_grants
 from cdus.wire.access import ROS2_ROLE, WORLD_ROLE, vehicle_role
 from cdus.wire.transport import Transport
 from cdus.wire.transport import router as fleet_router
@@ -32,7 +32,7 @@ def secure_router(router: Transport, opts: LaunchOptions, scenario: Scenario, di
     ros2 = grant(scenario.ros2, ids) if scenario.ros2.enabled else None  # only a fleet that asked for it
     try:
         cred = make_credentials(directory, opts.fleet, {v: listeners_of(scenario, v) for v in ids}, router.listen,
-                                mode, ros2=ros2)
+                                mode, ros2=ros2, robots=robot_grants(scenario))
     except CredentialsError as e:
         raise ConfigError("command line", [("--tls" if mode == "tls" else "--secure", str(e))]) from None
     opts.zenoh_configs = {"world": str(cred.file(WORLD_ROLE)), **{v: str(cred.file(vehicle_role(v))) for v in ids}}

@@ -23,9 +23,10 @@ import math
 from dataclasses import dataclass
 from typing import Any, Iterable, Sequence
 
-from cdus.ros2.rmw import Qos, topic_key
+from cdus.ros2.rmw import Node, Qos, topic_key
+from cdus.scenario.robot import robots
 from cdus.scenario.ros2 import Ros2Spec, ros_name
-from cdus.wire.access import Ros2Grant
+from cdus.wire.access import RobotGrant, Ros2Grant
 
 POSE, ODOM, FLOAT, PATH = ("geometry_msgs/msg/PoseStamped", "nav_msgs/msg/Odometry", "std_msgs/msg/Float64",
                            "nav_msgs/msg/Path")
@@ -72,6 +73,29 @@ def key(spec: Ros2Spec, topic: Topic) -> str:
 def grant(spec: Ros2Spec, ids: Sequence[str]) -> Ros2Grant:
     """What a secured fleet's access-control list lets the ROS 2 side use (cdus.wire.access)."""
     return Ros2Grant(spec.domain_id, tuple(key(spec, t) for t in topics(spec, ids)))
+
+
+#: a robot vehicle's ROS node (vehicle_agent.robot): its name and its command publisher's entity id
+ROBOT_CMD_ENTITY = 1
+TWIST = "geometry_msgs/msg/Twist"
+
+
+def robot_node(domain: int, zid: str, vid: str) -> Node:
+    """The ROS node of a ``plant = "ros2"`` vehicle's agent: ``cdus_<vehicle>`` in the root namespace."""
+    return Node(domain, zid, "cdus_" + ros_name(vid), "/")
+
+
+def robot_grants(scenario: Any) -> tuple[RobotGrant, ...]:
+    """What a secured fleet's access-control list lets each robot and its vehicle use (cdus.wire.access)."""
+    ros = scenario.ros2
+    out = []
+    for vid, r in robots(scenario).items():
+        node = robot_node(ros.domain_id, "*", vid)
+        tokens = (node.token(), node.publisher_token(ROBOT_CMD_ENTITY, r.cmd_vel, TWIST, DATA_QOS, ros.distro))
+        out.append(RobotGrant(vid, topic_key(ros.domain_id, r.odom, ODOM, ros.distro),
+                              topic_key(ros.domain_id, r.cmd_vel, TWIST, ros.distro), tokens,
+                              f"@ros2_lv/{ros.domain_id}/**"))
+    return tuple(out)
 
 
 def node_name(fleet: str) -> str:

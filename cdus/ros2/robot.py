@@ -11,6 +11,9 @@ Pure: the agent of a ``plant = "ros2"`` vehicle (vehicle_agent.robot) carries th
 - Out: ``geometry_msgs/msg/Twist`` whose ``linear`` is the guidance's velocity in the **world
   frame** (x, y, and z for a drone), ``angular`` zero: the DGVF velocity of a holonomic vehicle;
   a robot that takes body-frame commands turns it by its own heading (docs/ros2.md).
+- To the fleet: a spell without odometry (the agent's :class:`cdus.wire.stats.OdometryGap`, in its
+  counters) as the world's events ``odometry_stale`` at its start and ``odometry_back`` at its
+  end (:func:`gap_events`).
 """
 
 from __future__ import annotations
@@ -20,7 +23,9 @@ from dataclasses import dataclass
 from typing import Sequence
 
 from cdus.ros2 import cdr
+from cdus.wire.events import FleetEvent
 from cdus.wire.rejected import Rejected
+from cdus.wire.stats import OdometryGap
 
 ODOM, TWIST = "nav_msgs/msg/Odometry", "geometry_msgs/msg/Twist"
 #: why an odometry payload is dropped: cdr.decode's reasons, a non-finite value, a zero quaternion
@@ -70,3 +75,14 @@ def twist(u: Sequence[float] | None) -> dict:
     lin = {"x": float(u[0]) if u else 0.0, "y": float(u[1]) if len(u) > 1 else 0.0,
            "z": float(u[2]) if len(u) > 2 else 0.0}
     return {"linear": lin, "angular": {"x": 0.0, "y": 0.0, "z": 0.0}}
+
+
+def gap_events(vid: str, odom: str, timeout: float, gap: OdometryGap) -> list[FleetEvent]:
+    """The fleet events of one spell of vehicle ``vid`` without odometry on topic ``odom``: when
+    it began and, if it ended, when it ended (kinds ``odometry_stale``, ``odometry_back``)."""
+    out = [FleetEvent.of(gap.t, "odometry_stale", f"{vid}: no odometry from {odom} for {timeout:g} s (from "
+                         f"t = {gap.t:.2f} s): it holds, zero velocity sent, no ω broadcast", vehicle=vid, origin=vid)]
+    if gap.back is not None:
+        out.append(FleetEvent.of(gap.back, "odometry_back", f"{vid}: odometry from {odom} back at t = {gap.back:.2f} s "
+                                 f"after {gap.back - gap.t:.2f} s without: it follows again", vehicle=vid, origin=vid))
+    return out

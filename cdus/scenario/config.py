@@ -34,6 +34,7 @@ from cdus.scenario.events import change_section, event_section, radio_event_sect
 from cdus.scenario.graph import graph_section
 from cdus.scenario.link import link_section
 from cdus.scenario.model import Edge, Rates, Safety, Scenario, Supervision, VehicleSpec
+from cdus.scenario.plugins import plugins_section, probe_plants
 from cdus.scenario.radio import radio_section
 from cdus.scenario.safety import apply_fleet, disturbance_section, observer_section, safety_section
 from cdus.scenario.sections import (
@@ -49,7 +50,7 @@ __all__ = [
     "parse_overrides", "parse_scenario", "parse_text", "parse_value",
 ]
 
-SECTIONS = ("scenario", "rates", "metrics", "gains", "guidance", "defaults", "supervision", "safety", "disturbance",
+SECTIONS = ("plugins", "scenario", "rates", "metrics", "gains", "guidance", "defaults", "supervision", "safety", "disturbance",
             "observer", "graph", "link", "radio", "ros2", "event", "vehicle")
 
 
@@ -340,6 +341,10 @@ def _resolve(p: Problems, data: Mapping[str, Any], source: str) -> Scenario | No
     """Every section, checked in file order where one needs another (vehicles before the
     graph, the ids before [link] and [[event]]); None if anything is wrong."""
     p.unknown_keys(data, SECTIONS, "", what="section")
+    mark = len(p)
+    plugins_section(p, data.get("plugins"))  # first: the vehicles and events may name what they add
+    if p.since(mark):  # not also "unknown path family" for each vehicle on a plug-in that failed
+        return None
     header = scenario_section(p, section(p, data, "scenario"))
     rates = rates_section(p, section(p, data, "rates"))
     metrics = section(p, data, "metrics")
@@ -354,6 +359,7 @@ def _resolve(p: Problems, data: Mapping[str, Any], source: str) -> Scenario | No
     observer = observer_section(p, section(p, data, "observer"))
     fleet = vehicles_section(p, data.get("vehicle"), defaults, fleet_gains, header.seed)
     fleet.specs = apply_fleet(fleet.specs, data.get("vehicle"), defaults, disturbance, observer)
+    probe_plants(p, fleet.specs, fleet.paths, rates.physics, rates.control, safety.enabled)
     if scale_omega:
         fleet.specs = [None if s is None else replace(s, scale_omega=True) for s in fleet.specs]
     if "path_tol" not in metrics:  # a fleet with usv_3dof boats: theirs (sections.USV_PATH_TOL)

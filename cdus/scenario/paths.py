@@ -14,7 +14,8 @@ from cdus.core.paths import (FAMILIES, REGISTRY, Family, Param, Path, PathError,
                              turning_point)
 from cdus.core.vocabulary import DIMENSIONS
 from cdus.scenario.checks import show
-from cdus.wire.bounds import BOUNDS, MIN_RATE, finite
+from cdus.scenario.plugins import path_problem, plugin_of
+from cdus.wire.bounds import BOUNDS, MAX_METRES, MIN_RATE, finite, within
 
 #: the keys every family takes besides its own
 COMMON = frozenset({"family", "beta", "direction", "speed"})
@@ -23,6 +24,16 @@ COMMON = frozenset({"family", "beta", "direction", "speed"})
 _UNITS = {"radius": " m", "a": " m", "b": " m", "scale": " m", "height": " m", "d": " m", "speed": " m/s",
           "rotation": " rad", "beta": " (speed scaling f(βω))", "center": " m", "origin": " m", "waypoints": " m",
           "heading": " (a direction)", "amplitude": " m", "frequency": " (times βω)", "phase": " rad"}
+
+
+#: the bound of a number of a plug-in family's own parameter (one cdus.wire.bounds does not name):
+#: that of a position, ±MAX_METRES (docs/plugins.md)
+PLUGIN_BOUND = within(MAX_METRES)
+
+
+def bound(key: str):
+    """The bound of the path parameter ``key``: BOUNDS["path.<key>"], or :data:`PLUGIN_BOUND`."""
+    return BOUNDS.get(f"path.{key}", PLUGIN_BOUND)
 
 
 def make_path(spec: Mapping[str, Any]) -> Path:
@@ -101,7 +112,7 @@ def _number(spec: Mapping[str, Any], key: str, default: float | None = None, bou
     v = spec.get(key, default)
     if not finite(v):
         raise PathError(key, f"must be a finite number, got {v!r}")
-    b = BOUNDS[f"path.{key}"] if bounded else None
+    b = bound(key) if bounded else None
     if b is not None and not b.holds(v):
         raise PathError(key, f"{b.problem(v, _UNITS.get(key, ''))}: a vehicle cannot follow such a path (its "
                              f"numbers overflow)")
@@ -125,7 +136,7 @@ def _coordinates(v: Any, key: str, field: str, dims: tuple[int, ...]) -> Vec:
         want = " or ".join(str(d) for d in dims)
         raise PathError(field, f"must be a list of {want} numbers, got {v!r}")
     out = []
-    b = BOUNDS[f"path.{key}"]
+    b = bound(key)
     for x in v:
         if not finite(x):
             raise PathError(field, f"must contain finite numbers, got {v!r}")
@@ -146,6 +157,10 @@ def check_path(table: Mapping[str, Any], dim: int | None) -> Path | None | tuple
         if dim is None:
             return None
         followed = for_dimension(built, dim)
+        if plugin_of(followed) is not None:  # a plug-in's curve: its shape, values and derivatives probed
+            problem = path_problem(followed, dim)
+            if problem is not None:
+                return "", problem
         w = not_finite_at(followed)  # the numbers every vehicle will compute from it stay finite
         if w is not None:
             return "", not_finite_message(w)

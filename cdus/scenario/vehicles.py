@@ -29,13 +29,30 @@ from cdus.scenario.robot import robot_table
 from cdus.scenario.sections import DEFAULT_GAINS, gain_values
 from cdus.wire.bounds import finite
 
+class _Live(Mapping):
+    """A view of the vehicle models' table (cdus.core.models.PLANTS) as it is now: a plug-in
+    (cdus.scenario.plugins) registered after this module was imported is in it."""
+
+    def __init__(self, view: Any):
+        self._view = view
+
+    def __getitem__(self, key: Any) -> Any:
+        return self._view()[key]
+
+    def __iter__(self):
+        return iter(self._view())
+
+    def __len__(self) -> int:
+        return len(self._view())
+
+
 #: plant -> kinds it models (the vehicle models' one table: cdus.core.models.PLANTS)
-PLANTS: dict[str, tuple[str, ...]] = {name: m.kinds for name, m in MODELS.items()}
+PLANTS: Mapping[str, tuple[str, ...]] = _Live(lambda: {name: m.kinds for name, m in MODELS.items()})
 #: usv_3dof parameter presets ε1..ε7 (a CyberShip II-like 3-DOF model).
 PRESETS: dict[str, tuple[float, ...]] = USV_PRESETS
 #: plant -> regulator -> allowed regulator_gains keys; the first regulator is the default.
-REGULATORS: dict[str, dict[str, tuple[str, ...]]] = {
-    name: {r: rm.gain_keys for r, rm in m.regulators.items()} for name, m in MODELS.items() if m.regulators}
+REGULATORS: Mapping[str, dict[str, tuple[str, ...]]] = _Live(lambda: {
+    name: {r: rm.gain_keys for r, rm in m.regulators.items()} for name, m in MODELS.items() if m.regulators})
 LIMIT_KEYS = ("speed", "accel", "tau_u", "tau_r", "yaw_rate")
 VEHICLE_KEYS = ("id", "kind", "plant", "preset", "epsilon", "regulator", "regulator_gains", "phase",
                 "path", "start", "omega0", "gains", "limits", "disturbance", "ros2")
@@ -458,7 +475,12 @@ def _limits(p: Problems, t: _Merged, plant: str | None, preset: str | None) -> t
                     false=" (only the limits given)", note=t.note("limits", "preset"))
     if not use or plant is None:
         return given
-    base = default_limits(plant, preset)
+    try:
+        base = default_limits(plant, preset)
+    except ValueError:  # a plug-in's plant (docs/plugins.md) has no preset
+        p.add(t.field("limits", "preset"), f"plant {quote(plant)} has no preset limits; give the limits themselves, "
+                                           f"e.g. limits = {{ speed = 2.0 }}{t.note('limits', 'preset')}")
+        return given
     pairs = {key: getattr(base, key) for key in LIMIT_KEYS if math.isfinite(getattr(base, key))}
     pairs.update(dict(given))
     return tuple(sorted(pairs.items()))

@@ -30,6 +30,16 @@ A fleet with ``[ros2] enabled`` (docs/ros2.md) has two more, and only then:
                         ROS graph tokens in the domain; publishes no data at all, and reads
                         nothing of cdus/<fleet>/
 
+A fleet with ``plant = "ros2"`` vehicles (docs/ros2.md, "A ROS 2 robot as one of the vehicles")
+has one more per robot, and grants its vehicle a little more:
+
+    vehicle-<id>        (a robot's) also subscribes to the robot's odometry key, publishes its
+                        command key, and declares its own node's and command publisher's ROS
+                        graph tokens (any session id); that ROS data reaches it and nothing else
+    robot-<id>          the robot (rmw_zenoh with this role's config file): publishes its
+                        odometry key, subscribes to its command key, declares and watches ROS
+                        graph tokens in the domain; nothing of cdus/<fleet>/
+
 Every role may subscribe to and query anything under ``cdus/<fleet>/`` except the world's
 command queryable (``world/cmd/**``), which only the ground role may query (a deny rule for
 every other role: Zenoh's deny wins over an allow); nothing else may be published or
@@ -62,6 +72,10 @@ def vehicle_role(vid: str) -> str:
     return f"vehicle-{vid}"
 
 
+def robot_role(vid: str) -> str:
+    return f"robot-{vid}"
+
+
 @dataclass(frozen=True)
 class Ros2Grant:
     """What the ROS 2 side of a fleet may use: its domain and the data keys of its topics
@@ -77,11 +91,25 @@ class Ros2Grant:
         return [f"{k}/@adv/**" for k in self.topic_keys]
 
 
-def roles(vehicle_ids: list[str] | tuple[str, ...], ros2: bool = False) -> list[str]:
+@dataclass(frozen=True)
+class RobotGrant:
+    """What a ``plant = "ros2"`` vehicle and its robot may use (the caller computes the keys:
+    ``cdus.ros2.fleet.robot_grants``): the robot's odometry and command data keys, the vehicle's
+    own ROS graph tokens (its node's and its command publisher's, ``*`` for the session id), and
+    the domain's graph (the robot's tokens)."""
+
+    vehicle: str
+    odom: str
+    cmd: str
+    tokens: tuple[str, ...]
+    graph: str
+
+
+def roles(vehicle_ids: list[str] | tuple[str, ...], ros2: bool = False, robots: Sequence[str] = ()) -> list[str]:
     """Every role of a fleet: the world, the ground station, one per vehicle (and the two ROS 2
-    roles when the fleet publishes to ROS 2)."""
+    roles when the fleet publishes to ROS 2, one per robot of ``robots``)."""
     return [WORLD_ROLE, GROUND_ROLE, *(vehicle_role(v) for v in vehicle_ids),
-            *((ROS2_ROLE, ROS2_CLIENT_ROLE) if ros2 else ())]
+            *((ROS2_ROLE, ROS2_CLIENT_ROLE) if ros2 else ()), *(robot_role(v) for v in robots)]
 
 
 def _rule(rule_id: str, messages: tuple[str, ...], key_exprs: list[str], flow: str = "ingress") -> dict:
@@ -90,7 +118,7 @@ def _rule(rule_id: str, messages: tuple[str, ...], key_exprs: list[str], flow: s
 
 
 def fleet_acl(fleet: str, listeners: Mapping[str, Sequence[str]], match_certificates: bool = False,
-              ros2: Ros2Grant | None = None) -> dict:
+              ros2: Ros2Grant | None = None, robots: Sequence[RobotGrant] = ()) -> dict:
     """The ``access_control`` section of the router's Zenoh config for ``fleet``, whose
     vehicles are the keys of ``listeners`` (vehicle id -> the ids its ω is addressed to).
 
@@ -147,6 +175,8 @@ def fleet_acl(fleet: str, listeners: Mapping[str, Sequence[str]], match_certific
                   _rule(f"{role}-token", ("liveliness_token",), [keys.alive_of(f, vid)]),
                   _rule(f"{role}-ping", ("declare_queryable", "reply"), [keys.ping(f, vid)])]
         policies.append({"id": role, "rules": [f"{role}-put", f"{role}-token", f"{role}-ping"], "subjects": [role]})
+    for r in robots:
+        _robot_rules(r, rules, policies, subject(robot_role(r.vehicle)))
     return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects,
             "policies": policies}
 
@@ -164,3 +194,20 @@ def _ros2_rules(f: str, g: Ros2Grant, rules: list, policies: list, client: str) 
     rules.append(_rule("ros2-client-tokens", ("liveliness_token",), [g.graph()]))
     policies.append({"id": "ros2-client", "rules": ["ros2-out", "ros2-read", "ros2-client-tokens"],
                      "subjects": [client]})
+
+
+def _robot_rules(r: RobotGrant, rules: list, policies: list, robot: str) -> None:
+    """A robot's and its vehicle's rules (see the module's docstring)."""
+    vehicle, ros = vehicle_role(r.vehicle), f"{robot}-ros"
+    rules += [_rule(f"{vehicle}-ros-out", MESSAGES, [r.odom, r.cmd], flow="egress"),
+              _rule(f"{vehicle}-odom", ("declare_subscriber",), [r.odom]),
+              _rule(f"{vehicle}-cmd", ("put",), [r.cmd]),
+              _rule(f"{vehicle}-ros-tokens", ("liveliness_token",), list(r.tokens)),
+              _rule(f"{ros}-out", MESSAGES, [r.odom, r.cmd, r.graph], flow="egress"),
+              _rule(f"{robot}-odom", ("put",), [r.odom]),
+              _rule(f"{robot}-cmd", ("declare_subscriber",), [r.cmd]),
+              _rule(f"{robot}-graph", ("liveliness_token", *READ), [r.graph])]
+    policies.append({"id": f"{vehicle}-ros", "rules": [f"{vehicle}-ros-out", f"{vehicle}-odom", f"{vehicle}-cmd",
+                                                       f"{vehicle}-ros-tokens"], "subjects": [vehicle]})
+    policies.append({"id": robot, "rules": [f"{ros}-out", f"{robot}-odom", f"{robot}-cmd", f"{robot}-graph"],
+                     "subjects": [robot]})

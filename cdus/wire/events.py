@@ -42,6 +42,8 @@ EVENT_KINDS: dict[str, str] = {
     "radio_split": "warn",  # [radio]: the communication graph (links likely to deliver) lost its spanning tree
     "radio_joined": "info",  # ... and has one again
     "radio_changed": "info",  # [radio]: transmit power or the station changed at run time
+    "odometry_stale": "warn",  # a plant = "ros2" vehicle's robot sent no odometry for its timeout: it holds
+    "odometry_back": "info",  # ... and its odometry came back: it follows again
     "recording_stopped": "warn",  # the world's .rrd file could not be written on (a full disk): the run goes on
 }
 ORIGIN_WORLD = "world"

@@ -28,8 +28,8 @@ from cdus.wire.rejected import Rejected
 from cdus.wire.replies import (MAX_REASON, MAX_SETTINGS_CHANGES, OP_RE, REPLY_KEYS, REPLY_STATUSES, REPLY_VERSION,
                                SENDER_RE, SETTINGS_LIMIT, SETTINGS_VERSION, CommandReply, decode_reply,
                                decode_settings, encode_reply, encode_settings)
-from cdus.wire.stats import (MAX_BURSTS, MAX_LATENCIES, MAX_LINKS, MAX_REASONS, MAX_STATE_CHANGES, AgentStats,
-                             BurstReport, decode_stats, encode_stats)
+from cdus.wire.stats import (MAX_BURSTS, MAX_LATENCIES, MAX_LINKS, MAX_ODOMETRY_GAPS, MAX_REASONS, MAX_STATE_CHANGES,
+                             AgentStats, BurstReport, OdometryGap, decode_stats, encode_stats)
 from cdus.wire.status import (COMPLETED, COMPLETIONS, MAX_STATUS_EDGES, MAX_STATUS_EVENTS, MAX_STATUS_IDS,
                               MAX_STATUS_LINKS, STATUS_EXTRA, STATUS_KEY_ENV, STATUS_KEYS, STATUS_LIMIT, StatusExtra,
                               WorldStatus, decode_status, encode_status, signed_by, status_signature)
@@ -42,8 +42,8 @@ __all__ = [
     "MAX_REASON", "MAX_SETTINGS_CHANGES", "OP_RE", "REPLY_KEYS", "REPLY_STATUSES", "REPLY_VERSION", "SENDER_RE",
     "SETTINGS_LIMIT", "SETTINGS_VERSION", "CommandReply", "decode_reply", "decode_settings", "encode_reply",
     "encode_settings",
-    "MAX_BURSTS", "MAX_LATENCIES", "MAX_LINKS", "MAX_REASONS", "MAX_STATE_CHANGES", "AgentStats", "BurstReport",
-    "decode_stats", "encode_stats",
+    "MAX_BURSTS", "MAX_LATENCIES", "MAX_LINKS", "MAX_ODOMETRY_GAPS", "MAX_REASONS", "MAX_STATE_CHANGES", "AgentStats",
+    "BurstReport", "OdometryGap", "decode_stats", "encode_stats",
     "COMPLETED", "COMPLETIONS", "MAX_STATUS_EDGES", "MAX_STATUS_EVENTS", "MAX_STATUS_IDS", "MAX_STATUS_LINKS",
     "STATUS_EXTRA", "STATUS_KEY_ENV", "STATUS_KEYS", "STATUS_LIMIT", "StatusExtra", "WorldStatus", "decode_status",
     "encode_status",

@@ -3,7 +3,8 @@
 :class:`AgentStats` holds an agent's cumulative counters and the samples since its last
 report: messages decided by its link model, rejects by reason, latencies, the link
 emulator's counters (:data:`cdus.core.vocabulary.DROP_CAUSES`, ``LINK_STATES``), its bursts
-of drops (:class:`BurstReport`) and, with [radio], its radio counters (``RADIO_CAUSES``).
+of drops (:class:`BurstReport`), with [radio] its radio counters (``RADIO_CAUSES``), and a
+``plant = "ros2"`` vehicle's spells without odometry (:class:`OdometryGap`).
 :func:`decode_stats` checks every field, nested ones included, and rebuilds them from
 numbers and ids (no map from the wire is passed on as it came), or returns Rejected.
 """
@@ -28,6 +29,7 @@ MAX_LATENCIES = 4096
 MAX_BURSTS = 128  # vehicle_agent sends at most 100 (BURSTS_PER_STATS)
 MAX_STATE_CHANGES = 64  # vehicle_agent sends its newest 50
 MAX_LINKS = 256 * 255
+MAX_ODOMETRY_GAPS = 16  # vehicle_agent.robot sends its newest 8
 
 
 @dataclass(frozen=True)
@@ -51,6 +53,18 @@ class BurstReport:
 
     def event(self, origin: str | None = None) -> FleetEvent:
         return FleetEvent.of(self.t, "link_burst", self.text(), link=self.link, origin=origin)
+
+
+@dataclass(frozen=True)
+class OdometryGap:
+    """A robot's odometry missing (docs/ros2.md): its vehicle held from simulated time ``t`` (the
+    tick it began to) to ``back`` (the tick it followed again; None: still holding)."""
+
+    t: float
+    back: float | None = None
+
+    def as_dict(self) -> dict[str, float]:
+        return {"t": self.t} if self.back is None else {"t": self.t, "back": self.back}
 
 
 _BURST_TEXT = re.compile(r"^link ([A-Za-z0-9_-]{1,64})->([A-Za-z0-9_-]{1,64}): ([0-9]{1,12}) messages dropped in a "
@@ -82,6 +96,8 @@ class AgentStats:
     #: with [radio]: its RadioLink's counters ({sent, delivered, dropped, dropped_by: {fault, range,
     #: fading, collision, queue}, no_geometry}; cdus.core.radiolink.RadioCounters.as_dict); None without
     radio: dict | None = None
+    #: a plant = "ros2" vehicle's newest spells without odometry, oldest first (empty for the others)
+    odometry_gaps: tuple[OdometryGap, ...] = ()
 
     def as_dict(self) -> dict[str, Any]:
         """A plain map of every field (containers copied): what encode_stats packs. Built field
@@ -92,6 +108,7 @@ class AgentStats:
         d["latencies_ms"] = list(self.latencies_ms)
         d["faults"] = _copy_tree(self.faults)
         d["bursts"] = [b.event().as_dict() if isinstance(b, BurstReport) else b for b in self.bursts]
+        d["odometry_gaps"] = [g.as_dict() for g in self.odometry_gaps]
         return d
 
 
@@ -109,7 +126,8 @@ _STAT_NAMES = tuple(f.name for f in fields(AgentStats))
 
 _STAT_INTS = ("tick", "sent_to_me", "delivered", "dropped", "duplicated", "rejected", "missed_deadlines", "joined_at",
               "interventions", "incarnation")
-_STAT_FIELDS = {"v", "id", "rejected_by_reason", "latencies_ms", "faults", "bursts", "radio", *_STAT_INTS}
+_STAT_FIELDS = {"v", "id", "rejected_by_reason", "latencies_ms", "faults", "bursts", "radio", "odometry_gaps",
+                *_STAT_INTS}
 
 
 def encode_stats(s: AgentStats) -> bytes:
@@ -120,7 +138,7 @@ def decode_stats(payload: bytes, ids: Collection[str] | None = None) -> AgentSta
     """An agent's stats, every field checked (``ids``: the fleet's vehicle ids, when known:
     the sender and every link must name them), or the reason: ``oversized``, ``malformed``,
     ``version``, ``unknown_field``, ``type``, ``range``, ``unknown_sender``, ``reasons``,
-    ``latencies``, ``faults``, ``bursts``."""
+    ``latencies``, ``faults``, ``bursts``, ``radio``, ``odometry_gaps``."""
     obj = _unpack(payload, limit=1 << 16)
     if isinstance(obj, Rejected):
         return obj
@@ -166,8 +184,33 @@ def decode_stats(payload: bytes, ids: Collection[str] | None = None) -> AgentSta
         radio = _radio_counters(radio)
         if radio is None:
             return Rejected("radio")
+    gaps = _odometry_gaps(obj.get("odometry_gaps", []))
+    if gaps is None:
+        return Rejected("odometry_gaps")
     return AgentStats(vid, rejected_by_reason={k: int(x) for k, x in by.items()},
-                      latencies_ms=tuple(float(x) for x in lat), faults=checked, bursts=reports, radio=radio, **ints)
+                      latencies_ms=tuple(float(x) for x in lat), faults=checked, bursts=reports, radio=radio,
+                      odometry_gaps=gaps, **ints)
+
+
+def _odometry_gaps(x: Any) -> tuple[OdometryGap, ...] | None:
+    """A robot's spells without odometry, rebuilt from their numbers, or None: at most
+    MAX_ODOMETRY_GAPS, each within 0..MAX_TIME and back at or after it began, in order without
+    overlap, only the newest still open."""
+    if not isinstance(x, list) or len(x) > MAX_ODOMETRY_GAPS:
+        return None
+    out: list[OdometryGap] = []
+    for d in x:
+        if not isinstance(d, dict) or "t" not in d or not set(d) <= {"t", "back"}:
+            return None
+        t, back = d["t"], d.get("back")
+        if not _number(t) or not 0 <= t <= MAX_TIME:
+            return None
+        if back is not None and not (_number(back) and t <= back <= MAX_TIME):
+            return None
+        if out and (out[-1].back is None or t < out[-1].back):
+            return None
+        out.append(OdometryGap(float(t), None if back is None else float(back)))
+    return tuple(out)
 
 
 def _radio_counters(d: Any) -> dict | None:

@@ -92,3 +92,71 @@ def test_a_router_enforces_it(tmp_path):
         for s in sessions:
             s.close()
         router.close()
+
+
+def robot_fleet():
+    from cdus.ros2.fleet import robot_grants
+    from cdus.scenario.config import load_scenario
+    from cdus.sim.build import listeners_of
+    sc = load_scenario("configs/ros2_robot.toml")
+    return {v: listeners_of(sc, v) for v in sc.ids}, robot_grants(sc)
+
+
+def test_a_robot_is_a_role_only_where_there_is_one_and_its_rules_name_its_two_keys(tmp_path):
+    listeners, (g,) = robot_fleet()
+    assert "robot" not in json.dumps(access.fleet_acl("f", listeners))
+    rules = {r["id"]: r for r in access.fleet_acl("f", listeners, robots=[g])["rules"]}
+    assert rules["robot-usv1-odom"]["key_exprs"] == [g.odom] and rules["vehicle-usv1-cmd"]["key_exprs"] == [g.cmd]
+    assert g.odom.startswith("0/usv1/odom/nav_msgs::msg::dds_::Odometry_/RIHS01_")
+    assert g.cmd.startswith("0/usv1/cmd_vel/geometry_msgs::msg::dds_::Twist_/RIHS01_")
+    cred = make_credentials(tmp_path, "f", listeners, ("tcp/127.0.0.1:7447",), robots=[g])
+    assert cred.file("robot-usv1").exists() and not cred.file("robot-usv2").exists()
+
+
+def test_a_router_lets_a_robot_and_its_vehicle_exchange_exactly_odometry_and_commands(tmp_path):
+    """The robot's odometry reaches its vehicle, the vehicle's Twist and graph tokens reach the
+    robot; the robot commands nothing, speaks for no vehicle, and no other vehicle drives it."""
+    from cdus.ros2.fleet import robot_node
+    listeners, (g,) = robot_fleet()
+    fleet, port = "robotacl", free_tcp_port()
+    cred = make_credentials(tmp_path, fleet, listeners, (f"tcp/127.0.0.1:{port}",), robots=[g])
+    router = open_session(Transport(mode="router", listen=cred.listen, extra=cred.router_extra()))
+    sessions = []
+    try:
+        heard = Heard(router, fleet)
+
+        def member(role: str):
+            s = zenoh.open(zenoh.Config.from_file(str(cred.file(role))))
+            sessions.append(s)
+            return s
+
+        robot, usv1, usv2 = member("robot-usv1"), member("vehicle-usv1"), member("vehicle-usv2")
+        got: dict[str, list] = {"odom": [], "cmd": [], "usv2_odom": [], "tokens": []}
+        usv1.declare_subscriber(g.odom, lambda s: got["odom"].append(s.payload.to_bytes()))
+        usv2.declare_subscriber(g.odom, lambda s: got["usv2_odom"].append(1))  # another vehicle hears nothing of it
+        robot.declare_subscriber(g.cmd, lambda s: got["cmd"].append(s.payload.to_bytes()))
+        robot.liveliness().declare_subscriber("@ros2_lv/0/**", lambda s: got["tokens"].append(str(s.key_expr)))
+        node = robot_node(0, str(usv1.zid()), "usv1")
+        mine = node.token()
+        usv1.liveliness().declare_token(mine)
+        usv1.liveliness().declare_token(robot_node(0, str(usv1.zid()), "usv2").token())  # not its node
+        robot.liveliness().declare_token("@ros2_lv/0/r/0/0/NN/%/%/boat")  # the robot's own node
+        robot.put(g.cmd, b"by robot", allowed_destination=zenoh.Locality.REMOTE)  # the robot commands nothing
+        robot.put(keys.state(fleet, "usv1"), b"x")  # nor speaks for its vehicle
+        usv2.put(g.cmd, b"by usv2")  # no other vehicle drives it
+        usv1.put(keys.state(fleet, "usv1"), b"x")
+        heard.wait_for(keys.state(fleet, "usv1"))
+        deadline = time.monotonic() + 10
+        while not (got["odom"] and got["cmd"] and mine in got["tokens"]):
+            assert time.monotonic() < deadline, got
+            robot.put(g.odom, b"odom")
+            usv1.put(g.cmd, b"twist")
+            time.sleep(0.05)
+        time.sleep(0.2)
+        assert set(got["odom"]) == {b"odom"} and set(got["cmd"]) == {b"twist"} and got["usv2_odom"] == []
+        assert set(got["tokens"]) == {mine, "@ros2_lv/0/r/0/0/NN/%/%/boat"}
+        assert heard.puts.count(keys.state(fleet, "usv1")) == 1
+    finally:
+        for s in sessions:
+            s.close()
+        router.close()

@@ -1,12 +1,15 @@
 """plant = "ros2" without a network: the odometry decoder against rosbags' bytes, every malformed
 payload counted by reason and dropped (Hypothesis), the Twist rosbags reads, the agent's hold
-on missing or stale odometry and its return, and the config's refusals."""
+on missing or stale odometry and its return, its spells without odometry reported to the world
+and shown there as fleet events (every hostile report counted and dropped), and the config's
+refusals."""
 
 from __future__ import annotations
 
 import math
 import random
 
+import msgpack
 import pytest
 from hypothesis import given, settings, strategies as st
 
@@ -14,7 +17,10 @@ from cdus.ros2 import cdr
 from cdus.ros2.robot import ODOM, ODOM_REASONS, TWIST, RobotPose, read_odometry, twist
 from cdus.ros2.types import TYPES
 from cdus.scenario.config import ConfigError, load_scenario
+from cdus.wire import keys
 from cdus.wire.rejected import Rejected
+from cdus.wire.schemas import MAX_ODOMETRY_GAPS, MAX_TIME, SCHEMA_VERSION, AgentStats, OdometryGap, decode_stats
+from cdus.wire.schemas import encode_stats
 from cdus.wire.transport import Transport
 from tests.ros2.robots import odometry_bytes, read_twist
 
@@ -103,11 +109,11 @@ def test_the_agent_holds_without_odometry_follows_with_it_and_holds_again_when_i
     node = a.node
     a.step(0)  # no odometry yet: held, not stepped (no ω broadcast)
     assert a.holding and node.tick == 0 and a.ticks_done == 0
-    a.feed_odometry(odometry_bytes((5.0, 0.0), math.pi / 2))
+    a.feed_odometry(odometry_bytes((20.0, 0.0), math.pi / 2))
     a.step(1)
-    assert not a.holding and a.ticks_done == 2 and node.vehicle.q == (5.0, 0.0)
+    assert not a.holding and a.ticks_done == 2 and node.vehicle.q == (20.0, 0.0)
     u = node.vehicle.plant.command
-    assert u is not None and math.hypot(*u) == pytest.approx(1.0)  # the speed limit of the config
+    assert u is not None and math.hypot(*u) == pytest.approx(4.0)  # far from its circle: the speed limit of the config
     assert any("following at tick 1" in ln for ln in lines)
     a.heard -= 10.0  # its odometry is now 10 s old
     a.step(2)
@@ -119,6 +125,101 @@ def test_the_agent_holds_without_odometry_follows_with_it_and_holds_again_when_i
     a.feed_odometry(odometry_bytes((0.0, 5.0), math.pi))
     a.step(4)
     assert not a.holding and node.vehicle.q == (0.0, 5.0) and a.ticks_done == 5
+
+
+class Puts:
+    def __init__(self):
+        self.puts: list[bytes] = []
+
+    def put(self, payload: bytes) -> None:
+        self.puts.append(bytes(payload))
+
+
+def test_each_spell_without_odometry_goes_to_the_world_when_it_begins_and_when_it_ends():
+    a, _ = robot_agent()
+    a.report.pub_stats = pub = Puts()
+    a.step(0)  # waiting for the first odometry is a spell too, from the first tick
+    assert decode_stats(pub.puts[-1]).odometry_gaps == (OdometryGap(0.0),)
+    a.step(1)  # still waiting: nothing new to say (a holding vehicle sends no counters)
+    assert len(pub.puts) == 1
+    a.feed_odometry(odometry_bytes((5.0, 0.0), 0.0))
+    a.step(2)
+    assert decode_stats(pub.puts[-1]).odometry_gaps == (OdometryGap(0.0, 0.2),)
+    a.heard -= 10.0
+    a.step(30)
+    assert decode_stats(pub.puts[-1]).odometry_gaps == (OdometryGap(0.0, 0.2), OdometryGap(3.0))
+    a.step(31)
+    a.feed_odometry(odometry_bytes((5.0, 0.0), 0.0))
+    a.report._last_stats = 1e18  # no once-a-second report due: what goes is the end of the spell
+    a.step(60)
+    assert a.stats().odometry_gaps == decode_stats(pub.puts[-1]).odometry_gaps == (
+        OdometryGap(0.0, 0.2), OdometryGap(3.0, 6.0))
+    for n in range(100, 100 + 2 * 20, 2):  # many spells: the newest ODOM_GAPS go, within the decoder's bound
+        a.heard -= 10.0
+        a.step(n)
+        a.feed_odometry(odometry_bytes((5.0, 0.0), 0.0))
+        a.step(n + 1)
+    gaps = decode_stats(pub.puts[-1]).odometry_gaps
+    assert len(gaps) == 8 <= MAX_ODOMETRY_GAPS and gaps[-1] == OdometryGap(13.8, 13.9)
+
+
+def robot_world():
+    from tests.world_sim.test_world import Pub, Session
+    from world_sim.world import World
+    w = World(load_scenario(CONFIG), "t", Transport(), clock="realtime", log=lambda s: None)
+    w.session = Session()
+    w.pub_ctl, w.pub_launcher, w.pub_status, w.pub_events = Pub(), Pub(), Pub(), Pub()
+    return w
+
+
+def test_the_world_shows_a_robots_spells_without_odometry_as_events_once_each():
+    w = robot_world()
+    send = lambda vid, *gaps: w.feed(keys.stats("t", vid), encode_stats(  # noqa: E731
+        AgentStats(id=vid, tick=1, odometry_gaps=gaps)))
+    send("usv1", OdometryGap(0.0))
+    send("usv1", OdometryGap(0.0, 0.2))  # the same spell again, now ended: one new event
+    send("usv1", OdometryGap(0.0, 0.2), OdometryGap(0.5))
+    send("usv1", OdometryGap(0.0, 0.2), OdometryGap(0.5, 0.8))
+    got = [(e.t, e.kind, e.severity, e.vehicle, e.origin) for e in w.events]
+    assert got == [(0.0, "odometry_stale", "warn", "usv1", "usv1"), (0.2, "odometry_back", "info", "usv1", "usv1"),
+                   (0.5, "odometry_stale", "warn", "usv1", "usv1"), (0.8, "odometry_back", "info", "usv1", "usv1")]
+    assert "usv1: no odometry from /usv1/odom for 0.5 s (from t = 0.50 s)" in w.events[2].text
+    assert "back at t = 0.80 s after 0.30 s without" in w.events[3].text
+    assert w.st.rejects == {}
+    send("usv2", OdometryGap(0.1))  # an emulated boat has no odometry to miss
+    send("usv1", OdometryGap(1e6))  # past the newest tick a vehicle can have stepped
+    assert len(w.events) == 4 and w.st.rejects == {"odometry_not_robot": 1, "odometry_future": 1}
+
+
+def test_a_world_that_noted_its_share_of_a_robots_spells_counts_the_rest():
+    from world_sim.limits import MAX_ODOMETRY_EVENTS
+    w = robot_world()
+    for k in range(MAX_ODOMETRY_EVENTS // 16 + 1):  # a hostile robot: ever new spells
+        gaps = tuple(OdometryGap(round(0.001 * (16 * k + i), 3), round(0.001 * (16 * k + i) + 0.0005, 4))
+                     for i in range(16))
+        w.feed(keys.stats("t", "usv1"), encode_stats(AgentStats(id="usv1", tick=1, odometry_gaps=gaps)))
+    assert len(w.events) == MAX_ODOMETRY_EVENTS and w.st.rejects["odometry_flood"] >= 1
+
+
+_gap = st.fixed_dictionaries({"t": st.floats(-1.0, 2e9) | st.integers(-5, 5) | st.booleans() | st.text(max_size=2)},
+                             optional={"back": st.none() | st.floats(allow_nan=True) | st.integers(-5, 5),
+                                       "x": st.integers(-2**63, 2**63)})
+
+
+@settings(max_examples=300, deadline=None)
+@given(gaps=st.lists(_gap | st.integers(-2**63, 2**63) | st.none(), max_size=MAX_ODOMETRY_GAPS + 2)
+       | st.text(max_size=3)
+       | st.dictionaries(st.text(max_size=2), st.integers(-9, 9), max_size=2))
+def test_any_odometry_gaps_field_decodes_to_ordered_bounded_spells_or_rejects_the_report(gaps):
+    s = decode_stats(msgpack.packb({"v": SCHEMA_VERSION, "id": "usv1", "tick": 1, "odometry_gaps": gaps}))
+    if isinstance(s, Rejected):
+        assert s.reason == "odometry_gaps"
+        return
+    out = s.odometry_gaps
+    assert len(out) <= MAX_ODOMETRY_GAPS and all(type(g.t) is float and 0 <= g.t <= MAX_TIME for g in out)
+    assert all(g.back is None or g.t <= g.back <= MAX_TIME for g in out)
+    assert all(a.back is not None and a.back <= b.t for a, b in zip(out, out[1:]))
+    assert decode_stats(encode_stats(s)) == s
 
 
 def test_malformed_odometry_is_counted_by_reason_and_changes_nothing():
@@ -163,13 +264,11 @@ def test_the_robot_table_is_checked():
     assert parse_scenario(default).vehicle("usv1").robot.cmd_vel == "/usv1/cmd_vel"
 
 
-def test_cdus_launch_refuses_a_robot_in_lockstep_or_on_a_secured_fleet_and_starts_nothing():
+def test_cdus_launch_refuses_a_robot_in_lockstep_and_starts_nothing():
     from tests.e2e.conftest import run_cli
     lock = run_cli(["launch", CONFIG, "--rerun", "off"])  # lockstep is launch's default clock
     assert lock.returncode == 2 and "--clock: vehicle 'usv1' has plant = \"ros2\"" in lock.stderr
     assert "nothing was started" in lock.stderr + lock.stdout
-    secured = run_cli(["launch", CONFIG, "--clock", "realtime", "--rerun", "off"])
-    assert secured.returncode == 2 and "--insecure: a plant = \"ros2\" vehicle needs an open fleet" in secured.stderr
 
 
 def test_the_fleet_wide_disturbance_and_observer_pass_a_robot_by():
