@@ -33,7 +33,7 @@ PROCS = (
     "e2e/", "ros2/", "test_suite_phases.py", "test_startup.py", "test_docs_screenshot.py",
     "api/test_lockstep.py",
     "app/test_cli.py", "app/test_launcher.py", "app/test_launcher_runtime.py", "app/test_links.py",
-    "app/test_listen.py", "app/test_sweep_lost_workers.py",
+    "app/test_listen.py", "app/test_sweep_lost_workers.py", "app/test_sweep_inf.py", "plugins/test_example_e2e.py",
     "app/test_sweep_resume.py", "app/test_sweepworker.py", "app/test_command_acl.py", "app/test_credentials.py",
     "app/test_report_integrity.py",
     "ground_station/test_gs_args.py", "ground_station/test_answers.py", "ground_station/test_console.py",
@@ -45,8 +45,9 @@ PROCS = (
     "world_sim/test_recording.py",
 )
 
-#: words in a command line that make it one of cdus's fleet processes (or Zenoh's router)
-FLEET_WORDS = ("launch", "world_sim", "vehicle_agent", "cdus.ros2", "zenohd", "gs")
+#: words in a command line that make it one of cdus's fleet processes, or a command that starts them
+#: (a sweep of lockstep fleets), or Zenoh's router
+FLEET_WORDS = ("launch", "world_sim", "vehicle_agent", "cdus.ros2", "zenohd", "gs", "lockstep", "realtime")
 
 #: set by tests/run.py for the shared phase
 PHASE_ENV = "CDUS_SUITE_PHASE"
