@@ -8,7 +8,7 @@ import re
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-COMMAND = "python3 -m pip install -e '.[test]' && python3 -m pytest -q"
+COMMAND = "python3 -m pip install -e '.[test]' && python3 tests/run.py"
 
 
 def test_the_readme_names_the_packages_ci_installs_next_to_its_test_command():
