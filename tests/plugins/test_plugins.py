@@ -237,6 +237,50 @@ def test_a_plugin_plant_returning_nan_is_refused_before_the_run(fresh):
                     f'before anything started)')
 
 
+@pytest.mark.parametrize("change, said", [
+    ("import numpy; f = numpy.array(f)", "at ω = 0 its f is a numpy.ndarray [5. 0.], not a tuple (make it one: "
+                                         "tuple(float(x) for x in ...))"),
+    ("f = f + (0.0, 1.0)", "at ω = 0 its f has 4 values, not 2: (5.0, 0.0, 0.0, 1.0)"),
+    ("return f, f1", "at ω = 0 it returned 2 values, not the 3 of (f, f', f''): ((5.0, 0.0), (-0.0, 5.0))"),
+])
+def test_a_plugin_curve_of_the_wrong_shape_is_told_what_is_wrong_in_it(fresh, change, said):
+    """A numpy array where a tuple is wanted, a vector of the wrong length, a missing f'': the
+    message says which value and what it is (it said 'it returned the list [[...]] ((...))' for
+    each, with nothing of which one or why: a numpy array of the right 2 numbers was refused as
+    if it were none)."""
+    name = module(fresh, FAMILY, name="odd", change=change)
+    text = refusal(scenario("odd", table={"paths": {"odd": f"{name}:FAMILY"}}))
+    assert text == (f'x.toml: vehicle[0] (id "b1").path: plug-in path family "odd" ([plugins.paths] of the scenario: '
+                    f"{name}:FAMILY): its eval(ω) must return (f, f', f''), three tuples of 2 numbers; {said}")
+
+
+@pytest.mark.parametrize("edit, said", [
+    (("    def finite(self, state):", "    def is_finite(self, state):"),
+     "its plant (a {name}.Point) has no method finite; give it every method of cdus.core.plants.Plant (start, "
+     "at_rest, step, velocity, heading, finite)"),
+    (("    velocity_level = True\n", ""), "its plant (a {name}.Point) has no velocity_level = True or False; give it "
+                                         "one (docs/plugins.md)"),
+    (("    velocity_level = True", "    velocity_level = False"),
+     "its plant (a {name}.Point) has velocity_level = False, but its PlantModel has no regulator to turn the "
+     "guidance's velocity into its input; set velocity_level = True (it takes the velocity itself), or give the "
+     "PlantModel a regulator"),
+    (("        return state.v\n", "        import numpy; return numpy.array(state.v)\n"),
+     "its velocity is a numpy.ndarray [ 0. <numpy's print>], not a tuple (make it one: tuple(float(x) for x in "
+     "...))"),
+])
+def test_a_plugin_plant_missing_a_part_is_told_which(fresh, edit, said):
+    """A plant without finite(), without velocity_level, with velocity_level = False and no
+    regulator, or a numpy velocity: each named before the run (the first was 'step raised
+    AttributeError', the second and third ran silently as a regulated plant with no regulator,
+    the fourth was 'its velocity must be 2 finite numbers, got array([0., -5.])')."""
+    name = module(fresh, PLANT.replace(*edit), change="pass")
+    text = refusal(scenario(plant="part", table={"plants": {"part": f"{name}:MODEL"}}))
+    want = (f'x.toml: vehicle[0] (id "b1").plant: plug-in plant "part" ([plugins.plants] of the scenario: '
+            f'{name}:MODEL): ' + said.replace("{name}", name))
+    head, _, tail = want.partition(" <numpy's print>")  # the array's numbers as numpy prints them
+    assert text.startswith(head) and text.endswith(tail) and len(text) < len(want) + 40, text
+
+
 def test_two_doors_giving_one_name_two_objects_are_refused(fresh):
     one = module(fresh, FAMILY, name="twin", change="pass")
     two = module(fresh, FAMILY, name="twin", change="pass")
