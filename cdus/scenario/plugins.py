@@ -28,6 +28,7 @@ import importlib
 import importlib.metadata
 import math
 import re
+import sys
 from dataclasses import dataclass
 from typing import Any, Iterable, Mapping
 
@@ -143,6 +144,14 @@ def load(origin: Origin) -> str | None:
         models.register_plant(name, guarded_model(obj, origin))
     LOADED[(kind, name)] = origin
     return None
+
+
+def not_found_hint(kind: str) -> str:
+    """What an unknown family or plant name adds after the known ones: where a plug-in of that
+    name would have to be (its package in the Python that runs cdus, which is not always the
+    one ``pip`` installed into: a virtual environment, a second Python), or the scenario's table."""
+    return (f" (a plug-in's? install its package into the Python that runs cdus, {sys.executable}, or name it "
+            f"in [plugins.{kind}]: docs/plugins.md)")
 
 
 # --------------------------------------------------------------------------- shapes

@@ -176,6 +176,24 @@ def test_a_plugin_family_takes_a_parameter_no_built_in_has_within_a_positions_bo
 # --------------------------------------------------------------------------- refused, named
 
 
+def test_a_name_no_plugin_gave_says_where_the_plugin_would_have_to_be(fresh):
+    """A plug-in installed into another Python than the one running cdus (a virtual environment
+    whose `cdus` on PATH is the system's) is just an unknown name: the message says which Python
+    runs cdus and the other door, for the plant, the vehicle's path and a path event's (it listed
+    the built-in names only)."""
+    import sys
+    data = scenario()  # the events are read once the vehicles are good
+    data["event"] = [{"at": 1.0, "action": "path", "vehicle": "b1",
+                      "path": {"family": "limacon", "center": [0.0, 0.0], "radius": 3.0}}]
+    text = refusal(scenario("limacon", "laggy")) + "\n" + refusal(data)
+    for field, kind in (('vehicle[0] (id "b1").plant', "plants"), ('vehicle[0] (id "b1").path.family', "paths"),
+                        ("event[0].path.family", "paths")):
+        line = next(x for x in text.splitlines() if x.startswith(f"x.toml: {field}: unknown"))
+        assert line.split("; choose one of ")[1].split(" (")[1].startswith(
+            f"a plug-in's? install its package into the Python that runs cdus, {sys.executable}, or name it in "
+            f"[plugins.{kind}]: docs/plugins.md)"), line
+
+
 def test_a_plugin_that_raises_on_import_is_named_with_the_fix(fresh):
     name = module(fresh, "raise ImportError('needs scipy')\n")
     text = refusal(scenario("mine", table={"paths": {"mine": f"{name}:FAMILY"}}))
