@@ -39,6 +39,7 @@ from cdus.core.paths import REGISTRY, Family, Path, PathError, Vec, register
 from cdus.core.regulators import Limits
 from cdus.core.vocabulary import KINDS
 from cdus.scenario.checks import Problems, describe, quote
+from cdus.scenario.errors import ConfigError
 from cdus.wire.bounds import finite
 
 #: the [plugins] table's keys and the entry-point group of each
@@ -110,6 +111,17 @@ def plugins_section(p: Problems, table: Any) -> None:
         problem = load(Origin(kind, name, ref, door))
         if problem is not None:
             p.add(field, problem)
+
+
+def load_named(data: Mapping[str, Any], source: str) -> None:
+    """Load in this process the plug-ins a scenario's data names (the installed ones and its
+    ``[plugins]`` table), as reading it does: what a process handed a resolved Scenario instead
+    of reading one (a sweep's worker, a fresh process) does before it builds the vehicles.
+    Raises :class:`ConfigError` naming each that fails."""
+    p = Problems()
+    plugins_section(p, data.get("plugins"))
+    if p:
+        raise ConfigError(source, p.items)
 
 
 def load(origin: Origin) -> str | None:

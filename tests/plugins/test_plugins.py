@@ -326,6 +326,23 @@ def test_a_plugin_plant_that_fails_in_the_run_is_a_diverged_vehicle_naming_it(fr
     assert f'plug-in plant "late" ([plugins.plants] of the scenario: {name}:MODEL): {said}' in text
 
 
+def test_a_sweep_worker_handed_a_resolved_scenario_loads_its_plugins_first(fresh):
+    """`cdus sweep` resolves each run on the driver and hands the Scenario to a fresh worker
+    process, which had read no scenario and so knew no plug-in: every run of a plug-in's
+    scenario failed ('unknown path family', for an installed package and a [plugins] table
+    alike). Here the registries are put back as such a worker has them."""
+    from cdus.app.sweepworker import run_task
+    fam, plant = module(fresh, FAMILY, name="hoop", change="pass"), module(fresh, PLANT, change="pass")
+    sc = parse_scenario(scenario("hoop", "point", table={"paths": {"hoop": f"{fam}:FAMILY"},
+                                                         "plants": {"point": f"{plant}:MODEL"}}))
+    for table, key in ((REGISTRY, "hoop"), (PLANTS, "point"), (plugins.LOADED, ("paths", "hoop")),
+                       (plugins.LOADED, ("plants", "point"))):
+        del table[key]
+    row = run_task(sc, "inproc")
+    assert (row["status"], row["reason"]) == ("ok", ""), row
+    assert row["final_path_error_max"] == InProcessFleet(sc).run().metrics["final_path_error_max"]
+
+
 def test_a_plugin_plant_runs_as_the_built_in_ideal_one_to_the_bit(fresh):
     """The wrapper adds nothing to the numbers: a point mass stepped q + h u, exact when its input
     is held (one step a period), is the ideal plant."""
