@@ -467,9 +467,10 @@ PLANT_METHODS = ("start", "at_rest", "step", "velocity", "heading", "finite")
 PLANT_FLAGS = ("velocity_level", "exact_when_held")
 
 
-def plant_object_problem(plant: Any, regulated: bool) -> str | None:
+def plant_object_problem(plant: Any, regulated: bool, safety_on: bool = False) -> str | None:
     """What keeps the object a plug-in's ``build`` made from being a plant (a method or a flag
-    missing; ``velocity_level`` saying the opposite of whether its model has regulators), or None."""
+    missing; ``velocity_level`` saying the opposite of whether its model has regulators; with
+    ``[safety]`` on, a regulated plant without ``point``), or None."""
     kind = _typename(plant)
     missing = [m for m in PLANT_METHODS if not callable(getattr(plant, m, None))]
     if missing:
@@ -485,6 +486,10 @@ def plant_object_problem(plant: Any, regulated: bool) -> str | None:
                 f"its plant ({kind}) has velocity_level = False, but its PlantModel has no regulator to turn the "
                 f"guidance's velocity into its input; set velocity_level = True (it takes the velocity itself), "
                 f"or give the PlantModel a regulator")
+    if safety_on and regulated and not callable(getattr(plant, "point", None)):
+        return (f"its plant ({kind}) has no point(state, d, limits), which [safety] needs of a plant with a "
+                f"regulator (the dynamic safety filter's model of it, a cdus.core.safety.Point: docs/safety.md, "
+                f"docs/plugins.md); give it one, or run this fleet without [safety]")
     return None
 
 
@@ -496,7 +501,7 @@ def _plant_run_problem(spec: Any, path: Path, physics_hz: float, control_hz: flo
     try:
         plant, regulator = models.build(spec.plant, spec.regulator, {"epsilon": spec.epsilon, "preset": spec.preset},
                                         dict(spec.regulator_gains))
-        wrong = plant_object_problem(plant.inner, regulator is not None)
+        wrong = plant_object_problem(plant.inner, regulator is not None, safety_on)
         if wrong is not None:
             return f"{origin}: {wrong}"
         w = spec.phase if spec.omega0 is None else spec.omega0

@@ -299,6 +299,21 @@ def test_a_plugin_plant_missing_a_part_is_told_which(fresh, edit, said):
     assert text.startswith(head) and text.endswith(tail) and len(text) < len(want) + 40, text
 
 
+def test_a_regulated_plugin_plant_without_point_under_safety_is_told_the_fix(fresh, monkeypatch):
+    """[safety] on, a plant with a regulator and no point() (the example's unicycle): said as the
+    missing method and the two fixes (it was 'point (its model for the safety filter) raised
+    AttributeError: ... no attribute 'point'')."""
+    monkeypatch.syspath_prepend(str(EXAMPLE))
+    data = scenario(plant="unicycle", table={"plants": {"unicycle": "cdus_plugin_example.unicycle:UNICYCLE"}},
+                    safety={"enabled": True})
+    assert refusal(data) == (
+        'x.toml: vehicle[0] (id "b1").plant: plug-in plant "unicycle" ([plugins.plants] of the scenario: '
+        'cdus_plugin_example.unicycle:UNICYCLE): its plant (a cdus_plugin_example.unicycle.Unicycle) has no '
+        'point(state, d, limits), which [safety] needs of a plant with a regulator (the dynamic safety filter\'s '
+        'model of it, a cdus.core.safety.Point: docs/safety.md, docs/plugins.md); give it one, or run this fleet '
+        'without [safety]')
+
+
 def test_two_doors_giving_one_name_two_objects_are_refused(fresh):
     one = module(fresh, FAMILY, name="twin", change="pass")
     two = module(fresh, FAMILY, name="twin", change="pass")
