@@ -321,7 +321,8 @@ def returned_problem(values: Any, labels: tuple[str, ...], dim: int) -> str | No
         if n != dim:
             return f"its {label} has {n} values, not {dim}: {str(v)[:80]}"
         if not isinstance(v, tuple):
-            return f"its {label} is {_typename(v)} {str(v)[:60]}, not a tuple (make it one: tuple(float(x) for x in ...))"
+            return (f"its {label} is {_typename(v)} {str(v)[:60]}, not a tuple (make it one: "
+                    f"tuple(float(x) for x in ...))")
     return None
 
 

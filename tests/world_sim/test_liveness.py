@@ -128,3 +128,26 @@ def test_roster_changes_joins_and_contacts_block_rather_than_drop_under_congesti
     kinds = {keys.leaf(k)[0] for k, _ in w.session.puts}
     assert kinds == {"ctl", "contacts"}, w.session.puts
     assert all(cc == zenoh.CongestionControl.BLOCK for _, cc in w.session.puts), w.session.puts
+
+
+def test_the_ros2_bridges_token_is_the_fleets_own_when_ros2_is_enabled():
+    """`cdus launch --ros2`: the bridge's token alive/ros2/<zid> was 'a token of a name not in
+    the fleet' (token_unknown), so every --ros2 run ended TAMPERED. With [ros2] enabled its first
+    token is the bridge's; a second while it is up is counted as a vehicle's would be; without
+    [ros2] it is still no process of the fleet."""
+    import dataclasses
+
+    w = up_by_tokens(world())
+    w.scenario = dataclasses.replace(w.scenario, ros2=dataclasses.replace(w.scenario.ros2, enabled=True))
+    hear(w, keys.alive(FLEET, "ros2", "b1"))
+    hear(w, keys.alive(FLEET, "ros2", "b1"))  # said twice
+    assert not w.integrity and w.st.alive == set(w.ids)
+    hear(w, keys.alive(FLEET, "ros2", "f1"))  # a second bridge while the first is up
+    hear(w, keys.alive(FLEET, "ros2", G["usv1"]))  # usv1's session as the bridge
+    assert w.integrity == {"token_extra": 2}
+    hear(w, keys.alive(FLEET, "ros2", "b1"), up=False)
+    hear(w, keys.alive(FLEET, "ros2", "f1"))  # refused once: never taken
+    assert w.integrity == {"token_extra": 3}
+    plain = up_by_tokens(world())
+    hear(plain, keys.alive(FLEET, "ros2", "b1"))
+    assert plain.integrity == {"token_unknown": 1}
