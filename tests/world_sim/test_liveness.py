@@ -87,25 +87,32 @@ def test_a_vehicle_watching_a_token_not_the_worlds_is_in_the_integrity_block():
     assert w.integrity_block()["reasons"] == {"vehicle_token_key": 2}
 
 
-vids = hs.sampled_from(["usv1", "usv2", "uav3", "world", "usv9", "", "*", "**", "$*"])
+vids = hs.sampled_from(["usv1", "usv2", "uav3", "world", "ros2", "usv9", "", "*", "**", "$*"])
 zids = hs.sampled_from(["a0", "a1", "f0", "f1", "*", "**", "A1", "x"])
 keys_ = hs.one_of(hs.builds(lambda v, z: f"cdus/{FLEET}/alive/{v}/{z}", vids, zids),
                   hs.builds(lambda v: f"cdus/{FLEET}/alive/{v}", vids), hs.text(max_size=30))
 
 
 @settings(max_examples=150, deadline=None)
-@given(hs.lists(hs.tuples(keys_, hs.booleans()), max_size=30))
-def test_no_token_but_a_vehicles_own_changes_whether_it_is_alive(news):
+@given(hs.lists(hs.tuples(keys_, hs.booleans()), max_size=30), hs.booleans())
+def test_no_token_but_a_vehicles_own_changes_whether_it_is_alive(news, ros2):
     """usv1's own token (a0) up all along: whatever else comes and goes (forged, wildcard,
-    junk), usv1 stays alive and nothing raises; every vehicle alive holds the token taken for it."""
+    junk, the ROS 2 bridge's with [ros2] on or off), usv1 stays alive and nothing raises; every
+    vehicle alive holds the token taken for it; no session holds two names."""
+    import dataclasses
+
     w = world()
+    if ros2:
+        w.scenario = dataclasses.replace(w.scenario, ros2=dataclasses.replace(w.scenario.ros2, enabled=True))
     hear(w, keys.alive(FLEET, "usv1", "a0"))
     for key, up in news:
         if key == keys.alive(FLEET, "usv1", "a0") and not up:
             continue
         hear(w, key, up)
     assert "usv1" in w.st.alive and w._token_of["usv1"] == "a0"
-    assert w.st.alive == set(w._token_of)
+    assert w.st.alive == set(w._token_of) - {"ros2"}
+    assert ros2 or "ros2" not in w._token_of
+    assert len(set(w._token_of.values())) == len(w._token_of)
 
 
 class Recording:
