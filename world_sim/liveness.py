@@ -16,6 +16,7 @@ import zenoh
 from cdus.core.events import RosterChange
 from cdus.sim.reports import graph_event
 from cdus.wire import keys
+from cdus.wire.access import ROS2_ROLE
 from cdus.wire.messages import encode_control
 from cdus.wire.schemas import FleetEvent
 from cdus.wire.text import printable
@@ -52,6 +53,9 @@ class Liveness:
                 self._tamper("token_key", f"a liveliness token on {printable(key, 80)}, no process's key: ignored")
             return
         name, zid = token
+        if name == ROS2_ROLE and name not in self.index and self.scenario.ros2.enabled:
+            self._on_bridge_token(zid, up)  # the ROS 2 bridge (docs/ros2.md): the fleet's, no vehicle
+            return
         if name == keys.WORLD or name not in self.index:
             if up and zid != self.zid:
                 self._tamper("token_extra" if name == keys.WORLD else "token_unknown",
@@ -73,6 +77,21 @@ class Liveness:
         self._not_taken.add(zid)
         self._tamper("token_extra", f"a second liveliness token of {name} (session {zid}) while "
                      + (f"session {taken}'s is up" if taken else "it has none it can take") + ": ignored")
+
+    def _on_bridge_token(self, zid: str, up: bool) -> None:
+        """The ROS 2 bridge's token (``alive/ros2/<zid>``, a fleet with ``[ros2]`` enabled): its
+        first is taken as the bridge's (it was counted ``token_unknown``, every ``--ros2`` run
+        TAMPERED); a second while one is up is counted ``token_extra``, as a vehicle's."""
+        taken = self._token_of.get(ROS2_ROLE)
+        if not up:
+            if taken == zid:
+                del self._token_of[ROS2_ROLE]
+            return
+        if taken == zid or (taken is None and zid not in self._not_taken and zid not in self._token_of.values()):
+            self._token_of[ROS2_ROLE] = zid
+            return
+        self._not_taken.add(zid)
+        self._tamper("token_extra", f"a second liveliness token of the ROS 2 bridge (session {zid}): ignored")
 
     def _tamper(self, reason: str, note: str) -> None:
         """Something that may have altered the run (a forged or unexplained token): counted by

@@ -173,7 +173,8 @@ class World(Intake, Asking, CommandHandlers, Liveness, Reporting, Samples, Finis
         self._lock = threading.Lock()  # guards st.latest for the queryable's thread
         self._alive_news: deque[tuple[str, bool]] = deque()  # liveliness callbacks (key, up) -> main thread
         self.zid: str | None = None  # this process's Zenoh session id (its token's key ends with it)
-        self._token_of: dict[str, str] = {}  # vehicle -> the session id of the token taken as its process's
+        # vehicle (or "ros2", the bridge) -> the session id of the token taken as its process's
+        self._token_of: dict[str, str] = {}
         self._not_taken: set[str] = set()  # session ids of tokens refused once: never taken afterwards
         #: what may have altered the run, by reason (docs/metrics.md, ``integrity``), and the first of each
         self.integrity: Counter = Counter()

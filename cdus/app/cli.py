@@ -193,6 +193,8 @@ def cmd_sim(args: argparse.Namespace) -> int:
     from cdus import api
 
     scenario = api.load(args.config, _overrides(args))
+    if (why := clock_problem(scenario, "inproc")) is not None:  # plant = "ros2": said as cdus sim's, not cdus.run's
+        raise ConfigError("command line", [("cdus sim", why)])
     _note_late_events(scenario)
     out_dir = None
     metrics_out = args.metrics_out

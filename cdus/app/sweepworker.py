@@ -22,6 +22,7 @@ from cdus.app.sweepstore import FIELDS
 from cdus.files import write_json
 from cdus.scenario.config import ConfigError
 from cdus.scenario.model import Scenario
+from cdus.scenario.plugins import load_named
 from cdus.sim.fleet import InProcessFleet
 from cdus.sim.runmetrics import Metrics
 
@@ -47,6 +48,7 @@ def run_task(scenario: Scenario, clock: str) -> dict:
     comes back as status "failed" with its reason."""
     try:
         if clock == "inproc":
+            load_named(scenario.raw, str(scenario.source))  # a fresh worker knows no plug-in yet
             metrics = Metrics.from_dict(InProcessFleet(scenario, clock=time.perf_counter).run().metrics)
         else:
             metrics = _run_lockstep(scenario)

@@ -14,7 +14,7 @@ from cdus.core.paths import (FAMILIES, REGISTRY, Family, Param, Path, PathError,
                              turning_point)
 from cdus.core.vocabulary import DIMENSIONS
 from cdus.scenario.checks import show
-from cdus.scenario.plugins import path_problem, plugin_of
+from cdus.scenario.plugins import not_found_hint, path_problem, plugin_of
 from cdus.wire.bounds import BOUNDS, MAX_METRES, MIN_RATE, finite, within
 
 #: the keys every family takes besides its own
@@ -171,6 +171,7 @@ def check_path(table: Mapping[str, Any], dim: int | None) -> Path | None | tuple
     except PathError as e:
         if e.field == "family":
             return "family", (f"unknown path family {show(table.get('family'))}; choose one of {', '.join(FAMILIES)}"
+                              f"{not_found_hint('paths')}"
                               if "family" in table else f"missing; choose one of {', '.join(FAMILIES)}")
         return ("" if e.field == "path" else e.field), e.message
     except (TypeError, ValueError, OverflowError, ZeroDivisionError) as e:

@@ -28,6 +28,7 @@ import importlib
 import importlib.metadata
 import math
 import re
+import sys
 from dataclasses import dataclass
 from typing import Any, Iterable, Mapping
 
@@ -38,6 +39,7 @@ from cdus.core.paths import REGISTRY, Family, Path, PathError, Vec, register
 from cdus.core.regulators import Limits
 from cdus.core.vocabulary import KINDS
 from cdus.scenario.checks import Problems, describe, quote
+from cdus.scenario.errors import ConfigError
 from cdus.wire.bounds import finite
 
 #: the [plugins] table's keys and the entry-point group of each
@@ -111,6 +113,17 @@ def plugins_section(p: Problems, table: Any) -> None:
             p.add(field, problem)
 
 
+def load_named(data: Mapping[str, Any], source: str) -> None:
+    """Load in this process the plug-ins a scenario's data names (the installed ones and its
+    ``[plugins]`` table), as reading it does: what a process handed a resolved Scenario instead
+    of reading one (a sweep's worker, a fresh process) does before it builds the vehicles.
+    Raises :class:`ConfigError` naming each that fails."""
+    p = Problems()
+    plugins_section(p, data.get("plugins"))
+    if p:
+        raise ConfigError(source, p.items)
+
+
 def load(origin: Origin) -> str | None:
     """Import, check and register one plug-in (once per process); None, or what is wrong."""
     kind, name, ref = origin.kind, origin.name, origin.ref
@@ -143,6 +156,14 @@ def load(origin: Origin) -> str | None:
         models.register_plant(name, guarded_model(obj, origin))
     LOADED[(kind, name)] = origin
     return None
+
+
+def not_found_hint(kind: str) -> str:
+    """What an unknown family or plant name adds after the known ones: where a plug-in of that
+    name would have to be (its package in the Python that runs cdus, which is not always the
+    one ``pip`` installed into: a virtual environment, a second Python), or the scenario's table."""
+    return (f" (a plug-in's? install its package into the Python that runs cdus, {sys.executable}, or name it "
+            f"in [plugins.{kind}]: docs/plugins.md)")
 
 
 # --------------------------------------------------------------------------- shapes
@@ -256,10 +277,10 @@ def path_problem(path: Path, dim: int) -> str | None:
     try:
         for w in PROBE_OMEGAS:
             values = path.eval(w)
-            if not (isinstance(values, tuple) and len(values) == 3 and
-                    all(isinstance(v, tuple) and len(v) == dim for v in values)):
+            wrong = returned_problem(values, ("f", "f'", "f''"), dim)
+            if wrong is not None:
                 return (f"{origin}: its eval(ω) must return (f, f', f''), three tuples of {dim} numbers; at "
-                        f"ω = {w:g} it returned {describe(values)} {str(values)[:80]}")
+                        f"ω = {w:g} {wrong}")
             if not all(finite(x) for v in values for x in v):
                 return f"{origin}: its values are not finite numbers at ω = {w:g}: a vehicle cannot follow it"
             f, f1, f2 = values
@@ -280,6 +301,36 @@ def path_problem(path: Path, dim: int) -> str | None:
     except Exception as e:  # noqa: BLE001
         return f"{origin}: probing its curve raised {type(e).__name__}: {e}"
     return None
+
+
+def returned_problem(values: Any, labels: tuple[str, ...], dim: int) -> str | None:
+    """What keeps ``values`` from being ``len(labels)`` tuples of ``dim`` numbers (a curve's
+    (f, f', f''), a plant's velocity), said so that the fix shows (a numpy array: make it a
+    tuple), or None. Finite values are checked after."""
+    if len(labels) > 1:
+        if not isinstance(values, tuple) or len(values) != len(labels):
+            got = f"{len(values)} values" if isinstance(values, (tuple, list)) else _typename(values)
+            return f"it returned {got}, not the {len(labels)} of ({', '.join(labels)}): {str(values)[:80]}"
+    else:
+        values = (values,)
+    for label, v in zip(labels, values):
+        try:
+            n = len(v)
+        except TypeError:
+            return f"its {label} is {_typename(v)} {str(v)[:60]}, not a tuple of {dim} numbers"
+        if n != dim:
+            return f"its {label} has {n} values, not {dim}: {str(v)[:80]}"
+        if not isinstance(v, tuple):
+            return (f"its {label} is {_typename(v)} {str(v)[:60]}, not a tuple (make it one: "
+                    f"tuple(float(x) for x in ...))")
+    return None
+
+
+def _typename(v: Any) -> str:
+    """``a list``, ``a numpy.ndarray``: the type of a value a plug-in gave, as its author knows it."""
+    t = type(v)
+    name = t.__qualname__ if t.__module__ == "builtins" else f"{t.__module__}.{t.__qualname__}"
+    return f"{'an' if name[0] in 'aeiou' else 'a'} {name}"
 
 
 def plugin_of(path: Any) -> PluginPath | None:
@@ -412,6 +463,37 @@ def probe_plants(p: Problems, specs: Iterable[Any], paths: Mapping[str, Path], p
             p.add(field, problem)
 
 
+#: what every plant object has (cdus.core.plants.Plant): its methods, and its two flags
+PLANT_METHODS = ("start", "at_rest", "step", "velocity", "heading", "finite")
+PLANT_FLAGS = ("velocity_level", "exact_when_held")
+
+
+def plant_object_problem(plant: Any, regulated: bool, safety_on: bool = False) -> str | None:
+    """What keeps the object a plug-in's ``build`` made from being a plant (a method or a flag
+    missing; ``velocity_level`` saying the opposite of whether its model has regulators; with
+    ``[safety]`` on, a regulated plant without ``point``), or None."""
+    kind = _typename(plant)
+    missing = [m for m in PLANT_METHODS if not callable(getattr(plant, m, None))]
+    if missing:
+        return (f"its plant ({kind}) has no method {', '.join(missing)}; give it every method of "
+                f"cdus.core.plants.Plant ({', '.join(PLANT_METHODS)})")
+    for flag in PLANT_FLAGS:
+        if not isinstance(getattr(plant, flag, None), bool):
+            return f"its plant ({kind}) has no {flag} = True or False; give it one (docs/plugins.md)"
+    if plant.velocity_level == regulated:
+        return (f"its plant ({kind}) has velocity_level = True, but its PlantModel has regulators too: a "
+                f"velocity-level plant takes the guidance's velocity itself; drop its regulators, or set "
+                f"velocity_level = False" if regulated else
+                f"its plant ({kind}) has velocity_level = False, but its PlantModel has no regulator to turn the "
+                f"guidance's velocity into its input; set velocity_level = True (it takes the velocity itself), "
+                f"or give the PlantModel a regulator")
+    if safety_on and regulated and not callable(getattr(plant, "point", None)):
+        return (f"its plant ({kind}) has no point(state, d, limits), which [safety] needs of a plant with a "
+                f"regulator (the dynamic safety filter's model of it, a cdus.core.safety.Point: docs/safety.md, "
+                f"docs/plugins.md); give it one, or run this fleet without [safety]")
+    return None
+
+
 def _plant_run_problem(spec: Any, path: Path, physics_hz: float, control_hz: float, safety_on: bool) -> str | None:
     origin = origin_of("plants", spec.plant)
     if spec.observer is not None:
@@ -420,6 +502,9 @@ def _plant_run_problem(spec: Any, path: Path, physics_hz: float, control_hz: flo
     try:
         plant, regulator = models.build(spec.plant, spec.regulator, {"epsilon": spec.epsilon, "preset": spec.preset},
                                         dict(spec.regulator_gains))
+        wrong = plant_object_problem(plant.inner, regulator is not None, safety_on)
+        if wrong is not None:
+            return f"{origin}: {wrong}"
         w = spec.phase if spec.omega0 is None else spec.omega0
         f, f1, _ = path.eval(w)
         q = tuple(spec.start_position) if spec.start_position is not None else f
@@ -436,7 +521,10 @@ def _plant_run_problem(spec: Any, path: Path, physics_hz: float, control_hz: flo
                 regulator.command(state, path, w, 0.0, spec.k, limits, None, None, h)
             state = plant.step(state, tuple(u), zero, h)
         v, psi = plant.velocity(state), plant.heading(state)
-        if not (isinstance(v, tuple) and len(v) == spec.dim and all(map(finite, v)) and finite(psi)):
+        wrong = returned_problem(v, ("velocity",), spec.dim)
+        if wrong is not None:
+            return f"{origin}: {wrong}"
+        if not (all(map(finite, v)) and finite(psi)):
             return f"{origin}: its velocity must be {spec.dim} finite numbers and its heading one, got {v!r}, {psi!r}"
         if safety_on and not plant.velocity_level:
             plant.point(state, zero, limits)

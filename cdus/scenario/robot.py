@@ -66,8 +66,9 @@ def clock_problem(scenario: Any, clock: str) -> str | None:
         return None
     for v in scenario.vehicles:
         if v.plant == ROBOT_PLANT:
+            what = "cdus sim (the inproc clock)" if clock == "inproc" else f"the {clock} clock"
             return (f"vehicle {v.id!r} has plant = \"{ROBOT_PLANT}\", a real robot that moves in real time, and "
-                    f"the {clock} clock steps as fast as the machine allows: run it with cdus launch --clock realtime")
+                    f"{what} steps as fast as the machine allows: run it with cdus launch --clock realtime")
     return None
 
 

@@ -25,6 +25,7 @@ from cdus.core.vocabulary import DIMENSIONS, KINDS
 from cdus.scenario.checks import IdList, Problems, describe, is_number, quote, show
 from cdus.scenario.model import Edge, Rates, VehicleSpec
 from cdus.scenario.paths import check_path
+from cdus.scenario.plugins import not_found_hint
 from cdus.scenario.robot import robot_table
 from cdus.scenario.sections import DEFAULT_GAINS, gain_values
 from cdus.wire.bounds import finite
@@ -245,7 +246,8 @@ def _kind_plant(p: Problems, t: _Merged) -> tuple[str | None, str | None]:
         p.missing(t.field("kind"), 'choose "usv" (boat, 2-D) or "uav" (drone, 3-D)')
     else:
         kind = p.choice(t.v["kind"], t.field("kind"), KINDS, "kind", note=t.note("kind"))
-    plant = p.choice(t.v.get("plant", "ideal"), t.field("plant"), PLANTS, "plant", note=t.note("plant"))
+    plant = p.choice(t.v.get("plant", "ideal"), t.field("plant"), PLANTS, "plant", note=t.note("plant"),
+                     extra=not_found_hint("plants"))
     if plant is not None and kind is not None and kind not in PLANTS[plant]:
         valid = " or ".join(quote(x) for x, kinds in PLANTS.items() if kind in kinds)
         p.add(t.field("plant"), f"plant {quote(plant)} models a {' or '.join(PLANTS[plant])}, not a {kind}"
@@ -363,7 +365,7 @@ def _path(p: Problems, t: _Merged, dim: int | None) -> tuple[Path | None, tuple]
     # waypoints[1] was set where its list was: the note of "waypoints"
     where, note = t.field("path", *sub), t.note("path", *(k.split("[")[0] for k in sub))
     if key == "family" and "family" in spec:
-        p.choice(spec["family"], where, FAMILIES, "path family", note=note)
+        p.choice(spec["family"], where, FAMILIES, "path family", note=note, extra=not_found_hint("paths"))
     else:
         p.add(where, f"{message}{note}")
     return None, ()

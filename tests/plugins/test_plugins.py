@@ -176,6 +176,24 @@ def test_a_plugin_family_takes_a_parameter_no_built_in_has_within_a_positions_bo
 # --------------------------------------------------------------------------- refused, named
 
 
+def test_a_name_no_plugin_gave_says_where_the_plugin_would_have_to_be(fresh):
+    """A plug-in installed into another Python than the one running cdus (a virtual environment
+    whose `cdus` on PATH is the system's) is just an unknown name: the message says which Python
+    runs cdus and the other door, for the plant, the vehicle's path and a path event's (it listed
+    the built-in names only)."""
+    import sys
+    data = scenario()  # the events are read once the vehicles are good
+    data["event"] = [{"at": 1.0, "action": "path", "vehicle": "b1",
+                      "path": {"family": "limacon", "center": [0.0, 0.0], "radius": 3.0}}]
+    text = refusal(scenario("limacon", "laggy")) + "\n" + refusal(data)
+    for field, kind in (('vehicle[0] (id "b1").plant', "plants"), ('vehicle[0] (id "b1").path.family', "paths"),
+                        ("event[0].path.family", "paths")):
+        line = next(x for x in text.splitlines() if x.startswith(f"x.toml: {field}: unknown"))
+        assert line.split("; choose one of ")[1].split(" (")[1].startswith(
+            f"a plug-in's? install its package into the Python that runs cdus, {sys.executable}, or name it in "
+            f"[plugins.{kind}]: docs/plugins.md)"), line
+
+
 def test_a_plugin_that_raises_on_import_is_named_with_the_fix(fresh):
     name = module(fresh, "raise ImportError('needs scipy')\n")
     text = refusal(scenario("mine", table={"paths": {"mine": f"{name}:FAMILY"}}))
@@ -237,6 +255,65 @@ def test_a_plugin_plant_returning_nan_is_refused_before_the_run(fresh):
                     f'before anything started)')
 
 
+@pytest.mark.parametrize("change, said", [
+    ("import numpy; f = numpy.array(f)", "at ω = 0 its f is a numpy.ndarray [5. 0.], not a tuple (make it one: "
+                                         "tuple(float(x) for x in ...))"),
+    ("f = f + (0.0, 1.0)", "at ω = 0 its f has 4 values, not 2: (5.0, 0.0, 0.0, 1.0)"),
+    ("return f, f1", "at ω = 0 it returned 2 values, not the 3 of (f, f', f''): ((5.0, 0.0), (-0.0, 5.0))"),
+])
+def test_a_plugin_curve_of_the_wrong_shape_is_told_what_is_wrong_in_it(fresh, change, said):
+    """A numpy array where a tuple is wanted, a vector of the wrong length, a missing f'': the
+    message says which value and what it is (it said 'it returned the list [[...]] ((...))' for
+    each, with nothing of which one or why: a numpy array of the right 2 numbers was refused as
+    if it were none)."""
+    name = module(fresh, FAMILY, name="odd", change=change)
+    text = refusal(scenario("odd", table={"paths": {"odd": f"{name}:FAMILY"}}))
+    assert text == (f'x.toml: vehicle[0] (id "b1").path: plug-in path family "odd" ([plugins.paths] of the scenario: '
+                    f"{name}:FAMILY): its eval(ω) must return (f, f', f''), three tuples of 2 numbers; {said}")
+
+
+@pytest.mark.parametrize("edit, said", [
+    (("    def finite(self, state):", "    def is_finite(self, state):"),
+     "its plant (a {name}.Point) has no method finite; give it every method of cdus.core.plants.Plant (start, "
+     "at_rest, step, velocity, heading, finite)"),
+    (("    velocity_level = True\n", ""), "its plant (a {name}.Point) has no velocity_level = True or False; give it "
+                                         "one (docs/plugins.md)"),
+    (("    velocity_level = True", "    velocity_level = False"),
+     "its plant (a {name}.Point) has velocity_level = False, but its PlantModel has no regulator to turn the "
+     "guidance's velocity into its input; set velocity_level = True (it takes the velocity itself), or give the "
+     "PlantModel a regulator"),
+    (("        return state.v\n", "        import numpy; return numpy.array(state.v)\n"),
+     "its velocity is a numpy.ndarray [ 0. <numpy's print>], not a tuple (make it one: tuple(float(x) for x in "
+     "...))"),
+])
+def test_a_plugin_plant_missing_a_part_is_told_which(fresh, edit, said):
+    """A plant without finite(), without velocity_level, with velocity_level = False and no
+    regulator, or a numpy velocity: each named before the run (the first was 'step raised
+    AttributeError', the second and third ran silently as a regulated plant with no regulator,
+    the fourth was 'its velocity must be 2 finite numbers, got array([0., -5.])')."""
+    name = module(fresh, PLANT.replace(*edit), change="pass")
+    text = refusal(scenario(plant="part", table={"plants": {"part": f"{name}:MODEL"}}))
+    want = (f'x.toml: vehicle[0] (id "b1").plant: plug-in plant "part" ([plugins.plants] of the scenario: '
+            f'{name}:MODEL): ' + said.replace("{name}", name))
+    head, _, tail = want.partition(" <numpy's print>")  # the array's numbers as numpy prints them
+    assert text.startswith(head) and text.endswith(tail) and len(text) < len(want) + 40, text
+
+
+def test_a_regulated_plugin_plant_without_point_under_safety_is_told_the_fix(fresh, monkeypatch):
+    """[safety] on, a plant with a regulator and no point() (the example's unicycle): said as the
+    missing method and the two fixes (it was 'point (its model for the safety filter) raised
+    AttributeError: ... no attribute 'point'')."""
+    monkeypatch.syspath_prepend(str(EXAMPLE))
+    data = scenario(plant="unicycle", table={"plants": {"unicycle": "cdus_plugin_example.unicycle:UNICYCLE"}},
+                    safety={"enabled": True})
+    assert refusal(data) == (
+        'x.toml: vehicle[0] (id "b1").plant: plug-in plant "unicycle" ([plugins.plants] of the scenario: '
+        'cdus_plugin_example.unicycle:UNICYCLE): its plant (a cdus_plugin_example.unicycle.Unicycle) has no '
+        'point(state, d, limits), which [safety] needs of a plant with a regulator (the dynamic safety filter\'s '
+        'model of it, a cdus.core.safety.Point: docs/safety.md, docs/plugins.md); give it one, or run this fleet '
+        'without [safety]')
+
+
 def test_two_doors_giving_one_name_two_objects_are_refused(fresh):
     one = module(fresh, FAMILY, name="twin", change="pass")
     two = module(fresh, FAMILY, name="twin", change="pass")
@@ -262,6 +339,23 @@ def test_a_plugin_plant_that_fails_in_the_run_is_a_diverged_vehicle_naming_it(fr
     text = str(info.value)
     assert text.startswith("vehicle b1: its numbers overflowed at t = 0.90 s (the vehicle diverged")
     assert f'plug-in plant "late" ([plugins.plants] of the scenario: {name}:MODEL): {said}' in text
+
+
+def test_a_sweep_worker_handed_a_resolved_scenario_loads_its_plugins_first(fresh):
+    """`cdus sweep` resolves each run on the driver and hands the Scenario to a fresh worker
+    process, which had read no scenario and so knew no plug-in: every run of a plug-in's
+    scenario failed ('unknown path family', for an installed package and a [plugins] table
+    alike). Here the registries are put back as such a worker has them."""
+    from cdus.app.sweepworker import run_task
+    fam, plant = module(fresh, FAMILY, name="hoop", change="pass"), module(fresh, PLANT, change="pass")
+    sc = parse_scenario(scenario("hoop", "point", table={"paths": {"hoop": f"{fam}:FAMILY"},
+                                                         "plants": {"point": f"{plant}:MODEL"}}))
+    for table, key in ((REGISTRY, "hoop"), (PLANTS, "point"), (plugins.LOADED, ("paths", "hoop")),
+                       (plugins.LOADED, ("plants", "point"))):
+        del table[key]
+    row = run_task(sc, "inproc")
+    assert (row["status"], row["reason"]) == ("ok", ""), row
+    assert row["final_path_error_max"] == InProcessFleet(sc).run().metrics["final_path_error_max"]
 
 
 def test_a_plugin_plant_runs_as_the_built_in_ideal_one_to_the_bit(fresh):

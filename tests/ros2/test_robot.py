@@ -271,6 +271,16 @@ def test_cdus_launch_refuses_a_robot_in_lockstep_and_starts_nothing():
     assert "nothing was started" in lock.stderr + lock.stdout
 
 
+def test_cdus_sim_refuses_a_robot_in_its_own_words():
+    """`cdus sim` of a robot's scenario said 'error: cdus.run: clock: ... the inproc clock ...' (the
+    API's name and a clock the command has no flag for); now the command's own."""
+    from tests.e2e.conftest import run_cli
+    sim = run_cli(["sim", CONFIG, "--rerun", "off"])
+    assert sim.returncode == 2 and sim.stderr.startswith(
+        "error: command line: cdus sim: vehicle 'usv1' has plant = \"ros2\", a real robot that moves in real time, "
+        "and cdus sim (the inproc clock) steps as fast as the machine allows: run it with cdus launch --clock realtime")
+
+
 def test_the_fleet_wide_disturbance_and_observer_pass_a_robot_by():
     import copy
 

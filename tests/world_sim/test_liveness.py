@@ -87,25 +87,32 @@ def test_a_vehicle_watching_a_token_not_the_worlds_is_in_the_integrity_block():
     assert w.integrity_block()["reasons"] == {"vehicle_token_key": 2}
 
 
-vids = hs.sampled_from(["usv1", "usv2", "uav3", "world", "usv9", "", "*", "**", "$*"])
+vids = hs.sampled_from(["usv1", "usv2", "uav3", "world", "ros2", "usv9", "", "*", "**", "$*"])
 zids = hs.sampled_from(["a0", "a1", "f0", "f1", "*", "**", "A1", "x"])
 keys_ = hs.one_of(hs.builds(lambda v, z: f"cdus/{FLEET}/alive/{v}/{z}", vids, zids),
                   hs.builds(lambda v: f"cdus/{FLEET}/alive/{v}", vids), hs.text(max_size=30))
 
 
 @settings(max_examples=150, deadline=None)
-@given(hs.lists(hs.tuples(keys_, hs.booleans()), max_size=30))
-def test_no_token_but_a_vehicles_own_changes_whether_it_is_alive(news):
+@given(hs.lists(hs.tuples(keys_, hs.booleans()), max_size=30), hs.booleans())
+def test_no_token_but_a_vehicles_own_changes_whether_it_is_alive(news, ros2):
     """usv1's own token (a0) up all along: whatever else comes and goes (forged, wildcard,
-    junk), usv1 stays alive and nothing raises; every vehicle alive holds the token taken for it."""
+    junk, the ROS 2 bridge's with [ros2] on or off), usv1 stays alive and nothing raises; every
+    vehicle alive holds the token taken for it; no session holds two names."""
+    import dataclasses
+
     w = world()
+    if ros2:
+        w.scenario = dataclasses.replace(w.scenario, ros2=dataclasses.replace(w.scenario.ros2, enabled=True))
     hear(w, keys.alive(FLEET, "usv1", "a0"))
     for key, up in news:
         if key == keys.alive(FLEET, "usv1", "a0") and not up:
             continue
         hear(w, key, up)
     assert "usv1" in w.st.alive and w._token_of["usv1"] == "a0"
-    assert w.st.alive == set(w._token_of)
+    assert w.st.alive == set(w._token_of) - {"ros2"}
+    assert ros2 or "ros2" not in w._token_of
+    assert len(set(w._token_of.values())) == len(w._token_of)
 
 
 class Recording:
@@ -128,3 +135,26 @@ def test_roster_changes_joins_and_contacts_block_rather_than_drop_under_congesti
     kinds = {keys.leaf(k)[0] for k, _ in w.session.puts}
     assert kinds == {"ctl", "contacts"}, w.session.puts
     assert all(cc == zenoh.CongestionControl.BLOCK for _, cc in w.session.puts), w.session.puts
+
+
+def test_the_ros2_bridges_token_is_the_fleets_own_when_ros2_is_enabled():
+    """`cdus launch --ros2`: the bridge's token alive/ros2/<zid> was 'a token of a name not in
+    the fleet' (token_unknown), so every --ros2 run ended TAMPERED. With [ros2] enabled its first
+    token is the bridge's; a second while it is up is counted as a vehicle's would be; without
+    [ros2] it is still no process of the fleet."""
+    import dataclasses
+
+    w = up_by_tokens(world())
+    w.scenario = dataclasses.replace(w.scenario, ros2=dataclasses.replace(w.scenario.ros2, enabled=True))
+    hear(w, keys.alive(FLEET, "ros2", "b1"))
+    hear(w, keys.alive(FLEET, "ros2", "b1"))  # said twice
+    assert not w.integrity and w.st.alive == set(w.ids)
+    hear(w, keys.alive(FLEET, "ros2", "f1"))  # a second bridge while the first is up
+    hear(w, keys.alive(FLEET, "ros2", G["usv1"]))  # usv1's session as the bridge
+    assert w.integrity == {"token_extra": 2}
+    hear(w, keys.alive(FLEET, "ros2", "b1"), up=False)
+    hear(w, keys.alive(FLEET, "ros2", "f1"))  # refused once: never taken
+    assert w.integrity == {"token_extra": 3}
+    plain = up_by_tokens(world())
+    hear(plain, keys.alive(FLEET, "ros2", "b1"))
+    assert plain.integrity == {"token_unknown": 1}
