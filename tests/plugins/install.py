@@ -1,37 +1,41 @@
-"""How do the tests install the example plug-in package? As an installed distribution (a
-``.dist-info`` with its METADATA and entry points) in a directory of its own, never the shared
-environment.
-
-``pip install --no-deps --no-build-isolation --target DIR examples/cdus_plugin_example`` needs a
-setuptools that builds wheels (>= 70.1, or the ``wheel`` package): this machine's setuptools 65.5
-fails with "invalid command 'bdist_wheel'", and with build isolation pip fetches a build backend
-from an index (6.5 s at load 8.8). So the distribution is written here from the package's own
-``pyproject.toml``: its name, version and entry points, exactly what ``importlib.metadata`` (and so
-cdus, cdus.scenario.plugins.entry_points) reads of an installed package, and its files copied.
+"""How do the tests install the example plug-in package? With pip, as a user would, into a
+directory of its own (``pip install --no-deps --no-build-isolation --target DIR``), never the shared
+environment: the test extra brings a setuptools that builds wheels itself (>= 70.1), so nothing is
+fetched. The first install of a test session is copied for the others (pip takes about 2.5 s).
 """
 
 from __future__ import annotations
 
+import atexit
+import functools
 import shutil
-import tomllib
+import subprocess
+import sys
+import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLE = ROOT / "examples" / "cdus_plugin_example"
 
 
+def _pip_install(source: Path, target: Path) -> None:
+    proc = subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation",
+                           "--no-index", "--target", str(target), str(source)], capture_output=True, text=True)
+    assert proc.returncode == 0, f"pip could not install {source}: {proc.stderr}"
+
+
+@functools.cache
+def _installed(source: Path) -> Path:
+    target = Path(tempfile.mkdtemp(prefix="cdus-plugin-site-"))
+    atexit.register(shutil.rmtree, target, True)
+    # from a copy: setuptools builds in the source tree (build/, *.egg-info), which would leave an
+    # installed-looking package in examples/ for every test that puts the example on sys.path
+    shutil.copytree(source, target / "src", ignore=shutil.ignore_patterns("__pycache__", "build", "*.egg-info"))
+    _pip_install(target / "src", target / "site")
+    return target / "site"
+
+
 def install_example(target: Path, source: Path = EXAMPLE) -> Path:
-    """The package at ``source`` installed into ``target`` (created), as pip would lay it out."""
-    project = tomllib.loads((source / "pyproject.toml").read_text())["project"]
-    name, version = project["name"], project["version"]
-    target.mkdir(parents=True, exist_ok=True)
-    for pkg in tomllib.loads((source / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"]:
-        shutil.copytree(source / pkg, target / pkg, ignore=shutil.ignore_patterns("__pycache__"))
-    info = target / f"{name.replace('-', '_')}-{version}.dist-info"
-    info.mkdir()
-    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {name}\nVersion: {version}\n")
-    groups = project.get("entry-points", {})
-    (info / "entry_points.txt").write_text("".join(
-        f"[{group}]\n" + "".join(f"{k} = {v}\n" for k, v in eps.items()) + "\n" for group, eps in groups.items()))
-    (info / "INSTALLER").write_text("tests/plugins/install.py\n")
+    """The package at ``source`` installed by pip into ``target`` (created): a copy of this session's install."""
+    shutil.copytree(_installed(source.resolve()), target, dirs_exist_ok=True)
     return target
