@@ -119,11 +119,13 @@ def build_parser(prog: str = "cdus gs") -> argparse.ArgumentParser:
     ln = sub.add_parser(Link.NAMES.cli, help="change link faults at run time: KEY=VALUE of the [link] table")
     ln.add_argument("settings", nargs="+", metavar="KEY=VALUE", help="e.g. loss=0.3 delay.base=0.1 policy=extrapolate")
     ln.add_argument("--at", type=_sim_time,
-                    help="simulated time from which they apply (default: now + 0.5 s; a past time means now)")
+                    help="simulated time from which they apply (default and a past time: the first tick every vehicle "
+                         "can take: past the grant in lockstep, 0.5 s ahead in realtime)")
     rd = sub.add_parser(Radio.NAMES.cli, help="change the radio at run time ([radio] scenarios): tx_power=DBM station=[x,y,z]")
     rd.add_argument("settings", nargs="+", metavar="KEY=VALUE", help="e.g. tx_power=20 (dBm) station=[0,-60,0] (x, y and the mast's base z above the water, m; the antenna is radio.antenna.station above it)")
     rd.add_argument("--at", type=_sim_time,
-                    help="simulated time from which it applies (default: now + 0.5 s; a past time means now)")
+                    help="simulated time from which it applies (default and a past time: the first tick every vehicle "
+                         "can take: past the grant in lockstep, 0.5 s ahead in realtime)")
     gn = sub.add_parser(Gains.NAMES.cli, help="change guidance gains: k=... c=...")
     gn.add_argument("settings", nargs="+", metavar="KEY=VALUE")
     gn.add_argument("--vehicle", help="one vehicle (default: all)")

@@ -51,7 +51,7 @@ from cdus.wire.transport import Transport, open_session
 from world_sim.asking import Asking
 from world_sim.clocks import (  # noqa: F401 (the clocks' figures: importable from here, as before the split)
     CATCHUP_RESEND, CATCHUP_RESEND_MAX, DROP_WINDOW, EFFECT_LEAD_S, FAULT_TIMEOUT, GRANT_RESEND, HORIZON_EVERY,
-    HORIZON_S, JOIN_TIMEOUT, LINK_LEAD, OUTAGE_GRACE, REALTIME_LAG, REALTIME_SLACK, RT_FAULT_CONFIRM, STATUS_PERIOD,
+    HORIZON_S, JOIN_TIMEOUT, OUTAGE_GRACE, REALTIME_LAG, REALTIME_SLACK, RT_FAULT_CONFIRM, STATUS_PERIOD,
     LockstepClock, RealtimeClock, pick_clock,
 )
 from world_sim.commands import CommandHandlers, _Change

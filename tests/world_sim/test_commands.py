@@ -21,7 +21,6 @@ from cdus.wire.messages import CTL_OPS, LAUNCHER_OPS, decode_control, encode_con
 from cdus.wire.schemas import CommandReply, decode_reply
 from tests.fakes import Payload
 from tests.scenario.test_bounds_walk import EXTREMES, numbers
-from world_sim.world import LINK_LEAD
 
 from .test_world import FLEET, ctl_ops, row, send_rows, started, world
 
@@ -110,8 +109,7 @@ def test_gains_and_link_are_answered_with_their_tick_or_why_they_were_refused():
     r = ask(w, "link", link={"loss": 7.0}, at=-1.0).answer  # a table the agents would refuse
     assert r.status == "rejected" and "loss" in r.reason
     r = ask(w, "link", link={"loss": 0.1}, at=-1.0).answer
-    at = max(LINK_LEAD, (g + 1) * w.period)
-    assert r.applied and r.t == at and r.tick * w.period >= at - 1e-12 and r.reason == ""
+    assert r.applied and (r.tick, r.t, r.reason) == (g + 1, (g + 1) * w.period, "")  # the effect tick, as gains
     # an --at already past is moved, and the answer says so (it said nothing: rev18-user)
     r = ask(w, "link", link={"loss": 0.2}, at=0.0).answer
     assert r.applied and r.t > 0 and r.reason.startswith("t = 0 s asked had passed"), r
@@ -121,6 +119,26 @@ def test_gains_and_link_are_answered_with_their_tick_or_why_they_were_refused():
     r = ask(w, "link", link={"loss": 0.3}, at=w.duration).answer
     assert r.status == "rejected" and "not before the end of the run" in r.reason, r
     assert w.st.rejects["gains"] == 3 and w.st.rejects["link"] == 2
+
+
+def test_a_link_or_radio_change_without_a_time_applies_from_the_effect_tick_as_gains_do():
+    """One rule for every run-time change in both clocks (cdus.commands.effect): a link or radio
+    change with no --at applies from the tick past the grant, as gains does; before the first
+    grant, from tick 0. The world's own rule made it 0.5 s after the newest tick recorded, in
+    lockstep too, and a change before tick 0 applied from t = 0.5 s."""
+    from .test_radio_rerun import _radio_world
+
+    for w in (world(), _radio_world()):
+        radio = w.radio is not None
+        change = ("radio", {"radio": {"tx_power": 3.0}}) if radio else ("link", {"link": {"loss": 0.1}})
+        assert w.lockstep.granted == -1  # not started: nobody was granted a tick
+        r = ask(w, change[0], **change[1], at=-1.0).answer
+        assert r.applied and (r.tick, r.t, r.reason) == (0, 0.0, ""), (change, r)
+        w = started(w)
+        w.lockstep.granted, w.next_tick = 40, 30
+        r = ask(w, change[0], **change[1], at=-1.0).answer
+        assert r.applied and (r.tick, r.t, r.reason) == (41, 41 * w.period, ""), (change, r)
+        assert r.tick == ask(w, "set_gains", gains={"c": 2.0}, vehicle="").answer.tick
 
 
 def test_a_lockstep_vehicle_fault_is_answered_when_it_lands_on_its_tick():

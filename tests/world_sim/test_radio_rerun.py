@@ -111,7 +111,8 @@ def test_the_world_relays_a_radio_change_or_says_why_not():
     assert "tx_power" in w.carry_out("radio", {"radio": {"tx_power": "loud"}, "at": -1.0}, "gs")
     assert "power" in w.carry_out("radio", {"radio": {"power": 3}, "at": -1.0}, "gs")
     v = w.carry_out("radio", {"radio": {"tx_power": 3.0, "station": [1.0, 2.0]}, "at": -1.0}, "gs")
-    assert v.applied and v.t == 0.5 and v.tick == 25  # the answer says when it applies
+    # the answer says when it applies: the effect tick, the one past the grant (it was 0.5 s on in lockstep)
+    assert w.lockstep.granted == 0 and v.applied and (v.tick, v.t) == (1, w.period)
     (c,) = [decode_control(p, CTL_OPS) for p in w.pub_ctl.puts if decode_control(p, CTL_OPS).op == "radio"]
     assert c.fields["radio"] == {"tx_power": 3.0, "station": [1.0, 2.0, 0.0]} and c.fields["at"] >= 0.02
     assert w.radio_watch.channel.epochs[-1][1:] == (3.0, (1.0, 2.0, 0.0))
