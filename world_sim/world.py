@@ -229,10 +229,7 @@ class World(Intake, Asking, CommandHandlers, Liveness, Reporting, Samples, Finis
         # liveliness and the last-state queries are rare: callbacks that hand over to the main thread
         self._subs = [
             s.liveliness().declare_subscriber(keys.any_alive(f), self._on_alive_sample, history=True),
-            s.declare_queryable(keys.world_last(f, "*"), self._on_last_query),
-            s.declare_queryable(keys.world_settings(f), self._on_settings_query),
-            s.declare_queryable(keys.world_status(f), self._on_status_query),
-            s.declare_queryable(keys.any_world_command(f), self._on_command_query),
+            *(s.declare_queryable(on, handler) for on, handler in self.queryables()),
         ]
         self.zid = str(s.zid())
         self.token = s.liveliness().declare_token(keys.alive(f, keys.WORLD, self.zid))
