@@ -48,7 +48,6 @@ from cdus.commands.radio import Radio
 from cdus.commands.vehicle import VEHICLE_FAULTS
 from cdus.scenario.config import ConfigError
 from cdus.scenario.link import validate_link
-from cdus.wire.keys import FLEET_RE
 from cdus.wire.transport import add_transport_args, transport_from_args, with_default_endpoint
 from cdus.files import write_json
 from ground_station.console import (
@@ -261,7 +260,7 @@ def _watch(gs: GroundStation, interval: float) -> int:
             print(json.dumps(gs.snapshot()), flush=True)
         if gs.world_gone():
             with gs.view.lock:
-                completion = (gs.view.world or {}).get("completion")
+                completion = gs.view.world.completion if gs.view.world is not None else None
             print(json.dumps({"v": 1, "kind": "end", "fleet": gs.fleet, "reason": "the world left: the run is over",
                               "completion": completion}), flush=True)
             return 0
@@ -379,8 +378,8 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
                   + _other_fleets(gs.fleets_here(), args.fleet, credentials_fleet(transport.config_file),
                                   transport.config_file), file=sys.stderr)
             return EXIT_NO_ANSWER
-        # the world's ids: names of the key space (letters, digits, _ and -), nothing else is trusted
-        ids = [i for i in (gs.view.world or {}).get("ids") or [] if isinstance(i, str) and FLEET_RE.match(i)]
+        # the world's ids: names of the key space (letters, digits, _ and -), as decode_status checked them
+        ids = list(gs.view.world.ids) if gs.view.world is not None else []
         if args.action == "console":
             from ground_station.tui import ConsoleApp  # Textual only for the console
 

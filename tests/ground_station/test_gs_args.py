@@ -120,7 +120,7 @@ class FakeGS:
     def snapshot(self): return {"v": 1, "kind": "status", "pad": "x" * 5000}
     def world_gone(self): return False
     def close(self): pass
-    view = type("V", (), {"world": {"ids": []}})()
+    view = type("V", (), {"world": None})()
 
 gm.GroundStation = FakeGS
 sys.exit(gm.main(["--fleet", "f", "-e", "tcp/127.0.0.1:9", "watch", "--jsonl", "--interval", "0.01"]))

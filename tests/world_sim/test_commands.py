@@ -444,7 +444,7 @@ def test_a_status_query_is_answered_with_the_newest_status_and_none_before_the_f
     w._publish_status()
     q = w.ask(keys.world_status(FLEET))
     assert q.replies == [(keys.world_status(FLEET), w.pub_status.puts[-1])]
-    assert decode_status(q.replies[0][1])["t"] == 4 * w.period
+    assert decode_status(q.replies[0][1]).t == 4 * w.period
 
 
 def test_a_fleet_pause_is_in_the_status_a_query_is_answered_at_once():
@@ -456,10 +456,10 @@ def test_a_fleet_pause_is_in_the_status_a_query_is_answered_at_once():
     w._publish_status()
     assert ask(w, "pause").answer.applied
     q = w.ask(keys.world_status(FLEET))
-    assert decode_status(q.replies[0][1])["paused"] is True
+    assert decode_status(q.replies[0][1]).paused is True
     assert ask(w, "resume").answer.applied
     q = w.ask(keys.world_status(FLEET))
-    assert decode_status(q.replies[0][1])["paused"] is False
+    assert decode_status(q.replies[0][1]).paused is False
 
 
 def test_a_link_value_past_its_bound_is_refused_by_name_and_never_relayed():
