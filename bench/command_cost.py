@@ -1,11 +1,11 @@
 """What one more command costs the world, and a restarted vehicle, as a flood's list grows
 (docs/ground_station.md, "A flood"). In-process, no network: the world's main thread is given
-gains commands as its command queryable would (fake queries; the ground credentials' rate
+gains commands through its public door World.ask, as its command queryable would (the ground credentials' rate
 lifted, so the cost of a command itself is what is measured), each on a tick of its own (the
 grant moved by one between two), as the fleet moves on during a flood.
 
     python bench/command_cost.py                  # 1,000 / 5,000 / 18,144 commands (the issue's flood)
-    PYTHONPATH=/tmp/old python bench/command_cost.py   # the same against an older checkout
+    PYTHONPATH=/tmp/old python bench/command_cost.py   # the same against another checkout (one with World.ask)
 
 Prints, at each size, the world's CPU per command over the last 500, the settings reply's size
 and what a vehicle restarted then is sent and costs its node (its schedule of gains changes,
@@ -33,28 +33,6 @@ from cdus.wire.transport import Transport  # noqa: E402
 from world_sim.world import World  # noqa: E402
 
 FLEET = "bench"
-
-
-class Payload:
-    def __init__(self, b: bytes):
-        self.b = b
-
-    def to_bytes(self) -> bytes:
-        return self.b
-
-
-class Query:
-    def __init__(self, key: str, payload: bytes | None):
-        self.key_expr, self.payload, self.replies = key, None if payload is None else Payload(payload), []
-
-    def reply(self, key, payload) -> None:
-        self.replies.append(bytes(payload))
-
-    def reply_err(self, payload) -> None:
-        self.replies.append(bytes(payload))
-
-    def drop(self) -> None:
-        pass
 
 
 class Sink:
@@ -86,13 +64,6 @@ def world(config: str) -> World:
     return w
 
 
-def wake():
-    class S:
-        key_expr = keys.wake(FLEET, keys.WORLD)
-        payload = Payload(b"")
-    return S()
-
-
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--config", default="configs/lake_circle.toml")
@@ -106,14 +77,11 @@ def main() -> int:
         t_last = 0.0
         for i in range(size):
             w.lockstep.granted += 1
-            q = Query(keys.world_command(FLEET, keys.GROUND), payload)
             t0 = time.process_time() if i >= size - 500 else 0.0
-            w._on_command_query(q)
-            w._handle(wake())
+            w.ask(keys.world_command(FLEET, keys.GROUND), payload)  # queued, then answered by a pass of the main thread
             if i >= size - 500:
                 t_last += time.process_time() - t0
-        s = Query(keys.world_settings(FLEET), None)
-        w._on_settings_query(s)
+        s = w.ask(keys.world_settings(FLEET))
         j = w.index["usv2"]
         w.lockstep.acked[j] = w.lockstep.granted - 10
         before = len(w.session.puts)
@@ -128,7 +96,7 @@ def main() -> int:
         node.step(w.lockstep.granted - 9)
         t_node = time.process_time() - t0
         print(f"  {size:6d} commands: world {t_last / 500 * 1e6:8.0f} µs CPU per command (the last 500); "
-              f"settings reply {len(s.replies[0]):8d} bytes; a restart then is sent {len(sent):6d} "
+              f"settings reply {len(s.replies[0][1]):8d} bytes; a restart then is sent {len(sent):6d} "
               f"commands, {t_node * 1e3:7.1f} ms of its node's CPU")
     return 0
 

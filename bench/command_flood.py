@@ -55,7 +55,7 @@ class WorldClock:
     def _on(self, sample) -> None:
         st = decode_status(sample.payload.to_bytes())
         if not isinstance(st, Rejected):
-            self.t = float(st["t"])
+            self.t = st.t
 
 
 def world_cpu(la: Launch) -> float:

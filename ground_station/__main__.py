@@ -48,7 +48,6 @@ from cdus.commands.radio import Radio
 from cdus.commands.vehicle import VEHICLE_FAULTS
 from cdus.scenario.config import ConfigError
 from cdus.scenario.link import validate_link
-from cdus.wire.keys import FLEET_RE
 from cdus.wire.transport import add_transport_args, transport_from_args, with_default_endpoint
 from cdus.files import write_json
 from ground_station.console import (
@@ -119,11 +118,13 @@ def build_parser(prog: str = "cdus gs") -> argparse.ArgumentParser:
     ln = sub.add_parser(Link.NAMES.cli, help="change link faults at run time: KEY=VALUE of the [link] table")
     ln.add_argument("settings", nargs="+", metavar="KEY=VALUE", help="e.g. loss=0.3 delay.base=0.1 policy=extrapolate")
     ln.add_argument("--at", type=_sim_time,
-                    help="simulated time from which they apply (default: now + 0.5 s; a past time means now)")
+                    help="simulated time from which they apply (default and a past time: the first tick every vehicle "
+                         "can take: past the grant in lockstep, 0.5 s ahead in realtime)")
     rd = sub.add_parser(Radio.NAMES.cli, help="change the radio at run time ([radio] scenarios): tx_power=DBM station=[x,y,z]")
     rd.add_argument("settings", nargs="+", metavar="KEY=VALUE", help="e.g. tx_power=20 (dBm) station=[0,-60,0] (x, y and the mast's base z above the water, m; the antenna is radio.antenna.station above it)")
     rd.add_argument("--at", type=_sim_time,
-                    help="simulated time from which it applies (default: now + 0.5 s; a past time means now)")
+                    help="simulated time from which it applies (default and a past time: the first tick every vehicle "
+                         "can take: past the grant in lockstep, 0.5 s ahead in realtime)")
     gn = sub.add_parser(Gains.NAMES.cli, help="change guidance gains: k=... c=...")
     gn.add_argument("settings", nargs="+", metavar="KEY=VALUE")
     gn.add_argument("--vehicle", help="one vehicle (default: all)")
@@ -259,7 +260,7 @@ def _watch(gs: GroundStation, interval: float) -> int:
             print(json.dumps(gs.snapshot()), flush=True)
         if gs.world_gone():
             with gs.view.lock:
-                completion = (gs.view.world or {}).get("completion")
+                completion = gs.view.world.completion if gs.view.world is not None else None
             print(json.dumps({"v": 1, "kind": "end", "fleet": gs.fleet, "reason": "the world left: the run is over",
                               "completion": completion}), flush=True)
             return 0
@@ -377,8 +378,8 @@ def main(argv=None, prog: str = "python -m ground_station") -> int:
                   + _other_fleets(gs.fleets_here(), args.fleet, credentials_fleet(transport.config_file),
                                   transport.config_file), file=sys.stderr)
             return EXIT_NO_ANSWER
-        # the world's ids: names of the key space (letters, digits, _ and -), nothing else is trusted
-        ids = [i for i in (gs.view.world or {}).get("ids") or [] if isinstance(i, str) and FLEET_RE.match(i)]
+        # the world's ids: names of the key space (letters, digits, _ and -), as decode_status checked them
+        ids = list(gs.view.world.ids) if gs.view.world is not None else []
         if args.action == "console":
             from ground_station.tui import ConsoleApp  # Textual only for the console
 

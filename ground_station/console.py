@@ -29,6 +29,7 @@ from cdus.wire.transport import Transport, endpoint_host, open_session
 from cdus.wire.rejected import Rejected
 from cdus.wire.messages import StateMsg, decode_states, encode_control
 from cdus.wire.schemas import CommandReply, FleetEvent, decode_event, decode_reply, decode_settings, decode_status
+from cdus.wire.status import WorldStatus
 from cdus.sim.reports import LINK_GROUP_S, group_link_states  # noqa: F401 (LINK_GROUP_S: the console's too)
 from cdus.wire.text import printable
 
@@ -69,7 +70,7 @@ class FleetView:
     states: dict[str, StateMsg] = field(default_factory=dict)
     alive: set[str] = field(default_factory=set)
     tokens: dict[str, set[str]] = field(default_factory=dict)  # name -> session ids of its tokens (keys.hold_token)
-    world: dict | None = None
+    world: WorldStatus | None = None  # the newest status, as decode_status checked it (replaced whole)
     events: list[FleetEvent] = field(default_factory=list)
     rejected: int = 0
     events_seen: int = 0  # events heard in all (``events`` keeps the newest MAX_EVENTS)
@@ -97,36 +98,33 @@ class Answer:
 NOT_VEHICLES = frozenset({keys.WORLD, keys.GROUND, "launcher", ROS2_ROLE})  # liveliness tokens of the fleet that are no vehicle's
 
 
-def row_ids(world: dict | None, states: Any, alive: set[str]) -> list[str]:
+def row_ids(world: WorldStatus | None, states: Any, alive: set[str]) -> list[str]:
     """The vehicles a table shows a row for: the world's ids when it has spoken (other names on
     the fleet's keys are not vehicles of the run: ground stations' tokens, the ROS 2 bridge's,
     forgeries); before that, whoever sends telemetry or holds a token that is no process of the
     fleet's own (NOT_VEHICLES)."""
-    known = (world or {}).get("ids")
-    known = [v for v in known if isinstance(v, str)] if isinstance(known, list) else []
+    known = list(world.ids) if world is not None else []
     return known or sorted(set(states) | (set(alive) - NOT_VEHICLES))
 
 
-def vehicle_state(vid: str, world: dict | None, alive: set[str], tokens_in: bool = False) -> str:
+def vehicle_state(vid: str, world: WorldStatus | None, alive: set[str], tokens_in: bool = False) -> str:
     """live / paused / lost / ended (left when the run was over): the world's roster where its status has it, else its liveliness;
     a vehicle whose liveliness token is gone is lost unless the roster says it is paused.
     ``tokens_in``: our liveliness view has come in (the world's token was heard), so a vehicle
     missing from ``alive`` is gone even when no vehicle is left in it (the end of a run, where
     the world's last status still lists them all); before that, the world's ``alive`` stands in."""
     st = None
-    if world:
-        ids, states = world.get("ids") or [], world.get("states")
-        if isinstance(states, list) and len(states) == len(ids) and vid in ids:
-            st = states[ids.index(vid)]
-    tokens = alive if alive or tokens_in else set((world or {}).get("alive") or [])
+    if world is not None and world.states is not None and vid in world.ids:  # one state per id (decode_status)
+        st = world.states[world.ids.index(vid)]
+    tokens = alive if alive or tokens_in else set(world.alive if world is not None else ())
     if st == "paused":  # a stopped process's token lapses with the lease: paused still, as the operator asked
         return "paused"
-    if st != "gone" and (world or {}).get("completion") and vid not in tokens:
+    if st != "gone" and world is not None and world.completion and vid not in tokens:
         return "ended"  # left with the run's end (the world's last status says it is over)
     if (tokens or tokens_in) and vid not in tokens or st == "gone":
         return "lost"
     st = st or ("live" if vid in tokens else "lost")
-    return "paused" if st == "live" and world and world.get("paused") else st
+    return "paused" if st == "live" and world is not None and world.paused else st
 
 
 def status_table(view: FleetView, now: float | None = None) -> str:
@@ -135,8 +133,7 @@ def status_table(view: FleetView, now: float | None = None) -> str:
     not a finite one is shown as what it is."""
     with view.lock:
         w = view.world
-        known = (w or {}).get("ids")
-        known = [k for k in known if isinstance(k, str)] if isinstance(known, list) else []
+        known = w.ids if w is not None else []
         ids = row_ids(w, view.states, view.alive)
         vehicles = view.alive - NOT_VEHICLES
         rows = [f"{'vehicle':<10} {'alive':<5} {'t (s)':>8} {'|Φ| (m)':>9} {'ω':>11} {'ω̇':>8}  position"]
@@ -152,19 +149,17 @@ def status_table(view: FleetView, now: float | None = None) -> str:
             pos = ", ".join(num(x, ".1f") for x in m.q)
             rows.append(f"{name:<10} {alive:<5} {num(m.t, '.2f'):>8} {num(m.path_error):>9} {num(m.omega):>11} "
                         f"{num(m.omega_rate):>8}  ({pos})" + (f"  [{why}]" if why else ""))
-        if w:
-            coord = w.get("coord_error_max")
-            path = w.get("path_error_max")
-            paused = ", PAUSED" if w.get("paused") else ""
+        if w is not None:
+            paused = ", PAUSED" if w.paused else ""
             alive_n = sum(1 for v in known if vehicle_state(v, w, vehicles, view.world_seen) not in ("lost", "ended"))
-            over = f"; the run is over: {_text(w['completion'], 24)}" if w.get("completion") else ""
-            rows.append(f"world: t = {num(w.get('t', 0), '.1f')} / {num(w.get('duration', 0), '.0f')} s "
-                        f"({_text(w.get('clock'), 16)}{paused}), {alive_n}/{len(known)} vehicles alive, worst |Φ| "
-                        f"{num(path)} m, worst edge error {num(coord, '.4f')} rad{over}")
+            over = f"; the run is over: {w.completion}" if w.completion else ""
+            rows.append(f"world: t = {num(w.t, '.1f')} / {num(w.duration, '.0f')} s "
+                        f"({w.clock}{paused}), {alive_n}/{len(known)} vehicles alive, worst |Φ| "
+                        f"{num(w.path_error_max)} m, worst edge error {num(w.coord_error_max, '.4f')} rad{over}")
         else:
             rows.append("world: no status yet")
-        events = view.events or (w or {}).get("events") or []  # heard live, else the world's recent ones
-        events = group_link_states([e for e in events if isinstance(e, FleetEvent)])
+        # heard live, else the world's recent ones
+        events = group_link_states(view.events or (w.events if w is not None else []))
         if events:
             rows.append("events:")
             # the newest 8, drop bursts only where nothing else is left to show (a lossy link makes thousands)
@@ -187,15 +182,15 @@ def status_table(view: FleetView, now: float | None = None) -> str:
 def _not_live(view: FleetView, vid: str) -> str | None:
     """Why a vehicle's values are not live ones (caller holds the lock): ``paused (fleet)``,
     ``paused``, ``gone``, ``the run ended``, ``not alive``; None when they are."""
-    w = view.world or {}
-    roster = w.get("roster") or {}
+    w = view.world
+    roster = (w.roster if w is not None else None) or {}
     if roster.get(vid) == "gone":
         return "gone"
     if roster.get(vid) == "paused":
         return "paused"
-    if w.get("completion") and vid not in view.alive:
+    if w is not None and w.completion and vid not in view.alive:
         return "the run ended"  # it left with the run's end (the world's last status)
-    if w.get("paused"):
+    if w is not None and w.paused:
         return "paused (fleet)"
     if vid not in view.alive:
         return "not alive"
@@ -366,10 +361,10 @@ class GroundStation:
         return False
 
     def sim_time(self) -> float | None:
-        """The world's simulated time, None before its status or if it is not a finite number."""
+        """The world's simulated time, None before its status."""
         with self.view.lock:
-            t = None if self.view.world is None else self.view.world.get("t")
-        return float(t) if finite(t) else None
+            w = self.view.world
+        return None if w is None else w.t
 
     def fetch_last(self, timeout: float = 2.0) -> int:
         """Ask the world for every vehicle's newest telemetry (``world/last/*``): a fleet that is
@@ -403,7 +398,7 @@ class GroundStation:
         except (zenoh.ZError, RuntimeError):
             return None
         with self.view.lock:
-            known = [k for k in (self.view.world or {}).get("ids") or [] if isinstance(k, str)] or None
+            known = (list(self.view.world.ids) if self.view.world is not None else []) or None
         for reply in replies:
             sample = reply.ok
             if sample is None:
@@ -530,13 +525,13 @@ class GroundStation:
         extra = {"settings": self.fetch_settings()} if settings else {}
         with self.view.lock:
             w = self.view.world
-            known = [k for k in (w or {}).get("ids") or [] if isinstance(k, str)]
+            known = w.ids if w is not None else []
             ids = sorted(set(known) | set(self.view.states) | (self.view.alive - {keys.WORLD}))
             vehicles = []
             for vid in ids:
                 m = self.view.states.get(vid)
                 why = _not_live(self.view, vid)
-                roster = ((w or {}).get("roster") or {}).get(vid)
+                roster = ((w.roster if w is not None else None) or {}).get(vid)
                 vehicles.append({
                     "id": vid, "alive": vid in self.view.alive, "state": roster,
                     "telemetry": None if m is None else {
@@ -549,24 +544,23 @@ class GroundStation:
                 run = "world_gone" if world_gone else "no_status"
             elif world_gone:
                 run = "ended"
-            elif w.get("completion") or w["t"] >= w["duration"] - 1e-9:
+            elif w.completion or w.t >= w.duration - 1e-9:
                 run = "finishing"
             else:
-                run = "paused" if w["paused"] else "running"
+                run = "paused" if w.paused else "running"
             return {
                 "v": SNAPSHOT_VERSION, "kind": "status", "fleet": self.fleet, "wall_time": time.time(),
                 "run": run,
-                "t": None if w is None else w["t"], "duration": None if w is None else w["duration"],
-                "completion": None if w is None else w.get("completion"),
-                "clock": None if w is None else w["clock"], "paused": None if w is None else w["paused"],
+                "t": None if w is None else w.t, "duration": None if w is None else w.duration,
+                "completion": None if w is None else w.completion,
+                "clock": None if w is None else w.clock, "paused": None if w is None else w.paused,
                 "alive": sum(1 for v in ids if v in self.view.alive),
-                "path_error_max": None if w is None else w["path_error_max"],
-                "coord_error_max": None if w is None else w["coord_error_max"],
+                "path_error_max": None if w is None else w.path_error_max,
+                "coord_error_max": None if w is None else w.coord_error_max,
                 "vehicles": vehicles,
                 # heard live, else the world's recent ones (as the text status): a one-shot
                 # `status --json` hears none live
-                "events": [e.as_dict() for e in (self.view.events or [e for e in (w or {}).get("events") or []
-                                                                      if isinstance(e, FleetEvent)])[-20:]],
+                "events": [e.as_dict() for e in (self.view.events or (w.events if w is not None else []))[-20:]],
                 "rejected": self.view.rejected,
             } | extra
 

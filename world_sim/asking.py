@@ -4,11 +4,13 @@ Queries (Zenoh's threads) of its status, settings and every vehicle's last telem
 answered at once, within their quotas; a command (a query on world/cmd/gs, or a put on
 to/+world+/cmd/<from>) is handed to the main thread, decoded, given to its handler
 (world_sim.commands) and answered with a CommandReply: applied from a tick, rejected with the
-reason, or (a vehicle fault) once it is decided."""
+reason, or (a vehicle fault) once it is decided. The world's queryables are one table
+(:meth:`Asking.queryables`): Zenoh's queries reach them through it, and so does the public door
+:meth:`Asking.ask`, which answers an :class:`Asked` (no Zenoh object) by the same code."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Callable
 
 import zenoh
 
@@ -16,16 +18,99 @@ from cdus.core.quota import Quota
 from cdus.sim.lockstep import Decided
 from cdus.wire import keys
 from cdus.wire.messages import COMMAND_OPS, decode_control, encode_states
-from cdus.wire.schemas import CommandReply, ID_RE, MAX_REASON, MAX_SETTINGS_CHANGES, encode_reply, encode_settings
+from cdus.wire.schemas import (
+    CommandReply, ID_RE, MAX_REASON, MAX_SETTINGS_CHANGES, decode_reply, encode_reply, encode_settings,
+)
 from cdus.wire.text import printable
 from cdus.wire.rejected import Rejected
 from world_sim.limits import ANSWERS_PER_PASS, MAX_QUEUED_QUERIES, MAX_WAITING, QUERIES_PER_S, RATE_REFUSAL
 from world_sim.verdict import LATER, Verdict
 
 
+class Asked:
+    """A query put to the world through :meth:`Asking.ask`, and what the world said to it: its
+    ``key`` and ``payload``; ``replies``, one (key, payload) per reply; ``errors``, one payload per
+    error reply (a query past its quota); ``done`` once the world has said all it will (a
+    command's answer, which may come on a later pass: a lockstep vehicle fault is answered when
+    it lands). The world replies to it as to a Zenoh query (``reply``, ``reply_err``, ``drop``);
+    a subclass may fail as an asker gone does (``reply`` raising zenoh.ZError)."""
+
+    def __init__(self, key: str, payload: bytes | None = None):
+        self.key = key
+        self.payload = payload
+        self.replies: list[tuple[str, bytes]] = []
+        self.errors: list[bytes] = []
+        self.done = False
+
+    @property
+    def key_expr(self) -> str:
+        """The key, as the world reads a Zenoh query's."""
+        return self.key
+
+    def reply(self, key: Any, payload: Any) -> None:
+        assert not self.done, f"{self.key}: replied after the query was finalized"
+        self.replies.append((str(key), bytes(payload)))
+
+    def reply_err(self, payload: Any) -> None:
+        assert not self.done, f"{self.key}: replied after the query was finalized"
+        self.errors.append(bytes(payload))
+
+    def drop(self) -> None:
+        self.done = True
+
+    @property
+    def answer(self) -> CommandReply | Rejected | None:
+        """A command's answer (a CommandReply, decoded), None while it waits. A command is
+        answered once, on its own key, and then finalized: anything else raises ValueError."""
+        if not self.replies:
+            return None
+        if len(self.replies) > 1 or self.replies[0][0] != self.key or not self.done:
+            raise ValueError(f"{self.key}: not one command's answer: {len(self.replies)} replies on "
+                             f"{sorted({k for k, _ in self.replies})}, finalized: {self.done}")
+        return decode_reply(self.replies[0][1])
+
+
+def _payload_bytes(payload: Any) -> bytes:
+    """A query's payload as bytes: an Asked's (bytes or None) or a Zenoh query's (ZBytes or None)."""
+    if payload is None:
+        return b""
+    return payload if isinstance(payload, (bytes, bytearray)) else payload.to_bytes()
+
+
 class Asking:
     """How the World is asked and answers: queries within their quotas, commands decided on the
     main thread (a mixin of World)."""
+
+    def queryables(self) -> list[tuple[str, Callable[[Any], None]]]:
+        """The world's queryables, (key expression, handler of one query), as World.open declares
+        them on Zenoh and :meth:`ask` reaches them: each handler runs on Zenoh's thread."""
+        f = self.fleet
+        return [(keys.world_last(f, "*"), self._on_last_query), (keys.world_settings(f), self._on_settings_query),
+                (keys.world_status(f), self._on_status_query), (keys.any_world_command(f), self._on_command_query)]
+
+    def ask(self, key: str, payload: bytes | None = None, answer: bool = True, asked: Asked | None = None) -> Asked:
+        """The door a test, a bench or a mock asks the world by (as ``feed`` hands it a message): a
+        query on ``key`` with ``payload``, given to each of the world's :meth:`queryables` whose key
+        expression intersects ``key``, as Zenoh routes a query (none: nobody answers), by the
+        same code as Zenoh's queries. A status, settings or last-telemetry query is answered (or
+        refused past its quota) before this returns; a command waits for the main thread, which
+        answers it if ``answer`` (one pass: ``feed`` of a wake; without it, the next ``feed`` or
+        ``drain`` does, as while the main thread is busy elsewhere). Returns ``asked`` (a new
+        :class:`Asked` if None) with what the world said."""
+        asked = Asked(key, payload) if asked is None else asked
+        try:
+            expr = zenoh.KeyExpr(key)
+        except zenoh.ZError:  # a key Zenoh refuses reaches nobody
+            asked.drop()
+            return asked
+        reached = [handler for on, handler in self.queryables() if expr.intersects(zenoh.KeyExpr(on))]
+        for handler in reached:
+            handler(asked)
+        if self._on_command_query not in reached:
+            asked.drop()  # all said, as Zenoh finalizes a query its callbacks have let go (a command's: its answer)
+        if answer:
+            self.feed(keys.wake(self.fleet, keys.WORLD))
+        return asked
 
     def _over_quota(self, quota: Quota, reason: str) -> bool:
         """Zenoh's thread: has the asker of a query gone past ``quota``? Counted as ``reason``."""
@@ -134,7 +219,7 @@ class Asking:
         Lockstep decides it, see _act), never raise."""
         parts = str(query.key_expr).split("/")
         sender = parts[4] if len(parts) == 5 and parts[1] == self.fleet and parts[2:4] == ["world", "cmd"] else "?"
-        payload = query.payload.to_bytes() if query.payload is not None else b""
+        payload = _payload_bytes(query.payload)
         ref = self._next_ref
         self._next_ref += 1
         waiting = len(self._waiting) < MAX_WAITING

@@ -8,9 +8,11 @@ same questions its own way:
   catch-ups; realtime: publish a start time, record a little behind the wall clock, carry
   out the scheduled faults as their time comes);
 - ``tick_limit()``: the newest tick a vehicle can have stepped (a newer row is forged);
-- ``effect_tick()``: the first tick a run-time change applies from, the same on every
-  vehicle (docs/ground_station.md, "When a command takes effect"): past every grant in
-  lockstep, EFFECT_LEAD_S ahead of the wall clock's tick in realtime;
+- ``effect_tick()``, ``effect_time(asked)``: the first tick a run-time change applies from,
+  and the time a change named in time (link, radio) applies from, the same on every vehicle
+  (docs/ground_station.md, "When a command takes effect"): cdus.commands.effect's one rule
+  over the clock's ``known_and_lead()`` (lockstep: the grant, lead 1; realtime: the wall
+  clock's tick, EFFECT_LEAD_S of ticks);
 - ``sim_now()``, ``first_step(vid)``, ``live_at(n)``, ``roster_states(tick)``, ``lost()``:
   where the fleet is and who steps;
 - ``on_alive(name, j, up)``: liveliness news (lockstep: Lockstep decides the roster;
@@ -27,7 +29,7 @@ from collections import deque
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from cdus.commands.effect import LEAD_S, effect_tick, lead_ticks
+from cdus.commands.effect import LEAD_S, effect_tick, effect_time, lead_ticks
 from cdus.commands.vehicle import BY_EVENT as FAULT_BY_EVENT, BY_OP as FAULT_BY_OP
 from cdus.core.events import RosterChange
 from cdus.sim.lockstep import CatchUp, Decided, Fault, Grant, Join, RadioSample, Roster, Sense, horizon_window
@@ -59,7 +61,6 @@ RT_FAULT_CONFIRM = 5.0
 #: before it steps that tick (the next tick was too soon: a vehicle that had stepped it applied
 #: the change a tick or more later than the others)
 EFFECT_LEAD_S = LEAD_S  # s of simulated time a realtime change is sent ahead (cdus.commands.effect)
-LINK_LEAD = EFFECT_LEAD_S  # s of simulated time between a link command and when it applies, if not given
 #: realtime: telemetry may be this far (s) ahead of the world's own clock (clock skew between
 #: hosts, a batch sent at once); beyond it, a row is from a tick nobody can have stepped yet
 REALTIME_SLACK = 1.0
@@ -85,6 +86,25 @@ def pick_clock(clock: str, world: "World") -> "LockstepClock | RealtimeClock":
     raise ValueError(f"clock: {clock!r} is no clock; choose lockstep or realtime")
 
 
+class _EffectRule:
+    """When a run-time change applies (cdus.commands.effect's one rule), from what a clock knows:
+    its ``known_and_lead()`` and the world's period."""
+
+    w: "World"
+
+    def known_and_lead(self) -> tuple[int, int]:
+        raise NotImplementedError
+
+    def effect_tick(self) -> int:
+        """The first tick a run-time change applies from on every vehicle alike."""
+        return effect_tick(*self.known_and_lead())
+
+    def effect_time(self, asked: float | None) -> tuple[float, str]:
+        """The simulated time a change asked for ``asked`` (None: as soon as possible) applies
+        from, never before the effect tick's start, and the note when ``asked`` had passed."""
+        return effect_time(asked, *self.known_and_lead(), self.w.period)
+
+
 @dataclass
 class _CatchingUp:
     """A process caught up (lockstep), until it reports a tick past ``acked``."""
@@ -96,7 +116,7 @@ class _CatchingUp:
     every: float = CATCHUP_RESEND / 2  # s between resends, doubled each time (CATCHUP_RESEND_MAX at most)
 
 
-class LockstepClock:
+class LockstepClock(_EffectRule):
     """The fleet steps what the world grants: cdus.sim.lockstep.Lockstep decides (grants, the
     roster, faults on their ticks, joins), this clock carries its decisions out."""
 
@@ -121,9 +141,10 @@ class LockstepClock:
         """The newest tick a vehicle can have stepped: the grant."""
         return self.ls.granted
 
-    def effect_tick(self) -> int:
-        """The first tick a run-time change applies from on every vehicle: one nobody was granted."""
-        return effect_tick(self.ls.granted, 1)
+    def known_and_lead(self) -> tuple[int, int]:
+        """The effect rule's inputs: the highest tick granted (-1 before the first grant), and a
+        lead of 1: a change applies from a tick nobody was granted."""
+        return self.ls.granted, 1
 
     def sim_now(self) -> float:
         """The fleet's present in simulated seconds: the newest tick recorded."""
@@ -315,7 +336,7 @@ class LockstepClock:
         return False
 
 
-class RealtimeClock:
+class RealtimeClock(_EffectRule):
     """The fleet steps with the wall clock from a start time t0 the world publishes once every
     vehicle is up; the world records tick n a little after it is due (REALTIME_LAG), and turns
     liveliness changes into roster changes at once."""
@@ -354,10 +375,10 @@ class RealtimeClock:
         (before the start, the first ticks)."""
         return self.tick_now() + math.ceil(REALTIME_SLACK / self.w.period)
 
-    def effect_tick(self) -> int:
-        """The first tick a run-time change applies from on every vehicle: EFFECT_LEAD_S ahead of
-        the wall clock's (at least the next)."""
-        return effect_tick(self.tick_now(), lead_ticks(self.w.period, EFFECT_LEAD_S))
+    def known_and_lead(self) -> tuple[int, int]:
+        """The effect rule's inputs: the wall clock's tick, and EFFECT_LEAD_S of ticks (at least
+        1) for the change to reach every vehicle before it steps the tick it names."""
+        return self.tick_now(), lead_ticks(self.w.period, EFFECT_LEAD_S)
 
     def sim_now(self) -> float:
         """The fleet's present in simulated seconds: the wall clock's tick."""

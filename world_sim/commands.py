@@ -15,6 +15,7 @@ import math
 from typing import Any, Callable, NamedTuple
 
 from cdus.commands.changes import Formation, Path
+from cdus.commands.effect import tick_of
 from cdus.commands.fleet import Pause, Resume, Stop
 from cdus.commands.gains import Gains
 from cdus.commands.link import Link
@@ -28,7 +29,6 @@ from cdus.wire.messages import MAX_LINK_AT, encode_control
 from cdus.wire.schemas import FleetEvent, MAX_REASON
 from cdus.wire.rejected import Rejected
 from cdus.wire.text import printable
-from world_sim.clocks import LINK_LEAD
 from world_sim.verdict import Verdict
 
 
@@ -78,12 +78,6 @@ class CommandHandlers:
         rule (world_sim.clocks, ``effect_tick``), used by every handler."""
         return self.clock.effect_tick()
 
-    def _effect_time(self, at: float) -> float:
-        """The simulated time a change asked for ``at`` (s; < 0: as soon as possible) applies from:
-        ``at``, never before the effect tick (a past ``at`` means "now")."""
-        earliest = self._effect_tick() * self.period
-        return max(at, earliest) if at >= 0 else max(self._sim_now() + LINK_LEAD, earliest)
-
     def _cmd_stop(self, c: Stop, by: str, ref: int | None = None) -> Verdict | str:
         if self.stop_requested:
             return "the run is stopping"
@@ -116,12 +110,12 @@ class CommandHandlers:
         return self._relay_gains(c, by)
 
     def _cmd_link(self, c: Link, by: str, ref: int | None = None) -> Verdict | str:
-        asked = -1.0 if c.at is None else c.at
-        if asked >= self.duration:  # it would be answered "applied" and never apply
+        asked = c.at
+        if asked is not None and asked >= self.duration:  # it would be answered "applied" and never apply
             return self._refuse(by, "link", "link command",
                                 f"--at {asked:g} s is not before the end of the run ({self.duration:g} s): "
                                 "it would change nothing; give a time within the run")
-        if asked > MAX_LINK_AT:
+        if asked is not None and asked > MAX_LINK_AT:
             return self._refuse(by, "link", "link command",
                                 f"link command: at = {asked:.6g} s is beyond the latest time a link change "
                                 f"may name ({MAX_LINK_AT:g} s of simulated time)")
@@ -130,9 +124,9 @@ class CommandHandlers:
         if isinstance(merged, Rejected):
             return self._refuse(by, "link", "link command", str(merged))
         # Never before the effect tick (what a vehicle may already have sent), so every receiver
-        # applies it from the same message on; a past --at means "now".
-        at = self._effect_time(asked)
-        late = self._never_applies(max(0, math.ceil(at / self.period - 1e-9)))
+        # applies it from the same message on; a past --at means "now" (the clock's one rule).
+        at, late_note = self.clock.effect_time(asked)
+        late = self._never_applies(tick_of(at, self.period))
         if late:
             return self._refuse(by, "link", "link command", late)
         self._link_table = merged
@@ -142,9 +136,7 @@ class CommandHandlers:
         self._note(FleetEvent.of(self._sim_now(), "link_changed",
                                  f"link faults changed from t = {at:.2f} s by {by}: {printable(change, 200)}"),
                    by_command=True)
-        late = (f"t = {asked:g} s asked had passed: from the first time every receiver can take it"
-                if 0 <= asked < at else "")
-        return Verdict(True, late, max(0, math.ceil(at / self.period - 1e-9)), float(at))
+        return Verdict(True, late_note, tick_of(at, self.period), float(at))
 
     def _cmd_vehicle_fault(self, c: Kill | PauseVehicle | ResumeVehicle | Restart, by: str,
                            ref: int | None = None) -> Verdict | str:
@@ -161,13 +153,13 @@ class CommandHandlers:
         then relayed to every vehicle with the send time it applies from, never before what a
         vehicle may already have sent (lockstep: past the grant; a past ``at`` means as soon as
         possible), like a link command. The verdict (applied from that time), else why it was not."""
-        change, asked = c.change(), -1.0 if c.at is None else c.at
+        change = c.change()
         if self.radio is None:
             return "this scenario has no [radio] table"
         problem = c.topology_problem(self.radio_watch.channel.spec.topology)
         if problem is not None:
             return str(problem)
-        at = self._effect_time(asked)
+        at, late = self.clock.effect_time(c.at)
         end = self.last_tick * self.period
         if at > end:  # it would never apply, and epochs go in time order: it would refuse every later change
             return (f"--at {at:g} s is past the run's end (t = {end:g} s): it would never apply; give --at "
@@ -182,9 +174,7 @@ class CommandHandlers:
         self._note(FleetEvent.of(self._sim_now(), "radio_changed",
                                  f"radio changed from t = {at:.2f} s by {printable(sender, 64)}: "
                                  f"{printable(change, 200)}"), by_command=True)
-        late = (f"t = {asked:g} s asked had passed: from the first time every vehicle can take it"
-                if 0 <= asked < at else "")
-        return Verdict(True, late, max(0, math.ceil(at / self.period - 1e-9)), float(at))
+        return Verdict(True, late, tick_of(at, self.period), float(at))
 
     def _cmd_radio(self, c: Radio, by: str, ref: int | None = None) -> Verdict | str:
         """The ``radio`` command: relayed (:meth:`_relay_radio`) or refused, counted and reported."""

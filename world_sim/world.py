@@ -51,7 +51,7 @@ from cdus.wire.transport import Transport, open_session
 from world_sim.asking import Asking
 from world_sim.clocks import (  # noqa: F401 (the clocks' figures: importable from here, as before the split)
     CATCHUP_RESEND, CATCHUP_RESEND_MAX, DROP_WINDOW, EFFECT_LEAD_S, FAULT_TIMEOUT, GRANT_RESEND, HORIZON_EVERY,
-    HORIZON_S, JOIN_TIMEOUT, LINK_LEAD, OUTAGE_GRACE, REALTIME_LAG, REALTIME_SLACK, RT_FAULT_CONFIRM, STATUS_PERIOD,
+    HORIZON_S, JOIN_TIMEOUT, OUTAGE_GRACE, REALTIME_LAG, REALTIME_SLACK, RT_FAULT_CONFIRM, STATUS_PERIOD,
     LockstepClock, RealtimeClock, pick_clock,
 )
 from world_sim.commands import CommandHandlers, _Change
@@ -231,10 +231,7 @@ class World(Intake, Asking, CommandHandlers, Liveness, Reporting, Samples, Finis
         # liveliness and the last-state queries are rare: callbacks that hand over to the main thread
         self._subs = [
             s.liveliness().declare_subscriber(keys.any_alive(f), self._on_alive_sample, history=True),
-            s.declare_queryable(keys.world_last(f, "*"), self._on_last_query),
-            s.declare_queryable(keys.world_settings(f), self._on_settings_query),
-            s.declare_queryable(keys.world_status(f), self._on_status_query),
-            s.declare_queryable(keys.any_world_command(f), self._on_command_query),
+            *(s.declare_queryable(on, handler) for on, handler in self.queryables()),
         ]
         self.zid = str(s.zid())
         self.token = s.liveliness().declare_token(keys.alive(f, keys.WORLD, self.zid))

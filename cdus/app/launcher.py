@@ -60,10 +60,9 @@ from cdus.sim.reports import ConsoleQuota
 from cdus.wire import keys
 from cdus.wire.access import ROS2_ROLE
 from cdus.commands.vehicle import VehicleFault
-from cdus.wire.bounds import finite
 from cdus.wire.messages import CTL_OPS, decode_control, encode_control
 from cdus.wire.rejected import Rejected
-from cdus.wire.schemas import STATUS_KEY_ENV, FleetEvent, decode_event, decode_status, encode_event, signed_by
+from cdus.wire.schemas import STATUS_KEY_ENV, FleetEvent, WorldStatus, decode_event, decode_status, encode_event, signed_by
 from cdus.wire.text import printable
 from cdus.wire.transport import (
     CHILD_RUNTIME, DEFAULT_LEASE_MS, ROUTER_RUNTIME, ROUTER_RUNTIME_ENV, Transport, children_runtime, client_of,
@@ -137,7 +136,7 @@ class Launcher(FaultDispatch, WorldLostMetrics):
         self.alive: set[str] = set()
         self.ever_alive: set[str] = set()  # whose token was seen at least once
         self._tokens: dict[str, set[str]] = {}  # name -> session ids of its tokens up (keys.hold_token)
-        self.status: dict | None = None
+        self.status: WorldStatus | None = None
         self.rejected: dict[str, int] = {}  # messages to the launcher dropped, by reason
         # what of the events to print (drop bursts per link are capped, links lossy by design said once)
         self._console = ConsoleQuota(scenario=self.scenario)
@@ -272,13 +271,13 @@ class Launcher(FaultDispatch, WorldLostMetrics):
         if isinstance(st, Rejected):
             self._reject(f"status {st.reason}", "a malformed world status")
             return
-        t = st.get("t")
+        t = st.t
         limit = 2 * (self.opts.duration or self.scenario.duration) + 1.0
-        if not (finite(t) and -1.0 <= t <= limit):  # -T before tick 0 (True is no time)
+        if not -1.0 <= t <= limit:  # -T before tick 0
             self._reject("status t", f"a world status with t = {printable(t, 40)} (not in [-1, {limit:g}] s)")
             return
         with self.cond:
-            if self.status is not None and t < self.status["t"]:  # a signed status replayed: time only moves on
+            if self.status is not None and t < self.status.t:  # a signed status replayed: time only moves on
                 stale = True
             else:
                 stale = False
@@ -390,8 +389,8 @@ class Launcher(FaultDispatch, WorldLostMetrics):
                 if not self.requests:
                     self.cond.wait(timeout=self._wait_s())
                 st = self.status
-            if st and st["t"] > 0:  # checked where it came in (_on_status)
-                progress(float(st["t"]), duration)
+            if st is not None and st.t > 0:  # checked where it came in (_on_status)
+                progress(st.t, duration)
 
     def _watch_agents(self) -> None:
         """Notice agents that exited and restart those whose back-off is over (never blocks)."""
@@ -440,7 +439,7 @@ class Launcher(FaultDispatch, WorldLostMetrics):
 
     def _give_up(self, c: Child, how: str) -> None:
         sv = self.supervision
-        t = float(self.status["t"]) if self.status else 0.0
+        t = self.status.t if self.status is not None else 0.0
         event = FleetEvent.of(t, "gave_up", f"vehicle {c.name} {how} after {c.supervised_restarts} restarts; "
                               f"the launcher gives up on it (supervision.max_restarts = {sv.max_restarts}); "
                               f"its log: {c.log_path}", vehicle=c.name)

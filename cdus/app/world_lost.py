@@ -59,10 +59,10 @@ class WorldLostMetrics:
         if self.opts.duration is not None:
             sc = replace(sc, duration=self.opts.duration)
         rec = Recorder(list(sc.ids), [v.dim for v in sc.vehicles], metric_edges(sc))
-        st = self.status or {}
-        events = list(st.get("events") or [])
+        st = self.status  # the world's last status (WorldStatus), None if none was heard
+        events = list(st.events) if st is not None else []
         how = f"exited with status {code}" if code >= 0 else f"was killed by signal {-code}"
-        t_last = float(st["t"]) if st else None
+        t_last = st.t if st is not None else None
         events.append(FleetEvent.of(t_last or 0.0, "fault", f"the world process {how}; the launcher wrote these "
                                     "metrics from the world's last status", severity="error"))
         ignored = self.rejected.get("token_key", 0)
@@ -74,16 +74,17 @@ class WorldLostMetrics:
                         integrity=integrity)
         m["completion"] = WORLD_LOST
         m["written_by"] = "launcher"
-        if st:  # what the world last said, in the fields a reader looks at first (the trace is lost)
+        if st is not None:  # what the world last said, in the fields a reader looks at first (the trace is lost)
             ran = max(0.0, t_last)  # a status before tick 0 says t = -T: no simulated time has passed
             m["duration_s"] = ran
             m["realtime_factor"] = ran / wall_s if wall_s > 0 else None
-            m["final_path_error_max"] = st.get("path_error_max")
-            m["final_coord_error_max"] = st.get("coord_error_max")
-            m["live_final"] = sorted(set(st.get("alive") or ()) & set(sc.ids))
+            m["final_path_error_max"] = st.path_error_max
+            m["final_coord_error_max"] = st.coord_error_max
+            m["live_final"] = sorted(set(st.alive) & set(sc.ids))
         m["world_lost"] = {
             "world_exit": code, "last_status_t": t_last,
-            "last_status": {k: st.get(k) for k in ("alive", "path_error_max", "coord_error_max", "paused")} if st else None,
+            "last_status": {k: getattr(st, k) for k in ("alive", "path_error_max", "coord_error_max", "paused")}
+            if st is not None else None,
             "alive_tokens": sorted(self.alive & set(sc.ids)),  # the scenario's names only, not whatever was declared
             "restarts": {n: c.restarts for n, c in self.children.items() if n != keys.WORLD and c.restarts},
             "rejected_by_launcher": dict(self.rejected),

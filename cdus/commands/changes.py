@@ -16,6 +16,7 @@ from typing import Any, ClassVar, Mapping, Sequence
 
 from cdus.commands.base import (Applied, Names, Rejected, _shown, freeze, keyed_table, taken, thaw, unknown_keys,
                                 vehicle_id)
+from cdus.core.vocabulary import FORMATION, PATH
 from cdus.scenario.config import nesting_problem
 from cdus.scenario.events import check_offsets, check_path, check_phases, offsets_to_phases
 from cdus.wire.bounds import BOUNDS
@@ -33,7 +34,7 @@ class Formation:
     phases: tuple[tuple[str, float], ...] = ()
     offsets: tuple[tuple[str, str, float], ...] = ()
 
-    NAMES: ClassVar[Names] = Names(cli="formation", op="formation", event="formation")
+    NAMES: ClassVar[Names] = Names(cli="formation", op="formation", event=FORMATION)
     KEYS: ClassVar[tuple[str, ...]] = ("phases", "offsets")
 
     @classmethod
@@ -116,7 +117,7 @@ class Path:
     vehicle: str
     table: tuple  # the path table, frozen (cdus.commands.base.freeze)
 
-    NAMES: ClassVar[Names] = Names(cli="path", op="path", event="path")
+    NAMES: ClassVar[Names] = Names(cli="path", op="path", event=PATH)
     KEYS: ClassVar[tuple[str, ...]] = ("vehicle", "path")
 
     @classmethod

@@ -4,9 +4,10 @@ A vehicle fault names one vehicle. The launcher carries it out on the process (a
 new process); every other vehicle learns it as a roster change from the tick it lands on
 (cdus.core.events: kill -> gone, pause -> paused, resume -> live, restart -> gone and live
 again as a new process). :meth:`apply` gives a node that roster change, so the in-process
-fleet and a neighbour's agent take a fault alike. Its three names differ on purpose and are
-written here only: the CLI's ``pause-vehicle`` (``pause`` is the fleet's), the wire's
-``pause_vehicle``, the scenario event's ``pause`` (an event always names its vehicle).
+fleet and a neighbour's agent take a fault alike. Its three names differ on purpose: the CLI's
+``pause-vehicle`` (``pause`` is the fleet's) and the wire's ``pause_vehicle``, written here only,
+and the scenario event's ``pause`` (an event always names its vehicle), the core's word
+(cdus.core.vocabulary.FAULT_ACTIONS, which the roster is planned with).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from typing import Any, ClassVar, Mapping, Sequence
 
 from cdus.commands.base import Applied, Names, Rejected, unknown_keys, vehicle_id
 from cdus.core.events import RosterChange
+from cdus.core.vocabulary import KILL, PAUSE, RESTART, RESUME
 
 
 @dataclass(frozen=True)
@@ -58,7 +60,7 @@ class _VehicleFault:
 class Kill(_VehicleFault):
     """SIGKILL the vehicle's process: gone from the fault's tick (a restart brings it back)."""
 
-    NAMES: ClassVar[Names] = Names(cli="kill", op="kill", event="kill")
+    NAMES: ClassVar[Names] = Names(cli="kill", op="kill", event=KILL)
     STATES: ClassVar[tuple[str, ...]] = ("gone",)
 
 
@@ -66,7 +68,7 @@ class Kill(_VehicleFault):
 class PauseVehicle(_VehicleFault):
     """SIGSTOP the process: paused (silent, its last ω held), gone once its lease lapses."""
 
-    NAMES: ClassVar[Names] = Names(cli="pause-vehicle", op="pause_vehicle", event="pause")
+    NAMES: ClassVar[Names] = Names(cli="pause-vehicle", op="pause_vehicle", event=PAUSE)
     STATES: ClassVar[tuple[str, ...]] = ("paused",)
 
 
@@ -74,7 +76,7 @@ class PauseVehicle(_VehicleFault):
 class ResumeVehicle(_VehicleFault):
     """SIGCONT a paused process: live again, carrying on where it was."""
 
-    NAMES: ClassVar[Names] = Names(cli="resume-vehicle", op="resume_vehicle", event="resume")
+    NAMES: ClassVar[Names] = Names(cli="resume-vehicle", op="resume_vehicle", event=RESUME)
     STATES: ClassVar[tuple[str, ...]] = ("live",)
 
 
@@ -83,14 +85,12 @@ class Restart(_VehicleFault):
     """A new process for the vehicle: gone and live again at the fault's tick, rejoining where
     the world last saw it."""
 
-    NAMES: ClassVar[Names] = Names(cli="restart", op="restart", event="restart")
+    NAMES: ClassVar[Names] = Names(cli="restart", op="restart", event=RESTART)
     STATES: ClassVar[tuple[str, ...]] = ("gone", "live")
     FRESH: ClassVar[bool] = True
 
 
 VehicleFault = Kill | PauseVehicle | ResumeVehicle | Restart
 VEHICLE_FAULTS: tuple[type[_VehicleFault], ...] = (Kill, PauseVehicle, ResumeVehicle, Restart)
-#: the scenario's event actions for a vehicle's process (cdus.core.events.ACTIONS, in that order)
-FAULT_EVENTS = tuple(f.NAMES.event for f in VEHICLE_FAULTS)
 BY_EVENT = {f.NAMES.event: f for f in VEHICLE_FAULTS}
 BY_OP = {f.NAMES.op: f for f in VEHICLE_FAULTS}

@@ -22,16 +22,15 @@ import math
 from dataclasses import dataclass
 from typing import Iterable, Sequence
 
-from cdus.core.vocabulary import ROSTER_STATES
+from cdus.core.vocabulary import KILL, PAUSE, RESTART, RESUME, ROSTER_STATES
 
-ACTIONS = ("kill", "pause", "resume", "restart")
 LEASE_S = 1.0  # the liveliness lease the launcher sets: a frozen process is gone after this
 
 
 @dataclass(frozen=True)
 class Event:
     at: float  # simulated seconds
-    action: str  # kill | pause | resume | restart
+    action: str  # one of cdus.core.vocabulary.FAULT_ACTIONS: kill | pause | resume | restart
     vehicle: str
 
 
@@ -69,20 +68,20 @@ def plan_roster(events: Iterable[Event], ids: Sequence[str], period: float,
 
     for ev in sorted(events, key=lambda e: e.at):
         j, n = index[ev.vehicle], event_tick(ev.at, period)
-        if ev.action == "kill" and state[j] != "gone":
+        if ev.action == KILL and state[j] != "gone":
             lapse(j, n)
             if state[j] != "gone":
                 changes.append(RosterChange(n, j, "gone"))
                 state[j] = "gone"
-        elif ev.action == "pause" and state[j] == "live":
+        elif ev.action == PAUSE and state[j] == "live":
             changes.append(RosterChange(n, j, "paused"))
             state[j], paused_at[j] = "paused", n
-        elif ev.action == "resume" and state[j] == "paused":
+        elif ev.action == RESUME and state[j] == "paused":
             lapse(j, n)
             changes.append(RosterChange(n, j, "live"))
             state[j] = "live"
             paused_at.pop(j, None)
-        elif ev.action == "restart":
+        elif ev.action == RESTART:
             paused_at.pop(j, None)
             changes.append(RosterChange(n, j, "gone"))
             changes.append(RosterChange(n, j, "live", fresh=True))

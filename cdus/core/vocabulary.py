@@ -31,3 +31,13 @@ RADIO_CAUSES = ("fault", *CHANNEL_CAUSES)
 #: a vehicle's state in a fleet's roster (cdus.core.events): stepping, paused (by a fault or a
 #: ground station), gone (killed, lost)
 ROSTER_STATES = ("live", "paused", "gone")
+
+#: what a scenario ``[[event]]`` does to one vehicle's process (cdus.core.events plans the roster
+#: from them; they are the event names of cdus.commands.vehicle's Kill, PauseVehicle,
+#: ResumeVehicle and Restart, whose CLI words and wire ops differ: ``pause-vehicle``, ``pause_vehicle``)
+FAULT_ACTIONS = ("kill", "pause", "resume", "restart")
+KILL, PAUSE, RESUME, RESTART = FAULT_ACTIONS
+#: what a scenario ``[[event]]`` changes besides a vehicle's process: the formation, one vehicle's
+#: path (the event names of cdus.commands.changes' Formation and Path)
+CHANGE_ACTIONS = ("formation", "path")
+FORMATION, PATH = CHANGE_ACTIONS

@@ -36,21 +36,19 @@ from typing import Any, Mapping, Sequence
 
 from cdus.commands.base import Rejected
 from cdus.commands.radio import Radio
-from cdus.commands.vehicle import BY_EVENT as FAULT_BY_EVENT, FAULT_EVENTS
+from cdus.commands.vehicle import BY_EVENT as FAULT_BY_EVENT
 from cdus.core.events import Event
 from cdus.core.formation import MAX_PHASE, FormationChange, PathChange, phases_from_offsets
 from cdus.scenario.paths import check_path  # noqa: F401 (also the world's and the agents' door to a new path)
 from cdus.scenario.checks import IdList, Problems, describe, is_number, quote, show
 from cdus.core.radiolink import RadioEvent
-from cdus.core.vocabulary import ROSTER_STATES
+from cdus.core.vocabulary import CHANGE_ACTIONS, FAULT_ACTIONS, KILL, PATH, PAUSE, RESTART, RESUME, ROSTER_STATES
 from cdus.wire.bounds import BOUNDS
 
 EVENT_KEYS = ("at", "action", "vehicle", "duration", "phases", "offsets", "path")
 REQUIRED = ("at", "action", "vehicle")
-#: the actions that change the formation or a path (the others are vehicle faults): the event names of
-#: cdus.commands.changes.Formation and Path (which import this module's checks; tests/commands pins them equal)
-CHANGE_ACTIONS = ("formation", "path")
-ALL_ACTIONS = FAULT_EVENTS + CHANGE_ACTIONS
+#: the actions a vehicle-fault or change event takes (cdus.core.vocabulary; a radio event is radio_event_section's)
+ALL_ACTIONS = FAULT_ACTIONS + CHANGE_ACTIONS
 OFFSET_KEYS = ("i", "k", "delta")
 PATH_EXAMPLE = '{ family = "circle", center = [0, 0], radius = 10 }'
 #: ω units: how far a formation's given offsets may be from the ones its phases give (float64
@@ -75,12 +73,12 @@ def event_section(p: Problems, raw: Any, ids: Sequence[str] | None) -> tuple[Eve
 
 
 # what each action needs the vehicle to be, and what it leaves it
-_NEEDS = {"kill": ("live", "paused"), "pause": ("live",), "resume": ("paused",), "restart": ROSTER_STATES}
-_LEAVES = {"kill": "gone", "pause": "paused", "resume": "live", "restart": "live"}
-_FIX = {"kill": "it is already gone (killed before): remove one of the kills",
-        "pause": "it is {state} then: pause a live vehicle (a killed one needs a restart first)",
-        "resume": "it is {state} then, not paused: remove it, or pause the vehicle first "
-                  "(a killed vehicle comes back with a restart)"}
+_NEEDS = {KILL: ("live", "paused"), PAUSE: ("live",), RESUME: ("paused",), RESTART: ROSTER_STATES}
+_LEAVES = {KILL: "gone", PAUSE: "paused", RESUME: "live", RESTART: "live"}
+_FIX = {KILL: "it is already gone (killed before): remove one of the kills",
+        PAUSE: "it is {state} then: pause a live vehicle (a killed one needs a restart first)",
+        RESUME: "it is {state} then, not paused: remove it, or pause the vehicle first "
+                "(a killed vehicle comes back with a restart)"}
 
 
 def _check_sequence(p: Problems, fielded: list[tuple[Event, str]]) -> list[Event]:
@@ -123,7 +121,7 @@ def _event(p: Problems, e: dict, field: str, ids: Sequence[str] | None) -> list[
     vehicle = p.vehicle(e["vehicle"], f"{field}.vehicle", ids)
     duration = None
     if "duration" in e:
-        if action is not None and action != "pause":
+        if action is not None and action != PAUSE:
             p.add(f"{field}.duration", f"only a pause takes a duration (this event is a {quote(action)}); remove it")
         else:
             duration = p.number(e["duration"], f"{field}.duration", "event.duration",
@@ -136,7 +134,7 @@ def _event(p: Problems, e: dict, field: str, ids: Sequence[str] | None) -> list[
         return []
     events = [Event(at, fault.NAMES.event, fault.vehicle)]
     if duration is not None:
-        events.append(Event(at + duration, "resume", vehicle))
+        events.append(Event(at + duration, RESUME, vehicle))
     return events
 
 
@@ -172,7 +170,7 @@ def change_section(p: Problems, raw: Any, ids: Sequence[str] | None, dims: Mappi
     current = list(base) if base is not None else None
     out: list[FormationChange | PathChange] = []
     for at, _, field, e in pending:
-        if e["action"] == "path":
+        if e["action"] == PATH:
             change = _path_change(p, e, field, at, ids, dims)
         else:
             change = _formation_change(p, e, field, at, ids, edges, directed, current)

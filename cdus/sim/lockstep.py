@@ -48,6 +48,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Sequence
 
+from cdus.commands.vehicle import BY_EVENT as FAULT_BY_EVENT
 from cdus.core.events import LEASE_S, Event, RosterChange, event_tick, plan_roster
 from cdus.sim.reports import commanded_fault, scheduled_fault, vehicle_back, vehicle_lost
 from cdus.wire.schemas import FleetEvent
@@ -57,7 +58,8 @@ GRANT_WINDOW = 100  # ticks the fastest vehicle may run ahead of the slowest, at
 #: world_sim.world.HORIZON_S of wall time, so an operator's command, which applies past every
 #: grant, still lands soon); a vehicle's ω seq check allows twice this (vehicle_agent.agent)
 MAX_GRANT_WINDOW = 2000
-FAULT_OPS = {"kill": "kill", "pause": "pause_vehicle", "resume": "resume_vehicle", "restart": "restart"}
+#: a vehicle fault's scenario action -> the launcher's op for it (cdus.commands.vehicle's names)
+FAULT_OPS = {event: fault.NAMES.op for event, fault in FAULT_BY_EVENT.items()}
 
 
 def horizon_window(ticks_per_s: float, horizon_s: float) -> int:

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import hashlib
 import hmac
-from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any, Collection
 
@@ -82,7 +81,7 @@ class StatusExtra:
 
 
 @dataclass(frozen=True, kw_only=True)
-class WorldStatus(StatusExtra, Mapping):
+class WorldStatus(StatusExtra):
     """The world's status as :func:`decode_status` checked it: a reader takes each field as it is.
 
     ``t`` and ``duration`` finite (s; ``t`` from -1), ``clock`` one of CLOCKS, ``alive`` a subset
@@ -91,9 +90,6 @@ class WorldStatus(StatusExtra, Mapping):
     fields (STATUS_EXTRA, the :class:`StatusExtra` it extends) are None when the world did not send them; when present, ``kinds``,
     ``states``, ``rx`` and ``path_errors`` have one entry per id, ``edges``, ``links`` and
     ``closest`` name ids of the status, and each value is within its bounds.
-
-    It reads as a map too (``st["t"]``, ``st.get("kinds")``, its keys STATUS_KEYS and the extras
-    present), as the dict this decoder returned before did, for readers not moved to the fields.
     """
 
     t: float
@@ -106,20 +102,6 @@ class WorldStatus(StatusExtra, Mapping):
     events: list[FleetEvent]
     paused: bool
     roster: dict[str, str] | None
-
-    def _names(self) -> list[str]:
-        return [*STATUS_KEYS, *(k for k in STATUS_EXTRA if getattr(self, k) is not None)]
-
-    def __getitem__(self, name: str) -> Any:
-        if name in STATUS_KEYS or name in STATUS_EXTRA and getattr(self, name) is not None:
-            return getattr(self, name)
-        raise KeyError(name)
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(self._names())
-
-    def __len__(self) -> int:
-        return len(self._names())
 
 
 STATUS_LIMIT = 1 << 16  # bytes: decode_status takes no bigger status

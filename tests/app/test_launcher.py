@@ -233,7 +233,7 @@ def test_a_world_status_with_a_time_that_is_not_a_plausible_number_is_dropped(tm
         raw["t"] = bad
         world_says(la, msgpack.packb(raw))
     world_says(la, b"junk")
-    assert la.status["t"] == 12.5
+    assert la.status.t == 12.5
     assert sum(la.rejected.values()) == 5 and la.rejected["status malformed"] == 1, la.rejected
     # 1e308 and -5 s are numbers: the status decoder refuses them as out of range, or the
     # launcher's own check of the run's time does
@@ -494,11 +494,11 @@ def test_only_the_statuses_of_the_world_started_here_are_believed(tmp_path):
     la._on_status(Sample(forged, "cdus/t/world/status", status_signature(b"another key", forged)))
     la._on_status(Sample(forged, "cdus/t/world/status", status_signature(la.status_key, status(12.5))))  # another's
     world_says(la, status(3.0))  # a genuine one replayed, older than the newest
-    assert la.status["t"] == 12.5
+    assert la.status.t == 12.5
     assert la.rejected == {"status unsigned": 3, "status stale": 1}, la.rejected
     assert la.write_world_lost(-9, 3.0)["world_lost"]["last_status_t"] == 12.5
     world_says(la, status(13.0))
-    assert la.status["t"] == 13.0
+    assert la.status.t == 13.0
 
 
 def test_the_key_goes_to_the_world_alone(tmp_path, monkeypatch):

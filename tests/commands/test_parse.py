@@ -13,9 +13,8 @@ from cdus.commands.changes import Formation, Path
 from cdus.commands.gains import Gains
 from cdus.commands.parse import BY_CLI, BY_EVENT, BY_OP, COMMANDS, decode_command, parse_cli, parse_event, parse_wire, wire_of
 from cdus.commands.radio import Radio
-from cdus.commands.vehicle import FAULT_EVENTS, Kill, PauseVehicle, Restart, ResumeVehicle
-from cdus.core.events import ACTIONS
-from cdus.scenario.events import CHANGE_ACTIONS
+from cdus.commands.vehicle import Kill, PauseVehicle, Restart, ResumeVehicle
+from cdus.core.vocabulary import CHANGE_ACTIONS, FAULT_ACTIONS
 from cdus.wire.messages import COMMAND_OPS, LAUNCHER_OPS, encode_control
 
 _scalar = st.one_of(st.none(), st.booleans(), st.integers(-2**63, 2**63 - 1), st.floats(), st.text(max_size=8))
@@ -105,9 +104,10 @@ def test_every_name_round_trips_and_is_defined_once():
     assert len({c.NAMES.cli for c in COMMANDS}) == len({c.NAMES.op for c in COMMANDS}) == len(COMMANDS)
     assert set(BY_OP) <= set(COMMAND_OPS)  # every op the world is sent is one it decodes
     assert {f.NAMES.op for f in (Kill, PauseVehicle, ResumeVehicle, Restart)} == set(LAUNCHER_OPS)
-    assert FAULT_EVENTS == ACTIONS  # the roster's (cdus.core.events, below this room) in the same order
-    assert CHANGE_ACTIONS == (Formation.NAMES.event, Path.NAMES.event)
-    assert Radio.NAMES.event == "radio"
+    # every scenario action (cdus.core.vocabulary's words) has the one command that parses it, and no
+    # command answers to an action the scenario does not take
+    assert sorted(BY_EVENT) == sorted([*FAULT_ACTIONS, *CHANGE_ACTIONS, Radio.NAMES.event])
+    assert (BY_EVENT["formation"], BY_EVENT["path"]) == (Formation, Path)
 
 
 @pytest.mark.parametrize("command", [

@@ -141,7 +141,7 @@ class WorldTime:
         st = decode_status(sample.payload.to_bytes())
         if not isinstance(st, Rejected):
             with self.cond:
-                self.t = float(st["t"])
+                self.t = st.t
                 self.cond.notify_all()
 
     def wait_past(self, t: float, timeout: float = 60.0) -> float:

@@ -80,7 +80,7 @@ def _attack(port: int, fleet: str, sc, *, hold: bool) -> dict:
         session.declare_subscriber(keys.world_status(fleet), lambda s: status.put(decode_status(s.payload.to_bytes())))
         while True:
             st = status.get(timeout=60)
-            if not isinstance(st, Rejected) and st["t"] >= 1.0:
+            if not isinstance(st, Rejected) and st.t >= 1.0:
                 break
         if hold:  # hold the fleet so every piece is in before it steps on (a pause changes nothing in lockstep)
             session.put(keys.world_cmd(fleet, "test"), encode_control("pause"), congestion_control=BLOCK)

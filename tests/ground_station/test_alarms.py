@@ -167,7 +167,7 @@ def test_any_status_sequence_raises_and_clears_consistently(seq):
             else:
                 assert key in active  # only what was raised is cleared
                 active.remove(key)
-            assert ch.t == st["t"] or ch.raised and ch.alarm.kind == "vehicle_lost" and ch.t < st["t"]
+            assert ch.t == st.t or ch.raised and ch.alarm.kind == "vehicle_lost" and ch.t < st.t
         assert active == set(a.active)
         lost = {(k, v) for k, v in active if k == "vehicle_lost"}
         if isinstance(s["t"], float):

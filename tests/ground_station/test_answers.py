@@ -328,7 +328,7 @@ def test_the_snapshot_saves_the_settings_the_world_says_and_counts_a_reply_it_ca
 def test_wait_for_status_asks_the_world_at_once_and_checks_the_answer():
     ok = encode_status(3.0, 10.0, "lockstep", ["usv1"], ["usv1"], None, None, [], False)
     gs = station([Reply("cdus/f/world/status", b"\xc1"), Reply("cdus/f/world/status", ok)])
-    assert gs.wait_for_status(0.2) and gs.view.world["t"] == 3.0
+    assert gs.wait_for_status(0.2) and gs.view.world.t == 3.0
     assert gs.session.asked[-1][0] == "cdus/f/world/status"
     assert gs.view.rejected_by_reason["status_malformed"] == 1  # a reply is checked as a published status is
     assert not station([]).wait_for_status(0.2)  # no answer, nothing published: still waits, then says no

@@ -5,8 +5,17 @@ from cdus.commands.parse import nested
 from cdus.wire.rejected import Rejected
 from ground_station.console import FleetView, status_table
 from cdus.wire.messages import StateMsg
-from cdus.wire.schemas import FleetEvent
+from cdus.wire.schemas import FleetEvent, StatusExtra, WorldStatus, decode_status, encode_status
 from ground_station.__main__ import main as gs_main
+
+
+def status(t: float, duration: float, clock: str, alive: list[str], ids: list[str], path: float | None = None,
+           coord: float | None = None, events: tuple = (), roster: dict | None = None, **extra) -> WorldStatus:
+    """A status as the console gets it: encoded by the world's encoder, decoded by decode_status."""
+    st = decode_status(encode_status(t, duration, clock, alive, ids, path, coord, list(events), False, roster,
+                                     StatusExtra(**extra)))
+    assert isinstance(st, WorldStatus), st
+    return st
 
 
 def test_settings_become_a_nested_link_table():
@@ -20,9 +29,8 @@ def test_status_table_shows_every_known_vehicle_the_world_and_its_events():
     view = FleetView()
     view.states["usv1"] = StateMsg(0, 500, 10.0, (1.0, 2.0), 0.3, 10.0, -9.9, -1.0, 0.06)
     view.alive = {"usv1", "world"}
-    view.world = {"t": 10.0, "duration": 250.0, "clock": "realtime", "alive": ["usv1"],
-                  "ids": ["usv1", "uav1"], "path_error_max": 0.06, "coord_error_max": 0.5,
-                  "events": [FleetEvent.of(9.0, "vehicle_lost", "vehicle uav1 lost", vehicle="uav1")]}
+    view.world = status(10.0, 250.0, "realtime", ["usv1"], ["usv1", "uav1"], 0.06, 0.5,
+                        [FleetEvent.of(9.0, "vehicle_lost", "vehicle uav1 lost", vehicle="uav1")])
     text = status_table(view)
     lines = text.splitlines()
     assert any(ln.startswith("usv1") and "yes" in ln and "0.060" in ln and "(1.0, 2.0)" in ln for ln in lines)
@@ -37,9 +45,8 @@ def test_status_table_rows_and_footer_agree_when_every_vehicle_has_left():
     view = FleetView()
     view.world_seen = True
     view.alive = {"world"}  # the vehicles have left; the world is winding down
-    view.world = {"t": 250.0, "duration": 250.0, "clock": "lockstep", "alive": ["usv1", "uav1"],
-                  "ids": ["usv1", "uav1"], "states": ["live", "live"], "path_error_max": 0.06,
-                  "coord_error_max": 0.5}
+    view.world = status(250.0, 250.0, "lockstep", ["usv1", "uav1"], ["usv1", "uav1"], 0.06, 0.5,
+                        states=["live", "live"])
     text = status_table(view)
     assert "0/2 vehicles alive" in text, text
     assert all(" NO " in ln for ln in text.splitlines() if ln.startswith(("usv1", "uav1")))
@@ -52,10 +59,8 @@ def test_status_table_after_the_worlds_last_status_says_ended_not_lost():
     view = FleetView()
     view.world_seen = True
     view.alive = {"world"}
-    view.world = {"t": 250.0, "duration": 250.0, "clock": "lockstep", "alive": ["usv1", "uav1"],
-                  "ids": ["usv1", "uav1"], "states": ["live", "gone"], "roster": {"usv1": "live", "uav1": "gone"},
-                  "path_error_max": 0.06,
-                  "coord_error_max": 0.5, "completion": "completed"}
+    view.world = status(250.0, 250.0, "lockstep", ["usv1", "uav1"], ["usv1", "uav1"], 0.06, 0.5,
+                        roster={"usv1": "live", "uav1": "gone"}, states=["live", "gone"], completion="completed")
     text = status_table(view)
     assert "0/2 vehicles alive" in text and "the run is over: completed" in text, text
     assert any(ln.startswith("usv1") and "(the run ended)" in ln for ln in text.splitlines())
@@ -156,19 +161,32 @@ def test_numbers_that_are_not_finite_numbers_are_shown_as_such():
     assert num("x\x1b[31m") == "?'x\\x1b[31m'" and num(True) == "?True" and num([1]) == "?[1]"
 
 
-def test_the_status_table_escapes_every_wire_string_and_survives_any_value():
+def test_a_status_of_bad_values_never_reaches_the_table_and_what_does_is_escaped():
+    """The table read the status as a map and checked each value again (t = 1e308, a clock of
+    escape codes, alive not a list, ids that are no ids, an error as a string or NaN). Such a
+    status is refused where it enters (decode_status, counted) and the table reads the typed
+    fields; the strings that do reach it (a telemetry sender's name, an event's text) are escaped."""
+    import msgpack
+
     esc = "\x1b[2J\x1b[31mOK\r\n"
-    view = FleetView()
+    gs = GroundStation("f", None)
+    good = msgpack.unpackb(encode_status(10.0, 250.0, "realtime", ["usv1"], ["usv1"], 0.06, 0.5, [], False))
+    for bad in ({"t": 1e308}, {"clock": esc}, {"alive": "not a list"}, {"ids": [esc, 7, None]},
+                {"path_error_max": "0.0"}, {"coord_error_max": math.nan}):
+        gs._on_status(Sample("cdus/f/world/status", msgpack.packb({**good, **bad})))
+    assert gs.view.world is None and gs.view.rejected == 6
+    view = gs.view
     view.states[esc] = StateMsg(0, 1, math.nan, (math.inf, 1e308), 0.0, 0.0, -math.inf, 1.0, math.nan)
     view.alive = {esc, "world"}
-    view.world = {"t": 1e308, "duration": 250.0, "clock": esc, "alive": "not a list", "ids": [esc, 7, None],
-                  "path_error_max": "0.0", "coord_error_max": math.nan, "paused": False,
-                  "events": [FleetEvent.of(1.0, "fleet", esc + "t = 250 s: done"), "not an event"]}
+    text = status_table(view)
+    assert "\x1b" not in text and "\r" not in text and "\\x1b[2J" in text
+    assert "nan" in text.splitlines()[1] and "(inf, 1e+308)" in text
+    view.world = status(10.0, 250.0, "realtime", ["usv1"], ["usv1"], 0.06, None,
+                        [FleetEvent.of(1.0, "fleet", esc + "t = 250 s: done")])
     text = status_table(view)
     assert "\x1b" not in text and "\r" not in text
     assert text.count("\n") == len(text.splitlines()) - 1 and "\\x1b[2J" in text
-    assert "world: t = 1e+308 / 250 s" in text and "worst |Φ| ?'0.0' m" in text and "edge error nan rad" in text
-    assert "nan" in text.splitlines()[1] and "(inf, 1e+308)" in text
+    assert "world: t = 10.0 / 250 s (realtime), 0/1 vehicles alive" in text and "worst edge error - rad" in text
 
 
 class Sample:
@@ -312,8 +330,8 @@ def test_a_link_command_on_every_link_is_one_line_of_the_status_table_not_twelve
     twice = [link_state_event(1.0, links[0], "lossy"), link_state_event(1.1, links[0], "lossy")]
     assert group_link_states(twice) == twice
     view = FleetView()
-    view.world = {"t": 31.0, "duration": 250.0, "clock": "realtime", "alive": [], "ids": [],
-                  "path_error_max": None, "coord_error_max": None, "events": [cmd, *lossy, later]}
+    view.world = status(31.0, 250.0, "realtime", [], ["usv1", "usv2", "usv3", "uav1"], None, None,
+                        [cmd, *lossy, later])
     text = status_table(view)
     assert "link loss=0.1 by gs:alice" in text and "6 links lossy" in text and text.count("lossy") == 1
 
@@ -348,8 +366,7 @@ def test_status_table_has_no_row_for_the_fleets_own_non_vehicle_tokens():
     view.states["usv1"] = StateMsg(0, 500, 10.0, (1.0, 2.0), 0.3, 10.0, -9.9, -1.0, 0.06)
     view.states["forged"] = view.states["usv1"]
     view.alive = {"usv1", "world", "ros2", "launcher"}
-    view.world = {"t": 10.0, "duration": 250.0, "clock": "realtime", "alive": ["usv1"],
-                  "ids": ["usv1"], "path_error_max": 0.06, "coord_error_max": 0.5}
+    view.world = status(10.0, 250.0, "realtime", ["usv1"], ["usv1"], 0.06, 0.5)
     rows = [ln.split()[0] for ln in status_table(view).splitlines()[1:] if not ln.startswith("world:")]
     assert rows == ["usv1"]
     view.world = None  # before the world's first status: whoever is heard, but no process of the fleet's own

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 from cdus.wire import keys
 from cdus.wire.messages import LAUNCHER_OPS, decode_control, encode_control
-from tests.fakes import Payload, Sample
 from tests.world_sim.test_world import FLEET, world
 from tests.world_sim.test_commands import ask, launcher_done
 
@@ -39,7 +38,6 @@ import msgpack  # noqa: E402
 from hypothesis import given, settings, strategies as hs  # noqa: E402
 
 from tests.world_sim.test_world import started  # noqa: E402
-from tests.world_sim.test_commands import Query, _wake  # noqa: E402
 
 _atoms = (hs.none() | hs.booleans() | hs.integers(-2**63, 2**64 - 1) | hs.floats() | hs.text(max_size=12)
           | hs.sampled_from(["usv1", "usv2", "usv3", "uav1", "uav2", "uav3", "circle", "lissajous", "ellipse",
@@ -64,9 +62,7 @@ def test_fuzzed_changes_are_answered_once_and_never_an_internal_error(op, fields
     else:
         for vid in w.ids:
             w.alive(vid, True)
-    q = Query(keys.world_command(FLEET, keys.GROUND), msgpack.packb({"v": 1, "op": op, **fields}))
-    w._on_command_query(q)
-    w.feed(keys.wake(FLEET, keys.WORLD))
+    q = w.ask(keys.world_command(FLEET, keys.GROUND), msgpack.packb({"v": 1, "op": op, **fields}))
     r = q.answer
     assert r is not None
     assert w.st.rejects["internal"] == 0, r.reason

@@ -103,9 +103,9 @@ def test_a_vehicle_without_a_liveliness_token_is_lost_whatever_the_roster_says()
     assert vehicle_state("usv2", w, {"usv1", "uav1"}) == "lost"
     assert vehicle_state("usv2", w, {"usv1", "usv2", "uav1"}) == "live"
     assert vehicle_state("usv2", None, {"usv2"}) == "live" and vehicle_state("usv2", None, set()) == "lost"
-    old = {k: v for k, v in world(1.0).items() if k != "states"}  # a world without roster states
+    old = dataclasses.replace(world(1.0), states=None)  # a world without roster states
     assert vehicle_state("usv2", old, set()) == "live"  # before our tokens come in: the world's alive
-    assert vehicle_state("usv2", {**old, "alive": ["usv1"]}, set()) == "lost"
+    assert vehicle_state("usv2", dataclasses.replace(old, alive=["usv1"]), set()) == "lost"
     assert vehicle_state("usv2", world(1.0, states=("live", "paused", "live")), {"usv2"}) == "paused"
     # once our tokens are in, none left means every vehicle left (the end of a run), not "use the world's"
     assert vehicle_state("usv2", old, set(), tokens_in=True) == "lost"
@@ -125,7 +125,7 @@ def test_vehicles_leaving_with_the_runs_end_are_ended_and_raise_no_alarm():
     assert [r[2] for r in snap["rows"]] == ["live", "lost", "ended"]
     assert "1/3 vehicles alive" in snap["header"] and "RUN OVER: completed" in snap["header"]
     st = alarm_status(gs.view.world, snap["alive"], tokens_in=True)
-    assert st["states"] == ["live", "gone", "live"]
+    assert st.states == ["live", "gone", "live"]
     raised = [ch.alarm.subject for ch in Alarms().update(st) if ch.raised and ch.alarm.kind == "vehicle_lost"]
     assert raised == ["usv2"]  # the one gone before the end, not uav1 that left with it
 

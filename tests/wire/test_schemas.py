@@ -230,25 +230,27 @@ def status(**over) -> bytes:
 
 def test_world_status_round_trips():
     st = decode_status(status())
-    assert set(st) == set(STATUS_KEYS)
-    assert st["t"] == 12.0 and st["duration"] == 250.0 and st["clock"] == "lockstep"
-    assert st["alive"] == ["usv1", "uav1"] and st["ids"] == ["usv1", "uav1", "uav2"]
-    assert st["path_error_max"] == 0.05 and st["coord_error_max"] == 0.01
-    assert st["events"] == [FleetEvent.of(10.0, "vehicle_lost", "vehicle uav2 lost", vehicle="uav2")]
-    assert st["paused"] is False
-    assert decode_status(status(paused=True))["paused"] is True
+    assert set(STATUS_KEYS) <= set(WorldStatus.__dataclass_fields__)  # every field a status carries, typed
+    with pytest.raises(TypeError):  # no map view: a reader takes the typed fields (it offered st["t"] too)
+        st["t"]
+    assert st.t == 12.0 and st.duration == 250.0 and st.clock == "lockstep"
+    assert st.alive == ["usv1", "uav1"] and st.ids == ["usv1", "uav1", "uav2"]
+    assert st.path_error_max == 0.05 and st.coord_error_max == 0.01
+    assert st.events == [FleetEvent.of(10.0, "vehicle_lost", "vehicle uav2 lost", vehicle="uav2")]
+    assert st.paused is False
+    assert decode_status(status(paused=True)).paused is True
 
 
 def test_status_of_an_empty_run_carries_no_errors():
     st = decode_status(status(path_error_max=None, coord_error_max=float("nan"), events=[]))
-    assert st["path_error_max"] is None and st["coord_error_max"] is None and st["events"] == []
+    assert st.path_error_max is None and st.coord_error_max is None and st.events == []
 
 
 def test_status_drops_malformed_events_but_keeps_the_rest():
     d = msgpack.unpackb(status(), raw=False)
     d["events"].append({"t": "soon", "kind": "fleet", "text": "?"})
     st = decode_status(pack(d))
-    assert len(st["events"]) == 1
+    assert len(st.events) == 1
 
 
 @pytest.mark.parametrize("field, value, reason", [

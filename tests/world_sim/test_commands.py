@@ -1,6 +1,6 @@
 """The world answers every command asked as a query (world/cmd/<from>): applied from a tick, or
 rejected with the reason; a lockstep vehicle fault once Lockstep has decided it. No network:
-fake queries record the replies."""
+the queries are asked through World.ask, which records the replies."""
 
 from __future__ import annotations
 
@@ -18,56 +18,15 @@ from cdus.scenario.events import check_path
 from cdus.scenario.link import merge_link_tables, validate_link
 from cdus.wire import keys
 from cdus.wire.messages import CTL_OPS, LAUNCHER_OPS, decode_control, encode_control
-from cdus.wire.schemas import CommandReply, decode_reply
-from tests.fakes import Payload
+from world_sim.asking import Asked
 from tests.scenario.test_bounds_walk import EXTREMES, numbers
-from world_sim.world import LINK_LEAD
 
 from .test_world import FLEET, ctl_ops, row, send_rows, started, world
 
 
-class Query:
-    """A command query as the world's queryable gets it; records the replies."""
-
-    def __init__(self, key: str, payload: bytes | None):
-        self.key_expr = key
-        self.payload = None if payload is None else Payload(payload)
-        self.replies: list[tuple[str, bytes]] = []
-        self.errors: list[bytes] = []
-        self.dropped = False
-
-    def reply(self, key, payload) -> None:
-        assert not self.dropped, "replied after the query was finalized"
-        self.replies.append((str(key), bytes(payload)))
-
-    def reply_err(self, payload) -> None:
-        assert not self.dropped, "replied after the query was finalized"
-        self.errors.append(bytes(payload))
-
-    def drop(self) -> None:
-        self.dropped = True
-
-    @property
-    def answer(self) -> CommandReply | None:
-        assert len(self.replies) <= 1, self.replies
-        if not self.replies:
-            return None
-        r = decode_reply(self.replies[0][1])
-        assert isinstance(r, CommandReply), r
-        assert self.replies[0][0] == self.key_expr and self.dropped
-        return r
-
-
-def ask(w, op: str, sender: str = keys.GROUND, raw: bytes | None = None, **fields) -> Query:
-    q = Query(keys.world_command(FLEET, sender), encode_control(op, **fields) if raw is None else raw)
-    w._on_command_query(q)
-    w.feed(keys.wake(FLEET, keys.WORLD))
-    return q
-
-
-def _wake():
-    from tests.fakes import Sample
-    return Sample(keys.wake(FLEET, keys.WORLD), Payload(b""))
+def ask(w, op: str, sender: str = keys.GROUND, raw: bytes | None = None, **fields) -> Asked:
+    """Command ``op`` asked as ``sender`` through the world's public door, and answered."""
+    return w.ask(keys.world_command(FLEET, sender), encode_control(op, **fields) if raw is None else raw)
 
 
 def report_through(w, n: int) -> None:
@@ -110,8 +69,7 @@ def test_gains_and_link_are_answered_with_their_tick_or_why_they_were_refused():
     r = ask(w, "link", link={"loss": 7.0}, at=-1.0).answer  # a table the agents would refuse
     assert r.status == "rejected" and "loss" in r.reason
     r = ask(w, "link", link={"loss": 0.1}, at=-1.0).answer
-    at = max(LINK_LEAD, (g + 1) * w.period)
-    assert r.applied and r.t == at and r.tick * w.period >= at - 1e-12 and r.reason == ""
+    assert r.applied and (r.tick, r.t, r.reason) == (g + 1, (g + 1) * w.period, "")  # the effect tick, as gains
     # an --at already past is moved, and the answer says so (it said nothing: rev18-user)
     r = ask(w, "link", link={"loss": 0.2}, at=0.0).answer
     assert r.applied and r.t > 0 and r.reason.startswith("t = 0 s asked had passed"), r
@@ -123,11 +81,31 @@ def test_gains_and_link_are_answered_with_their_tick_or_why_they_were_refused():
     assert w.st.rejects["gains"] == 3 and w.st.rejects["link"] == 2
 
 
+def test_a_link_or_radio_change_without_a_time_applies_from_the_effect_tick_as_gains_do():
+    """One rule for every run-time change in both clocks (cdus.commands.effect): a link or radio
+    change with no --at applies from the tick past the grant, as gains does; before the first
+    grant, from tick 0. The world's own rule made it 0.5 s after the newest tick recorded, in
+    lockstep too, and a change before tick 0 applied from t = 0.5 s."""
+    from .test_radio_rerun import _radio_world
+
+    for w in (world(), _radio_world()):
+        radio = w.radio is not None
+        change = ("radio", {"radio": {"tx_power": 3.0}}) if radio else ("link", {"link": {"loss": 0.1}})
+        assert w.lockstep.granted == -1  # not started: nobody was granted a tick
+        r = ask(w, change[0], **change[1], at=-1.0).answer
+        assert r.applied and (r.tick, r.t, r.reason) == (0, 0.0, ""), (change, r)
+        w = started(w)
+        w.lockstep.granted, w.next_tick = 40, 30
+        r = ask(w, change[0], **change[1], at=-1.0).answer
+        assert r.applied and (r.tick, r.t, r.reason) == (41, 41 * w.period, ""), (change, r)
+        assert r.tick == ask(w, "set_gains", gains={"c": 2.0}, vehicle="").answer.tick
+
+
 def test_a_lockstep_vehicle_fault_is_answered_when_it_lands_on_its_tick():
     w = started(world())
     g = w.lockstep.granted
     q = ask(w, "kill", vehicle="usv2")
-    assert q.replies == [] and not q.dropped  # held: Lockstep decides it when the fleet reaches its tick
+    assert q.replies == [] and not q.done  # held: Lockstep decides it when the fleet reaches its tick
     assert ask(w, "kill", vehicle="nobody").answer.reason.startswith("no vehicle 'nobody' in this fleet")
     report_through(w, g)
     w.clock.act(w.lockstep.poll())
@@ -158,7 +136,7 @@ def test_a_fault_still_waiting_at_the_end_is_answered_rejected():
 
 def launcher_done(w, vid: str) -> None:
     """The launcher says it carried out a fault on ``vid`` (as cdus.app.launcher puts it)."""
-    w._on_command(keys.LAUNCHER, encode_control("fault_done", vehicle=vid))
+    w.feed(keys.world_cmd(FLEET, keys.LAUNCHER), encode_control("fault_done", vehicle=vid))
 
 
 def test_realtime_vehicle_faults_are_answered_when_the_launcher_has_carried_them_out():
@@ -243,9 +221,7 @@ def test_only_the_launcher_reports_a_fault_done_and_unreadable_commands_are_answ
     assert (r.status, r.op, r.reason) == ("rejected", "?", "the command could not be read: malformed")
     r = ask(w, "", raw=encode_control("pause", name="bad name!")).answer
     assert r.reason == "the command could not be read: name"
-    q = Query(keys.world_command(FLEET, keys.GROUND), None)  # a query with no payload
-    w._on_command_query(q)
-    w.feed(keys.wake(FLEET, keys.WORLD))
+    q = w.ask(keys.world_command(FLEET, keys.GROUND))  # a query with no payload
     assert q.answer.status == "rejected"
     assert w.st.rejects["sender"] == 1 and w.st.rejects["malformed"] == 2 and w.st.rejects["name"] == 1
 
@@ -263,10 +239,9 @@ def test_a_flood_of_queries_is_answered_busy_past_what_waits_and_counted():
     from world_sim.world import ANSWERS_PER_PASS, MAX_QUEUED_QUERIES
     w = started(world())
     w._command_quota = Quota(1e9, 10**6)  # the rate is another test's: here, only the queue's bound
-    qs = [Query(keys.world_command(FLEET, keys.GROUND), encode_control("set_gains", gains={"c": 2.0}, vehicle=""))
-          for _ in range(MAX_QUEUED_QUERIES + 5)]
-    for q in qs:
-        w._on_command_query(q)  # Zenoh's thread: the main thread is busy elsewhere
+    # Zenoh's thread: the main thread is busy elsewhere, it answers none yet
+    qs = [w.ask(keys.world_command(FLEET, keys.GROUND), encode_control("set_gains", gains={"c": 2.0}, vehicle=""),
+                answer=False) for _ in range(MAX_QUEUED_QUERIES + 5)]
     assert all(q.answer.reason.startswith("busy") for q in qs[MAX_QUEUED_QUERIES:])
     w.feed(keys.wake(FLEET, keys.WORLD))  # one pass answers ANSWERS_PER_PASS, the oldest first; the others wait their turn
     assert [q.answer is not None for q in qs[:MAX_QUEUED_QUERIES]] == [True] * ANSWERS_PER_PASS + [False] * (
@@ -279,7 +254,6 @@ def test_a_flood_of_queries_is_answered_busy_past_what_waits_and_counted():
 
 def test_the_put_path_still_carries_commands_out():
     """The launcher's commands and older clients put on to/+world+/cmd/<from>: no answer, same effect."""
-    from tests.fakes import Sample
     w = started(world())
     w.feed(keys.world_cmd(FLEET, keys.GROUND), encode_control("pause"))
     assert w.lockstep.paused
@@ -321,9 +295,7 @@ def test_every_query_is_answered_once_never_raises_and_counts_what_it_refuses(op
         started(w)
     for payload in (msgpack.packb({"v": 1, "op": op, **fields}), junk):
         before = w.st.rejected
-        q = Query(f"cdus/{FLEET}/world/cmd/{sender}", payload)
-        w._on_command_query(q)
-        w.feed(keys.wake(FLEET, keys.WORLD))
+        q = w.ask(f"cdus/{FLEET}/world/cmd/{sender}", payload)
         if not q.replies:  # held: a lockstep vehicle fault, decided later
             assert q.key_expr in {qq.key_expr for qq, _, _ in w._waiting.values()}
             continue
@@ -345,7 +317,6 @@ def test_lockstep_a_vehicle_paused_by_a_fault_stays_paused_in_the_status_after_i
     w.clock.act(w.lockstep.poll())
     assert q.answer.applied
     j = w.ids.index("usv3")
-    from tests.fakes import Sample
     w.feed(keys.world_cmd(FLEET, keys.LAUNCHER), encode_control("fault_done", vehicle="usv3"))
     w.alive("usv3", False)  # the token lapses
     for n in range(g + 50, g + 400, 50):  # the others step on: past the lease the roster makes it gone
@@ -447,16 +418,14 @@ def test_the_settings_query_says_every_change_made_the_phases_and_the_link_table
     from cdus.wire.schemas import decode_settings
 
     w = started(world())
-    q = Query(keys.world_settings(FLEET), None)
-    w._on_settings_query(q)
+    q = w.ask(keys.world_settings(FLEET))
     first = decode_settings(q.replies[0][1], w.ids)
     assert q.replies[0][0] == keys.world_settings(FLEET) and first["changes"] == [] and first["link"] == {}
     assert ask(w, "set_gains", gains={"k": 2.0}, vehicle="usv1").answer.applied
     assert ask(w, "link", link={"loss": 0.2}, at=-1.0).answer.applied
     assert ask(w, "formation", phases={"usv2": 1.5}, offsets=[]).answer.applied
     assert not ask(w, "set_gains", gains={"k": -1.0}, vehicle="").answer.applied  # refused: not a change
-    q = Query(keys.world_settings(FLEET), None)
-    w._on_settings_query(q)
+    q = w.ask(keys.world_settings(FLEET))
     got = decode_settings(q.replies[0][1], w.ids)
     assert [(c["seq"], c["op"], c["vehicle"]) for c in got["changes"]] == [(0, "gains", "usv1"), (1, "link", None),
                                                                          (2, "formation", None)]
@@ -468,16 +437,14 @@ def test_a_status_query_is_answered_with_the_newest_status_and_none_before_the_f
     from cdus.wire.schemas import decode_status
 
     w = started(world())
-    q = Query(keys.world_status(FLEET), None)
-    w._on_status_query(q)
+    q = w.ask(keys.world_status(FLEET))
     assert q.replies == []  # nothing published yet: the asker waits for the first
     w._publish_status()
     w.next_tick = 5
     w._publish_status()
-    q = Query(keys.world_status(FLEET), None)
-    w._on_status_query(q)
+    q = w.ask(keys.world_status(FLEET))
     assert q.replies == [(keys.world_status(FLEET), w.pub_status.puts[-1])]
-    assert decode_status(q.replies[0][1])["t"] == 4 * w.period
+    assert decode_status(q.replies[0][1]).t == 4 * w.period
 
 
 def test_a_fleet_pause_is_in_the_status_a_query_is_answered_at_once():
@@ -488,13 +455,11 @@ def test_a_fleet_pause_is_in_the_status_a_query_is_answered_at_once():
     w = started(world())
     w._publish_status()
     assert ask(w, "pause").answer.applied
-    q = Query(keys.world_status(FLEET), None)
-    w._on_status_query(q)
-    assert decode_status(q.replies[0][1])["paused"] is True
+    q = w.ask(keys.world_status(FLEET))
+    assert decode_status(q.replies[0][1]).paused is True
     assert ask(w, "resume").answer.applied
-    q = Query(keys.world_status(FLEET), None)
-    w._on_status_query(q)
-    assert decode_status(q.replies[0][1])["paused"] is False
+    q = w.ask(keys.world_status(FLEET))
+    assert decode_status(q.replies[0][1]).paused is False
 
 
 def test_a_link_value_past_its_bound_is_refused_by_name_and_never_relayed():

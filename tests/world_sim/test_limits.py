@@ -2,7 +2,7 @@
 flood"). 18,144 `gains c=2` from ground credentials held a lockstep fleet to 35 simulated s in
 240 s: each command cost more than the one before (the settings reply encoded whole at each
 change, the whole history sent to a restarted vehicle), every one was an event, and the world
-answered every query waiting before its next grant. No network: fake queries, a fake clock."""
+answered every query waiting before its next grant. No network: queries asked through World.ask, a fake clock."""
 
 from __future__ import annotations
 
@@ -15,10 +15,11 @@ from cdus.sim.lockstep import CatchUp
 from cdus.wire import keys
 from cdus.wire.messages import CTL_OPS, decode_control, encode_control
 from cdus.wire.schemas import decode_settings
-from tests.fakes import Payload, Sample
 
 from .test_world import FLEET, started, world
-from .test_commands import Query, _wake, ask
+from world_sim.asking import Asked
+
+from .test_commands import ask
 
 
 class Clock:
@@ -43,7 +44,7 @@ def unlimited(w) -> None:
     w._command_quota = Quota(1e9, 10**6)
 
 
-def gains(w, c: float = 2.0, vehicle: str = "") -> Query:
+def gains(w, c: float = 2.0, vehicle: str = "") -> Asked:
     return ask(w, "set_gains", gains={"c": c}, vehicle=vehicle, name="flood")
 
 
@@ -65,9 +66,7 @@ def test_commands_past_the_ground_credentials_rate_are_refused_busy_saying_so_an
     # a query on another key (world/**, which the router may let a vehicle ask) does not spend it
     clock.now += 1.0
     for _ in range(ws.COMMANDS_BURST + 5):
-        q = Query(keys.world_command(FLEET, "usv1"), encode_control("pause"))
-        w._on_command_query(q)
-        w.feed(keys.wake(FLEET, keys.WORLD))
+        q = w.ask(keys.world_command(FLEET, "usv1"), encode_control("pause"))
         assert "asked as 'gs'" in q.answer.reason
     assert gains(w).answer.applied
     # the launcher's own are not the ground station's: never limited
@@ -113,15 +112,13 @@ def test_a_change_encodes_no_settings_reply_a_query_does_once():
         assert made == []
         replies = []
         for _ in range(3):
-            q = Query(keys.world_settings(FLEET), None)
-            w._on_settings_query(q)
+            q = w.ask(keys.world_settings(FLEET), answer=False)
             replies.append(q.replies[0][1])
         assert len(made) == 1 and replies[0] == replies[1] == replies[2]
         got = decode_settings(replies[0], w.ids)
         assert got["total"] == 300 and [c["seq"] for c in got["changes"]] == list(range(300))
         assert ask(w, "link", link={"loss": 0.1}, at=-1.0).answer.applied  # a change: made again, once
-        q = Query(keys.world_settings(FLEET), None)
-        w._on_settings_query(q)
+        q = w.ask(keys.world_settings(FLEET), answer=False)
         assert len(made) == 2 and decode_settings(q.replies[0][1], w.ids)["link"] == {"loss": 0.1}
     finally:
         asking.encode_settings = real
@@ -187,12 +184,9 @@ def test_queries_of_status_settings_and_every_vehicles_last_past_their_rate_are_
     1.4-1.6x). Past QUERIES_PER_S on a key: an error reply that says so, counted."""
     w, clock = clocked(started(world()))
     w._publish_status()
-    for name, key, handler in (("status", keys.world_status(FLEET), w._on_status_query),
-                               ("settings", keys.world_settings(FLEET), w._on_settings_query),
-                               ("last", keys.world_last(FLEET, "*"), w._on_last_query)):
-        qs = [Query(key, None) for _ in range(ws.QUERIES_BURST + 7)]
-        for q in qs:
-            handler(q)
+    for name, key in (("status", keys.world_status(FLEET)), ("settings", keys.world_settings(FLEET)),
+                      ("last", keys.world_last(FLEET, "*"))):
+        qs = [w.ask(key, answer=False) for _ in range(ws.QUERIES_BURST + 7)]  # Zenoh's threads only
         assert all(not q.errors for q in qs[:ws.QUERIES_BURST]), name
         assert all(q.errors == [f"busy: at most {ws.QUERIES_PER_S:g} queries per second on {key} (a flood); "
                                 f"try again".encode()] and not q.replies for q in qs[ws.QUERIES_BURST:]), name
@@ -202,12 +196,10 @@ def test_queries_of_status_settings_and_every_vehicles_last_past_their_rate_are_
     from tests.world_sim.test_world import row, send_rows  # noqa: PLC0415
     send_rows(w, "usv1", [row(0, 0)])
     for _ in range(ws.QUERIES_BURST + 5):
-        q = Query(keys.world_last(FLEET, "usv1"), None)
-        w._on_last_query(q)
+        q = w.ask(keys.world_last(FLEET, "usv1"), answer=False)
         assert len(q.replies) == 1 and not q.errors
     clock.now += 1.0  # a second later, that many more
-    q = Query(keys.world_status(FLEET), None)
-    w._on_status_query(q)
+    q = w.ask(keys.world_status(FLEET), answer=False)
     assert len(q.replies) == 1
 
 
@@ -222,10 +214,8 @@ def test_any_mix_of_queries_gets_one_answer_each_and_no_key_more_than_its_rate(a
     w._publish_status()
     from tests.world_sim.test_world import row, send_rows  # noqa: PLC0415
     send_rows(w, "usv1", [row(0, 0)])
-    handlers = {"status": (keys.world_status(FLEET), w._on_status_query),
-                "settings": (keys.world_settings(FLEET), w._on_settings_query),
-                "last": (keys.world_last(FLEET, "*"), w._on_last_query),
-                "last_one": (keys.world_last(FLEET, "usv1"), w._on_last_query)}
+    handlers = {"status": keys.world_status(FLEET), "settings": keys.world_settings(FLEET),
+                "last": keys.world_last(FLEET, "*"), "last_one": keys.world_last(FLEET, "usv1")}
     start, answered, refused = clock.now, {k: 0 for k in handlers}, 0
     commands = []
     for kind, gap in asks:
@@ -233,9 +223,7 @@ def test_any_mix_of_queries_gets_one_answer_each_and_no_key_more_than_its_rate(a
         if kind == "command":
             commands.append(gains(w))
             continue
-        key, handler = handlers[kind]
-        q = Query(key, None)
-        handler(q)
+        q = w.ask(handlers[kind], answer=False)
         assert (len(q.replies) >= 1) != (len(q.errors) == 1), (kind, q.replies, q.errors)
         answered[kind] += bool(q.replies)
         refused += len(q.errors)

@@ -7,7 +7,6 @@ import numpy as np
 
 from cdus.scenario.config import load_scenario
 from cdus.sim.fleet import InProcessFleet
-from cdus.wire import keys
 from world_sim import blueprint as bp
 from world_sim.sinks import make_sink
 from world_sim.rerun_sink import probability_colour
@@ -111,7 +110,8 @@ def test_the_world_relays_a_radio_change_or_says_why_not():
     assert "tx_power" in w.carry_out("radio", {"radio": {"tx_power": "loud"}, "at": -1.0}, "gs")
     assert "power" in w.carry_out("radio", {"radio": {"power": 3}, "at": -1.0}, "gs")
     v = w.carry_out("radio", {"radio": {"tx_power": 3.0, "station": [1.0, 2.0]}, "at": -1.0}, "gs")
-    assert v.applied and v.t == 0.5 and v.tick == 25  # the answer says when it applies
+    # the answer says when it applies: the effect tick, the one past the grant (it was 0.5 s on in lockstep)
+    assert w.lockstep.granted == 0 and v.applied and (v.tick, v.t) == (1, w.period)
     (c,) = [decode_control(p, CTL_OPS) for p in w.pub_ctl.puts if decode_control(p, CTL_OPS).op == "radio"]
     assert c.fields["radio"] == {"tx_power": 3.0, "station": [1.0, 2.0, 0.0]} and c.fields["at"] >= 0.02
     assert w.radio_watch.channel.epochs[-1][1:] == (3.0, (1.0, 2.0, 0.0))
@@ -185,7 +185,6 @@ def test_hostile_radio_commands_never_raise_and_are_refused_or_relayed():
 
     from cdus.wire import keys
     from cdus.wire.messages import encode_control
-    from tests.fakes import Payload, Sample
 
     from .test_world import FLEET, started
 
@@ -300,7 +299,6 @@ def test_any_radio_command_is_answered_and_a_relayed_one_is_what_every_vehicle_t
     from vehicle_agent.agent import Agent
 
     from .test_world import FLEET, started
-    from .test_commands import Query, _wake
 
     sc = load(ROOT / "configs/lake_radio.toml")
     num = hs.floats() | hs.integers(-2**63, 2**64 - 1) | hs.booleans() | hs.text(max_size=3) | hs.none()
@@ -316,9 +314,7 @@ def test_any_radio_command_is_answered_and_a_relayed_one_is_what_every_vehicle_t
         w = _radio_world(clock)
         if clock == "lockstep":
             started(w)
-        q = Query(f"cdus/{FLEET}/world/cmd/gs", msgpack.packb({"v": 1, "op": "radio", "radio": change, "at": at}))
-        w._on_command_query(q)
-        w.feed(keys.wake(FLEET, keys.WORLD))
+        q = w.ask(f"cdus/{FLEET}/world/cmd/gs", msgpack.packb({"v": 1, "op": "radio", "radio": change, "at": at}))
         assert w.st.rejects.get("internal", 0) == 0
         r = q.answer
         relayed = [p for p in w.pub_ctl.puts if decode_control(p, CTL_OPS).op == "radio"]

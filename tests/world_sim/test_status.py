@@ -31,12 +31,12 @@ def test_the_status_carries_kinds_states_edges_links_radius_and_the_closest_pair
     w.feed(keys.stats(FLEET, "usv1"), encode_stats(s))
     w._publish_status()
     st = decode_status(w.pub_status.puts[-1])
-    assert st["kinds"] == ["usv"] * 3 + ["uav"] * 3 and st["states"] == ["live"] * 6
-    assert st["safety_radius"] == w.scenario.safety.radius and st["directed"] is False
-    assert st["closest"][:2] == ("usv1", "usv3") and st["closest"][2] == 1.0
-    assert st["rx"][0] == (20, 3) and st["rx"][1:] == [None] * 5
-    assert st["path_errors"] == [0.01 * (j + 1) for j in range(6)]
-    edges = {(a, b): e for a, b, e in st["edges"]}
+    assert st.kinds == ["usv"] * 3 + ["uav"] * 3 and st.states == ["live"] * 6
+    assert st.safety_radius == w.scenario.safety.radius and st.directed is False
+    assert st.closest[:2] == ("usv1", "usv3") and st.closest[2] == 1.0
+    assert st.rx[0] == (20, 3) and st.rx[1:] == [None] * 5
+    assert st.path_errors == [0.01 * (j + 1) for j in range(6)]
+    edges = {(a, b): e for a, b, e in st.edges}
     omega = dict(zip(w.ids, (0.1 * j for j in range(6))))
     for e in w.recorder.edges:
         a, b = w.ids[e.i], w.ids[e.k]
@@ -52,13 +52,13 @@ def test_a_vehicle_gone_in_the_roster_is_gone_in_the_status_and_its_edges_have_n
     w.next_tick = 61
     w._publish_status()
     st = decode_status(w.pub_status.puts[-1])
-    assert st["states"] == ["live", "gone", "live", "live", "live", "live"]
-    assert [a + b for a, b, e in st["edges"] if e is None] == [a + b for a, b, _ in st["edges"] if "usv2" in (a, b)]
-    assert st["path_errors"][1] is None and st["path_errors"][0] == 0.2
-    assert "usv2" not in st["closest"][:2]
+    assert st.states == ["live", "gone", "live", "live", "live", "live"]
+    assert [a + b for a, b, e in st.edges if e is None] == [a + b for a, b, _ in st.edges if "usv2" in (a, b)]
+    assert st.path_errors[1] is None and st.path_errors[0] == 0.2
+    assert "usv2" not in st.closest[:2]
     w.next_tick = 160  # past the pause of uav1 (and its lease)
     w._publish_status()
-    assert decode_status(w.pub_status.puts[-1])["states"][3] in ("paused", "gone")
+    assert decode_status(w.pub_status.puts[-1]).states[3] in ("paused", "gone")
 
 
 @settings(max_examples=200, deadline=None)
@@ -97,7 +97,7 @@ def test_realtime_a_vehicle_paused_by_a_ground_station_is_paused_until_resumed_e
 
     def states() -> list[str]:
         w._publish_status()
-        return decode_status(w.pub_status.puts[-1])["states"]
+        return decode_status(w.pub_status.puts[-1]).states
 
     assert states() == ["live"] * 6
     w.feed(keys.world_cmd(FLEET, "gs"), encode_control("pause_vehicle", vehicle="uav1"))
@@ -118,14 +118,14 @@ def test_the_last_status_says_how_the_run_ended_before_the_vehicles_are_told_to_
     w = started(world(tmp_path))
     order = []
     status_put, ctl_put = w.pub_status.put, w.pub_ctl.put
-    w.pub_status.put = lambda p: (order.append(("status", decode_status(p).get("completion"))), status_put(p))
+    w.pub_status.put = lambda p: (order.append(("status", decode_status(p).completion)), status_put(p))
     w.pub_ctl.put = lambda p: (order.append(("ctl", p)), ctl_put(p))
     w.stop_requested, w.completion = True, "stopped"
     w._drain = lambda block=False: None  # no inbox here: the agents' last counters do not come
     m = w.finish()
     assert order[0] == ("status", "stopped") and order[1] == ("ctl", encode_control("stop"))
     assert m["completion"] == "stopped"
-    assert all(decode_status(p).get("completion") is None for p in w.pub_status.puts[:-1])  # only the last says it
+    assert all(decode_status(p).completion is None for p in w.pub_status.puts[:-1])  # only the last says it
 
 
 def test_after_a_formation_change_the_status_edges_are_measured_against_the_new_offsets():
@@ -145,14 +145,14 @@ def test_after_a_formation_change_the_status_edges_are_measured_against_the_new_
         w.next_tick = n + 1
         w._publish_status()
         st = decode_status(w.pub_status.puts[-1])
-        edges = {(a, b): e for a, b, e in st["edges"]}
+        edges = {(a, b): e for a, b, e in st.edges}
         touches = [(a, b) for a, b in edges if "usv2" in (a, b)]
         assert touches
         if n == 40:  # before the change: measured against the scenario's Δ (usv2 is 13.6 rad off it)
             assert all(edges[ab] > 10 for ab in touches)
         else:  # from the change on: against the new offsets, as the header's coord_error_max
             assert all(e < 1e-9 for e in edges.values()), edges
-            assert st["coord_error_max"] < 1e-9
+            assert st.coord_error_max < 1e-9
 
 
 def _lossy_from(t: float, links: list[str]) -> dict:
@@ -180,7 +180,7 @@ def test_the_status_says_a_link_change_of_twelve_links_whole_not_the_newest_ten_
     w._note(FleetEvent.of(11.0, "fleet", "fleet resumed by gs:alice"))
     assert sum(e.kind == "link_state" for e in w.events) == 12
     w._publish_status()
-    texts = [e.text for e in decode_status(w.pub_status.puts[-1])["events"]]
+    texts = [e.text for e in decode_status(w.pub_status.puts[-1]).events]
     assert texts[0] == "link loss=0.1 by gs:alice" and texts[2:] == ["fleet paused by gs:alice",
                                                                     "fleet resumed by gs:alice"], texts
     assert texts[1].startswith("12 links lossy (from t = 10.02 s): "), texts
@@ -206,5 +206,5 @@ def test_a_restarted_vehicles_links_and_receipts_in_the_status_count_its_earlier
     report(2, 30, 3, "down")  # restarted: counting from zero
     w._publish_status()
     st = decode_status(w.pub_status.puts[-1])
-    assert st["links"] == [("usv2", "usv1", 150, 15, "down")]
-    assert st["rx"][0] == (150, 15) and st["rx"][1:] == [None] * 5
+    assert st.links == [("usv2", "usv1", 150, 15, "down")]
+    assert st.rx[0] == (150, 15) and st.rx[1:] == [None] * 5

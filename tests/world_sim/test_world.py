@@ -16,7 +16,7 @@ from cdus.wire.schemas import AgentStats, FleetEvent, decode_event, encode_stats
 from cdus.wire.transport import Transport
 from tests.fakes import Payload, Sample
 from world_sim.clocks import RealtimeClock
-from world_sim.world import LINK_LEAD, World
+from world_sim.world import World
 
 FLEET = "tfake"
 EVENTS = """
@@ -177,9 +177,11 @@ def test_commands_are_relayed_with_the_tick_or_time_they_apply_from():
     c = decode_control(payload, CTL_OPS)
     assert c.op == "gains" and c.fields["tick"] == 41
     w.next_tick = 101
+    # no --at: from the effect tick, the first nobody was granted, as gains (it was 0.5 s after the
+    # newest tick recorded, 100 * period + 0.5, in lockstep only)
     w.feed(keys.world_cmd(FLEET, "gs1"), encode_control("link", link={"loss": 0.1}, at=-1.0))
     c = ctl_ops(w)[-1]
-    assert c.op == "link" and c.fields["at"] == 100 * w.period + LINK_LEAD
+    assert c.op == "link" and c.fields["at"] == 41 * w.period
     assert [e.kind for e in w.events] == ["gains_changed", "link_changed"]
     # a time in the past applies from the first tick nobody has been granted: every receiver alike
     w.feed(keys.world_cmd(FLEET, "gs1"), encode_control("link", link={"loss": 0.2}, at=0.1))
