@@ -47,7 +47,7 @@ def run_task(scenario: Scenario, clock: str) -> dict:
     comes back as status "failed" with its reason."""
     try:
         if clock == "inproc":
-            metrics = Metrics.from_dict(InProcessFleet(scenario, clock=time.perf_counter).run().metrics)
+            metrics = InProcessFleet(scenario, clock=time.perf_counter).run().metrics
         else:
             metrics = _run_lockstep(scenario)
         status, reason = "ok", ""
