@@ -19,9 +19,9 @@ from cdus.core.radiolink import RadioCounters
 from cdus.files import keep_json, metrics_fallbacks
 from cdus.sim.build import build_vehicle
 from cdus.sim.radio import radio_metrics
-from cdus.sim.runmetrics import LinkFaults, LinkMetrics, Metrics, RadioMetrics, RejectedByReason
+from cdus.sim.runmetrics import LinkMetrics, Metrics, RadioMetrics, RejectedByReason
 from cdus.sim.sink import UPDATE_EVERY
-from cdus.sim.summary import COMPLETED, link_metrics, run_metrics
+from cdus.sim.summary import COMPLETED, link_faults, link_metrics, run_metrics
 from cdus.wire.messages import StateMsg, encode_control
 from cdus.wire.schemas import AgentStats
 from world_sim.status import _say
@@ -77,8 +77,8 @@ class Finishing:
     def link_metrics(self) -> LinkMetrics:
         """``link`` of the metrics, as the in-process fleet builds it (cdus.sim.summary): every
         process's counters, every latency sample, and ``faults`` only when the scenario's link
-        has faults or a ground station set some (the agents' summaries, merged, checked here
-        where they enter the record: a count that is not an integer is said and left out)."""
+        has faults or a ground station set some (the agents' summaries, checked where they came in
+        with their stats, merged)."""
         total = LinkCounters(latencies=list(self.st.latencies.latencies))
         missed = 0
         rejected = self.st.rejected
@@ -96,8 +96,8 @@ class Finishing:
                 # every change seen during the run, not just each agent's newest
                 summary["state_changes"] = [{"t": t, "link": link, "state": state}
                                             for t, link, state in sorted(self.st.link_changes)]
-                merged = LinkFaults.from_dict(summary)
-            except (KeyError, TypeError, ValueError) as e:  # an agent's summary that does not parse
+                merged = link_faults(summary)
+            except (KeyError, TypeError) as e:  # an agent's summary that does not parse
                 self.log(f"link fault summaries could not be merged: {e!r}")
         return link_metrics(total, merged, missed_deadlines=missed)
 

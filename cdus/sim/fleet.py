@@ -46,8 +46,8 @@ from cdus.sim.reports import (
     vehicle_back,
 )
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
-from cdus.sim.runmetrics import LinkFaults, Metrics
-from cdus.sim.summary import link_metrics, run_metrics, sum_counters
+from cdus.sim.runmetrics import Metrics
+from cdus.sim.summary import link_faults, link_metrics, run_metrics, sum_counters
 from cdus.sim.radio import RadioWatch, apply_radio_change, geometry_sample, radio_change_problem, radio_metrics
 from cdus.wire.rejected import Rejected
 from cdus.wire.messages import (
@@ -327,7 +327,7 @@ class InProcessFleet:
         """The metrics of what has run so far (also after an interruption)."""
         counters = sum_counters(node.counters for node in [*self._retired, *self.nodes])
         emulator = link_faults_of(self.link)
-        faults = None if emulator is None else LinkFaults.from_dict(emulator.counters_summary())
+        faults = None if emulator is None else link_faults(emulator.counters_summary())
         radio = None if self.radio is None else radio_metrics(self.link.counters, self.radio_watch)
         return run_metrics(self.scenario, self.recorder, mode=self.mode, link=link_metrics(counters, faults),
                            wall_s=self.clock() - self._t0, policy=self.policy, events=self.events,

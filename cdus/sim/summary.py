@@ -17,14 +17,14 @@ sweep's rows take the record from here in process, and :meth:`Metrics.read` from
 
 from __future__ import annotations
 
-from typing import Iterable, Sequence
+from typing import Any, Iterable, Mapping, Sequence
 
 from cdus.core.link import LinkCounters
 from cdus.core.metrics import CROSS_DOMAIN, Recorder, closest_pairs, min_separation, percentile_ms
 from cdus.core.vocabulary import KINDS
 from cdus.scenario.model import Scenario
-from cdus.sim.runmetrics import (ClosestPair, Event, Integrity, LinkFaults, LinkMetrics, Metrics, RadioMetrics,
-                                 RejectedByReason, SafetyInfo)
+from cdus.sim.runmetrics import (ClosestPair, DroppedBy, Event, FaultCounters, Integrity, LinkFaults, LinkMetrics,
+                                 LinkStateChange, Metrics, RadioMetrics, RejectedByReason, SafetyInfo)
 from cdus.wire.schemas import FleetEvent
 
 
@@ -43,6 +43,19 @@ def link_metrics(counters: LinkCounters, faults: LinkFaults | None = None,
                        rejected=c.rejected, latency_ms_p50=percentile_ms(c.latencies, 50),
                        latency_ms_p99=percentile_ms(c.latencies, 99), missed_deadlines=missed_deadlines,
                        faults=faults)
+
+
+def link_faults(summary: Mapping[str, Any]) -> LinkFaults:
+    """``link.faults`` from the link emulator's ``counters_summary()`` (or several merged:
+    ``merge_link_summaries``): built by the core, or checked where it came in (an agent's stats,
+    cdus.wire.stats), so taken as it is."""
+    def counters(c: Mapping[str, Any]) -> FaultCounters:
+        return FaultCounters(sent=c["sent"], dropped=c["dropped"], dropped_by=DroppedBy(**c["dropped_by"]),
+                             duplicated=c["duplicated"], delayed=c["delayed"])
+
+    return LinkFaults(total=counters(summary["total"]), links={k: counters(v) for k, v in summary["links"].items()},
+                      state_changes=tuple(LinkStateChange(t=c["t"], link=c["link"], state=c["state"])
+                                          for c in summary["state_changes"]))
 
 
 def sum_counters(counters: Iterable[LinkCounters]) -> LinkCounters:
