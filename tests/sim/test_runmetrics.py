@@ -15,6 +15,7 @@ from cdus.sim.fleet import InProcessFleet
 from cdus.sim.runmetrics import (ClosestPair, DroppedBy, Event, FaultCounters, Integrity, LinkFaults, LinkMetrics,
                                  LinkStateChange, Metrics, RadioMetrics, RejectedByReason, SafetyInfo, Utilisation,
                                  WorldLost)
+from cdus.wire.rejected import Rejected
 
 GOLDEN = Path(__file__).parent / "golden"
 WALL = ("wall_s", "realtime_factor")  # wall-clock figures: they differ from run to run
@@ -107,3 +108,55 @@ def test_any_record_reads_back_from_its_json_equal(m):
     d = m.to_dict()
     assert Metrics.from_json(json.loads(json.dumps(d))) == m
     assert Metrics.from_json(d).to_dict() == d
+
+
+JSON = st.recursive(st.none() | st.booleans() | st.integers(-10, 10) | st.floats() | st.text(max_size=4),
+                    lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=4), inner, max_size=3),
+                    max_leaves=6)
+
+
+def _paths(d, prefix=()):
+    yield prefix
+    if isinstance(d, dict):
+        for k, v in d.items():
+            yield from _paths(v, (*prefix, k))
+    elif isinstance(d, list):
+        for j, v in enumerate(d):
+            yield from _paths(v, (*prefix, j))
+
+
+@settings(max_examples=300, deadline=None)
+@given(metrics(), st.data())
+def test_any_field_spoiled_reads_as_a_record_or_a_rejected_naming_a_field_never_an_exception(m, data):
+    """The decoders of every part (WorldLost and Utilisation new among them): a file with any value
+    anywhere, a part's key removed included, is the record or a Rejected, never a traceback."""
+    d = json.loads(json.dumps(m.to_dict()))
+    path = data.draw(st.sampled_from([p for p in _paths(d) if p]))
+    *up, last = path
+    holder = d
+    for k in up:
+        holder = holder[k]
+    if data.draw(st.booleans()) and isinstance(holder, dict):
+        del holder[last]
+    else:
+        holder[last] = data.draw(JSON)
+    got = Metrics.from_json(d)
+    assert isinstance(got, Metrics) or (isinstance(got, Rejected) and got.field), got
+
+
+LOST = {"world_exit": -9, "last_status_t": 12.5,
+        "last_status": {"alive": ["usv1"], "path_error_max": 0.5, "coord_error_max": 0.1, "paused": False},
+        "alive_tokens": ["usv1"], "restarts": {"usv2": 1}, "rejected_by_launcher": {"status unsigned": 3}}
+
+
+@pytest.mark.parametrize("key", list(LOST))
+def test_a_world_lost_block_missing_a_key_or_with_a_wrong_one_is_rejected_naming_it(key):
+    d = json.loads((GOLDEN / "crossing.json").read_text())
+    lost = Metrics.from_json({**d, "written_by": "launcher", "world_lost": LOST})
+    assert lost.world_lost == WorldLost(-9, 12.5, LOST["last_status"], ("usv1",), {"usv2": 1}, {"status unsigned": 3})
+    missing = Metrics.from_json({**d, "world_lost": {k: v for k, v in LOST.items() if k != key}})
+    wrong = Metrics.from_json({**d, "world_lost": {**LOST, key: "x"}})
+    assert isinstance(missing, Rejected) and missing.field == f"world_lost.{key}", missing
+    assert isinstance(wrong, Rejected) and wrong.field == f"world_lost.{key}", wrong
+    inf = Metrics.from_json({**d, "world_lost": {**LOST, "last_status_t": float("inf")}})
+    assert isinstance(inf, Rejected) and inf.field == "world_lost.last_status_t"  # the summary prints it as a time
