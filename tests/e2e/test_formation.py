@@ -127,7 +127,7 @@ def test_a_ground_stations_phase_and_path_change_is_settled_to_by_a_running_flee
     changed = [e for e in m.events if e.kind in ("formation_changed", "path_changed")]
     assert [e.kind for e in changed] == ["formation_changed", "path_changed"], m.events
     assert all("by gs" in e.text for e in changed)
-    t_change = changed[0]["t"]
+    t_change = changed[0].t
     assert t_change < 50.0
     assert m.completion == "stopped" and m.final_coord_error_max < m.coord_tol, m
     assert m.coord_settle_s is not None and m.coord_settle_s > t_change  # it was off the new offsets first
@@ -138,9 +138,9 @@ def test_a_ground_stations_phase_and_path_change_is_settled_to_by_a_running_flee
     sc = load_scenario(str(cfg))
     period = 1.0 / sc.rates.control
     ref = InProcessFleet(sc)
-    ref.set_formation({"usv2": math.pi / BETA, "uav1": 0.0}, round(changed[0]["t"] / period))
+    ref.set_formation({"usv2": math.pi / BETA, "uav1": 0.0}, round(changed[0].t / period))
     ref.set_path("uav1", {"family": "circle", "center": [30, 0, 20], "radius": 5, "speed": 1.0},
-                 round(changed[1]["t"] / period))
+                 round(changed[1].t / period))
     trace = np.load(tmp_path / "trace.npz")
     rows = len(trace["t"])
     for _ in range(rows):
