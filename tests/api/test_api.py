@@ -20,6 +20,7 @@ from cdus.api import Metrics, Trace
 from cdus.core.metrics import min_separation, settle_time
 from cdus.sim.fleet import InProcessFleet
 from cdus.wire.rejected import Rejected
+from tests.jsontree import JSON, paths
 
 ROOT = Path(__file__).resolve().parents[2]
 LAKE = str(ROOT / "configs/lake_circle.toml")
@@ -117,21 +118,6 @@ def test_metrics_read_from_any_writer_give_their_json_back_in_order(tmp_path):
     assert world.rejected_by_reason.world == {"key": 2} and world.link.missed_deadlines == 0
     assert Metrics.from_dict(dicts["interrupted"]).interrupted is True and faults.interrupted is None
     assert Metrics.from_dict(dicts["not_started"]).never_up == ("uav2",) and faults.never_up is None
-
-
-JSON = st.recursive(st.none() | st.booleans() | st.integers(-10, 10) | st.floats(allow_nan=False) | st.text(max_size=4),
-                    lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=4), inner, max_size=3),
-                    max_leaves=6)
-
-
-def paths(d, prefix=()):
-    yield prefix
-    if isinstance(d, dict):
-        for k, v in d.items():
-            yield from paths(v, (*prefix, k))
-    elif isinstance(d, list):
-        for j, v in enumerate(d):
-            yield from paths(v, (*prefix, j))
 
 
 BASE = json.loads(json.dumps(InProcessFleet(cdus.load(LAKE, {"scenario.duration": 2, **FAULTS}))

@@ -16,6 +16,7 @@ from cdus.sim.runmetrics import (ClosestPair, DroppedBy, Event, FaultCounters, I
                                  LinkStateChange, Metrics, RadioMetrics, RejectedByReason, SafetyInfo, Utilisation,
                                  WorldLost)
 from cdus.wire.rejected import Rejected
+from tests.jsontree import JSON, paths
 
 GOLDEN = Path(__file__).parent / "golden"
 WALL = ("wall_s", "realtime_factor")  # wall-clock figures: they differ from run to run
@@ -110,28 +111,13 @@ def test_any_record_reads_back_from_its_json_equal(m):
     assert Metrics.from_json(d).to_dict() == d
 
 
-JSON = st.recursive(st.none() | st.booleans() | st.integers(-10, 10) | st.floats() | st.text(max_size=4),
-                    lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=4), inner, max_size=3),
-                    max_leaves=6)
-
-
-def _paths(d, prefix=()):
-    yield prefix
-    if isinstance(d, dict):
-        for k, v in d.items():
-            yield from _paths(v, (*prefix, k))
-    elif isinstance(d, list):
-        for j, v in enumerate(d):
-            yield from _paths(v, (*prefix, j))
-
-
 @settings(max_examples=300, deadline=None)
 @given(metrics(), st.data())
 def test_any_field_spoiled_reads_as_a_record_or_a_rejected_naming_a_field_never_an_exception(m, data):
     """The decoders of every part (WorldLost and Utilisation new among them): a file with any value
     anywhere, a part's key removed included, is the record or a Rejected, never a traceback."""
     d = json.loads(json.dumps(m.to_dict()))
-    path = data.draw(st.sampled_from([p for p in _paths(d) if p]))
+    path = data.draw(st.sampled_from([p for p in paths(d) if p]))
     *up, last = path
     holder = d
     for k in up:
