@@ -295,16 +295,16 @@ def run_encounter(enc: Encounter, safety: bool) -> dict[str, Any]:
         return out
     m = res.metrics
     kinds = [v.kind for v in scenario.vehicles]
-    sep = m.get("min_separation_m")
+    sep = m.min_separation_m
     cross = _cross_min(res.recorder.view("q"), kinds)
     worst = min([s for s in (sep, cross) if s is not None], default=None)
     out.update({
         "vehicles": len(kinds), "min_separation_m": sep, "cross_separation_m": cross, "worst_separation_m": worst,
-        "interventions": m.get("interventions", 0), "path_settle_s": m.get("path_settle_s"),
-        "coord_settle_s": m.get("coord_settle_s"), "filter_calls": len(_TIMES), "filter_s": float(sum(_TIMES)),
+        "interventions": m.interventions, "path_settle_s": m.path_settle_s,
+        "coord_settle_s": m.coord_settle_s, "filter_calls": len(_TIMES), "filter_s": float(sum(_TIMES)),
         "filter_us_p50": float(np.percentile(_TIMES, 50) * 1e6) if _TIMES else None,
         "filter_us_p99": float(np.percentile(_TIMES, 99) * 1e6) if _TIMES else None,
-        "ticks": len(res.recorder), "wall_s": wall, "completed": m.get("completed"),
+        "ticks": len(res.recorder), "wall_s": wall, "completed": m.completed,
     })
     return out
 

@@ -46,10 +46,10 @@ def main() -> None:
         ps, cs, fp, fc = [], [], [], []
         for seed in range(1, args.seeds + 1):
             m = InProcessFleet(load_scenario(path, {"scenario.seed": seed})).run().metrics
-            ps.append(m["path_settle_s"])
-            cs.append(m["coord_settle_s"])
-            fp.append(m["final_path_error_max"])
-            fc.append(m["final_coord_error_max"])
+            ps.append(m.path_settle_s)
+            cs.append(m.coord_settle_s)
+            fp.append(m.final_path_error_max)
+            fc.append(m.final_coord_error_max)
         paper = " / ".join(PAPER[name]) + " s" if name in PAPER else "-"
         print(f"| {name} | {fmt(ps)} | {fmt(cs)} | {paper} | {max(fp):.3f} | {max(fc):.4f} |", flush=True)
 

@@ -20,14 +20,15 @@ __all__ = [
     "RUNNERS", "ClosestPair", "ConfigError", "DivergedError", "DroppedBy", "Event", "FaultCounters", "Integrity",
     "LinkFaults", "LinkMetrics", "LinkStateChange", "Metrics", "RadioMetrics", "RejectedByReason", "Result",
     "RunError", "RunInterrupted", "SafetyInfo", "Scenario", "SweepRow", "SweepTable", "CellStats", "Trace",
-    "cell_statistics", "load", "override", "run", "sweep",
+    "Utilisation", "WorldLost", "cell_statistics", "load", "override", "run", "sweep",
 ]
 
 if TYPE_CHECKING:  # for type checkers and editors; at run time __getattr__ loads them
     from cdus.api import (  # noqa: F401
         RUNNERS, ClosestPair, ConfigError, DivergedError, DroppedBy, Event, FaultCounters, Integrity, LinkFaults,
         LinkMetrics, LinkStateChange, Metrics, RadioMetrics, RejectedByReason, Result, RunError, RunInterrupted,
-        SafetyInfo, Scenario, SweepRow, SweepTable, CellStats, Trace, cell_statistics, load, override, run, sweep,
+        SafetyInfo, Scenario, SweepRow, SweepTable, CellStats, Trace, Utilisation, WorldLost, cell_statistics, load,
+        override, run, sweep,
     )
 
 

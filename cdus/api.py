@@ -27,6 +27,7 @@ import tempfile
 import threading
 import time
 import warnings
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
@@ -44,7 +45,8 @@ from cdus.scenario.config import MAX_NESTING, ConfigError, load_scenario, nestin
 from cdus.scenario.model import Scenario
 from cdus.scenario.robot import clock_problem
 from cdus.results import (ClosestPair, DroppedBy, Event, FaultCounters, Integrity, LinkFaults, LinkMetrics,
-                          LinkStateChange, Metrics, RadioMetrics, RejectedByReason, Result, SafetyInfo, Trace)
+                          LinkStateChange, Metrics, RadioMetrics, RejectedByReason, Result, SafetyInfo, Trace,
+                          Utilisation, WorldLost)
 from cdus.sim.fleet import InProcessFleet
 from cdus.sim.reports import ConsoleQuota
 from cdus.wire.bounds import finite
@@ -57,7 +59,7 @@ __all__ = [  # the names of ``import cdus`` (cdus/__init__.py, docs/api.md; test
     "RUNNERS", "ClosestPair", "ConfigError", "DivergedError", "DroppedBy", "Event", "FaultCounters", "Integrity",
     "LinkFaults", "LinkMetrics", "LinkStateChange", "Metrics", "RadioMetrics", "RejectedByReason", "Result",
     "RunError", "RunInterrupted", "SafetyInfo", "Scenario", "SweepRow", "SweepTable", "CellStats", "Trace",
-    "cell_statistics", "load", "override", "run", "sweep",
+    "Utilisation", "WorldLost", "cell_statistics", "load", "override", "run", "sweep",
 ]
 
 
@@ -292,13 +294,12 @@ def _run_inproc(scenario: Scenario, policy: str | None, rerun: str, base: Path |
         metrics = fleet.run(progress=shown or (progress or None)).metrics
     except KeyboardInterrupt:
         interrupted = True
-        metrics = fleet.partial_metrics()
-        metrics["interrupted"] = True
+        metrics = replace(fleet.partial_metrics(), interrupted=True)
     finally:
         fleet.sink.close()
         if shown is not None:
             shown.done()
-    result = Result(scenario, Metrics.from_dict(metrics), Trace.from_recorder(fleet.recorder))
+    result = Result(scenario, metrics, Trace.from_recorder(fleet.recorder))
     if interrupted:
         raise RunInterrupted(result)
     return result

@@ -1,9 +1,9 @@
 """What did a run measure and record? The typed metrics and trace that :func:`cdus.run` returns.
 
 - :class:`Metrics` (and the records it holds: :class:`LinkMetrics`, :class:`FaultCounters`,
-  :class:`RadioMetrics`, :class:`Event`, :class:`SafetyInfo`, ...): a run's metrics JSON read
-  into types, every field checked once where it enters (:meth:`Metrics.from_json`); ``to_dict()``
-  gives the JSON back (docs/metrics.md). They are defined in the pure layer
+  :class:`RadioMetrics`, :class:`Event`, :class:`SafetyInfo`, ...): a run's metrics, as the run
+  built them (cdus.sim.summary), or a metrics JSON read into types, every field checked once
+  where it enters (:meth:`Metrics.from_json`); ``to_dict()`` is the JSON (docs/metrics.md). They are defined in the pure layer
   (:mod:`cdus.sim.runmetrics`) and exported here.
 - :class:`Trace`: the recorded time series (numpy arrays; pandas and xarray helpers).
 - :class:`Result`: the scenario that ran, its metrics and its trace.
@@ -23,7 +23,8 @@ from cdus.core.metrics import TRACE_ARRAYS, Recorder, read_trace, trace_shape_pr
 from cdus.extras import needs
 from cdus.scenario.model import Scenario
 from cdus.sim.runmetrics import (ClosestPair, DroppedBy, Event, FaultCounters, Integrity, LinkFaults,  # noqa: F401
-                                 LinkMetrics, LinkStateChange, Metrics, RadioMetrics, RejectedByReason, SafetyInfo)
+                                 LinkMetrics, LinkStateChange, Metrics, RadioMetrics, RejectedByReason, SafetyInfo,
+                                 Utilisation, WorldLost)
 
 
 # --------------------------------------------------------------------------- the trace

@@ -1,9 +1,9 @@
 """What does the run leave behind: its record, its metrics and its trace?
 
 Tick n is recorded with each vehicle's own row of n (a vehicle that did not step it repeats
-its last), as the in-process fleet records it; at the end the metrics JSON is built with the
-same builder as `cdus sim` (cdus.sim.summary) from every process's counters, and written where
-asked, or where a full disk lets it be (cdus.files.metrics_fallbacks)."""
+its last), as the in-process fleet records it; at the end the metrics are built with the
+same builder as `cdus sim` (cdus.sim.summary) from every process's counters, and their JSON
+written where asked, or where a full disk lets it be (cdus.files.metrics_fallbacks)."""
 
 from __future__ import annotations
 
@@ -18,9 +18,10 @@ from cdus.core.link import LinkCounters, merge_link_summaries
 from cdus.core.radiolink import RadioCounters
 from cdus.files import keep_json, metrics_fallbacks
 from cdus.sim.build import build_vehicle
-from cdus.sim.radio import radio_block
+from cdus.sim.radio import radio_metrics
+from cdus.sim.runmetrics import LinkMetrics, Metrics, RadioMetrics, RejectedByReason
 from cdus.sim.sink import UPDATE_EVERY
-from cdus.sim.summary import COMPLETED, link_block, run_metrics
+from cdus.sim.summary import COMPLETED, link_faults, link_metrics, run_metrics
 from cdus.wire.messages import StateMsg, encode_control
 from cdus.wire.schemas import AgentStats
 from world_sim.status import _say
@@ -73,10 +74,11 @@ class Finishing:
         """The last stats of every agent process of the run, restarted ones' included."""
         return [*self.st.retired, *self.st.stats.values()]
 
-    def link_block(self) -> dict:
-        """``link`` of the metrics JSON, as the in-process fleet builds it (cdus.sim.summary):
-        every process's counters, every latency sample, and ``faults`` only when the
-        scenario's link has faults or a ground station set some."""
+    def link_metrics(self) -> LinkMetrics:
+        """``link`` of the metrics, as the in-process fleet builds it (cdus.sim.summary): every
+        process's counters, every latency sample, and ``faults`` only when the scenario's link
+        has faults or a ground station set some (the agents' summaries, checked where they came in
+        with their stats, merged)."""
         total = LinkCounters(latencies=list(self.st.latencies.latencies))
         missed = 0
         rejected = self.st.rejected
@@ -90,24 +92,25 @@ class Finishing:
         merged = None
         if faults and (not self.scenario.link.is_ideal or self.st.link_commanded):
             try:
-                merged = merge_link_summaries(faults)
+                summary = merge_link_summaries(faults)
+                # every change seen during the run, not just each agent's newest
+                summary["state_changes"] = [{"t": t, "link": link, "state": state}
+                                            for t, link, state in sorted(self.st.link_changes)]
+                merged = link_faults(summary)
             except (KeyError, TypeError) as e:  # an agent's summary that does not parse
                 self.log(f"link fault summaries could not be merged: {e!r}")
-            else:  # every change seen during the run, not just each agent's newest
-                merged["state_changes"] = [{"t": t, "link": link, "state": state}
-                                           for t, link, state in sorted(self.st.link_changes)]
-        return link_block(total, merged, missed_deadlines=missed)
+        return link_metrics(total, merged, missed_deadlines=missed)
 
-    def _radio_metrics(self) -> dict:
-        """``radio`` of the metrics JSON (with [radio] only): every process's radio counters summed,
+    def _radio_metrics(self) -> RadioMetrics | None:
+        """``radio`` of the metrics (with [radio] only): every process's radio counters summed,
         the utilisation and splits the world saw."""
         if self.radio is None or self.radio_watch is None:
-            return {}
+            return None
         total = RadioCounters()
         for s in self._processes():
             if isinstance(s.radio, dict):
                 total.add(RadioCounters.from_dict(s.radio))
-        return {"radio": radio_block(total, self.radio_watch)}
+        return radio_metrics(total, self.radio_watch)
 
     def _completion(self) -> str:
         """COMPLETED if every tick to the end was stepped by the live fleet, else why not
@@ -121,18 +124,18 @@ class Finishing:
             return "vehicles_lost" if lost else COMPLETED
         return "vehicles_lost" if lost else "interrupted"
 
-    def rejects_by_reason(self) -> dict[str, dict[str, int]]:
+    def rejects_by_reason(self) -> RejectedByReason:
         """What was dropped, by reason: by the world, and by the vehicles (every process's last counters)."""
         vehicles: Counter = Counter()
         for s in self._processes():
             vehicles.update(s.rejected_by_reason)
-        return {"world": dict(sorted(self.st.rejects.items())), "vehicles": dict(sorted(vehicles.items()))}
+        return RejectedByReason(world=dict(sorted(self.st.rejects.items())), vehicles=dict(sorted(vehicles.items())))
 
-    def finish(self) -> dict:
+    def finish(self) -> Metrics:
         """Tell the agents to stop, write the metrics (and trace). Safe to call after a stop."""
         self.finished = True
         # before the stop: the vehicles up then leave with it (a run that never began: who never came)
-        never_up = {} if self.started else {"never_up": [v for v in self.ids if v not in self.st.alive]}
+        never_up = None if self.started else [v for v in self.ids if v not in self.st.alive]
         completion = self._completion()  # decided by the run, not by the vehicles leaving at the stop
         if self.session is not None:
             self._publish_status(completion)  # first: a console reads the vehicles' leaving as the run's end
@@ -142,13 +145,13 @@ class Finishing:
                 self._drain(block=False)
                 time.sleep(0.02)
         wall = time.perf_counter() - self._t_start if self.started else 0.0
-        metrics = run_metrics(self.scenario, self.recorder, mode=self.clock.name, link=self.link_block(), wall_s=wall,
-                              policy=self.policy, events=self.events,
+        metrics = run_metrics(self.scenario, self.recorder, mode=self.clock.name, link=self.link_metrics(),
+                              wall_s=wall, policy=self.policy, events=self.events,
                               interventions=sum(s.interventions for s in self._processes()),
                               deflected=[sum(s.deflected for s in self._processes() if s.id == v) for v in self.ids],
                               completed=completion == COMPLETED, completion=completion,
                               rejected_by_reason=self.rejects_by_reason(), integrity=self.integrity_block(),
-                              **never_up, **self._radio_metrics())
+                              never_up=never_up, radio=self._radio_metrics())
         if self.metrics_out:
             self._keep_metrics(metrics)
         if self.trace_out and len(self.recorder):
@@ -164,16 +167,16 @@ class Finishing:
         self.sink.close()
         return metrics
 
-    def _keep_metrics(self, metrics: dict) -> None:
+    def _keep_metrics(self, metrics: Metrics) -> None:
         """The metrics at metrics_out, or (a full disk, a read-only directory: which file and why
         said) at the first of :func:`cdus.files.metrics_fallbacks` that takes them, the launcher
         looking there too; where nothing takes them, printed whole as JSON on stdout."""
         fallbacks = metrics_fallbacks(self.metrics_out, self.run_dir, f"{self.fleet}-{os.getpid()}")
-        at = keep_json(self.metrics_out, metrics, fallbacks, self.log)
+        at = keep_json(self.metrics_out, metrics.to_dict(), fallbacks, self.log)
         if at is not None and at == Path(self.metrics_out):
             self.log(f"metrics written to {self.metrics_out}")
             return
         self.not_written.append("the metrics")
         if at is None:
             self.log("the metrics could be written nowhere; here they are:")
-            _say(json.dumps(metrics, default=str), prefix="")
+            _say(json.dumps(metrics.to_dict(), default=str), prefix="")

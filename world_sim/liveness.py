@@ -15,6 +15,7 @@ import zenoh
 
 from cdus.core.events import RosterChange
 from cdus.sim.reports import graph_event
+from cdus.sim.runmetrics import Integrity
 from cdus.wire import keys
 from cdus.wire.access import ROS2_ROLE
 from cdus.wire.messages import encode_control
@@ -101,8 +102,8 @@ class Liveness:
             self._integrity_notes[reason] = note
             self._note(FleetEvent.of(self._sim_now(), "suspect", note + " (docs/security.md)"))
 
-    def integrity_block(self) -> dict:
-        """``integrity`` of the metrics JSON: ``tampered`` when the world, or a vehicle watching the
+    def integrity_block(self) -> Integrity:
+        """``integrity`` of the metrics: ``tampered`` when the world, or a vehicle watching the
         world's token, saw a token that is no process's (docs/metrics.md)."""
         reasons = Counter(self.integrity)
         notes = list(self._integrity_notes.values())
@@ -112,7 +113,7 @@ class Liveness:
                     reasons["vehicle_" + reason] += s.rejected_by_reason[reason]
                     notes.append(f"{s.id} counted {s.rejected_by_reason[reason]} {reason!r}: a liveliness token "
                                  f"on its watch of the world's that is not the world's")
-        return {"tampered": bool(reasons), "reasons": dict(sorted(reasons.items())), "notes": notes}
+        return Integrity(tampered=bool(reasons), reasons=dict(sorted(reasons.items())), notes=tuple(notes))
 
     def _on_alive(self, name: str, up: bool) -> None:
         st = self.st

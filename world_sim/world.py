@@ -43,6 +43,7 @@ from cdus.sim.build import formation_schedule, metric_edges, radio_channel_for, 
 from cdus.sim.lockstep import Lockstep
 from cdus.sim.radio import RadioWatch
 from cdus.sim.reports import ConsoleQuota, scheduled_change_events
+from cdus.sim.runmetrics import Metrics
 from cdus.sim.sink import NullSink, Sink
 from cdus.wire import keys
 from cdus.wire.messages import StateMsg
@@ -278,7 +279,7 @@ class World(Intake, Asking, CommandHandlers, Liveness, Reporting, Samples, Finis
         return self.clock.sim_now()
 
     # ------------------------------------------------------------------ the run
-    def run(self) -> dict:
+    def run(self) -> Metrics:
         deadline = time.monotonic() + self.start_timeout
         while len(self.st.alive) < len(self.ids) and not self.stop_requested:
             if time.monotonic() > deadline:
@@ -327,9 +328,9 @@ def run_world(world: World) -> int:
         world.open()
         m = world.run()
         ticks = max(1, len(world.recorder))
-        world.log(f"done: path settle {_s(m['path_settle_s'])}, coordination settle {_s(m['coord_settle_s'])}; "
+        world.log(f"done: path settle {_s(m.path_settle_s)}, coordination settle {_s(m.coord_settle_s)}; "
                   f"CPU in the run {world.cpu_s:.2f} s ({world.cpu_s / ticks * 1e6:.0f} µs per tick)")
-        if len(world.recorder) and not m["live_final"] and not world.stop_requested:
+        if len(world.recorder) and not m.live_final and not world.stop_requested:
             world.log("error: no vehicle was live at the end of the run (their logs say why)")
             return 1
         if world.not_written:  # the run is whole, its files are not where asked: not a lost world

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import os
 import sys
 import time
@@ -96,11 +95,9 @@ WORLD_LOST = "world_lost"
 
 
 def _world_lost_t(m: Metrics) -> float | None:
-    """The time of the world's last status in a world_lost record (the launcher's ``world_lost``,
-    a field Metrics keeps in ``extra`` as it came); None: it gave none."""
-    lost = m.extra.get("world_lost")
-    t = lost.get("last_status_t") if isinstance(lost, dict) else None
-    return float(t) if finite(t) else None
+    """The time of the world's last status in a world_lost record (the launcher's ``world_lost``);
+    None: it gave none."""
+    return None if m.world_lost is None else m.world_lost.last_status_t
 
 
 def _lost_words(m: Metrics) -> str:
@@ -222,8 +219,8 @@ def radio_lines(m: Metrics) -> list[str]:
     u = r.utilisation
     spans = split_spans(m.events)
     return [f"  radio: {r.sent} decided, {r.delivered} delivered, {r.dropped} dropped "
-            f"({causes}); channel utilisation mean {_fmt(u['mean'], '.3f', 'n/a')}, "
-            f"max {_fmt(u['max'], '.3f', 'n/a')}; {r.splits} graph split(s)"
+            f"({causes}); channel utilisation mean {_fmt(u.mean, '.3f', 'n/a')}, "
+            f"max {_fmt(u.max, '.3f', 'n/a')}; {r.splits} graph split(s)"
             + (f": {spans}" if spans else "")]
 
 

@@ -49,7 +49,7 @@ def run_task(scenario: Scenario, clock: str) -> dict:
     try:
         if clock == "inproc":
             load_named(scenario.raw, str(scenario.source))  # a fresh worker knows no plug-in yet
-            metrics = Metrics.from_dict(InProcessFleet(scenario, clock=time.perf_counter).run().metrics)
+            metrics = InProcessFleet(scenario, clock=time.perf_counter).run().metrics
         else:
             metrics = _run_lockstep(scenario)
         status, reason = "ok", ""

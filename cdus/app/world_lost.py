@@ -17,6 +17,7 @@ from cdus.app.report import WORLD_LOST
 from cdus.core.metrics import Recorder
 from cdus.files import keep_json, metrics_fallbacks
 from cdus.sim.build import metric_edges
+from cdus.sim.runmetrics import Integrity, Metrics, WorldLost
 from cdus.sim.summary import run_metrics
 from cdus.wire import keys
 from cdus.wire.schemas import FleetEvent
@@ -52,7 +53,7 @@ class WorldLostMetrics:
                 return place
         return None
 
-    def write_world_lost(self, code: int, wall_s: float) -> dict:
+    def write_world_lost(self, code: int, wall_s: float) -> Metrics:
         """The world died without writing its metrics: write what the launcher knows (an empty
         record, ``completed: false``, ``completion: "world_lost"``, the world's last status)."""
         sc = self.scenario
@@ -66,33 +67,27 @@ class WorldLostMetrics:
         events.append(FleetEvent.of(t_last or 0.0, "fault", f"the world process {how}; the launcher wrote these "
                                     "metrics from the world's last status", severity="error"))
         ignored = self.rejected.get("token_key", 0)
-        integrity = {"tampered": bool(ignored), "reasons": {"token_key": ignored} if ignored else {},
-                     "notes": [f"the launcher ignored {ignored} liveliness tokens on keys no process declares"]
-                     if ignored else []}
-        m = run_metrics(sc, rec, mode=self.opts.clock, link={}, wall_s=wall_s,
+        integrity = Integrity(tampered=bool(ignored), reasons={"token_key": ignored} if ignored else {},
+                              notes=(f"the launcher ignored {ignored} liveliness tokens on keys no process declares",)
+                              if ignored else ())
+        m = run_metrics(sc, rec, mode=self.opts.clock, link=None, wall_s=wall_s,
                         policy=self.opts.policy or sc.link.policy, events=events, completed=False,
-                        integrity=integrity)
-        m["completion"] = WORLD_LOST
-        m["written_by"] = "launcher"
+                        completion=WORLD_LOST, integrity=integrity)
+        last = None
         if st is not None:  # what the world last said, in the fields a reader looks at first (the trace is lost)
             ran = max(0.0, t_last)  # a status before tick 0 says t = -T: no simulated time has passed
-            m["duration_s"] = ran
-            m["realtime_factor"] = ran / wall_s if wall_s > 0 else None
-            m["final_path_error_max"] = st.path_error_max
-            m["final_coord_error_max"] = st.coord_error_max
-            m["live_final"] = sorted(set(st.alive) & set(sc.ids))
-        m["world_lost"] = {
-            "world_exit": code, "last_status_t": t_last,
-            "last_status": {k: getattr(st, k) for k in ("alive", "path_error_max", "coord_error_max", "paused")}
-            if st is not None else None,
-            "alive_tokens": sorted(self.alive & set(sc.ids)),  # the scenario's names only, not whatever was declared
-            "restarts": {n: c.restarts for n, c in self.children.items() if n != keys.WORLD and c.restarts},
-            "rejected_by_launcher": dict(self.rejected),
-        }
-        self.metrics_at = keep_json(self.metrics_out, m, metrics_fallbacks(self.metrics_out, self.run_dir,
-                                                                           f"{self.fleet}-launcher-{os.getpid()}"),
-                                    self.log)
+            m = replace(m, duration_s=ran, realtime_factor=ran / wall_s if wall_s > 0 else None,
+                        final_path_error_max=st.path_error_max, final_coord_error_max=st.coord_error_max,
+                        live_final=tuple(sorted(set(st.alive) & set(sc.ids))))
+            last = {k: getattr(st, k) for k in ("alive", "path_error_max", "coord_error_max", "paused")}
+        lost = WorldLost(world_exit=code, last_status_t=t_last, last_status=last,
+                         alive_tokens=tuple(sorted(self.alive & set(sc.ids))),  # the scenario's names only
+                         restarts={n: c.restarts for n, c in self.children.items() if n != keys.WORLD and c.restarts},
+                         rejected_by_launcher=dict(self.rejected))
+        m = replace(m, written_by="launcher", world_lost=lost)
+        fallbacks = metrics_fallbacks(self.metrics_out, self.run_dir, f"{self.fleet}-launcher-{os.getpid()}")
+        self.metrics_at = keep_json(self.metrics_out, m.to_dict(), fallbacks, self.log)
         if self.metrics_at is None:  # no disk takes them: the terminal does
             self.log("the metrics could be written nowhere; here they are:")
-            self.log(json.dumps(m))
+            self.log(json.dumps(m.to_dict()))
         return m

@@ -46,8 +46,9 @@ from cdus.sim.reports import (
     vehicle_back,
 )
 from cdus.sim.sink import UPDATE_EVERY, NullSink, Sink
-from cdus.sim.summary import link_block, run_metrics, sum_counters
-from cdus.sim.radio import RadioWatch, apply_radio_change, geometry_sample, radio_block, radio_change_problem
+from cdus.sim.runmetrics import Metrics
+from cdus.sim.summary import link_faults, link_metrics, run_metrics, sum_counters
+from cdus.sim.radio import RadioWatch, apply_radio_change, geometry_sample, radio_change_problem, radio_metrics
 from cdus.wire.rejected import Rejected
 from cdus.wire.messages import (
     decode_contacts, decode_geometry, decode_omega, encode_contacts, encode_geometry, encode_omega,
@@ -57,7 +58,7 @@ from cdus.wire.schemas import FleetEvent
 
 @dataclass
 class RunResult:
-    metrics: dict
+    metrics: Metrics
     recorder: Recorder
     vehicles: list[Vehicle]
 
@@ -322,15 +323,14 @@ class InProcessFleet:
         self.sink.update(self.recorder)
         return RunResult(self.partial_metrics(), self.recorder, self.vehicles)
 
-    def partial_metrics(self, **extra) -> dict:
-        """The metrics JSON of what has run so far (also after an interruption)."""
+    def partial_metrics(self) -> Metrics:
+        """The metrics of what has run so far (also after an interruption)."""
         counters = sum_counters(node.counters for node in [*self._retired, *self.nodes])
         emulator = link_faults_of(self.link)
-        faults = emulator.counters_summary() if emulator is not None else None
-        if self.radio is not None:
-            extra["radio"] = radio_block(self.link.counters, self.radio_watch)
-        return run_metrics(self.scenario, self.recorder, mode=self.mode, link=link_block(counters, faults),
+        faults = None if emulator is None else link_faults(emulator.counters_summary())
+        radio = None if self.radio is None else radio_metrics(self.link.counters, self.radio_watch)
+        return run_metrics(self.scenario, self.recorder, mode=self.mode, link=link_metrics(counters, faults),
                            wall_s=self.clock() - self._t0, policy=self.policy, events=self.events,
-                           completed=self.tick > self.end_tick, interventions=self.interventions,
+                           completed=self.tick > self.end_tick, interventions=self.interventions, radio=radio,
                            deflected=[sum(x.vehicle.deflected for x in [*self._retired, *self.nodes] if x.index == j)
-                                      for j in range(len(self.nodes))], **extra)
+                                      for j in range(len(self.nodes))])

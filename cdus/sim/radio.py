@@ -26,6 +26,7 @@ from cdus.core.radio import Geometry
 from cdus.core.radiolink import RadioCounters, as_point
 from cdus.scenario.errors import ConfigError
 from cdus.scenario.radio import validate_radio_update
+from cdus.sim.runmetrics import RadioMetrics, Utilisation
 from cdus.wire.messages import MAX_COORDINATE, GeometryMsg
 from cdus.wire.schemas import FleetEvent
 
@@ -147,9 +148,9 @@ class RadioWatch:
                 "samples": len(us)}
 
 
-def radio_block(counters: RadioCounters, watch: RadioWatch) -> dict:
-    """The metrics JSON's ``radio`` block (docs/metrics.md): messages decided on the radio path,
+def radio_metrics(counters: RadioCounters, watch: RadioWatch) -> RadioMetrics:
+    """The metrics' ``radio`` block (docs/metrics.md): messages decided on the radio path,
     drops by cause (``fault``: the hand-set [link] fault; range, fading, collision, queue: the
     channel), channel utilisation (mean, max over the geometry samples) and the number of
     communication-graph splits."""
-    return {**counters.as_dict(), "utilisation": watch.summary(), "splits": watch.splits}
+    return RadioMetrics(**counters.as_dict(), utilisation=Utilisation(**watch.summary()), splits=watch.splits)

@@ -1,27 +1,29 @@
-"""What did a run measure? The typed metrics record, decoded once.
+"""What did a run measure? The typed metrics record, built by the run and decoded from a file.
 
-:class:`Metrics` (and the records it holds: :class:`LinkMetrics`, :class:`FaultCounters`,
-:class:`RadioMetrics`, :class:`Event`, :class:`SafetyInfo`, ...) is a run's metrics JSON
-(docs/metrics.md) in types. :meth:`Metrics.from_json` validates a JSON object once (a
-``metrics.json`` on disk may be corrupt, or from an older version) and returns the record or
-``Rejected(reason, field)`` naming the first bad field, never raising; ``to_dict()`` gives the
-JSON back, byte for byte as it was built (cdus.sim.summary). Everything that reads metrics
-(``cdus.run``, the summary table of cdus.app.report, the sweep's rows) reads this type and
-checks no field again. It is the pure layer's (cdus.sim) so that a builder of the metrics
-below the app can make it; :mod:`cdus.results` and :mod:`cdus.api` give it to users.
+:class:`Metrics` (and its parts, one per concern: :class:`LinkMetrics` with its
+:class:`LinkFaults`, :class:`RadioMetrics`, :class:`ClosestPair`, :class:`SafetyInfo`,
+:class:`Integrity`, :class:`RejectedByReason`, :class:`WorldLost`, :class:`Event`) is a run's
+metrics JSON (docs/metrics.md) in types. A run builds it (cdus.sim.summary.run_metrics: the
+in-process fleet, the world process, the launcher for a lost world) and writes its
+``to_dict()``; a file is read back with :meth:`Metrics.read` / :meth:`Metrics.from_json`, which
+validate a JSON object once (a ``metrics.json`` on disk may be corrupt, or from an older
+version) and return the record or ``Rejected(reason, field)`` naming the first bad field,
+never raising. Everything that reads metrics (``cdus.run``, the summary table of
+cdus.app.report, the sweep's rows) reads this type and checks no field again. It is the pure
+layer's (cdus.sim) so that the builder below the app can make it; :mod:`cdus.results` and
+:mod:`cdus.api` give it to users. A new block is a new part here, a field of :class:`Metrics`
+(its place in the class is its place in the JSON) and its line in docs/metrics.md.
 """
 
 from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, is_dataclass
 from typing import Any, Mapping
 
-from cdus.wire.bounds import is_number
+from cdus.wire.bounds import finite, is_number
 from cdus.wire.rejected import Rejected
-
-
 
 
 class _Bad(ValueError):
@@ -84,6 +86,13 @@ def _numbers_by_id(d: Mapping, key: str, where: str) -> dict[str, float | None]:
 def _counts(v: Any, where: str) -> dict[str, int]:
     table = _table(v, where)
     return {k: _int(table, k, f"{where}.") for k in table}
+
+
+def _ids(d: Mapping, key: str, where: str) -> tuple[str, ...]:
+    v = d[key] if key in d else _missing(where, key)
+    if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
+        raise _bad(f"{where}{key}", "a list of vehicle ids", v)
+    return tuple(v)
 
 
 def _missing(where: str, key: str) -> Any:
@@ -177,34 +186,50 @@ LINK_COUNTS = ("sent", "delivered", "dropped", "duplicated", "rejected")
 
 
 @dataclass(frozen=True)
+class Utilisation:
+    """``radio.utilisation``: the channel utilisation's mean and max over the geometry samples
+    (null without a sample), and how many samples there were."""
+
+    mean: float | None
+    max: float | None
+    samples: int
+
+    @classmethod
+    def from_dict(cls, d: Any, where: str = "radio.utilisation.") -> "Utilisation":
+        d = _table(d, where.rstrip("."))
+        return cls(_num(d, "mean", where, null=True), _num(d, "max", where, null=True), _int(d, "samples", where))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"mean": self.mean, "max": self.max, "samples": self.samples}
+
+
+@dataclass(frozen=True)
 class RadioMetrics:
     """The metrics' ``radio`` block (with ``[radio]`` only; docs/metrics.md): messages decided on
     the radio path, drops by cause (``fault``: the hand-set [link] fault, which decides first;
     ``range``, ``fading``, ``collision``, ``queue``: the channel), the channel utilisation over
-    the geometry samples (``mean``, ``max``, ``samples``) and the communication-graph splits."""
+    the geometry samples and the communication-graph splits."""
 
     sent: int
     delivered: int
     dropped: int
     dropped_by: dict[str, int]
     no_geometry: int
-    utilisation: dict[str, Any]
+    utilisation: Utilisation
     splits: int
 
     @classmethod
     def from_dict(cls, d: Any, where: str = "radio.") -> "RadioMetrics":
         d = _table(d, where.rstrip("."))
-        u = _table(d["utilisation"] if "utilisation" in d else _missing(where, "utilisation"), f"{where}utilisation")
-        w = f"{where}utilisation."
+        u = d["utilisation"] if "utilisation" in d else _missing(where, "utilisation")
         return cls(_int(d, "sent", where), _int(d, "delivered", where), _int(d, "dropped", where),
                    _counts(d.get("dropped_by"), f"{where}dropped_by"), _int(d, "no_geometry", where),
-                   {"mean": _num(u, "mean", w, null=True), "max": _num(u, "max", w, null=True),
-                    "samples": _int(u, "samples", w)}, _int(d, "splits", where))
+                   Utilisation.from_dict(u, f"{where}utilisation."), _int(d, "splits", where))
 
     def to_dict(self) -> dict[str, Any]:
         return {"sent": self.sent, "delivered": self.delivered, "dropped": self.dropped,
                 "dropped_by": dict(self.dropped_by), "no_geometry": self.no_geometry,
-                "utilisation": dict(self.utilisation), "splits": self.splits}
+                "utilisation": self.utilisation.to_dict(), "splits": self.splits}
 
 
 @dataclass(frozen=True)
@@ -270,6 +295,14 @@ class SafetyInfo:
 
     enabled: bool
     radius_m: float | None
+
+    @classmethod
+    def from_dict(cls, d: Any) -> "SafetyInfo":
+        d = _table(d, "safety")
+        return cls(_bool(d, "enabled", "safety."), _num(d, "radius_m", "safety.", null=True))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"enabled": self.enabled, "radius_m": self.radius_m}
 
 
 @dataclass(frozen=True)
@@ -338,6 +371,15 @@ class RejectedByReason:
     world: dict[str, int]
     vehicles: dict[str, int]
 
+    @classmethod
+    def from_dict(cls, d: Any) -> "RejectedByReason":
+        r = _table(d, "rejected_by_reason")
+        return cls(_counts(r.get("world"), "rejected_by_reason.world"),
+                   _counts(r.get("vehicles"), "rejected_by_reason.vehicles"))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"world": dict(self.world), "vehicles": dict(self.vehicles)}
+
 
 @dataclass(frozen=True)
 class Integrity:
@@ -362,14 +404,51 @@ class Integrity:
 
 
 @dataclass(frozen=True)
+class WorldLost:
+    """``world_lost`` (only in the metrics the launcher writes when the world process died,
+    ``completion`` ``world_lost``): how the world ended (``world_exit``: its exit status, or
+    minus the signal), the time and the fields of its last status (null: it gave none), the
+    vehicles whose liveliness token was up, the restarts per vehicle and what the launcher
+    rejected, by reason."""
+
+    world_exit: int
+    last_status_t: float | None
+    last_status: dict[str, Any] | None  # {alive, path_error_max, coord_error_max, paused}, as the world said them
+    alive_tokens: tuple[str, ...]
+    restarts: dict[str, int]
+    rejected_by_launcher: dict[str, int]
+
+    @classmethod
+    def from_dict(cls, d: Any, where: str = "world_lost.") -> "WorldLost":
+        d = _table(d, where.rstrip("."))
+        last = d["last_status"] if "last_status" in d else _missing(where, "last_status")
+        if last is not None:
+            last = dict(_table(last, f"{where}last_status"))
+        t = _num(d, "last_status_t", where, null=True)
+        if t is not None and not finite(t):
+            raise _bad(f"{where}last_status_t", "a finite number or null", t)
+        return cls(_int(d, "world_exit", where), t, last,
+                   _ids(d, "alive_tokens", where), _counts(d.get("restarts"), f"{where}restarts"),
+                   _counts(d.get("rejected_by_launcher"), f"{where}rejected_by_launcher"))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"world_exit": self.world_exit, "last_status_t": self.last_status_t, "last_status": self.last_status,
+                "alive_tokens": list(self.alive_tokens), "restarts": dict(self.restarts),
+                "rejected_by_launcher": dict(self.rejected_by_launcher)}
+
+
+@dataclass(frozen=True)
 class Metrics:
     """One run's metrics JSON, typed: the fields and their meaning are docs/metrics.md's.
 
-    ``from_json`` checks every field's type once (a Rejected naming the first bad one;
-    ``from_dict``: the same as a ValueError); ``to_dict()`` gives the JSON back, equal to what was read, in the same key order. Keys the JSON may lack are None
-    here when absent (``rejected_by_reason``, ``interrupted``); keys this class does not know
-    are kept in ``extra``. ``link`` is None only in the metrics the launcher writes when the
-    world process died (its JSON ``link`` is ``{}``)."""
+    The builder (:func:`cdus.sim.summary.run_metrics`, for the in-process fleet, the world and
+    the launcher's ``world_lost`` record) makes this record; ``to_dict()`` is the JSON every run
+    writes, its fields in this class's order. ``from_json`` reads one back, checking every
+    field's type once (a Rejected naming the first bad one; ``from_dict``: the same as a
+    ValueError), and ``Metrics.from_json(m.to_dict()) == m``. A key the JSON may lack is None
+    here when absent (``rejected_by_reason``, ``radio``, ``interrupted``, ...); keys this class
+    does not know are kept in ``extra``. ``link`` is None only in the launcher's ``world_lost``
+    record (its JSON ``link`` is ``{}``)."""
 
     scenario: str
     mode: str
@@ -392,18 +471,20 @@ class Metrics:
     completed: bool
     completion: str
     min_separation_m: float | None
-    # None only in the metrics the launcher writes when the world process died
+    # None only in metrics written without them (a lost world's, before they were kept)
     closest_pairs: dict[str, ClosestPair] | None
     closest_pair: ClosestPair | None
     near_collision: bool | None
     interventions: int
     safety: SafetyInfo
     obstacles: ObstacleMetrics | None = None  # with [[obstacle]] only
-    integrity: Integrity | None = None  # None only in metrics written before it was (and the launcher's world_lost)
-    rejected_by_reason: RejectedByReason | None = None
-    radio: RadioMetrics | None = None  # with [radio] only
-    interrupted: bool | None = None
+    integrity: Integrity | None = None  # None only in metrics written before it was
+    rejected_by_reason: RejectedByReason | None = None  # a fleet of processes only
     never_up: tuple[str, ...] | None = None  # only in a run that never began (completion not_started)
+    radio: RadioMetrics | None = None  # with [radio] only
+    interrupted: bool | None = None  # only after a Ctrl-C of cdus sim
+    written_by: str | None = None  # "launcher": the world_lost record
+    world_lost: WorldLost | None = None  # ... and what the launcher knew
     extra: dict[str, Any] = field(default_factory=dict)
 
     @classmethod
@@ -445,21 +526,12 @@ class Metrics:
     def _decode(cls, d: Any) -> "Metrics":
         d = _table(d, "metrics")
         w = ""
-        live = d["live_final"] if "live_final" in d else _missing(w, "live_final")
-        if not isinstance(live, list) or not all(isinstance(v, str) for v in live):
-            raise _bad("live_final", "a list of vehicle ids", live)
         events = d["events"] if "events" in d else _missing(w, "events")
         if not isinstance(events, list):
             raise _bad("events", "a list", events)
         link = _table(d["link"] if "link" in d else _missing(w, "link"), "link")
-        safety = _table(d["safety"] if "safety" in d else _missing(w, "safety"), "safety")
-        rej = None
-        if "rejected_by_reason" in d:
-            r = _table(d["rejected_by_reason"], "rejected_by_reason")
-            rej = RejectedByReason(_counts(r.get("world"), "rejected_by_reason.world"),
-                                   _counts(r.get("vehicles"), "rejected_by_reason.vehicles"))
         pairs = None
-        trio = ("closest_pairs", "closest_pair", "near_collision")  # written together, or none (a dead world)
+        trio = ("closest_pairs", "closest_pair", "near_collision")  # written together, or none
         if any(k in d for k in trio):
             for k in trio:
                 if k not in d:
@@ -467,9 +539,6 @@ class Metrics:
             pairs = {str(k): ClosestPair.from_dict(v, f"closest_pairs.{k}.")
                      for k, v in _table(d["closest_pairs"], "closest_pairs").items()}
         closest = d.get("closest_pair")
-        never_up = d.get("never_up")  # absent, or a list (null would not come back from to_dict)
-        if "never_up" in d and (not isinstance(never_up, list) or not all(isinstance(v, str) for v in never_up)):
-            raise _bad("never_up", "a list of vehicle ids", never_up)
         known = {f.name for f in fields(cls)} - {"extra"}
         return cls(
             scenario=_str(d, "scenario", w), mode=_str(d, "mode", w), seed=_int(d, "seed", w),
@@ -479,7 +548,7 @@ class Metrics:
             final_path_error_max=_num(d, "final_path_error_max", w, null=True),
             final_coord_error_max=_num(d, "final_coord_error_max", w, null=True),
             omega_rate_final=_numbers_by_id(d, "omega_rate_final", w),
-            final_path_error=_numbers_by_id(d, "final_path_error", w), live_final=tuple(live),
+            final_path_error=_numbers_by_id(d, "final_path_error", w), live_final=_ids(d, "live_final", w),
             link=LinkMetrics.from_dict(link) if link else None,
             wall_s=_num(d, "wall_s", w), realtime_factor=_num(d, "realtime_factor", w, null=True),
             policy=_str(d, "policy", w),
@@ -489,18 +558,22 @@ class Metrics:
             closest_pair=None if closest is None else ClosestPair.from_dict(closest, "closest_pair."),
             near_collision=_bool(d, "near_collision", w) if "near_collision" in d else None,
             interventions=_int(d, "interventions", w),
-            safety=SafetyInfo(_bool(safety, "enabled", "safety."), _num(safety, "radius_m", "safety.", null=True)),
+            safety=SafetyInfo.from_dict(d["safety"] if "safety" in d else _missing(w, "safety")),
             obstacles=ObstacleMetrics.from_dict(d["obstacles"]) if "obstacles" in d else None,
             integrity=Integrity.from_dict(d["integrity"]) if "integrity" in d else None,
-            rejected_by_reason=rej,
+            rejected_by_reason=RejectedByReason.from_dict(d["rejected_by_reason"]) if "rejected_by_reason" in d
+            else None,
+            never_up=_ids(d, "never_up", w) if "never_up" in d else None,
             radio=RadioMetrics.from_dict(d["radio"]) if "radio" in d else None,
             interrupted=_bool(d, "interrupted", w) if "interrupted" in d else None,
-            never_up=None if never_up is None else tuple(never_up),
+            written_by=_str(d, "written_by", w) if "written_by" in d else None,
+            world_lost=WorldLost.from_dict(d["world_lost"]) if "world_lost" in d else None,
             extra={k: v for k, v in d.items() if k not in known},
         )
 
     def to_dict(self) -> dict[str, Any]:
-        """The metrics JSON: equal to the dict this was read from (and in its key order)."""
+        """The metrics JSON (docs/metrics.md): the fields in this class's order, an optional one
+        absent when None (``closest_pair`` is written with ``closest_pairs``, null or not), then ``extra``."""
         out: dict[str, Any] = {}
         for f in fields(self):
             v = getattr(self, f.name)
@@ -508,34 +581,28 @@ class Metrics:
                 out.update(v)
             elif f.name == "link":
                 out["link"] = {} if v is None else v.to_dict()
-            elif f.name == "live_final":
-                out[f.name] = list(v)
-            elif f.name in ("omega_rate_final", "final_path_error"):
-                out[f.name] = dict(v)
-            elif f.name == "events":
-                out[f.name] = [e.to_dict() for e in v]
-            elif f.name == "safety":
-                out[f.name] = {"enabled": v.enabled, "radius_m": v.radius_m}
-            elif f.name == "integrity":
-                if v is not None:
-                    out[f.name] = v.to_dict()
-            elif f.name == "rejected_by_reason":
-                if v is not None:
-                    out[f.name] = {"world": dict(v.world), "vehicles": dict(v.vehicles)}
-            elif f.name == "closest_pairs":
-                if v is not None:
-                    out[f.name] = {k: p.to_dict() for k, p in v.items()}
             elif f.name == "closest_pair":
                 if "closest_pairs" in out:
                     out[f.name] = None if v is None else v.to_dict()
-            elif f.name in ("interrupted", "near_collision"):
-                _opt(v, out, f.name)
-            elif f.name == "never_up":
+            elif f.name == "closest_pairs":
                 if v is not None:
-                    out[f.name] = list(v)
-            elif f.name in ("radio", "obstacles"):
-                if v is not None:
-                    out[f.name] = v.to_dict()
-            else:
-                out[f.name] = v
+                    out[f.name] = {k: p.to_dict() for k, p in v.items()}
+            elif f.name in _NULLABLE or v is not None:
+                out[f.name] = _encode(v)
         return out
+
+
+#: the fields of Metrics whose JSON is null when they are None (the others are then absent)
+_NULLABLE = frozenset(("path_settle_s", "coord_settle_s", "final_path_error_max", "final_coord_error_max",
+                       "realtime_factor", "min_separation_m"))
+
+
+def _encode(v: Any) -> Any:
+    """A field's JSON: a part's own to_dict, a tuple a list, a mapping a copy."""
+    if is_dataclass(v):
+        return v.to_dict()
+    if isinstance(v, tuple):
+        return [_encode(x) for x in v]
+    if isinstance(v, dict):
+        return dict(v)
+    return v

@@ -20,6 +20,7 @@ from cdus.api import Metrics, Trace
 from cdus.core.metrics import min_separation, settle_time
 from cdus.sim.fleet import InProcessFleet
 from cdus.wire.rejected import Rejected
+from tests.jsontree import JSON, paths
 
 ROOT = Path(__file__).resolve().parents[2]
 LAKE = str(ROOT / "configs/lake_circle.toml")
@@ -83,15 +84,15 @@ def metric_dicts(tmp_path) -> dict[str, dict]:
     from cdus.wire.transport import local_router
 
     sc = cdus.load(LAKE, {"scenario.duration": 4})
-    out = {"run": InProcessFleet(sc).run().metrics,
-           "faults": InProcessFleet(cdus.override(sc, {**FAULTS, "scenario.duration": 12})).run().metrics}
+    out = {"run": InProcessFleet(sc).run().metrics.to_dict(),
+           "faults": InProcessFleet(cdus.override(sc, {**FAULTS, "scenario.duration": 12})).run().metrics.to_dict()}
     fleet = InProcessFleet(sc)
     for _ in range(30):
         fleet.step()
-    out["interrupted"] = {**fleet.partial_metrics(), "interrupted": True}
+    out["interrupted"] = {**fleet.partial_metrics().to_dict(), "interrupted": True}
     la = Launcher(sc, tmp_path / "run", local_router(), LaunchOptions(fleet="t1", quiet=True))
     la.status = {"t": 2.5, "alive": ["usv1"], "path_error_max": 0.5, "coord_error_max": 0.1}
-    out["world_lost"] = la.write_world_lost(-9, 1.0)
+    out["world_lost"] = la.write_world_lost(-9, 1.0).to_dict()
     world = dict(out["faults"], mode="lockstep", rejected_by_reason={"world": {"key": 2}, "vehicles": {}})
     world["link"] = {**world["link"], "missed_deadlines": 0}
     world["link"] = {k: world["link"][k] for k in ("sent", "delivered", "dropped", "duplicated", "rejected",
@@ -112,30 +113,15 @@ def test_metrics_read_from_any_writer_give_their_json_back_in_order(tmp_path):
     kill = next(e for e in faults.events if e.kind == "fault")
     assert (kill.t, kill.vehicle, kill.severity, kill.link) == (5.0, "usv2", "warn", None)
     lost = Metrics.from_dict(dicts["world_lost"])
-    assert lost.link is None and lost.extra["written_by"] == "launcher" and lost.completion == "world_lost"
+    assert lost.link is None and lost.written_by == "launcher" and lost.world_lost.last_status_t == 2.5 and lost.completion == "world_lost"
     world = Metrics.from_dict(dicts["world"])
     assert world.rejected_by_reason.world == {"key": 2} and world.link.missed_deadlines == 0
     assert Metrics.from_dict(dicts["interrupted"]).interrupted is True and faults.interrupted is None
     assert Metrics.from_dict(dicts["not_started"]).never_up == ("uav2",) and faults.never_up is None
 
 
-JSON = st.recursive(st.none() | st.booleans() | st.integers(-10, 10) | st.floats(allow_nan=False) | st.text(max_size=4),
-                    lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=4), inner, max_size=3),
-                    max_leaves=6)
-
-
-def paths(d, prefix=()):
-    yield prefix
-    if isinstance(d, dict):
-        for k, v in d.items():
-            yield from paths(v, (*prefix, k))
-    elif isinstance(d, list):
-        for j, v in enumerate(d):
-            yield from paths(v, (*prefix, j))
-
-
 BASE = json.loads(json.dumps(InProcessFleet(cdus.load(LAKE, {"scenario.duration": 2, **FAULTS}))
-                             .run().metrics))
+                             .run().metrics.to_dict()))
 PATHS = [p for p in paths(BASE) if p]
 
 

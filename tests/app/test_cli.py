@@ -12,6 +12,7 @@ import pytest
 from cdus.app.cli import build_parser, launch_options, main
 from cdus.scenario.config import ConfigError, load_scenario, parse_overrides
 from cdus.scenario.model import RESTART_POLICIES
+from cdus.sim.runmetrics import Metrics
 
 CONFIG = "configs/lake_circle.toml"
 
@@ -430,9 +431,9 @@ def test_a_world_that_dies_while_the_fleet_comes_up_leaves_metrics_that_say_so(t
     run = tmp_path / "run"
     assert main(["launch", CONFIG, "--logs", str(run), "--rerun", "off", "--duration", "2", "-q"]) == 1
     out, err = capsys.readouterr()
-    m = json.loads((run / "metrics.json").read_text())
-    assert (m["completed"], m["completion"], m["written_by"]) == (False, "world_lost", "launcher"), m
-    assert m["world_lost"]["world_exit"] == -9 and m["world_lost"]["last_status_t"] is None
+    m = Metrics.read(run / "metrics.json")
+    assert (m.completed, m.completion, m.written_by) == (False, "world_lost", "launcher"), m
+    assert m.world_lost.world_exit == -9 and m.world_lost.last_status_t is None
     assert "the fleet did not come up" in out + err and "Traceback" not in out + err
 
 
@@ -459,7 +460,7 @@ def test_a_launch_reads_its_metrics_file_once_and_names_what_is_wrong_with_it(da
 
     sc = load_scenario(CONFIG, {"scenario.duration": 0.2})
     at = tmp_path / "metrics.json"
-    at.write_text(damage(json.dumps(InProcessFleet(sc).run().metrics)))
+    at.write_text(damage(json.dumps(InProcessFleet(sc).run().metrics.to_dict())))
     monkeypatch.setattr(cli, "check_listen", lambda eps: None)
     import cdus.app.launcher as launcher  # cli imports launch where it runs it (its start-up stays light)
     monkeypatch.setattr(launcher, "launch", lambda scenario, run, router, opts: (0, _Wrote(run, at)))

@@ -14,6 +14,7 @@ import pytest
 from cdus.commands.vehicle import Kill
 from cdus.app.launcher import Child, LaunchOptions, Launcher
 from cdus.scenario.config import load_scenario
+from cdus.sim.runmetrics import Metrics
 from cdus.scenario.model import MAX_BACKOFF_S, Supervision
 from cdus.wire.transport import Transport
 
@@ -296,17 +297,16 @@ def test_a_world_that_died_leaves_metrics_that_say_so(tmp_path):
     world_says(la, status(12.5))
     la.alive = {"world", "usv1", "usv2"}
     m = la.write_world_lost(-9, 3.0)
-    assert json.loads(la.metrics_out.read_text()) == m
-    assert m["completed"] is False and m["completion"] == WORLD_LOST and m["written_by"] == "launcher"
-    assert m["world_lost"]["world_exit"] == -9 and m["world_lost"]["last_status_t"] == 12.5
-    assert m["world_lost"]["alive_tokens"] == ["usv1", "usv2"]
-    assert m["duration_s"] == 12.5  # the top-level fields say what the world last said, not 0
-    assert m["final_path_error_max"] == m["world_lost"]["last_status"]["path_error_max"]
-    assert m["events"][-1]["text"].startswith("the world process was killed by signal 9")
+    assert Metrics.read(la.metrics_out) == m
+    assert m.completed is False and m.completion == WORLD_LOST and m.written_by == "launcher"
+    assert m.world_lost.world_exit == -9 and m.world_lost.last_status_t == 12.5
+    assert m.world_lost.alive_tokens == ("usv1", "usv2")
+    assert m.duration_s == 12.5  # the top-level fields say what the world last said, not 0
+    assert m.final_path_error_max == m.world_lost.last_status["path_error_max"]
+    assert m.events[-1].text.startswith("the world process was killed by signal 9")
     from cdus.app.report import summary_table
-    from cdus.results import Metrics
 
-    table = summary_table(Metrics.from_dict(m), la.scenario.vehicles)
+    table = summary_table(m, la.scenario.vehicles)
     assert "lake_circle (lockstep" in table  # the CLI prints it as any other
     assert "NOT COMPLETED (world_lost)" in table  # and says it is not a finished run
 
@@ -317,8 +317,8 @@ def test_a_world_lost_before_its_first_tick_ran_no_simulated_time_not_a_negative
     la, _ = quiet_launcher(tmp_path, duration=40.0)
     world_says(la, status(-0.02))
     m = la.write_world_lost(-9, 5.8)
-    assert m["world_lost"]["last_status_t"] == -0.02  # what the world said, kept as it said it
-    assert m["duration_s"] == 0.0 and m["realtime_factor"] == 0.0, m
+    assert m.world_lost.last_status_t == -0.02  # what the world said, kept as it said it
+    assert m.duration_s == 0.0 and m.realtime_factor == 0.0, m
 
 
 def test_a_process_still_starting_at_the_ready_timeout_is_told_how_to_wait_longer(tmp_path):
@@ -341,14 +341,13 @@ def test_the_summary_of_a_lost_world_says_what_is_not_known_not_never(tmp_path):
     errors are those of its last status. The metrics' fields keep their meaning (null settle
     times, completion "world_lost")."""
     from cdus.app.report import summary_table
-    from cdus.results import Metrics
 
     la, _ = quiet_launcher(tmp_path, duration=40.0)
     ids = list(la.scenario.ids)
     world_says(la, encode_status(12.5, 40.0, "lockstep", ids[:-1], ids, 0.0235, 0.0012, [], False))
     m = la.write_world_lost(-9, 3.0)
-    assert (m["path_settle_s"], m["coord_settle_s"], m["final_path_error_max"]) == (None, None, 0.0235)
-    table = summary_table(Metrics.from_dict(m), la.scenario.vehicles)
+    assert (m.path_settle_s, m.coord_settle_s, m.final_path_error_max) == (None, None, 0.0235)
+    table = summary_table(m, la.scenario.vehicles)
     assert "never" not in table, table
     assert "NOT COMPLETED (world_lost): the world was lost at t = 12.5 s and the run's trace with it: the settle " \
            "times are not known, the errors below are those of the world's last status" in table
@@ -360,7 +359,7 @@ def test_the_summary_of_a_lost_world_says_what_is_not_known_not_never(tmp_path):
     assert gone.endswith("(not live at the world's last status, t = 12.5 s)")
     # a world lost before its first status: nothing of the run is known
     la, _ = quiet_launcher(tmp_path / "early", duration=40.0)
-    table = summary_table(Metrics.from_dict(la.write_world_lost(1, 2.0)), la.scenario.vehicles)
+    table = summary_table(la.write_world_lost(1, 2.0), la.scenario.vehicles)
     assert "never" not in table and "0.0 s simulated" not in table and "killed or paused" not in table, table
     assert "2.0 s wall; how far the run got is not known" in table
     assert "path settle (worst |Φ| < 0.1 m):             not known: the world was lost before its first status" \
@@ -427,7 +426,7 @@ def test_a_lost_world_on_a_full_disk_leaves_its_metrics_in_the_run_directory_or_
     la, lines = quiet_launcher(tmp_path, duration=40.0, metrics_out=full_fs / "metrics.json")
     world_says(la, status(12.5))
     m = la.write_world_lost(-9, 3.0)
-    assert la.metrics_at == la.run_dir / "metrics.json" and json.loads(la.metrics_at.read_text()) == m
+    assert la.metrics_at == la.run_dir / "metrics.json" and Metrics.read(la.metrics_at) == m
     assert lines[0] == f"error: could not write the metrics to {full_fs / 'metrics.json'}: No space left on device"
     # nothing takes them (the run directory and the temporary directory full too): the terminal does
     la, lines = quiet_launcher(tmp_path / "again", duration=40.0, metrics_out=full_fs / "metrics.json")
@@ -436,7 +435,7 @@ def test_a_lost_world_on_a_full_disk_leaves_its_metrics_in_the_run_directory_or_
     m = la.write_world_lost(-9, 3.0)
     assert la.metrics_at is None
     assert lines[-2] == "the metrics could be written nowhere; here they are:"
-    assert json.loads(lines[-1]) == m
+    assert json.loads(lines[-1]) == m.to_dict()
 
 
 def test_the_world_metrics_kept_elsewhere_are_found_there_not_taken_for_a_lost_world(tmp_path):
@@ -496,7 +495,7 @@ def test_only_the_statuses_of_the_world_started_here_are_believed(tmp_path):
     world_says(la, status(3.0))  # a genuine one replayed, older than the newest
     assert la.status.t == 12.5
     assert la.rejected == {"status unsigned": 3, "status stale": 1}, la.rejected
-    assert la.write_world_lost(-9, 3.0)["world_lost"]["last_status_t"] == 12.5
+    assert la.write_world_lost(-9, 3.0).world_lost.last_status_t == 12.5
     world_says(la, status(13.0))
     assert la.status.t == 13.0
 

@@ -3,11 +3,13 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import zenoh
 
 from cdus.app.launcher import LaunchOptions, Launcher
 from cdus.app.report import summary_table
-from cdus.results import Metrics
+from cdus.results import Integrity
 from cdus.scenario.config import load_scenario
 from cdus.sim.fleet import InProcessFleet
 from cdus.wire import keys
@@ -18,11 +20,12 @@ SC = load_scenario("configs/lake_circle.toml", {"scenario.duration": 0.2})
 
 def test_the_summary_says_tampered_with_the_reasons_and_escapes_what_came_from_the_wire():
     m = InProcessFleet(SC).run().metrics
-    assert m["integrity"] == {"tampered": False, "reasons": {}, "notes": []}
-    assert "TAMPERED" not in summary_table(Metrics.from_dict(m), SC.vehicles)
-    m["integrity"] = {"tampered": True, "reasons": {"token_key": 1, "vehicle_token_key": 6},
-                      "notes": ["a liveliness token on cdus/f/alive/**, no process's key: ignored", "\x1b[2J"]}
-    line = next(ln for ln in summary_table(Metrics.from_dict(m), SC.vehicles).splitlines() if "TAMPERED" in ln)
+    assert m.integrity == Integrity(tampered=False, reasons={}, notes=())
+    assert "TAMPERED" not in summary_table(m, SC.vehicles)
+    m = replace(m, integrity=Integrity(tampered=True, reasons={"token_key": 1, "vehicle_token_key": 6},
+                                       notes=("a liveliness token on cdus/f/alive/**, no process's key: ignored",
+                                              "\x1b[2J")))
+    line = next(ln for ln in summary_table(m, SC.vehicles).splitlines() if "TAMPERED" in ln)
     assert "token_key 1, vehicle_token_key 6" in line and "alive/**" in line and "\x1b" not in line
 
 
@@ -43,4 +46,4 @@ def test_the_launcher_counts_tokens_that_are_nobodys_and_a_vehicle_is_up_while_o
     la._on_alive(Token(keys.alive("f", "usv2", "a1"), up=False))
     assert la.alive == set() and la.ever_alive == {"usv2"}
     m = la.write_world_lost(-9, 1.0)
-    assert m["integrity"]["tampered"] is True and m["integrity"]["reasons"] == {"token_key": 1}
+    assert m.integrity.tampered is True and m.integrity.reasons == {"token_key": 1}

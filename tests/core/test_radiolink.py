@@ -97,4 +97,4 @@ def test_a_link_model_given_to_a_radio_fleet_goes_under_the_radio():
     fleet = InProcessFleet(sc, link=emulator)
     assert isinstance(fleet.link, RadioLink) and fleet.link.inner is emulator
     m = fleet.run().metrics
-    assert m["radio"]["dropped_by"]["fault"] == m["link"]["faults"]["total"]["dropped"] > 0
+    assert m.radio.dropped_by["fault"] == m.link.faults.total.dropped > 0

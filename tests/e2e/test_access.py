@@ -26,6 +26,7 @@ import zenoh
 from cdus.scenario.config import load_scenario
 from cdus.sim.build import listeners_of
 from cdus.sim.fleet import InProcessFleet
+from cdus.sim.runmetrics import Metrics
 from cdus.wire import keys
 from cdus.wire.messages import OmegaMsg, StateMsg, encode_control, encode_omega, encode_states
 from cdus.wire.schemas import AgentStats, FleetEvent, decode_event, encode_event, encode_stats, encode_status
@@ -96,7 +97,7 @@ def test_a_default_launch_is_secured_and_its_printed_ground_station_line_works(t
     res = run_cli([*gs, "stop"], timeout=60)
     assert res.returncode == 0, res.stderr
     assert la.wait(timeout=60) == 0, la.output()
-    assert json.loads((run / "metrics.json").read_text())["completed"] is False  # stopped, as asked
+    assert Metrics.read(run / "metrics.json").completed is False  # stopped, as asked
     assert not fleet_processes(fleet)
 
 
@@ -181,13 +182,13 @@ def test_an_outsider_cannot_stop_retune_or_inject_into_a_secured_fleet(tmp_path,
 
     assert la.wait(timeout=300) == 0, la.output()
     assert "FORGED" not in la.output()
-    m = json.loads((run / "metrics.json").read_text())
-    assert m["completed"] is True, m["events"]  # no stop got through
-    kinds = [e["kind"] for e in m["events"]]
-    assert kinds.count("fleet") == 2 and kinds.count("gains_changed") == 1, m["events"]  # the ground station's
-    assert "fault" not in kinds and "vehicle_lost" not in kinds, m["events"]
+    m = Metrics.read(run / "metrics.json")
+    assert m.completed is True, m.events  # no stop got through
+    kinds = [e.kind for e in m.events]
+    assert kinds.count("fleet") == 2 and kinds.count("gains_changed") == 1, m.events  # the ground station's
+    assert "fault" not in kinds and "vehicle_lost" not in kinds, m.events
     listeners = len(listeners_of(sc, "usv1"))
-    assert m["link"]["rejected"] == len(own) * listeners, m["link"]  # no forged ω or command reached anyone
+    assert m.link.rejected == len(own) * listeners, m.link  # no forged ω or command reached anyone
     # the ground station's gains were applied once by every vehicle, the outsider's never
     for v in sc.vehicles:
         log = (run / "logs" / f"{v.id}.log").read_text()
@@ -239,8 +240,8 @@ def test_over_tls_only_a_certificate_of_the_run_gets_in_and_the_ground_station_c
     res = run_cli([*gs, "stop"], timeout=60)
     assert res.returncode == 0, res.stderr
     assert la.wait(timeout=60) == 0, la.output()
-    m = json.loads((run / "metrics.json").read_text())
-    assert m["completed"] is False
+    m = Metrics.read(run / "metrics.json")
+    assert m.completed is False
     assert not fleet_processes(fleet)
 
 

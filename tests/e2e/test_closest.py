@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -11,6 +11,7 @@ import pytest
 from cdus.core.metrics import closest_pairs
 from cdus.scenario.config import load_scenario
 from cdus.sim.fleet import InProcessFleet
+from cdus.sim.runmetrics import ClosestPair, Metrics
 
 from .conftest import fleet_processes, unique_fleet
 
@@ -23,7 +24,7 @@ def _run(launches, tmp_path, clock):
     la = launches([*ARGS, "--clock", clock, "--logs", str(run), "--trace-out", str(tmp_path / f"{clock}.npz")], fleet)
     assert la.wait() == 0, la.output()
     assert not fleet_processes(fleet)
-    return json.loads((run / "metrics.json").read_text()), np.load(tmp_path / f"{clock}.npz")
+    return Metrics.read(run / "metrics.json"), np.load(tmp_path / f"{clock}.npz")
 
 
 def test_lockstep_names_the_same_closest_pair_as_the_in_process_run(tmp_path, launches):
@@ -31,19 +32,19 @@ def test_lockstep_names_the_same_closest_pair_as_the_in_process_run(tmp_path, la
     metrics, _ = _run(launches, tmp_path, "lockstep")
     ref = InProcessFleet(load_scenario("configs/crossing.toml", {"scenario.duration": 3.0,
                                                                  "safety.enabled": False})).run().metrics
-    assert ref["near_collision"] is True and ref["closest_pair"]["a"] == "usv_a1"
-    assert metrics["near_collision"] is True
-    for domain, p in ref["closest_pairs"].items():
-        got = metrics["closest_pairs"][domain]
-        assert got["distance_m"] == pytest.approx(p["distance_m"], abs=1e-6)
-        assert {k: v for k, v in got.items() if k != "distance_m"} == {k: v for k, v in p.items() if k != "distance_m"}
-    assert metrics["closest_pairs"].keys() == ref["closest_pairs"].keys()
+    assert ref.near_collision is True and ref.closest_pair.a == "usv_a1"
+    assert metrics.near_collision is True
+    for domain, p in ref.closest_pairs.items():
+        got = metrics.closest_pairs[domain]
+        assert got.distance_m == pytest.approx(p.distance_m, abs=1e-6)
+        assert replace(got, distance_m=0.0) == replace(p, distance_m=0.0)
+    assert metrics.closest_pairs.keys() == ref.closest_pairs.keys()
 
 
 def test_realtime_closest_pair_is_the_one_its_rows_show(tmp_path, launches):
     metrics, trace = _run(launches, tmp_path, "realtime")
     kinds = [v.kind for v in load_scenario("configs/crossing.toml").vehicles]
     pairs = closest_pairs(trace["t"], trace["q"], trace["live"], list(trace["ids"]), kinds)
-    assert {d: p.as_dict() for d, p in pairs.items()} == metrics["closest_pairs"]
-    assert metrics["closest_pair"] == metrics["closest_pairs"]["usv"]
-    assert metrics["near_collision"] is (metrics["closest_pair"]["distance_m"] < 2.0)
+    assert {d: ClosestPair(**p.as_dict()) for d, p in pairs.items()} == metrics.closest_pairs
+    assert metrics.closest_pair == metrics.closest_pairs["usv"]
+    assert metrics.near_collision is (metrics.closest_pair.distance_m < 2.0)

@@ -9,7 +9,6 @@
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 import time
@@ -18,6 +17,7 @@ import numpy as np
 import pytest
 import zenoh
 
+from cdus.sim.runmetrics import Metrics
 from cdus.wire import keys
 from cdus.wire.messages import StateMsg, encode_states
 from cdus.wire.transport import free_tcp_port
@@ -41,13 +41,13 @@ def lockstep_run(launches, tmp_path, name: str, port: int | None = None, extra=(
 
 
 def results(tmp_path, run, name):
-    return json.loads((run / "metrics.json").read_text()), np.load(tmp_path / f"{name}.npz")
+    return Metrics.read(run / "metrics.json"), np.load(tmp_path / f"{name}.npz")
 
 
 def assert_same_run(a, b):
     (ma, ta), (mb, tb) = a, b
     for f in SAME:
-        assert ma[f] == mb[f], f
+        assert getattr(ma, f) == getattr(mb, f), f
     for name in ("q", "omega", "omega_rate", "path_error", "heading", "live"):
         assert np.array_equal(ta[name], tb[name]), name
 
@@ -64,8 +64,8 @@ def clean(tmp_path_factory):
         assert la.wait() == 0, la.output()
     finally:
         la.kill()
-    m = json.loads((tmp / "run" / "metrics.json").read_text())
-    assert m["completed"] is True and m["completion"] == "completed"
+    m = Metrics.read(tmp / "run" / "metrics.json")
+    assert m.completed is True and m.completion == "completed"
     return m, np.load(tmp / "clean.npz")
 
 
@@ -80,9 +80,9 @@ def test_a_router_frozen_for_5_s_is_waited_for_and_the_run_matches_the_clean_one
         os.kill(la.proc.pid, signal.SIGCONT)
     assert la.wait(timeout=180) == 0, la.output()
     got = results(tmp_path, run, "frozen")
-    assert got[0]["completed"] is True and got[0]["completion"] == "completed", la.output()
-    assert got[0]["live_final"] == clean[0]["live_final"] and np.array_equal(got[1]["live"], clean[1]["live"])
-    assert not [e for e in got[0]["events"] if e["kind"] == "vehicle_lost"], got[0]["events"]
+    assert got[0].completed is True and got[0].completion == "completed", la.output()
+    assert got[0].live_final == clean[0].live_final and np.array_equal(got[1]["live"], clean[1]["live"])
+    assert not [e for e in got[0].events if e.kind == "vehicle_lost"], got[0].events
     # an ω lost in flight while the router was frozen is said again by its sender and taken as
     # a gap filled (cdus.core.node), so the run is the clean one, bit for bit
     assert_same_run(got, clean)
@@ -102,8 +102,8 @@ def test_forged_telemetry_from_an_outsider_does_not_end_the_run(tmp_path, launch
     finally:
         session.close()
     got = results(tmp_path, run, "forged")
-    assert got[0]["completed"] is True, la.output()
-    assert got[0]["rejected_by_reason"]["world"].get("future", 0) >= 1, got[0]["rejected_by_reason"]
+    assert got[0].completed is True, la.output()
+    assert got[0].rejected_by_reason.world.get("future", 0) >= 1, got[0].rejected_by_reason
     assert_same_run(got, clean)
 
 
@@ -116,9 +116,9 @@ def test_two_vehicles_killed_with_restarts_off_is_not_a_completed_run(tmp_path, 
         assert line, fleet_processes(fleet)
         os.kill(int(line[0].split()[0]), signal.SIGKILL)
     code = la.wait(timeout=180)
-    m = json.loads((run / "metrics.json").read_text())
-    assert m["completed"] is False and m["completion"] == "vehicles_lost", la.output()
+    m = Metrics.read(run / "metrics.json")
+    assert m.completed is False and m.completion == "vehicles_lost", la.output()
     # a run that failed exits 1, not 0 beside "completed: false" (attacker review)
     assert code == 1 and "error: the run did not complete: vehicles_lost" in la.output(), (code, la.output())
-    assert m["final_path_error"]["usv2"] != 0.0
+    assert m.final_path_error["usv2"] != 0.0
     assert not fleet_processes(fleet)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 import queue
 import random
@@ -11,6 +10,7 @@ import msgpack
 import numpy as np
 import zenoh
 
+from cdus.sim.runmetrics import Metrics
 from cdus.wire import keys
 from cdus.scenario.config import load_scenario
 from cdus.wire.transport import Transport, free_tcp_port, open_session
@@ -30,15 +30,15 @@ def test_lake_circle_settles_with_30_percent_loss_and_100_ms_delay_in_lockstep(t
     la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", "170", "--set", "link.loss=0.3",
                    "--set", "link.delay.base=0.1", "--logs", str(run), "-q"], fleet)
     assert la.wait(timeout=300) == 0, la.output()
-    m = json.loads((run / "metrics.json").read_text())
-    assert m["coord_settle_s"] is not None and m["final_coord_error_max"] < 0.05, m
-    faults = m["link"]["faults"]["total"]
-    assert 0.27 < faults["dropped_by"]["loss"] / faults["sent"] < 0.33
+    m = Metrics.read(run / "metrics.json")
+    assert m.coord_settle_s is not None and m.final_coord_error_max < 0.05, m
+    faults = m.link.faults.total
+    assert 0.27 < faults.dropped_by.loss / faults.sent < 0.33
     # the same decisions as the in-process run: the emulator decides from (seed, src, dst, seq)
     ref = InProcessFleet(load_scenario("configs/lake_circle.toml", {"scenario.duration": 170.0, "link.loss": 0.3,
                                                                     "link.delay.base": 0.1})).run().metrics
-    assert m["coord_settle_s"] == ref["coord_settle_s"]
-    assert faults["dropped"] == ref["link"]["faults"]["total"]["dropped"]
+    assert m.coord_settle_s == ref.coord_settle_s
+    assert faults.dropped == ref.link.faults.total.dropped
     assert not fleet_processes(fleet)
 
 
@@ -65,19 +65,19 @@ def test_a_partition_that_splits_the_ring_and_heals_reconverges(tmp_path, launch
     t = ref.recorder.view("t")
     err = ref.recorder.edge_error().max(axis=1)
     assert err[(t > 125) & (t < 130)].max() < 0.05  # settled before the split
-    assert ref.metrics["coord_settle_s"] > 145.0  # disturbed by the split...
-    assert ref.metrics["final_coord_error_max"] < 0.05  # ...and back after healing
+    assert ref.metrics.coord_settle_s > 145.0  # disturbed by the split...
+    assert ref.metrics.final_coord_error_max < 0.05  # ...and back after healing
     fleet = unique_fleet()
     run = tmp_path / "run"
     # over direct links: the restarted process (--rejoin) re-links to its neighbours' sockets
     la = launches([str(cfg), "--clock", "lockstep", "--logs", str(run), "-q", "--links", "direct", "--insecure"], fleet)
     assert la.wait(timeout=300) == 0, la.output()
-    m = json.loads((run / "metrics.json").read_text())
-    assert m["coord_settle_s"] == ref.metrics["coord_settle_s"]
-    assert m["final_coord_error_max"] < 0.05
-    changes = m["link"]["faults"]["state_changes"]
-    assert any(c["state"] == "down" and abs(c["t"] - 130.0) < 0.1 for c in changes)
-    assert any(c["state"] == "up" and abs(c["t"] - 145.0) < 0.1 for c in changes)
+    m = Metrics.read(run / "metrics.json")
+    assert m.coord_settle_s == ref.metrics.coord_settle_s
+    assert m.final_coord_error_max < 0.05
+    changes = m.link.faults.state_changes
+    assert any(c.state == "down" and abs(c.t - 130.0) < 0.1 for c in changes)
+    assert any(c.state == "up" and abs(c.t - 145.0) < 0.1 for c in changes)
 
 
 def test_a_killed_and_restarted_vehicle_rejoins_and_the_fleet_reconverges(tmp_path, launches):
@@ -102,30 +102,30 @@ vehicle = "usv2"
     run = tmp_path / "run"
     la = launches([str(cfg), "--clock", "lockstep", "--logs", str(run), "-q"], fleet)
     assert la.wait(timeout=300) == 0, la.output()
-    m = json.loads((run / "metrics.json").read_text())
-    seen = [(e["kind"], e.get("vehicle")) for e in m["events"]]
-    assert ("fault", "usv2") in seen and ("vehicle_back", "usv2") in seen, m["events"]
+    m = Metrics.read(run / "metrics.json")
+    seen = [(e.kind, e.vehicle) for e in m.events]
+    assert ("fault", "usv2") in seen and ("vehicle_back", "usv2") in seen, m.events
     # the same vehicle events as `cdus sim` reports for the scenario (cdus.sim.reports)
     ref_run = InProcessFleet(load_scenario(cfg)).run()
     ref = ref_run.metrics
     news = ("fault", "vehicle_lost", "vehicle_back")
-    assert [e for e in seen if e[0] in news] == [(e["kind"], e.get("vehicle")) for e in ref["events"]
-                                                 if e["kind"] in news]
+    assert [e for e in seen if e[0] in news] == [(e.kind, e.vehicle) for e in ref.events
+                                                 if e.kind in news]
     # at the same times: vehicle_back and the graph events of the scheduled changes carry their ticks
     # (they said the newest tick recorded, a tick early: 134.98 s for a restart at 135 s)
     timed = ("fault", "vehicle_back")
-    assert [(e["kind"], e["t"]) for e in m["events"] if e["kind"] in timed] == \
-        [(e["kind"], e["t"]) for e in ref["events"] if e["kind"] in timed] == \
+    assert [(e.kind, e.t) for e in m.events if e.kind in timed] == \
+        [(e.kind, e.t) for e in ref.events if e.kind in timed] == \
         [("fault", 12.0), ("fault", 15.0), ("vehicle_back", 15.0)]
-    assert {e["t"] for e in m["events"] if e["kind"] == "graph"} == {e["t"] for e in ref["events"]
-                                                                      if e["kind"] == "graph"} == {12.0, 15.0}
+    assert {e.t for e in m.events if e.kind == "graph"} == {e.t for e in ref.events
+                                                                      if e.kind == "graph"} == {12.0, 15.0}
     log = (run / "logs" / "usv2.log").read_text()
     assert "rejoining at tick 750" in log, log[-2000:]  # t = 15 s exactly: the fleet waited for it
     # settled before the kill, disturbed by it, and settled again after the restart
     t, err = ref_run.recorder.view("t"), ref_run.recorder.edge_error().max(axis=1)
     assert err[(t > 10.0) & (t < 12.0)].max() < 0.05 and err[(t > 12.0) & (t < 18.0)].max() > 0.5
-    assert m["coord_settle_s"] is not None and m["coord_settle_s"] > 15.0, m
-    assert m["final_coord_error_max"] < 0.05
+    assert m.coord_settle_s is not None and m.coord_settle_s > 15.0, m
+    assert m.final_coord_error_max < 0.05
     assert not fleet_processes(fleet)
 
 
@@ -140,7 +140,7 @@ def _lake_lockstep(tmp_path, launches, duration: float, extra: str) -> tuple:
     la = launches([str(cfg), "--clock", "lockstep", "--logs", str(run), "-q", "--rerun", "off"], fleet)
     assert la.wait(timeout=120) == 0, la.output()
     assert not fleet_processes(fleet)
-    return cfg, json.loads((run / "metrics.json").read_text())
+    return cfg, Metrics.read(run / "metrics.json")
 
 
 def test_per_link_counters_are_whole_after_a_kill_and_restarts_in_lockstep(tmp_path, launches):
@@ -170,11 +170,11 @@ at = 6.0
 action = "restart"
 vehicle = "usv3"
 """)
-    faults = m["link"]["faults"]
-    ref = InProcessFleet(load_scenario(cfg)).run().metrics["link"]["faults"]
-    assert faults["links"] == ref["links"]
-    assert faults["total"] == ref["total"]
-    assert sum(c["sent"] for c in faults["links"].values()) == faults["total"]["sent"] == 4396
+    faults = m.link.faults
+    ref = InProcessFleet(load_scenario(cfg)).run().metrics.link.faults
+    assert faults.links == ref.links
+    assert faults.total == ref.total
+    assert sum(c.sent for c in faults.links.values()) == faults.total.sent == 4396
 
 
 def test_a_kill_between_two_telemetry_batches_does_not_hold_the_lockstep_fleet(tmp_path, launches):
@@ -189,8 +189,8 @@ at = 0.5
 action = "kill"
 vehicle = "usv2"
 """)
-    assert m["completed"] and m["duration_s"] == 3.0, (m["completion"], m["duration_s"])
-    assert "usv2" not in m["live_final"] and "usv1" in m["live_final"]
+    assert m.completed and m.duration_s == 3.0, (m.completion, m.duration_s)
+    assert "usv2" not in m.live_final and "usv1" in m.live_final
 
 
 def hostile_omega_payloads(rng: random.Random, n: int) -> list[bytes]:
@@ -290,10 +290,10 @@ def test_fuzzed_payloads_are_counted_and_never_reach_a_controller(tmp_path, laun
     finally:
         session.close()
     assert la.wait(timeout=300) == 0, la.output()
-    m = json.loads((run / "metrics.json").read_text())
-    assert m["completed"] is True
+    m = Metrics.read(run / "metrics.json")
+    assert m.completed is True
     # no agent died: every one reported to the end, and all the fuzz was counted as rejected
-    assert m["link"]["rejected"] == expected, (m["link"], expected)
+    assert m.link.rejected == expected, (m.link, expected)
     # nothing reached a controller: the run equals the clean in-process one, bit for bit
     ref = InProcessFleet(sc).run()
     trace = np.load(tmp_path / "trace.npz")

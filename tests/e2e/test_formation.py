@@ -7,7 +7,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 import time
 
@@ -15,6 +14,7 @@ import numpy as np
 
 from cdus.scenario.config import load_scenario
 from cdus.sim.fleet import InProcessFleet
+from cdus.sim.runmetrics import Metrics
 from cdus.wire.transport import free_tcp_port
 
 from .conftest import fleet_processes, run_cli, unique_fleet
@@ -77,13 +77,13 @@ def test_lockstep_with_a_scheduled_formation_and_path_change_reproduces_the_in_p
         mine = ref.recorder.edge_error() if name == "edge_error" else ref.recorder.view(name)
         assert np.array_equal(trace[name], mine), (name, np.abs(trace[name] - mine).max())
     assert trace["edge_error"][40].max() > 10.0  # measured against the new offsets from tick 40 (2 s)
-    metrics = json.loads((run / "metrics.json").read_text())
-    assert metrics["completed"] is True
-    assert metrics["final_coord_error_max"] == ref.metrics["final_coord_error_max"]
-    changes = [(e["kind"], e["t"], e.get("vehicle")) for e in metrics["events"] if e["kind"].endswith("_changed")]
+    metrics = Metrics.read(run / "metrics.json")
+    assert metrics.completed is True
+    assert metrics.final_coord_error_max == ref.metrics.final_coord_error_max
+    changes = [(e.kind, e.t, e.vehicle) for e in metrics.events if e.kind.endswith("_changed")]
     assert changes == [("formation_changed", 2.0, None), ("path_changed", 3.0, "uav1")]
-    assert changes == [(e["kind"], e["t"], e.get("vehicle")) for e in ref.metrics["events"]
-                       if e["kind"].endswith("_changed")]
+    assert changes == [(e.kind, e.t, e.vehicle) for e in ref.metrics.events
+                       if e.kind.endswith("_changed")]
     assert not fleet_processes(fleet)
 
 
@@ -123,24 +123,24 @@ def test_a_ground_stations_phase_and_path_change_is_settled_to_by_a_running_flee
     assert t is not None and start is not None and t > start + 15.0
     assert gs(fleet, port, run, "stop").returncode == 0
     assert la.wait(timeout=60) == 0, la.output()
-    m = json.loads((run / "metrics.json").read_text())
-    changed = [e for e in m["events"] if e["kind"] in ("formation_changed", "path_changed")]
-    assert [e["kind"] for e in changed] == ["formation_changed", "path_changed"], m["events"]
-    assert all("by gs" in e["text"] for e in changed)
-    t_change = changed[0]["t"]
+    m = Metrics.read(run / "metrics.json")
+    changed = [e for e in m.events if e.kind in ("formation_changed", "path_changed")]
+    assert [e.kind for e in changed] == ["formation_changed", "path_changed"], m.events
+    assert all("by gs" in e.text for e in changed)
+    t_change = changed[0].t
     assert t_change < 50.0
-    assert m["completion"] == "stopped" and m["final_coord_error_max"] < m["coord_tol"], m
-    assert m["coord_settle_s"] is not None and m["coord_settle_s"] > t_change  # it was off the new offsets first
-    assert m["final_path_error"]["uav1"] < m["path_tol"]
+    assert m.completion == "stopped" and m.final_coord_error_max < m.coord_tol, m
+    assert m.coord_settle_s is not None and m.coord_settle_s > t_change  # it was off the new offsets first
+    assert m.final_path_error["uav1"] < m.path_tol
     assert not fleet_processes(fleet)
     # the same commands given to the in-process fleet at the ticks the world relayed them give
     # the same run, to the bit: every agent applied them on that tick
     sc = load_scenario(str(cfg))
     period = 1.0 / sc.rates.control
     ref = InProcessFleet(sc)
-    ref.set_formation({"usv2": math.pi / BETA, "uav1": 0.0}, round(changed[0]["t"] / period))
+    ref.set_formation({"usv2": math.pi / BETA, "uav1": 0.0}, round(changed[0].t / period))
     ref.set_path("uav1", {"family": "circle", "center": [30, 0, 20], "radius": 5, "speed": 1.0},
-                 round(changed[1]["t"] / period))
+                 round(changed[1].t / period))
     trace = np.load(tmp_path / "trace.npz")
     rows = len(trace["t"])
     for _ in range(rows):

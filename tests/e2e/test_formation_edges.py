@@ -10,13 +10,13 @@ tick differed in the last bit (the in-process fleet rejoined the restarted node 
 
 from __future__ import annotations
 
-import json
 import math
 
 import numpy as np
 
 from cdus.scenario.config import load_scenario
 from cdus.sim.fleet import InProcessFleet
+from cdus.sim.runmetrics import Metrics
 
 from .conftest import fleet_processes, unique_fleet
 from .test_formation import BETA, SCENARIO
@@ -87,10 +87,10 @@ def test_lockstep_with_changes_at_the_edges_reproduces_the_in_process_run(tmp_pa
         mine = ref.recorder.view(name)
         differ = np.argwhere(~((trace[name] == mine) | (np.isnan(trace[name]) & np.isnan(mine))))
         assert trace[name].shape == mine.shape and not len(differ), (name, differ[:3])
-    metrics = json.loads((run / "metrics.json").read_text())
-    changes = [(e["kind"], e["t"], e.get("vehicle")) for e in metrics["events"] if e["kind"].endswith("_changed")]
-    assert changes == [(e["kind"], e["t"], e.get("vehicle")) for e in ref.metrics["events"]
-                       if e["kind"].endswith("_changed")]
+    metrics = Metrics.read(run / "metrics.json")
+    changes = [(e.kind, e.t, e.vehicle) for e in metrics.events if e.kind.endswith("_changed")]
+    assert changes == [(e.kind, e.t, e.vehicle) for e in ref.metrics.events
+                       if e.kind.endswith("_changed")]
     assert ("path_changed", 6.0, "usv2") in changes and not any(t > 6.0 for _, t, _ in changes)
-    assert metrics["final_coord_error_max"] == ref.metrics["final_coord_error_max"]
+    assert metrics.final_coord_error_max == ref.metrics.final_coord_error_max
     assert not fleet_processes(fleet)

@@ -5,12 +5,12 @@ run's ground credentials (<run>/secure/ground.json5), as the launcher's printed 
 
 from __future__ import annotations
 
-import json
 import re
 import time
 
 import pytest
 
+from cdus.sim.runmetrics import Metrics
 from cdus.wire.transport import free_tcp_port
 
 from .conftest import fleet_processes, run_cli, unique_fleet
@@ -59,17 +59,17 @@ def test_ground_station_watches_and_commands_a_running_fleet(tmp_path, launches)
     stop = gs(fleet, port, run, "stop")
     assert stop.returncode == 0
     assert la.wait(timeout=60) == 0, la.output()
-    m = json.loads((run / "metrics.json").read_text())
-    assert m["completed"] is False  # stopped early, by the operator
+    m = Metrics.read(run / "metrics.json")
+    assert m.completed is False  # stopped early, by the operator
     # the run ends after the tick the stop said, and the stop's event says it: the metrics ended
     # REALTIME_LAG ticks earlier (a stop "from tick 4800 (t = 96.00 s)" against duration_s 95.84)
     tick = int(re.search(r"applied from tick (\d+) \(t = ", stop.stdout)[1])
-    stopped = [e["t"] for e in m["events"] if e["kind"] == "fleet" and "stopped by" in e["text"]]
-    assert stopped == [m["duration_s"]] and m["duration_s"] == pytest.approx(tick * 0.02, abs=1e-9), (
-        stop.stdout, m["duration_s"])  # the tick's time as the world computes it (7.0200000000000005 at tick 351)
-    assert m["link"]["faults"]["total"]["dropped_by"]["loss"] > 0
-    kinds = [(e["kind"], e.get("vehicle")) for e in m["events"]]
-    assert ("fault", "usv2") in kinds and ("link_changed", None) in kinds, m["events"]
+    stopped = [e.t for e in m.events if e.kind == "fleet" and "stopped by" in e.text]
+    assert stopped == [m.duration_s] and m.duration_s == pytest.approx(tick * 0.02, abs=1e-9), (
+        stop.stdout, m.duration_s)  # the tick's time as the world computes it (7.0200000000000005 at tick 351)
+    assert m.link.faults.total.dropped_by.loss > 0
+    kinds = [(e.kind, e.vehicle) for e in m.events]
+    assert ("fault", "usv2") in kinds and ("link_changed", None) in kinds, m.events
     assert ("vehicle_lost", "usv2") not in kinds  # the kill it asked for is not news again
     assert not fleet_processes(fleet)
 
@@ -107,7 +107,7 @@ def test_a_vehicle_paused_past_its_lease_and_resumed_from_the_ground_station_rej
     assert resumed is not None and t is not None and t > resumed + 10.0, (run / "logs" / "uav2.log").read_text()[-1500:]
     assert gs(fleet, port, run, "stop").returncode == 0
     assert la.wait(timeout=60) == 0, la.output()
-    m = json.loads((run / "metrics.json").read_text())
-    kinds = [(e["kind"], e.get("vehicle")) for e in m["events"]]
-    assert ("vehicle_back", "uav1") in kinds, m["events"]
+    m = Metrics.read(run / "metrics.json")
+    kinds = [(e.kind, e.vehicle) for e in m.events]
+    assert ("vehicle_back", "uav1") in kinds, m.events
     assert not fleet_processes(fleet)

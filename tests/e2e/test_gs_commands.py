@@ -18,6 +18,7 @@ import time
 
 import zenoh
 
+from cdus.sim.runmetrics import Metrics
 from cdus.wire.transport import Transport, free_tcp_port
 from ground_station.console import GroundStation
 
@@ -205,12 +206,12 @@ def test_every_command_is_answered_and_the_ground_station_exits_by_the_answer(tm
     res = gs("stop")
     assert res.returncode == 0 and "applied from tick" in res.stdout, res
     assert la.wait(timeout=120) == 0, la.output()
-    m = json.loads((run / "metrics.json").read_text())
-    texts = [e["text"] for e in m["events"]]
+    m = Metrics.read(run / "metrics.json")
+    texts = [e.text for e in m.events]
     for who in ("gs:alice", "gs:bob", "gs:api", "gs:op"):
         assert any(f"by {who}" in t for t in texts), (who, texts)
     assert not any("stopped by" in t and "usv1" in t for t in texts)  # the denied stop never arrived
-    victims = [e for e in m["events"] if "by gs:victim" in e["text"]]
-    assert [(e["kind"], e.get("vehicle")) for e in victims] == [("fault", "usv1")], victims  # once, whole
+    victims = [e for e in m.events if "by gs:victim" in e.text]
+    assert [(e.kind, e.vehicle) for e in victims] == [("fault", "usv1")], victims  # once, whole
     assert "Traceback" not in (run / "logs" / "world.log").read_text()
     assert not fleet_processes(fleet)

@@ -8,7 +8,6 @@ one settings entry per tick, the events bounded, the run completed and equal to 
 
 from __future__ import annotations
 
-import json
 import threading
 import time
 
@@ -16,6 +15,7 @@ import zenoh
 
 from cdus.scenario.config import load_scenario
 from cdus.sim.fleet import InProcessFleet
+from cdus.sim.runmetrics import Metrics
 from cdus.wire import keys
 from cdus.wire.messages import encode_control
 from cdus.wire.schemas import decode_reply
@@ -118,11 +118,11 @@ def test_a_flood_of_valid_commands_is_bounded_answered_and_changes_nothing(tmp_p
     finally:
         gs.close()
     assert la.wait(timeout=300) == 0, la.output()
-    m = json.loads((run / "metrics.json").read_text())
-    assert m["completed"] is True
-    assert m["rejected_by_reason"]["world"].get("rate", 0) == len(busy), m["rejected_by_reason"]
-    changed = [e for e in m["events"] if e["kind"] == "gains_changed"]
-    assert 1 <= len(changed) <= CHANGE_EVENTS_BURST + CHANGE_EVENTS_PER_S * m["wall_s"] + 1, len(changed)
+    m = Metrics.read(run / "metrics.json")
+    assert m.completed is True
+    assert m.rejected_by_reason.world.get("rate", 0) == len(busy), m.rejected_by_reason
+    changed = [e for e in m.events if e.kind == "gains_changed"]
+    assert 1 <= len(changed) <= CHANGE_EVENTS_BURST + CHANGE_EVENTS_PER_S * m.wall_s + 1, len(changed)
     # no-op gains: the run is the one without the flood, to the bit
     assert_same_trace(tmp_path / "trace.npz", InProcessFleet(sc).run())
     assert not fleet_processes(fleet)

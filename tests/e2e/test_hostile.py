@@ -26,6 +26,7 @@ import zenoh
 from cdus.scenario.config import load_scenario
 from cdus.sim.build import listeners_of
 from cdus.sim.fleet import InProcessFleet
+from cdus.sim.runmetrics import Metrics
 from cdus.wire import keys
 from cdus.wire.messages import OmegaMsg, decode_omega, encode_control, encode_omega, encode_states, StateMsg
 from cdus.wire.schemas import FleetEvent, decode_event, decode_status, encode_event
@@ -143,7 +144,7 @@ def _wait(la, timeout: float) -> int:
 def _check_common(run, la, m: dict) -> None:
     out = la.output()
     assert "\x1b" not in out, "an outsider's escape sequence reached the console"
-    assert "PWNED" not in json.dumps(m["events"]), m["events"]
+    assert "PWNED" not in json.dumps(m.to_dict()["events"]), m.events
     logs = "".join(p.read_text(errors="replace") for p in (run / "logs").glob("*.log"))
     assert "Traceback" not in logs, logs[-3000:]
     assert "\x1b" not in logs
@@ -164,19 +165,19 @@ def test_lockstep_under_attack_ends_as_the_clean_run(tmp_path, launches):
     finally:
         attack["session"].close()
     assert code == 0, la.output()
-    m = json.loads((run / "metrics.json").read_text())
-    assert m["completed"] is True, m.get("completion")
+    m = Metrics.read(run / "metrics.json")
+    assert m.completed is True, m.completion
     _check_common(run, la, m)
     ref = InProcessFleet(sc).run()
     trace = np.load(tmp_path / "trace.npz")
     assert np.array_equal(trace["omega"], ref.recorder.view("omega"))
     assert np.array_equal(trace["q"], ref.recorder.view("q"))
-    assert m["final_coord_error_max"] == ref.metrics["final_coord_error_max"]
-    assert m["final_path_error_max"] == ref.metrics["final_path_error_max"]
+    assert m.final_coord_error_max == ref.metrics.final_coord_error_max
+    assert m.final_path_error_max == ref.metrics.final_path_error_max
     # every ω attack was counted as a reject by the vehicles that heard it
     n_listen = len(listeners_of(sc, sc.ids[0]))
     assert attack["spoof"].sent > 0
-    assert m["link"]["rejected"] >= n_listen * (attack["sent"]["omega"] + 1) + attack["spoof"].sent, m["link"]
+    assert m.link.rejected >= n_listen * (attack["sent"]["omega"] + 1) + attack["spoof"].sent, m.link
     assert not fleet_processes(fleet)
 
 
@@ -195,11 +196,11 @@ def test_realtime_under_attack_keeps_running_and_counts(tmp_path, launches):
     finally:
         attack["session"].close()
     assert code == 0, la.output()
-    m = json.loads((run / "metrics.json").read_text())
-    assert m["completed"] is True, m.get("completion")
+    m = Metrics.read(run / "metrics.json")
+    assert m.completed is True, m.completion
     _check_common(run, la, m)
-    assert m["link"]["rejected"] > 0, m["link"]
+    assert m.link.rejected > 0, m.link
     # no vehicle was lost to the attack
-    assert sorted(m["live_final"]) == sorted(sc.ids), m["live_final"]
-    assert not any(e["kind"] == "vehicle_lost" for e in m["events"]), m["events"]
+    assert sorted(m.live_final) == sorted(sc.ids), m.live_final
+    assert not any(e.kind == "vehicle_lost" for e in m.events), m.events
     assert not fleet_processes(fleet)

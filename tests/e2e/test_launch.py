@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import json
 import signal
 import time
 
 import pytest
 import zenoh
 
+from cdus.sim.runmetrics import Metrics
 from cdus.wire import keys
 from cdus.wire.schemas import decode_event
 from cdus.scenario.config import load_scenario
@@ -30,13 +30,13 @@ def test_lockstep_reproduces_the_in_process_run(tmp_path, launches, links):
     sc = load_scenario("configs/lake_circle.toml", {"scenario.duration": 10.0, "scenario.seed": 3})
     ref = InProcessFleet(sc).run()
     assert_same_trace(tmp_path / "trace.npz", ref)
-    metrics = json.loads((run / "metrics.json").read_text())
-    assert metrics["mode"] == "lockstep" and metrics["completed"] is True
+    metrics = Metrics.read(run / "metrics.json")
+    assert metrics.mode == "lockstep" and metrics.completed is True
     # nothing of the ROS 2 face in a fleet that did not ask for it (docs/ros2.md): no bridge, no role
     assert not (run / "logs" / "ros2.log").exists() and not (run / "secure" / "ros2-client.json5").exists()
     for field in ("duration_s", "path_settle_s", "coord_settle_s", "final_path_error_max",
                   "final_coord_error_max", "omega_rate_final"):
-        assert metrics[field] == pytest.approx(ref.metrics[field], abs=1e-9), field
+        assert getattr(metrics, field) == pytest.approx(getattr(ref.metrics, field), abs=1e-9), field
     assert not fleet_processes(fleet)
 
 
@@ -48,11 +48,11 @@ def test_realtime_run_converges(tmp_path, launches):
     la = launches(["configs/concentric_circles.toml", "--clock", "realtime", "--duration", "12",
                    "--logs", str(run), "-q"], fleet)
     assert la.wait() == 0, la.output()
-    m = json.loads((run / "metrics.json").read_text())
-    assert m["mode"] == "realtime"
-    assert m["coord_settle_s"] is not None and m["final_coord_error_max"] < 0.05, m
-    assert m["path_settle_s"] is not None, m
-    assert m["link"]["delivered"] > 0
+    m = Metrics.read(run / "metrics.json")
+    assert m.mode == "realtime"
+    assert m.coord_settle_s is not None and m.final_coord_error_max < 0.05, m
+    assert m.path_settle_s is not None, m
+    assert m.link.delivered > 0
     assert not fleet_processes(fleet)
 
 
@@ -106,9 +106,9 @@ def test_ctrl_c_leaves_no_process_and_a_complete_metrics_file(tmp_path, launches
     la.proc.send_signal(signal.SIGINT)
     assert la.wait(timeout=60) == 130, la.output()
     assert not fleet_processes(fleet)
-    m = json.loads((run / "metrics.json").read_text())
-    assert set(METRICS_FIELDS) <= set(m)
-    assert m["completed"] is False
+    m = Metrics.read(run / "metrics.json")
+    assert set(METRICS_FIELDS) <= set(m.to_dict())  # a whole file, every field written
+    assert m.completed is False
     assert "metrics:" in la.output()
 
 
@@ -191,8 +191,8 @@ def test_a_remote_vehicle_that_never_came_up_is_named_so_in_the_summary(tmp_path
     rows = {ln.split()[0]: ln for ln in r.stdout.splitlines() if ln.startswith(("  usv", "  uav"))}
     assert rows["uav2"].endswith("(never came up)")
     assert rows["usv1"].endswith("(up, waiting for the others: the run never started)")
-    m = json.loads((run / "metrics.json").read_text())
-    assert m["completion"] == "not_started" and m["never_up"] == ["uav1", "uav2", "uav3"]
+    m = Metrics.read(run / "metrics.json")
+    assert m.completion == "not_started" and m.never_up == ("uav1", "uav2", "uav3")
 
 
 from tests.fullfs import full_fs  # noqa: E402,F401  (the fixture)
@@ -212,8 +212,8 @@ def test_a_full_disk_at_the_end_keeps_a_completed_run(tmp_path, full_fs):
     out = res.stdout + res.stderr
     assert res.returncode == 1, out
     assert "Traceback" not in out and "world_lost" not in out, out
-    m = json.loads((run / "metrics.json").read_text())
-    assert m["completed"] is True and m.get("written_by") != "launcher", m
+    m = Metrics.read(run / "metrics.json")
+    assert m.completed is True and m.written_by != "launcher", m
     assert f"metrics: {run / 'metrics.json'} (not {full_fs / 'metrics.json'}: it could not be written)" in res.stdout
     assert "lake_circle (lockstep, seed 1): 2.0 s simulated" in res.stdout  # the summary
     assert f"could not write the metrics to {full_fs / 'metrics.json'}: No space left on device" in out
@@ -242,7 +242,7 @@ def test_a_second_launch_into_a_running_fleets_directory_is_refused_and_changes_
     assert (run / "secure" / "ground.json5").read_bytes() == ground
     assert not fleet_processes(fleet + "b")
     assert la.wait() == 0, la.output()
-    m = json.loads((run / "metrics.json").read_text())
-    assert m["completed"] is True and m["duration_s"] == pytest.approx(8.0, abs=0.1)
+    m = Metrics.read(run / "metrics.json")
+    assert m.completed is True and m.duration_s == pytest.approx(8.0, abs=0.1)
     assert set(p.name for p in (run / "logs").iterdir()) == set(logs)  # no second fleet's logs among them
     assert all(fleet + "b" not in (run / "logs" / name).read_text(errors="replace") for name in logs)

@@ -11,7 +11,6 @@ the metrics (``integrity``); a secured fleet's router refuses them (the ACL).
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 import time
@@ -20,6 +19,7 @@ import pytest
 
 from cdus.scenario.config import load_scenario
 from cdus.sim.fleet import InProcessFleet
+from cdus.sim.runmetrics import Integrity, Metrics
 from cdus.wire import keys
 from cdus.wire.messages import encode_control
 from cdus.wire.transport import Transport, free_tcp_port, open_session
@@ -68,21 +68,21 @@ def test_a_wildcard_or_forged_token_for_a_second_changes_nothing_and_an_open_fle
     finally:
         session.close()
     assert code == 0, la.output()
-    m = json.loads((run / "metrics.json").read_text())
-    assert m["completed"] is True, m["completion"]
+    m = Metrics.read(run / "metrics.json")
+    assert m.completed is True, m.completion
     assert_same_trace(tmp_path / "trace.npz",
                       InProcessFleet(load_scenario("configs/lake_circle.toml", {"scenario.duration": DURATION})).run())
     logs = {p.name: p.read_text(errors="replace") for p in (run / "logs").glob("*.log")}
     assert not [name for name, text in logs.items() if WORLD_BACK in text], "an agent took a token for the world back"
-    assert m["rejected_by_reason"]["vehicles"].get("stale", 0) == 0, m["rejected_by_reason"]
-    integrity = m["integrity"]
+    assert m.rejected_by_reason.vehicles.get("stale", 0) == 0, m.rejected_by_reason
+    integrity = m.integrity
     if secured:
-        assert integrity == {"tampered": False, "reasons": {}, "notes": []}
+        assert integrity == Integrity(tampered=False, reasons={}, notes=())
     else:
-        assert integrity["tampered"] is True
+        assert integrity.tampered is True
         # the wildcard (the bare alive/usv2 intersects no watch of alive/*/*), usv2's and the world's copies
-        assert integrity["reasons"]["token_key"] == 1 and integrity["reasons"]["token_extra"] == 2, integrity
-        assert integrity["reasons"]["vehicle_token_key"] >= 6, integrity  # every agent saw the wildcard
+        assert integrity.reasons["token_key"] == 1 and integrity.reasons["token_extra"] == 2, integrity
+        assert integrity.reasons["vehicle_token_key"] >= 6, integrity  # every agent saw the wildcard
         assert "TAMPERED" in la.output()
     assert not fleet_processes(fleet)
 
@@ -103,8 +103,8 @@ def test_a_forged_token_held_while_a_vehicle_is_killed_does_not_hide_its_loss(tm
         assert tokens  # held to the end
     finally:
         session.close()
-    m = json.loads((run / "metrics.json").read_text())
-    assert lost.vehicle == "usv2" and "usv2" not in m["live_final"], m["live_final"]
-    assert (m["completed"], m["completion"]) == (False, "vehicles_lost"), (code, la.output())
-    assert m["integrity"]["tampered"] is True and m["integrity"]["reasons"]["token_extra"] >= 1, m["integrity"]
+    m = Metrics.read(run / "metrics.json")
+    assert lost.vehicle == "usv2" and "usv2" not in m.live_final, m.live_final
+    assert (m.completed, m.completion) == (False, "vehicles_lost"), (code, la.output())
+    assert m.integrity.tampered is True and m.integrity.reasons["token_extra"] >= 1, m.integrity
     assert not fleet_processes(fleet)

@@ -5,7 +5,6 @@ the delay."""
 
 from __future__ import annotations
 
-import json
 import queue
 
 import numpy as np
@@ -15,6 +14,7 @@ import zenoh
 from cdus.scenario.config import load_scenario
 from cdus.scenario.link import validate_link
 from cdus.sim.fleet import InProcessFleet
+from cdus.sim.runmetrics import Metrics
 from cdus.wire import keys
 from cdus.wire.messages import encode_control
 from cdus.wire.schemas import decode_event
@@ -32,12 +32,12 @@ def assert_same(tmp_path, run, ref) -> None:
     trace = np.load(tmp_path / "trace.npz")
     for name in TRACE:
         assert np.array_equal(trace[name], ref.recorder.view(name), equal_nan=True), name
-    metrics = json.loads((run / "metrics.json").read_text())
-    assert metrics["mode"] == "lockstep" and metrics["completed"] is True
+    metrics = Metrics.read(run / "metrics.json")
+    assert metrics.mode == "lockstep" and metrics.completed is True
     for field in METRICS:
-        assert metrics[field] == ref.metrics[field], field
-    assert metrics["link"]["delivered"] == ref.metrics["link"]["delivered"]
-    assert metrics["link"]["dropped"] == ref.metrics["link"]["dropped"]
+        assert getattr(metrics, field) == getattr(ref.metrics, field), field
+    assert metrics.link.delivered == ref.metrics.link.delivered
+    assert metrics.link.dropped == ref.metrics.link.dropped
 
 
 @pytest.mark.parametrize("settings", [

@@ -34,6 +34,7 @@ import pytest
 from cdus.app.launcher import ZENOH_RUNTIME
 from cdus.scenario.config import load_scenario
 from cdus.sim.fleet import InProcessFleet
+from cdus.sim.runmetrics import Metrics
 
 from .conftest import ROOT, Launch, fleet_processes, kill_group, unique_fleet
 
@@ -189,13 +190,13 @@ def test_lake_circle_across_three_namespaces_is_the_single_host_run(tmp_path, ho
     # the vehicles' traffic crossed the veths (there is no other way out of a and b)
     assert hosts.traffic("a") > 100_000 and hosts.traffic("b") > 100_000
 
-    m = json.loads((run / "metrics.json").read_text())
+    m = Metrics.read(run / "metrics.json")
     sc = load_scenario("configs/lake_circle.toml", {"scenario.duration": duration})
     ref = InProcessFleet(sc).run()
     refm = ref.metrics
-    assert m["completed"] is True
-    assert m["path_settle_s"] is not None and m["coord_settle_s"] is not None, m
-    assert (m["path_settle_s"], m["coord_settle_s"]) == (refm["path_settle_s"], refm["coord_settle_s"])
+    assert m.completed is True
+    assert m.path_settle_s is not None and m.coord_settle_s is not None, m
+    assert (m.path_settle_s, m.coord_settle_s) == (refm.path_settle_s, refm.coord_settle_s)
     trace = np.load(tmp_path / "trace.npz")
     for name in ("q", "omega"):
         assert np.array_equal(trace[name], ref.recorder.view(name)), name
@@ -231,23 +232,23 @@ def test_a_partition_costs_the_world_its_uavs_and_the_formation_settles_again(tm
     for vid, p in agents.items():
         assert p.wait(timeout=30) == 0, (hosts.logs / f"{vid}.log").read_text()
 
-    m = json.loads((run / "metrics.json").read_text())
-    assert m["completed"] is True
-    events = m["events"]
-    down = {e["vehicle"]: e["t"] for e in events if e["kind"] == "vehicle_lost"}
-    back = {e["vehicle"]: e["t"] for e in events if e["kind"] == "vehicle_back"}
+    m = Metrics.read(run / "metrics.json")
+    assert m.completed is True
+    events = m.events
+    down = {e.vehicle: e.t for e in events if e.kind == "vehicle_lost"}
+    back = {e.vehicle: e.t for e in events if e.kind == "vehicle_back"}
     # the UAVs were cut off and came back; a boat may be reported lost too while the router
     # closes the stalled links (seen once in CI: usv1, back within the run), never for good
     assert set(groups["b"]) <= set(down) and set(down) == set(back), events
     assert all(back[v] > down[v] for v in back)
     # the world said what was left: usv1-usv2 alone still has a spanning tree
-    assert any(e["kind"] == "graph" and down["uav1"] <= e["t"] for e in events), events
+    assert any(e.kind == "graph" and down["uav1"] <= e.t for e in events), events
     # the formation settled again after the partition healed, and stayed settled to the end
-    assert m["coord_settle_s"] is not None and m["coord_settle_s"] > max(down.values()), m
-    assert m["final_coord_error_max"] < m["coord_tol"], m
+    assert m.coord_settle_s is not None and m.coord_settle_s > max(down.values()), m
+    assert m.final_coord_error_max < m.coord_tol, m
     # figures, not assertions (run with -s to see them; docs/multihost.md quotes them)
     print(f"\npartition: link down for {down_for:.1f} s; the world lost the UAVs {noticed:.1f} s after the cut "
           f"(t = {min(down.values()):.2f} s) and had them back {reconnected:.1f} s after the link came up "
           f"(t = {min(back.values()):.2f}-{max(back.values()):.2f} s); coordination settled again at "
-          f"t = {m['coord_settle_s']:.2f} s (first settle in process: 8.38 s)")
+          f"t = {m.coord_settle_s:.2f} s (first settle in process: 8.38 s)")
     assert not fleet_processes(fleet)

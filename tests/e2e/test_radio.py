@@ -5,7 +5,6 @@ the utilisation and the split/rejoin events."""
 
 from __future__ import annotations
 
-import json
 import time
 
 import numpy as np
@@ -13,6 +12,7 @@ import pytest
 
 from cdus.scenario.config import load_scenario, parse_value
 from cdus.sim.fleet import InProcessFleet
+from cdus.sim.runmetrics import Metrics
 
 from .conftest import ROOT, assert_same_trace, fleet_processes, unique_fleet
 
@@ -33,22 +33,22 @@ def test_lockstep_with_the_radio_reproduces_the_in_process_run(tmp_path, launche
     sc = load_scenario(config, {"scenario.duration": duration})
     ref = InProcessFleet(sc).run()
     assert_same_trace(tmp_path / "trace.npz", ref)
-    metrics = json.loads((run / "metrics.json").read_text())
-    assert metrics["completed"] is True
-    radio, expected = metrics["radio"], ref.metrics["radio"]
-    assert radio["sent"] > 0 and radio["dropped"] > 0
+    metrics = Metrics.read(run / "metrics.json")
+    assert metrics.completed is True
+    radio, expected = metrics.radio, ref.metrics.radio
+    assert radio.sent > 0 and radio.dropped > 0
     assert radio == expected
-    ours = [(e["t"], e["kind"], e["text"]) for e in metrics["events"] if e["kind"] in RADIO_KINDS]
-    theirs = [(e["t"], e["kind"], e["text"]) for e in ref.metrics["events"] if e["kind"] in RADIO_KINDS]
+    ours = [(e.t, e.kind, e.text) for e in metrics.events if e.kind in RADIO_KINDS]
+    theirs = [(e.t, e.kind, e.text) for e in ref.metrics.events if e.kind in RADIO_KINDS]
     assert ours == theirs
     if "range_out" in config:
         assert [k for _, k, _ in ours] == ["radio_split", "radio_joined"]
-        assert radio["dropped_by"]["range"] > 0
+        assert radio.dropped_by["range"] > 0
         split, joined = ours[0][0], ours[1][0]
         assert 15.0 < split < joined < duration
         # re-converged after the return: settled by the end, and not before the split
-        assert metrics["coord_settle_s"] is not None and metrics["coord_settle_s"] > split
-        assert metrics["coord_settle_s"] == ref.metrics["coord_settle_s"]
+        assert metrics.coord_settle_s is not None and metrics.coord_settle_s > split
+        assert metrics.coord_settle_s == ref.metrics.coord_settle_s
     assert not fleet_processes(fleet)
 
 
@@ -87,16 +87,16 @@ def test_a_restarted_vehicle_gets_the_geometry_in_force_and_the_run_stays_equal(
     trace = np.load(tmp_path / "trace.npz")
     for name in ("q", "omega"):
         assert np.array_equal(trace[name], ref.recorder.view(name)), name
-    metrics = json.loads((run / "metrics.json").read_text())
-    radio, expected = metrics["radio"], ref.metrics["radio"]
-    assert (radio["utilisation"], radio["splits"]) == (expected["utilisation"], expected["splits"])
+    metrics = Metrics.read(run / "metrics.json")
+    radio, expected = metrics.radio, ref.metrics.radio
+    assert (radio.utilisation, radio.splits) == (expected.utilisation, expected.splits)
     # a process killed before its first stats report (about 1 s of wall time) takes its counts
     # along (docs/metrics.md: counts are equal when no process was killed)
-    assert 0 < radio["sent"] <= expected["sent"] and radio["sent"] >= expected["sent"] - 3 * 2 * 10
-    assert radio["dropped_by"]["range"] == expected["dropped_by"]["range"] > 0  # after 7 s, every process
-    assert [e["kind"] for e in metrics["events"] if e["kind"] == "vehicle_back"] == ["vehicle_back"]
-    changed = [(e["t"], e["text"]) for e in metrics["events"] if e["kind"] == "radio_changed"]
-    assert changed == [(e["t"], e["text"]) for e in ref.metrics["events"] if e["kind"] == "radio_changed"]
+    assert 0 < radio.sent <= expected.sent and radio.sent >= expected.sent - 3 * 2 * 10
+    assert radio.dropped_by["range"] == expected.dropped_by["range"] > 0  # after 7 s, every process
+    assert [e.kind for e in metrics.events if e.kind == "vehicle_back"] == ["vehicle_back"]
+    changed = [(e.t, e.text) for e in metrics.events if e.kind == "radio_changed"]
+    assert changed == [(e.t, e.text) for e in ref.metrics.events if e.kind == "radio_changed"]
     assert changed == [(7.0, "radio: tx_power = -10 dBm from tick 140 (t = 7 s) (scheduled)")]
     assert not fleet_processes(fleet)
 
@@ -137,15 +137,15 @@ def test_a_ground_station_radio_command_changes_delivery_from_its_time_on(tmp_pa
     _world_log_value(run / "logs" / "world.log", "communication graph split", number=False)  # the station hears nobody
     assert gs(fleet, port, run, "stop").returncode == 0
     assert la.wait(timeout=60) == 0, la.output()
-    metrics = json.loads((run / "metrics.json").read_text())
-    kinds = [e["kind"] for e in metrics["events"]]
+    metrics = Metrics.read(run / "metrics.json")
+    kinds = [e.kind for e in metrics.events]
     assert "radio_changed" in kinds
-    assert metrics["radio"]["dropped_by"]["range"] > 0
+    assert metrics.radio.dropped_by["range"] > 0
     trace = np.load(tmp_path / "trace.npz")
     sc = load_scenario("configs/lake_radio.toml")
     ref = InProcessFleet(sc)
     ref.set_radio({"tx_power": -30.0}, at)
-    out = ref.run(metrics["duration_s"])
+    out = ref.run(metrics.duration_s)
     n = len(trace["t"])
     assert n == len(out.recorder) and n * period > at + 0.5
     for name in ("q", "omega"):
@@ -212,21 +212,21 @@ def test_forged_radio_geometry_is_refused_by_a_secured_fleet_and_detected_on_an_
         boss.close()
         if mallory is not boss:
             mallory.close()
-    m = json.loads((run / "metrics.json").read_text())
-    assert m["completed"] is True
-    radio_rejects = {k: v for k, v in m["rejected_by_reason"]["vehicles"].items() if k.startswith("radio_")}
+    m = Metrics.read(run / "metrics.json")
+    assert m.completed is True
+    radio_rejects = {k: v for k, v in m.rejected_by_reason.vehicles.items() if k.startswith("radio_")}
     ref = InProcessFleet(sc).run()
     if secured:
         assert radio_rejects == {}
         trace = np.load(tmp_path / "trace.npz")
         for name in ("q", "omega"):
             assert np.array_equal(trace[name], ref.recorder.view(name)), name
-        assert m["radio"] == ref.metrics["radio"]
+        assert m.radio == ref.metrics.radio
     else:
         assert radio_rejects.get("radio_conflict", 0) > 0, radio_rejects
-        assert m["radio"]["dropped_by"]["range"] > ref.metrics["radio"]["dropped_by"]["range"]  # it did change it
-        suspects = [e for e in m["events"] if e["kind"] == "suspect" and "radio_conflict" in e["text"]]
-        assert suspects, m["events"]
+        assert m.radio.dropped_by["range"] > ref.metrics.radio.dropped_by["range"]  # it did change it
+        suspects = [e for e in m.events if e.kind == "suspect" and "radio_conflict" in e.text]
+        assert suspects, m.events
     assert not fleet_processes(fleet)
 
 
@@ -244,13 +244,13 @@ def test_a_lockstep_fleet_beyond_the_geometry_bounds_runs_and_equals_the_in_proc
     la = launches(["configs/range_out.toml", "--clock", "lockstep", "--duration", "12", "--logs", str(run), "-q",
                    *[a for k, v in sets.items() for a in ("--set", f"{k}={v}")]], fleet)
     assert la.wait(timeout=120) == 0, la.output()
-    metrics = json.loads((run / "metrics.json").read_text())
+    metrics = Metrics.read(run / "metrics.json")
     ref = InProcessFleet(load_scenario("configs/range_out.toml", {"scenario.duration": 12.0, **{
         k: parse_value(v) for k, v in sets.items()}})).run()
     assert abs(ref.recorder.q[:ref.recorder._n]).max() > 1e7  # they got out there
-    assert metrics["radio"] == ref.metrics["radio"]
-    assert metrics["radio"]["dropped_by"]["range"] == metrics["radio"]["sent"] > 0
-    assert not {k for k in metrics["rejected_by_reason"]["vehicles"] if k.startswith("radio_")}
+    assert metrics.radio == ref.metrics.radio
+    assert metrics.radio.dropped_by["range"] == metrics.radio.sent > 0
+    assert not {k for k in metrics.rejected_by_reason.vehicles if k.startswith("radio_")}
     assert not fleet_processes(fleet)
 
 
@@ -284,9 +284,9 @@ def test_ground_station_radio_commands_out_of_range_or_without_radio_are_refused
         assert res.returncode != 0 and "no [radio]" in res.stdout + res.stderr, res
     assert gs(fleet, port, run, "stop").returncode == 0
     assert la.wait(timeout=120) == 0, la.output()
-    m = json.loads((run / "metrics.json").read_text())
-    assert "bad_radio_command" not in m["rejected_by_reason"]["vehicles"]
-    assert [e["kind"] for e in m["events"]].count("rejected") == (1 if "range_out" in config else 2)
+    m = Metrics.read(run / "metrics.json")
+    assert "bad_radio_command" not in m.rejected_by_reason.vehicles
+    assert [e.kind for e in m.events].count("rejected") == (1 if "range_out" in config else 2)
     assert not fleet_processes(fleet)
 
 
@@ -381,14 +381,14 @@ def test_hostile_radio_messages_are_counted_and_change_nothing_but_the_worlds_ch
         boss.close()
         if mallory is not boss:
             mallory.close()
-    m = json.loads((run / "metrics.json").read_text())
-    assert m["completed"] is True
+    m = Metrics.read(run / "metrics.json")
+    assert m.completed is True
     ref_fleet = InProcessFleet(sc)
     ref_fleet.set_radio({"tx_power": -10.0}, 5.0)
     ref = ref_fleet.run()
     assert_same_trace(tmp_path / "trace.npz", ref)
-    assert m["radio"] == ref.metrics["radio"] and m["radio"]["dropped_by"]["range"] > 0
-    world, vehicles = m["rejected_by_reason"]["world"], m["rejected_by_reason"]["vehicles"]
+    assert m.radio == ref.metrics.radio and m.radio.dropped_by["range"] > 0
+    world, vehicles = m.rejected_by_reason.world, m.rejected_by_reason.vehicles
     times = 1 if secured else 2  # the world's refusals: the ground station's (and the raw client's)
     assert sum(world.values()) == times * len(commands), world
     if secured:
@@ -419,9 +419,9 @@ def test_infinite_correlation_scales_start_a_fleet_that_equals_the_in_process_ru
     assert sc.radio.shadowing_distance == sc.radio.shadowing_time == float("inf")
     ref = InProcessFleet(sc).run()
     assert_same_trace(tmp_path / "trace.npz", ref)
-    metrics = json.loads((run / "metrics.json").read_text())
-    assert metrics["radio"] == ref.metrics["radio"] and metrics["radio"]["dropped_by"]["fault"] > 0  # the down link
-    assert metrics["link"]["faults"] == ref.metrics["link"]["faults"]
+    metrics = Metrics.read(run / "metrics.json")
+    assert metrics.radio == ref.metrics.radio and metrics.radio.dropped_by["fault"] > 0  # the down link
+    assert metrics.link.faults == ref.metrics.link.faults
     assert not fleet_processes(fleet)
 
 
@@ -500,15 +500,15 @@ def test_faults_and_radio_changes_at_the_edges_equal_the_in_process_run(tmp_path
     assert la.wait(timeout=120) == 0, la.output()
     ref = InProcessFleet(load_scenario(config, {"scenario.duration": 5.0, "radio.sample_period": 0.02})).run()
     assert_same_trace(tmp_path / "trace.npz", ref)
-    metrics = json.loads((run / "metrics.json").read_text())
-    assert metrics["completed"] is True
+    metrics = Metrics.read(run / "metrics.json")
+    assert metrics.completed is True
     kinds = (*RADIO_KINDS, "radio_changed")
-    ours = [(e["t"], e["kind"], e["text"]) for e in metrics["events"] if e["kind"] in kinds]
-    assert ours == [(e["t"], e["kind"], e["text"]) for e in ref.metrics["events"] if e["kind"] in kinds]
+    ours = [(e.t, e.kind, e.text) for e in metrics.events if e.kind in kinds]
+    assert ours == [(e.t, e.kind, e.text) for e in ref.metrics.events if e.kind in kinds]
     # two at 4.0 s, two within tick 201 (4.02 s), one on the last tick; not the one past the end
     assert [t for t, k, _ in ours if k == "radio_changed"] == pytest.approx([1.5, 4.0, 4.0, 4.02, 4.02, 5.0])
-    radio, expected = metrics["radio"], ref.metrics["radio"]
-    assert (radio["utilisation"], radio["splits"]) == (expected["utilisation"], expected["splits"])
+    radio, expected = metrics.radio, ref.metrics.radio
+    assert (radio.utilisation, radio.splits) == (expected.utilisation, expected.splits)
     assert not fleet_processes(fleet)
 
 
@@ -559,15 +559,15 @@ def test_realtime_under_hostile_radio_traffic_keeps_running_and_counts(tmp_path,
         done.set()
         worker.join(timeout=10)
         mallory.close()
-    m = json.loads((run / "metrics.json").read_text())
-    assert m["completed"] is True, m.get("completion")
-    assert sorted(m["live_final"]) == sorted(sc.ids) and not any(e["kind"] == "vehicle_lost" for e in m["events"])
-    vehicles = m["rejected_by_reason"]["vehicles"]
+    m = Metrics.read(run / "metrics.json")
+    assert m.completed is True, m.completion
+    assert sorted(m.live_final) == sorted(sc.ids) and not any(e.kind == "vehicle_lost" for e in m.events)
+    vehicles = m.rejected_by_reason.vehicles
     for reason in ("radio_malformed", "radio_version", "radio_non_finite", "radio_count", "radio_dimension",
                    "radio_oversized", "radio_range", "radio_command_range", "bad_radio_command"):
         assert vehicles.get(reason, 0) >= len(sc.ids), (reason, vehicles)
-    assert sum(m["rejected_by_reason"]["world"].values()) > 0
-    assert m["radio"]["sent"] > 0 and 0 < m["radio"]["utilisation"]["samples"] <= int(duration / 0.2) + 1
+    assert sum(m.rejected_by_reason.world.values()) > 0
+    assert m.radio.sent > 0 and 0 < m.radio.utilisation.samples <= int(duration / 0.2) + 1
     for log in (run / "logs").glob("*.log"):
         assert "Traceback" not in log.read_text(), log
     assert not fleet_processes(fleet)

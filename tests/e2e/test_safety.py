@@ -3,12 +3,12 @@ proximity sensor, reproduces the in-process run bit for bit."""
 
 from __future__ import annotations
 
-import json
 
 import pytest
 
 from cdus.scenario.config import load_scenario
 from cdus.sim.fleet import InProcessFleet
+from cdus.sim.runmetrics import Metrics
 
 from .conftest import assert_same_trace, fleet_processes, unique_fleet
 
@@ -28,10 +28,10 @@ def test_lockstep_with_the_safety_filter_reproduces_the_in_process_run(tmp_path,
     assert la.wait() == 0, la.output()
     sc = load_scenario(config, {"scenario.duration": 6.0})
     ref = InProcessFleet(sc).run()
-    assert ref.metrics["interventions"] > 0
+    assert ref.metrics.interventions > 0
     assert_same_trace(tmp_path / "trace.npz", ref)
-    metrics = json.loads((run / "metrics.json").read_text())
-    assert metrics["completed"] is True
-    assert metrics["interventions"] == ref.metrics["interventions"]  # a completed run: every count reported
-    assert metrics["min_separation_m"] == ref.metrics["min_separation_m"]
+    metrics = Metrics.read(run / "metrics.json")
+    assert metrics.completed is True
+    assert metrics.interventions == ref.metrics.interventions  # a completed run: every count reported
+    assert metrics.min_separation_m == ref.metrics.min_separation_m
     assert not fleet_processes(fleet)

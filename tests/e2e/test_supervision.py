@@ -4,7 +4,6 @@ key moves the scenario's vehicles only, never the world."""
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 import subprocess
@@ -13,6 +12,7 @@ import time
 import pytest
 import zenoh
 
+from cdus.sim.runmetrics import Metrics
 from cdus.wire import keys
 from cdus.wire.messages import encode_control
 from cdus.wire.schemas import encode_status
@@ -58,8 +58,8 @@ def test_a_sigkilled_launcher_leaves_no_process_of_its_fleet(tmp_path, launches)
     left = wait_no_process(fleet, ORPHAN_WAIT_S)
     assert not left, "\n".join(left)
     # they were told (SIGTERM), not killed: the world still wrote what it had
-    m = json.loads((run / "metrics.json").read_text())
-    assert m["completed"] is False
+    m = Metrics.read(run / "metrics.json")
+    assert m.completed is False
 
 
 def test_a_sigkilled_world_leaves_metrics_that_say_so_and_the_launcher_fails(tmp_path, launches):
@@ -90,13 +90,13 @@ def test_a_sigkilled_world_leaves_metrics_that_say_so_and_the_launcher_fails(tmp
         s.close()
     os.kill(world[0], signal.SIGKILL)
     assert la.wait(timeout=60) == 1, la.output()
-    m = json.loads((run / "metrics.json").read_text())
-    assert m["completed"] is False and m["completion"] == "world_lost", m
-    assert m["written_by"] == "launcher"
-    assert m["world_lost"]["world_exit"] == -signal.SIGKILL
-    assert t <= m["world_lost"]["last_status_t"] < 2999.0  # what the launcher knew from its own world only
-    assert m["duration_s"] < 2999.0 and m["final_path_error_max"] != 1e-9
-    assert m["world_lost"]["rejected_by_launcher"].get("status unsigned", 0) >= 1, m["world_lost"]
+    m = Metrics.read(run / "metrics.json")
+    assert m.completed is False and m.completion == "world_lost", m
+    assert m.written_by == "launcher"
+    assert m.world_lost.world_exit == -signal.SIGKILL
+    assert t <= m.world_lost.last_status_t < 2999.0  # what the launcher knew from its own world only
+    assert m.duration_s < 2999.0 and m.final_path_error_max != 1e-9
+    assert m.world_lost.rejected_by_launcher.get("status unsigned", 0) >= 1, m.world_lost
     assert "world wrote no metrics" in la.output()
     # issue 27: the launcher printed a recording path the killed world never wrote; it says what exists
     assert not (run / "rec.rrd").exists()
@@ -142,8 +142,8 @@ def test_the_launchers_key_moves_vehicles_only_never_the_world(tmp_path, launche
     assert "\x1b" not in out
     # counted by reason: three about the world and the escaped one, one malformed
     assert "the launcher dropped 5 messages: 1 command malformed, 4 command not_a_vehicle" in out, out
-    m = json.loads((run / "metrics.json").read_text())
-    assert "completion" not in m or m["completion"] != "world_lost"  # the world wrote its own
+    m = Metrics.read(run / "metrics.json")
+    assert m.completion != "world_lost"  # the world wrote its own
     assert not fleet_processes(fleet)
 
 
@@ -207,6 +207,6 @@ def test_a_second_sigterm_while_stopping_still_stops_cleanly(tmp_path, launches,
         time.sleep(0.01)
     os.kill(la.proc.pid, signal.SIGTERM)
     assert la.wait(timeout=60) == 130, la.output()
-    m = json.loads((run / "metrics.json").read_text())
-    assert m["completed"] is False and m["completion"] == "interrupted", m["completion"]
+    m = Metrics.read(run / "metrics.json")
+    assert m.completed is False and m.completion == "interrupted", m.completion
     assert not wait_no_process(fleet, ORPHAN_WAIT_S)

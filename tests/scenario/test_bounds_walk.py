@@ -136,7 +136,7 @@ def test_the_walk_covers_every_key_of_the_schema():
     # directed a boolean), partition.drops (ids), preset (a name; epsilon is walked instead)
     missing = schema_keys() - keys_of(FULL)
     assert not missing, f"the walk sets no value for {sorted(missing)}: add them to FULL"
-    assert parse_scenario(FULL) and InProcessFleet(parse_scenario(FULL)).run().metrics["completed"]
+    assert parse_scenario(FULL) and InProcessFleet(parse_scenario(FULL)).run().metrics.completed
 
 
 FIELDS = [p for p in numbers(FULL)]
@@ -170,7 +170,7 @@ def test_every_number_at_its_extremes_is_refused_by_name_or_runs_to_the_end(path
             assert any(names(path, field, message) for field, message in e.problems), (value, e.problems)
             continue
         metrics = InProcessFleet(scenario).run().metrics  # no exception, no DivergedError
-        assert metrics["completed"] and metrics["duration_s"] == pytest.approx(1.0, abs=0.06), (value, metrics)
+        assert metrics.completed and metrics.duration_s == pytest.approx(1.0, abs=0.06), (value, metrics)
 
 
 #: an integer beyond a float's range (TOML and a ground station's KEY=VALUE read 1 followed by
@@ -186,4 +186,4 @@ def test_every_number_as_an_integer_beyond_a_float_is_refused_by_name_or_runs_to
         assert any(names(path, field, message) for field, message in e.problems), e.problems
         return
     metrics = InProcessFleet(scenario).run().metrics
-    assert metrics["completed"] and metrics["duration_s"] == pytest.approx(1.0, abs=0.06), metrics
+    assert metrics.completed and metrics.duration_s == pytest.approx(1.0, abs=0.06), metrics

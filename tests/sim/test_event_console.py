@@ -58,7 +58,7 @@ def test_links_lossy_by_design_are_one_console_line_and_later_changes_each_their
 
 def test_the_in_process_fleet_reports_link_changes_as_events_as_the_world_does():
     sc = load_scenario("configs/lake_circle.toml", {"link.loss": 0.1, "scenario.duration": 1.0})
-    events = [FleetEvent(**e) for e in InProcessFleet(sc).run().metrics["events"]]
+    events = [FleetEvent(**e.to_dict()) for e in InProcessFleet(sc).run().metrics.events]
     states = [e for e in events if e.kind == "link_state"]
     assert len(states) == 12 and {e.t for e in states} == {0.0}
     assert states[0] == link_state_event(0.0, states[0].link, "lossy")

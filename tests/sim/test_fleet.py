@@ -35,16 +35,16 @@ def test_lake_circle_ideal_reaches_the_papers_objectives():
     sc, res = lake_circle()
     m = res.metrics
     # Objectives 1 and 3: every |Φ| < 0.1 m and every edge error < 0.05 rad before the end
-    assert m["path_settle_s"] is not None and m["path_settle_s"] < sc.duration
-    assert m["coord_settle_s"] is not None and m["coord_settle_s"] < sc.duration
-    assert m["final_path_error_max"] < 0.1
-    assert m["final_coord_error_max"] < 0.05
+    assert m.path_settle_s is not None and m.path_settle_s < sc.duration
+    assert m.coord_settle_s is not None and m.coord_settle_s < sc.duration
+    assert m.final_path_error_max < 0.1
+    assert m.final_coord_error_max < 0.05
     # Objective 2: ω̇ -> -1 (mean over the last second)
-    for vid, rate in m["omega_rate_final"].items():
+    for vid, rate in m.omega_rate_final.items():
         assert abs(rate + 1.0) < 0.01, (vid, rate)
     # docs/control.md §2: at 50 Hz, ideal tracking holds |Φ| ≈ 0.063 m (the tangential offset
     # 1/(k|f'|) = 0.067 m that balances the -1 drift, less the chord effect)
-    assert 0.03 < m["final_path_error_max"] < 0.08
+    assert 0.03 < m.final_path_error_max < 0.08
     # The 120° formation holds on the water: USVs 2π/3 apart along the circle
     w = res.recorder.view("omega")[-1]
     ids = list(res.recorder.ids)
@@ -61,12 +61,12 @@ def test_lake_circle_with_vehicle_models_converges():
     sc, res = run("lake_circle_dynamic")
     m = res.metrics
     assert sc.path_tol == 0.15
-    assert m["path_settle_s"] is not None and m["coord_settle_s"] is not None
-    assert m["final_path_error_max"] < 0.15
-    assert m["final_coord_error_max"] < 0.05
-    usv_errors = [m["final_path_error"][v.id] for v in sc.vehicles if v.kind == "usv"]
+    assert m.path_settle_s is not None and m.coord_settle_s is not None
+    assert m.final_path_error_max < 0.15
+    assert m.final_coord_error_max < 0.05
+    usv_errors = [m.final_path_error[v.id] for v in sc.vehicles if v.kind == "usv"]
     assert all(0.05 < e < 0.15 for e in usv_errors)  # the crab-angle offset is really there
-    for rate in m["omega_rate_final"].values():
+    for rate in m.omega_rate_final.values():
         assert abs(rate + 1.0) < 0.03
 
 
@@ -82,9 +82,9 @@ def test_stable_and_converged_at_every_control_rate(rate, max_path_error, max_ra
     res = shipped_run if dataclasses.replace(sc, raw=shipped.raw) == shipped else InProcessFleet(sc).run()
     m = res.metrics
     assert np.isfinite(res.recorder.view("omega")).all()
-    assert m["final_path_error_max"] < max_path_error
-    assert m["coord_settle_s"] is not None
-    for r in m["omega_rate_final"].values():
+    assert m.final_path_error_max < max_path_error
+    assert m.coord_settle_s is not None
+    for r in m.omega_rate_final.values():
         assert abs(r + 1.0) < max_rate_error
 
 
@@ -95,18 +95,18 @@ def test_directed_chain_converges():
     sc, res = run("lake_circle", **{"graph.topology": "chain", "graph.directed": True, "scenario.duration": 420.0})
     assert sc.directed and len(sc.edges) == len(sc.vehicles) - 1
     m = res.metrics
-    assert m["coord_settle_s"] is not None
-    assert m["final_coord_error_max"] < 0.05
-    assert m["final_path_error_max"] < 0.1
+    assert m.coord_settle_s is not None
+    assert m.final_coord_error_max < 0.05
+    assert m.final_path_error_max < 0.1
 
 
 @pytest.mark.parametrize("name", ["lissajous_5x5", "concentric_circles", "offset_circles"])
 def test_shipped_scenarios_converge(name):
     sc, res = run(name)
     m = res.metrics
-    assert m["path_settle_s"] is not None, m
-    assert m["coord_settle_s"] is not None, m
-    for r in m["omega_rate_final"].values():
+    assert m.path_settle_s is not None, m
+    assert m.coord_settle_s is not None, m
+    for r in m.omega_rate_final.values():
         assert abs(r + 1.0) < 0.01
 
 
@@ -122,7 +122,7 @@ def test_seed_changes_the_start_and_not_the_outcome():
     _, a = run("lake_circle", **{"scenario.seed": 2, "scenario.duration": 150.0})
     _, b = run("lake_circle", **{"scenario.seed": 3, "scenario.duration": 150.0})
     assert not np.array_equal(a.recorder.view("q")[0], b.recorder.view("q")[0])
-    assert a.metrics["coord_settle_s"] is not None and b.metrics["coord_settle_s"] is not None
+    assert a.metrics.coord_settle_s is not None and b.metrics.coord_settle_s is not None
 
 
 def test_messages_are_used_one_tick_after_they_are_sent_at_the_earliest():
@@ -133,11 +133,11 @@ def test_messages_are_used_one_tick_after_they_are_sent_at_the_earliest():
 
 def test_broadcast_slower_than_control_still_converges_and_counts_messages():
     sc, res = run("lake_circle", **{"rates.broadcast": 10.0, "scenario.duration": 200.0})
-    link = res.metrics["link"]
+    link = res.metrics.link
     # 6 vehicles x 2 listeners x 10 Hz x 200 s (from t = 0; nothing is sent at the last instant)
-    assert link["sent"] == 6 * 2 * (200 * 10)
-    assert link["dropped"] == 0 and link["rejected"] == 0
-    assert res.metrics["coord_settle_s"] is not None
+    assert link.sent == 6 * 2 * (200 * 10)
+    assert link.dropped == 0 and link.rejected == 0
+    assert res.metrics.coord_settle_s is not None
 
 
 def kill_usv2(at: float = 20.0, restart: float | None = None, duration: float = 30.0):
@@ -157,7 +157,7 @@ def test_a_killed_vehicle_leaves_its_neighbours_sums_for_good():
     for vid in ("usv1", "usv3"):
         node = fleet.nodes[sc.ids.index(vid)]
         assert j in node.neighbours and j not in node.table.latest
-    news = [(e["kind"], e.get("vehicle"), e["t"]) for e in res.metrics["events"]]
+    news = [(e.kind, e.vehicle, e.t) for e in res.metrics.events]
     assert news[0] == ("fault", "usv2", 20.0)  # reported as the world does (cdus.sim.reports)
     assert news[1][0] == "graph" and "vehicle_lost" not in [k for k, _, _ in news]
     omega = res.recorder.view("omega")[:, j]
@@ -172,9 +172,9 @@ def test_the_formation_errors_leave_out_a_killed_vehicle_and_nobody_counts_messa
     sc = kill_usv2(at=200.0, duration=250.0)
     res = InProcessFleet(sc).run()
     m = res.metrics
-    assert m["live_final"] == [v for v in sc.ids if v != "usv2"]
-    assert m["coord_settle_s"] is not None and m["coord_settle_s"] < 200.0
-    assert m["final_coord_error_max"] < 0.05
+    assert m.live_final == tuple(v for v in sc.ids if v != "usv2")
+    assert m.coord_settle_s is not None and m.coord_settle_s < 200.0
+    assert m.final_coord_error_max < 0.05
     raw = res.recorder.edge_error()[-1].max()
     assert raw > 1.0  # the edges to usv2 are far off; they are just not the formation's
     live = res.recorder.view("live")
@@ -187,13 +187,13 @@ def test_the_formation_errors_leave_out_a_killed_vehicle_and_nobody_counts_messa
     whole_sc, whole_run = lake_circle()
     assert whole_sc.duration == 250.0
     whole = whole_run.metrics
-    assert whole["link"]["sent"] - m["link"]["sent"] == 2 * 2 * 2500 + 2
+    assert whole.link.sent - m.link.sent == 2 * 2 * 2500 + 2
 
 
 def test_a_restarted_vehicle_rejoins_near_its_neighbours_consensus():
     sc = kill_usv2(at=20.0, restart=25.0, duration=60.0)
     res = InProcessFleet(sc).run()
-    kinds = [(e["kind"], e.get("vehicle"), e["t"]) for e in res.metrics["events"]]
+    kinds = [(e.kind, e.vehicle, e.t) for e in res.metrics.events]
     assert [k for k in kinds if k[0] != "graph"] == [("fault", "usv2", 20.0), ("fault", "usv2", 25.0),
                                                      ("vehicle_back", "usv2", 25.0)]
     j = sc.ids.index("usv2")
@@ -203,7 +203,7 @@ def test_a_restarted_vehicle_rejoins_near_its_neighbours_consensus():
     i1, i3 = sc.ids.index("usv1"), sc.ids.index("usv3")
     after = np.searchsorted(t, 25.0)
     assert abs(w[after, j] - (w[after, i1] + w[after, i3]) / 2) < np.pi
-    assert res.metrics["final_coord_error_max"] < 0.5
+    assert res.metrics.final_coord_error_max < 0.5
 
 
 def test_lake_circle_dynamic_settles_from_every_shipped_seed_start():
@@ -212,7 +212,7 @@ def test_lake_circle_dynamic_settles_from_every_shipped_seed_start():
     the scaling is off unless [guidance] scale_omega asks for it, and the run settles."""
     sc = load_scenario("configs/lake_circle_dynamic.toml", {"scenario.seed": 4})
     m = InProcessFleet(sc).run().metrics
-    assert m["path_settle_s"] is not None and m["final_path_error_max"] < 0.15
+    assert m.path_settle_s is not None and m.final_path_error_max < 0.15
 
 
 def test_a_diverging_fleet_stops_with_an_error_naming_the_vehicle_not_a_traceback():
@@ -244,6 +244,6 @@ def test_lake_circle_dynamic_settles_with_the_default_path_tol_and_a_margin():
     sc = load_scenario("configs/lake_circle_dynamic.toml", {"scenario.duration": 60.0})
     assert sc.path_tol == 0.15
     m = InProcessFleet(sc).run().metrics
-    boats = [m["final_path_error"][v.id] for v in sc.vehicles if v.plant == "usv_3dof"]
-    assert m["path_settle_s"] is not None and m["path_settle_s"] < 40.0
+    boats = [m.final_path_error[v.id] for v in sc.vehicles if v.plant == "usv_3dof"]
+    assert m.path_settle_s is not None and m.path_settle_s < 40.0
     assert max(boats) < 0.8 * sc.path_tol and min(boats) > 0.09  # the offset is real, and inside the tolerance

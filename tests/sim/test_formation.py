@@ -41,10 +41,10 @@ def test_a_scheduled_phase_change_is_settled_to_and_measured_against_the_new_off
     before, after = worst[t < 5.0 - 1e-9], worst[t >= 5.0 - 1e-9]
     assert before.max() < 1e-6  # settled to the old formation
     assert after[0] > 10.0  # the new offsets are what is measured from the change's tick
-    assert 5.0 < m["coord_settle_s"] < 25.0 and m["final_coord_error_max"] < sc.coord_tol
+    assert 5.0 < m.coord_settle_s < 25.0 and m.final_coord_error_max < sc.coord_tol
     w = rec.view("omega")[-1]
     assert abs((w[1] - w[0]) - HALF_LAP) < sc.coord_tol and abs(w[2] - w[0]) < sc.coord_tol
-    kinds = [(e["kind"], e["t"]) for e in m["events"]]
+    kinds = [(e.kind, e.t) for e in m.events]
     assert ("formation_changed", 5.0) in kinds
 
 
@@ -75,5 +75,5 @@ def test_a_path_change_takes_a_drone_to_its_new_circle():
     pe = rec.view("path_error")[:, 2]
     t = rec.view("t")
     assert pe[t < 5.0 - 1e-9].max() < 0.05 and pe[np.searchsorted(t, 5.0 - 1e-9)] > 20.0  # measured on the new path
-    assert m["final_path_error"]["uav1"] < sc.path_tol and m["final_coord_error_max"] < sc.coord_tol
-    assert any(e["kind"] == "path_changed" and e["vehicle"] == "uav1" and e["t"] == 5.0 for e in m["events"])
+    assert m.final_path_error["uav1"] < sc.path_tol and m.final_coord_error_max < sc.coord_tol
+    assert any(e.kind == "path_changed" and e.vehicle == "uav1" and e.t == 5.0 for e in m.events)

@@ -81,23 +81,23 @@ def test_range_out_reports_the_split_and_re_converges_after_the_return():
     sc = load_scenario("configs/range_out.toml")
     r = InProcessFleet(sc).run()
     m = r.metrics
-    radio = [(e["t"], e["kind"]) for e in m["events"] if e["kind"].startswith("radio_")]
+    radio = [(e.t, e.kind) for e in m.events if e.kind.startswith("radio_")]
     assert [k for _, k in radio] == ["radio_split", "radio_joined"]
     (t_split, _), (t_back, _) = radio
     assert 15.0 < t_split < 25.0 and 75.0 < t_back < 95.0
-    assert m["radio"]["splits"] == 1 and m["radio"]["dropped_by"]["range"] > 1000
+    assert m.radio.splits == 1 and m.radio.dropped_by["range"] > 1000
     _, coord = r.recorder.worst_errors()
     t = r.recorder.view("t")
     tol = sc.coord_tol
     assert coord[(t > t_split) & (t < t_back)].max() > 1.5 * tol  # the outage pushed it far off
-    assert m["coord_settle_s"] is not None and t_split < m["coord_settle_s"] < t_back + 10.0
+    assert m.coord_settle_s is not None and t_split < m.coord_settle_s < t_back + 10.0
     assert coord[t > t_back + 10.0].max() < 0.7 * tol  # and it holds, with a margin, to the end
-    assert m["final_coord_error_max"] < 0.7 * tol
+    assert m.final_coord_error_max < 0.7 * tol
     from cdus.app.report import summary_table
     from cdus.results import Metrics
 
     # the end-of-run summary says when it was split, not only how many times
-    assert f"1 graph split(s): {t_split:.1f}-{t_back:.1f} s" in summary_table(Metrics.from_dict(m), sc.vehicles)
+    assert f"1 graph split(s): {t_split:.1f}-{t_back:.1f} s" in summary_table(m, sc.vehicles)
 
 
 def test_the_summary_gives_each_split_interval_and_one_still_open_at_the_end():
@@ -116,7 +116,7 @@ def test_the_summary_gives_each_split_interval_and_one_still_open_at_the_end():
     from cdus.results import Metrics
     from cdus.wire.rejected import Rejected
 
-    m = InProcessFleet(load_scenario("configs/lake_circle.toml", {"scenario.duration": 0.2})).run().metrics
+    m = InProcessFleet(load_scenario("configs/lake_circle.toml", {"scenario.duration": 0.2})).run().metrics.to_dict()
     bad = Metrics.from_json({**m, "events": [{"t": "x", "kind": "radio_split", "text": "", "severity": "info"}]})
     assert isinstance(bad, Rejected) and bad.field == "events[0].t"
 
@@ -134,8 +134,8 @@ def test_a_radio_change_changes_delivery_from_its_time_on():
     for name in ("q", "omega"):
         assert np.array_equal(ref.recorder.view(name)[: n + 1], run.recorder.view(name)[: n + 1])
         assert not np.array_equal(ref.recorder.view(name), run.recorder.view(name))
-    before, after = ref.metrics["radio"], run.metrics["radio"]
-    assert before["dropped_by"]["range"] == 0 and after["dropped_by"]["range"] > 0.4 * after["sent"]
+    before, after = ref.metrics.radio, run.metrics.radio
+    assert before.dropped_by["range"] == 0 and after.dropped_by["range"] > 0.4 * after.sent
     with pytest.raises(ValueError):
         weak.set_radio({"tx_power": "loud"}, 3.0)
     assert radio_change_problem({"station": [1.0, 2.0]}) is None
@@ -150,24 +150,24 @@ def test_a_radio_change_changes_delivery_from_its_time_on():
 
 
 def test_the_metrics_radio_block_is_typed_in_the_api_and_printed():
-    """Metrics.from_dict takes the radio block into RadioMetrics; to_dict gives the JSON back,
-    equal and in the same key order; the end-of-run table prints it."""
+    """The run builds the radio block as RadioMetrics; its JSON reads back equal; the end-of-run
+    table prints it."""
     from cdus.api import Metrics, RadioMetrics
     from cdus.app.report import summary_table
 
     sc = load_scenario("configs/lake_radio.toml", {"scenario.duration": 1.0})
     m = InProcessFleet(sc).run().metrics
-    typed = Metrics.from_dict(m)
-    assert isinstance(typed.radio, RadioMetrics) and "radio" not in typed.extra
-    assert typed.radio.utilisation["samples"] == 6 and typed.radio.dropped_by["collision"] >= 0
-    assert typed.to_dict() == m and list(typed.to_dict()) == list(m)
-    table = summary_table(Metrics.from_dict(m), sc.vehicles)
+    assert isinstance(m.radio, RadioMetrics) and "radio" not in m.extra
+    assert m.radio.utilisation.samples == 6 and m.radio.dropped_by["collision"] >= 0
+    d = m.to_dict()
+    assert Metrics.from_dict(d) == m and "utilisation" in d["radio"]
+    table = summary_table(m, sc.vehicles)
     assert "radio:" in table and "channel utilisation mean 0.107" in table
     with pytest.raises(ValueError, match="radio.utilisation"):
-        Metrics.from_dict({**m, "radio": {**m["radio"], "utilisation": 3}})
+        Metrics.from_dict({**d, "radio": {**d["radio"], "utilisation": 3}})
     plain = InProcessFleet(load_scenario("configs/lake_circle.toml", {"scenario.duration": 0.2})).run().metrics
-    assert "radio" not in plain and Metrics.from_dict(plain).radio is None
-    assert "radio:" not in summary_table(Metrics.from_dict(plain), sc.vehicles)
+    assert "radio" not in plain.to_dict() and plain.radio is None
+    assert "radio:" not in summary_table(plain, sc.vehicles)
 
 
 RADIO_EVENT = """
@@ -195,9 +195,9 @@ def test_a_scheduled_radio_event_is_the_same_change_as_a_ground_stations(tmp_pat
     commanded.set_radio({"tx_power": -30.0}, 2.0)
     ref = commanded.run()
     assert np.array_equal(scheduled.recorder.view("q"), ref.recorder.view("q"))
-    assert scheduled.metrics["radio"] == ref.metrics["radio"] and ref.metrics["radio"]["dropped_by"]["range"] > 0
+    assert scheduled.metrics.radio == ref.metrics.radio and ref.metrics.radio.dropped_by["range"] > 0
     # the run says so, at the tick it applies from (a ground station's change is reported by the world)
-    assert [(e["t"], e["text"]) for e in scheduled.metrics["events"] if e["kind"] == "radio_changed"] == [
+    assert [(e.t, e.text) for e in scheduled.metrics.events if e.kind == "radio_changed"] == [
         (2.0, "radio: tx_power = -30 dBm from tick 100 (t = 2 s) (scheduled)")]
     for bad, field in [("tx_power = 900.0", "event[0].tx_power"), ('station = "x"', "event[0].station"),
                        ("vehicle = \"usv1\"", "event[0].vehicle")]:
@@ -252,6 +252,6 @@ def test_a_fleet_beyond_the_geometry_bounds_is_out_of_range_not_unradioed():
         for key, value in (("path", line), ("phase", 0.0))}})
     run = InProcessFleet(sc).run()
     assert abs(run.recorder.q[:run.recorder._n]).max() > 1e7  # they got out there
-    radio = run.metrics["radio"]
-    assert radio["sent"] > 0 and radio["no_geometry"] == 0
-    assert radio["dropped_by"]["range"] == radio["sent"]  # nobody is heard out there
+    radio = run.metrics.radio
+    assert radio.sent > 0 and radio.no_geometry == 0
+    assert radio.dropped_by["range"] == radio.sent  # nobody is heard out there

@@ -62,7 +62,7 @@ def test_an_encounter_without_the_filter_comes_within_the_radius_and_the_run_rep
     assert "error" not in row and row["kind"] == "head_on"
     assert row["worst_separation_m"] < mc.RADIUS and row["interventions"] == 0 and row["filter_calls"] == 0
     sc = parse_scenario(enc.scenario_data(False))
-    assert row["min_separation_m"] == InProcessFleet(sc).run().metrics["min_separation_m"]
+    assert row["min_separation_m"] == InProcessFleet(sc).run().metrics.min_separation_m
     summary = mc.summarize([row, {**row, "worst_separation_m": 3.0}, {"preset": "ideal", "error": "boom"}])
     assert (summary["encounters"], summary["errors"], summary["violations"], summary["strictly_below_radius"]) == (
         3, 1, 1, 1)

@@ -46,16 +46,16 @@ def test_min_separation_compares_boats_on_the_water_and_drones_in_3d():
 
 def test_crossing_without_the_filter_comes_closer_than_the_radius():
     m = run({"safety.enabled": False}).metrics
-    assert m["min_separation_m"] < R  # measured 1.07 m
-    assert m["interventions"] == 0
+    assert m.min_separation_m < R  # measured 1.07 m
+    assert m.interventions == 0
 
 
 def test_crossing_with_the_filter_keeps_the_radius_and_the_formation_settles():
     m = run().metrics
-    assert m["min_separation_m"] >= R - TOLERANCE  # measured 2.0204 m
-    assert m["interventions"] > 0  # measured 240 control steps, all in the first 6 s
-    assert m["path_settle_s"] is not None and m["coord_settle_s"] is not None  # 15.2 s and 62.8 s
-    assert m["final_coord_error_max"] < 0.05 and m["final_path_error_max"] < 0.1
+    assert m.min_separation_m >= R - TOLERANCE  # measured 2.0204 m
+    assert m.interventions > 0  # measured 240 control steps, all in the first 6 s
+    assert m.path_settle_s is not None and m.coord_settle_s is not None  # 15.2 s and 62.8 s
+    assert m.final_coord_error_max < 0.05 and m.final_path_error_max < 0.1
 
 
 def test_vehicles_starting_inside_the_radius_get_out_without_a_crash_or_a_freeze():
@@ -73,9 +73,9 @@ def test_vehicles_starting_inside_the_radius_get_out_without_a_crash_or_a_freeze
     late = t >= 10.0
     assert min_separation(q[late], [v.kind for v in sc.vehicles]) >= R - TOLERANCE
     assert np.isfinite(q).all()
-    rates = res.metrics["omega_rate_final"]
+    rates = res.metrics.omega_rate_final
     assert all(r == pytest.approx(-1.0, abs=0.05) for r in rates.values())  # moving on, not frozen
-    assert res.metrics["path_settle_s"] is not None
+    assert res.metrics.path_settle_s is not None
 
 
 def test_wind_and_current_with_the_observer_leave_a_smaller_steady_path_error():
@@ -116,7 +116,7 @@ REGULATORS = ["heading", "paper"]
 @pytest.mark.parametrize("regulator", REGULATORS)
 def test_crossing_dynamic_without_the_filter_comes_closer_than_the_radius(regulator):
     _, res = run_dynamic({"safety.enabled": False, "defaults.regulator": regulator})
-    assert res.metrics["min_separation_m"] < R  # measured 1.218 m (heading), 1.242 m (paper)
+    assert res.metrics.min_separation_m < R  # measured 1.218 m (heading), 1.242 m (paper)
 
 
 @pytest.mark.parametrize("regulator", REGULATORS)
@@ -126,9 +126,9 @@ def test_crossing_dynamic_with_the_filter_keeps_the_radius_and_the_formation_set
     formation settles (paper regulator: 2.069 m, path 23.6 s, coordination 111.0 s)."""
     _, res = run_dynamic({"defaults.regulator": regulator})
     m = res.metrics
-    assert m["min_separation_m"] >= R - TOLERANCE  # measured 2.069 m (their distance at the start)
-    assert m["interventions"] > 0  # measured 1179
-    assert m["path_settle_s"] is not None and m["coord_settle_s"] is not None  # 28.4 s and 114.5 s
+    assert m.min_separation_m >= R - TOLERANCE  # measured 2.069 m (their distance at the start)
+    assert m.interventions > 0  # measured 1179
+    assert m.path_settle_s is not None and m.coord_settle_s is not None  # 28.4 s and 114.5 s
 
 
 def test_a_killed_boat_stays_an_obstacle_the_others_avoid():

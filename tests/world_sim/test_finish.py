@@ -6,6 +6,7 @@ from __future__ import annotations
 import errno
 import json
 
+from cdus.sim.runmetrics import RejectedByReason
 from cdus.wire import keys
 
 from .test_world import FLEET, row, send_rows, started, stats_payload, world
@@ -35,15 +36,15 @@ def test_the_drops_are_said_by_reason_for_the_world_and_summed_over_the_vehicles
     send_rows(w, "stranger", [row(0, 0)])
     w.feed(keys.stats(FLEET, "usv1"), stats_payload(id="usv1", tick=3, rejected_by_reason={"stale": 2}))
     w.feed(keys.stats(FLEET, "usv2"), stats_payload(id="usv2", tick=3, rejected_by_reason={"stale": 1, "future": 4}))
-    assert w.rejects_by_reason() == {"world": {"unknown_sender": 1}, "vehicles": {"future": 4, "stale": 3}}
+    assert w.rejects_by_reason() == RejectedByReason(world={"unknown_sender": 1}, vehicles={"future": 4, "stale": 3})
 
 
 def test_the_link_block_sums_every_processs_counters(tmp_path):
     w = started(world())
     w.feed(keys.stats(FLEET, "usv1"), stats_payload(id="usv1", tick=3, sent_to_me=10, delivered=8, dropped=2))
     w.feed(keys.stats(FLEET, "usv2"), stats_payload(id="usv2", tick=3, sent_to_me=5, delivered=5, dropped=0))
-    b = w.link_block()
-    assert (b["sent"], b["delivered"], b["dropped"]) == (15, 13, 2)
+    b = w.link_metrics()
+    assert (b.sent, b.delivered, b.dropped) == (15, 13, 2)
 
 
 def test_a_trace_that_cannot_be_written_is_said_removed_and_the_metrics_are_kept(tmp_path):
@@ -62,6 +63,6 @@ def test_a_trace_that_cannot_be_written_is_said_removed_and_the_metrics_are_kept
 
     w.recorder.save_trace = full_disk
     m = w.finish()
-    assert json.loads(out.read_text()) == m
+    assert json.loads(out.read_text()) == m.to_dict()
     assert w.not_written == ["the trace"] and not trace.exists()  # no half a trace that looks like one
     assert f"error: could not write the trace to {trace}: No space left on device" in lines, lines

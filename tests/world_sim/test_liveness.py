@@ -45,9 +45,9 @@ def test_a_wildcard_token_is_nobodys_and_says_the_run_may_have_been_altered():
     w.session = None
     w.next_tick = w.last_tick + 1
     m = w.finish()
-    assert (m["completed"], m["integrity"]["tampered"]) == (True, True)
-    assert m["integrity"]["reasons"] == {"token_key": 3}
-    assert "alive/**" in m["integrity"]["notes"][0]
+    assert (m.completed, m.integrity.tampered) == (True, True)
+    assert m.integrity.reasons == {"token_key": 3}
+    assert "alive/**" in m.integrity.notes[0]
     assert [e.kind for e in w.events if e.kind == "suspect"] == ["suspect"]  # said once, when first seen
 
 
@@ -84,7 +84,7 @@ def test_a_vehicle_watching_a_token_not_the_worlds_is_in_the_integrity_block():
     w = up_by_tokens(world())
     w.st.stats["usv1"] = AgentStats(id="usv1", tick=0, sent_to_me=0, delivered=0, dropped=0, duplicated=0, rejected=1,
                                     rejected_by_reason={"token_key": 2})
-    assert w.integrity_block()["reasons"] == {"vehicle_token_key": 2}
+    assert w.integrity_block().reasons == {"vehicle_token_key": 2}
 
 
 vids = hs.sampled_from(["usv1", "usv2", "uav3", "world", "ros2", "usv9", "", "*", "**", "$*"])

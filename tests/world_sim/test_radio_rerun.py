@@ -32,7 +32,7 @@ def test_probability_colours_run_from_red_through_yellow_to_green():
 
 def test_the_radio_is_drawn_at_every_geometry_sample(tmp_path):
     sc, res, rec = _record(tmp_path, "configs/lake_radio.toml", 2.0)
-    samples = res.metrics["radio"]["utilisation"]["samples"]
+    samples = res.metrics.radio.utilisation.samples
     assert samples == 11  # every 0.2 s over 2 s
     times, strips = rec.column(bp.RADIO_LINKS, "LineStrips3D:strips")
     assert len(times) == samples and times[1] == 200_000_000
@@ -42,7 +42,7 @@ def test_the_radio_is_drawn_at_every_geometry_sample(tmp_path):
     _, station = rec.column(bp.RADIO_STATION, "Points3D:positions")
     assert np.allclose(station[0], [[0.0, 0.0, 0.0]])
     _, u = rec.column(bp.UTILISATION, "Scalars:scalars")
-    assert np.allclose(np.ravel(u), res.metrics["radio"]["utilisation"]["mean"])
+    assert np.allclose(np.ravel(u), res.metrics.radio.utilisation.mean)
     assert bp.UTILISATION in rec.static
 
 
@@ -54,7 +54,7 @@ def test_cdus_sim_printing_its_events_still_draws_the_radio(tmp_path, capsys):
     path = tmp_path / "run.rrd"
     sc = load_scenario(ROOT / "configs/lake_radio.toml", {"scenario.duration": 1.0})
     res = cdus.run(sc, rerun=f"save:{path}", events=True)
-    samples = res.metrics.radio.utilisation["samples"]
+    samples = res.metrics.radio.utilisation.samples
     rec = Recording(path)
     times, _ = rec.column(bp.RADIO_LINKS, "LineStrips3D:strips")
     assert samples > 0 and len(times) == samples

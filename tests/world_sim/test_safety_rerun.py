@@ -51,7 +51,7 @@ def test_a_dot_marks_every_vehicle_at_exactly_the_ticks_its_filter_intervened(fi
     res, rec = filtered
     assert INTERVENTIONS in rec.static
     hit = intervened(res.recorder.view("interventions"), None)
-    assert hit.sum() == res.metrics["interventions"] > 0
+    assert hit.sum() == res.metrics.interventions > 0
     times, labels = rec.column(INTERVENTIONS, "Points3D:labels")
     _, positions = rec.column(INTERVENTIONS, "Points3D:positions")
     ticks = np.round(times / 20_000_000).astype(int)  # 50 Hz: 20 ms a tick
@@ -71,15 +71,15 @@ def test_a_dot_marks_every_vehicle_at_exactly_the_ticks_its_filter_intervened(fi
 
 def test_the_last_closest_line_is_the_metrics_closest_pair(filtered, unfiltered):
     for res, rec in (filtered, unfiltered):
-        p = res.metrics["closest_pair"]
+        p = res.metrics.closest_pair
         times, labels = rec.column(f"{CLOSEST}/usv", "LineStrips3D:labels")
         _, strips = rec.column(f"{CLOSEST}/usv", "LineStrips3D:strips")
-        assert times[-1] == round(p["t_s"] * 1e9)
-        assert labels[-1] == [f"closest so far: {p['a']} - {p['b']} {p['distance_m']:.2f} m at {p['t_s']:.2f} s"]
-        n = int(round(p["t_s"] * 50))
+        assert times[-1] == round(p.t_s * 1e9)
+        assert labels[-1] == [f"closest so far: {p.a} - {p.b} {p.distance_m:.2f} m at {p.t_s:.2f} s"]
+        n = int(round(p.t_s * 50))
         ends = np.array(strips[-1][0])
         q = res.recorder.view("q")[n]
-        np.testing.assert_allclose(ends[:, :2], q[[res.recorder.ids.index(p["a"]), res.recorder.ids.index(p["b"])], :2],
+        np.testing.assert_allclose(ends[:, :2], q[[res.recorder.ids.index(p.a), res.recorder.ids.index(p.b)], :2],
                                    atol=1e-4)
         assert list(np.diff(times) > 0) == [True] * (len(times) - 1)
 

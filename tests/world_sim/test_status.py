@@ -124,7 +124,7 @@ def test_the_last_status_says_how_the_run_ended_before_the_vehicles_are_told_to_
     w._drain = lambda block=False: None  # no inbox here: the agents' last counters do not come
     m = w.finish()
     assert order[0] == ("status", "stopped") and order[1] == ("ctl", encode_control("stop"))
-    assert m["completion"] == "stopped"
+    assert m.completion == "stopped"
     assert all(decode_status(p).completion is None for p in w.pub_status.puts[:-1])  # only the last says it
 
 

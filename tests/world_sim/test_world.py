@@ -8,6 +8,7 @@ import json
 from cdus.core.events import RosterChange
 from cdus.scenario.config import load_scenario
 from cdus.sim.lockstep import CatchUp, Grant, Join, Roster
+from cdus.sim.runmetrics import RejectedByReason
 from cdus.wire import keys
 from cdus.wire.messages import (
     CTL_OPS, LAUNCHER_OPS, StateMsg, decode_control, encode_control, encode_states,
@@ -111,9 +112,9 @@ def test_stats_feed_the_link_block_and_bursts_become_events():
     s = AgentStats(id="usv1", tick=100, sent_to_me=200, delivered=190, dropped=10, rejected=2,
                    latencies_ms=(1.0, 3.0), missed_deadlines=1, bursts=(burst,))
     w.feed(keys.stats(FLEET, "usv1"), encode_stats(s))
-    block = w.link_block()
-    assert (block["sent"], block["delivered"], block["dropped"], block["rejected"]) == (200, 190, 10, 2)
-    assert block["missed_deadlines"] == 1 and block["latency_ms_p50"] == 2.0
+    block = w.link_metrics()
+    assert (block.sent, block.delivered, block.dropped, block.rejected) == (200, 190, 10, 2)
+    assert block.missed_deadlines == 1 and block.latency_ms_p50 == 2.0
     assert [(e.kind, e.link, e.origin) for e in w.events] == [("link_burst", "usv2->usv1", "usv1")]
     assert decode_event(w.pub_events.puts[-1]).kind == "link_burst"
 
@@ -129,13 +130,13 @@ def test_every_stats_messages_latencies_count_and_a_restarted_process_adds_to_th
     w.alive("usv1", False)  # the old process's token goes: the next incarnation is a restart
     send(AgentStats(id="usv1", tick=150, sent_to_me=20, delivered=20, joined_at=120, latencies_ms=(), interventions=1,
                     incarnation=7))
-    block = w.link_block()
-    assert (block["sent"], block["delivered"]) == (220, 220)
-    assert block["latency_ms_p50"] == 5.0 and block["latency_ms_p99"] == 5.0
+    block = w.link_metrics()
+    assert (block.sent, block.delivered) == (220, 220)
+    assert block.latency_ms_p50 == 5.0 and block.latency_ms_p99 == 5.0
     assert sorted(w.st.latencies.latencies) == [0.001, 0.001, 0.005, 0.005, 0.005]
-    assert "faults" not in block  # lake_circle's link is ideal and nobody changed it
+    assert block.faults is None  # lake_circle's link is ideal and nobody changed it
     w.session = None  # nothing left to hear
-    assert w.finish()["interventions"] == 4
+    assert w.finish().interventions == 4
 
 
 def test_stats_with_ever_new_incarnations_are_a_restart_only_after_the_token_went():
@@ -149,12 +150,12 @@ def test_stats_with_ever_new_incarnations_are_a_restart_only_after_the_token_wen
     send(AgentStats(id="usv1", tick=50, sent_to_me=100, delivered=100, incarnation=1))
     for n in range(2, 200):  # forged: the genuine process never went away
         send(AgentStats(id="usv1", tick=50, sent_to_me=1000, delivered=1000, incarnation=n))
-    assert w.link_block()["sent"] == 100 and w.st.retired == [] and w.st.rejects["incarnation"] == 198
+    assert w.link_metrics().sent == 100 and w.st.retired == [] and w.st.rejects["incarnation"] == 198
     send(AgentStats(id="usv1", tick=60, sent_to_me=120, delivered=120, incarnation=1))  # the genuine one goes on
     w.alive("usv1", False)  # killed; then restarted
     send(AgentStats(id="usv1", tick=90, sent_to_me=30, delivered=30, incarnation=77))
     send(AgentStats(id="usv1", tick=90, sent_to_me=9999, delivered=9999, incarnation=78))  # one restart, one new process
-    assert w.link_block()["sent"] == 150 and len(w.st.retired) == 1
+    assert w.link_metrics().sent == 150 and len(w.st.retired) == 1
 
 
 def test_a_ground_stations_kill_waits_for_its_tick_in_lockstep_and_goes_straight_to_the_launcher_in_realtime():
@@ -313,9 +314,9 @@ def test_an_empty_run_still_writes_its_metrics(tmp_path):
     w = world(metrics_out=str(out))
     w.session = None
     m = w.finish()
-    assert json.loads(out.read_text()) == m
-    assert m["completed"] is False and m["path_settle_s"] is None and m["events"] == []
-    assert m["mode"] == "lockstep" and m["link"]["sent"] == 0
+    assert json.loads(out.read_text()) == m.to_dict()
+    assert m.completed is False and m.path_settle_s is None and m.events == ()
+    assert m.mode == "lockstep" and m.link.sent == 0
 
 
 def test_the_launchers_acknowledgement_reaches_the_lockstep_decisions():
@@ -437,7 +438,7 @@ def test_a_crash_not_back_by_the_end_means_the_run_did_not_complete(tmp_path):
     assert w.lockstep.decide_drops() == "lost"
     w.next_tick = w.last_tick + 1  # as if the others stepped to the end
     m = w.finish()
-    assert m["completed"] is False and m["completion"] == "vehicles_lost"
+    assert m.completed is False and m.completion == "vehicles_lost"
 
 
 def test_a_run_that_reached_its_end_with_the_live_fleet_completed_and_a_stop_did_not():
@@ -445,12 +446,12 @@ def test_a_run_that_reached_its_end_with_the_live_fleet_completed_and_a_stop_did
     w.session = None
     w.next_tick = w.last_tick + 1
     m = w.finish()
-    assert (m["completed"], m["completion"]) == (True, "completed")
-    assert m["rejected_by_reason"] == {"world": {}, "vehicles": {}}
+    assert (m.completed, m.completion) == (True, "completed")
+    assert m.rejected_by_reason == RejectedByReason(world={}, vehicles={})
     w = started(world())
     w.feed(keys.world_cmd(FLEET, "gs1"), encode_control("stop"))
     w.session = None
-    assert (lambda m: (m["completed"], m["completion"]))(w.finish()) == (False, "stopped")
+    assert (lambda m: (m.completed, m.completion))(w.finish()) == (False, "stopped")
 
 
 def test_a_fleet_that_drops_all_at_once_is_waited_for_then_given_up(monkeypatch):
@@ -564,7 +565,7 @@ def test_the_graph_event_of_a_scheduled_kill_carries_the_kills_tick_as_in_proces
     got = [(e.kind, e.t) for e in w.events if e.kind in ("fault", "graph")]
     assert got == [("fault", 1.0), ("graph", 1.0)]
     ref = InProcessFleet(load_scenario(tmp_path / "ev.toml", {"scenario.duration": 1.5})).run().metrics
-    assert [(e["kind"], e["t"]) for e in ref["events"] if e["kind"] in ("fault", "graph")] == got
+    assert [(e.kind, e.t) for e in ref.events if e.kind in ("fault", "graph")] == got
 
 
 def test_a_run_given_up_before_its_start_names_the_vehicles_that_never_came_up():
@@ -576,10 +577,10 @@ def test_a_run_given_up_before_its_start_names_the_vehicles_that_never_came_up()
     w.feed(keys.world_cmd(FLEET, keys.LAUNCHER), encode_control("stop"))
     w.session = None
     m = w.finish()
-    assert m["completion"] == "not_started" and m["never_up"] == ["usv1", "uav2"]
+    assert m.completion == "not_started" and m.never_up == ("usv1", "uav2")
     w = started(world())
     w.session = None
-    assert "never_up" not in w.finish()  # a run that started has no such field
+    assert "never_up" not in w.finish().to_dict()  # a run that started has no such field
 
 
 def test_a_stop_that_overtakes_the_last_liveliness_tokens_is_an_interruption_not_a_run_never_started():
@@ -593,7 +594,7 @@ def test_a_stop_that_overtakes_the_last_liveliness_tokens_is_an_interruption_not
     w._alive_news.append((keys.alive(w.fleet, w.ids[-1], "a3"), True))  # the last token, heard after the stop
     w.session = None
     m = w.run()
-    assert m["completion"] == "interrupted" and "never_up" not in m, (m["completion"], m.get("never_up"))
+    assert m.completion == "interrupted" and m.never_up is None, (m.completion, m.never_up)
 
 
 def test_a_caught_up_process_that_reports_nothing_hears_the_catch_up_again_until_it_reports():
