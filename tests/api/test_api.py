@@ -16,6 +16,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import cdus
+from cdus.wire.schemas import decode_status, encode_status
 from cdus.api import Metrics, Trace
 from cdus.core.metrics import min_separation, settle_time
 from cdus.sim.fleet import InProcessFleet
@@ -91,7 +92,7 @@ def metric_dicts(tmp_path) -> dict[str, dict]:
         fleet.step()
     out["interrupted"] = {**fleet.partial_metrics().to_dict(), "interrupted": True}
     la = Launcher(sc, tmp_path / "run", local_router(), LaunchOptions(fleet="t1", quiet=True))
-    la.status = {"t": 2.5, "alive": ["usv1"], "path_error_max": 0.5, "coord_error_max": 0.1}
+    la.status = decode_status(encode_status(2.5, 4.0, "lockstep", ["usv1"], list(sc.ids), 0.5, 0.1, [], False))
     out["world_lost"] = la.write_world_lost(-9, 1.0).to_dict()
     world = dict(out["faults"], mode="lockstep", rejected_by_reason={"world": {"key": 2}, "vehicles": {}})
     world["link"] = {**world["link"], "missed_deadlines": 0}
