@@ -3,10 +3,9 @@ for bit, the obstacles block of the metrics included."""
 
 from __future__ import annotations
 
-import json
-
 from cdus.scenario.config import load_scenario
 from cdus.sim.fleet import InProcessFleet
+from cdus.sim.runmetrics import Metrics
 
 from .conftest import assert_same_trace, fleet_processes, unique_fleet
 
@@ -26,10 +25,10 @@ def test_lockstep_with_obstacles_reproduces_the_in_process_run(tmp_path, launche
                    "--trace-out", str(tmp_path / "trace.npz"), "-q", *sets], fleet)
     assert la.wait() == 0, la.output()
     ref = InProcessFleet(load_scenario(CONFIG, {**STARTS, "scenario.duration": 8.0})).run()
-    ob = ref.metrics["obstacles"]
-    assert ob["vehicles"]["usv_a"]["deflected_s"] > 0 and ob["vehicles"]["usv_b"]["deflected_s"] > 0
+    ob = ref.metrics.obstacles
+    assert ob.vehicles["usv_a"]["deflected_s"] > 0 and ob.vehicles["usv_b"]["deflected_s"] > 0
     assert_same_trace(tmp_path / "trace.npz", ref)
-    metrics = json.loads((run / "metrics.json").read_text())
-    assert metrics["completed"] is True
-    assert metrics["obstacles"] == ob  # clearances from the same positions, deflected steps from the agents' stats
+    metrics = Metrics.read(run / "metrics.json")
+    assert metrics.completed is True
+    assert metrics.obstacles == ob  # clearances from the same positions, deflected steps from the agents' stats
     assert not fleet_processes(fleet)

@@ -144,7 +144,7 @@ def test_the_example_from_the_scenarios_table_runs_as_a_circle_of_its_own(fresh,
     sc = parse_scenario(data, "fleet.toml", {"scenario.duration": 2.0})
     assert [v.plant for v in sc.vehicles] == ["unicycle", "unicycle", "unicycle", "ideal"]
     result = InProcessFleet(sc).run()
-    assert result.metrics["final_path_error"] is not None
+    assert result.metrics.final_path_error is not None
     assert all(math.isfinite(x) for x in result.recorder.view("q").ravel())
 
 
@@ -355,7 +355,7 @@ def test_a_sweep_worker_handed_a_resolved_scenario_loads_its_plugins_first(fresh
         del table[key]
     row = run_task(sc, "inproc")
     assert (row["status"], row["reason"]) == ("ok", ""), row
-    assert row["final_path_error_max"] == InProcessFleet(sc).run().metrics["final_path_error_max"]
+    assert row["final_path_error_max"] == InProcessFleet(sc).run().metrics.final_path_error_max
 
 
 def test_a_plugin_plant_runs_as_the_built_in_ideal_one_to_the_bit(fresh):

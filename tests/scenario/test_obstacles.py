@@ -97,4 +97,4 @@ def test_obstacles_at_their_bounds_run_to_the_end(obstacle):
     data["defaults"] = {"limits": {"speed": 5.0}}
     data["obstacle"] = [obstacle]
     m = InProcessFleet(parse_scenario(data)).run().metrics
-    assert m["completed"] and m["obstacles"]["count"] == 1
+    assert m.completed and m.obstacles.count == 1

@@ -33,36 +33,36 @@ def rejoined(recorder, tol):
 
 def test_ideal_plant_keeps_the_margin_goes_round_and_the_formation_settles():
     m = run({})
-    ob = m["obstacles"]
-    assert ob["count"] == 4 and ob["below_margin"] == []
-    for vid, row in ob["vehicles"].items():
+    ob = m.obstacles
+    assert ob.count == 4 and ob.below_margin == ()
+    for vid, row in ob.vehicles.items():
         assert row["min_clearance_m"] >= row["margin_m"] - 1e-6, vid
         assert row["deflected_s"] > 0.5, vid  # every path crosses an obstacle: each was deflected
-    assert m["path_settle_s"] is not None and m["coord_settle_s"] is not None  # after the detour
+    assert m.path_settle_s is not None and m.coord_settle_s is not None  # after the detour
 
 
 def test_usv_3dof_and_double_integrator_keep_the_margin_and_rejoin():
     res = run(DYNAMIC, result=True)
-    ob = res.metrics["obstacles"]
-    assert ob["below_margin"] == []
+    ob = res.metrics.obstacles
+    assert ob.below_margin == ()
     assert all(row["min_clearance_m"] >= row["margin_m"] and row["deflected_s"] > 0.5
-               for row in ob["vehicles"].values())
+               for row in ob.vehicles.values())
     assert all(rejoined(res.recorder, 0.2).values())  # back on the path (a usv_3dof boat sails ~0.1 m off it)
-    assert res.metrics["coord_settle_s"] is not None  # the formation settles after the detour
+    assert res.metrics.coord_settle_s is not None  # the formation settles after the detour
 
 
 @pytest.mark.parametrize("overrides", [{}, DYNAMIC], ids=["ideal", "dynamic"])
 def test_without_the_filter_every_vehicle_goes_through_its_obstacle(overrides):
-    ob = run({**overrides, "safety.enabled": False, "scenario.duration": 80.0})["obstacles"]
-    assert sorted(ob["below_margin"]) == sorted(BOATS + DRONES)
-    assert ob["min_clearance_m"] < 0.0  # inside an obstacle
-    assert all(row["deflected_s"] == 0.0 for row in ob["vehicles"].values())
+    ob = run({**overrides, "safety.enabled": False, "scenario.duration": 80.0}).obstacles
+    assert sorted(ob.below_margin) == sorted(BOATS + DRONES)
+    assert ob.min_clearance_m < 0.0  # inside an obstacle
+    assert all(row["deflected_s"] == 0.0 for row in ob.vehicles.values())
 
 
 def test_the_obstacles_block_is_typed_and_round_trips():
     from cdus.sim.runmetrics import Metrics
 
-    m = run({"scenario.duration": 2.0})
+    m = run({"scenario.duration": 2.0}).to_dict()
     typed = Metrics.from_dict(m)
     assert typed.obstacles.count == 4 and typed.to_dict() == m and list(typed.to_dict()) == list(m)
     m["obstacles"]["vehicles"]["usv_a"]["deflected_s"] = "long"
@@ -87,7 +87,7 @@ def test_a_hostile_obstacles_block_is_rejected_by_name_never_raised(key, value):
     from cdus.wire.rejected import Rejected
 
     if not _BASE:
-        _BASE.update(run({"scenario.duration": 0.5}))
+        _BASE.update(run({"scenario.duration": 0.5}).to_dict())
     m = copy.deepcopy(_BASE)
     block = m["obstacles"]
     if key in ("usv_a",):
