@@ -14,7 +14,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from cdus.ros2 import cdr
-from cdus.ros2.robot import ODOM, ODOM_REASONS, TWIST, RobotPose, read_odometry, twist
+from cdus.ros2.robot import ODOM, ODOM_REASONS, TWIST, RobotPose, gap_events, read_odometry, twist
 from cdus.ros2.types import TYPES
 from cdus.scenario.config import ConfigError, load_scenario
 from cdus.wire import keys
@@ -23,6 +23,7 @@ from cdus.wire.schemas import MAX_ODOMETRY_GAPS, MAX_TIME, SCHEMA_VERSION, Agent
 from cdus.wire.schemas import encode_stats
 from cdus.wire.transport import Transport
 from tests.ros2.robots import odometry_bytes, read_twist
+from tests.world_sim.test_world import Pub, Session
 
 finite = st.floats(-1e6, 1e6, allow_nan=False)
 CONFIG = "configs/ros2_robot.toml"
@@ -164,7 +165,6 @@ def test_each_spell_without_odometry_goes_to_the_world_when_it_begins_and_when_i
 
 
 def robot_world():
-    from tests.world_sim.test_world import Pub, Session
     from world_sim.world import World
     w = World(load_scenario(CONFIG), "t", Transport(), clock="realtime", log=lambda s: None)
     w.session = Session()
@@ -189,6 +189,47 @@ def test_the_world_shows_a_robots_spells_without_odometry_as_events_once_each():
     send("usv2", OdometryGap(0.1))  # an emulated boat has no odometry to miss
     send("usv1", OdometryGap(1e6))  # past the newest tick a vehicle can have stepped
     assert len(w.events) == 4 and w.st.rejects == {"odometry_not_robot": 1, "odometry_future": 1}
+
+
+def test_a_report_whose_spells_cannot_be_genuine_is_dropped_whole_not_only_its_spells():
+    w = robot_world()
+    send = lambda vid, n, *gaps: w.feed(keys.stats("t", vid), encode_stats(  # noqa: E731
+        AgentStats(id=vid, tick=1, incarnation=5, interventions=n, odometry_gaps=gaps)))
+    send("usv2", 3)
+    send("usv1", 3)
+    send("usv2", 999, OdometryGap(0.1))  # the genuine incarnation (read off an open fleet), spells of a boat
+    send("usv1", 999, OdometryGap(1e6))  # a robot's spell from the future
+    assert w.st.rejects == {"odometry_not_robot": 1, "odometry_future": 1}
+    assert w.st.stats["usv2"].interventions == w.st.stats["usv1"].interventions == 3  # nothing of them taken
+    assert w.events == []
+
+
+_times = st.floats(0, 2e3) | st.sampled_from([0.0, MAX_TIME])
+
+
+@settings(max_examples=150, deadline=None)
+@given(vid=st.sampled_from(["usv1", "usv2", "uav1"]),
+       spans=st.lists(st.tuples(_times, st.none() | st.floats(0, 50)), max_size=MAX_ODOMETRY_GAPS))
+def test_any_report_of_spells_is_taken_whole_with_its_events_or_dropped_whole_by_reason(vid, spans):
+    gaps, t = [], 0.0
+    for start, length in spans:  # ordered, without overlap, only the newest open: what decodes
+        t = min(t + start, MAX_TIME)
+        gaps.append(OdometryGap(t, None if length is None else min(t + length, MAX_TIME)))
+        if length is None:
+            break
+        t = gaps[-1].back
+    w = robot_world()
+    w.feed(keys.stats("t", vid), encode_stats(AgentStats(id=vid, tick=1, incarnation=5, interventions=3)))
+    w.feed(keys.stats("t", vid), encode_stats(AgentStats(id=vid, tick=2, incarnation=5, interventions=9,
+                                                         odometry_gaps=tuple(gaps))))
+    limit = (w.clock.tick_limit() + 1) * w.period
+    if vid != "usv1" and gaps or any(max(g.t, g.back or 0.0) > limit for g in gaps):
+        assert sum(w.st.rejects.values()) == 1 and set(w.st.rejects) <= {"odometry_not_robot", "odometry_future"}
+        assert w.st.stats[vid].tick == 1 and w.events == []
+    else:
+        assert w.st.rejects == {} and w.st.stats[vid].tick == 2
+        assert sorted((e.kind, e.t) for e in w.events) == sorted(
+            {(e.kind, e.t) for g in gaps for e in gap_events(vid, "/usv1/odom", 0.5, g)})
 
 
 def test_a_world_that_noted_its_share_of_a_robots_spells_counts_the_rest():
