@@ -274,6 +274,43 @@ def test_malformed_odometry_is_counted_by_reason_and_changes_nothing():
     assert set(a.rejected) <= {f"odom_{r}" for r in ODOM_REASONS} and a.rejected["odom_truncated"] >= 1
 
 
+_any = st.floats() | st.sampled_from([1e200, -1e300, 1e6, 1e6 + 1, 5e-324])
+
+
+@settings(max_examples=120, deadline=None)
+@given(q=st.tuples(_any, _any, _any), v=st.tuples(_any, _any, _any), quat=st.tuples(_any, _any, _any, _any),
+       sec=st.integers(-2**31, 2**31 - 1))
+def test_any_values_in_an_odometry_are_a_pose_within_bounds_or_counted_and_the_agent_steps_on(q, v, quat, sec):
+    a, _ = robot_agent()
+    a.feed_odometry(odometry_bytes((5.0, 0.0), 0.0))
+    a.step(0)
+    node = a.node
+    msg = {"header": {"stamp": {"sec": sec}},  # the robot's clock need not be ours: any stamp is read, not judged
+           "pose": {"pose": {"position": dict(zip("xyz", q)), "orientation": dict(zip("xyzw", quat))}},
+           "twist": {"twist": {"linear": dict(zip("xyz", v))}}}
+    a.feed_odometry(cdr.encode(ODOM, msg))
+    for n in range(1, 4):
+        a.step(n)  # never raises
+    if a.rejected:
+        assert list(a.rejected.values()) == [1] and set(a.rejected) <= {f"odom_{r}" for r in ODOM_REASONS}
+        assert node.vehicle.q == (5.0, 0.0)  # the hostile pose was not taken
+    else:
+        assert node.vehicle.q == q[:2] and all(abs(x) <= 1e6 for x in node.vehicle.q)
+    assert all(math.isfinite(x) for x in node.vehicle.plant.command)
+
+
+def test_an_odometry_too_large_or_out_of_bounds_is_counted_and_dropped():
+    a, _ = robot_agent()
+    a.feed_odometry(odometry_bytes((1e200, 0.0), 0.0))  # was taken, and the step raised OverflowError
+    a.feed_odometry(odometry_bytes((5.0, 0.0), 0.0, (1e7, 0.0, 0.0)))
+    a.feed_odometry(odometry_bytes((5.0, 0.0), 0.0, frame="m" * 70_000))  # 19 ms to decode at 20 MB, 8 a tick
+    a.step(0)
+    assert a.pose is None and a.holding and a.rejected == {"odom_range": 2, "odom_oversized": 1}
+    a.feed_odometry(odometry_bytes((1e6, -1e6), 0.0, (1e6, 0.0, 0.0), frame="m" * 60_000))  # at the bounds: taken
+    a.step(1)
+    assert not a.holding and a.node.vehicle.q == (1e6, -1e6)
+
+
 def test_a_lockstep_agent_or_launch_of_a_robot_is_refused_naming_the_clock():
     from vehicle_agent.robot import RobotAgent
     sc = load_scenario(CONFIG)
