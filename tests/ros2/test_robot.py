@@ -342,6 +342,29 @@ def test_the_robot_table_is_checked():
     assert parse_scenario(default).vehicle("usv1").robot.cmd_vel == "/usv1/cmd_vel"
 
 
+@pytest.mark.parametrize("over, field, said", [
+    ({"vehicle.usv2.plant": "ros2", "vehicle.usv2.ros2": {"odom": "/usv1/odom"}}, 'vehicle[1] (id "usv2").ros2.odom',
+     "'/usv1/odom' is also the odom topic of robot 'usv1': give each robot its own (the default is '/usv2/odom')"),
+    ({"vehicle.usv2.plant": "ros2", "vehicle.usv2.ros2": {"cmd_vel": "/usv1/cmd_vel"}},
+     'vehicle[1] (id "usv2").ros2.cmd_vel', "is also the cmd_vel topic of robot 'usv1'"),
+    ({"ros2.enabled": True, "vehicle.usv1.ros2": {"odom": "/cdus/usv3/odom"}}, 'vehicle[0] (id "usv1").ros2.odom',
+     "'/cdus/usv3/odom' is where cdus publishes the odometry of vehicle 'usv3' ([ros2] enabled, namespace '/cdus')"),
+    ({"ros2.enabled": True, "ros2.namespace": "/"}, 'vehicle[0] (id "usv1").ros2.odom',  # the default topic, then
+     "'/usv1/odom' is where cdus publishes the odometry of vehicle 'usv1'"),
+])
+def test_a_robot_topic_another_robot_or_the_fleets_ros2_face_uses_is_refused_naming_it(over, field, said):
+    with pytest.raises(ConfigError) as e:
+        load_scenario(CONFIG, over)
+    assert f"{field}: " in str(e.value) and said in str(e.value)
+
+
+def test_a_robot_topic_of_its_own_is_taken():
+    load_scenario(CONFIG, {"ros2.enabled": True})  # /usv1/odom beside the bridge's /cdus/usv1/odom
+    load_scenario(CONFIG, {"vehicle.usv1.ros2": {"odom": "/cdus/usv1/odom"}})  # no ROS 2 face: nothing publishes it
+    two = load_scenario(CONFIG, {"vehicle.usv2.plant": "ros2", "ros2.enabled": True, "ros2.namespace": "/lake"})
+    assert [v.robot.odom for v in two.vehicles if v.robot] == ["/usv1/odom", "/usv2/odom"]
+
+
 def test_cdus_launch_refuses_a_robot_in_lockstep_and_starts_nothing():
     from tests.e2e.conftest import run_cli
     lock = run_cli(["launch", CONFIG, "--rerun", "off"])  # lockstep is launch's default clock
