@@ -329,7 +329,8 @@ def test_a_plugin_family_that_raises_in_the_run_is_a_diverged_vehicle_naming_it(
     ("if t > 1.0: raise SystemExit(3)", "step raised SystemExit: 3"),  # `cdus sim` exited 3 saying nothing
     ("if t > 1.0: return State(state.q * 2, tuple(u), t)", "after a step of 0.005 s its state's q is not a tuple of "
                                                           "2 numbers"),
-    ("if t > 1.0: return State((1e300, 0.0), tuple(u), t)", "after a step of 0.005 s its state's q is beyond ±1e+06 m"),
+    ("if t > 1.0: return State((1e300, 0.0), tuple(u), t)",
+     "after a step of 0.005 s its state's q is beyond ±1e+06 m"),
 ])
 def test_a_plugin_plant_exiting_or_leaving_its_shape_in_the_run_is_a_diverged_vehicle_naming_it(fresh, change, said):
     name = module(fresh, PLANT, change=change)
