@@ -232,6 +232,22 @@ def test_any_report_of_spells_is_taken_whole_with_its_events_or_dropped_whole_by
             {(e.kind, e.t) for g in gaps for e in gap_events(vid, "/usv1/odom", 0.5, g)})
 
 
+def test_a_world_records_a_robot_holding_from_the_start_where_it_starts_and_its_run_ends():
+    """A robot without odometry from the first tick steps none, so it sends no row: the world
+    recorded no tick and a 6 s realtime run was still going at 60 s (all agents done)."""
+    from cdus.wire.messages import StateMsg, encode_states
+    w = robot_world()
+    for vid in w.ids:
+        w.alive(vid, True)
+    w.started = True
+    for j, v in enumerate(w.scenario.vehicles):
+        if v.id != "usv1":
+            w.feed(keys.state("t", v.id), encode_states([StateMsg(j, 0, 0.0, (0.0,) * v.dim, 0.0, 0.0, 0.0, -1.0,
+                                                                  0.0)]))
+    assert w._record(0) and w.next_tick == 1
+    assert w._recorded[0].q == pytest.approx((2.0, 0.0)) and w._recorded[0].tick == 0  # its path's start
+
+
 def test_a_world_that_noted_its_share_of_a_robots_spells_counts_the_rest():
     from world_sim.limits import MAX_ODOMETRY_EVENTS
     w = robot_world()
