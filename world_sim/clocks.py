@@ -394,8 +394,10 @@ class RealtimeClock(_EffectRule):
         return [vid in self.w.st.alive for vid in self.w.ids]
 
     def starts_unseen(self, j: int, n: int, latest: Any) -> bool:
-        """Vehicle j never reported: a fault holds it, or its rows are newer than n (they come in order)."""
-        return self.w.ids[j] in self.w._faulted or latest is not None
+        """Vehicle j never reported: a fault holds it, its rows are newer than n (they come in
+        order), or it is a robot holding for its odometry (it steps no tick until its first: the
+        world recorded nothing and its run never ended, a 6 s run still going at 60 s)."""
+        return self.w.ids[j] in self.w._faulted or latest is not None or self.w.scenario.vehicles[j].robot is not None
 
     def roster_states(self, tick: int) -> list[str]:
         faulted, alive = self.w._faulted, self.w.st.alive

@@ -149,6 +149,8 @@ class Intake:
             return self._reject(vid, s.reason)
         if s.id != vid:
             return self._reject(vid, "sender_mismatch")
+        if s.odometry_gaps and (why := self._odometry_problem(vid, s.odometry_gaps)) is not None:
+            return self._reject(vid, why)  # before anything of the report is taken: it cannot be genuine
         old = self.st.stats.get(vid)
         if old is not None and old.incarnation != s.incarnation:  # a restarted process: its counters start anew
             if self.st.downs.get(vid, 0) == self.st.downs_at_stats.get(vid, 0):  # the old one never went away
@@ -170,15 +172,21 @@ class Intake:
             self._odometry_gaps(vid, s.odometry_gaps)
         self._suspects(vid, s, old)
 
-    def _odometry_gaps(self, vid: str, gaps: tuple[OdometryGap, ...]) -> None:
-        """A robot's spells without odometry: each ``odometry_stale`` / ``odometry_back`` event
-        noted once (an agent repeats its newest spells). From a vehicle that is no robot, or past
-        the newest tick a vehicle can have stepped: counted and dropped."""
-        robot = self.scenario.vehicle(vid).robot
-        if robot is None:
-            return self._reject(vid, "odometry_not_robot")
+    def _odometry_problem(self, vid: str, gaps: tuple[OdometryGap, ...]) -> str | None:
+        """Why a report's spells without odometry cannot be genuine (its whole report is dropped):
+        ``odometry_not_robot`` (its vehicle is emulated), ``odometry_future`` (past the newest tick
+        a vehicle can have stepped); None: they can."""
+        if self.scenario.vehicle(vid).robot is None:
+            return "odometry_not_robot"
         if any(max(g.t, g.back or 0.0) > (self.clock.tick_limit() + 1) * self.period for g in gaps):
-            return self._reject(vid, "odometry_future")
+            return "odometry_future"
+        return None
+
+    def _odometry_gaps(self, vid: str, gaps: tuple[OdometryGap, ...]) -> None:
+        """A robot's spells without odometry (checked by :meth:`_odometry_problem`): each
+        ``odometry_stale`` / ``odometry_back`` event noted once (an agent repeats its newest
+        spells); past MAX_ODOMETRY_EVENTS, counted (``odometry_flood``) and not noted."""
+        robot = self.scenario.vehicle(vid).robot
         noted = self._odometry_noted.setdefault(vid, set())
         for g in gaps:
             for e in gap_events(vid, robot.odom, robot.timeout, g):

@@ -23,13 +23,21 @@ from dataclasses import dataclass
 from typing import Sequence
 
 from cdus.ros2 import cdr
+from cdus.wire.bounds import BOUNDS, MAX_LIMIT, within
 from cdus.wire.events import FleetEvent
 from cdus.wire.rejected import Rejected
 from cdus.wire.stats import OdometryGap
 
 ODOM, TWIST = "nav_msgs/msg/Odometry", "geometry_msgs/msg/Twist"
-#: why an odometry payload is dropped: cdr.decode's reasons, a non-finite value, a zero quaternion
-ODOM_REASONS = (*cdr.DECODE_REASONS, "nonfinite", "orientation")
+#: why an odometry payload is dropped: longer than MAX_ODOM_BYTES, cdr.decode's reasons, a
+#: non-finite value, a position or velocity out of bounds, a zero quaternion
+ODOM_REASONS = ("oversized", *cdr.DECODE_REASONS, "nonfinite", "range", "orientation")
+#: bytes: an Odometry is 716 with short frame ids; a 20 MB one took 19 ms to decode, 8 a tick
+MAX_ODOM_BYTES = 1 << 16
+#: a position as a scenario's (paths and starts within ±1,000 km): beyond, the guidance's
+#: squared distances overflowed (a pose at x = 1e200 raised OverflowError in the agent's step)
+POSITION = BOUNDS["vehicle.start.position"]
+VELOCITY = within(MAX_LIMIT)  # m/s, each component of the twist: no vehicle's limits go beyond
 
 
 @dataclass(frozen=True)
@@ -49,7 +57,10 @@ def yaw_of(x: float, y: float, z: float, w: float) -> float:
 
 def read_odometry(data: bytes, dim: int) -> RobotPose | Rejected:
     """The pose in one Odometry payload (``dim`` 2 for a boat, 3 for a drone), or ``Rejected``
-    with one of :data:`ODOM_REASONS`. Never raises."""
+    with one of :data:`ODOM_REASONS`. Never raises. The header's stamp is read, not judged: the
+    robot's clock need not be the host's (the agent ages odometry by its arrival)."""
+    if len(data) > MAX_ODOM_BYTES:
+        return Rejected("oversized")
     m = cdr.decode(ODOM, data)
     if isinstance(m, Rejected):
         return m
@@ -65,8 +76,11 @@ def read_odometry(data: bytes, dim: int) -> RobotPose | Rejected:
     psi = yaw_of(*quat)
     c, s = math.cos(psi), math.sin(psi)
     v = (lin["x"] * c - lin["y"] * s, lin["x"] * s + lin["y"] * c, lin["z"])
+    q = (p["x"], p["y"], p["z"])[:dim]
+    if not all(POSITION.holds(x) for x in q) or not all(VELOCITY.holds(lin[k]) for k in "xyz"[:dim]):
+        return Rejected("range")
     stamp = m["header"]["stamp"]
-    return RobotPose((p["x"], p["y"], p["z"])[:dim], v[:dim], psi, stamp["sec"] + stamp["nanosec"] * 1e-9)
+    return RobotPose(q, v[:dim], psi, stamp["sec"] + stamp["nanosec"] * 1e-9)
 
 
 def twist(u: Sequence[float] | None) -> dict:

@@ -42,6 +42,7 @@ from cdus.scenario.sections import (
     default_path_tol, gains_section, guidance_section, metrics_section, rates_section, scenario_section, section,
     supervision_section,
 )
+from cdus.scenario.robot import topic_clashes
 from cdus.scenario.ros2 import ros2_section
 from cdus.scenario.vehicles import defaults_section, gain_bounds, vehicles_section
 
@@ -378,6 +379,7 @@ def _resolve(p: Problems, data: Mapping[str, Any], source: str) -> Scenario | No
     radio_events = radio_event_section(p, data.get("event", []), "radio" in data,
                                        adhoc=radio is not None and radio.topology == "adhoc")
     ros2 = ros2_section(p, section(p, data, "ros2"), ids)
+    topic_clashes(p, fleet.specs, ros2)
     if p or link is None:
         return None
     return Scenario(

@@ -40,7 +40,7 @@ from cdus.core.regulators import Limits
 from cdus.core.vocabulary import KINDS
 from cdus.scenario.checks import Problems, describe, quote
 from cdus.scenario.errors import ConfigError
-from cdus.wire.bounds import finite
+from cdus.wire.bounds import MAX_METRES, MAX_RATE, finite, within
 
 #: the [plugins] table's keys and the entry-point group of each
 GROUPS = {"paths": "cdus.paths", "plants": "cdus.plants"}
@@ -49,6 +49,16 @@ WHAT = {"paths": "path family", "plants": "plant"}
 RESERVED_PARAMS = frozenset({"family", "beta", "direction", "speed"})
 NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_-]{0,63}")
 EXAMPLE = '[plugins.paths] gerono = "mypkg.gerono:FAMILY"'
+
+
+#: what a plug-in's code may raise that cdus catches and names: any Exception, and SystemExit (its
+#: sys.exit() is its failure, not the process's end: `cdus sim` exited 0 with no word when a curve
+#: called it). KeyboardInterrupt passes: it is Ctrl-C, whoever's code was running.
+CAUGHT = (Exception, SystemExit)
+#: a plug-in curve's f(ω) is a position (a scenario's bound, ±1,000 km); f' and f'' as a built-in
+#: curve's can be at most (r β, r β² with β within ±MAX_RATE): beyond, the guidance's squares overflowed
+POSITION = within(MAX_METRES)
+DERIVATIVE = within(MAX_METRES * MAX_RATE ** 2)
 
 
 class PluginFault(ValueError):
@@ -145,7 +155,7 @@ def load(origin: Origin) -> str | None:
         obj: Any = importlib.import_module(module)
         for part in attr.split("."):
             obj = getattr(obj, part)
-    except (Exception, SystemExit) as e:  # noqa: BLE001 (the plug-in's own code: anything)
+    except CAUGHT as e:  # noqa: BLE001 (the plug-in's own code: anything)
         return f"{origin} cannot be loaded: {type(e).__name__}: {e}; {fix}"
     shape = family_problem(name, obj) if kind == "paths" else plant_problem(obj)
     if shape is not None:
@@ -204,7 +214,7 @@ def plant_problem(obj: Any) -> str | None:
             return f"the gains of its regulator {quote(rname)} must be a dataclass (its fields: regulator_gains)"
         try:
             defaults = rm.gains()
-        except Exception as e:  # noqa: BLE001
+        except CAUGHT as e:  # noqa: BLE001
             return f"the gains of its regulator {quote(rname)} need a default for every field ({e})"
         bad = [f.name for f in dataclasses.fields(defaults) if not finite(getattr(defaults, f.name))]
         if bad:
@@ -228,7 +238,7 @@ class _Build:
             return PluginPath(self.build(**values), self.origin)
         except PathError:
             raise
-        except Exception as e:  # noqa: BLE001
+        except CAUGHT as e:  # noqa: BLE001
             raise PathError("path", f"{self.origin}: building its curve raised {type(e).__name__}: {e}") from e
 
 
@@ -243,7 +253,7 @@ class PluginPath:
         try:
             dim, period, direction = inner.dim, inner.period, inner.direction
             self.span = getattr(inner, "span", None)
-        except Exception as e:  # noqa: BLE001
+        except CAUGHT as e:  # noqa: BLE001
             raise PathError("path", f"{origin}: its curve lacks dim, period or direction ({e}); "
                                     f"give the attributes of cdus.core.paths.Path") from e
         if dim not in (2, 3) or isinstance(dim, bool):
@@ -257,10 +267,15 @@ class PluginPath:
         self.dim, self.period, self.direction = dim, period, direction
 
     def eval(self, w: float) -> tuple[Vec, Vec, Vec]:
+        """Its (f, f', f'') at ``w``, checked as the probe checks them (:func:`values_problem`):
+        what its code raises or a value a vehicle cannot use is :class:`PluginFault` naming it."""
         try:
-            return self.inner.eval(w)
-        except Exception as e:  # noqa: BLE001
+            values = self.inner.eval(w)
+        except CAUGHT as e:  # noqa: BLE001
             raise PluginFault(f"{self.origin}: f(ω) at ω = {w:g} raised {type(e).__name__}: {e}") from e
+        if (why := values_problem(values, self.dim, w)) is not None:
+            raise PluginFault(f"{self.origin}: {why}")
+        return values
 
 
 #: the ω at which a plug-in's curve is probed with a scenario's parameters: its values and their
@@ -270,6 +285,20 @@ DIFF_STEP = 1e-5  # of ω, for the central differences
 DIFF_TOL = 1e-3  # relative to max(|f'|, |f''|, 1): a wrong sign, a missing β or a swapped axis is far beyond
 
 
+def values_problem(values: Any, dim: int, w: float) -> str | None:
+    """What a vehicle cannot use in a curve's (f, f', f'') at ``w``: not three tuples of ``dim``
+    numbers, a value not finite, f beyond ±1,000 km or f', f'' beyond :data:`DERIVATIVE`; or None."""
+    wrong = returned_problem(values, ("f", "f'", "f''"), dim)
+    if wrong is not None:
+        return f"its eval(ω) must return (f, f', f''), three tuples of {dim} numbers; at ω = {w:g} {wrong}"
+    if not all(finite(x) for v in values for x in v):
+        return f"its values are not finite numbers at ω = {w:g}: a vehicle cannot follow it"
+    if not all(POSITION.holds(x) for x in values[0]) or not all(DERIVATIVE.holds(x) for v in values[1:] for x in v):
+        return (f"its values at ω = {w:g} are beyond what a vehicle can follow (f within ±{MAX_METRES:g} m, "
+                f"f' and f'' within ±{DERIVATIVE.hi:g}): {_vec(values[0])}, {_vec(values[1])}, {_vec(values[2])}")
+    return None
+
+
 def path_problem(path: Path, dim: int) -> str | None:
     """What a vehicle of ``dim`` axes cannot follow in a plug-in's curve (built with a scenario's
     parameters), probed at :data:`PROBE_OMEGAS`, or None. Never raises."""
@@ -277,12 +306,8 @@ def path_problem(path: Path, dim: int) -> str | None:
     try:
         for w in PROBE_OMEGAS:
             values = path.eval(w)
-            wrong = returned_problem(values, ("f", "f'", "f''"), dim)
-            if wrong is not None:
-                return (f"{origin}: its eval(ω) must return (f, f', f''), three tuples of {dim} numbers; at "
-                        f"ω = {w:g} {wrong}")
-            if not all(finite(x) for v in values for x in v):
-                return f"{origin}: its values are not finite numbers at ω = {w:g}: a vehicle cannot follow it"
+            if (why := values_problem(values, dim, w)) is not None:
+                return f"{origin}: {why}"
             f, f1, f2 = values
             scale = max(1.0, *map(abs, f1), *map(abs, f2))
             if math.sqrt(sum(x * x for x in f1)) <= 1e-9 * scale:
@@ -298,7 +323,7 @@ def path_problem(path: Path, dim: int) -> str | None:
                             f"of {of} gives {_vec(diff)}: give the derivative of the curve")
     except PluginFault as e:
         return str(e)
-    except Exception as e:  # noqa: BLE001
+    except CAUGHT as e:  # noqa: BLE001
         return f"{origin}: probing its curve raised {type(e).__name__}: {e}"
     return None
 
@@ -385,48 +410,53 @@ class PluginPlant:
     def start(self, q: Vec, heading: float) -> Any:
         try:
             return self.inner.start(q, heading)
-        except Exception as e:  # noqa: BLE001
+        except CAUGHT as e:  # noqa: BLE001
             raise _fault(self.origin, "start", e) from e
 
     def at_rest(self, state: Any, q: Vec, heading: float | None) -> Any:
         try:
             return self.inner.at_rest(state, q, heading)
-        except Exception as e:  # noqa: BLE001
+        except CAUGHT as e:  # noqa: BLE001
             raise _fault(self.origin, "at_rest", e) from e
 
     def step(self, state: Any, u: Vec, d: Vec, h: float) -> Any:
         try:
             out = self.inner.step(state, u, d, h)
             ok = self.inner.finite(out) and all(math.isfinite(x) for x in out.q)
-        except Exception as e:  # noqa: BLE001
+            shaped = isinstance(out.q, tuple) and len(out.q) == len(state.q)
+            near = ok and all(POSITION.holds(x) for x in out.q)
+        except CAUGHT as e:  # noqa: BLE001
             raise _fault(self.origin, "step", e) from e
         if not ok:
             raise PluginFault(f"{self.origin}: its state is no longer finite after a step of {h:g} s with the "
                               f"input {_vec(u)}: {out}")
+        if not shaped or not near:
+            what = f"not a tuple of {len(state.q)} numbers" if not shaped else f"beyond ±{MAX_METRES:g} m"
+            raise PluginFault(f"{self.origin}: after a step of {h:g} s its state's q is {what}: {str(out.q)[:80]}")
         return out
 
     def velocity(self, state: Any) -> Vec:
         try:
             return self.inner.velocity(state)
-        except Exception as e:  # noqa: BLE001
+        except CAUGHT as e:  # noqa: BLE001
             raise _fault(self.origin, "velocity", e) from e
 
     def heading(self, state: Any) -> float:
         try:
             return self.inner.heading(state)
-        except Exception as e:  # noqa: BLE001
+        except CAUGHT as e:  # noqa: BLE001
             raise _fault(self.origin, "heading", e) from e
 
     def finite(self, state: Any) -> bool:
         try:
             return bool(self.inner.finite(state))
-        except Exception as e:  # noqa: BLE001
+        except CAUGHT as e:  # noqa: BLE001
             raise _fault(self.origin, "finite", e) from e
 
     def point(self, state: Any, d: Vec, limits: Any) -> Any:
         try:
             return self.inner.point(state, d, limits)
-        except Exception as e:  # noqa: BLE001
+        except CAUGHT as e:  # noqa: BLE001
             raise _fault(self.origin, "point (its model for the safety filter)", e) from e
 
 
@@ -442,7 +472,7 @@ class PluginRegulator:
     def command(self, state, path, w, wdot, k, limits, d_hat, shift, h) -> Vec:
         try:
             return self.inner.command(state, path, w, wdot, k, limits, d_hat, shift, h)
-        except Exception as e:  # noqa: BLE001
+        except CAUGHT as e:  # noqa: BLE001
             raise _fault(self.origin, f"its regulator {quote(self.name)}", e) from e
 
 
@@ -530,6 +560,6 @@ def _plant_run_problem(spec: Any, path: Path, physics_hz: float, control_hz: flo
             plant.point(state, zero, limits)
     except PluginFault as e:
         return f"{e} (probed with this vehicle's parameters, before anything started)"
-    except Exception as e:  # noqa: BLE001
+    except CAUGHT as e:  # noqa: BLE001
         return f"{origin}: probing it with this vehicle's parameters raised {type(e).__name__}: {e}"
     return None

@@ -11,7 +11,7 @@ refused.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 from cdus.scenario.checks import Problems
 from cdus.scenario.ros2 import NAMESPACE_RE, ros_name
@@ -57,6 +57,33 @@ def robot_table(p: Problems, raw: Any, field: str, plant: str | None, vid: str |
     if None in topics or timeout is None:
         return None
     return RobotSpec(topics[0], topics[1], float(timeout))
+
+
+def topic_clashes(p: Problems, vehicles: Sequence[Any], ros2: Any) -> None:
+    """Two robots on one odometry or one command topic (each would take the other's odometry, or
+    one robot both vehicles' commands, and the router lets both robots publish it), or a robot's
+    odometry on a topic the fleet's own ROS 2 face publishes (``[ros2] enabled``: the bridge's
+    Odometry of ``<namespace>/<vehicle>/odom``, which the vehicle would take for its robot's): a
+    problem naming the field, with the fix. ``vehicles``: the scenario's specs (None: not valid)."""
+    ns = ros2.namespace.strip("/")
+    bridge = {"/" + "/".join(x for x in (ns, ros_name(v.id), "odom") if x): v.id
+              for v in vehicles if v is not None} if ros2.enabled else {}
+    taken: dict[tuple[str, str], str] = {}
+    for i, v in enumerate(vehicles):
+        if v is None or v.robot is None:
+            continue
+        for key in ("odom", "cmd_vel"):
+            topic, field = getattr(v.robot, key), f"vehicle[{i}] (id \"{v.id}\").ros2.{key}"
+            other = taken.setdefault((key, topic), v.id)
+            if other != v.id:
+                p.add(field, f"{topic!r} is also the {key} topic of robot {other!r}: give each robot its own "
+                             f"(the default is '/{ros_name(v.id)}/{key}')")
+        if v.robot.odom in bridge:
+            p.add(f"vehicle[{i}] (id \"{v.id}\").ros2.odom",
+                  f"{v.robot.odom!r} is where cdus publishes the odometry of vehicle {bridge[v.robot.odom]!r} "
+                  f"([ros2] enabled, namespace {ros2.namespace!r}), which the vehicle would take for its robot's: "
+                  f"give the robot a topic of its own (e.g. '/{ros_name(v.id)}/robot/odom') or [ros2] another "
+                  f"namespace")
 
 
 def clock_problem(scenario: Any, clock: str) -> str | None:

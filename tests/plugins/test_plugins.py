@@ -394,17 +394,50 @@ def test_any_plugins_table_is_refused_by_name_never_raises(fresh, table):
         assert p, table
 
 
-def test_a_plugin_family_that_raises_in_the_run_is_a_diverged_vehicle_naming_it(fresh):
-    """Its curve raises for ω in (-50, -2), which the probe's ω miss: the boat reaches ω = -2
-    after about 2 s and the run stops there, naming the vehicle, the plug-in and the ω."""
-    name = module(fresh, FAMILY, name="edge", change="if -50 < w < -2.0: raise ZeroDivisionError('the curve ends')")
-    sc = parse_scenario(scenario("edge", table={"paths": {"edge": f"{name}:FAMILY"}}))
+@pytest.mark.parametrize("change, said", [
+    ("if -50 < w < -2.0: raise ZeroDivisionError('the curve ends')",
+     "f(ω) at ω = -2.00231 raised ZeroDivisionError: the curve ends"),
+    ("if -50 < w < -2.0: raise SystemExit(0)", "f(ω) at ω = -2.00231 raised SystemExit: 0"),  # `cdus sim` exited 0
+    ("if -50 < w < -2.0: return None", "its eval(ω) must return (f, f', f''), three tuples of 2 numbers; at ω = "
+                                       "-2.00231 it returned None"),  # a TypeError traceback from the guidance
+    ("if -50 < w < -2.0: f = ('a', 'b')", "its values are not finite numbers at ω = -2.00231"),
+    ("if -50 < w < -2.0: f = f + (0.0,) * 5", "its eval(ω) must return (f, f', f''), three tuples of 2 numbers"),
+    ("if -50 < w < -2.0: f = (1e300, 1e300)", "its values at ω = -2.00231 are beyond what a vehicle can follow "
+                                              "(f within ±1e+06 m, f' and f'' within ±1e+18): (1e+300, 1e+300)"),
+])
+def test_a_plugin_family_that_raises_in_the_run_is_a_diverged_vehicle_naming_it(fresh, change, said):
+    """Its curve goes wrong for ω in (-50, -2), which the probe's ω miss (what the probe checks is
+    checked at every ω of the run): it raises, exits, returns no values, text, too many or too large
+    ones; the boat reaches ω = -2 after about 2 s and the run stops there, naming the vehicle, the
+    plug-in and the ω."""
+    name = module(fresh, FAMILY, name="later", change=change)
+    sc = parse_scenario(scenario("later", table={"paths": {"later": f"{name}:FAMILY"}}))
     with pytest.raises(DivergedError) as info:
         InProcessFleet(sc).run()
     text = str(info.value)
-    assert text.startswith("vehicle b1: its numbers overflowed at t = ")
-    assert f'plug-in path family "edge" ([plugins.paths] of the scenario: {name}:FAMILY): f(ω) at ω = -2.0' in text
-    assert "raised ZeroDivisionError: the curve ends" in text
+    assert text.startswith("vehicle b1: its numbers overflowed at t = 2.00 s")
+    assert f'plug-in path family "later" ([plugins.paths] of the scenario: {name}:FAMILY): {said}' in text
+
+
+@pytest.mark.parametrize("change, said", [
+    ("if t > 1.0: raise SystemExit(3)", "step raised SystemExit: 3"),  # `cdus sim` exited 3 saying nothing
+    ("if t > 1.0: return State(state.q * 2, tuple(u), t)", "after a step of 0.005 s its state's q is not a tuple of "
+                                                          "2 numbers"),
+    ("if t > 1.0: return State((1e300, 0.0), tuple(u), t)",
+     "after a step of 0.005 s its state's q is beyond ±1e+06 m"),
+])
+def test_a_plugin_plant_exiting_or_leaving_its_shape_in_the_run_is_a_diverged_vehicle_naming_it(fresh, change, said):
+    name = module(fresh, PLANT, change=change)
+    sc = parse_scenario(scenario(plant="late", table={"plants": {"late": f"{name}:MODEL"}}))
+    with pytest.raises(DivergedError) as info:
+        InProcessFleet(sc).run()
+    assert f'plug-in plant "late" ([plugins.plants] of the scenario: {name}:MODEL): {said}' in str(info.value)
+
+
+def test_a_plugin_exiting_while_probed_is_refused_by_name_before_the_run(fresh):
+    name = module(fresh, FAMILY, name="quits", change="raise SystemExit(0)")
+    text = refusal(scenario("quits", table={"paths": {"quits": f"{name}:FAMILY"}}))
+    assert f'([plugins.paths] of the scenario: {name}:FAMILY): f(ω) at ω = 0 raised SystemExit: 0' in text
 
 
 def test_a_plugin_plant_asked_for_its_preset_limits_is_refused_by_name(fresh, monkeypatch):

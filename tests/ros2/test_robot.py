@@ -14,7 +14,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from cdus.ros2 import cdr
-from cdus.ros2.robot import ODOM, ODOM_REASONS, TWIST, RobotPose, read_odometry, twist
+from cdus.ros2.robot import ODOM, ODOM_REASONS, TWIST, RobotPose, gap_events, read_odometry, twist
 from cdus.ros2.types import TYPES
 from cdus.scenario.config import ConfigError, load_scenario
 from cdus.wire import keys
@@ -23,6 +23,7 @@ from cdus.wire.schemas import MAX_ODOMETRY_GAPS, MAX_TIME, SCHEMA_VERSION, Agent
 from cdus.wire.schemas import encode_stats
 from cdus.wire.transport import Transport
 from tests.ros2.robots import odometry_bytes, read_twist
+from tests.world_sim.test_world import Pub, Session
 
 finite = st.floats(-1e6, 1e6, allow_nan=False)
 CONFIG = "configs/ros2_robot.toml"
@@ -164,7 +165,6 @@ def test_each_spell_without_odometry_goes_to_the_world_when_it_begins_and_when_i
 
 
 def robot_world():
-    from tests.world_sim.test_world import Pub, Session
     from world_sim.world import World
     w = World(load_scenario(CONFIG), "t", Transport(), clock="realtime", log=lambda s: None)
     w.session = Session()
@@ -189,6 +189,63 @@ def test_the_world_shows_a_robots_spells_without_odometry_as_events_once_each():
     send("usv2", OdometryGap(0.1))  # an emulated boat has no odometry to miss
     send("usv1", OdometryGap(1e6))  # past the newest tick a vehicle can have stepped
     assert len(w.events) == 4 and w.st.rejects == {"odometry_not_robot": 1, "odometry_future": 1}
+
+
+def test_a_report_whose_spells_cannot_be_genuine_is_dropped_whole_not_only_its_spells():
+    w = robot_world()
+    send = lambda vid, n, *gaps: w.feed(keys.stats("t", vid), encode_stats(  # noqa: E731
+        AgentStats(id=vid, tick=1, incarnation=5, interventions=n, odometry_gaps=gaps)))
+    send("usv2", 3)
+    send("usv1", 3)
+    send("usv2", 999, OdometryGap(0.1))  # the genuine incarnation (read off an open fleet), spells of a boat
+    send("usv1", 999, OdometryGap(1e6))  # a robot's spell from the future
+    assert w.st.rejects == {"odometry_not_robot": 1, "odometry_future": 1}
+    assert w.st.stats["usv2"].interventions == w.st.stats["usv1"].interventions == 3  # nothing of them taken
+    assert w.events == []
+
+
+_times = st.floats(0, 2e3) | st.sampled_from([0.0, MAX_TIME])
+
+
+@settings(max_examples=150, deadline=None)
+@given(vid=st.sampled_from(["usv1", "usv2", "uav1"]),
+       spans=st.lists(st.tuples(_times, st.none() | st.floats(0, 50)), max_size=MAX_ODOMETRY_GAPS))
+def test_any_report_of_spells_is_taken_whole_with_its_events_or_dropped_whole_by_reason(vid, spans):
+    gaps, t = [], 0.0
+    for start, length in spans:  # ordered, without overlap, only the newest open: what decodes
+        t = min(t + start, MAX_TIME)
+        gaps.append(OdometryGap(t, None if length is None else min(t + length, MAX_TIME)))
+        if length is None:
+            break
+        t = gaps[-1].back
+    w = robot_world()
+    w.feed(keys.stats("t", vid), encode_stats(AgentStats(id=vid, tick=1, incarnation=5, interventions=3)))
+    w.feed(keys.stats("t", vid), encode_stats(AgentStats(id=vid, tick=2, incarnation=5, interventions=9,
+                                                         odometry_gaps=tuple(gaps))))
+    limit = (w.clock.tick_limit() + 1) * w.period
+    if vid != "usv1" and gaps or any(max(g.t, g.back or 0.0) > limit for g in gaps):
+        assert sum(w.st.rejects.values()) == 1 and set(w.st.rejects) <= {"odometry_not_robot", "odometry_future"}
+        assert w.st.stats[vid].tick == 1 and w.events == []
+    else:
+        assert w.st.rejects == {} and w.st.stats[vid].tick == 2
+        assert sorted((e.kind, e.t) for e in w.events) == sorted(
+            {(e.kind, e.t) for g in gaps for e in gap_events(vid, "/usv1/odom", 0.5, g)})
+
+
+def test_a_world_records_a_robot_holding_from_the_start_where_it_starts_and_its_run_ends():
+    """A robot without odometry from the first tick steps none, so it sends no row: the world
+    recorded no tick and a 6 s realtime run was still going at 60 s (all agents done)."""
+    from cdus.wire.messages import StateMsg, encode_states
+    w = robot_world()
+    for vid in w.ids:
+        w.alive(vid, True)
+    w.started = True
+    for j, v in enumerate(w.scenario.vehicles):
+        if v.id != "usv1":
+            w.feed(keys.state("t", v.id), encode_states([StateMsg(j, 0, 0.0, (0.0,) * v.dim, 0.0, 0.0, 0.0, -1.0,
+                                                                  0.0)]))
+    assert w._record(0) and w.next_tick == 1
+    assert w._recorded[0].q == pytest.approx((2.0, 0.0)) and w._recorded[0].tick == 0  # its path's start
 
 
 def test_a_world_that_noted_its_share_of_a_robots_spells_counts_the_rest():
@@ -233,6 +290,43 @@ def test_malformed_odometry_is_counted_by_reason_and_changes_nothing():
     assert set(a.rejected) <= {f"odom_{r}" for r in ODOM_REASONS} and a.rejected["odom_truncated"] >= 1
 
 
+_any = st.floats() | st.sampled_from([1e200, -1e300, 1e6, 1e6 + 1, 5e-324])
+
+
+@settings(max_examples=120, deadline=None)
+@given(q=st.tuples(_any, _any, _any), v=st.tuples(_any, _any, _any), quat=st.tuples(_any, _any, _any, _any),
+       sec=st.integers(-2**31, 2**31 - 1))
+def test_any_values_in_an_odometry_are_a_pose_within_bounds_or_counted_and_the_agent_steps_on(q, v, quat, sec):
+    a, _ = robot_agent()
+    a.feed_odometry(odometry_bytes((5.0, 0.0), 0.0))
+    a.step(0)
+    node = a.node
+    msg = {"header": {"stamp": {"sec": sec}},  # the robot's clock need not be ours: any stamp is read, not judged
+           "pose": {"pose": {"position": dict(zip("xyz", q)), "orientation": dict(zip("xyzw", quat))}},
+           "twist": {"twist": {"linear": dict(zip("xyz", v))}}}
+    a.feed_odometry(cdr.encode(ODOM, msg))
+    for n in range(1, 4):
+        a.step(n)  # never raises
+    if a.rejected:
+        assert list(a.rejected.values()) == [1] and set(a.rejected) <= {f"odom_{r}" for r in ODOM_REASONS}
+        assert node.vehicle.q == (5.0, 0.0)  # the hostile pose was not taken
+    else:
+        assert node.vehicle.q == q[:2] and all(abs(x) <= 1e6 for x in node.vehicle.q)
+    assert all(math.isfinite(x) for x in node.vehicle.plant.command)
+
+
+def test_an_odometry_too_large_or_out_of_bounds_is_counted_and_dropped():
+    a, _ = robot_agent()
+    a.feed_odometry(odometry_bytes((1e200, 0.0), 0.0))  # was taken, and the step raised OverflowError
+    a.feed_odometry(odometry_bytes((5.0, 0.0), 0.0, (1e7, 0.0, 0.0)))
+    a.feed_odometry(odometry_bytes((5.0, 0.0), 0.0, frame="m" * 70_000))  # 19 ms to decode at 20 MB, 8 a tick
+    a.step(0)
+    assert a.pose is None and a.holding and a.rejected == {"odom_range": 2, "odom_oversized": 1}
+    a.feed_odometry(odometry_bytes((1e6, -1e6), 0.0, (1e6, 0.0, 0.0), frame="m" * 60_000))  # at the bounds: taken
+    a.step(1)
+    assert not a.holding and a.node.vehicle.q == (1e6, -1e6)
+
+
 def test_a_lockstep_agent_or_launch_of_a_robot_is_refused_naming_the_clock():
     from vehicle_agent.robot import RobotAgent
     sc = load_scenario(CONFIG)
@@ -262,6 +356,29 @@ def test_the_robot_table_is_checked():
     default = copy.deepcopy(base)
     del default["vehicle"][0]["ros2"]
     assert parse_scenario(default).vehicle("usv1").robot.cmd_vel == "/usv1/cmd_vel"
+
+
+@pytest.mark.parametrize("over, field, said", [
+    ({"vehicle.usv2.plant": "ros2", "vehicle.usv2.ros2": {"odom": "/usv1/odom"}}, 'vehicle[1] (id "usv2").ros2.odom',
+     "'/usv1/odom' is also the odom topic of robot 'usv1': give each robot its own (the default is '/usv2/odom')"),
+    ({"vehicle.usv2.plant": "ros2", "vehicle.usv2.ros2": {"cmd_vel": "/usv1/cmd_vel"}},
+     'vehicle[1] (id "usv2").ros2.cmd_vel', "is also the cmd_vel topic of robot 'usv1'"),
+    ({"ros2.enabled": True, "vehicle.usv1.ros2": {"odom": "/cdus/usv3/odom"}}, 'vehicle[0] (id "usv1").ros2.odom',
+     "'/cdus/usv3/odom' is where cdus publishes the odometry of vehicle 'usv3' ([ros2] enabled, namespace '/cdus')"),
+    ({"ros2.enabled": True, "ros2.namespace": "/"}, 'vehicle[0] (id "usv1").ros2.odom',  # the default topic, then
+     "'/usv1/odom' is where cdus publishes the odometry of vehicle 'usv1'"),
+])
+def test_a_robot_topic_another_robot_or_the_fleets_ros2_face_uses_is_refused_naming_it(over, field, said):
+    with pytest.raises(ConfigError) as e:
+        load_scenario(CONFIG, over)
+    assert f"{field}: " in str(e.value) and said in str(e.value)
+
+
+def test_a_robot_topic_of_its_own_is_taken():
+    load_scenario(CONFIG, {"ros2.enabled": True})  # /usv1/odom beside the bridge's /cdus/usv1/odom
+    load_scenario(CONFIG, {"vehicle.usv1.ros2": {"odom": "/cdus/usv1/odom"}})  # no ROS 2 face: nothing publishes it
+    two = load_scenario(CONFIG, {"vehicle.usv2.plant": "ros2", "ros2.enabled": True, "ros2.namespace": "/lake"})
+    assert [v.robot.odom for v in two.vehicles if v.robot] == ["/usv1/odom", "/usv2/odom"]
 
 
 def test_cdus_launch_refuses_a_robot_in_lockstep_and_starts_nothing():
