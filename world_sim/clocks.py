@@ -56,11 +56,9 @@ CATCHUP_RESEND_MAX = 8.0
 #: realtime: a ground station's vehicle fault is answered when the launcher says it carried it
 #: out; none within this (s): not carried out (a --remote vehicle, a launcher gone)
 RT_FAULT_CONFIRM = 5.0
-#: realtime: a run-time change (gains, formation, path, link and radio without a later --at)
-#: applies from the tick this far (s) ahead of the wall clock's, so that every vehicle hears it
-#: before it steps that tick (the next tick was too soon: a vehicle that had stepped it applied
-#: the change a tick or more later than the others)
-EFFECT_LEAD_S = LEAD_S  # s of simulated time a realtime change is sent ahead (cdus.commands.effect)
+#: realtime: a run-time change applies this far (s) ahead of the wall clock's tick, so every
+#: vehicle hears it before it steps that tick (cdus.commands.effect says why)
+EFFECT_LEAD_S = LEAD_S
 #: realtime: telemetry may be this far (s) ahead of the world's own clock (clock skew between
 #: hosts, a batch sent at once); beyond it, a row is from a tick nobody can have stepped yet
 REALTIME_SLACK = 1.0
