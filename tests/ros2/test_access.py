@@ -135,7 +135,9 @@ def test_a_router_lets_a_robot_and_its_vehicle_exchange_exactly_odometry_and_com
         usv1.declare_subscriber(g.odom, lambda s: got["odom"].append(s.payload.to_bytes()))
         usv2.declare_subscriber(g.odom, lambda s: got["usv2_odom"].append(1))  # another vehicle hears nothing of it
         robot.declare_subscriber(g.cmd, lambda s: got["cmd"].append(s.payload.to_bytes()))
-        robot.liveliness().declare_subscriber("@ros2_lv/0/**", lambda s: got["tokens"].append(str(s.key_expr)))
+        # history: a token declared before the router has this subscription is still heard (it was missed 1 in a CI run)
+        robot.liveliness().declare_subscriber("@ros2_lv/0/**", lambda s: got["tokens"].append(str(s.key_expr)),
+                                              history=True)
         node = robot_node(0, str(usv1.zid()), "usv1")
         mine = node.token()
         usv1.liveliness().declare_token(mine)
