@@ -108,10 +108,10 @@ def _job(job: tuple[dict, bool]) -> dict[str, Any]:
     d["safety"]["enabled"] = on
     t0 = time.perf_counter()
     m = InProcessFleet(parse_scenario(d, "obstacle_montecarlo")).run().metrics
-    rows = m["obstacles"]["vehicles"].values()
+    rows = m.obstacles.vehicles.values()
     return {"on": on, "wall": time.perf_counter() - t0,
             "worst": min(r["min_clearance_m"] - r["margin_m"] for r in rows),
-            "sep": m["min_separation_m"], "final": m["final_path_error_max"]}
+            "sep": m.min_separation_m, "final": m.final_path_error_max}
 
 
 def solve_times(seed: int = 1, n: int = 200) -> dict[str, tuple[float, float]]:
