@@ -9,9 +9,9 @@ from rerun.chunk import RrdReader
 
 from cdus.core.obstacles import Box, Cylinder
 from cdus.scenario.config import load_scenario
-from cdus.sim.fleet import InProcessFleet
 from world_sim.rerun_draw import OBSTACLES, obstacle_strips
-from world_sim.sinks import make_sink
+
+from tests.recordings import record
 
 from .test_recording import ROOT
 
@@ -19,11 +19,8 @@ from .test_recording import ROOT
 @pytest.fixture(scope="module")
 def static_strips(tmp_path_factory):
     """island_crossing for 0.5 s saved to an .rrd: entity -> (its strips, its labels) of the static chunks."""
-    path = tmp_path_factory.mktemp("obs") / "run.rrd"
-    sc = load_scenario(ROOT / "configs" / "island_crossing.toml", {"scenario.duration": 0.5})
-    sink = make_sink(f"save:{path}")
-    InProcessFleet(sc, sink=sink).run()
-    sink.close()
+    config = ROOT / "configs" / "island_crossing.toml"
+    path = record(config, tmp_path_factory.mktemp("obs") / "run.rrd", 0.5)
     reader = RrdReader(str(path))
     out = {}
     for chunk in reader.stream(store=reader.recordings()[0]):
@@ -33,7 +30,7 @@ def static_strips(tmp_path_factory):
             strips = b.column(b.schema.names.index("LineStrips3D:strips")).to_pylist()[-1]
             labels = b.column(b.schema.names.index("LineStrips3D:labels")).to_pylist()[-1]
             out[entity] = ([np.array(s) for s in strips], labels)
-    return sc, out
+    return load_scenario(config), out
 
 
 def test_every_obstacle_is_drawn_static_where_the_scenario_puts_it(static_strips):
