@@ -201,6 +201,7 @@ def summary_table(m: Metrics, vehicles: Sequence[VehicleSpec]) -> str:
                         if safety.enabled else "")
                      + ("  [BELOW THE SAFETY RADIUS]" if below else ""))
     lines += closest_lines(m)
+    lines += obstacle_lines(m)
     link = m.link
     if link is not None:
         lines.append(f"  link: {link.sent} sent, {link.delivered} delivered, "
@@ -243,6 +244,42 @@ def split_spans(events: Sequence[Event]) -> str:
         spans.append(f"from {start:.1f} s, still split at the end")
     more = len(spans) - MAX_SPANS
     return ", ".join(spans[:MAX_SPANS]) + (f", and {more} more" if more > 0 else "")
+
+
+#: at most this many vehicle ids named in the obstacles line's flag (the metrics have them all)
+MAX_BELOW = 6
+
+
+def obstacle_lines(m: Metrics) -> list[str]:
+    """With [[obstacle]]: the fleet's smallest clearance to an obstacle (who, from which, when,
+    that obstacle's margin), the time obstacles deflected the fleet, and a flag naming the
+    vehicles that came within their margin (inside: below 0), filter on or off: the metrics'
+    ``obstacles`` block at a glance (docs/metrics.md)."""
+    o = m.obstacles
+    if o is None:
+        return []
+    rows = {v: r for v, r in o.vehicles.items() if r.get("min_clearance_m") is not None}
+    head = f"  obstacles ({o.count}): "
+    if not rows:
+        return [head + "no vehicle shares a medium with them (boats see circles and polygons, drones "
+                       "cylinders and boxes)"]
+    vid, r = min(rows.items(), key=lambda kv: kv[1]["min_clearance_m"])
+    deflected = sum(r2.get("deflected_s") or 0.0 for r2 in o.vehicles.values())
+    line = (head + f"closest {printable(vid, 64)} {_fmt(r['min_clearance_m'], '.3f')} m from "
+            f"{printable(str(r.get('obstacle')), 64)} at t = {_fmt(r.get('t'), '.2f', 'n/a')} s "
+            f"(margin {_fmt(r.get('margin_m'), 'g', 'n/a')} m)")
+    if m.safety.enabled:
+        line += f", deflected {deflected:.2f} s (summed over the vehicles)"
+    below = list(o.below_margin)
+    if below:
+        more = len(below) - MAX_BELOW
+        who = ", ".join(printable(v, 64) for v in below[:MAX_BELOW]) + (f" and {more} more" if more > 0 else "")
+        inside = any(rows.get(v, {}).get("min_clearance_m", 0.0) < 0.0 for v in below)
+        line += (f"  [{'INSIDE AN OBSTACLE' if inside else 'BELOW THE MARGIN'}: {who}"
+                 + ("]" if m.safety.enabled else "; the filter is off: obstacles are only measured]"))
+    elif m.safety.enabled:
+        line += " (every vehicle kept its margin)"
+    return [line]
 
 
 #: how the summary names a closest pair's domain (cdus.core.metrics.closest_pairs)

@@ -38,6 +38,24 @@ def safety_params(safety: Safety, limits: reg.Limits, obstacles: tuple = ()) -> 
                         obstacles=obstacles)
 
 
+def start_point(spec: VehicleSpec, path=None) -> tuple[tuple[float, ...], float, tuple[float, ...]]:
+    """Where a vehicle starts: its position q0, its ω0 and the path's tangent f'(ω0) there (its
+    ``start`` position, or the path's point at ω0 = its ``omega0``, else its phase)."""
+    path = path if path is not None else for_dimension(make_path(dict(spec.path)), spec.dim)
+    if spec.start_position is None:
+        w0 = spec.phase if spec.omega0 is None else spec.omega0
+        q0, f1, _ = path.eval(w0)
+        return q0, w0, f1
+    q0 = tuple(float(x) for x in spec.start_position)
+    if spec.omega0 is None:
+        hint = spec.phase - (path.period / 2.0 if path.period else 0.0)
+        w0 = nearest_omega(path, q0, hint)
+    else:
+        w0 = spec.omega0
+    _, f1, _ = path.eval(w0)
+    return q0, w0, f1
+
+
 def build_vehicle(spec: VehicleSpec, rates: Rates, seed: int, safety: Safety | None = None,
                   obstacles: tuple = ()) -> Vehicle:
     """A vehicle's core object from its validated spec, the scenario's rates, [safety] and the
@@ -47,18 +65,7 @@ def build_vehicle(spec: VehicleSpec, rates: Rates, seed: int, safety: Safety | N
     period = 1.0 / rates.control
     steps = max(1, math.ceil(rates.physics / rates.control - 1e-9))
     limits = reg.Limits(**dict(spec.limits))
-    if spec.start_position is None:
-        w0 = spec.phase if spec.omega0 is None else spec.omega0
-        f, f1, _ = path.eval(w0)
-        q0 = f
-    else:
-        q0 = tuple(float(x) for x in spec.start_position)
-        if spec.omega0 is None:
-            hint = spec.phase - (path.period / 2.0 if path.period else 0.0)
-            w0 = nearest_omega(path, q0, hint)
-        else:
-            w0 = spec.omega0
-        _, f1, _ = path.eval(w0)
+    q0, w0, f1 = start_point(spec, path)
     s = path.direction
     heading = spec.start_heading if spec.start_heading is not None else math.atan2(s * f1[1], s * f1[0])
     zero = (0.0,) * dim

@@ -14,7 +14,9 @@ from cdus.core import graph as graphs
 from cdus.core.events import event_tick
 from cdus.core.formation import FormationChange
 from cdus.core.linkspec import LinkFaults
+from cdus.core.obstacles import MEDIUM_OF_KIND, clearance, seen_by
 from cdus.scenario.model import Scenario
+from cdus.sim.build import start_point
 from cdus.wire.bounds import is_number
 from cdus.wire.schemas import FleetEvent
 from cdus.wire.text import printable
@@ -202,6 +204,42 @@ def late_event_lines(scenario: Scenario, duration: float | None = None) -> list[
         lines = lines[:LATE_NAMED] + [f"note: and {len(lines) - LATE_NAMED} more events past the run's end "
                                       f"({end:g} s): they will not apply"]
     return lines
+
+
+def obstacle_lines(scenario: Scenario) -> list[str]:
+    """Notes on the [[obstacle]]s a run is about to meet, said once where it starts (``cdus sim``
+    and ``cdus launch``): the filter is off (they are only measured), an obstacle no vehicle of
+    the fleet sees (a shape in the air with no drone, on the water with no boat), a vehicle that
+    starts inside an obstacle or within its margin. Accepted all (a measured run without the
+    filter is a legitimate use), never silent."""
+    obstacles = scenario.obstacles
+    if not obstacles:
+        return []
+    lines = []
+    if not scenario.safety.enabled:
+        lines.append(f"note: [safety] is off: the vehicles do not avoid the {len(obstacles)} [[obstacle]] "
+                     f"table(s), their clearance is only measured (the metrics' obstacles block); "
+                     f"set [safety] enabled = true (or --set safety.enabled=true) to keep them out")
+    media = {MEDIUM_OF_KIND.get(v.kind) for v in scenario.vehicles}
+    for o in obstacles:
+        if o.medium not in media:
+            who, other = (("drone", "a circle or a polygon for boats") if o.medium == "air"
+                          else ("boat", "a cylinder or a box for drones"))
+            lines.append(f"note: obstacle {printable(o.name, 64)} ({o.shape}) is seen by {who}s only and the "
+                         f"fleet has no {who}: nothing avoids or measures it (use {other})")
+    inside = []
+    for v in scenario.vehicles:
+        q0 = start_point(v)[0]
+        for o in seen_by(v.kind, obstacles):
+            d = clearance(o, q0).distance
+            if d < o.margin:
+                where = f"{-d:.3g} m inside it" if d < 0 else f"{d:.3g} m from it, within its margin {o.margin:g} m"
+                inside.append(f"note: {v.id} starts {where} (obstacle {printable(o.name, 64)})"
+                              + (": the filter pushes it out first" if scenario.safety.enabled else ""))
+    if len(inside) > LATE_NAMED:
+        inside = inside[:LATE_NAMED] + [f"note: and {len(inside) - LATE_NAMED} more vehicles start inside an "
+                                        f"obstacle or its margin"]
+    return lines + inside
 
 
 class EventHold:
