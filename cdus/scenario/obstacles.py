@@ -24,7 +24,7 @@ from typing import Any
 
 from cdus.core import obstacles as obs
 from cdus.scenario.checks import Problems, quote
-from cdus.wire.bounds import MAX_METRES
+from cdus.wire.bounds import MAX_METRES, is_number
 
 #: shape -> its keys besides shape, margin and name
 SHAPE_KEYS = {"circle": ("center", "radius"), "polygon": ("vertices",), "cylinder": ("center", "radius", "z"),
@@ -47,10 +47,17 @@ def obstacle_section(p: Problems, raw: Any, default_margin: float) -> tuple[obs.
                           f"safety filter at every physics step), got {len(tables)}")
         return ()
     out = []
+    named: dict[str, int] = {}  # label -> the first obstacle that has it
     for j, t in enumerate(tables):
         got = _one(p, t, f"obstacle[{j}]", default_margin)
-        if got is not None:
-            out.append(got)
+        if got is None:
+            continue
+        if got.name in named:  # the metrics and Rerun tell obstacles apart by it
+            p.add(f"obstacle[{j}].name", f"{quote(got.name)} names obstacle[{named[got.name]}] too: give each "
+                                         f"obstacle its own name (the metrics and Rerun tell them apart by it)")
+            continue
+        named[got.name] = j
+        out.append(got)
     return tuple(out)
 
 
@@ -102,6 +109,10 @@ def _polygon(p: Problems, raw: Any, field: str, margin: float, label: str) -> ob
         p.add(f"{field}.vertices", f"must be a list of 3 to {MAX_VERTICES} points [x, y] (a convex polygon's "
                                    f"corners in order round it), got "
                                    f"{f'{len(raw)} points' if isinstance(raw, list) else quote(type(raw).__name__)}")
+        return None
+    if raw and all(is_number(v) for v in raw):  # [x0, y0, x1, y1, ...]: one message, not one per number
+        p.add(f"{field}.vertices", f"must be a list of corners, each a list [x, y], got a flat list of {len(raw)} "
+                                   f"numbers; write e.g. vertices = [[0.0, 0.0], [4.0, 0.0], [0.0, 3.0]]")
         return None
     mark = len(p)
     vs = [_point(p, v, f"{field}.vertices[{i}]", 2, "a corner [x, y] in m") for i, v in enumerate(raw)]

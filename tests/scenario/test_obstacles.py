@@ -3,7 +3,7 @@
 import pytest
 
 from cdus.core.obstacles import Box, Circle, Cylinder, Polygon
-from cdus.scenario.config import parse_scenario
+from cdus.scenario.config import ConfigError, parse_scenario
 
 from .common import base, problems
 
@@ -43,11 +43,35 @@ def test_the_four_shapes_and_the_margin_default():
      "obstacle[0].vertices[1]: lies on the line through its neighbours"),
     ({"shape": "polygon", "vertices": [[0, 0], [1, "a"], [1, 1]]}, "obstacle[0].vertices[1]: must be a list of 2"),
     ({"shape": "polygon", "vertices": [[0, 0], [1, 0]]}, "obstacle[0].vertices: a polygon needs at least 3 vertices"),
+    ({"shape": "polygon", "vertices": [0, 0, 4, 0, 0, 3]},
+     "obstacle[0].vertices: must be a list of corners, each a list [x, y], got a flat list of 6 numbers; write e.g. "
+     "vertices = [[0.0, 0.0], [4.0, 0.0], [0.0, 3.0]]"),
 ])
 def test_a_bad_obstacle_names_the_field_and_the_fix(table, text):
     data = base()
     data["obstacle"] = [table]
     assert text in problems(data)
+
+
+def test_a_flat_vertex_list_is_one_problem_not_one_per_number():
+    data = base()
+    data["obstacle"] = [{"shape": "polygon", "vertices": [0, 0, 4, 0, 0, 3]}]
+    with pytest.raises(ConfigError) as info:
+        parse_scenario(data)
+    assert [field for field, _ in info.value.problems] == ["obstacle[0].vertices"]
+
+
+def test_two_obstacles_of_one_name_are_refused_naming_both():
+    """The metrics' obstacles block and Rerun's labels name an obstacle by its name: two "a"s (or a
+    name that is another table's default, obstacle[j]) would be told apart by nothing."""
+    circle = {"shape": "circle", "center": [0, 0], "radius": 1}
+    data = base()
+    data["obstacle"] = [dict(circle, name="a"), dict(circle, center=[5, 5], name="a")]
+    assert 'obstacle[1].name: "a" names obstacle[0] too: give each obstacle its own name' in problems(data)
+    data["obstacle"] = [dict(circle, name="obstacle[1]"), dict(circle, center=[5, 5])]
+    assert 'obstacle[1].name: "obstacle[1]" names obstacle[0] too' in problems(data)
+    data["obstacle"] = [dict(circle, name="a"), dict(circle, center=[5, 5], name="b"), dict(circle, center=[9, 9])]
+    assert [o.name for o in parse_scenario(data).obstacles] == ["a", "b", "obstacle[2]"]
 
 
 def test_obstacle_must_be_an_array_of_tables():
