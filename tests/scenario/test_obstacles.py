@@ -122,3 +122,23 @@ def test_obstacles_at_their_bounds_run_to_the_end(obstacle):
     data["obstacle"] = [obstacle]
     m = InProcessFleet(parse_scenario(data)).run().metrics
     assert m.completed and m.obstacles.count == 1
+
+
+def test_the_documented_example_loads_onto_lake_circle_with_every_key_of_the_table():
+    """docs/config.md, "[[obstacle]]": the TOML block, pasted under configs/lake_circle.toml, gives
+    the four shapes with the filter on; the table's keys are the ones the section takes."""
+    import pathlib
+    import re
+    import tomllib
+
+    from cdus.scenario.obstacles import COMMON_KEYS, SHAPE_KEYS
+
+    root = pathlib.Path(__file__).resolve().parents[2]
+    section = (root / "docs" / "config.md").read_text().split("### `[[obstacle]]`")[1].split("\n### ")[0]
+    [block] = re.findall(r"```toml\n(.*?)```", section, re.S)
+    sc = parse_scenario(tomllib.loads((root / "configs" / "lake_circle.toml").read_text() + "\n" + block))
+    assert sc.safety.enabled and [(o.shape, o.name, o.margin) for o in sc.obstacles] == [
+        ("circle", "island", 1.0), ("polygon", "pier", 1.0), ("cylinder", "no-fly", 1.0), ("box", "crane", 1.0)]
+    documented = set(re.findall(r"^\| `(\w+)`(?:, `(\w+)`)? \|", section, re.M))
+    keys = {k for pair in documented for k in pair if k}
+    assert keys == set(COMMON_KEYS) | {k for ks in SHAPE_KEYS.values() for k in ks}
