@@ -39,6 +39,9 @@ COMMON_KEYS = ("shape", "margin", "name")
 MAX_VERTICES = 256
 #: obstacles at most: each adds a row to every vehicle's filter at every physics step
 MAX_OBSTACLES = 100
+#: polygon vertices at most over all the tables: each is an edge every vehicle's filter measures at every
+#: step (100 polygons of 256 took 29-66 ms per velocity filter call at load 4-5; 4 of 256, 1.3 ms)
+MAX_TOTAL_VERTICES = 1024
 EXAMPLE = 'shape = "circle", center = [0.0, 8.0], radius = 3.0'
 
 
@@ -56,6 +59,12 @@ def obstacle_section(p: Problems, raw: Any, default_margin: float) -> tuple[obs.
         got = _one(p, t, f"obstacle[{j}]", default_margin)
         if got is not None:
             out.append(got)
+    total = sum(len(o.vertices) for o in out if isinstance(o, obs.Polygon))
+    if total > MAX_TOTAL_VERTICES:
+        p.add("obstacle", f"at most {MAX_TOTAL_VERTICES} polygon vertices over all the [[obstacle]] tables (each "
+                          f"is an edge every vehicle's safety filter measures at every step), got {total}: "
+                          f"outline the polygons with fewer corners")
+        return ()
     return tuple(out)
 
 
