@@ -151,10 +151,22 @@ def _polygon(q: Vec, vs: tuple[Vec, ...]) -> Clearance:
             px, py, bend = ax + s * ex, ay + s * ey, math.inf
         d = math.hypot(x - px, y - py)
         if d < best[0]:
-            best = (d, ((x - px) / d, (y - py) / d) if d > 0.0 else (nx, ny), bend)
+            best = (d, _unit((x - px, y - py)) or (nx, ny), bend)
     if inside:
         return Clearance(deepest[0], deepest[1], math.inf)
     return Clearance(*best)
+
+
+def _unit(v: Vec) -> Vec | None:
+    """``v`` / |v|, of length 1 to rounding even where ``v``'s components are subnormal (v / hypot(v)
+    gave (1, 1) for v = (5e-324, 5e-324): a vehicle that close to a vertex or a rim got a normal of
+    length √2); None for the zero vector."""
+    m = max(abs(x) for x in v)
+    if m == 0.0:
+        return None
+    w = tuple(x / m for x in v)
+    h = math.hypot(*w)
+    return tuple(x / h for x in w)
 
 
 def _cylinder(q: Vec, c: Cylinder) -> Clearance:
@@ -169,8 +181,8 @@ def _cylinder(q: Vec, c: Cylinder) -> Clearance:
     nz = (0.0, 0.0, up)
     nr = disc.normal + (0.0,)
     if dr > 0.0 and dz > 0.0:
-        d = math.hypot(dr, dz)
-        return Clearance(d, (nr[0] * dr / d, nr[1] * dr / d, up * dz / d), math.inf)
+        sr, sz = _unit((dr, dz))
+        return Clearance(math.hypot(dr, dz), (nr[0] * sr, nr[1] * sr, up * sz), math.inf)
     if dr >= dz:
         return Clearance(dr, nr, c.radius)
     return Clearance(dz, nz, math.inf)

@@ -35,7 +35,7 @@ from cdus.scenario.graph import graph_section
 from cdus.scenario.link import link_section
 from cdus.scenario.model import Edge, Rates, Safety, Scenario, Supervision, VehicleSpec
 from cdus.scenario.plugins import plugins_section, probe_plants
-from cdus.scenario.obstacles import obstacle_section
+from cdus.scenario.obstacles import obstacle_section, starts_clear
 from cdus.scenario.radio import radio_section
 from cdus.scenario.safety import apply_fleet, disturbance_section, observer_section, safety_section
 from cdus.scenario.sections import (
@@ -363,6 +363,7 @@ def _resolve(p: Problems, data: Mapping[str, Any], source: str) -> Scenario | No
     fleet = vehicles_section(p, data.get("vehicle"), defaults, fleet_gains, header.seed)
     fleet.specs = apply_fleet(fleet.specs, data.get("vehicle"), defaults, disturbance, observer)
     probe_plants(p, fleet.specs, fleet.paths, rates.physics, rates.control, safety.enabled)
+    starts_clear(p, fleet.specs, fleet.paths, obstacles)
     if scale_omega:
         fleet.specs = [None if s is None else replace(s, scale_omega=True) for s in fleet.specs]
     if "path_tol" not in metrics:  # a fleet with usv_3dof boats: theirs (sections.USV_PATH_TOL)

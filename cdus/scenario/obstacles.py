@@ -15,14 +15,19 @@ Each table is one shape of cdus.core.obstacles (docs/config.md, "[[obstacle]]"):
     z = [0.0, 40.0]                   # floor and ceiling (m)
 
 ``name`` (optional) labels it in errors and in Rerun. A bad table is reported naming the
-field and what would be valid (cdus.scenario.checks) and left out.
+field and what would be valid (cdus.scenario.checks) and left out. A vehicle that would start
+inside an obstacle of its medium is refused (:func:`starts_clear`): the filter would push it
+out at γ times its depth, unbounded for a plant without a speed limit (a boat 1e5 m inside
+left at km/s).
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Iterable, Mapping
 
 from cdus.core import obstacles as obs
+from cdus.core.paths import Path
+from cdus.core.paths.geometry import PathError, for_dimension
 from cdus.scenario.checks import Problems, quote
 from cdus.wire.bounds import MAX_METRES, is_number
 
@@ -34,6 +39,9 @@ COMMON_KEYS = ("shape", "margin", "name")
 MAX_VERTICES = 256
 #: obstacles at most: each adds a row to every vehicle's filter at every physics step
 MAX_OBSTACLES = 100
+#: polygon vertices at most over all the tables: each is an edge every vehicle's filter measures at every
+#: step (100 polygons of 256 took 29-66 ms per velocity filter call at load 4-5; 4 of 256, 1.3 ms)
+MAX_TOTAL_VERTICES = 1024
 EXAMPLE = 'shape = "circle", center = [0.0, 8.0], radius = 3.0'
 
 
@@ -58,6 +66,12 @@ def obstacle_section(p: Problems, raw: Any, default_margin: float) -> tuple[obs.
             continue
         named[got.name] = j
         out.append(got)
+    total = sum(len(o.vertices) for o in out if isinstance(o, obs.Polygon))
+    if total > MAX_TOTAL_VERTICES:
+        p.add("obstacle", f"at most {MAX_TOTAL_VERTICES} polygon vertices over all the [[obstacle]] tables (each "
+                          f"is an edge every vehicle's safety filter measures at every step), got {total}: "
+                          f"outline the polygons with fewer corners")
+        return ()
     return tuple(out)
 
 
@@ -133,3 +147,32 @@ def _point(p: Problems, v: Any, field: str, n: int, what: str) -> tuple[float, .
 
 def _radius(p: Problems, v: Any, field: str) -> float | None:
     return p.number(v, field, "path.radius", unit=" m")
+
+
+def starts_clear(p: Problems, specs: Iterable[Any], paths: Mapping[str, Path],
+                 obstacles: tuple[obs.Obstacle, ...]) -> None:
+    """Refuse a vehicle whose start (its ``start``, else its path at its phase, or at
+    ``omega0``) is inside an obstacle it avoids (signed distance < 0; inside the margin only is
+    allowed: the filter pushes it out at most γ × margin)."""
+    for index, spec in enumerate(specs):
+        seen = obs.seen_by(getattr(spec, "kind", None), obstacles)
+        if spec is None or not seen or spec.id not in paths:
+            continue
+        if spec.start_position is not None:
+            q0, key = tuple(float(x) for x in spec.start_position), "start"
+        else:
+            try:
+                path = for_dimension(paths[spec.id], spec.dim)
+            except PathError:
+                continue  # reported by the vehicle's own checks
+            q0 = path.eval(spec.phase if spec.omega0 is None else spec.omega0)[0]
+            key = "phase"
+        where = f"vehicle[{index}] (id {quote(spec.id)}).{key}"
+        for k, o in enumerate(seen):
+            d = obs.clearance(o, q0).distance
+            if d < 0.0:
+                p.add(where, f"vehicle {spec.id} would start {-d:.6g} m inside obstacle {o.name or k!r} at "
+                             f"({', '.join(f'{x:g}' for x in q0)}): the safety filter would push it out at "
+                             f"gamma x {-d:.6g} m/s; start it outside (start.position, phase or path) or move "
+                             f"the [[obstacle]]")
+                break

@@ -138,7 +138,8 @@ def encode_stats(s: AgentStats) -> bytes:
 def decode_stats(payload: bytes, ids: Collection[str] | None = None) -> AgentStats | Rejected:
     """An agent's stats, every field checked (``ids``: the fleet's vehicle ids, when known:
     the sender and every link must name them), or the reason: ``oversized``, ``malformed``,
-    ``version``, ``unknown_field``, ``type``, ``range``, ``unknown_sender``, ``reasons``,
+    ``version``, ``unknown_field``, ``type``, ``range``, ``deflected`` (more deflected steps
+    than interventions), ``unknown_sender``, ``reasons``,
     ``latencies``, ``faults``, ``bursts``, ``radio``, ``odometry_gaps``."""
     obj = _unpack(payload, limit=1 << 16)
     if isinstance(obj, Rejected):
@@ -157,6 +158,8 @@ def decode_stats(payload: bytes, ids: Collection[str] | None = None) -> AgentSta
         return Rejected("type")
     if not all(x < MAX_COUNT for x in ints.values()):
         return Rejected("range")
+    if ints["deflected"] > ints["interventions"]:  # deflected steps are among those the filter changed
+        return Rejected("deflected")
     by = obj.get("rejected_by_reason", {})
     lat = obj.get("latencies_ms", [])
     faults = obj.get("faults")

@@ -84,6 +84,33 @@ def test_a_point_inside_has_negative_barrier(cx, cy, r, a, s):
     assert barrier(Circle((cx, cy), r, 0.0), q) == pytest.approx(math.hypot(q[0] - cx, q[1] - cy) - r)
 
 
+# A vehicle on the special points of each shape (a polygon's vertex and edge, a circle's centre, a
+# cylinder's axis and rim, a box's centre, edge and corner), off them by nothing, a subnormal or a
+# rounding step: the normal stays finite and of length 1, the filter's input finite.
+tiny = st.sampled_from([0.0, 5e-324, -5e-324, 1e-310, -1e-310, 1e-300, 1e-16, -1e-16, 1e-9, -1e-9])
+SPECIAL = [
+    (Polygon(convex_ccw([(0, 0), (4, 0), (4, 3), (0, 3)])[0], 1.0), [(0, 0), (4, 3), (2, 0), (0, 1.5), (2, 1.5)]),
+    (Circle((1.0, -2.0), 3.0, 1.0), [(1.0, -2.0), (4.0, -2.0)]),
+    (Cylinder((0.0, 0.0), 2.0, (0.0, 10.0), 1.0), [(0, 0, 5), (0, 0, 10), (2, 0, 10), (2, 0, 0), (-2, 0, 5)]),
+    (Cylinder((0.0, 0.0), 5e-324, (0.0, 5e-324), 1.0), [(0, 0, 0), (1e-323, 0, 1e-323)]),
+    (Box((0.0, 0.0, 0.0), (2.0, 2.0, 2.0), 1.0), [(1, 1, 1), (0, 0, 0), (2, 2, 2), (0, 1, 2), (2, 0, 1)]),
+]
+
+
+@settings(max_examples=150, deadline=None)
+@given(k=st.integers(0, len(SPECIAL) - 1), j=st.integers(0, 4), e=st.lists(tiny, min_size=3, max_size=3),
+       u=st.lists(st.sampled_from([-1.0, 0.0, 1.0]), min_size=3, max_size=3))
+def test_a_vehicle_on_a_vertex_axis_edge_or_corner_gets_a_unit_normal_and_a_finite_input(k, j, e, u):
+    shape, points = SPECIAL[k]
+    p = points[j % len(points)]
+    q = tuple(float(x) + d for x, d in zip(p, e))
+    cl = clearance(shape, q)
+    assert math.isfinite(cl.distance) and cl.bend >= 0.0
+    assert math.hypot(*cl.normal) == pytest.approx(1.0, abs=1e-12), (q, cl)
+    v, _ = safety_filter(tuple(u[:len(q)]), q, [], SafetyParams(radius=2.0, obstacles=(shape,)))
+    assert all(math.isfinite(x) for x in v)
+
+
 @pytest.mark.parametrize("vertices, index, words", [
     ([(0, 0), (1, 0)], 2, "at least 3"),
     ([(0, 0), (2, 0), (2, 2), (2, 0.0)], 3, "repeats vertex 1"),

@@ -1,5 +1,7 @@
 """[[obstacle]]: the four shapes, the margin's default, and each bad table naming the field and the fix."""
 
+import math
+
 import pytest
 
 from cdus.core.obstacles import Box, Circle, Cylinder, Polygon
@@ -99,7 +101,8 @@ def test_any_obstacle_table_is_taken_or_refused_naming_an_obstacle_field(shape, 
     try:
         got = parse_scenario(data).obstacles
     except ConfigError as e:
-        assert e.problems and all(field.startswith("obstacle[0]") for field, _ in e.problems), e.problems
+        assert e.problems and all(field.startswith("obstacle[0]") or field.endswith("].phase") and
+                                  "would start" in why for field, why in e.problems), e.problems
     else:
         assert len(got) == 1 and got[0].shape == shape
 
@@ -107,11 +110,12 @@ def test_any_obstacle_table_is_taken_or_refused_naming_an_obstacle_field(shape, 
 @pytest.mark.parametrize("obstacle", [
     {"shape": "circle", "center": [1e6, -1e6], "radius": 1e6, "margin": 1e6},
     {"shape": "circle", "center": [0, 0], "radius": 1e-300, "margin": 0},
-    {"shape": "box", "min": [-1e6, -1e6, -1e6], "max": [1e6, 1e6, 1e6]},
-    {"shape": "cylinder", "center": [0, 0], "radius": 1e6, "z": [-1e6, 1e6], "margin": 1e6},
+    {"shape": "box", "min": [-1e6, -1e6, -1e6], "max": [1e6, 1e6, 0], "margin": 1e6},
+    {"shape": "cylinder", "center": [0, 0], "radius": 1e6, "z": [-1e6, 0], "margin": 1e6},
 ])
 def test_obstacles_at_their_bounds_run_to_the_end(obstacle):
-    """Every vehicle starts inside these: the filter pushes out within its speed bound, never a crash."""
+    """Every vehicle that sees these starts inside their margin: the filter pushes out within its
+    speed bound, never a crash (inside the solid itself it is refused: the next test)."""
     from cdus.sim.fleet import InProcessFleet
 
     data = base()
@@ -142,3 +146,40 @@ def test_the_documented_example_loads_onto_lake_circle_with_every_key_of_the_tab
     documented = set(re.findall(r"^\| `(\w+)`(?:, `(\w+)`)? \|", section, re.M))
     keys = {k for pair in documented for k in pair if k}
     assert keys == set(COMMON_KEYS) | {k for ks in SHAPE_KEYS.values() for k in ks}
+
+
+@pytest.mark.parametrize("obstacle, speed, field", [
+    ({"shape": "circle", "center": [0, 0], "radius": 1e5}, None, 'vehicle[0] (id "usv1").phase'),
+    ({"shape": "box", "min": [-1e6, -1e6, -1e6], "max": [1e6, 1e6, 1e6]}, 5.0, 'vehicle[2] (id "uav1").phase'),
+    ({"shape": "cylinder", "center": [0, 0], "radius": 1e6, "z": [-1e6, 1e6]}, 5.0, 'vehicle[2] (id "uav1").phase'),
+])
+def test_a_vehicle_that_would_start_inside_an_obstacle_is_refused_naming_it(obstacle, speed, field):
+    """The filter pushed such a vehicle out at gamma x its depth: a boat 1e5 m inside a circle with
+    no speed limit left at km/s (|Φ| 143,681 m after 20 s); now the scenario is refused, naming
+    the vehicle's field and the fix. A start inside the margin only is taken (the test above)."""
+    data = base()
+    if speed is not None:
+        data["defaults"] = {"limits": {"speed": speed}}
+    data["obstacle"] = [obstacle]
+    text = problems(data)
+    assert f"{field}: vehicle " in text and "would start" in text and "inside obstacle 'obstacle[0]'" in text
+    assert "start it outside (start.position, phase or path) or move the [[obstacle]]" in text
+    if obstacle["shape"] == "circle":  # a start given: named as such, and one outside is taken
+        data["vehicle"][0]["start"] = {"position": [2e5, 0.0]}
+        assert "usv1" not in problems(data) and 'vehicle[1] (id "usv2").phase' in problems(data)
+        data["vehicle"][0]["start"] = {"position": [0.0, 0.0]}
+        assert 'vehicle[0] (id "usv1").start: vehicle usv1 would start 100000 m inside' in problems(data)
+
+
+def test_more_polygon_vertices_than_the_filter_can_measure_each_step_are_refused():
+    """100 polygons of 256 corners each passed (29-66 ms per filter call, against a 20 ms control
+    period at 50 Hz); the total is bounded, and at the bound it is taken."""
+    def ring(n, cx):
+        return [[cx + math.cos(2 * math.pi * k / n), 50 + math.sin(2 * math.pi * k / n)] for k in range(n)]
+    data = base()
+    data["obstacle"] = [{"shape": "polygon", "vertices": ring(256, 10.0 * j)} for j in range(4)]
+    assert len(parse_scenario(data).obstacles) == 4  # 1,024: the bound
+    data["obstacle"].append({"shape": "polygon", "vertices": ring(3, 50.0)})
+    assert ("obstacle: at most 1024 polygon vertices over all the [[obstacle]] tables (each is an edge every "
+            "vehicle's safety filter measures at every step), got 1027: outline the polygons with fewer corners"
+            ) in problems(data)

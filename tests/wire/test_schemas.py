@@ -374,3 +374,16 @@ def test_agent_stats_as_dict_is_asdict_with_its_containers_copied():
     assert s.rejected_by_reason == {"stale": 2} and faults["total"]["dropped_by"]["loss"] == 1
     assert len(faults["state_changes"]) == 1
     assert AgentStats(id="b", tick=0).as_dict()["faults"] is None
+
+
+@settings(max_examples=200, deadline=None)
+@given(interventions=hs.integers(0, 2**53 - 1), deflected=hs.integers(0, 2**53 - 1))
+def test_stats_with_more_deflected_steps_than_interventions_are_refused(interventions, deflected):
+    """An obstacle deflects a vehicle only at a step its filter changed the reference
+    (cdus.core.vehicle): a ``deflected`` above ``interventions`` is forged, and dropped whole
+    (it would have set the metrics' deflected_s; tests/world_sim/test_world.py counts it)."""
+    got = decode_stats(encode_stats(replace(stats(), interventions=interventions, deflected=deflected)), IDS)
+    if deflected <= interventions:
+        assert isinstance(got, AgentStats) and (got.interventions, got.deflected) == (interventions, deflected)
+    else:
+        assert got == Rejected("deflected")

@@ -393,6 +393,20 @@ def test_malformed_nested_stats_are_counted_by_reason_not_raised():
     assert w.st.stats == {} and w.events == []
 
 
+def test_a_forged_deflected_counter_is_counted_by_reason_and_leaves_the_genuine_stats():
+    """A hostile ``deflected`` on a vehicle's stats key (negative, float, text, above its
+    interventions, or under another vehicle's id): each dropped by reason, the genuine report kept."""
+    w = world()
+    w.feed(keys.stats(FLEET, "usv1"), stats_payload(interventions=5, deflected=2))
+    for bad, reason in [({"deflected": -1}, "type"), ({"deflected": 2.0}, "type"), ({"deflected": "9"}, "type"),
+                        ({"deflected": 2**53}, "range"), ({"deflected": 6, "interventions": 5}, "deflected"),
+                        ({"deflected": 10**6}, "deflected"), ({"id": "usv2", "interventions": 9, "deflected": 9}, "sender_mismatch")]:
+        w.feed(keys.stats(FLEET, "usv1"), stats_payload(**bad))
+        assert w.st.rejects[reason] >= 1, reason
+    assert sum(w.st.rejects.values()) == 7
+    assert (w.st.stats["usv1"].interventions, w.st.stats["usv1"].deflected) == (5, 2)
+
+
 def test_new_suspect_counts_in_a_vehicles_stats_make_one_event_per_vehicle_and_reason_for_a_while():
     w = world()
     for n, future in enumerate([0, 3, 5, 9]):
