@@ -154,11 +154,13 @@ def test_lockstep_under_attack_ends_as_the_clean_run(tmp_path, launches):
     fleet = unique_fleet()
     port = free_tcp_port()
     run = tmp_path / "run"
-    la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", "60",
+    # 20 s (it was 60): the fleet is held at t = 1 s while the attack goes in; the spoofer answers every
+    # ω of the run, and anything that got through parts the trace from the clean one from there on
+    la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", "20",
                    "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run),
                    "--trace-out", str(tmp_path / "trace.npz"), "--insecure"], fleet)
     la.wait_for(f"fleet '{fleet}' up")
-    sc = load_scenario("configs/lake_circle.toml", {"scenario.duration": 60.0})
+    sc = load_scenario("configs/lake_circle.toml", {"scenario.duration": 20.0})
     attack = _attack(port, fleet, sc, hold=True)
     try:
         code = _wait(la, 300)
@@ -185,11 +187,12 @@ def test_realtime_under_attack_keeps_running_and_counts(tmp_path, launches):
     fleet = unique_fleet()
     port = free_tcp_port()
     run = tmp_path / "run"
-    # 8 s: the attack is one burst from t = 1 s; the run goes on long enough after it to show its effects
-    la = launches(["configs/lake_circle.toml", "--clock", "realtime", "--duration", "8",
+    # 6 s (it was 8): the attack is one burst from t = 1 s; the run goes on long enough after it to show
+    # its effects (a process it killed or hung is lost one 1 s lease later: the burst is out at t ~ 1.3 s, in 0.01 s)
+    la = launches(["configs/lake_circle.toml", "--clock", "realtime", "--duration", "6",
                    "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run), "--insecure"], fleet)
     la.wait_for(f"fleet '{fleet}' up")
-    sc = load_scenario("configs/lake_circle.toml", {"scenario.duration": 8.0})
+    sc = load_scenario("configs/lake_circle.toml", {"scenario.duration": 6.0})
     attack = _attack(port, fleet, sc, hold=False)
     try:
         code = _wait(la, 120)
