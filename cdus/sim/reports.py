@@ -210,8 +210,9 @@ def obstacle_lines(scenario: Scenario) -> list[str]:
     """Notes on the [[obstacle]]s a run is about to meet, said once where it starts (``cdus sim``
     and ``cdus launch``): the filter is off (they are only measured), an obstacle no vehicle of
     the fleet sees (a shape in the air with no drone, on the water with no boat), a vehicle that
-    starts inside an obstacle or within its margin. Accepted all (a measured run without the
-    filter is a legitimate use), never silent."""
+    starts within an obstacle's margin (inside the solid is refused when the scenario is read:
+    cdus.scenario.obstacles). Accepted all (a measured run without the filter is a legitimate
+    use), never silent."""
     obstacles = scenario.obstacles
     if not obstacles:
         return []
@@ -233,12 +234,12 @@ def obstacle_lines(scenario: Scenario) -> list[str]:
         for o in seen_by(v.kind, obstacles):
             d = clearance(o, q0).distance
             if d < o.margin:
-                where = f"{-d:.3g} m inside it" if d < 0 else f"{d:.3g} m from it, within its margin {o.margin:g} m"
-                inside.append(f"note: {v.id} starts {where} (obstacle {printable(o.name, 64)})"
+                inside.append(f"note: {v.id} starts {d:.3g} m from it, within its margin {o.margin:g} m "
+                              f"(obstacle {printable(o.name, 64)})"
                               + (": the filter pushes it out first" if scenario.safety.enabled else ""))
     if len(inside) > LATE_NAMED:
-        inside = inside[:LATE_NAMED] + [f"note: and {len(inside) - LATE_NAMED} more vehicles start inside an "
-                                        f"obstacle or its margin"]
+        inside = inside[:LATE_NAMED] + [f"note: and {len(inside) - LATE_NAMED} more vehicles start within an "
+                                        f"obstacle's margin"]
     return lines + inside
 
 

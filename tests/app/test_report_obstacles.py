@@ -3,9 +3,12 @@ metrics' ``obstacles`` block at a glance: the closest clearance, the vehicles in
 their margin, the filter off) and the notes where the run starts (cdus.sim.reports.obstacle_lines:
 the filter off, an obstacle no vehicle sees, a vehicle starting inside one)."""
 
+import pytest
+
 from cdus.app.report import obstacle_lines as summary_obstacle_lines
 from cdus.app.report import summary_table
 from cdus.scenario.config import parse_scenario
+from cdus.scenario.errors import ConfigError
 from cdus.sim.fleet import InProcessFleet
 from cdus.sim.reports import obstacle_lines as start_notes
 
@@ -76,9 +79,10 @@ def test_a_shape_in_the_air_with_no_drone_is_said_to_be_seen_by_nobody():
                     "drones cylinders and boxes)")
 
 
-def test_a_vehicle_starting_inside_an_obstacle_or_its_margin_is_named_where_the_run_starts():
-    assert start_notes(_scenario([ISLAND], SAFETY, start=[5.2, 0.0])) == [
-        "note: usv0 starts 0.8 m inside it (obstacle island): the filter pushes it out first"]
+def test_a_vehicle_starting_within_an_obstacles_margin_is_named_where_the_run_starts():
+    # inside the solid is refused when the scenario is read (tests/scenario/test_obstacles.py)
+    with pytest.raises(ConfigError, match=r'vehicle\[0\] \(id "usv0"\).start: vehicle usv0 would start 0.8 m inside'):
+        _scenario([ISLAND], SAFETY, start=[5.2, 0.0])
     assert start_notes(_scenario([ISLAND], SAFETY, start=[6.2, 0.0])) == [
         "note: usv0 starts 0.2 m from it, within its margin 0.5 m (obstacle island): the filter pushes it out first"]
     # on its path (no start): the path's point at ω0 = 0, (0, 0), 4 m from the island
@@ -87,5 +91,5 @@ def test_a_vehicle_starting_inside_an_obstacle_or_its_margin_is_named_where_the_
     low = {"name": "low", "shape": "cylinder", "center": [0.0, 0.0], "radius": 1.0, "z": [0.0, 5.0], "margin": 0.5}
     assert start_notes(_scenario([low], SAFETY, kinds=("uav",))) == []
     tall = dict(low, name="tall", z=[0.0, 15.0])
-    assert start_notes(_scenario([tall], SAFETY, kinds=("uav",))) == [
-        "note: uav0 starts 1 m inside it (obstacle tall): the filter pushes it out first"]
+    with pytest.raises(ConfigError, match="would start 1 m inside obstacle 'tall'"):
+        _scenario([tall], SAFETY, kinds=("uav",))
