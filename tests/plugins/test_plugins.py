@@ -399,7 +399,7 @@ def test_any_plugins_table_is_refused_by_name_never_raises(fresh, table):
      "f(ω) at ω = -2.00231 raised ZeroDivisionError: the curve ends"),
     ("if -50 < w < -2.0: raise SystemExit(0)", "f(ω) at ω = -2.00231 raised SystemExit: 0"),  # `cdus sim` exited 0
     ("if -50 < w < -2.0: return None", "its eval(ω) must return (f, f', f''), three tuples of 2 numbers; at ω = "
-                                       "-2.00231 it returned None"),  # a TypeError traceback from the guidance
+                                       "-2.00231 it returned a NoneType, not the 3 of (f, f', f''): None"),  # was a TypeError traceback
     ("if -50 < w < -2.0: f = ('a', 'b')", "its values are not finite numbers at ω = -2.00231"),
     ("if -50 < w < -2.0: f = f + (0.0,) * 5", "its eval(ω) must return (f, f', f''), three tuples of 2 numbers"),
     ("if -50 < w < -2.0: f = (1e300, 1e300)", "its values at ω = -2.00231 are beyond what a vehicle can follow "
