@@ -194,7 +194,9 @@ def test_bend_is_the_radius_beside_a_round_face_zero_at_a_corner_and_inf_on_a_fl
     assert corner.bend == 0.0
     assert clearance(square, (1.0, -1.0)) == Clearance(1.0, (0.0, -1.0), math.inf)
     assert clearance(square, (1.0, 0.5)) == Clearance(-0.5, (0.0, -1.0), math.inf)  # inside: the nearest edge
+    assert clearance(square, (-1.0, -1.0)).bend == 0.0  # the first vertex
     assert clearance(Box((0, 0, 0), (1, 1, 1), 1.0), (0.5, 0.5, 3.0)).bend == math.inf
+    assert clearance(Box((0, 0, 0), (1, 1, 1), 1.0), (0.5, 0.5, 0.75)) == Clearance(-0.25, (0.0, 0.0, 1.0), math.inf)
 
 
 @pytest.mark.parametrize("scale", [1e-13, 1.0, 1e6])
