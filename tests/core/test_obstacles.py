@@ -8,7 +8,7 @@ import math
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from cdus.core.obstacles import Box, Circle, Cylinder, Polygon, barrier, clearance, convex_ccw, seen_by
+from cdus.core.obstacles import Box, Circle, Clearance, Cylinder, Polygon, barrier, clearance, convex_ccw, seen_by
 from cdus.core.safety import SafetyParams, dynamic_filter, safety_filter, uav_point
 
 coord = st.floats(-30.0, 30.0, allow_nan=False)
@@ -195,3 +195,43 @@ def test_a_blocked_vehicle_commits_to_a_way_round_and_rejoins_its_line(y0):
     assert x > 20.0 and abs(y) < 0.1  # round the pier and back on its line
     # without the commitment it stalls at the pier's face, where the starboard turn and the pull balance
     assert _slide(False, y0)[0] < 10.0
+
+
+def test_the_centre_of_a_disc_is_pushed_out_along_x_and_every_normal_is_unit():
+    c = clearance(Circle((3.0, 4.0), 2.0, 1.0), (3.0, 4.0))
+    assert c == Clearance(-2.0, (1.0, 0.0), 2.0)
+    axis = clearance(Cylinder((3.0, 4.0), 2.0, (0.0, 10.0), 1.0), (3.0, 4.0, 5.0))
+    assert axis.distance == -2.0 and axis.normal == (1.0, 0.0, 0.0)
+
+
+def test_a_cylinder_seen_from_a_plane_point_is_taken_at_mid_height():
+    mast = Cylinder((0.0, 0.0), 1.0, (2.0, 12.0), 1.0)  # mid-height 7
+    for x, y in ((3.0, 0.0), (0.0, 0.5), (0.2, -0.1)):
+        assert clearance(mast, (x, y)) == clearance(mast, (x, y, 7.0))
+
+
+def test_bend_is_the_radius_beside_a_round_face_zero_at_a_corner_and_inf_on_a_flat_face():
+    mast = Cylinder((0.0, 0.0), 1.5, (0.0, 10.0), 1.0)
+    assert clearance(mast, (4.0, 0.0, 5.0)).bend == 1.5  # beside
+    assert clearance(mast, (0.5, 0.0, 12.0)).bend == math.inf  # above the ceiling
+    assert clearance(mast, (4.0, 0.0, 12.0)).bend == math.inf  # off the rim
+    square = Polygon(((0.0, 0.0), (2.0, 0.0), (2.0, 2.0), (0.0, 2.0)), 1.0)
+    corner = clearance(square, (3.0, 3.0))
+    assert corner.distance == math.sqrt(2.0) and corner.normal == pytest.approx((math.sqrt(0.5),) * 2)
+    assert corner.bend == 0.0
+    assert clearance(square, (1.0, -1.0)) == Clearance(1.0, (0.0, -1.0), math.inf)
+    assert clearance(square, (1.0, 0.5)) == Clearance(-0.5, (0.0, -1.0), math.inf)  # inside: the nearest edge
+    assert clearance(square, (-1.0, -1.0)).bend == 0.0  # the first vertex
+    assert clearance(Box((0, 0, 0), (1, 1, 1), 1.0), (0.5, 0.5, 3.0)).bend == math.inf
+    assert clearance(Box((0, 0, 0), (1, 1, 1), 1.0), (0.5, 0.5, 0.75)) == Clearance(-0.25, (0.0, 0.0, 1.0), math.inf)
+
+
+@pytest.mark.parametrize("scale", [1e-13, 1.0, 1e6])
+def test_a_polygon_is_judged_the_same_at_any_scale(scale):
+    def judged(vs):
+        return convex_ccw([(x * scale, y * scale) for x, y in vs])
+
+    assert judged([(0, 0), (1, 0), (0, 1)])[1] is None
+    assert judged([(0, 0), (2, 0), (2, 2), (2, 1e-13)])[1][:1] == (3,)  # a near-repeat of vertex 1
+    assert judged([(0, 0), (0, 0), (1, 0), (0, 1)])[1] == (1, "repeats vertex 0 (every vertex must be a distinct "
+                                                             "corner)")
