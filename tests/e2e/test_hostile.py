@@ -154,13 +154,11 @@ def test_lockstep_under_attack_ends_as_the_clean_run(tmp_path, launches):
     fleet = unique_fleet()
     port = free_tcp_port()
     run = tmp_path / "run"
-    # 20 s (it was 60): the fleet is held at t = 1 s while the attack goes in; the spoofer answers every
-    # ω of the run, and anything that got through parts the trace from the clean one from there on
-    la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", "20",
+    la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", "60",
                    "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run),
                    "--trace-out", str(tmp_path / "trace.npz"), "--insecure"], fleet)
     la.wait_for(f"fleet '{fleet}' up")
-    sc = load_scenario("configs/lake_circle.toml", {"scenario.duration": 20.0})
+    sc = load_scenario("configs/lake_circle.toml", {"scenario.duration": 60.0})
     attack = _attack(port, fleet, sc, hold=True)
     try:
         code = _wait(la, 300)
