@@ -249,14 +249,13 @@ def test_fuzzed_payloads_are_counted_and_never_reach_a_controller(tmp_path, laun
     fleet = unique_fleet()
     port = free_tcp_port()
     run = tmp_path / "run"
-    # 30 s: the fleet is paused while the fuzz goes in, so any run longer than the pause's way in
-    # shows the claim (it was 150 s, then 60); the run after the resume (about 2 s of wall time)
-    # leaves the agents time to count what is still on its way to them
-    la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", "30",
+    # 60 s: the fleet is paused while the fuzz goes in, so any run longer than the pause's way in
+    # shows the claim (it was 150 s)
+    la = launches(["configs/lake_circle.toml", "--clock", "lockstep", "--duration", "60",
                    "--listen", f"tcp/127.0.0.1:{port}", "--logs", str(run),
                    "--trace-out", str(tmp_path / "trace.npz"), "-q", "--insecure"], fleet)
     la.wait_for(f"fleet '{fleet}' up")
-    sc = load_scenario("configs/lake_circle.toml", {"scenario.duration": 30.0})
+    sc = load_scenario("configs/lake_circle.toml", {"scenario.duration": 60.0})
     listeners = {v.id: sum(1 for e in sc.edges if e.k == v.id) for v in sc.vehicles}
     rng = random.Random(1234)
     omega_payloads = hostile_omega_payloads(rng, 8000)
