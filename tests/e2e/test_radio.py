@@ -153,6 +153,16 @@ def test_a_ground_station_radio_command_changes_delivery_from_its_time_on(tmp_pa
     assert not fleet_processes(fleet)
 
 
+
+def _put(session, key: str, payload: bytes) -> None:
+    """A put that waits for room rather than being dropped (Zenoh drops a put under congestion
+    by default): these tests count every message the fleet refuses, to the one, and then need
+    the ground station's own command to arrive. The clean-clone CI lost the last command after
+    a burst of 45 kB forgeries (no radio_changed event in 30 s)."""
+    import zenoh
+
+    session.put(key, payload, congestion_control=zenoh.CongestionControl.BLOCK)
+
 def _range_out_with_a_forger(tmp_path, launches, secured: bool, duration: float = 10.0):
     """A lockstep range_out fleet up, with a trace, and two sessions: ``boss`` holding the ground
     credentials and ``mallory`` uav1's (secured), or one raw client for both (--insecure).
@@ -198,15 +208,15 @@ def test_forged_radio_geometry_is_refused_by_a_secured_fleet_and_detected_on_an_
     duration = sc.duration
     try:
         events = Events(boss, fleet)
-        boss.put(keys.world_cmd(fleet, keys.GROUND), encode_control("pause"))
+        _put(boss, keys.world_cmd(fleet, keys.GROUND), encode_control("pause"))
         events.wait_for("fleet", "paused")
         every = round(sc.radio.sample_period * sc.rates.control)
         far = msgpack.packb  # every vehicle 9,000 km out: nobody hears anybody
         for to in (sc.ids, *([v] for v in sc.ids)):
             for tick in range(0, round(duration * sc.rates.control) + 1, every):
-                mallory.put(keys.radio(fleet, to), far([1, tick, [[9.0e6, 0.0, 30.0]] * len(sc.ids)]))
+                _put(mallory, keys.radio(fleet, to), far([1, tick, [[9.0e6, 0.0, 30.0]] * len(sc.ids)]))
         assert la.proc.poll() is None, "the run ended before the forger was done: the test proves nothing"
-        boss.put(keys.world_cmd(fleet, keys.GROUND), encode_control("resume"))
+        _put(boss, keys.world_cmd(fleet, keys.GROUND), encode_control("resume"))
         assert la.wait() == 0, la.output()
     finally:
         boss.close()
@@ -363,19 +373,19 @@ def test_hostile_radio_messages_are_counted_and_change_nothing_but_the_worlds_ch
     geometry, ctl, commands = _hostile_geometry(sc), _hostile_radio_ctl(sc), _hostile_radio_commands()
     try:
         events = Events(boss, fleet)
-        boss.put(keys.world_cmd(fleet, keys.GROUND), encode_control("pause"))
+        _put(boss, keys.world_cmd(fleet, keys.GROUND), encode_control("pause"))
         events.wait_for("fleet", "paused")
         for payload in geometry:
-            mallory.put(keys.radio(fleet, sc.ids), payload)
+            _put(mallory, keys.radio(fleet, sc.ids), payload)
         for payload in ctl:
-            mallory.put(keys.ctl(fleet, sc.ids), payload)
+            _put(mallory, keys.ctl(fleet, sc.ids), payload)
         for payload in commands:  # the vehicle's credential may not command the world: refused by the router
-            mallory.put(keys.world_cmd(fleet, keys.GROUND), payload)
-            boss.put(keys.world_cmd(fleet, keys.GROUND), payload)
-        boss.put(keys.world_cmd(fleet, keys.GROUND), encode_control("radio", radio={"tx_power": -10.0}, at=5.0))
+            _put(mallory, keys.world_cmd(fleet, keys.GROUND), payload)
+            _put(boss, keys.world_cmd(fleet, keys.GROUND), payload)
+        _put(boss, keys.world_cmd(fleet, keys.GROUND), encode_control("radio", radio={"tx_power": -10.0}, at=5.0))
         events.wait_for("radio_changed", "t = 5.00 s")
         assert la.proc.poll() is None, "the run ended before the forger was done: the test proves nothing"
-        boss.put(keys.world_cmd(fleet, keys.GROUND), encode_control("resume"))
+        _put(boss, keys.world_cmd(fleet, keys.GROUND), encode_control("resume"))
         assert la.wait() == 0, la.output()
     finally:
         boss.close()
