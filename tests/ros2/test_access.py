@@ -149,14 +149,19 @@ def test_a_router_lets_a_robot_and_its_vehicle_exchange_exactly_odometry_and_com
         usv1.put(keys.state(fleet, "usv1"), b"x")
         heard.wait_for(keys.state(fleet, "usv1"))
         deadline = time.monotonic() + 10
-        while not (got["odom"] and got["cmd"] and mine in got["tokens"]):
+        queried: set[str] = set()
+        while not (got["odom"] and got["cmd"] and mine in set(got["tokens"]) | queried):
             assert time.monotonic() < deadline, got
             robot.put(g.odom, b"odom")
             usv1.put(g.cmd, b"twist")
+            if mine not in got["tokens"]:  # Zenoh's declaration to a subscriber was lost once in 300
+                # procs-phase runs: what the router holds is asked, through the same ACL
+                queried |= {str(r.ok.key_expr) for r in robot.liveliness().get("@ros2_lv/0/**", timeout=1.0)
+                            if r.ok is not None}
             time.sleep(0.05)
         time.sleep(0.2)
         assert set(got["odom"]) == {b"odom"} and set(got["cmd"]) == {b"twist"} and got["usv2_odom"] == []
-        assert set(got["tokens"]) == {mine, "@ros2_lv/0/r/0/0/NN/%/%/boat"}
+        assert set(got["tokens"]) | queried == {mine, "@ros2_lv/0/r/0/0/NN/%/%/boat"}, (got["tokens"], queried)
         assert heard.puts.count(keys.state(fleet, "usv1")) == 1
     finally:
         for s in sessions:
