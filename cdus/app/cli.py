@@ -35,7 +35,7 @@ from cdus.wire.transport import router as fleet_router
 from ground_station.__main__ import main as gs_main
 from world_sim.recording import parse_spec, recording_line
 from cdus.app.report import Progress, run_dir, summary_table
-from cdus.sim.reports import late_event_lines, obstacle_lines
+from cdus.sim.reports import late_event_lines, limit_lines, obstacle_lines
 from cdus.sim.runmetrics import Metrics
 from cdus.files import keep_json, metrics_fallbacks
 
@@ -183,8 +183,9 @@ def build_parser() -> argparse.ArgumentParser:
 def _note_late_events(scenario: Scenario) -> None:
     """Say (not fail: --duration often shortens a run on purpose) which [[event]]s the run ends
     before (cdus.sim.reports.late_event_lines), once, where the run starts: `cdus sim` and
-    `cdus launch` alike; and the [[obstacle]] notes (the filter off, a vehicle starting inside one)."""
-    for line in late_event_lines(scenario) + obstacle_lines(scenario):
+    `cdus launch` alike; the [[obstacle]] notes (the filter off, a vehicle starting inside one) and
+    the vehicles on a plant with preset limits given none (unbounded actuators)."""
+    for line in late_event_lines(scenario) + obstacle_lines(scenario) + limit_lines(scenario):
         print(line, file=sys.stderr)
 
 

@@ -243,6 +243,30 @@ def obstacle_lines(scenario: Scenario) -> list[str]:
     return lines + inside
 
 
+#: the plants whose presets have limits (cdus.core.limits.default_limits): on them, no limit at
+#: all leaves thrust, acceleration and speed unbounded
+LIMITED_PLANTS = ("usv_3dof", "uav_double_integrator")
+
+
+def limit_lines(scenario: Scenario) -> list[str]:
+    """A note, said once where a run starts, naming the vehicles on a plant with preset limits
+    (``usv_3dof``, ``uav_double_integrator``) that were given no limit at all: their actuators
+    are then unbounded (a usv_3dof boat switched on with ``--set`` and no limits was driven to
+    870 m/s), which is accepted (the dynamics alone are a legitimate study) but never silent."""
+    bare: dict[str, list[str]] = {}
+    for v in scenario.vehicles:
+        if v.plant in LIMITED_PLANTS and not v.limits:
+            bare.setdefault(v.plant, []).append(v.id)
+    lines = []
+    for plant, ids in bare.items():
+        more = len(ids) - LATE_NAMED
+        who = ", ".join(printable(i, 64) for i in ids[:LATE_NAMED]) + (f" and {more} more" if more > 0 else "")
+        lines.append(f"note: {who} ({plant}) {'has' if len(ids) == 1 else 'have'} no limits: thrust, acceleration and speed are unbounded; "
+                     f"add limits = {{ preset = true }} to their table or [defaults] for the preset's "
+                     f"(docs/safety.md), or limits = {{ speed = ... }}")
+    return lines
+
+
 class EventHold:
     """Events heard out of time order (link changes come with the agents' counters, up to a
     second late), each held HOLD_S of the hearer's clock, then given back in time order: what
