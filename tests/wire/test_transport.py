@@ -25,3 +25,15 @@ def test_a_router_listens_on_loopback_unless_told_otherwise(tmp_path):
     assert from_file.listen == () and json.loads(zenoh_config(from_file).get_json("listen/endpoints")) == [
         "tcp/127.0.0.1:9"]
     assert isinstance(from_file, Transport)
+
+
+def test_a_router_or_peer_waits_for_no_scouting_answers_on_open_a_client_and_a_users_file_keep_zenohs(tmp_path):
+    """With multicast off nothing answers a scout: Zenoh's default scouting/delay made every router
+    open take 500 ms (every `cdus launch`); ours is 0 unless the user's file says otherwise."""
+    delay = lambda t: json.loads(zenoh_config(t).get_json("scouting/delay"))  # noqa: E731
+    assert delay(router(("tcp/127.0.0.1:7447",))) == 0
+    assert delay(Transport(mode="peer", listen=("tcp/127.0.0.1:7448",))) == 0
+    assert delay(Transport(mode="client", connect=("tcp/127.0.0.1:7447",))) is None  # unset: a client's is its wait for a router
+    f = tmp_path / "z.json5"
+    f.write_text('{scouting: {delay: 250}, listen: {endpoints: ["tcp/127.0.0.1:9"]}}')
+    assert delay(router(config_file=str(f))) == 250
