@@ -153,7 +153,7 @@ class Agent:
         if self.session is None:
             return
         try:
-            self.report.publish_stats()
+            self.report.publish_stats(final=True)  # its last word: the world waits for it before the metrics
             if self.token is not None:
                 self.token.undeclare()
             self.session.close()

@@ -101,8 +101,9 @@ class Report:
         for first in range(0, len(rows), MAX_STATE_ROWS):  # in messages the world takes
             self.pub_state.put(encode_states(rows[first:first + MAX_STATE_ROWS]))
 
-    def stats(self) -> AgentStats:
-        """The agent's counters; the latency samples since the last call only."""
+    def stats(self, final: bool = False) -> AgentStats:
+        """The agent's counters; the latency samples since the last call only. ``final``: the
+        last report, sent as the agent closes (the world waits for no more from it)."""
         a = self.agent
         node, c = a.node, a.node.counters
         by_reason = dict(a.rejected)
@@ -122,9 +123,9 @@ class Report:
             latencies_ms=tuple(x * 1000.0 for x in new[::step][:100]), faults=faults,
             bursts=tuple(e.as_dict() for e in burst_events(node.bursts, a.ids)[-BURSTS_PER_STATS:]),
             interventions=node.vehicle.interventions, incarnation=a.incarnation, deflected=node.vehicle.deflected,
-            radio=None if node.radio is None else node.radio.counters.as_dict())
+            radio=None if node.radio is None else node.radio.counters.as_dict(), final=final)
 
-    def publish_stats(self) -> None:
+    def publish_stats(self, final: bool = False) -> None:
         if self.pub_stats is not None:
-            self.pub_stats.put(encode_stats(self.stats()))
+            self.pub_stats.put(encode_stats(self.stats(final)))
             self.stats_tick = self.agent.ticks_done

@@ -49,8 +49,8 @@ ODOM_GAPS = 8  # the newest spells without odometry each report carries (cdus.wi
 class RobotReport(Report):
     """A robot's reports: every vehicle's, and its newest spells without odometry in its counters."""
 
-    def stats(self) -> AgentStats:
-        return replace(super().stats(), odometry_gaps=tuple(self.agent.gaps))
+    def stats(self, final: bool = False) -> AgentStats:
+        return replace(super().stats(final), odometry_gaps=tuple(self.agent.gaps))
 
 
 class RobotAgent(Agent):

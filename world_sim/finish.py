@@ -24,6 +24,7 @@ from cdus.sim.sink import UPDATE_EVERY
 from cdus.sim.summary import COMPLETED, link_faults, link_metrics, run_metrics
 from cdus.wire.messages import StateMsg, encode_control
 from cdus.wire.schemas import AgentStats
+from world_sim.limits import FINAL_WAIT_S
 from world_sim.status import _say
 
 
@@ -139,11 +140,16 @@ class Finishing:
         completion = self._completion()  # decided by the run, not by the vehicles leaving at the stop
         if self.session is not None:
             self._publish_status(completion)  # first: a console reads the vehicles' leaving as the run's end
+            self.st.finals = set()
+            up = set(self.st.alive)
             self.pub_ctl.put(encode_control("stop"))
-            deadline = time.monotonic() + 0.3  # let the agents' last counters arrive
-            while time.monotonic() < deadline:
+            # let the agents' last counters arrive: every vehicle up sends its last report as it
+            # closes (AgentStats.final); one that does not (frozen, cut off) is waited for FINAL_WAIT_S
+            deadline = time.monotonic() + FINAL_WAIT_S
+            while time.monotonic() < deadline and not up <= self.st.finals:
                 self._drain(block=False)
-                time.sleep(0.02)
+                time.sleep(0.005)
+            self._drain(block=False)
         wall = time.perf_counter() - self._t_start if self.started else 0.0
         metrics = run_metrics(self.scenario, self.recorder, mode=self.clock.name, link=self.link_metrics(),
                               wall_s=wall, policy=self.policy, events=self.events,

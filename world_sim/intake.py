@@ -171,6 +171,8 @@ class Intake:
         if s.odometry_gaps:
             self._odometry_gaps(vid, s.odometry_gaps)
         self._suspects(vid, s, old)
+        if s.final and self.st.finals is not None:
+            self.st.finals.add(vid)
 
     def _odometry_problem(self, vid: str, gaps: tuple[OdometryGap, ...]) -> str | None:
         """Why a report's spells without odometry cannot be genuine (its whole report is dropped):

@@ -7,6 +7,10 @@ reports and the rejects it logs."""
 from __future__ import annotations
 
 INBOX_CAPACITY = 8192
+#: s the world waits after its stop for the last report of every vehicle up (each sends one as
+#: it closes, AgentStats.final; they come within milliseconds): one frozen or cut off is not waited
+#: for longer. It was a fixed wait of this length, a third of a second of every run's end
+FINAL_WAIT_S = 0.3
 STOP_GRACE_ALIVE_S = 0.5  # s a stop before the start waits for liveliness tokens already on their way
 RADIO_KEEP = 8  # radio geometry samples kept to send a (re)joining vehicle (it needs those in force from its join)
 #: the reject reasons of the agents' ω checks that say someone forges a vehicle's ω (docs/metrics.md)

@@ -89,6 +89,9 @@ class WorldState:
     link_commanded: bool = False  # a ground station changed the link faults during the run
     link_changes: set[tuple[float, str, str]] = field(default_factory=set)
     rejects: Counter = field(default_factory=Counter)  # reason -> messages the world dropped
+    #: the vehicles whose last report (AgentStats.final) came since the world said stop: it
+    #: waits for no more from them (world_sim.finish); None until the stop
+    finals: set[str] | None = None
 
     @property
     def rejected(self) -> int:

@@ -99,6 +99,9 @@ class AgentStats:
     radio: dict | None = None
     #: a plant = "ros2" vehicle's newest spells without odometry, oldest first (empty for the others)
     odometry_gaps: tuple[OdometryGap, ...] = ()
+    #: the agent's last report, sent as it closes its session after the world's stop: the world
+    #: waits for no more from it before writing the metrics (world_sim.finish)
+    final: bool = False
 
     def as_dict(self) -> dict[str, Any]:
         """A plain map of every field (containers copied): what encode_stats packs. Built field
@@ -128,7 +131,7 @@ _STAT_NAMES = tuple(f.name for f in fields(AgentStats))
 _STAT_INTS = ("tick", "sent_to_me", "delivered", "dropped", "duplicated", "rejected", "missed_deadlines", "joined_at",
               "interventions", "incarnation", "deflected")
 _STAT_FIELDS = {"v", "id", "rejected_by_reason", "latencies_ms", "faults", "bursts", "radio", "odometry_gaps",
-                *_STAT_INTS}
+                "final", *_STAT_INTS}
 
 
 def encode_stats(s: AgentStats) -> bytes:
@@ -148,8 +151,8 @@ def decode_stats(payload: bytes, ids: Collection[str] | None = None) -> AgentSta
         return Rejected("version")
     if not set(obj) <= _STAT_FIELDS:
         return Rejected("unknown_field")
-    vid = obj.get("id")
-    if not isinstance(vid, str):
+    vid, final = obj.get("id"), obj.get("final", False)
+    if not isinstance(vid, str) or type(final) is not bool:
         return Rejected("type")
     if not _id(vid, ids):
         return Rejected("unknown_sender")
@@ -193,7 +196,7 @@ def decode_stats(payload: bytes, ids: Collection[str] | None = None) -> AgentSta
         return Rejected("odometry_gaps")
     return AgentStats(vid, rejected_by_reason={k: int(x) for k, x in by.items()},
                       latencies_ms=tuple(float(x) for x in lat), faults=checked, bursts=reports, radio=radio,
-                      odometry_gaps=gaps, **ints)
+                      odometry_gaps=gaps, final=final, **ints)
 
 
 def _odometry_gaps(x: Any) -> tuple[OdometryGap, ...] | None:

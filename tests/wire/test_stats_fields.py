@@ -1,5 +1,5 @@
-"""cdus.wire.stats: the optional fields a stats report gained with [[obstacle]] and plant = "ros2"
-(``deflected``, ``odometry_gaps``): an older report without them still decodes, and every
+"""cdus.wire.stats: the optional fields a stats report gained with [[obstacle]], plant = "ros2"
+and the world's end of run (``deflected``, ``odometry_gaps``, ``final``): an older report without them still decodes, and every
 odometry_gaps field decodes exactly when an independent reading of its rules accepts it."""
 
 from __future__ import annotations
@@ -20,7 +20,14 @@ def _report(**extra) -> bytes:
 
 def test_a_report_without_the_new_fields_decodes_with_none_of_them():
     s = decode_stats(_report())
-    assert s == AgentStats(id="usv1", tick=1) and s.odometry_gaps == () and s.deflected == 0
+    assert s == AgentStats(id="usv1", tick=1) and s.odometry_gaps == () and s.deflected == 0 and s.final is False
+
+
+def test_final_round_trips_and_is_a_bool():
+    assert decode_stats(encode_stats(AgentStats(id="usv1", tick=1, final=True))).final is True
+    assert decode_stats(encode_stats(AgentStats(id="usv1", tick=1))).final is False
+    for bad in (1, 0, "true", None, 1.0):
+        assert decode_stats(_report(final=bad)) == Rejected("type"), bad
 
 
 def test_deflected_round_trips_and_is_an_int_within_bounds():

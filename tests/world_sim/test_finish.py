@@ -66,3 +66,60 @@ def test_a_trace_that_cannot_be_written_is_said_removed_and_the_metrics_are_kept
     assert json.loads(out.read_text()) == m.to_dict()
     assert w.not_written == ["the trace"] and not trace.exists()  # no half a trace that looks like one
     assert f"error: could not write the trace to {trace}: No space left on device" in lines, lines
+
+
+class _Agents:
+    """The inbox of a world whose vehicles answer its stop with their last report (final), each
+    with ``sent_to_me`` 100 + its index; those in ``silent`` (frozen, cut off) send one report
+    more that is not their last, with ``sent_to_me`` 50."""
+
+    def __init__(self, w, silent=()):
+        from cdus.wire.messages import CTL_OPS, decode_control
+        self.w, self.silent, self.queue, self.decode = w, set(silent), [], lambda p: decode_control(p, CTL_OPS)
+
+    def try_recv(self):
+        ops = [self.decode(p).op for p in self.w.pub_ctl.puts]
+        if "stop" in ops and not self.queue and not getattr(self, "_said", False):
+            self._said = True
+            from tests.fakes import Payload, Sample
+            for j, vid in enumerate(self.w.ids):
+                last = vid not in self.silent
+                self.queue.append(Sample(keys.stats(FLEET, vid), Payload(stats_payload(
+                    id=vid, tick=50, sent_to_me=100 + j if last else 50, final=last))))
+        return self.queue.pop(0) if self.queue else None
+
+
+def _finish_on_a_fake_clock(w, monkeypatch):
+    """``w.finish()`` on a clock that advances 0.01 s at each sleep; returns (metrics, sleeps)."""
+    import world_sim.finish as finish
+    now = [0.0]
+    sleeps = []
+    monkeypatch.setattr(finish.time, "monotonic", lambda: now[0])
+    monkeypatch.setattr(finish.time, "sleep", lambda s: (sleeps.append(s), now.__setitem__(0, now[0] + 0.01)))
+    return w.finish(), sleeps
+
+
+def test_the_world_ends_its_wait_when_every_vehicle_up_sent_its_last_report(monkeypatch):
+    """The stop's wait for the agents' last counters ends as soon as each vehicle up said its
+    last report (AgentStats.final; it was a fixed third of a second of every run), and the
+    metrics hold those reports' counters."""
+    from world_sim.limits import FINAL_WAIT_S
+    w = started(world())
+    w.inbox = _Agents(w)
+    w.feed(keys.stats(FLEET, "usv1"), stats_payload(id="usv1", tick=10, final=True))  # before the stop: not its last
+    m, sleeps = _finish_on_a_fake_clock(w, monkeypatch)
+    assert len(sleeps) <= 1 < FINAL_WAIT_S / 0.01
+    assert m.link.sent == sum(100 + j for j in range(len(w.ids)))
+
+
+def test_a_vehicle_that_sends_no_last_report_after_the_stop_is_waited_for_the_whole_wait_and_no_longer(monkeypatch):
+    """usv1 said a report marked final before the stop (a forgery, or an old process's) and, after
+    the stop, one not marked final and nothing more, as a vehicle frozen then would: the world
+    waits FINAL_WAIT_S, then goes on with what it has."""
+    from world_sim.limits import FINAL_WAIT_S
+    w = started(world())
+    w.inbox = _Agents(w, silent={"usv1"})
+    w.feed(keys.stats(FLEET, "usv1"), stats_payload(id="usv1", tick=10, final=True))
+    m, sleeps = _finish_on_a_fake_clock(w, monkeypatch)
+    assert abs(len(sleeps) * 0.01 - FINAL_WAIT_S) < 0.015
+    assert m.link.sent == 50 + sum(100 + j for j, v in enumerate(w.ids) if v != "usv1")
