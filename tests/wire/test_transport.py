@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import json
 
-from cdus.wire.transport import DEFAULT_LEASE_MS, ROUTER_EXTRA, Transport, router, zenoh_config
+from cdus.wire.transport import (DEFAULT_ENDPOINT, DEFAULT_LEASE_MS, ROUTER_EXTRA, Transport, client_of, router,
+                                   zenoh_config)
 
 
 def test_a_router_closes_a_blocked_link_after_one_lease_not_zenohs_five_seconds(tmp_path):
@@ -37,3 +38,16 @@ def test_a_router_or_peer_waits_for_no_scouting_answers_on_open_a_client_and_a_u
     f = tmp_path / "z.json5"
     f.write_text('{scouting: {delay: 250}, listen: {endpoints: ["tcp/127.0.0.1:9"]}}')
     assert delay(router(config_file=str(f))) == 250
+
+
+def test_the_clients_of_a_router_given_only_a_config_file_connect_where_the_file_listens(tmp_path):
+    """`cdus launch --zenoh-config FILE --insecure` (no --listen): the router listens where FILE
+    says; its world and vehicles connected to DEFAULT_ENDPOINT instead (the world gave up after
+    30 s, the metrics said world_lost). A file naming no endpoint: Zenoh's router default,
+    tcp/[::]:7447, reached on loopback, as before."""
+    f = tmp_path / "z.json5"
+    f.write_text('{listen: {endpoints: ["tcp/127.0.0.1:9", "tcp/0.0.0.0:10"]}}')
+    assert client_of(router(config_file=str(f))).connect == ("tcp/127.0.0.1:9", "tcp/127.0.0.1:10")
+    (tmp_path / "none.json5").write_text("{}")
+    assert client_of(router(config_file=str(tmp_path / "none.json5"))).connect == (DEFAULT_ENDPOINT,)
+    assert client_of(router(("tcp/0.0.0.0:11",), config_file=str(f))).connect == ("tcp/127.0.0.1:11",)  # --listen wins
