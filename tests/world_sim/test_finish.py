@@ -6,8 +6,12 @@ from __future__ import annotations
 import errno
 import json
 
+import pytest
+from hypothesis import given, settings, strategies as hs
+
 from cdus.sim.runmetrics import RejectedByReason
 from cdus.wire import keys
+from tests.fakes import Payload, Sample
 
 from .test_world import FLEET, row, send_rows, started, stats_payload, world
 
@@ -123,3 +127,53 @@ def test_a_vehicle_that_sends_no_last_report_after_the_stop_is_waited_for_the_wh
     m, sleeps = _finish_on_a_fake_clock(w, monkeypatch)
     assert abs(len(sleeps) * 0.01 - FINAL_WAIT_S) < 0.015
     assert m.link.sent == 50 + sum(100 + j for j, v in enumerate(w.ids) if v != "usv1")
+
+
+
+class _After:
+    """An inbox that holds ``samples`` until the world said stop, then gives them in order."""
+
+    def __init__(self, w, samples):
+        from cdus.wire.messages import CTL_OPS, decode_control
+        self.w, self.samples, self.decode = w, list(samples), lambda p: decode_control(p, CTL_OPS)
+
+    def try_recv(self):
+        stopped = any(self.decode(p).op == "stop" for p in self.w.pub_ctl.puts)
+        return self.samples.pop(0) if stopped and self.samples else None
+
+
+_FINALS = [True, False, 1, 0, "true", None, 1.0, {"a": 1}, [True]]
+
+
+@settings(max_examples=150, deadline=None)
+@given(hs.data())
+def test_the_wait_ends_early_exactly_when_every_vehicle_up_sent_an_accepted_final_after_the_stop(data):
+    """Whatever reports come, before and after the stop, with any ``final`` value (a forger's
+    non-bool, a bool) and the process's incarnation or another's (a forgery while its token is
+    up): the wait ends before FINAL_WAIT_S only if every vehicle up sent, after the stop, a report
+    the world took that is marked final (one before the stop does not count); the rest are
+    counted by reason, and the metrics hold each vehicle's last report taken."""
+    from world_sim.limits import FINAL_WAIT_S
+    w = started(world())
+    post = []  # (vid, final, incarnation, sent_to_me)
+    quiet = data.draw(hs.sampled_from([None, *w.ids]))  # the others also send their genuine last report
+    for j, vid in enumerate(w.ids):
+        w.feed(keys.stats(FLEET, vid), stats_payload(id=vid, tick=10, final=data.draw(hs.booleans()), sent_to_me=1))
+        drawn = data.draw(hs.lists(hs.tuples(hs.sampled_from(_FINALS), hs.sampled_from([0, 7])), max_size=3))
+        drawn += [] if vid == quiet else [(True, 0)]
+        post += [(vid, final, inc, 100 * (j + 1) + k) for k, (final, inc) in enumerate(drawn)]
+    post = data.draw(hs.permutations(post))
+    taken = [(vid, final, n) for vid, final, inc, n in post if type(final) is bool and inc == 0]
+    last = {vid: n for vid, _, n in taken}
+    finals = {vid for vid, final, _ in taken if final}
+    w.inbox = _After(w, [Sample(keys.stats(FLEET, vid), Payload(stats_payload(
+        id=vid, tick=11, final=final, incarnation=inc, sent_to_me=n))) for vid, final, inc, n in post])
+    with pytest.MonkeyPatch.context() as mp:
+        m, sleeps = _finish_on_a_fake_clock(w, mp)
+    if finals == set(w.ids):
+        assert len(sleeps) <= 1, len(sleeps)
+    else:
+        assert abs(len(sleeps) * 0.01 - FINAL_WAIT_S) < 0.015, (finals, len(sleeps))
+    assert w.st.rejects["type"] == sum(type(f) is not bool for _, f, _, _ in post), w.st.rejects
+    assert w.st.rejects["incarnation"] == sum(type(f) is bool and inc != 0 for _, f, inc, _ in post), w.st.rejects
+    assert m.link.sent == sum(last.get(vid, 1) for vid in w.ids)
