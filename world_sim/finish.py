@@ -147,9 +147,9 @@ class Finishing:
             # closes (AgentStats.final); one that does not (frozen, cut off) is waited for FINAL_WAIT_S
             deadline = time.monotonic() + FINAL_WAIT_S
             while time.monotonic() < deadline and not up <= self.st.finals:
-                self._drain(block=False)
+                self._drain(block=False, until=deadline)  # a flood that never lets the inbox empty: no longer
                 time.sleep(0.005)
-            self._drain(block=False)
+            self._drain(block=False, until=max(deadline, time.monotonic() + 0.005))
         wall = time.perf_counter() - self._t_start if self.started else 0.0
         metrics = run_metrics(self.scenario, self.recorder, mode=self.clock.name, link=self.link_metrics(),
                               wall_s=wall, policy=self.policy, events=self.events,

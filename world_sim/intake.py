@@ -46,13 +46,14 @@ class Intake:
         self._drain(block=False)
 
     # ------------------------------------------------------------------ from Zenoh
-    def _drain(self, block: bool) -> None:
+    def _drain(self, block: bool, until: float | None = None) -> None:
         """Handle what is waiting (and, if ``block`` and no command waits, wait for at least one
         sample), then answer at most ANSWERS_PER_PASS of the command queries waiting: the rest
-        wait for the next pass, after the fleet's grants and recording."""
+        wait for the next pass, after the fleet's grants and recording. ``until``: a
+        time.monotonic() after which it takes no more (an inbox that a flood keeps from emptying)."""
         if block and not self._queries:
             self._handle(self.inbox.recv(), answer=False)
-        while (sample := self.inbox.try_recv()) is not None:
+        while (until is None or time.monotonic() < until) and (sample := self.inbox.try_recv()) is not None:
             self._handle(sample, answer=False)
         self._answer_waiting()
 

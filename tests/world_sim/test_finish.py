@@ -177,3 +177,36 @@ def test_the_wait_ends_early_exactly_when_every_vehicle_up_sent_an_accepted_fina
     assert w.st.rejects["type"] == sum(type(f) is not bool for _, f, _, _ in post), w.st.rejects
     assert w.st.rejects["incarnation"] == sum(type(f) is bool and inc != 0 for _, f, inc, _ in post), w.st.rejects
     assert m.link.sent == sum(last.get(vid, 1) for vid in w.ids)
+
+
+class _Flood:
+    """An inbox a flood never lets empty: a malformed stats report for usv1 at each call, each
+    taking 1 ms of the fake clock ``now``; after ``cap`` of them it gives up (so that a world that
+    would drain it for ever fails the test instead of hanging it)."""
+
+    def __init__(self, now, cap=5000):
+        self.now, self.n, self.cap = now, 0, cap
+
+    def try_recv(self):
+        self.n += 1
+        if self.n > self.cap:
+            raise AssertionError(f"the world was still draining the flood after {self.cap} messages")
+        self.now[0] += 0.001
+        return Sample(keys.stats(FLEET, "usv1"), Payload(stats_payload(id="usv1", final="yes")))
+
+
+def test_a_flood_that_never_lets_the_inbox_empty_does_not_hold_the_end_of_the_run_past_its_wait(monkeypatch):
+    """An outsider on an open fleet floods the world's stats keys through its stop: the world
+    drained its inbox until it was empty, within and after the wait for the last reports, so a
+    flood faster than the world reads held the metrics (and the run's end) as long as it lasted.
+    Now it takes no more than the wait allows, counts what it took, and writes the metrics."""
+    import world_sim.finish as finish
+    from world_sim.limits import FINAL_WAIT_S
+    now = [0.0]
+    monkeypatch.setattr(finish.time, "monotonic", lambda: now[0])
+    monkeypatch.setattr(finish.time, "sleep", lambda s: now.__setitem__(0, now[0] + s))
+    w = started(world())
+    w.inbox = _Flood(now)
+    m = w.finish()
+    assert now[0] <= FINAL_WAIT_S + 0.02 and w.inbox.n > 0
+    assert w.st.rejects["type"] == w.inbox.n == m.link.rejected, (w.st.rejects, w.inbox.n)
