@@ -121,7 +121,7 @@ def test_the_last_status_says_how_the_run_ended_before_the_vehicles_are_told_to_
     w.pub_status.put = lambda p: (order.append(("status", decode_status(p).completion)), status_put(p))
     w.pub_ctl.put = lambda p: (order.append(("ctl", p)), ctl_put(p))
     w.stop_requested, w.completion = True, "stopped"
-    w._drain = lambda block=False: None  # no inbox here: the agents' last counters do not come
+    w._drain = lambda block=False, until=None: None  # no inbox here: the agents' last counters do not come
     m = w.finish()
     assert order[0] == ("status", "stopped") and order[1] == ("ctl", encode_control("stop"))
     assert m.completion == "stopped"
