@@ -461,8 +461,10 @@ class Launcher(FaultDispatch, WorldLostMetrics):
         # the world's stop reaches the processes that came up (declared their token); one that never
         # did (waiting for a neighbour's link that never came, or still starting) does not hear it and
         # would only run out the grace: it gets its SIGTERM below at once
-        told = {n for n in self.children if n == keys.WORLD or n in self.ever_alive}
-        if self.session is not None and world is not None and world.running():
+        if world is not None and world.running() and keys.WORLD not in self.ever_alive:  # a Ctrl-C as it starts:
+            self._wait_alive([keys.WORLD], self.opts.grace)  # its stop, put before it listens, was lost (5 s)
+        told = {n for n in self.children if n in self.ever_alive}
+        if self.session is not None and world is not None and world.running() and keys.WORLD in told:
             try:
                 self.session.put(keys.world_cmd(self.fleet, keys.LAUNCHER), encode_control("stop"))
                 self._wait_exit(self.opts.grace, told)  # the world stops the agents

@@ -261,9 +261,12 @@ def limit_lines(scenario: Scenario) -> list[str]:
     for plant, ids in bare.items():
         more = len(ids) - LATE_NAMED
         who = ", ".join(printable(i, 64) for i in ids[:LATE_NAMED]) + (f" and {more} more" if more > 0 else "")
-        lines.append(f"note: {who} ({plant}) {'has' if len(ids) == 1 else 'have'} no limits: thrust, acceleration and speed are unbounded; "
-                     f"add limits = {{ preset = true }} to their table or [defaults] for the preset's "
-                     f"(docs/safety.md), or limits = {{ speed = ... }}")
+        one = len(ids) == 1  # the fix as a --set too: the plant was often switched on with one
+        fix = f"vehicle.{ids[0]}.limits.preset=true" if one else "defaults.limits.preset=true"
+        lines.append(f"note: {who} ({plant}) {'has' if one else 'have'} no limits: thrust, acceleration and speed are "
+                     f"unbounded; for the preset's, add limits = {{ preset = true }} to {'its [[vehicle]]' if one else 'their [[vehicle]]s'} "
+                     f"or to [defaults] (or --set {fix}), or limits = {{ speed = ... }} "
+                     f"(docs/config.md, 'Limits per preset')")
     return lines
 
 

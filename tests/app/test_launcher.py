@@ -8,6 +8,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 
 import pytest
 
@@ -417,6 +418,49 @@ def test_stop_does_not_wait_out_the_grace_for_a_vehicle_that_never_came_up(tmp_p
 
 
 from tests.fullfs import full_fs  # noqa: E402,F401  (the fixture)
+
+
+class PutLog:
+    """The router's session as the stop ladder uses it: what was put, and whether the world had
+    come up (declared its token) when it was."""
+
+    def __init__(self, la: Launcher) -> None:
+        self.la, self.puts = la, []
+
+    def put(self, key, payload, **kw) -> None:
+        self.puts.append((key, "world" in self.la.ever_alive))
+
+    def close(self) -> None:
+        pass
+
+
+def test_a_ctrl_c_while_the_world_starts_waits_for_it_to_listen_before_asking_it_to_stop(tmp_path):
+    """A Ctrl-C right after `cdus launch`: the world is still starting, not yet subscribed, and
+    a stop put then is heard by no one: the ladder ran out the whole grace (5 s) before its
+    SIGTERM. It now waits for the world's token (up to the grace), then asks it."""
+    la, lines = quiet_launcher(tmp_path, grace=30.0)
+    world = la.children["world"] = Child("world", [sys.executable, "-c", "import time; time.sleep(0.6)"],
+                                         la.logs / "world.log")  # up at 0.2 s below, then stops (here: by itself)
+    world.start(la.env)
+    la.session = log = PutLog(la)
+
+    def comes_up() -> None:
+        with la.cond:
+            la.alive.add("world")
+            la.ever_alive.add("world")
+            la.cond.notify_all()
+
+    timer = threading.Timer(0.2, comes_up)
+    timer.start()
+    try:
+        la.stop()
+        assert log.puts and all(up for _, up in log.puts), (log.puts, lines)  # asked once it listens
+        assert world.proc.returncode == 0, (world.proc.returncode, lines)  # and let finish, not SIGTERMed
+    finally:
+        timer.cancel()
+        if world.running():
+            world.signal_group(signal.SIGKILL)
+            world.proc.wait()
 
 
 def test_a_lost_world_on_a_full_disk_leaves_its_metrics_in_the_run_directory_or_printed(full_fs, tmp_path,

@@ -3,6 +3,7 @@ at all runs with unbounded actuators: accepted, and said once where the run star
 (cdus.sim.reports.limit_lines), never silent (a usv_3dof boat switched on with --set reached
 870 m/s with no word)."""
 
+import re
 import subprocess
 import sys
 
@@ -23,6 +24,26 @@ def test_a_plant_switched_on_without_limits_is_named_by_plant():
         "vehicle.uav3.plant": "uav_double_integrator"}))
     assert [line.split(" no limits")[0] for line in both] == [
         "note: usv1, usv2 (usv_3dof) have", "note: uav3 (uav_double_integrator) has"]
+
+
+def test_the_set_the_note_names_gives_the_presets_limits_and_silences_it():
+    """A newcomer switches a plant on with --set: the note names the --set that fixes it (it named
+    only a table to edit), and that --set, as printed, takes the preset's limits."""
+    for plants in ({"vehicle.usv1.plant": "usv_3dof"},
+                   {"vehicle.usv1.plant": "usv_3dof", "vehicle.uav2.plant": "uav_double_integrator",
+                    "vehicle.uav3.plant": "uav_double_integrator"}):
+        notes = limit_lines(load_scenario("configs/lake_circle.toml", plants))
+        named = [re.search(r"--set (\S+)\)", n) for n in notes]
+        assert notes and all(named), notes  # each note says the --set that fixes it
+        sets = dict(m.group(1).split("=", 1) for m in named)
+        sc = load_scenario("configs/lake_circle.toml", {**plants, **{k: _table(v) for k, v in sets.items()}})
+        assert limit_lines(sc) == [], sets
+        switched = {k.split(".")[1] for k in plants}
+        preset = load_scenario("configs/lake_circle.toml", {**plants, **{
+            f"vehicle.{vid}.limits": _table("{ preset = true }") for vid in switched}})
+        assert [v.limits for v in sc.vehicles if v.id in switched] == [
+            v.limits for v in preset.vehicles if v.id in switched], sets
+        assert all(v.limits for v in sc.vehicles if v.id in switched)
 
 
 def test_any_limit_given_is_a_choice_and_no_note():
