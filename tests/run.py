@@ -11,7 +11,7 @@ argument goes to both phases (``tests/run.py tests/core`` runs what of tests/cor
 has). The exit status is the worse of the two (a phase with nothing to run counts as passed).
 Plain ``python3 -m pytest`` still runs everything in one serial pass.
 
-Both phases keep compiled bytecode, outside the tree (:func:`bytecode_env`): with
+Both phases keep compiled bytecode, outside the tree, in the user's cache directory (:func:`bytecode_env`): with
 PYTHONDONTWRITEBYTECODE set, as on this machine, every process a test starts compiled cdus from
 source again (measured: a 1 s lockstep launch of lake_circle 3.3 s -> 2.7 s), and every pytest
 process rewrote every test module's asserts again (collection 9.6 s -> 4.5 s).
@@ -22,7 +22,6 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -32,10 +31,13 @@ NO_TESTS = 5  # pytest's exit status when it collected nothing
 
 def bytecode_env(env: dict[str, str]) -> dict[str, str]:
     """``env`` with bytecode kept: PYTHONDONTWRITEBYTECODE dropped, and, unless the caller chose a
-    place, PYTHONPYCACHEPREFIX a folder of the temporary directory, so nothing is written into
-    the tree (the caches are the interpreter's and pytest's own, keyed by source)."""
+    place, PYTHONPYCACHEPREFIX a folder of the user's cache directory (``$XDG_CACHE_HOME``, else
+    ``~/.cache``), so nothing is written into the tree (the caches are the interpreter's and
+    pytest's own, keyed by source). Not a fixed name in the shared temporary directory: another
+    user could create it first and plant bytecode there."""
     out = {k: v for k, v in env.items() if k != "PYTHONDONTWRITEBYTECODE"}
-    out.setdefault("PYTHONPYCACHEPREFIX", str(Path(tempfile.gettempdir()) / f"cdus-pycache-{os.getuid()}"))
+    cache = Path(env.get("XDG_CACHE_HOME") or Path(env.get("HOME") or Path.home()) / ".cache")
+    out.setdefault("PYTHONPYCACHEPREFIX", str(cache / "cdus" / "pycache"))
     return out
 
 

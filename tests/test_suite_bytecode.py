@@ -13,11 +13,12 @@ from tests.run import bytecode_env
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def test_bytecode_is_kept_in_a_cache_of_the_temporary_directory_unless_the_caller_chose_one(tmp_path):
-    env = bytecode_env({"PYTHONDONTWRITEBYTECODE": "1", "HOME": "/root"})
-    assert "PYTHONDONTWRITEBYTECODE" not in env and env["HOME"] == "/root"
-    prefix = Path(env["PYTHONPYCACHEPREFIX"])
-    assert prefix.is_absolute() and ROOT not in prefix.parents
+def test_bytecode_is_kept_in_the_users_cache_directory_unless_the_caller_chose_a_place(tmp_path):
+    env = bytecode_env({"PYTHONDONTWRITEBYTECODE": "1", "HOME": "/home/ann"})
+    assert "PYTHONDONTWRITEBYTECODE" not in env and env["HOME"] == "/home/ann"
+    assert env["PYTHONPYCACHEPREFIX"] == "/home/ann/.cache/cdus/pycache"  # the user's own, not a shared /tmp name
+    xdg = bytecode_env({"HOME": "/home/ann", "XDG_CACHE_HOME": str(tmp_path)})["PYTHONPYCACHEPREFIX"]
+    assert xdg == str(tmp_path / "cdus" / "pycache") and ROOT not in Path(xdg).parents
     assert bytecode_env({"PYTHONPYCACHEPREFIX": str(tmp_path)})["PYTHONPYCACHEPREFIX"] == str(tmp_path)
 
 
