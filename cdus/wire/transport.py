@@ -287,7 +287,6 @@ def client_of(router: Transport, base: Transport | None = None) -> Transport:
     own, else its config file's (:func:`router_listen`; a router given only ``--zenoh-config
     FILE`` listens where the file says, and its clients went to DEFAULT_ENDPOINT: a launch's
     world and vehicles never reached it), an any-address one (``0.0.0.0``, ``[::]``) on loopback."""
-    eps = tuple(ep.replace("/0.0.0.0:", "/127.0.0.1:") for ep in router.listen) or tuple(
-        ep.replace("/0.0.0.0:", "/127.0.0.1:").replace("/[::]:", "/127.0.0.1:") for ep in router_listen(router))
+    eps = tuple(ep.replace("/0.0.0.0:", "/127.0.0.1:").replace("/[::]:", "/127.0.0.1:") for ep in router_listen(router))
     return Transport(mode="client", connect=eps, config_file=base.config_file if base else None,
                      lease_ms=router.lease_ms)
